@@ -1,0 +1,478 @@
+//! What a module says about itself when run with `--describe`: the contract between module
+//! binaries (in any language) and the tools that have never seen them (`armor probe`, the studio).
+//!
+//! The XML form is documented in `docs/protocol.md`; [`ModuleDescription::to_xml`] writes it and
+//! [`ModuleDescription::from_xml`] reads it back, reporting problems with line and column.
+
+use std::fmt;
+use std::str::FromStr;
+
+use crate::xml::{self, Element, Located};
+
+/// The type of a parameter value, as written in XML (`bool`, `int`, `float`, `string`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ParamType {
+    Bool,
+    Int,
+    Float,
+    String,
+}
+
+impl ParamType {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ParamType::Bool => "bool",
+            ParamType::Int => "int",
+            ParamType::Float => "float",
+            ParamType::String => "string",
+        }
+    }
+
+    /// Checks that `value` is a valid literal of this type; the error says why in words.
+    pub fn check_value(self, value: &str) -> Result<(), String> {
+        let ok = match self {
+            ParamType::Bool => matches!(value.trim(), "true" | "false"),
+            ParamType::Int => value.trim().parse::<i64>().is_ok(),
+            ParamType::Float => value.trim().parse::<f64>().is_ok_and(f64::is_finite),
+            ParamType::String => true,
+        };
+        if ok {
+            Ok(())
+        } else {
+            let expected = match self {
+                ParamType::Bool => "`true` or `false`",
+                ParamType::Int => "a whole number",
+                ParamType::Float => "a finite number",
+                ParamType::String => "text",
+            };
+            Err(format!("`{value}` is not {expected}"))
+        }
+    }
+}
+
+impl fmt::Display for ParamType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for ParamType {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "bool" => Ok(ParamType::Bool),
+            "int" => Ok(ParamType::Int),
+            "float" => Ok(ParamType::Float),
+            "string" => Ok(ParamType::String),
+            other => Err(format!(
+                "unknown parameter type `{other}` (expected bool, int, float or string)"
+            )),
+        }
+    }
+}
+
+/// An input or an output of a module.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PortSpec {
+    pub name: String,
+    /// The data type carried, for example `Counter` or `LaserScan`; links must match it exactly.
+    pub data_type: String,
+    pub doc: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParamSpec {
+    pub name: String,
+    pub param_type: ParamType,
+    /// Unit of the value (`s`, `m/s`, ...), empty when the value has none.
+    pub unit: String,
+    /// The value used when the configuration gives none; `None` makes the parameter required.
+    pub default: Option<String>,
+    pub doc: String,
+}
+
+impl ParamSpec {
+    pub fn new(name: &str, param_type: ParamType, doc: &str) -> Self {
+        Self {
+            name: name.to_owned(),
+            param_type,
+            unit: String::new(),
+            default: None,
+            doc: doc.to_owned(),
+        }
+    }
+
+    pub fn unit(mut self, unit: &str) -> Self {
+        self.unit = unit.to_owned();
+        self
+    }
+
+    pub fn default(mut self, value: &str) -> Self {
+        self.default = Some(value.to_owned());
+        self
+    }
+
+    pub fn is_required(&self) -> bool {
+        self.default.is_none()
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EventSpec {
+    pub name: String,
+    pub doc: String,
+}
+
+/// Everything a tool needs to know about a module type without running it for real.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ModuleDescription {
+    /// The module type; its binary is `armor-mod-<module_type>`.
+    pub module_type: String,
+    pub version: String,
+    /// One line saying what the module does.
+    pub doc: String,
+    pub inputs: Vec<PortSpec>,
+    pub outputs: Vec<PortSpec>,
+    pub params: Vec<ParamSpec>,
+    pub events: Vec<EventSpec>,
+    /// `false` for modules the mission controller must never stop (operator interfaces).
+    pub controllable: bool,
+}
+
+impl ModuleDescription {
+    pub fn new(module_type: &str, doc: &str) -> Self {
+        Self {
+            module_type: module_type.to_owned(),
+            version: "0.0.0".to_owned(),
+            doc: doc.to_owned(),
+            inputs: Vec::new(),
+            outputs: Vec::new(),
+            params: Vec::new(),
+            events: Vec::new(),
+            controllable: true,
+        }
+    }
+
+    pub fn input(&self, name: &str) -> Option<&PortSpec> {
+        self.inputs.iter().find(|port| port.name == name)
+    }
+
+    pub fn output(&self, name: &str) -> Option<&PortSpec> {
+        self.outputs.iter().find(|port| port.name == name)
+    }
+
+    pub fn param(&self, name: &str) -> Option<&ParamSpec> {
+        self.params.iter().find(|param| param.name == name)
+    }
+
+    pub fn event(&self, name: &str) -> Option<&EventSpec> {
+        self.events.iter().find(|event| event.name == name)
+    }
+
+    pub fn to_xml(&self) -> String {
+        use std::fmt::Write as _;
+        let e = |s: &str| xml::escape(s).into_owned();
+        let mut out = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+        let _ = writeln!(
+            out,
+            "<module type=\"{}\" version=\"{}\" controllable=\"{}\">",
+            e(&self.module_type),
+            e(&self.version),
+            self.controllable
+        );
+        let _ = writeln!(out, "  <doc>{}</doc>", e(&self.doc));
+        for (tag, ports) in [("input", &self.inputs), ("output", &self.outputs)] {
+            for port in ports {
+                let _ = writeln!(
+                    out,
+                    "  <{tag} name=\"{}\" type=\"{}\" doc=\"{}\"/>",
+                    e(&port.name),
+                    e(&port.data_type),
+                    e(&port.doc)
+                );
+            }
+        }
+        for param in &self.params {
+            let _ = write!(
+                out,
+                "  <param name=\"{}\" type=\"{}\"",
+                e(&param.name),
+                param.param_type
+            );
+            if !param.unit.is_empty() {
+                let _ = write!(out, " unit=\"{}\"", e(&param.unit));
+            }
+            match &param.default {
+                Some(default) => {
+                    let _ = write!(out, " default=\"{}\"", e(default));
+                }
+                None => out.push_str(" required=\"true\""),
+            }
+            let _ = writeln!(out, " doc=\"{}\"/>", e(&param.doc));
+        }
+        for event in &self.events {
+            let _ = writeln!(
+                out,
+                "  <event name=\"{}\" doc=\"{}\"/>",
+                e(&event.name),
+                e(&event.doc)
+            );
+        }
+        out.push_str("</module>\n");
+        out
+    }
+
+    /// Reads a description, reporting every problem found (not just the first).
+    pub fn from_xml(text: &str) -> Result<Self, Vec<Located>> {
+        let root = xml::parse(text).map_err(|err| vec![err])?;
+        let mut problems = Vec::new();
+        if root.name != "module" {
+            return Err(vec![Located::new(
+                root.pos,
+                format!("expected <module> at the top, found <{}>", root.name),
+            )]);
+        }
+        problems.extend(root.unknown_attrs(&["type", "version", "controllable"]));
+        problems.extend(root.unknown_children(&["doc", "input", "output", "param", "event"]));
+        let mut description = ModuleDescription::new("", "");
+        match root.required_attr("type") {
+            Ok(attr) if is_identifier(&attr.value) => description.module_type = attr.value.clone(),
+            Ok(attr) => problems.push(Located::new(
+                attr.pos,
+                format!(
+                    "module type `{}` must be letters, digits, `_` or `-`",
+                    attr.value
+                ),
+            )),
+            Err(err) => problems.push(err),
+        }
+        description.version = root.attr_value("version").unwrap_or("0.0.0").to_owned();
+        if let Some(attr) = root.attr("controllable") {
+            match attr.value.as_str() {
+                "true" => description.controllable = true,
+                "false" => description.controllable = false,
+                other => problems.push(Located::new(
+                    attr.pos,
+                    format!("`controllable` must be `true` or `false`, not `{other}`"),
+                )),
+            }
+        }
+        for child in &root.children {
+            let doc = child.attr_value("doc").unwrap_or_default().to_owned();
+            match child.name.as_str() {
+                "doc" => description.doc = child.text.trim().to_owned(),
+                "input" | "output" => {
+                    problems.extend(child.unknown_attrs(&["name", "type", "doc"]));
+                    let (Some(name), Some(data_type)) = (
+                        named(child, &mut problems),
+                        attr_or_problem(child, "type", &mut problems),
+                    ) else {
+                        continue;
+                    };
+                    let ports = if child.name == "input" {
+                        &mut description.inputs
+                    } else {
+                        &mut description.outputs
+                    };
+                    if ports.iter().any(|port| port.name == name) {
+                        problems.push(Located::new(
+                            child.pos,
+                            format!("{} `{name}` is declared twice", child.name),
+                        ));
+                    }
+                    ports.push(PortSpec {
+                        name,
+                        data_type,
+                        doc,
+                    });
+                }
+                "param" => {
+                    problems
+                        .extend(child.unknown_attrs(&[
+                            "name", "type", "unit", "default", "required", "doc",
+                        ]));
+                    if let Some(param) = read_param(child, doc, &mut problems) {
+                        if description.param(&param.name).is_some() {
+                            problems.push(Located::new(
+                                child.pos,
+                                format!("parameter `{}` is declared twice", param.name),
+                            ));
+                        }
+                        description.params.push(param);
+                    }
+                }
+                "event" => {
+                    problems.extend(child.unknown_attrs(&["name", "doc"]));
+                    if let Some(name) = named(child, &mut problems) {
+                        description.events.push(EventSpec { name, doc });
+                    }
+                }
+                _ => {}
+            }
+        }
+        if problems.is_empty() {
+            Ok(description)
+        } else {
+            problems.sort_by_key(|problem| problem.pos);
+            Err(problems)
+        }
+    }
+}
+
+fn read_param(child: &Element, doc: String, problems: &mut Vec<Located>) -> Option<ParamSpec> {
+    let name = named(child, problems)?;
+    let type_attr = child
+        .required_attr("type")
+        .map_err(|err| problems.push(err))
+        .ok()?;
+    let param_type: ParamType = type_attr
+        .value
+        .parse()
+        .map_err(|err| problems.push(Located::new(type_attr.pos, err)))
+        .ok()?;
+    let default = child.attr("default");
+    let required = child.attr("required");
+    if let Some(required) = required {
+        let expected_required = default.is_none();
+        let stated: Option<bool> = required.value.parse().ok();
+        if stated != Some(expected_required) {
+            problems.push(Located::new(
+                required.pos,
+                format!(
+                    "parameter `{name}`: `required` must be `{expected_required}` when a default is {}",
+                    if default.is_some() { "given" } else { "absent" }
+                ),
+            ));
+        }
+    }
+    if let Some(default) = default
+        && let Err(why) = param_type.check_value(&default.value)
+    {
+        problems.push(Located::new(
+            default.pos,
+            format!("default of parameter `{name}` ({param_type}): {why}"),
+        ));
+    }
+    Some(ParamSpec {
+        name,
+        param_type,
+        unit: child.attr_value("unit").unwrap_or_default().to_owned(),
+        default: default.map(|attr| attr.value.clone()),
+        doc,
+    })
+}
+
+fn attr_or_problem(element: &Element, name: &str, problems: &mut Vec<Located>) -> Option<String> {
+    element
+        .required_attr(name)
+        .map(|attr| attr.value.clone())
+        .map_err(|err| problems.push(err))
+        .ok()
+}
+
+fn named(element: &Element, problems: &mut Vec<Located>) -> Option<String> {
+    let attr = element
+        .required_attr("name")
+        .map_err(|err| problems.push(err))
+        .ok()?;
+    if is_identifier(&attr.value) {
+        Some(attr.value.clone())
+    } else {
+        problems.push(Located::new(
+            attr.pos,
+            format!(
+                "name `{}` of <{}> must be letters, digits, `_` or `-`",
+                attr.value, element.name
+            ),
+        ));
+        None
+    }
+}
+
+/// Names of modules, ports, parameters and events: ASCII letters, digits, `_` and `-`, not
+/// starting with a digit or `-`. Dots are reserved to join them (`module.output`).
+pub fn is_identifier(name: &str) -> bool {
+    let mut chars = name.chars();
+    matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> ModuleDescription {
+        let mut description = ModuleDescription::new("counter", "Counts & publishes <numbers>.");
+        description.version = "1.2.3".into();
+        description.outputs.push(PortSpec {
+            name: "count".into(),
+            data_type: "Counter".into(),
+            doc: "the value".into(),
+        });
+        description.inputs.push(PortSpec {
+            name: "reset".into(),
+            data_type: "Counter".into(),
+            doc: String::new(),
+        });
+        description.params.push(
+            ParamSpec::new("period_secs", ParamType::Float, "time between values")
+                .unit("s")
+                .default("0.1"),
+        );
+        description
+            .params
+            .push(ParamSpec::new("label", ParamType::String, "a \"name\""));
+        description.events.push(EventSpec {
+            name: "done".into(),
+            doc: "limit reached".into(),
+        });
+        description.controllable = false;
+        description
+    }
+
+    #[test]
+    fn round_trips_through_xml() {
+        let description = sample();
+        assert_eq!(
+            ModuleDescription::from_xml(&description.to_xml()),
+            Ok(description)
+        );
+    }
+
+    fn check_problems(text: &str, expected: &[&str]) {
+        let problems = ModuleDescription::from_xml(text).expect_err("should be refused");
+        let got: Vec<String> = problems.iter().map(ToString::to_string).collect();
+        assert_eq!(got, expected);
+    }
+
+    #[test]
+    fn reports_every_problem_with_its_place() {
+        check_problems(
+            "<module type=\"x\">\n <param name=\"p\" type=\"float\" default=\"fast\"/>\n <output name=\"o\"/>\n <widget/>\n</module>",
+            &[
+                "2:31: default of parameter `p` (float): `fast` is not a finite number",
+                "3:2: <output> needs the attribute `type`",
+                "4:2: unknown element <widget> inside <module> (expected one of: doc, input, output, param, event)",
+            ],
+        );
+        check_problems(
+            "<module type=\"9lives\" controllable=\"maybe\"/>",
+            &[
+                "1:9: module type `9lives` must be letters, digits, `_` or `-`",
+                "1:23: `controllable` must be `true` or `false`, not `maybe`",
+            ],
+        );
+        check_problems("garbage", &["1:1: text outside the top-level element"]);
+    }
+
+    #[test]
+    fn parameter_values_are_checked_by_type() {
+        assert!(ParamType::Int.check_value("42").is_ok());
+        assert_eq!(
+            ParamType::Int.check_value("4.2"),
+            Err("`4.2` is not a whole number".into())
+        );
+        assert!(ParamType::Float.check_value("inf").is_err());
+        assert!(ParamType::Bool.check_value("yes").is_err());
+    }
+}

@@ -1,0 +1,774 @@
+//! The network transport of a [`Node`](crate::Node): one thread, one mio poll, every connection
+//! non-blocking. Nothing is handed between threads on the data path, which keeps a round trip
+//! close to raw TCP.
+//!
+//! Links heal themselves: the agent connection is retried until it answers (then outputs are
+//! registered again); an input whose provider goes away asks the agent again and reconnects; the
+//! supervisor connection is retried and the configuration it sends is applied as a reload.
+
+use std::collections::HashMap;
+use std::io::{self, ErrorKind};
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+use mio::net::{TcpListener, TcpStream};
+use mio::{Events, Interest, Poll, Token};
+
+use crate::node::{ApiError, Core};
+use crate::protocol::{
+    Advert, FromAgent, FromProvider, FromSupervisor, ToAgent, ToProvider, ToSupervisor,
+};
+use crate::wire::{Frame, FrameReader, OutBuffer, WireError};
+
+const LISTENER: Token = Token(0);
+const AGENT_RETRY: Duration = Duration::from_millis(250);
+const SUPERVISOR_RETRY: Duration = Duration::from_millis(250);
+const RELINK_DELAY: Duration = Duration::from_millis(100);
+const UNKNOWN_RETRY: Duration = Duration::from_millis(200);
+const LOOKUP_TIMEOUT: Duration = Duration::from_secs(2);
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+/// Past this many buffered bytes a subscriber's data is written at once rather than batched.
+const BATCH_BYTES: usize = 64 * 1024;
+/// Past this many buffered bytes a reliable subscriber makes the publisher wait.
+const RELIABLE_BACKLOG_BYTES: usize = 8 * 1024 * 1024;
+/// How long a publisher waits for a reliable subscriber before dropping it.
+const RELIABLE_STALL: Duration = Duration::from_secs(5);
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Role {
+    Agent,
+    Supervisor,
+    Input(usize),
+    /// Accepted on the data listener, waiting for its `Subscribe`.
+    Incoming,
+    Subscriber {
+        output: usize,
+        reliable: bool,
+    },
+}
+
+struct Conn {
+    stream: TcpStream,
+    reader: FrameReader,
+    out: OutBuffer,
+    role: Role,
+    hello_received: bool,
+    /// A reliable input stopped reading because its queue is full.
+    paused: bool,
+    handshake_deadline: Option<Instant>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Link {
+    Down { retry_at: Instant },
+    Up(Token),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum InputLink {
+    Unbound,
+    Resolve { at: Instant },
+    Asked { since: Instant },
+    Connecting(Token),
+    Linked(Token),
+}
+
+pub(crate) struct Net {
+    poll: Poll,
+    events: Events,
+    listener: TcpListener,
+    listen_addr: SocketAddr,
+    conns: HashMap<Token, Conn>,
+    next_token: usize,
+    agent_addr: SocketAddr,
+    agent: Link,
+    agent_lost_logged: bool,
+    supervisor_addr: Option<SocketAddr>,
+    supervisor: Link,
+    inputs: Vec<InputLink>,
+    subscribers: Vec<Vec<Token>>,
+}
+
+impl Net {
+    /// Binds the data listener and starts connecting to the agent. `supervisor` is an already
+    /// configured connection to the supervisor, if the module runs under one.
+    pub fn start(
+        core: &mut Core,
+        agent_addr: SocketAddr,
+        supervisor: Option<(SocketAddr, std::net::TcpStream)>,
+    ) -> Result<Self, ApiError> {
+        let poll = Poll::new()?;
+        let bind_host = if core.config.host.is_empty() {
+            "127.0.0.1"
+        } else {
+            core.config.host.as_str()
+        };
+        let bind: SocketAddr = format!("{bind_host}:0")
+            .parse()
+            .or_else(|_| format!("[{bind_host}]:0").parse())
+            .map_err(|_| {
+                io::Error::new(ErrorKind::InvalidInput, format!("bad host `{bind_host}`"))
+            })?;
+        let mut listener = TcpListener::bind(bind)?;
+        let listen_addr = listener.local_addr()?;
+        poll.registry()
+            .register(&mut listener, LISTENER, Interest::READABLE)?;
+        let now = Instant::now();
+        let mut net = Self {
+            poll,
+            events: Events::with_capacity(256),
+            listener,
+            listen_addr,
+            conns: HashMap::new(),
+            next_token: 1,
+            agent_addr,
+            agent: Link::Down { retry_at: now },
+            agent_lost_logged: false,
+            supervisor_addr: None,
+            supervisor: Link::Down { retry_at: now },
+            inputs: Vec::new(),
+            subscribers: vec![Vec::new(); core.outputs.len()],
+        };
+        if let Some((addr, stream)) = supervisor {
+            net.supervisor_addr = Some(addr);
+            stream.set_nonblocking(true)?;
+            let token = net.add_conn(TcpStream::from_std(stream), Role::Supervisor)?;
+            if let Some(conn) = net.conns.get_mut(&token) {
+                // The hello exchange and the first configuration happened before, blocking.
+                conn.hello_received = true;
+            }
+            net.supervisor = Link::Up(token);
+        }
+        net.inputs = core
+            .inputs
+            .iter()
+            .map(|slot| match slot.source {
+                Some(_) => InputLink::Resolve { at: now },
+                None => InputLink::Unbound,
+            })
+            .collect();
+        tracing::debug!(addr = %listen_addr, "data listener ready");
+        net.connect_agent(core);
+        Ok(net)
+    }
+
+    pub fn is_linked(&self, input: usize) -> bool {
+        matches!(self.inputs.get(input), Some(InputLink::Linked(_)))
+    }
+
+    fn add_conn(&mut self, mut stream: TcpStream, role: Role) -> io::Result<Token> {
+        let token = Token(self.next_token);
+        self.next_token += 1;
+        stream.set_nodelay(true)?;
+        self.poll.registry().register(
+            &mut stream,
+            token,
+            Interest::READABLE | Interest::WRITABLE,
+        )?;
+        self.conns.insert(
+            token,
+            Conn {
+                stream,
+                reader: FrameReader::default(),
+                out: OutBuffer::default(),
+                role,
+                hello_received: false,
+                paused: false,
+                handshake_deadline: None,
+            },
+        );
+        Ok(token)
+    }
+
+    fn open(&mut self, addr: SocketAddr, role: Role) -> io::Result<Token> {
+        let stream = TcpStream::connect(addr)?;
+        let token = self.add_conn(stream, role)?;
+        if let Some(conn) = self.conns.get_mut(&token) {
+            conn.out.push_hello();
+        }
+        Ok(token)
+    }
+
+    fn connect_agent(&mut self, core: &mut Core) {
+        match self.open(self.agent_addr, Role::Agent) {
+            Ok(token) => {
+                self.agent = Link::Up(token);
+                let register = ToAgent::Register {
+                    module: core.name.clone(),
+                    outputs: core
+                        .outputs
+                        .iter()
+                        .map(|slot| Advert {
+                            data_name: slot.data_name.clone(),
+                            data_type: slot.data_type.clone(),
+                            addr: self.listen_addr.to_string(),
+                        })
+                        .collect(),
+                };
+                self.queue_message(token, &register);
+                // Lookups that were waiting for the agent go out now.
+                for link in &mut self.inputs {
+                    if let InputLink::Asked { .. } = link {
+                        *link = InputLink::Resolve { at: Instant::now() };
+                    }
+                }
+            }
+            Err(err) => {
+                tracing::debug!(agent = %self.agent_addr, "cannot connect to the agent: {err}");
+                self.agent = Link::Down {
+                    retry_at: Instant::now() + AGENT_RETRY,
+                };
+            }
+        }
+    }
+
+    fn queue_message<T: serde::Serialize>(&mut self, token: Token, message: &T) {
+        if let Some(conn) = self.conns.get_mut(&token)
+            && let Err(err) = conn.out.push_message(message)
+        {
+            tracing::error!("cannot encode a control message: {err}");
+        }
+    }
+
+    pub fn to_supervisor(&mut self, message: &ToSupervisor) {
+        match self.supervisor {
+            Link::Up(token) => self.queue_message(token, message),
+            Link::Down { .. } if self.supervisor_addr.is_some() => {
+                tracing::warn!(?message, "supervisor unreachable; report lost");
+            }
+            Link::Down { .. } => tracing::debug!(?message, "no supervisor (standalone run)"),
+        }
+    }
+
+    /// Drops the current link of an input and looks its provider up again.
+    pub fn relink(&mut self, core: &mut Core, input: usize) {
+        if let Some(InputLink::Connecting(token) | InputLink::Linked(token)) =
+            self.inputs.get(input).copied()
+        {
+            self.remove_conn(token);
+        }
+        if let Some(link) = self.inputs.get_mut(input) {
+            *link = match core.inputs[input].source {
+                Some(_) => InputLink::Resolve { at: Instant::now() },
+                None => InputLink::Unbound,
+            };
+        }
+    }
+
+    pub fn publish(
+        &mut self,
+        core: &mut Core,
+        output: usize,
+        frame: &[u8],
+    ) -> Result<(), ApiError> {
+        let mut stalled = Vec::new();
+        for &token in &self.subscribers[output] {
+            let Some(conn) = self.conns.get_mut(&token) else {
+                continue;
+            };
+            let reliable = matches!(conn.role, Role::Subscriber { reliable: true, .. });
+            conn.out.push_frame(frame, !reliable);
+            if conn.out.pending_bytes() >= BATCH_BYTES {
+                match conn.out.flush_to(&mut conn.stream) {
+                    Ok(_) if reliable && conn.out.pending_bytes() > RELIABLE_BACKLOG_BYTES => {
+                        stalled.push(token)
+                    }
+                    Ok(_) => {}
+                    Err(_) => stalled.push(token),
+                }
+            }
+        }
+        for token in stalled {
+            self.wait_for_subscriber(core, token)?;
+        }
+        Ok(())
+    }
+
+    /// Back-pressure for a reliable subscriber: keep the loop turning (other connections too)
+    /// until its backlog drains, or drop it if it stays stuck.
+    fn wait_for_subscriber(&mut self, core: &mut Core, token: Token) -> Result<(), ApiError> {
+        let give_up = Instant::now() + RELIABLE_STALL;
+        loop {
+            let Some(conn) = self.conns.get_mut(&token) else {
+                return Ok(());
+            };
+            match conn.out.flush_to(&mut conn.stream) {
+                Ok(_) if conn.out.pending_bytes() <= RELIABLE_BACKLOG_BYTES => return Ok(()),
+                Ok(_) => {}
+                Err(err) => {
+                    tracing::info!("subscriber went away: {err}");
+                    self.close(core, token);
+                    return Ok(());
+                }
+            }
+            if Instant::now() >= give_up {
+                tracing::warn!(
+                    "a reliable subscriber has not read for {RELIABLE_STALL:?}; dropping it"
+                );
+                self.close(core, token);
+                return Ok(());
+            }
+            self.poll_once(core, Some(Instant::now() + Duration::from_millis(50)))?;
+        }
+    }
+
+    pub fn flush_all(&mut self, core: &mut Core) {
+        let mut broken = Vec::new();
+        for (&token, conn) in &mut self.conns {
+            if !conn.out.is_empty()
+                && let Err(err) = conn.out.flush_to(&mut conn.stream)
+            {
+                tracing::debug!(?token, "write failed: {err}");
+                broken.push(token);
+            }
+        }
+        for token in broken {
+            self.close(core, token);
+        }
+    }
+
+    /// One turn of the loop: write what is pending, wait for sockets or the next timer (or
+    /// `deadline`), then handle what happened.
+    pub fn poll_once(
+        &mut self,
+        core: &mut Core,
+        deadline: Option<Instant>,
+    ) -> Result<(), ApiError> {
+        self.flush_all(core);
+        self.resume_paused_inputs(core);
+        if !core.events.is_empty() {
+            return Ok(());
+        }
+        let now = Instant::now();
+        let wake = [deadline, self.next_timer()].into_iter().flatten().min();
+        let timeout = wake.map(|at| at.saturating_duration_since(now));
+        if let Err(err) = self.poll.poll(&mut self.events, timeout)
+            && err.kind() != ErrorKind::Interrupted
+        {
+            return Err(err.into());
+        }
+        let ready: Vec<(Token, bool, bool)> = self
+            .events
+            .iter()
+            .map(|event| {
+                (
+                    event.token(),
+                    event.is_readable() || event.is_read_closed() || event.is_error(),
+                    event.is_writable(),
+                )
+            })
+            .collect();
+        for (token, readable, writable) in ready {
+            if token == LISTENER {
+                self.accept_all();
+                continue;
+            }
+            if writable && let Some(conn) = self.conns.get_mut(&token) {
+                match conn.out.flush_to(&mut conn.stream) {
+                    Ok(_) => {}
+                    Err(err) => {
+                        self.fail(core, token, &err.into());
+                        continue;
+                    }
+                }
+            }
+            if readable {
+                self.read_conn(core, token);
+            }
+        }
+        self.run_timers(core);
+        Ok(())
+    }
+
+    fn next_timer(&self) -> Option<Instant> {
+        let agent_timer = match self.agent {
+            Link::Down { retry_at } => Some(retry_at),
+            Link::Up(_) => None,
+        };
+        let supervisor_timer = match self.supervisor {
+            Link::Down { retry_at } if self.supervisor_addr.is_some() => Some(retry_at),
+            _ => None,
+        };
+        let agent_up = matches!(self.agent, Link::Up(_));
+        let inputs = self.inputs.iter().filter_map(|link| match *link {
+            InputLink::Resolve { at } if agent_up => Some(at),
+            InputLink::Asked { since } => Some(since + LOOKUP_TIMEOUT),
+            _ => None,
+        });
+        let handshakes = self
+            .conns
+            .values()
+            .filter_map(|conn| conn.handshake_deadline);
+        [agent_timer, supervisor_timer]
+            .into_iter()
+            .flatten()
+            .chain(inputs)
+            .chain(handshakes)
+            .min()
+    }
+
+    fn run_timers(&mut self, core: &mut Core) {
+        let now = Instant::now();
+        if let Link::Down { retry_at } = self.agent
+            && retry_at <= now
+        {
+            self.connect_agent(core);
+        }
+        if let (Link::Down { retry_at }, Some(addr)) = (self.supervisor, self.supervisor_addr)
+            && retry_at <= now
+        {
+            match self.open(addr, Role::Supervisor) {
+                Ok(token) => {
+                    self.supervisor = Link::Up(token);
+                    let hello = ToSupervisor::Hello {
+                        module: core.name.clone(),
+                        pid: std::process::id(),
+                    };
+                    self.queue_message(token, &hello);
+                }
+                Err(_) => {
+                    self.supervisor = Link::Down {
+                        retry_at: now + SUPERVISOR_RETRY,
+                    }
+                }
+            }
+        }
+        if let Link::Up(agent) = self.agent {
+            for index in 0..self.inputs.len() {
+                let due = match self.inputs[index] {
+                    InputLink::Resolve { at } => at <= now,
+                    InputLink::Asked { since } => since + LOOKUP_TIMEOUT <= now,
+                    _ => false,
+                };
+                if let (true, Some(data_name)) = (due, core.inputs[index].source.clone()) {
+                    self.inputs[index] = InputLink::Asked { since: now };
+                    self.queue_message(agent, &ToAgent::Lookup { data_name });
+                }
+            }
+        }
+        let expired: Vec<Token> = self
+            .conns
+            .iter()
+            .filter(|(_, conn)| conn.handshake_deadline.is_some_and(|at| at <= now))
+            .map(|(&token, _)| token)
+            .collect();
+        for token in expired {
+            tracing::warn!(
+                "a peer did not finish its handshake within {HANDSHAKE_TIMEOUT:?}; dropped"
+            );
+            self.close(core, token);
+        }
+    }
+
+    fn accept_all(&mut self) {
+        loop {
+            match self.listener.accept() {
+                Ok((stream, peer)) => match self.add_conn(stream, Role::Incoming) {
+                    Ok(token) => {
+                        tracing::debug!(%peer, "subscriber connecting");
+                        if let Some(conn) = self.conns.get_mut(&token) {
+                            conn.out.push_hello();
+                            conn.handshake_deadline = Some(Instant::now() + HANDSHAKE_TIMEOUT);
+                        }
+                    }
+                    Err(err) => tracing::warn!(%peer, "cannot set up a subscriber: {err}"),
+                },
+                Err(err) if err.kind() == ErrorKind::WouldBlock => return,
+                Err(err) => {
+                    tracing::warn!("accept failed: {err}");
+                    return;
+                }
+            }
+        }
+    }
+
+    fn resume_paused_inputs(&mut self, core: &mut Core) {
+        let resumable: Vec<Token> = self
+            .conns
+            .iter()
+            .filter(|(_, conn)| {
+                conn.paused && matches!(conn.role, Role::Input(i) if core.inputs[i].has_room())
+            })
+            .map(|(&token, _)| token)
+            .collect();
+        for token in resumable {
+            if let Some(conn) = self.conns.get_mut(&token) {
+                conn.paused = false;
+            }
+            self.read_conn(core, token);
+        }
+    }
+
+    /// Reads everything the socket has (edge-triggered), handling each complete frame.
+    fn read_conn(&mut self, core: &mut Core, token: Token) {
+        loop {
+            let Some(conn) = self.conns.get_mut(&token) else {
+                return;
+            };
+            if conn.paused {
+                return;
+            }
+            match conn.reader.fill_from(&mut conn.stream) {
+                Ok(0) => {
+                    self.close(core, token);
+                    return;
+                }
+                Ok(_) => {}
+                Err(err) if err.kind() == ErrorKind::WouldBlock => return,
+                Err(err) if err.kind() == ErrorKind::Interrupted => continue,
+                Err(err) => {
+                    self.fail(core, token, &err.into());
+                    return;
+                }
+            }
+            if let Err(err) = self.handle_frames(core, token) {
+                self.fail(core, token, &err);
+                return;
+            }
+        }
+    }
+
+    fn handle_frames(&mut self, core: &mut Core, token: Token) -> Result<(), WireError> {
+        loop {
+            let Some(conn) = self.conns.get_mut(&token) else {
+                return Ok(());
+            };
+            if !conn.hello_received {
+                if !conn.reader.take_hello()? {
+                    return Ok(());
+                }
+                conn.hello_received = true;
+            }
+            if conn.paused {
+                return Ok(());
+            }
+            let Some(frame) = conn.reader.next_frame()? else {
+                return Ok(());
+            };
+            let role = conn.role;
+            match role {
+                Role::Agent => self.on_agent(core, frame.message()?),
+                Role::Supervisor => self.on_supervisor(core, token, frame.message()?),
+                Role::Input(index) => self.on_input(core, token, index, frame)?,
+                Role::Incoming => self.on_subscribe(core, token, frame.message()?),
+                Role::Subscriber { .. } => {
+                    return Err(WireError::BadMessage(serde::de::Error::custom(
+                        "subscribers must not send after subscribing",
+                    )));
+                }
+            }
+        }
+    }
+
+    fn on_agent(&mut self, core: &mut Core, message: FromAgent) {
+        match message {
+            FromAgent::Registered => {
+                self.agent_lost_logged = false;
+                tracing::debug!("registered with the agent");
+            }
+            FromAgent::Provider(advert) => {
+                for index in 0..self.inputs.len() {
+                    let waiting = matches!(self.inputs[index], InputLink::Asked { .. })
+                        && core.inputs[index].source.as_deref() == Some(advert.data_name.as_str());
+                    if waiting {
+                        self.connect_input(core, index, &advert);
+                    }
+                }
+            }
+            FromAgent::Unknown { data_name } => {
+                for index in 0..self.inputs.len() {
+                    if matches!(self.inputs[index], InputLink::Asked { .. })
+                        && core.inputs[index].source.as_deref() == Some(data_name.as_str())
+                    {
+                        self.inputs[index] = InputLink::Resolve {
+                            at: Instant::now() + UNKNOWN_RETRY,
+                        };
+                    }
+                }
+            }
+            FromAgent::Error { message } => tracing::warn!("agent: {message}"),
+        }
+    }
+
+    fn connect_input(&mut self, core: &mut Core, index: usize, advert: &Advert) {
+        let retry = InputLink::Resolve {
+            at: Instant::now() + RELINK_DELAY,
+        };
+        let Ok(addr) = advert.addr.parse::<SocketAddr>() else {
+            tracing::warn!(addr = advert.addr, "agent gave an unreadable address");
+            self.inputs[index] = retry;
+            return;
+        };
+        match self.open(addr, Role::Input(index)) {
+            Ok(token) => {
+                let slot = &core.inputs[index];
+                let subscribe = ToProvider::Subscribe {
+                    data_name: advert.data_name.clone(),
+                    data_type: slot.data_type.clone(),
+                    subscriber: format!("{}.{}", core.name, slot.name),
+                    reliable: slot.reliable,
+                };
+                self.queue_message(token, &subscribe);
+                self.inputs[index] = InputLink::Connecting(token);
+            }
+            Err(err) => {
+                tracing::debug!(%addr, "cannot connect to provider: {err}");
+                self.inputs[index] = retry;
+            }
+        }
+    }
+
+    fn on_supervisor(&mut self, core: &mut Core, token: Token, message: FromSupervisor) {
+        match message {
+            FromSupervisor::Config(config) => {
+                for input in core.apply_config(config) {
+                    self.relink(core, input);
+                }
+                self.queue_message(token, &ToSupervisor::Ready);
+            }
+            FromSupervisor::Start => core.set_active(true),
+            FromSupervisor::Stop => core.set_active(false),
+            FromSupervisor::Shutdown => core.events.push_back(crate::Event::Shutdown),
+            FromSupervisor::Ping => self.queue_message(token, &ToSupervisor::Pong),
+            FromSupervisor::Error { message } => tracing::error!("supervisor: {message}"),
+        }
+    }
+
+    fn on_input(
+        &mut self,
+        core: &mut Core,
+        token: Token,
+        index: usize,
+        frame: Frame,
+    ) -> Result<(), WireError> {
+        match frame {
+            Frame::Message(_) => match frame.message::<FromProvider>()? {
+                FromProvider::Subscribed => {
+                    tracing::info!(
+                        input = core.inputs[index].name,
+                        source = core.inputs[index].source.as_deref().unwrap_or_default(),
+                        "input linked"
+                    );
+                    self.inputs[index] = InputLink::Linked(token);
+                }
+                FromProvider::Refused { reason } => {
+                    tracing::warn!(
+                        input = core.inputs[index].name,
+                        "provider refused: {reason}"
+                    );
+                    self.remove_conn(token);
+                    self.inputs[index] = InputLink::Resolve {
+                        at: Instant::now() + Duration::from_secs(1),
+                    };
+                }
+            },
+            Frame::Data(data) => {
+                if !core.deliver(index, data)
+                    && let Some(conn) = self.conns.get_mut(&token)
+                {
+                    conn.paused = true;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn on_subscribe(&mut self, core: &mut Core, token: Token, message: ToProvider) {
+        let ToProvider::Subscribe {
+            data_name,
+            data_type,
+            subscriber,
+            reliable,
+        } = message;
+        let found = core
+            .outputs
+            .iter()
+            .position(|slot| slot.data_name == data_name);
+        let refusal = match found {
+            None => Some(format!("`{}` does not serve `{data_name}`", core.name)),
+            Some(output) if core.outputs[output].data_type != data_type => Some(format!(
+                "`{data_name}` carries {}, not {data_type}",
+                core.outputs[output].data_type
+            )),
+            Some(_) => None,
+        };
+        let reply = match &refusal {
+            Some(reason) => FromProvider::Refused {
+                reason: reason.clone(),
+            },
+            None => FromProvider::Subscribed,
+        };
+        self.queue_message(token, &reply);
+        let Some(conn) = self.conns.get_mut(&token) else {
+            return;
+        };
+        let _ = conn.out.flush_to(&mut conn.stream);
+        match (refusal, found) {
+            (None, Some(output)) => {
+                conn.role = Role::Subscriber { output, reliable };
+                conn.handshake_deadline = None;
+                self.subscribers[output].push(token);
+                tracing::info!(subscriber, data_name, "subscriber linked");
+            }
+            (refusal, _) => {
+                tracing::warn!(subscriber, "refused: {}", refusal.unwrap_or_default());
+                self.remove_conn(token);
+            }
+        }
+    }
+
+    fn fail(&mut self, core: &mut Core, token: Token, err: &WireError) {
+        let role = self.conns.get(&token).map(|conn| conn.role);
+        match role {
+            Some(Role::Incoming | Role::Subscriber { .. }) => {
+                tracing::warn!("dropping a peer: {err}");
+            }
+            _ => tracing::debug!(?role, "connection failed: {err}"),
+        }
+        self.close(core, token);
+    }
+
+    fn remove_conn(&mut self, token: Token) -> Option<Conn> {
+        let mut conn = self.conns.remove(&token)?;
+        let _ = self.poll.registry().deregister(&mut conn.stream);
+        Some(conn)
+    }
+
+    /// Forgets a connection and schedules whatever must replace it.
+    fn close(&mut self, core: &mut Core, token: Token) {
+        let Some(conn) = self.remove_conn(token) else {
+            return;
+        };
+        let now = Instant::now();
+        match conn.role {
+            Role::Agent => {
+                if !self.agent_lost_logged {
+                    tracing::warn!(agent = %self.agent_addr, "agent unreachable; links keep flowing, retrying");
+                    self.agent_lost_logged = true;
+                }
+                self.agent = Link::Down {
+                    retry_at: now + AGENT_RETRY,
+                };
+            }
+            Role::Supervisor => {
+                tracing::warn!("lost the supervisor; retrying");
+                self.supervisor = Link::Down {
+                    retry_at: now + SUPERVISOR_RETRY,
+                };
+            }
+            Role::Input(index) => {
+                if matches!(self.inputs[index], InputLink::Linked(_)) {
+                    tracing::info!(input = core.inputs[index].name, "provider gone; relinking");
+                }
+                self.inputs[index] = InputLink::Resolve {
+                    at: now + RELINK_DELAY,
+                };
+            }
+            Role::Subscriber { output, .. } => {
+                self.subscribers[output].retain(|&other| other != token);
+                tracing::info!(output = core.outputs[output].name, "subscriber left");
+            }
+            Role::Incoming => {}
+        }
+    }
+}

@@ -1,0 +1,528 @@
+//! The module author's handle on the system: typed ports, parameters, events and the event loop.
+//!
+//! ```no_run
+//! use armor_module_api::{Event, ModuleSpec, types::Counter};
+//!
+//! let spec = ModuleSpec::new("doubler", "Publishes twice each value it receives.")
+//!     .input::<Counter>("input", "values to double")
+//!     .output::<Counter>("output", "doubled values");
+//! armor_module_api::run(spec, |node| {
+//!     let input = node.input::<Counter>("input")?;
+//!     let output = node.output::<Counter>("output")?;
+//!     loop {
+//!         match node.next_event(None)? {
+//!             Event::Input(port) if port == input.id() => {
+//!                 if let Some(sample) = node.take(&input)? {
+//!                     node.send(&output, &Counter(sample.value.0 * 2))?;
+//!                 }
+//!             }
+//!             Event::Shutdown => return Ok(()),
+//!             _ => {}
+//!         }
+//!     }
+//! });
+//! ```
+
+use std::collections::{BTreeMap, VecDeque};
+use std::marker::PhantomData;
+use std::str::FromStr;
+use std::time::{Duration, Instant};
+
+use crate::clock::Clock;
+use crate::describe::ModuleDescription;
+use crate::net::Net;
+use crate::protocol::{ModuleConfig, ToSupervisor};
+use crate::types::{CodecError, Datum};
+use crate::wire::{self, DataFrame, WireError};
+
+/// A reliable input holds at most this many samples; beyond it the provider is made to wait.
+pub(crate) const RELIABLE_QUEUE_LEN: usize = 1024;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ApiError {
+    #[error("module `{module}` declares no {kind} `{port}`")]
+    UnknownPort {
+        module: String,
+        kind: &'static str,
+        port: String,
+    },
+    #[error("{kind} `{port}` carries {declared}, not {requested}")]
+    WrongType {
+        kind: &'static str,
+        port: String,
+        declared: String,
+        requested: &'static str,
+    },
+    #[error("parameter `{0}` is not declared and has no value")]
+    UnknownParam(String),
+    #[error("parameter `{name}`: cannot read `{value}`: {reason}")]
+    BadParam {
+        name: String,
+        value: String,
+        reason: String,
+    },
+    #[error("event `{0}` is not declared by this module")]
+    UnknownEvent(String),
+    #[error("cannot reach the supervisor at {addr} within {waited_secs:.1} s")]
+    NoSupervisor { addr: String, waited_secs: f64 },
+    #[error("the supervisor refused this module: {0}")]
+    Refused(String),
+    #[error(transparent)]
+    Codec(#[from] CodecError),
+    #[error(transparent)]
+    Wire(#[from] WireError),
+    #[error("network: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Identifies an input in [`Event::Input`]; compare with [`Input::id`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PortId(pub(crate) usize);
+
+/// What the event loop hands the module.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Event {
+    /// A new sample is ready on this input; read it with [`Node::take`].
+    Input(PortId),
+    /// These parameters have new values (live tuning from an edited configuration).
+    ParamsChanged(Vec<String>),
+    /// The controller activated the module.
+    Start,
+    /// The controller deactivated the module: it should idle (publish nothing, command nothing).
+    Stop,
+    /// The run is ending: return from the module body.
+    Shutdown,
+    /// The deadline given to [`Node::next_event_until`] has passed.
+    Timeout,
+}
+
+/// A received value with its provider's sequence number and run-clock stamp.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sample<T> {
+    pub seq: u64,
+    pub stamp_ns: u64,
+    pub value: T,
+}
+
+/// A typed handle on an output, from [`Node::output`].
+#[derive(Debug)]
+pub struct Output<T> {
+    index: usize,
+    _type: PhantomData<fn(T)>,
+}
+
+/// A typed handle on an input, from [`Node::input`] or [`Node::reliable_input`].
+#[derive(Debug)]
+pub struct Input<T> {
+    index: usize,
+    _type: PhantomData<fn() -> T>,
+}
+
+impl<T> Input<T> {
+    pub fn id(&self) -> PortId {
+        PortId(self.index)
+    }
+}
+
+impl<T> Output<T> {
+    pub(crate) fn index(&self) -> usize {
+        self.index
+    }
+}
+
+pub(crate) struct InputSlot {
+    pub name: String,
+    pub data_type: String,
+    /// The unique data name of the output feeding this input, if linked in the configuration.
+    pub source: Option<String>,
+    pub reliable: bool,
+    pub latest: Option<DataFrame>,
+    pub queue: VecDeque<DataFrame>,
+    /// An `Event::Input` for this slot is waiting in the event queue.
+    pub notified: bool,
+}
+
+impl InputSlot {
+    pub fn has_room(&self) -> bool {
+        !self.reliable || self.queue.len() < RELIABLE_QUEUE_LEN
+    }
+}
+
+pub(crate) struct OutputSlot {
+    pub name: String,
+    pub data_type: String,
+    pub data_name: String,
+    pub seq: u64,
+}
+
+/// The transport-independent state of a module: configuration, port slots and pending events.
+pub(crate) struct Core {
+    pub name: String,
+    pub description: ModuleDescription,
+    pub config: ModuleConfig,
+    pub clock: Clock,
+    pub active: bool,
+    pub inputs: Vec<InputSlot>,
+    pub outputs: Vec<OutputSlot>,
+    pub events: VecDeque<Event>,
+}
+
+impl Core {
+    pub fn new(
+        name: String,
+        description: ModuleDescription,
+        config: ModuleConfig,
+        clock: Clock,
+    ) -> Self {
+        let inputs = description
+            .inputs
+            .iter()
+            .map(|port| InputSlot {
+                name: port.name.clone(),
+                data_type: port.data_type.clone(),
+                source: config.inputs.get(&port.name).cloned(),
+                reliable: false,
+                latest: None,
+                queue: VecDeque::new(),
+                notified: false,
+            })
+            .collect();
+        let outputs = description
+            .outputs
+            .iter()
+            .map(|port| OutputSlot {
+                name: port.name.clone(),
+                data_type: port.data_type.clone(),
+                data_name: config
+                    .outputs
+                    .get(&port.name)
+                    .cloned()
+                    .unwrap_or_else(|| format!("{name}.{}", port.name)),
+                seq: 0,
+            })
+            .collect();
+        Self {
+            active: config.active,
+            name,
+            description,
+            config,
+            clock,
+            inputs,
+            outputs,
+            events: VecDeque::new(),
+        }
+    }
+
+    /// Stores a received sample. Returns whether the input can take more right now.
+    pub fn deliver(&mut self, index: usize, frame: DataFrame) -> bool {
+        let slot = &mut self.inputs[index];
+        if slot.reliable {
+            slot.queue.push_back(frame);
+        } else {
+            slot.latest = Some(frame);
+        }
+        if !slot.notified {
+            slot.notified = true;
+            self.events.push_back(Event::Input(PortId(index)));
+        }
+        slot.has_room()
+    }
+
+    /// Takes a new configuration. Returns the inputs whose source changed (to be relinked).
+    pub fn apply_config(&mut self, config: ModuleConfig) -> Vec<usize> {
+        let changed_params: Vec<String> = config
+            .params
+            .iter()
+            .filter(|(name, value)| self.config.params.get(*name) != Some(*value))
+            .map(|(name, _)| name.clone())
+            .chain(
+                self.config
+                    .params
+                    .keys()
+                    .filter(|name| !config.params.contains_key(*name))
+                    .cloned(),
+            )
+            .collect();
+        let mut relink = Vec::new();
+        for (index, slot) in self.inputs.iter_mut().enumerate() {
+            let source = config.inputs.get(&slot.name).cloned();
+            if source != slot.source {
+                slot.source = source;
+                relink.push(index);
+            }
+        }
+        self.config = config;
+        if !changed_params.is_empty() {
+            tracing::info!(params = ?changed_params, "new parameter values");
+            self.events.push_back(Event::ParamsChanged(changed_params));
+        }
+        relink
+    }
+
+    pub fn set_active(&mut self, active: bool) {
+        if self.active != active {
+            self.active = active;
+            self.events
+                .push_back(if active { Event::Start } else { Event::Stop });
+        }
+    }
+}
+
+pub(crate) enum Transport {
+    Net(Box<Net>),
+    /// No network: see [`crate::testing`].
+    Test(crate::testing::TestTransport),
+}
+
+/// A running module's connection to the system.
+pub struct Node {
+    pub(crate) core: Core,
+    pub(crate) transport: Transport,
+    scratch: Vec<u8>,
+}
+
+impl Node {
+    pub(crate) fn from_parts(core: Core, transport: Transport) -> Self {
+        Self {
+            core,
+            transport,
+            scratch: Vec::new(),
+        }
+    }
+
+    /// This module's instance name in the system.
+    pub fn name(&self) -> &str {
+        &self.core.name
+    }
+
+    pub fn description(&self) -> &ModuleDescription {
+        &self.core.description
+    }
+
+    pub fn clock(&self) -> &Clock {
+        &self.core.clock
+    }
+
+    /// Run time in seconds, common to every module of the run.
+    pub fn timestamp(&self) -> f64 {
+        self.core.clock.now_secs()
+    }
+
+    /// Whether the controller has the module active. Non-controllable modules always are.
+    pub fn is_active(&self) -> bool {
+        self.core.active || !self.core.description.controllable
+    }
+
+    /// The unique data name of an output (`module.output`).
+    pub fn data_name<T>(&self, output: &Output<T>) -> &str {
+        &self.core.outputs[output.index].data_name
+    }
+
+    /// A typed handle on a declared output.
+    pub fn output<T: Datum>(&self, name: &str) -> Result<Output<T>, ApiError> {
+        let index = self.port_index("output", name, T::TYPE, |core| {
+            core.outputs
+                .iter()
+                .map(|slot| (&slot.name, &slot.data_type))
+                .collect()
+        })?;
+        Ok(Output {
+            index,
+            _type: PhantomData,
+        })
+    }
+
+    /// A typed handle on a declared input that keeps only the newest sample: a slow module never
+    /// falls behind and never queues without bound.
+    pub fn input<T: Datum>(&mut self, name: &str) -> Result<Input<T>, ApiError> {
+        let index = self.port_index("input", name, T::TYPE, |core| {
+            core.inputs
+                .iter()
+                .map(|slot| (&slot.name, &slot.data_type))
+                .collect()
+        })?;
+        Ok(Input {
+            index,
+            _type: PhantomData,
+        })
+    }
+
+    /// Like [`Node::input`], but every sample is kept in order (up to a bounded queue, beyond
+    /// which the provider is made to wait). For recorders and checkers.
+    pub fn reliable_input<T: Datum>(&mut self, name: &str) -> Result<Input<T>, ApiError> {
+        let input = self.input::<T>(name)?;
+        if !self.core.inputs[input.index].reliable {
+            self.core.inputs[input.index].reliable = true;
+            if let Transport::Net(net) = &mut self.transport {
+                net.relink(&mut self.core, input.index);
+            }
+        }
+        Ok(input)
+    }
+
+    fn port_index(
+        &self,
+        kind: &'static str,
+        name: &str,
+        requested: &'static str,
+        ports: impl Fn(&Core) -> Vec<(&String, &String)>,
+    ) -> Result<usize, ApiError> {
+        let ports = ports(&self.core);
+        let (index, (_, declared)) = ports
+            .iter()
+            .enumerate()
+            .find(|(_, (port, _))| *port == name)
+            .ok_or_else(|| ApiError::UnknownPort {
+                module: self.core.name.clone(),
+                kind,
+                port: name.to_owned(),
+            })?;
+        if declared.as_str() != requested {
+            return Err(ApiError::WrongType {
+                kind,
+                port: name.to_owned(),
+                declared: (*declared).clone(),
+                requested,
+            });
+        }
+        Ok(index)
+    }
+
+    /// Publishes a value to every subscriber of the output. Values are written when the module
+    /// next waits for an event (or calls [`Node::flush`]), so a burst of sends shares system calls
+    /// without delaying anything the module waits on.
+    pub fn send<T: Datum>(&mut self, output: &Output<T>, value: &T) -> Result<(), ApiError> {
+        let slot = &mut self.core.outputs[output.index];
+        slot.seq += 1;
+        let seq = slot.seq;
+        let stamp_ns = self.core.clock.now_ns();
+        self.scratch.clear();
+        wire::encode_data(&mut self.scratch, seq, stamp_ns, |out| {
+            value
+                .encode(out)
+                .map_err(|err| WireError::Io(std::io::Error::other(err)))
+        })?;
+        match &mut self.transport {
+            Transport::Net(net) => net.publish(&mut self.core, output.index, &self.scratch)?,
+            Transport::Test(test) => test.publish(output.index, &self.scratch),
+        }
+        Ok(())
+    }
+
+    /// Writes everything sent so far without waiting for an event.
+    pub fn flush(&mut self) -> Result<(), ApiError> {
+        if let Transport::Net(net) = &mut self.transport {
+            net.flush_all(&mut self.core);
+        }
+        Ok(())
+    }
+
+    /// The newest sample of a best-effort input, or the oldest queued one of a reliable input.
+    pub fn take<T: Datum>(&mut self, input: &Input<T>) -> Result<Option<Sample<T>>, ApiError> {
+        let slot = &mut self.core.inputs[input.index];
+        let frame = if slot.reliable {
+            slot.queue.pop_front()
+        } else {
+            slot.latest.take()
+        };
+        let Some(frame) = frame else {
+            return Ok(None);
+        };
+        if !slot.queue.is_empty() && !slot.notified {
+            slot.notified = true;
+            self.core
+                .events
+                .push_back(Event::Input(PortId(input.index)));
+        }
+        let value = T::decode(&frame.payload)?;
+        Ok(Some(Sample {
+            seq: frame.seq,
+            stamp_ns: frame.stamp_ns,
+            value,
+        }))
+    }
+
+    /// Whether an input is linked to its provider right now.
+    pub fn is_linked<T>(&self, input: &Input<T>) -> bool {
+        match &self.transport {
+            Transport::Net(net) => net.is_linked(input.index),
+            Transport::Test(_) => true,
+        }
+    }
+
+    /// A parameter's current value, parsed (`f64`, `i64`, `bool`, `String`, ...).
+    pub fn param<T: FromStr>(&self, name: &str) -> Result<T, ApiError>
+    where
+        T::Err: std::fmt::Display,
+    {
+        let value = self
+            .core
+            .config
+            .params
+            .get(name)
+            .or_else(|| self.core.description.param(name)?.default.as_ref())
+            .ok_or_else(|| ApiError::UnknownParam(name.to_owned()))?;
+        value
+            .trim()
+            .parse()
+            .map_err(|err: T::Err| ApiError::BadParam {
+                name: name.to_owned(),
+                value: value.clone(),
+                reason: err.to_string(),
+            })
+    }
+
+    /// All parameter values as configured (defaults included).
+    pub fn params(&self) -> &BTreeMap<String, String> {
+        &self.core.config.params
+    }
+
+    /// Reports an event (for example `goal_reached`) to the mission controller.
+    pub fn report(&mut self, event: &str) -> Result<(), ApiError> {
+        if self.core.description.event(event).is_none() {
+            return Err(ApiError::UnknownEvent(event.to_owned()));
+        }
+        tracing::info!(event, "reporting event");
+        let message = ToSupervisor::Event {
+            name: event.to_owned(),
+        };
+        match &mut self.transport {
+            Transport::Net(net) => net.to_supervisor(&message),
+            Transport::Test(test) => test.reports.push(message),
+        }
+        Ok(())
+    }
+
+    /// Waits for the next event, at most `timeout` (forever with `None`).
+    pub fn next_event(&mut self, timeout: Option<Duration>) -> Result<Event, ApiError> {
+        let deadline = timeout.map(|timeout| Instant::now() + timeout);
+        self.wait_event(deadline)
+    }
+
+    /// Waits for the next event until a real-time deadline ([`Clock::instant_at`] converts run
+    /// time), returning [`Event::Timeout`] when it passes.
+    pub fn next_event_until(&mut self, deadline: Instant) -> Result<Event, ApiError> {
+        self.wait_event(Some(deadline))
+    }
+
+    fn wait_event(&mut self, deadline: Option<Instant>) -> Result<Event, ApiError> {
+        loop {
+            if let Some(event) = self.core.events.pop_front() {
+                if let Event::Input(PortId(index)) = event {
+                    self.core.inputs[index].notified = false;
+                }
+                return Ok(event);
+            }
+            match &mut self.transport {
+                Transport::Net(net) => {
+                    if deadline.is_some_and(|deadline| Instant::now() >= deadline) {
+                        net.flush_all(&mut self.core);
+                        return Ok(Event::Timeout);
+                    }
+                    net.poll_once(&mut self.core, deadline)?;
+                }
+                Transport::Test(test) => return Ok(test.next_event(&mut self.core, deadline)),
+            }
+        }
+    }
+}

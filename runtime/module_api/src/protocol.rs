@@ -1,0 +1,105 @@
+//! The control messages of each connection, one enum per direction (sent as JSON frames, see
+//! [`crate::wire`]). A module has three kinds of connection:
+//!
+//! * to the **agent** (name server): [`ToAgent`] / [`FromAgent`];
+//! * to the **supervisor** (the config server of `armor run`): [`ToSupervisor`] /
+//!   [`FromSupervisor`], which carry configuration, control and event reports;
+//! * to a **provider** of one of its inputs: [`ToProvider`] / [`FromProvider`], after which the
+//!   provider sends data frames.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+/// An output a module serves: its unique data name, data type and the address to subscribe at.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Advert {
+    pub data_name: String,
+    pub data_type: String,
+    pub addr: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum ToAgent {
+    /// Replaces everything this connection registered before.
+    Register {
+        module: String,
+        outputs: Vec<Advert>,
+    },
+    Lookup {
+        data_name: String,
+    },
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum FromAgent {
+    Registered,
+    Provider(Advert),
+    Unknown { data_name: String },
+    Error { message: String },
+}
+
+/// What a module needs to know to run: its port bindings and parameter values.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ModuleConfig {
+    pub module_type: String,
+    /// Input name → unique data name of the output feeding it (`module.output`).
+    pub inputs: BTreeMap<String, String>,
+    /// Output name → its unique data name.
+    pub outputs: BTreeMap<String, String>,
+    /// Parameter name → value, defaults included.
+    pub params: BTreeMap<String, String>,
+    /// Whether the module starts active (the mission controller may start it later).
+    pub active: bool,
+    /// The address the module's data listener binds to.
+    pub host: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum ToSupervisor {
+    Hello {
+        module: String,
+        pid: u32,
+    },
+    /// The module has its configuration and is at work.
+    Ready,
+    Event {
+        name: String,
+    },
+    Pong,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum FromSupervisor {
+    Config(ModuleConfig),
+    Start,
+    Stop,
+    Shutdown,
+    Ping,
+    Error { message: String },
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum ToProvider {
+    Subscribe {
+        data_name: String,
+        data_type: String,
+        /// `module.input`, for the provider's logs.
+        subscriber: String,
+        /// `false`: the subscriber wants only the newest sample and the provider may drop older
+        /// ones it has not started to send. `true`: every sample, with back-pressure.
+        reliable: bool,
+    },
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum FromProvider {
+    Subscribed,
+    Refused { reason: String },
+}

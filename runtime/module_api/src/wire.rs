@@ -1,0 +1,509 @@
+//! Framing: the bytes on every ArMoR TCP connection (documented in `docs/protocol.md`).
+//!
+//! A connection starts with both sides sending a 6-byte hello, `ARMR` followed by the protocol
+//! version as a little-endian `u16`. After it come frames: a little-endian `u32` length (of what
+//! follows it), one kind byte, then the payload. The length is checked against
+//! [`MAX_FRAME_BYTES`] before anything is allocated, so a peer announcing 4 GiB costs nothing.
+
+use std::collections::VecDeque;
+use std::io::{self, Read, Write};
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+pub const MAGIC: [u8; 4] = *b"ARMR";
+pub const VERSION: u16 = 1;
+pub const HELLO: [u8; 6] = [
+    MAGIC[0],
+    MAGIC[1],
+    MAGIC[2],
+    MAGIC[3],
+    VERSION as u8,
+    (VERSION >> 8) as u8,
+];
+/// Largest frame (kind byte and payload) a peer may send.
+pub const MAX_FRAME_BYTES: usize = 64 * 1024 * 1024;
+
+/// A control message, as UTF-8 JSON (see [`crate::protocol`]).
+pub const KIND_MESSAGE: u8 = 1;
+/// A data sample: `seq: u64 LE`, `stamp_ns: u64 LE`, then the encoded datum.
+pub const KIND_DATA: u8 = 2;
+const DATA_HEADER_BYTES: usize = 16;
+
+#[derive(Debug, thiserror::Error)]
+pub enum WireError {
+    #[error("peer is not an ArMoR endpoint (bad hello {0:02x?})")]
+    BadMagic([u8; 4]),
+    #[error("peer speaks protocol version {0}, this side speaks {VERSION}")]
+    BadVersion(u16),
+    #[error("peer announced a frame of {0} bytes, more than the {MAX_FRAME_BYTES} allowed")]
+    FrameTooLarge(usize),
+    #[error("empty frame (no kind byte)")]
+    EmptyFrame,
+    #[error("unknown frame kind {0}")]
+    UnknownKind(u8),
+    #[error("data frame of {0} bytes is shorter than its 16-byte header")]
+    ShortData(usize),
+    #[error("bad message: {0}")]
+    BadMessage(#[from] serde_json::Error),
+    #[error("expected a control message, got a data frame")]
+    UnexpectedData,
+    #[error("connection closed")]
+    Closed,
+    #[error(transparent)]
+    Io(#[from] io::Error),
+}
+
+pub fn check_hello(hello: &[u8; 6]) -> Result<(), WireError> {
+    let magic = [hello[0], hello[1], hello[2], hello[3]];
+    if magic != MAGIC {
+        return Err(WireError::BadMagic(magic));
+    }
+    let version = u16::from_le_bytes([hello[4], hello[5]]);
+    if version != VERSION {
+        return Err(WireError::BadVersion(version));
+    }
+    Ok(())
+}
+
+/// One decoded frame.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Frame {
+    Message(Vec<u8>),
+    Data(DataFrame),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct DataFrame {
+    pub seq: u64,
+    pub stamp_ns: u64,
+    pub payload: Vec<u8>,
+}
+
+impl Frame {
+    pub fn message<T: DeserializeOwned>(&self) -> Result<T, WireError> {
+        match self {
+            Frame::Message(json) => Ok(serde_json::from_slice(json)?),
+            Frame::Data(_) => Err(WireError::UnexpectedData),
+        }
+    }
+}
+
+/// Appends one message frame to `out`.
+pub fn encode_message<T: Serialize>(out: &mut Vec<u8>, message: &T) -> Result<(), WireError> {
+    let start = out.len();
+    out.extend_from_slice(&[0; 4]);
+    out.push(KIND_MESSAGE);
+    serde_json::to_writer(&mut *out, message)?;
+    finish_frame(out, start)
+}
+
+/// Appends one data frame to `out`; the payload is written by `write_payload`.
+pub fn encode_data(
+    out: &mut Vec<u8>,
+    seq: u64,
+    stamp_ns: u64,
+    write_payload: impl FnOnce(&mut Vec<u8>) -> Result<(), WireError>,
+) -> Result<(), WireError> {
+    let start = out.len();
+    out.extend_from_slice(&[0; 4]);
+    out.push(KIND_DATA);
+    out.extend_from_slice(&seq.to_le_bytes());
+    out.extend_from_slice(&stamp_ns.to_le_bytes());
+    if let Err(err) = write_payload(out) {
+        out.truncate(start);
+        return Err(err);
+    }
+    finish_frame(out, start)
+}
+
+fn finish_frame(out: &mut Vec<u8>, start: usize) -> Result<(), WireError> {
+    let len = out.len() - start - 4;
+    if len > MAX_FRAME_BYTES {
+        out.truncate(start);
+        return Err(WireError::FrameTooLarge(len));
+    }
+    out[start..start + 4].copy_from_slice(&(len as u32).to_le_bytes());
+    Ok(())
+}
+
+/// Reassembles frames from a byte stream that arrives in arbitrary pieces (non-blocking sockets).
+#[derive(Default)]
+pub struct FrameReader {
+    buf: Vec<u8>,
+    start: usize,
+}
+
+impl FrameReader {
+    /// Reads once from `source` into the buffer. `Ok(0)` means the peer closed the connection.
+    pub fn fill_from(&mut self, source: &mut impl Read) -> io::Result<usize> {
+        if self.start > 0 && self.start == self.buf.len() {
+            self.buf.clear();
+            self.start = 0;
+        } else if self.start > 1024 * 1024 {
+            self.buf.drain(..self.start);
+            self.start = 0;
+        }
+        // Read straight into room for the whole pending frame when it is large, in one call.
+        let pending = self.pending_frame_len().unwrap_or(0);
+        let want = pending
+            .saturating_sub(self.buf.len() - self.start)
+            .max(64 * 1024);
+        let filled = self.buf.len();
+        self.buf.resize(filled + want, 0);
+        let result = source.read(&mut self.buf[filled..]);
+        let got = *result.as_ref().unwrap_or(&0);
+        self.buf.truncate(filled + got);
+        result
+    }
+
+    fn pending_frame_len(&self) -> Option<usize> {
+        let header = self.buf.get(self.start..self.start + 4)?;
+        Some(u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize + 4)
+    }
+
+    /// The next complete frame in the buffer, if any.
+    pub fn next_frame(&mut self) -> Result<Option<Frame>, WireError> {
+        let Some(total) = self.pending_frame_len() else {
+            return Ok(None);
+        };
+        let len = total - 4;
+        if len > MAX_FRAME_BYTES {
+            return Err(WireError::FrameTooLarge(len));
+        }
+        if self.buf.len() - self.start < total {
+            return Ok(None);
+        }
+        let body = &self.buf[self.start + 4..self.start + total];
+        self.start += total;
+        decode_body(body).map(Some)
+    }
+
+    /// Takes the peer's 6-byte hello from the front of the buffer once it has arrived.
+    pub fn take_hello(&mut self) -> Result<bool, WireError> {
+        let Some(hello) = self.buf.get(self.start..self.start + 6) else {
+            return Ok(false);
+        };
+        let mut bytes = [0; 6];
+        bytes.copy_from_slice(hello);
+        check_hello(&bytes)?;
+        self.start += 6;
+        Ok(true)
+    }
+}
+
+fn decode_body(body: &[u8]) -> Result<Frame, WireError> {
+    let (&kind, rest) = body.split_first().ok_or(WireError::EmptyFrame)?;
+    match kind {
+        KIND_MESSAGE => Ok(Frame::Message(rest.to_vec())),
+        KIND_DATA => {
+            if rest.len() < DATA_HEADER_BYTES {
+                return Err(WireError::ShortData(rest.len()));
+            }
+            let (header, payload) = rest.split_at(DATA_HEADER_BYTES);
+            let mut seq = [0; 8];
+            let mut stamp = [0; 8];
+            seq.copy_from_slice(&header[..8]);
+            stamp.copy_from_slice(&header[8..]);
+            Ok(Frame::Data(DataFrame {
+                seq: u64::from_le_bytes(seq),
+                stamp_ns: u64::from_le_bytes(stamp),
+                payload: payload.to_vec(),
+            }))
+        }
+        other => Err(WireError::UnknownKind(other)),
+    }
+}
+
+/// Bytes waiting to be written to a non-blocking socket, kept with their frame boundaries so
+/// that a subscriber that wants only the latest value can drop stale frames it has not started
+/// to receive.
+#[derive(Default)]
+pub struct OutBuffer {
+    buf: Vec<u8>,
+    written: usize,
+    /// Offsets in `buf` where frames begin; a frame starting at or after `written` has not
+    /// started to go out.
+    frame_starts: VecDeque<usize>,
+}
+
+impl OutBuffer {
+    pub fn pending_bytes(&self) -> usize {
+        self.buf.len() - self.written
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pending_bytes() == 0
+    }
+
+    pub fn push_hello(&mut self) {
+        self.frame_starts.push_back(self.buf.len());
+        self.buf.extend_from_slice(&HELLO);
+    }
+
+    pub fn push_message<T: Serialize>(&mut self, message: &T) -> Result<(), WireError> {
+        let start = self.buf.len();
+        encode_message(&mut self.buf, message)?;
+        self.frame_starts.push_back(start);
+        Ok(())
+    }
+
+    /// Appends encoded frame bytes. With `latest_only`, frames queued behind the one being
+    /// written are dropped first: the reader only ever wants the newest.
+    pub fn push_frame(&mut self, frame: &[u8], latest_only: bool) {
+        if latest_only {
+            let unstarted = self
+                .frame_starts
+                .partition_point(|&start| start < self.written);
+            if let Some(&cut) = self.frame_starts.get(unstarted) {
+                self.buf.truncate(cut);
+                self.frame_starts.truncate(unstarted);
+            }
+        }
+        self.frame_starts.push_back(self.buf.len());
+        self.buf.extend_from_slice(frame);
+    }
+
+    /// Writes as much as the socket takes. `Ok(true)` when everything went out.
+    pub fn flush_to(&mut self, sink: &mut impl Write) -> io::Result<bool> {
+        while self.written < self.buf.len() {
+            match sink.write(&self.buf[self.written..]) {
+                Ok(0) => return Err(io::ErrorKind::WriteZero.into()),
+                Ok(n) => self.written += n,
+                Err(err) if err.kind() == io::ErrorKind::WouldBlock => {
+                    self.forget_written();
+                    return Ok(false);
+                }
+                Err(err) if err.kind() == io::ErrorKind::Interrupted => {}
+                Err(err) => return Err(err),
+            }
+        }
+        self.buf.clear();
+        self.written = 0;
+        self.frame_starts.clear();
+        Ok(true)
+    }
+
+    /// Drops bytes already sent, so a long backlog does not keep them.
+    fn forget_written(&mut self) {
+        while self
+            .frame_starts
+            .get(1)
+            .is_some_and(|&next| next <= self.written)
+        {
+            self.frame_starts.pop_front();
+        }
+        let Some(&first) = self.frame_starts.front() else {
+            return;
+        };
+        if first >= 1024 * 1024 {
+            self.buf.drain(..first);
+            self.written -= first;
+            for start in &mut self.frame_starts {
+                *start -= first;
+            }
+        }
+    }
+}
+
+/// Blocking helpers for simple peers (the agent, the config server, tools).
+pub mod blocking {
+    use super::*;
+
+    pub fn write_hello(stream: &mut impl Write) -> io::Result<()> {
+        stream.write_all(&HELLO)
+    }
+
+    pub fn read_hello(stream: &mut impl Read) -> Result<(), WireError> {
+        let mut hello = [0; 6];
+        read_exact(stream, &mut hello)?;
+        check_hello(&hello)
+    }
+
+    pub fn write_message<T: Serialize>(
+        stream: &mut impl Write,
+        message: &T,
+    ) -> Result<(), WireError> {
+        let mut out = Vec::new();
+        encode_message(&mut out, message)?;
+        stream.write_all(&out)?;
+        Ok(())
+    }
+
+    pub fn read_frame(stream: &mut impl Read) -> Result<Frame, WireError> {
+        let mut header = [0; 4];
+        read_exact(stream, &mut header)?;
+        let len = u32::from_le_bytes(header) as usize;
+        if len > MAX_FRAME_BYTES {
+            return Err(WireError::FrameTooLarge(len));
+        }
+        let mut body = vec![0; len];
+        read_exact(stream, &mut body)?;
+        decode_body(&body)
+    }
+
+    pub fn read_message<T: DeserializeOwned>(stream: &mut impl Read) -> Result<T, WireError> {
+        read_frame(stream)?.message()
+    }
+
+    fn read_exact(stream: &mut impl Read, buf: &mut [u8]) -> Result<(), WireError> {
+        stream.read_exact(buf).map_err(|err| match err.kind() {
+            io::ErrorKind::UnexpectedEof => WireError::Closed,
+            _ => WireError::Io(err),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A reader that hands out its bytes a few at a time, like a slow socket.
+    struct Trickle<'a> {
+        bytes: &'a [u8],
+        step: usize,
+    }
+
+    impl Read for Trickle<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            let n = self.step.min(self.bytes.len()).min(buf.len());
+            buf[..n].copy_from_slice(&self.bytes[..n]);
+            self.bytes = &self.bytes[n..];
+            Ok(n)
+        }
+    }
+
+    fn decode_all(bytes: &[u8], step: usize) -> Result<Vec<Frame>, WireError> {
+        let mut reader = FrameReader::default();
+        let mut source = Trickle { bytes, step };
+        let mut frames = Vec::new();
+        assert!(!reader.take_hello()?);
+        loop {
+            let got = reader.fill_from(&mut source)?;
+            reader.take_hello()?;
+            while let Some(frame) = reader.next_frame()? {
+                frames.push(frame);
+            }
+            if got == 0 {
+                return Ok(frames);
+            }
+        }
+    }
+
+    #[test]
+    fn frames_survive_any_split() {
+        let mut bytes = HELLO.to_vec();
+        encode_message(
+            &mut bytes,
+            &serde_json::json!({"type": "lookup", "data_name": "a.b"}),
+        )
+        .expect("encode");
+        encode_data(&mut bytes, 7, 99, |out| {
+            out.extend_from_slice(&[1, 2, 3]);
+            Ok(())
+        })
+        .expect("encode");
+        let big = vec![0xAB; 3 * 1024 * 1024];
+        encode_data(&mut bytes, 8, 100, |out| {
+            out.extend_from_slice(&big);
+            Ok(())
+        })
+        .expect("encode");
+        for step in [1, 5, 4096, usize::MAX] {
+            let frames = decode_all(&bytes, step).expect("decodes");
+            assert_eq!(frames.len(), 3, "step {step}");
+            assert_eq!(
+                frames[1],
+                Frame::Data(DataFrame {
+                    seq: 7,
+                    stamp_ns: 99,
+                    payload: vec![1, 2, 3]
+                })
+            );
+            assert!(matches!(&frames[2], Frame::Data(d) if d.seq == 8 && d.payload == big));
+        }
+    }
+
+    #[test]
+    fn hostile_input_is_refused_before_allocation() {
+        let mut bytes = HELLO.to_vec();
+        bytes.extend_from_slice(&u32::MAX.to_le_bytes());
+        assert!(matches!(
+            decode_all(&bytes, 64),
+            Err(WireError::FrameTooLarge(_))
+        ));
+        assert!(matches!(
+            blocking::read_frame(&mut &u32::MAX.to_le_bytes()[..]),
+            Err(WireError::FrameTooLarge(_))
+        ));
+        assert!(matches!(
+            decode_all(b"GET / HTTP/1.1\r\n", 64),
+            Err(WireError::BadMagic(_))
+        ));
+        assert!(matches!(
+            decode_all(b"ARMR\x09\x00", 64),
+            Err(WireError::BadVersion(9))
+        ));
+        let mut bytes = HELLO.to_vec();
+        bytes.extend_from_slice(&[3, 0, 0, 0, KIND_DATA, 1, 2]);
+        assert!(matches!(
+            decode_all(&bytes, 64),
+            Err(WireError::ShortData(2))
+        ));
+        let mut bytes = HELLO.to_vec();
+        bytes.extend_from_slice(&[1, 0, 0, 0, 77]);
+        assert!(matches!(
+            decode_all(&bytes, 64),
+            Err(WireError::UnknownKind(77))
+        ));
+    }
+
+    /// A sink that accepts a fixed number of bytes, then would block.
+    struct Choked {
+        room: usize,
+        got: Vec<u8>,
+    }
+
+    impl Write for Choked {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            if self.room == 0 {
+                return Err(io::ErrorKind::WouldBlock.into());
+            }
+            let n = self.room.min(buf.len());
+            self.room -= n;
+            self.got.extend_from_slice(&buf[..n]);
+            Ok(n)
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn latest_only_drops_stale_frames_but_never_a_started_one() {
+        let frame = |seq: u64| {
+            let mut out = Vec::new();
+            encode_data(&mut out, seq, 0, |_| Ok(())).expect("encode");
+            out
+        };
+        let mut out = OutBuffer::default();
+        let mut sink = Choked {
+            room: 10,
+            got: Vec::new(),
+        };
+        out.push_frame(&frame(1), true);
+        assert!(!out.flush_to(&mut sink).expect("flush"));
+        for seq in 2..10 {
+            out.push_frame(&frame(seq), true);
+        }
+        sink.room = usize::MAX;
+        assert!(out.flush_to(&mut sink).expect("flush"));
+        let mut reader = FrameReader::default();
+        reader.fill_from(&mut &sink.got[..]).expect("read");
+        let mut seqs = Vec::new();
+        while let Some(Frame::Data(data)) = reader.next_frame().expect("frame") {
+            seqs.push(data.seq);
+        }
+        assert_eq!(seqs, [1, 9]);
+    }
+}

@@ -1,0 +1,146 @@
+//! The central agent: a name server that answers "who serves this datum, at which address".
+//!
+//! It never carries data: modules connect to each other directly, so links keep flowing when the
+//! agent dies. A registration lives as long as the module's connection to the agent: when a
+//! module dies its entries go with it, and when the agent restarts, modules register again.
+
+use std::collections::HashMap;
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
+
+use armor_module_api::protocol::{Advert, FromAgent, ToAgent};
+use armor_module_api::wire::{WireError, blocking};
+
+/// How long a new connection has to send its hello.
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+
+struct Entry {
+    advert: Advert,
+    module: String,
+    conn_id: u64,
+}
+
+#[derive(Default)]
+struct Registry {
+    by_data_name: HashMap<String, Entry>,
+    next_conn_id: u64,
+}
+
+/// Serves agent connections until the process ends, one thread each.
+pub fn serve(listener: TcpListener) {
+    let registry = Arc::new(Mutex::new(Registry::default()));
+    for stream in listener.incoming() {
+        let stream = match stream {
+            Ok(stream) => stream,
+            Err(err) => {
+                tracing::warn!("accept failed: {err}");
+                continue;
+            }
+        };
+        let registry = Arc::clone(&registry);
+        let conn_id = {
+            let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+            registry.next_conn_id += 1;
+            registry.next_conn_id
+        };
+        std::thread::spawn(move || {
+            let peer = stream.peer_addr().ok();
+            if let Err(err) = serve_module(&registry, conn_id, stream) {
+                match err {
+                    WireError::Closed => {}
+                    err => tracing::warn!(?peer, "dropped a connection: {err}"),
+                }
+            }
+            forget(&registry, conn_id);
+        });
+    }
+}
+
+/// Starts an agent on a thread of this process (for benchmarks and tests).
+pub fn spawn(addr: SocketAddr) -> std::io::Result<SocketAddr> {
+    let listener = TcpListener::bind(addr)?;
+    let local = listener.local_addr()?;
+    std::thread::spawn(move || serve(listener));
+    Ok(local)
+}
+
+fn forget(registry: &Mutex<Registry>, conn_id: u64) {
+    let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+    registry.by_data_name.retain(|data_name, entry| {
+        let gone = entry.conn_id == conn_id;
+        if gone {
+            tracing::info!(data_name, module = entry.module, "provider unregistered");
+        }
+        !gone
+    });
+}
+
+fn serve_module(
+    registry: &Mutex<Registry>,
+    conn_id: u64,
+    mut stream: TcpStream,
+) -> Result<(), WireError> {
+    stream.set_nodelay(true)?;
+    stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
+    blocking::read_hello(&mut stream)?;
+    blocking::write_hello(&mut stream)?;
+    stream.set_read_timeout(None)?;
+    loop {
+        let reply = match blocking::read_message::<ToAgent>(&mut stream)? {
+            ToAgent::Register { module, outputs } => register(registry, conn_id, module, outputs),
+            ToAgent::Lookup { data_name } => {
+                let registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+                match registry.by_data_name.get(&data_name) {
+                    Some(entry) => FromAgent::Provider(entry.advert.clone()),
+                    None => FromAgent::Unknown { data_name },
+                }
+            }
+        };
+        blocking::write_message(&mut stream, &reply)?;
+    }
+}
+
+fn register(
+    registry: &Mutex<Registry>,
+    conn_id: u64,
+    module: String,
+    outputs: Vec<Advert>,
+) -> FromAgent {
+    let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+    // A data name belongs to one module. The same module registering again (it restarted before
+    // its old connection was noticed closed) takes it over; another module may not.
+    if let Some(clash) = outputs.iter().find_map(|advert| {
+        registry
+            .by_data_name
+            .get(&advert.data_name)
+            .filter(|entry| entry.conn_id != conn_id && entry.module != module)
+            .map(|entry| (advert.data_name.clone(), entry.module.clone()))
+    }) {
+        let (data_name, owner) = clash;
+        tracing::warn!(module, data_name, owner, "refused a registration");
+        return FromAgent::Error {
+            message: format!("`{data_name}` is already served by module `{owner}`"),
+        };
+    }
+    registry
+        .by_data_name
+        .retain(|_, entry| entry.conn_id != conn_id);
+    for advert in outputs {
+        tracing::info!(
+            data_name = advert.data_name,
+            addr = advert.addr,
+            module,
+            "provider registered"
+        );
+        registry.by_data_name.insert(
+            advert.data_name.clone(),
+            Entry {
+                advert,
+                module: module.clone(),
+                conn_id,
+            },
+        );
+    }
+    FromAgent::Registered
+}

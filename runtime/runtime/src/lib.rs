@@ -1,0 +1,14 @@
+//! The ArMoR runtime: the central agent ([`agent`]), the config server ([`config_server`]), the
+//! supervisor behind `armor run` ([`supervisor`]), module discovery and probing ([`probe`]), and
+//! loading and checking system files ([`load`]). The `armor` binary is a thin command line over
+//! these. Nothing here knows egui.
+
+pub mod agent;
+pub mod config_server;
+pub mod load;
+pub mod probe;
+pub mod supervisor;
+mod sys;
+
+/// The agent's first line on stdout, followed by the address it listens on.
+pub const AGENT_READY_PREFIX: &str = "armor agent listening on ";

@@ -1,0 +1,111 @@
+//! Reading a system file from disk and checking it against the module binaries it names.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use armor_model::{ModuleInstance, SystemConfig};
+use armor_module_api::ModuleDescription;
+use armor_module_api::protocol::ModuleConfig;
+use armor_module_api::xml::{Located, Pos};
+
+use crate::probe;
+
+/// A checked system and the descriptions of its module types.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    pub system: SystemConfig,
+    pub descriptions: BTreeMap<String, ModuleDescription>,
+}
+
+impl Loaded {
+    /// The configuration a module instance gets from the config server.
+    pub fn module_config(&self, module: &ModuleInstance) -> Option<ModuleConfig> {
+        let description = self.descriptions.get(&module.module_type);
+        let bindings = self.system.bindings(&module.name, description)?;
+        Some(ModuleConfig {
+            module_type: bindings.module_type,
+            inputs: bindings.inputs,
+            outputs: bindings.outputs,
+            params: bindings.params,
+            active: true,
+            host: module
+                .host
+                .clone()
+                .unwrap_or_else(|| self.system.host_or_default().to_owned()),
+        })
+    }
+}
+
+/// Every problem of a file, printed one per line as `FILE:LINE:COL: message`.
+#[derive(Debug)]
+pub struct Diagnostics {
+    pub file: PathBuf,
+    pub problems: Vec<Located>,
+}
+
+impl fmt::Display for Diagnostics {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, problem) in self.problems.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(
+                f,
+                "{}:{}: {}",
+                self.file.display(),
+                problem.pos,
+                problem.message
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for Diagnostics {}
+
+/// Reads, parses and checks a system file; probes the module types it uses on `module_path`.
+pub fn load_system(file: &Path, module_path: &[PathBuf]) -> Result<Loaded, Diagnostics> {
+    let fail = |problems| Diagnostics {
+        file: file.to_path_buf(),
+        problems,
+    };
+    let text = std::fs::read_to_string(file).map_err(|err| {
+        fail(vec![Located::new(
+            Pos { line: 1, col: 1 },
+            format!("cannot read the file: {err}"),
+        )])
+    })?;
+    let system = SystemConfig::parse(&text).map_err(fail)?;
+    let (descriptions, failures) = probe::describe_types(
+        module_path,
+        system
+            .modules
+            .iter()
+            .map(|module| module.module_type.as_str()),
+    );
+    let mut problems = armor_model::check(&system, &descriptions);
+    // A binary that exists but cannot describe itself is reported where its type is named
+    // (the model check has already said the type is unknown; say why).
+    for (module_type, binary, err) in failures {
+        for module in system
+            .modules
+            .iter()
+            .filter(|m| m.module_type == module_type)
+        {
+            problems.push(Located::new(
+                module.type_pos,
+                format!("module `{}`: {}: {err}", module.name, binary.display()),
+            ));
+        }
+    }
+    problems.sort_by_key(|problem| problem.pos);
+    if problems.is_empty() {
+        Ok(Loaded {
+            system,
+            descriptions,
+        })
+    } else {
+        Err(fail(problems))
+    }
+}

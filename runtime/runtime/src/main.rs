@@ -1,0 +1,231 @@
+//! `armor`: the ArMoR command line.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::Context as _;
+use armor_runtime::{agent, load, probe, supervisor};
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "armor",
+    version,
+    about = "ArMoR: run, check and probe modular robot systems"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a system: the agent, the config server and every module, until Ctrl-C.
+    Run {
+        /// The system XML file.
+        file: PathBuf,
+        /// Run time passes this many times faster than real time.
+        #[arg(long, default_value_t = 1.0)]
+        time_scale: f64,
+        /// Stop after this many (real) seconds.
+        #[arg(long = "for", value_name = "SECS")]
+        duration_secs: Option<f64>,
+        /// Address for the agent (default: a free port on the system's host).
+        #[arg(long)]
+        agent: Option<SocketAddr>,
+    },
+    /// Check a system file: schema, module types, links, parameters. Exit 1 on any problem.
+    Check {
+        /// The system XML file.
+        file: PathBuf,
+    },
+    /// Ask module binaries (files, or folders of armor-mod-* files) to describe themselves.
+    Probe {
+        /// Files or folders (default: the module path).
+        paths: Vec<PathBuf>,
+        /// Print each description as XML.
+        #[arg(long)]
+        xml: bool,
+        /// Seconds a binary may take to answer.
+        #[arg(long, default_value_t = 5.0)]
+        timeout_secs: f64,
+    },
+    /// Run the central agent (name server) alone.
+    Agent {
+        #[arg(long, default_value = armor_module_api::DEFAULT_AGENT)]
+        listen: SocketAddr,
+    },
+}
+
+fn main() -> ExitCode {
+    armor_module_api::init_logging();
+    match run(Cli::parse()) {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Run {
+            file,
+            time_scale,
+            duration_secs,
+            agent,
+        } => {
+            if !(time_scale.is_finite() && time_scale > 0.0) {
+                anyhow::bail!("--time-scale must be a positive number, not {time_scale}");
+            }
+            let duration = duration_secs
+                .map(|secs| {
+                    Duration::try_from_secs_f64(secs)
+                        .context("--for must be a positive number of seconds")
+                })
+                .transpose()?;
+            supervisor::run(supervisor::RunOptions {
+                file,
+                module_path: probe::module_path(),
+                time_scale,
+                duration,
+                agent_addr: agent,
+            })
+        }
+        Command::Check { file } => Ok(check(&file)),
+        Command::Probe {
+            paths,
+            xml,
+            timeout_secs,
+        } => {
+            let timeout = Duration::try_from_secs_f64(timeout_secs)
+                .context("--timeout-secs must be positive")?;
+            Ok(probe_command(paths, xml, timeout))
+        }
+        Command::Agent { listen } => {
+            let listener = std::net::TcpListener::bind(listen)
+                .with_context(|| format!("cannot listen on {listen}"))?;
+            let addr = listener.local_addr()?;
+            println!("{}{addr}", armor_runtime::AGENT_READY_PREFIX);
+            agent::serve(listener);
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}
+
+fn check(file: &std::path::Path) -> ExitCode {
+    match load::load_system(file, &probe::module_path()) {
+        Ok(loaded) => {
+            println!(
+                "{}: ok (system `{}`: {}, {})",
+                file.display(),
+                loaded.system.name,
+                plural(loaded.system.modules.len(), "module"),
+                plural(loaded.system.links.len(), "link")
+            );
+            ExitCode::SUCCESS
+        }
+        Err(diagnostics) => {
+            println!("{diagnostics}");
+            eprintln!("{}", plural(diagnostics.problems.len(), "problem"));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration) -> ExitCode {
+    let paths = if paths.is_empty() {
+        probe::module_path()
+    } else {
+        paths
+    };
+    let binaries = probe::list_modules(&paths);
+    if binaries.is_empty() {
+        eprintln!(
+            "error: no module binaries (armor-mod-*) in {}",
+            join_paths(&paths)
+        );
+        return ExitCode::FAILURE;
+    }
+    let mut failed = false;
+    for (binary, result) in probe::probe_all(&binaries, timeout) {
+        match result {
+            Ok(description) if xml => print!("{}", description.to_xml()),
+            Ok(description) => print!("{}", summary(&binary, &description)),
+            Err(err) => {
+                failed = true;
+                eprintln!("error: {}: {err}", binary.display());
+            }
+        }
+    }
+    if failed {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+fn plural(count: usize, noun: &str) -> String {
+    format!("{count} {noun}{}", if count == 1 { "" } else { "s" })
+}
+
+fn join_paths(paths: &[PathBuf]) -> String {
+    paths
+        .iter()
+        .map(|path| path.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn summary(binary: &std::path::Path, description: &armor_module_api::ModuleDescription) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{} {}{} ({}): {}",
+        description.module_type,
+        description.version,
+        if description.controllable {
+            ""
+        } else {
+            ", not controllable"
+        },
+        binary.display(),
+        description.doc
+    );
+    for (kind, ports) in [
+        ("input", &description.inputs),
+        ("output", &description.outputs),
+    ] {
+        for port in ports {
+            let _ = writeln!(
+                out,
+                "  {kind} {}: {} — {}",
+                port.name, port.data_type, port.doc
+            );
+        }
+    }
+    for param in &description.params {
+        let unit = if param.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" [{}]", param.unit)
+        };
+        let value = param.default.as_ref().map_or_else(
+            || " (required)".to_owned(),
+            |default| format!(" = {default}"),
+        );
+        let _ = writeln!(
+            out,
+            "  param {}: {}{unit}{value} — {}",
+            param.name, param.param_type, param.doc
+        );
+    }
+    for event in &description.events {
+        let _ = writeln!(out, "  event {} — {}", event.name, event.doc);
+    }
+    out
+}

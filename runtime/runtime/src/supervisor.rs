@@ -1,0 +1,537 @@
+//! `armor run`: starts the agent, the config server and every module process of a system,
+//! streams their logs with a module prefix, restarts modules that crash, and stops everything on
+//! Ctrl-C or SIGTERM. Children are in their own process group (Ctrl-C reaches only the
+//! supervisor, which stops them in order) and die with it if it is killed (`PR_SET_PDEATHSIG`).
+
+use std::collections::{BTreeMap, VecDeque};
+use std::io::{BufRead as _, BufReader, Read, Write as _};
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::{Child, Command, ExitCode, ExitStatus, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use armor_model::RestartPolicy;
+use armor_module_api::clock::{ENV_EPOCH, ENV_TIME_SCALE, unix_now_ns};
+use armor_module_api::protocol::FromSupervisor;
+use armor_module_api::{ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR};
+
+use crate::config_server::{ConfigServer, ServerEvent};
+use crate::load::{Loaded, load_system};
+use crate::probe;
+
+const TICK: Duration = Duration::from_millis(20);
+const FIRST_BACKOFF: Duration = Duration::from_millis(100);
+const MAX_BACKOFF: Duration = Duration::from_secs(5);
+/// More crashes than this within [`CRASH_WINDOW`] and a module is given up as failed.
+const MAX_CRASHES: usize = 5;
+const CRASH_WINDOW: Duration = Duration::from_secs(10);
+/// After asking modules to shut down, how long before SIGTERM, and then before SIGKILL.
+const SHUTDOWN_GRACE: Duration = Duration::from_secs(2);
+const TERM_GRACE: Duration = Duration::from_secs(1);
+const AGENT_START_TIMEOUT: Duration = Duration::from_secs(5);
+
+pub struct RunOptions {
+    pub file: PathBuf,
+    pub module_path: Vec<PathBuf>,
+    /// Run time passes this many times faster than real time.
+    pub time_scale: f64,
+    /// Stop after this much real time.
+    pub duration: Option<Duration>,
+    /// Where the agent listens; a free port on the system's host when `None`.
+    pub agent_addr: Option<SocketAddr>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ProcState {
+    Running,
+    /// Crashed; will be started again at the given instant.
+    Restarting(Instant),
+    /// Crashed too often, or crashed with restart `never`.
+    Failed,
+    /// Ended on its own with success and is not to be restarted.
+    Exited,
+}
+
+struct ModuleProc {
+    name: String,
+    module_type: String,
+    restart: RestartPolicy,
+    child: Option<Child>,
+    state: ProcState,
+    crashes: VecDeque<Instant>,
+    backoff: Duration,
+    restarts: u32,
+}
+
+/// What every child needs to join the run.
+struct RunEnv {
+    agent_addr: SocketAddr,
+    supervisor_addr: SocketAddr,
+    epoch_ns: u64,
+    time_scale: f64,
+    module_path: Vec<PathBuf>,
+}
+
+pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
+    let loaded = match load_system(&options.file, &options.module_path) {
+        Ok(loaded) => loaded,
+        Err(diagnostics) => {
+            eprintln!("{diagnostics}");
+            return Ok(ExitCode::FAILURE);
+        }
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, Arc::clone(&stop))
+            .context("cannot install signal handlers")?;
+    }
+    let host = loaded.system.host_or_default().to_owned();
+    let local = |port: u16| -> anyhow::Result<SocketAddr> {
+        format!("{host}:{port}")
+            .parse()
+            .or_else(|_| format!("[{host}]:{port}").parse())
+            .with_context(|| format!("bad host `{host}`"))
+    };
+    let mut agent = AgentProc::start(options.agent_addr.map_or_else(|| local(0), Ok)?)?;
+    let (server, events) =
+        ConfigServer::start(local(0)?, loaded.clone()).context("cannot start the config server")?;
+    if let Err(err) = server.watch(&options.file, options.module_path.clone()) {
+        tracing::warn!("cannot watch {} for changes: {err}", options.file.display());
+    }
+    let env = RunEnv {
+        agent_addr: agent.addr,
+        supervisor_addr: server.addr(),
+        epoch_ns: unix_now_ns(),
+        time_scale: options.time_scale,
+        module_path: options.module_path.clone(),
+    };
+    let started = Instant::now();
+    tracing::info!(
+        system = loaded.system.name,
+        modules = loaded.system.modules.len(),
+        config_server = %server.addr(),
+        time_scale = options.time_scale,
+        "run started"
+    );
+    let mut modules: BTreeMap<String, ModuleProc> = BTreeMap::new();
+    add_modules(&mut modules, &loaded, &env);
+    let mut ready: Vec<String> = Vec::new();
+    let mut all_ready_logged = false;
+    let outcome = loop {
+        if stop.load(Ordering::Relaxed) {
+            tracing::info!("stop requested");
+            break ExitCode::SUCCESS;
+        }
+        if options
+            .duration
+            .is_some_and(|duration| started.elapsed() >= duration)
+        {
+            tracing::info!("run duration reached");
+            break ExitCode::SUCCESS;
+        }
+        match events.recv_timeout(TICK) {
+            Ok(ServerEvent::Connected { module, pid }) => {
+                tracing::debug!(module, pid, "module connected")
+            }
+            Ok(ServerEvent::Ready { module }) => {
+                if !ready.contains(&module) {
+                    ready.push(module);
+                }
+                if !all_ready_logged && modules.keys().all(|name| ready.contains(name)) {
+                    all_ready_logged = true;
+                    tracing::info!(
+                        elapsed_ms = started.elapsed().as_secs_f64() * 1e3,
+                        "all {} modules configured",
+                        modules.len()
+                    );
+                }
+            }
+            Ok(ServerEvent::Event { module, name }) => tracing::info!("event {module}.{name}"),
+            Ok(ServerEvent::Disconnected { module }) => {
+                tracing::debug!(module, "module disconnected")
+            }
+            Ok(ServerEvent::Reloaded(loaded)) => apply_reload(&mut modules, &loaded, &env, &server),
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
+        }
+        for module in modules.values_mut() {
+            module.supervise(&env);
+        }
+        agent.supervise();
+        let finished = modules
+            .values()
+            .all(|module| matches!(module.state, ProcState::Exited | ProcState::Failed));
+        if finished && !modules.is_empty() {
+            let failed: Vec<&str> = modules
+                .values()
+                .filter(|module| module.state == ProcState::Failed)
+                .map(|module| module.name.as_str())
+                .collect();
+            if failed.is_empty() {
+                tracing::info!("every module has finished");
+                break ExitCode::SUCCESS;
+            }
+            tracing::error!(?failed, "no module is left running");
+            break ExitCode::FAILURE;
+        }
+    };
+    stop_all(&mut modules, &server);
+    agent.stop();
+    Ok(outcome)
+}
+
+fn add_modules(modules: &mut BTreeMap<String, ModuleProc>, loaded: &Loaded, env: &RunEnv) {
+    for instance in &loaded.system.modules {
+        if modules.contains_key(&instance.name) {
+            continue;
+        }
+        let mut module = ModuleProc {
+            name: instance.name.clone(),
+            module_type: instance.module_type.clone(),
+            restart: instance.restart,
+            child: None,
+            state: ProcState::Restarting(Instant::now()),
+            crashes: VecDeque::new(),
+            backoff: FIRST_BACKOFF,
+            restarts: 0,
+        };
+        module.spawn(env);
+        modules.insert(instance.name.clone(), module);
+    }
+}
+
+/// Starts modules an edit added, stops those it removed, restarts those whose type changed.
+fn apply_reload(
+    modules: &mut BTreeMap<String, ModuleProc>,
+    loaded: &Loaded,
+    env: &RunEnv,
+    server: &ConfigServer,
+) {
+    let wanted: BTreeMap<&str, _> = loaded
+        .system
+        .modules
+        .iter()
+        .map(|instance| (instance.name.as_str(), instance))
+        .collect();
+    let removed: Vec<String> = modules
+        .values()
+        .filter(|module| {
+            wanted
+                .get(module.name.as_str())
+                .is_none_or(|instance| instance.module_type != module.module_type)
+        })
+        .map(|module| module.name.clone())
+        .collect();
+    for name in removed {
+        if let Some(mut module) = modules.remove(&name) {
+            tracing::info!(
+                module = name,
+                "stopping a module the edit removed or changed"
+            );
+            module.stop(server);
+        }
+    }
+    for module in modules.values_mut() {
+        if let Some(instance) = wanted.get(module.name.as_str()) {
+            module.restart = instance.restart;
+        }
+    }
+    add_modules(modules, loaded, env);
+}
+
+fn stop_all(modules: &mut BTreeMap<String, ModuleProc>, server: &ConfigServer) {
+    for module in modules.values() {
+        if module.child.is_some() {
+            server.send(&module.name, &FromSupervisor::Shutdown);
+        }
+    }
+    let mut children: Vec<(String, Child)> = modules
+        .values_mut()
+        .filter_map(|module| Some((module.name.clone(), module.child.take()?)))
+        .collect();
+    end_children(&mut children);
+    tracing::info!("all modules stopped");
+}
+
+/// Waits for children to exit, then SIGTERM, then SIGKILL, so none is left behind.
+fn end_children(children: &mut Vec<(String, Child)>) {
+    let wait_until = |children: &mut Vec<(String, Child)>, deadline: Instant| {
+        while !children.is_empty() && Instant::now() < deadline {
+            children.retain_mut(|(_, child)| !matches!(child.try_wait(), Ok(Some(_))));
+            if !children.is_empty() {
+                std::thread::sleep(TICK);
+            }
+        }
+    };
+    wait_until(children, Instant::now() + SHUTDOWN_GRACE);
+    for (name, child) in children.iter() {
+        tracing::debug!(module = name, "sending SIGTERM");
+        signal(child, libc::SIGTERM);
+    }
+    wait_until(children, Instant::now() + TERM_GRACE);
+    for (name, child) in children.iter_mut() {
+        tracing::warn!(module = name, "did not stop; killing it");
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+}
+
+fn signal(child: &Child, signal: libc::c_int) {
+    if let Ok(pid) = libc::pid_t::try_from(child.id()) {
+        crate::sys::kill(pid, signal);
+    }
+}
+
+impl ModuleProc {
+    fn spawn(&mut self, env: &RunEnv) {
+        let Some(binary) = probe::find_module(&env.module_path, &self.module_type) else {
+            tracing::error!(
+                module = self.name,
+                "no binary for module type `{}`",
+                self.module_type
+            );
+            self.state = ProcState::Failed;
+            return;
+        };
+        let mut command = Command::new(&binary);
+        command
+            .env(ENV_MODULE, &self.name)
+            .env(ENV_AGENT, env.agent_addr.to_string())
+            .env(ENV_SUPERVISOR, env.supervisor_addr.to_string())
+            .env(ENV_EPOCH, env.epoch_ns.to_string())
+            .env(ENV_TIME_SCALE, env.time_scale.to_string())
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        crate::sys::die_with_parent(&mut command);
+        match command.spawn() {
+            Ok(mut child) => {
+                tracing::info!(module = self.name, pid = child.id(), "module started");
+                stream_lines(&self.name, child.stdout.take());
+                stream_lines(&self.name, child.stderr.take());
+                self.child = Some(child);
+                self.state = ProcState::Running;
+            }
+            Err(err) => {
+                tracing::error!(
+                    module = self.name,
+                    "cannot start {}: {err}",
+                    binary.display()
+                );
+                self.crashed(None);
+            }
+        }
+    }
+
+    fn supervise(&mut self, env: &RunEnv) {
+        match self.state {
+            ProcState::Restarting(at) if Instant::now() >= at => {
+                self.restarts += 1;
+                self.spawn(env);
+                return;
+            }
+            ProcState::Running => {}
+            _ => return,
+        }
+        let Some(child) = &mut self.child else {
+            return;
+        };
+        let status = match child.try_wait() {
+            Ok(Some(status)) => status,
+            Ok(None) => return,
+            Err(err) => {
+                tracing::error!(module = self.name, "cannot watch the process: {err}");
+                return;
+            }
+        };
+        self.child = None;
+        if status.success() && self.restart != RestartPolicy::Always {
+            tracing::info!(module = self.name, "module finished");
+            self.state = ProcState::Exited;
+        } else {
+            self.crashed(Some(status));
+        }
+    }
+
+    fn crashed(&mut self, status: Option<ExitStatus>) {
+        let now = Instant::now();
+        let how = status.map_or_else(|| "could not start".to_owned(), describe_exit);
+        if self.restart == RestartPolicy::Never {
+            tracing::error!(
+                module = self.name,
+                "module {how}; restart policy is `never`"
+            );
+            self.state = ProcState::Failed;
+            return;
+        }
+        self.crashes.push_back(now);
+        while self
+            .crashes
+            .front()
+            .is_some_and(|&at| now - at > CRASH_WINDOW)
+        {
+            self.crashes.pop_front();
+        }
+        if self.crashes.len() > MAX_CRASHES {
+            tracing::error!(
+                module = self.name,
+                "module {how}; {} crashes within {CRASH_WINDOW:?}, giving up: module.{}.failed",
+                self.crashes.len(),
+                self.name
+            );
+            self.state = ProcState::Failed;
+            return;
+        }
+        if self.crashes.len() == 1 {
+            self.backoff = FIRST_BACKOFF;
+        }
+        tracing::warn!(
+            module = self.name,
+            "module {how}; restarting in {:?}",
+            self.backoff
+        );
+        self.state = ProcState::Restarting(now + self.backoff);
+        self.backoff = (self.backoff * 2).min(MAX_BACKOFF);
+    }
+
+    fn stop(&mut self, server: &ConfigServer) {
+        server.send(&self.name, &FromSupervisor::Shutdown);
+        if let Some(child) = self.child.take() {
+            end_children(&mut vec![(self.name.clone(), child)]);
+        }
+    }
+}
+
+fn describe_exit(status: ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt as _;
+    match (status.code(), status.signal()) {
+        (Some(code), _) => format!("exited with status {code}"),
+        (None, Some(signal)) => format!("was killed by signal {signal}"),
+        (None, None) => "ended".to_owned(),
+    }
+}
+
+/// Copies a child's output to ours, one line at a time, each prefixed with `[name] `.
+fn stream_lines(name: &str, pipe: Option<impl Read + Send + 'static>) {
+    let Some(pipe) = pipe else {
+        return;
+    };
+    let prefix = format!("[{name}] ");
+    std::thread::spawn(move || {
+        let mut reader = BufReader::new(pipe);
+        let mut line = Vec::new();
+        loop {
+            line.clear();
+            match reader.read_until(b'\n', &mut line) {
+                Ok(0) | Err(_) => return,
+                Ok(_) => {
+                    let text = String::from_utf8_lossy(&line);
+                    let mut stdout = std::io::stdout().lock();
+                    let _ = writeln!(stdout, "{prefix}{}", text.trim_end());
+                    let _ = stdout.flush();
+                }
+            }
+        }
+    });
+}
+
+/// The agent, run as its own process so that it can die (and be restarted on the same address)
+/// without taking anything else down.
+struct AgentProc {
+    addr: SocketAddr,
+    child: Option<Child>,
+    restart_at: Option<Instant>,
+    backoff: Duration,
+}
+
+impl AgentProc {
+    fn start(addr: SocketAddr) -> anyhow::Result<Self> {
+        let (child, addr) = spawn_agent(addr)?;
+        Ok(Self {
+            addr,
+            child: Some(child),
+            restart_at: None,
+            backoff: FIRST_BACKOFF,
+        })
+    }
+
+    fn supervise(&mut self) {
+        if let Some(child) = &mut self.child {
+            if let Ok(Some(status)) = child.try_wait() {
+                tracing::warn!(
+                    addr = %self.addr,
+                    "agent {}; links keep flowing, restarting it in {:?}",
+                    describe_exit(status),
+                    self.backoff
+                );
+                self.child = None;
+                self.restart_at = Some(Instant::now() + self.backoff);
+            }
+            return;
+        }
+        if self.restart_at.is_some_and(|at| Instant::now() >= at) {
+            match spawn_agent(self.addr) {
+                Ok((child, _)) => {
+                    self.child = Some(child);
+                    self.restart_at = None;
+                    self.backoff = FIRST_BACKOFF;
+                }
+                Err(err) => {
+                    self.backoff = (self.backoff * 2).min(MAX_BACKOFF);
+                    tracing::warn!(
+                        "cannot restart the agent: {err:#}; retrying in {:?}",
+                        self.backoff
+                    );
+                    self.restart_at = Some(Instant::now() + self.backoff);
+                }
+            }
+        }
+    }
+
+    fn stop(&mut self) {
+        if let Some(child) = self.child.take() {
+            signal(&child, libc::SIGTERM);
+            end_children(&mut vec![("agent".to_owned(), child)]);
+        }
+    }
+}
+
+/// Starts `armor agent` and reads the address it reports listening on.
+fn spawn_agent(addr: SocketAddr) -> anyhow::Result<(Child, SocketAddr)> {
+    let exe = std::env::current_exe().context("cannot find the armor executable")?;
+    let mut command = Command::new(exe);
+    command
+        .args(["agent", "--listen", &addr.to_string()])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    crate::sys::die_with_parent(&mut command);
+    let mut child = command.spawn().context("cannot start the agent")?;
+    stream_lines("agent", child.stderr.take());
+    let stdout = child.stdout.take().context("agent has no stdout")?;
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut lines = BufReader::new(stdout).lines();
+        let _ = tx.send(lines.next());
+        // Keep draining so the agent never blocks on a full pipe.
+        for _ in lines {}
+    });
+    let line = match rx.recv_timeout(AGENT_START_TIMEOUT) {
+        Ok(Some(Ok(line))) => line,
+        _ => {
+            let _ = child.kill();
+            let _ = child.wait();
+            bail!("the agent did not report its address (is {addr} in use?)");
+        }
+    };
+    let addr = line
+        .strip_prefix(crate::AGENT_READY_PREFIX)
+        .and_then(|addr| addr.trim().parse().ok())
+        .with_context(|| format!("unexpected first line from the agent: `{line}`"))?;
+    tracing::info!(pid = child.id(), %addr, "agent started");
+    Ok((child, addr))
+}

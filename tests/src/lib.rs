@@ -1,0 +1,228 @@
+//! Support for the end-to-end suites in `tests/tests/`: find the workspace's binaries, start real
+//! processes whose output is captured line by line, wait for a line with a deadline (never a bare
+//! sleep), and kill every process a test started when it ends, even if it fails.
+#![allow(clippy::unwrap_used)]
+
+use std::io::{BufRead as _, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+/// Generous deadline for things that normally take milliseconds (CI machines are shared).
+pub const PATIENCE: Duration = Duration::from_secs(20);
+
+/// The folder of the workspace's binaries (`target/debug`), found from this test executable.
+pub fn bin_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    // target/debug/deps/suite-HASH → target/debug
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("test executable lives in target/<profile>/deps")
+        .to_path_buf()
+}
+
+/// A binary of the workspace. `cargo test --workspace` builds them all before running tests.
+pub fn bin(name: &str) -> PathBuf {
+    let path = bin_dir().join(name);
+    assert!(
+        path.exists(),
+        "{} is not built: run the suite with `cargo test --workspace`",
+        path.display()
+    );
+    path
+}
+
+/// The root of the workspace (for `missions/`, `assets/`).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ is inside the workspace")
+        .to_path_buf()
+}
+
+#[derive(Default)]
+struct Output {
+    lines: Vec<String>,
+    closed_pipes: usize,
+}
+
+/// A running process whose stdout and stderr lines are collected. Killed (SIGKILL) on drop.
+pub struct Proc {
+    name: String,
+    child: Child,
+    output: Arc<(Mutex<Output>, Condvar)>,
+}
+
+impl Proc {
+    pub fn start(command: &mut Command) -> Proc {
+        let name = command.get_program().to_string_lossy().into_owned();
+        let mut child = command
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|err| panic!("cannot start {name}: {err}"));
+        let output = Arc::new((Mutex::new(Output::default()), Condvar::new()));
+        collect(child.stdout.take().unwrap(), Arc::clone(&output));
+        collect(child.stderr.take().unwrap(), Arc::clone(&output));
+        Proc {
+            name,
+            child,
+            output,
+        }
+    }
+
+    pub fn pid(&self) -> i32 {
+        self.child.id() as i32
+    }
+
+    /// Every line so far, stdout and stderr interleaved as they arrived.
+    pub fn lines(&self) -> Vec<String> {
+        self.output.0.lock().unwrap().lines.clone()
+    }
+
+    /// Waits until a line satisfies `pred` and returns it; panics with the output so far if none
+    /// does within `timeout` or the process closes its output first.
+    pub fn wait_for(&self, what: &str, timeout: Duration, pred: impl Fn(&str) -> bool) -> String {
+        self.wait_for_from(0, what, timeout, pred)
+    }
+
+    /// Like [`Proc::wait_for`], looking only at lines after the first `skip`.
+    pub fn wait_for_from(
+        &self,
+        skip: usize,
+        what: &str,
+        timeout: Duration,
+        pred: impl Fn(&str) -> bool,
+    ) -> String {
+        let deadline = Instant::now() + timeout;
+        let (lock, changed) = &*self.output;
+        let mut output = lock.lock().unwrap();
+        loop {
+            if let Some(line) = output.lines.iter().skip(skip).find(|line| pred(line)) {
+                return line.clone();
+            }
+            let now = Instant::now();
+            if now >= deadline || output.closed_pipes == 2 {
+                panic!(
+                    "{}: no line {what} within {timeout:?}; output:\n{}",
+                    self.name,
+                    output.lines.join("\n")
+                );
+            }
+            output = changed.wait_timeout(output, deadline - now).unwrap().0;
+        }
+    }
+
+    /// Number of lines so far (to wait only for what comes after).
+    pub fn line_count(&self) -> usize {
+        self.output.0.lock().unwrap().lines.len()
+    }
+
+    pub fn signal(&self, signal: i32) {
+        // The `kill` command rather than libc::kill: the workspace denies unsafe code.
+        let status = Command::new("kill")
+            .arg(format!("-{signal}"))
+            .arg(self.pid().to_string())
+            .status()
+            .expect("kill command");
+        assert!(status.success(), "kill -{signal} {} failed", self.pid());
+    }
+
+    /// Waits for the process to exit, at most `timeout`; returns its exit status.
+    pub fn wait_exit(&mut self, timeout: Duration) -> std::process::ExitStatus {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "{} did not exit within {timeout:?}; output:\n{}",
+                self.name,
+                self.lines().join("\n")
+            );
+            // Waiting on a child has no notification in std; poll it finely.
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn collect(pipe: impl Read + Send + 'static, output: Arc<(Mutex<Output>, Condvar)>) {
+    std::thread::spawn(move || {
+        let mut reader = BufReader::new(pipe);
+        let mut line = Vec::new();
+        loop {
+            line.clear();
+            let done = !matches!(reader.read_until(b'\n', &mut line), Ok(n) if n > 0);
+            let (lock, changed) = &*output;
+            let mut output = lock.lock().unwrap();
+            if done {
+                output.closed_pipes += 1;
+            } else {
+                output
+                    .lines
+                    .push(String::from_utf8_lossy(&line).trim_end().to_owned());
+            }
+            changed.notify_all();
+            if done {
+                return;
+            }
+        }
+    });
+}
+
+/// Whether a process exists (and is not a zombie).
+pub fn process_alive(pid: i32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        !stat
+            .rsplit(')')
+            .next()
+            .unwrap_or("")
+            .trim_start()
+            .starts_with('Z')
+    })
+}
+
+/// Waits until `condition` holds, checking every few milliseconds, at most `timeout`.
+pub fn wait_until(what: &str, timeout: Duration, condition: impl Fn() -> bool) {
+    let deadline = Instant::now() + timeout;
+    while !condition() {
+        assert!(Instant::now() < deadline, "{what}: not within {timeout:?}");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Pids of the processes whose parent is `pid`.
+pub fn children_of(pid: i32) -> Vec<i32> {
+    let Ok(entries) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    entries
+        .filter_map(Result::ok)
+        .filter_map(|entry| entry.file_name().to_str()?.parse::<i32>().ok())
+        .filter(|&child| {
+            std::fs::read_to_string(format!("/proc/{child}/stat")).is_ok_and(|stat| {
+                stat.rsplit(')')
+                    .next()
+                    .and_then(|rest| rest.split_whitespace().nth(1))
+                    .and_then(|ppid| ppid.parse::<i32>().ok())
+                    == Some(pid)
+            })
+        })
+        .collect()
+}
+
+/// A `name=value` field of a log line (`pid=1234`).
+pub fn field<'a>(line: &'a str, name: &str) -> Option<&'a str> {
+    line.split_whitespace()
+        .find_map(|word| word.strip_prefix(name)?.strip_prefix('='))
+}
