@@ -121,13 +121,7 @@ impl Proc {
     }
 
     pub fn signal(&self, signal: i32) {
-        // The `kill` command rather than libc::kill: the workspace denies unsafe code.
-        let status = Command::new("kill")
-            .arg(format!("-{signal}"))
-            .arg(self.pid().to_string())
-            .status()
-            .expect("kill command");
-        assert!(status.success(), "kill -{signal} {} failed", self.pid());
+        self::signal(self.pid(), signal);
     }
 
     /// Waits for the process to exit, at most `timeout`; returns its exit status.
@@ -180,6 +174,16 @@ fn collect(pipe: impl Read + Send + 'static, output: Arc<(Mutex<Output>, Condvar
     });
 }
 
+/// Sends a signal to a process (through the `kill` command: the workspace denies unsafe code).
+pub fn signal(pid: i32, signal: i32) {
+    let status = Command::new("kill")
+        .arg(format!("-{signal}"))
+        .arg(pid.to_string())
+        .status()
+        .expect("kill command");
+    assert!(status.success(), "kill -{signal} {pid} failed");
+}
+
 /// Whether a process exists (and is not a zombie).
 pub fn process_alive(pid: i32) -> bool {
     std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
@@ -193,7 +197,7 @@ pub fn process_alive(pid: i32) -> bool {
 }
 
 /// Waits until `condition` holds, checking every few milliseconds, at most `timeout`.
-pub fn wait_until(what: &str, timeout: Duration, condition: impl Fn() -> bool) {
+pub fn wait_until(what: &str, timeout: Duration, mut condition: impl FnMut() -> bool) {
     let deadline = Instant::now() + timeout;
     while !condition() {
         assert!(Instant::now() < deadline, "{what}: not within {timeout:?}");

@@ -223,7 +223,7 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
     let net = Net::start(&mut core, agent, supervisor)?;
     let mut node = Node::from_parts(core, Transport::Net(Box::new(net)));
     if let Transport::Net(net) = &mut node.transport {
-        net.to_supervisor(&ToSupervisor::Ready);
+        net.tell_supervisor(&ToSupervisor::Ready);
     }
     tracing::debug!(module = node.name(), "configured");
     Ok(node)

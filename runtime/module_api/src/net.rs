@@ -230,7 +230,7 @@ impl Net {
         }
     }
 
-    pub fn to_supervisor(&mut self, message: &ToSupervisor) {
+    pub fn tell_supervisor(&mut self, message: &ToSupervisor) {
         match self.supervisor {
             Link::Up(token) => self.queue_message(token, message),
             Link::Down { .. } if self.supervisor_addr.is_some() => {

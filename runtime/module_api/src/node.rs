@@ -487,7 +487,7 @@ impl Node {
             name: event.to_owned(),
         };
         match &mut self.transport {
-            Transport::Net(net) => net.to_supervisor(&message),
+            Transport::Net(net) => net.tell_supervisor(&message),
             Transport::Test(test) => test.reports.push(message),
         }
         Ok(())

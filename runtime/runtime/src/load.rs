@@ -77,13 +77,20 @@ pub fn load_system(file: &Path, module_path: &[PathBuf]) -> Result<Loaded, Diagn
         )])
     })?;
     let system = SystemConfig::parse(&text).map_err(fail)?;
-    let (descriptions, failures) = probe::describe_types(
-        module_path,
-        system
-            .modules
-            .iter()
-            .map(|module| module.module_type.as_str()),
-    );
+    let used = || system.modules.iter().map(|module| module.module_type.as_str());
+    let (mut descriptions, failures) = probe::describe_types(module_path, used());
+    if used().any(|module_type| !descriptions.contains_key(module_type)) {
+        // An unknown type is often a typo: describe everything on the path, so that the message
+        // lists every type the user could have meant.
+        let everything = probe::list_modules(module_path);
+        for (_, result) in probe::probe_all(&everything, probe::DEFAULT_TIMEOUT) {
+            if let Ok(description) = result {
+                descriptions
+                    .entry(description.module_type.clone())
+                    .or_insert(description);
+            }
+        }
+    }
     let mut problems = armor_model::check(&system, &descriptions);
     // A binary that exists but cannot describe itself is reported where its type is named
     // (the model check has already said the type is unknown; say why).

@@ -182,15 +182,15 @@ pub fn probe_all(
     })
 }
 
+/// Module types that have a binary which failed to describe itself: type, binary, why.
+pub type ProbeFailures = Vec<(String, PathBuf, ProbeError)>;
+
 /// Describes the given module types from the module path. Types with no binary are absent from
 /// the map; binaries that fail to describe themselves are in the error list.
 pub fn describe_types<'a>(
     path: &[PathBuf],
     types: impl IntoIterator<Item = &'a str>,
-) -> (
-    BTreeMap<String, ModuleDescription>,
-    Vec<(String, PathBuf, ProbeError)>,
-) {
+) -> (BTreeMap<String, ModuleDescription>, ProbeFailures) {
     let mut binaries: Vec<(String, PathBuf)> = types
         .into_iter()
         .filter_map(|module_type| Some((module_type.to_owned(), find_module(path, module_type)?)))

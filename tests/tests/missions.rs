@@ -1,0 +1,99 @@
+//! Every example under `missions/` is valid: against the shipped XSD (checked by xmllint, an
+//! independent reader) and by `armor check` against the real module binaries.
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use armor_tests::{bin, workspace_root};
+
+fn system_files() -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let mut folders = vec![workspace_root().join("missions")];
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.extension().is_some_and(|ext| ext == "xml")
+                && std::fs::read_to_string(&path).unwrap().contains("<system")
+            {
+                files.push(path);
+            }
+        }
+    }
+    assert!(!files.is_empty(), "no example systems found");
+    files
+}
+
+fn xmllint(file: &Path) -> std::process::Output {
+    Command::new("xmllint")
+        .args(["--noout", "--schema"])
+        .arg(workspace_root().join("assets/schema/system.xsd"))
+        .arg(file)
+        .output()
+        .expect("xmllint (Debian libxml2-utils; .ci/run installs it)")
+}
+
+#[test]
+fn examples_validate_against_the_schema() {
+    for file in system_files() {
+        let output = xmllint(&file);
+        assert!(
+            output.status.success(),
+            "{}: {}",
+            file.display(),
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+}
+
+#[test]
+fn the_schema_refuses_what_the_loader_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, text) in [
+        ("unknown-element", r#"<system name="s"><robot/></system>"#),
+        (
+            "bad-restart",
+            r#"<system name="s"><module name="a" type="t" restart="sometimes"/></system>"#,
+        ),
+        (
+            "bad-endpoint",
+            r#"<system name="s"><link from="a" to="b.c"/></system>"#,
+        ),
+    ] {
+        let file = dir.path().join(format!("{name}.xml"));
+        std::fs::write(&file, text).unwrap();
+        assert!(
+            !xmllint(&file).status.success(),
+            "{name} should fail the schema"
+        );
+        let check = Command::new(bin("armor"))
+            .arg("check")
+            .arg(&file)
+            .output()
+            .unwrap();
+        assert_eq!(
+            check.status.code(),
+            Some(1),
+            "{name} should fail armor check"
+        );
+    }
+}
+
+#[test]
+fn examples_pass_armor_check() {
+    for file in system_files() {
+        let output = Command::new(bin("armor"))
+            .arg("check")
+            .arg(&file)
+            .env("ARMOR_MODULE_PATH", armor_tests::bin_dir())
+            .output()
+            .unwrap();
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stdout)
+        );
+    }
+}
