@@ -52,7 +52,6 @@ struct Conn {
     reader: FrameReader,
     out: OutBuffer,
     role: Role,
-    hello_received: bool,
     /// A reliable input stopped reading because its queue is full.
     paused: bool,
     handshake_deadline: Option<Instant>,
@@ -135,7 +134,7 @@ impl Net {
             let token = net.add_conn(TcpStream::from_std(stream), Role::Supervisor)?;
             if let Some(conn) = net.conns.get_mut(&token) {
                 // The hello exchange and the first configuration happened before, blocking.
-                conn.hello_received = true;
+                conn.reader = FrameReader::default();
             }
             net.supervisor = Link::Up(token);
         }
@@ -169,10 +168,9 @@ impl Net {
             token,
             Conn {
                 stream,
-                reader: FrameReader::default(),
+                reader: FrameReader::expecting_hello(),
                 out: OutBuffer::default(),
                 role,
-                hello_received: false,
                 paused: false,
                 handshake_deadline: None,
             },
@@ -533,12 +531,6 @@ impl Net {
             let Some(conn) = self.conns.get_mut(&token) else {
                 return Ok(());
             };
-            if !conn.hello_received {
-                if !conn.reader.take_hello()? {
-                    return Ok(());
-                }
-                conn.hello_received = true;
-            }
             if conn.paused {
                 return Ok(());
             }

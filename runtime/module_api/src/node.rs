@@ -351,8 +351,11 @@ impl Node {
     /// which the provider is made to wait). For recorders and checkers.
     pub fn reliable_input<T: Datum>(&mut self, name: &str) -> Result<Input<T>, ApiError> {
         let input = self.input::<T>(name)?;
-        if !self.core.inputs[input.index].reliable {
-            self.core.inputs[input.index].reliable = true;
+        let slot = &mut self.core.inputs[input.index];
+        if !slot.reliable {
+            slot.reliable = true;
+            // A sample that arrived before the switch is kept, first in the queue.
+            slot.queue.extend(slot.latest.take());
             if let Transport::Net(net) = &mut self.transport {
                 net.relink(&mut self.core, input.index);
             }

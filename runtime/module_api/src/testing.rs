@@ -15,9 +15,13 @@
 //! assert_eq!(bench.sent::<Counter>("output").unwrap(), [Counter(42)]);
 //! ```
 //!
-//! When no event is queued, waiting with a deadline returns [`Event::Timeout`] at once and waiting
-//! without one returns [`Event::Shutdown`], so a module body run on a bench ends by itself.
+//! When no event is queued, the bench plays the next step of its script ([`TestBench::script`]):
+//! timeouts, a parameter change, a start or stop, a value on an input. Without a script, waiting
+//! with a deadline returns [`Event::Timeout`] at once and waiting without one returns
+//! [`Event::Shutdown`]; once a script is played out, waiting returns [`Event::Shutdown`]. Either
+//! way a module body run on a bench ends by itself.
 
+use std::collections::VecDeque;
 use std::time::Instant;
 
 use crate::clock::Clock;
@@ -27,10 +31,40 @@ use crate::protocol::ToSupervisor;
 use crate::types::Datum;
 use crate::wire::{DataFrame, Frame, FrameReader};
 
+/// One step of a bench script, played when the module body waits and no event is queued.
+#[derive(Clone, Debug)]
+pub enum Step {
+    /// The body's next `n` waits with a deadline time out (a wait without one skips the step).
+    Timeouts(usize),
+    /// A configuration reload changes a parameter.
+    Param(String, String),
+    /// The controller starts (`true`) or stops (`false`) the module.
+    Active(bool),
+    /// An encoded value arrives on an input; see [`Step::push`].
+    Push { input: String, payload: Vec<u8> },
+}
+
+impl Step {
+    pub fn param(name: &str, value: &str) -> Step {
+        Step::Param(name.to_owned(), value.to_owned())
+    }
+
+    pub fn push<T: Datum>(input: &str, value: &T) -> Result<Step, ApiError> {
+        let mut payload = Vec::new();
+        value.encode(&mut payload)?;
+        Ok(Step::Push {
+            input: input.to_owned(),
+            payload,
+        })
+    }
+}
+
 #[derive(Default)]
 pub(crate) struct TestTransport {
     sent: Vec<(usize, DataFrame)>,
     pub reports: Vec<ToSupervisor>,
+    script: Option<VecDeque<Step>>,
+    next_seq: u64,
 }
 
 impl TestTransport {
@@ -43,19 +77,72 @@ impl TestTransport {
         }
     }
 
-    pub fn next_event(&mut self, _core: &mut Core, deadline: Option<Instant>) -> Event {
-        if deadline.is_some() {
-            Event::Timeout
-        } else {
-            Event::Shutdown
-        }
+    fn deliver(&mut self, core: &mut Core, input: &str, payload: Vec<u8>) -> Result<(), ApiError> {
+        let index = core
+            .inputs
+            .iter()
+            .position(|slot| slot.name == input)
+            .ok_or_else(|| ApiError::UnknownPort {
+                module: core.name.clone(),
+                kind: "input",
+                port: input.to_owned(),
+            })?;
+        self.next_seq += 1;
+        let frame = DataFrame {
+            seq: self.next_seq,
+            stamp_ns: core.clock.now_ns(),
+            payload,
+        };
+        core.deliver(index, frame);
+        Ok(())
+    }
+
+    /// Called when the body waits and no event is queued.
+    pub fn next_event(&mut self, core: &mut Core, deadline: Option<Instant>) -> Event {
+        let Some(mut script) = self.script.take() else {
+            return if deadline.is_some() {
+                Event::Timeout
+            } else {
+                Event::Shutdown
+            };
+        };
+        let event = loop {
+            let Some(step) = script.pop_front() else {
+                break Event::Shutdown;
+            };
+            match step {
+                Step::Timeouts(n) if n > 0 && deadline.is_some() => {
+                    script.push_front(Step::Timeouts(n - 1));
+                    break Event::Timeout;
+                }
+                Step::Timeouts(_) => {}
+                Step::Param(name, value) => {
+                    let mut config = core.config.clone();
+                    config.params.insert(name, value);
+                    core.apply_config(config);
+                }
+                Step::Active(active) => core.set_active(active),
+                Step::Push { input, payload } => {
+                    if let Err(err) = self.deliver(core, &input, payload) {
+                        tracing::error!("bench script: {err}");
+                    }
+                }
+            }
+            if let Some(event) = core.events.pop_front() {
+                if let Event::Input(port) = &event {
+                    core.inputs[port.0].notified = false;
+                }
+                break event;
+            }
+        };
+        self.script = Some(script);
+        event
     }
 }
 
 /// A module's node with a test transport, and the controls to feed and observe it.
 pub struct TestBench {
     node: Node,
-    next_seq: u64,
 }
 
 impl TestBench {
@@ -83,7 +170,6 @@ impl TestBench {
         let core = Core::new(name, description, config, Clock::real_time());
         Ok(Self {
             node: Node::from_parts(core, Transport::Test(TestTransport::default())),
-            next_seq: 0,
         })
     }
 
@@ -91,29 +177,38 @@ impl TestBench {
         &mut self.node
     }
 
-    /// Delivers a value on an input, as its provider would.
-    pub fn push<T: Datum>(&mut self, input: &str, value: &T) -> Result<(), ApiError> {
-        let port = self.node.input::<T>(input)?;
-        let mut payload = Vec::new();
-        value.encode(&mut payload)?;
-        self.next_seq += 1;
-        let frame = DataFrame {
-            seq: self.next_seq,
-            stamp_ns: self.node.clock().now_ns(),
-            payload,
-        };
-        self.node.core.deliver(port.id().0, frame);
-        Ok(())
+    fn transport(&mut self) -> (&mut TestTransport, &mut Core) {
+        match &mut self.node.transport {
+            Transport::Test(test) => (test, &mut self.node.core),
+            Transport::Net(_) => unreachable!("a bench node always has the test transport"),
+        }
     }
 
-    /// Changes a parameter as a configuration reload would.
+    /// Delivers a value on an input now, as its provider would.
+    pub fn push<T: Datum>(&mut self, input: &str, value: &T) -> Result<(), ApiError> {
+        self.node.input::<T>(input)?;
+        let Step::Push { payload, .. } = Step::push(input, value)? else {
+            return Ok(());
+        };
+        let (test, core) = self.transport();
+        test.deliver(core, input, payload)
+    }
+
+    /// Steps played in order whenever the body waits with no event queued; after the last one,
+    /// waiting returns [`Event::Shutdown`].
+    pub fn script(&mut self, steps: impl IntoIterator<Item = Step>) {
+        let (test, _) = self.transport();
+        test.script.get_or_insert_with(VecDeque::new).extend(steps);
+    }
+
+    /// Changes a parameter now, as a configuration reload would.
     pub fn set_param(&mut self, name: &str, value: &str) {
         let mut config = self.node.core.config.clone();
         config.params.insert(name.to_owned(), value.to_owned());
         self.node.core.apply_config(config);
     }
 
-    /// Activates or deactivates the module as the controller would.
+    /// Activates or deactivates the module now, as the controller would.
     pub fn set_active(&mut self, active: bool) {
         self.node.core.set_active(active);
     }

@@ -90,6 +90,57 @@ impl Datum for Blob {
     }
 }
 
+/// A pose in the plane. Which frame it is in (world, odometry, map) is said by the port's name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose2D {
+    pub x_m: f64,
+    pub y_m: f64,
+    /// Heading, counter-clockwise from the x axis.
+    pub theta_rad: f64,
+}
+postcard_datum!(Pose2D, "Pose2D");
+
+/// A velocity command or measurement of a differential-drive robot, in the robot's frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Twist {
+    pub linear_mps: f64,
+    pub angular_radps: f64,
+}
+postcard_datum!(Twist, "Twist");
+
+/// Dead-reckoned pose and velocity (drifts with distance and rotation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Odometry {
+    pub pose_in_odom: Pose2D,
+    pub twist: Twist,
+}
+postcard_datum!(Odometry, "Odometry");
+
+/// One sweep of a planar laser scanner. Beam `i` points at `angle_min_rad + i ×
+/// angle_increment_rad` in the robot's frame; a range of `range_max_m` or more means no echo.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LaserScan {
+    pub angle_min_rad: f64,
+    pub angle_increment_rad: f64,
+    pub range_max_m: f64,
+    pub ranges_m: Vec<f32>,
+}
+postcard_datum!(LaserScan, "LaserScan");
+
+/// An occupancy grid: cell `(col, row)` is `cells[row × width + col]`, covering the square of
+/// side `resolution_m` whose lower-left corner is at `origin + (col, row) × resolution_m`.
+/// Values: -1 unknown, 0 free … 100 occupied.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct OccupancyGrid {
+    pub resolution_m: f64,
+    pub width: u32,
+    pub height: u32,
+    pub origin_x_m: f64,
+    pub origin_y_m: f64,
+    pub cells: Vec<i8>,
+}
+postcard_datum!(OccupancyGrid, "OccupancyGrid");
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -128,42 +128,80 @@ fn finish_frame(out: &mut Vec<u8>, start: usize) -> Result<(), WireError> {
 }
 
 /// Reassembles frames from a byte stream that arrives in arbitrary pieces (non-blocking sockets).
+/// A reader made with [`FrameReader::expecting_hello`] first checks the peer's hello.
 #[derive(Default)]
 pub struct FrameReader {
+    /// Initialised storage; the bytes received and not yet decoded are `buf[start..end]`. It is
+    /// grown, never zeroed again, so a peer trickling bytes costs no more than their copy.
     buf: Vec<u8>,
     start: usize,
+    end: usize,
+    hello_pending: bool,
 }
 
+/// The most a single read reserves room for, whatever length a peer announces.
+const MAX_READ_BYTES: usize = 16 * 1024 * 1024;
+const MIN_READ_BYTES: usize = 64 * 1024;
+/// An idle reader gives back storage beyond this.
+const IDLE_KEEP_BYTES: usize = 4 * 1024 * 1024;
+
 impl FrameReader {
+    /// For a new connection: the first six bytes must be a valid hello.
+    pub fn expecting_hello() -> Self {
+        Self {
+            hello_pending: true,
+            ..Self::default()
+        }
+    }
+
     /// Reads once from `source` into the buffer. `Ok(0)` means the peer closed the connection.
     pub fn fill_from(&mut self, source: &mut impl Read) -> io::Result<usize> {
-        if self.start > 0 && self.start == self.buf.len() {
-            self.buf.clear();
+        if self.start == self.end {
             self.start = 0;
-        } else if self.start > 1024 * 1024 {
-            self.buf.drain(..self.start);
-            self.start = 0;
+            self.end = 0;
+            if self.buf.len() > IDLE_KEEP_BYTES {
+                self.buf = Vec::new();
+            }
         }
-        // Read straight into room for the whole pending frame when it is large, in one call.
+        // Room for the rest of the pending frame when it is large, so it comes in few reads,
+        // but never more than a bounded chunk on a peer's word.
         let pending = self.pending_frame_len().unwrap_or(0);
         let want = pending
-            .saturating_sub(self.buf.len() - self.start)
-            .max(64 * 1024);
-        let filled = self.buf.len();
-        self.buf.resize(filled + want, 0);
-        let result = source.read(&mut self.buf[filled..]);
-        let got = *result.as_ref().unwrap_or(&0);
-        self.buf.truncate(filled + got);
-        result
+            .saturating_sub(self.end - self.start)
+            .clamp(MIN_READ_BYTES, MAX_READ_BYTES);
+        if self.buf.len() - self.end < want && self.start > 0 {
+            self.buf.copy_within(self.start..self.end, 0);
+            self.end -= self.start;
+            self.start = 0;
+        }
+        if self.buf.len() - self.end < want {
+            self.buf.resize(self.end + want, 0);
+        }
+        let got = source.read(&mut self.buf[self.end..])?;
+        self.end += got;
+        Ok(got)
     }
 
     fn pending_frame_len(&self) -> Option<usize> {
-        let header = self.buf.get(self.start..self.start + 4)?;
+        if self.hello_pending || self.end - self.start < 4 {
+            return None;
+        }
+        let header = &self.buf[self.start..self.start + 4];
         Some(u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize + 4)
     }
 
     /// The next complete frame in the buffer, if any.
     pub fn next_frame(&mut self) -> Result<Option<Frame>, WireError> {
+        if self.hello_pending {
+            if self.end - self.start < HELLO.len() {
+                return Ok(None);
+            }
+            let mut hello = [0; 6];
+            hello.copy_from_slice(&self.buf[self.start..self.start + HELLO.len()]);
+            check_hello(&hello)?;
+            self.start += HELLO.len();
+            self.hello_pending = false;
+        }
         let Some(total) = self.pending_frame_len() else {
             return Ok(None);
         };
@@ -171,24 +209,12 @@ impl FrameReader {
         if len > MAX_FRAME_BYTES {
             return Err(WireError::FrameTooLarge(len));
         }
-        if self.buf.len() - self.start < total {
+        if self.end - self.start < total {
             return Ok(None);
         }
         let body = &self.buf[self.start + 4..self.start + total];
         self.start += total;
         decode_body(body).map(Some)
-    }
-
-    /// Takes the peer's 6-byte hello from the front of the buffer once it has arrived.
-    pub fn take_hello(&mut self) -> Result<bool, WireError> {
-        let Some(hello) = self.buf.get(self.start..self.start + 6) else {
-            return Ok(false);
-        };
-        let mut bytes = [0; 6];
-        bytes.copy_from_slice(hello);
-        check_hello(&bytes)?;
-        self.start += 6;
-        Ok(true)
     }
 }
 
@@ -374,13 +400,12 @@ mod tests {
     }
 
     fn decode_all(bytes: &[u8], step: usize) -> Result<Vec<Frame>, WireError> {
-        let mut reader = FrameReader::default();
+        let mut reader = FrameReader::expecting_hello();
         let mut source = Trickle { bytes, step };
         let mut frames = Vec::new();
-        assert!(!reader.take_hello()?);
+        assert_eq!(reader.next_frame()?, None);
         loop {
             let got = reader.fill_from(&mut source)?;
-            reader.take_hello()?;
             while let Some(frame) = reader.next_frame()? {
                 frames.push(frame);
             }

@@ -1,0 +1,178 @@
+//! `checker`: checks that a `Counter` stream arrives complete and in order.
+
+use armor_module_api::types::Counter;
+use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
+
+use crate::int_at_least;
+
+pub const TYPE: &str = "checker";
+
+pub fn spec() -> ModuleSpec {
+    ModuleSpec::new(
+        TYPE,
+        "Checks that counter values arrive one more than the previous, and logs a summary.",
+    )
+    .version(env!("CARGO_PKG_VERSION"))
+    .input::<Counter>("input", "the values to check (every one, in order)")
+    .output::<Counter>("received", "how many values were received so far")
+    .param(
+        ParamSpec::new(
+            "report_every",
+            ParamType::Int,
+            "log a summary line every this many values (1 or more)",
+        )
+        .default("10"),
+    )
+    .event(
+        "out_of_order",
+        "a value was not one more than the previous one",
+    )
+    .event(
+        "restarted",
+        "the values started again from 1: the provider restarted (not an error)",
+    )
+}
+
+pub fn body(node: &mut Node) -> BodyResult {
+    let input = node.reliable_input::<Counter>("input")?;
+    let output = node.output::<Counter>("received")?;
+    let report_every = int_at_least(node, "report_every", 1, "1 or more")?;
+    let mut tally = Tally::default();
+    loop {
+        match node.next_event(None)? {
+            Event::Input(port) if port == input.id() => {
+                while let Some(sample) = node.take(&input)? {
+                    match tally.check(sample.value.0) {
+                        Verdict::InOrder => {}
+                        Verdict::Restarted { previous } => {
+                            tracing::info!("the provider restarted: 1 after {previous}");
+                            node.report("restarted")?;
+                        }
+                        Verdict::OutOfOrder { previous, value } => {
+                            tracing::warn!("out of order: {value} after {previous}");
+                            node.report("out_of_order")?;
+                        }
+                    }
+                    node.send(&output, &Counter(tally.received))?;
+                    if tally.received.is_multiple_of(report_every) {
+                        tracing::info!("{}", tally.summary());
+                    }
+                }
+            }
+            Event::Shutdown => return Ok(()),
+            _ => {}
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Verdict {
+    InOrder,
+    Restarted { previous: u64 },
+    OutOfOrder { previous: u64, value: u64 },
+}
+
+/// What the checker has seen so far.
+#[derive(Clone, Debug, Default)]
+struct Tally {
+    received: u64,
+    last: Option<u64>,
+    out_of_order: u64,
+}
+
+impl Tally {
+    /// Takes a value. The first one may be anything: the checker may have joined late.
+    fn check(&mut self, value: u64) -> Verdict {
+        self.received += 1;
+        let verdict = match self.last {
+            None => Verdict::InOrder,
+            Some(previous) if previous.checked_add(1) == Some(value) => Verdict::InOrder,
+            Some(previous) if value == 1 => Verdict::Restarted { previous },
+            Some(previous) => {
+                self.out_of_order += 1;
+                Verdict::OutOfOrder { previous, value }
+            }
+        };
+        self.last = Some(value);
+        verdict
+    }
+
+    /// The line end-to-end tests look for: `received N values, last V, in order` or
+    /// `received N values, last V, K out of order`.
+    fn summary(&self) -> String {
+        let last = self.last.unwrap_or(0);
+        let order = match self.out_of_order {
+            0 => "in order".to_owned(),
+            count => format!("{count} out of order"),
+        };
+        format!("received {} values, last {last}, {order}", self.received)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use armor_module_api::testing::TestBench;
+
+    fn run_with(values: &[u64]) -> TestBench {
+        let mut bench = TestBench::new(&spec(), &[("report_every", "2")]).expect("bench");
+        // Declared reliable before anything arrives: `TestBench::push` to a not-yet-reliable input
+        // keeps only the newest value, and `reliable_input` then drops it.
+        bench
+            .node()
+            .reliable_input::<Counter>("input")
+            .expect("input");
+        for value in values {
+            bench.push("input", &Counter(*value)).expect("push");
+        }
+        body(bench.node()).expect("body");
+        bench
+    }
+
+    #[test]
+    fn in_order_values_are_counted_silently() {
+        let bench = run_with(&[5, 6, 7]);
+        assert!(bench.reported().is_empty());
+        assert_eq!(
+            bench.sent::<Counter>("received").expect("sent"),
+            [Counter(1), Counter(2), Counter(3)]
+        );
+    }
+
+    #[test]
+    fn a_gap_is_out_of_order() {
+        let bench = run_with(&[1, 2, 4]);
+        assert_eq!(bench.reported(), ["out_of_order"]);
+        assert_eq!(
+            bench.sent::<Counter>("received").expect("sent"),
+            [Counter(1), Counter(2), Counter(3)]
+        );
+    }
+
+    #[test]
+    fn going_back_to_one_is_a_restart() {
+        let bench = run_with(&[1, 2, 1, 2]);
+        assert_eq!(bench.reported(), ["restarted"]);
+        assert_eq!(bench.sent::<Counter>("received").expect("sent").len(), 4);
+    }
+
+    #[test]
+    fn refuses_report_every_below_one() {
+        let mut bench = TestBench::new(&spec(), &[("report_every", "0")]).expect("bench");
+        let err = body(bench.node()).expect_err("must refuse");
+        assert!(err.to_string().contains("`report_every`"), "{err}");
+    }
+
+    #[test]
+    fn summary_lines() {
+        let mut tally = Tally::default();
+        for value in [1, 2, 3] {
+            tally.check(value);
+        }
+        assert_eq!(tally.summary(), "received 3 values, last 3, in order");
+        for value in [5, 1, 7] {
+            tally.check(value);
+        }
+        assert_eq!(tally.summary(), "received 6 values, last 7, 2 out of order");
+    }
+}

@@ -1,0 +1,32 @@
+//! The modules bundled with ArMoR, one binary `armor-mod-<type>` each (in `src/bin/`). Each
+//! module's [`ModuleSpec`](armor_module_api::ModuleSpec) and body live here so the unit tests drive
+//! the very body the binary runs, on a [`TestBench`](armor_module_api::testing::TestBench):
+//!
+//! - [`counter`]: publishes 1, 2, 3, … on `count` every `period_secs` while active, and reports
+//!   `done` after `limit` values.
+//! - [`checker`]: reads a `Counter` stream reliably, reports `out_of_order` and `restarted`, logs
+//!   `received N values, last V, in order` every `report_every` values, and publishes how many it
+//!   received.
+//! - [`echo`]: republishes every `Blob` it receives, unchanged and at once (latency benchmark).
+//! - [`sink`]: counts the `Blob`s it receives and publishes the count every `every` values
+//!   (throughput benchmark).
+
+pub mod checker;
+pub mod counter;
+pub mod echo;
+pub mod sink;
+
+use armor_module_api::Node;
+
+/// The error a module body returns when it refuses its configuration.
+pub type BodyError = Box<dyn std::error::Error + Send + Sync>;
+
+/// Reads an integer parameter that must be at least `min`, refusing anything else in words.
+fn int_at_least(node: &Node, name: &str, min: i64, meaning: &str) -> Result<u64, BodyError> {
+    let value: i64 = node.param(name)?;
+    if value < min {
+        return Err(format!("parameter `{name}` must be {meaning}, not {value}").into());
+    }
+    // `min` is never negative here, so neither is `value`.
+    Ok(value.unsigned_abs())
+}
