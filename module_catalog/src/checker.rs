@@ -29,7 +29,7 @@ pub fn spec() -> ModuleSpec {
     )
     .event(
         "restarted",
-        "the values started again from 1: the provider restarted (not an error)",
+        "values now come over a new link: the provider restarted or the link was re-established (not an error)",
     )
 }
 
@@ -42,10 +42,10 @@ pub fn body(node: &mut Node) -> BodyResult {
         match node.next_event(None)? {
             Event::Input(port) if port == input.id() => {
                 while let Some(sample) = node.take(&input)? {
-                    match tally.check(sample.value.0) {
+                    match tally.check(sample.value.0, sample.link) {
                         Verdict::InOrder => {}
-                        Verdict::Restarted { previous } => {
-                            tracing::info!("the provider restarted: 1 after {previous}");
+                        Verdict::Relinked { previous, value } => {
+                            tracing::info!("new link to the provider: {value} after {previous}");
                             node.report("restarted")?;
                         }
                         Verdict::OutOfOrder { previous, value } => {
@@ -68,7 +68,7 @@ pub fn body(node: &mut Node) -> BodyResult {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Verdict {
     InOrder,
-    Restarted { previous: u64 },
+    Relinked { previous: u64, value: u64 },
     OutOfOrder { previous: u64, value: u64 },
 }
 
@@ -77,23 +77,27 @@ enum Verdict {
 struct Tally {
     received: u64,
     last: Option<u64>,
+    link: u64,
     out_of_order: u64,
 }
 
 impl Tally {
-    /// Takes a value. The first one may be anything: the checker may have joined late.
-    fn check(&mut self, value: u64) -> Verdict {
+    /// Takes a value and the link it came by. The first value of a link may be anything (the
+    /// checker may have joined late, or the provider restarted); after it, each value must be
+    /// one more than the previous.
+    fn check(&mut self, value: u64, link: u64) -> Verdict {
         self.received += 1;
         let verdict = match self.last {
             None => Verdict::InOrder,
+            Some(previous) if link != self.link => Verdict::Relinked { previous, value },
             Some(previous) if previous.checked_add(1) == Some(value) => Verdict::InOrder,
-            Some(previous) if value == 1 => Verdict::Restarted { previous },
             Some(previous) => {
                 self.out_of_order += 1;
                 Verdict::OutOfOrder { previous, value }
             }
         };
         self.last = Some(value);
+        self.link = link;
         verdict
     }
 
@@ -114,16 +118,14 @@ mod tests {
     use super::*;
     use armor_module_api::testing::TestBench;
 
-    fn run_with(values: &[u64]) -> TestBench {
+    /// Runs the checker on values; `None` stands for the input being relinked.
+    fn run_with(values: &[Option<u64>]) -> TestBench {
         let mut bench = TestBench::new(&spec(), &[("report_every", "2")]).expect("bench");
-        // Declared reliable before anything arrives: `TestBench::push` to a not-yet-reliable input
-        // keeps only the newest value, and `reliable_input` then drops it.
-        bench
-            .node()
-            .reliable_input::<Counter>("input")
-            .expect("input");
         for value in values {
-            bench.push("input", &Counter(*value)).expect("push");
+            match value {
+                Some(value) => bench.push("input", &Counter(*value)).expect("push"),
+                None => bench.relink("input").expect("relink"),
+            }
         }
         body(bench.node()).expect("body");
         bench
@@ -131,7 +133,7 @@ mod tests {
 
     #[test]
     fn in_order_values_are_counted_silently() {
-        let bench = run_with(&[5, 6, 7]);
+        let bench = run_with(&[Some(5), Some(6), Some(7)]);
         assert!(bench.reported().is_empty());
         assert_eq!(
             bench.sent::<Counter>("received").expect("sent"),
@@ -140,20 +142,17 @@ mod tests {
     }
 
     #[test]
-    fn a_gap_is_out_of_order() {
-        let bench = run_with(&[1, 2, 4]);
-        assert_eq!(bench.reported(), ["out_of_order"]);
-        assert_eq!(
-            bench.sent::<Counter>("received").expect("sent"),
-            [Counter(1), Counter(2), Counter(3)]
-        );
+    fn a_gap_or_a_step_back_on_one_link_is_out_of_order() {
+        let bench = run_with(&[Some(1), Some(2), Some(4), Some(1)]);
+        assert_eq!(bench.reported(), ["out_of_order", "out_of_order"]);
+        assert_eq!(bench.sent::<Counter>("received").expect("sent").len(), 4);
     }
 
     #[test]
-    fn going_back_to_one_is_a_restart() {
-        let bench = run_with(&[1, 2, 1, 2]);
-        assert_eq!(bench.reported(), ["restarted"]);
-        assert_eq!(bench.sent::<Counter>("received").expect("sent").len(), 4);
+    fn a_new_link_is_a_restart_whatever_its_first_value() {
+        let bench = run_with(&[Some(19), Some(20), None, Some(20), Some(21), None, Some(1)]);
+        assert_eq!(bench.reported(), ["restarted", "restarted"]);
+        assert_eq!(bench.sent::<Counter>("received").expect("sent").len(), 5);
     }
 
     #[test]
@@ -167,12 +166,12 @@ mod tests {
     fn summary_lines() {
         let mut tally = Tally::default();
         for value in [1, 2, 3] {
-            tally.check(value);
+            tally.check(value, 1);
         }
         assert_eq!(tally.summary(), "received 3 values, last 3, in order");
         for value in [5, 1, 7] {
-            tally.check(value);
+            tally.check(value, 1);
         }
-        assert_eq!(tally.summary(), "received 6 values, last 7, 2 out of order");
+        assert_eq!(tally.summary(), "received 6 values, last 7, 3 out of order");
     }
 }

@@ -6,7 +6,7 @@
 use std::io::{BufRead as _, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::{Arc, Condvar, Mutex};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 /// Generous deadline for things that normally take milliseconds (CI machines are shared).
@@ -105,10 +105,11 @@ impl Proc {
             }
             let now = Instant::now();
             if now >= deadline || output.closed_pipes == 2 {
+                let seen = output.lines.join("\n");
+                drop(output);
                 panic!(
-                    "{}: no line {what} within {timeout:?}; output:\n{}",
-                    self.name,
-                    output.lines.join("\n")
+                    "{}: no line {what} within {timeout:?}; output:\n{seen}",
+                    self.name
                 );
             }
             output = changed.wait_timeout(output, deadline - now).unwrap().0;
@@ -158,7 +159,7 @@ fn collect(pipe: impl Read + Send + 'static, output: Arc<(Mutex<Output>, Condvar
             line.clear();
             let done = !matches!(reader.read_until(b'\n', &mut line), Ok(n) if n > 0);
             let (lock, changed) = &*output;
-            let mut output = lock.lock().unwrap();
+            let mut output = lock.lock().unwrap_or_else(PoisonError::into_inner);
             if done {
                 output.closed_pipes += 1;
             } else {
@@ -225,8 +226,9 @@ pub fn children_of(pid: i32) -> Vec<i32> {
         .collect()
 }
 
-/// A `name=value` field of a log line (`pid=1234`).
+/// A `name=value` field of a log line (`pid=1234`, `module="counter"`), without quotes.
 pub fn field<'a>(line: &'a str, name: &str) -> Option<&'a str> {
     line.split_whitespace()
         .find_map(|word| word.strip_prefix(name)?.strip_prefix('='))
+        .map(|value| value.trim_matches('"'))
 }

@@ -197,7 +197,7 @@ fn config_edits_reach_modules_and_broken_edits_are_rejected() {
     std::fs::write(&file, demo_xml("fast")).unwrap();
     let file_name = file.display().to_string();
     run.wait_for_from(skip, "reporting the broken edit", PATIENCE, |line| {
-        line.starts_with(&format!("{file_name}:4:"))
+        line.starts_with(&format!("{file_name}:5:31:"))
             && line.contains("parameter `period_secs` (float): `fast` is not a finite number")
     });
     run.wait_for_from(

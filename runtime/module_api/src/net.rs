@@ -636,6 +636,7 @@ impl Net {
         match frame {
             Frame::Message(_) => match frame.message::<FromProvider>()? {
                 FromProvider::Subscribed => {
+                    core.inputs[index].link += 1;
                     tracing::info!(
                         input = core.inputs[index].name,
                         source = core.inputs[index].source.as_deref().unwrap_or_default(),

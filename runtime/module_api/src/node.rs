@@ -101,6 +101,10 @@ pub enum Event {
 pub struct Sample<T> {
     pub seq: u64,
     pub stamp_ns: u64,
+    /// Which link of the input brought it: 1 for the first connection to a provider, then one
+    /// more each time the input is relinked (the provider restarted, or the link was lost).
+    /// Sequence numbers are in order within one link.
+    pub link: u64,
     pub value: T,
 }
 
@@ -136,8 +140,11 @@ pub(crate) struct InputSlot {
     /// The unique data name of the output feeding this input, if linked in the configuration.
     pub source: Option<String>,
     pub reliable: bool,
-    pub latest: Option<DataFrame>,
-    pub queue: VecDeque<DataFrame>,
+    /// Samples are stored with the link that brought them.
+    pub latest: Option<(u64, DataFrame)>,
+    pub queue: VecDeque<(u64, DataFrame)>,
+    /// The current link's number (see [`Sample::link`]).
+    pub link: u64,
     /// An `Event::Input` for this slot is waiting in the event queue.
     pub notified: bool,
 }
@@ -184,6 +191,7 @@ impl Core {
                 reliable: false,
                 latest: None,
                 queue: VecDeque::new(),
+                link: 0,
                 notified: false,
             })
             .collect();
@@ -217,9 +225,9 @@ impl Core {
     pub fn deliver(&mut self, index: usize, frame: DataFrame) -> bool {
         let slot = &mut self.inputs[index];
         if slot.reliable {
-            slot.queue.push_back(frame);
+            slot.queue.push_back((slot.link, frame));
         } else {
-            slot.latest = Some(frame);
+            slot.latest = Some((slot.link, frame));
         }
         if !slot.notified {
             slot.notified = true;
@@ -428,7 +436,7 @@ impl Node {
         } else {
             slot.latest.take()
         };
-        let Some(frame) = frame else {
+        let Some((link, frame)) = frame else {
             return Ok(None);
         };
         if !slot.queue.is_empty() && !slot.notified {
@@ -441,6 +449,7 @@ impl Node {
         Ok(Some(Sample {
             seq: frame.seq,
             stamp_ns: frame.stamp_ns,
+            link,
             value,
         }))
     }

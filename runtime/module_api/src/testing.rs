@@ -42,6 +42,8 @@ pub enum Step {
     Active(bool),
     /// An encoded value arrives on an input; see [`Step::push`].
     Push { input: String, payload: Vec<u8> },
+    /// The input loses its provider and links again (see [`Sample::link`](crate::Sample::link)).
+    Relink(String),
 }
 
 impl Step {
@@ -88,6 +90,7 @@ impl TestTransport {
                 port: input.to_owned(),
             })?;
         self.next_seq += 1;
+        core.inputs[index].link = core.inputs[index].link.max(1);
         let frame = DataFrame {
             seq: self.next_seq,
             stamp_ns: core.clock.now_ns(),
@@ -125,6 +128,11 @@ impl TestTransport {
                 Step::Push { input, payload } => {
                     if let Err(err) = self.deliver(core, &input, payload) {
                         tracing::error!("bench script: {err}");
+                    }
+                }
+                Step::Relink(input) => {
+                    if let Some(slot) = core.inputs.iter_mut().find(|slot| slot.name == input) {
+                        slot.link = slot.link.max(1) + 1;
                     }
                 }
             }
@@ -184,18 +192,30 @@ impl TestBench {
         }
     }
 
-    /// Delivers a value on an input now, as its provider would.
+    /// A value arrives on an input when the body next waits (appended to the script).
     pub fn push<T: Datum>(&mut self, input: &str, value: &T) -> Result<(), ApiError> {
         self.node.input::<T>(input)?;
-        let Step::Push { payload, .. } = Step::push(input, value)? else {
-            return Ok(());
-        };
-        let (test, core) = self.transport();
-        test.deliver(core, input, payload)
+        let step = Step::push(input, value)?;
+        self.script([step]);
+        Ok(())
+    }
+
+    /// The input loses its provider and links again, at this point of the script.
+    pub fn relink(&mut self, input: &str) -> Result<(), ApiError> {
+        if !self.node.core.inputs.iter().any(|slot| slot.name == input) {
+            return Err(ApiError::UnknownPort {
+                module: self.node.core.name.clone(),
+                kind: "input",
+                port: input.to_owned(),
+            });
+        }
+        self.script([Step::Relink(input.to_owned())]);
+        Ok(())
     }
 
     /// Steps played in order whenever the body waits with no event queued; after the last one,
-    /// waiting returns [`Event::Shutdown`].
+    /// waiting returns [`Event::Shutdown`]. [`TestBench::push`] and [`TestBench::relink`] append
+    /// to the same script.
     pub fn script(&mut self, steps: impl IntoIterator<Item = Step>) {
         let (test, _) = self.transport();
         test.script.get_or_insert_with(VecDeque::new).extend(steps);

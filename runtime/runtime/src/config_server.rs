@@ -273,8 +273,12 @@ impl ConfigServer {
         events: &Receiver<notify::Result<notify::Event>>,
     ) {
         let file_name = file.file_name();
+        // Reading the file ourselves makes access events: only changes count.
         let concerns_file = |event: &notify::Result<notify::Event>| match event {
-            Ok(event) => event.paths.iter().any(|path| path.file_name() == file_name),
+            Ok(event) => {
+                !matches!(event.kind, notify::EventKind::Access(_))
+                    && event.paths.iter().any(|path| path.file_name() == file_name)
+            }
             Err(err) => {
                 tracing::warn!("file watcher: {err}");
                 false
@@ -284,9 +288,10 @@ impl ConfigServer {
             if !concerns_file(&event) {
                 continue;
             }
-            // Let the editor finish writing: wait until no event has come for a moment.
+            // Let the editor finish writing: wait until no change has come for a moment.
             loop {
                 match events.recv_timeout(SETTLE) {
+                    Ok(event) if concerns_file(&event) => {}
                     Ok(_) => {}
                     Err(RecvTimeoutError::Timeout) => break,
                     Err(RecvTimeoutError::Disconnected) => return,

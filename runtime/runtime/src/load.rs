@@ -77,7 +77,12 @@ pub fn load_system(file: &Path, module_path: &[PathBuf]) -> Result<Loaded, Diagn
         )])
     })?;
     let system = SystemConfig::parse(&text).map_err(fail)?;
-    let used = || system.modules.iter().map(|module| module.module_type.as_str());
+    let used = || {
+        system
+            .modules
+            .iter()
+            .map(|module| module.module_type.as_str())
+    };
     let (mut descriptions, failures) = probe::describe_types(module_path, used());
     if used().any(|module_type| !descriptions.contains_key(module_type)) {
         // An unknown type is often a typo: describe everything on the path, so that the message
