@@ -1,5 +1,6 @@
-//! Every example under `missions/` is valid: against the shipped XSD (checked by xmllint, an
-//! independent reader) and by `armor check` against the real module binaries.
+//! Every example under `missions/` (systems and missions) is valid: against the shipped XSDs
+//! (checked by xmllint, an independent reader) and by `armor check` against the real module
+//! binaries.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -7,7 +8,8 @@ use std::process::Command;
 
 use armor_tests::{bin, workspace_root};
 
-fn system_files() -> Vec<PathBuf> {
+/// Every example file with the given top element.
+fn examples(top: &str) -> Vec<PathBuf> {
     let mut files = Vec::new();
     let mut folders = vec![workspace_root().join("missions")];
     while let Some(folder) = folders.pop() {
@@ -16,20 +18,22 @@ fn system_files() -> Vec<PathBuf> {
             if path.is_dir() {
                 folders.push(path);
             } else if path.extension().is_some_and(|ext| ext == "xml")
-                && std::fs::read_to_string(&path).unwrap().contains("<system")
+                && std::fs::read_to_string(&path)
+                    .unwrap()
+                    .contains(&format!("<{top} "))
             {
                 files.push(path);
             }
         }
     }
-    assert!(!files.is_empty(), "no example systems found");
+    assert!(!files.is_empty(), "no example {top} files found");
     files
 }
 
-fn xmllint(file: &Path) -> std::process::Output {
+fn xmllint(schema: &str, file: &Path) -> std::process::Output {
     Command::new("xmllint")
         .args(["--noout", "--schema"])
-        .arg(workspace_root().join("assets/schema/system.xsd"))
+        .arg(workspace_root().join("assets/schema").join(schema))
         .arg(file)
         .output()
         .expect("xmllint (Debian libxml2-utils; .ci/run installs it)")
@@ -37,14 +41,16 @@ fn xmllint(file: &Path) -> std::process::Output {
 
 #[test]
 fn examples_validate_against_the_schema() {
-    for file in system_files() {
-        let output = xmllint(&file);
-        assert!(
-            output.status.success(),
-            "{}: {}",
-            file.display(),
-            String::from_utf8_lossy(&output.stderr)
-        );
+    for (top, schema) in [("system", "system.xsd"), ("mission", "mission.xsd")] {
+        for file in examples(top) {
+            let output = xmllint(schema, &file);
+            assert!(
+                output.status.success(),
+                "{}: {}",
+                file.display(),
+                String::from_utf8_lossy(&output.stderr)
+            );
+        }
     }
 }
 
@@ -65,7 +71,7 @@ fn the_schema_refuses_what_the_loader_refuses() {
         let file = dir.path().join(format!("{name}.xml"));
         std::fs::write(&file, text).unwrap();
         assert!(
-            !xmllint(&file).status.success(),
+            !xmllint("system.xsd", &file).status.success(),
             "{name} should fail the schema"
         );
         let check = Command::new(bin("armor"))
@@ -83,7 +89,7 @@ fn the_schema_refuses_what_the_loader_refuses() {
 
 #[test]
 fn examples_pass_armor_check() {
-    for file in system_files() {
+    for file in examples("system").into_iter().chain(examples("mission")) {
         let output = Command::new(bin("armor"))
             .arg("check")
             .arg(&file)

@@ -2,9 +2,18 @@
 //! and the links between their ports), its XML form and the checks of a configuration against
 //! the module descriptions. This crate does no IO: it parses the text it is given and checks the
 //! data it is given; reading files and running modules belong to the runtime.
+//!
+//! Missions are Petri nets ([`net`]): their XML and PNML forms, the checks of their names against
+//! a system, an engine that plays them with the time given as a parameter, and a state-space
+//! analysis that finds deadlocks, dead transitions and unbounded places.
 
+pub mod net;
 pub mod system;
 
+pub use net::{
+    Analysis, Condition, Engine, EngineError, EventRef, Firing, Marking, MissionNet, Place,
+    PlaceParam, Transition, analyse, check_names, dining_philosophers, from_pnml, to_pnml,
+};
 pub use system::{
     DEFAULT_HOST, Endpoint, Link, ModuleBindings, ModuleInstance, ParamValue, RestartPolicy,
     SystemConfig, check,

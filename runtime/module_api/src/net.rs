@@ -151,6 +151,10 @@ impl Net {
         Ok(net)
     }
 
+    pub fn subscriber_count(&self, output: usize) -> usize {
+        self.subscribers.get(output).map_or(0, Vec::len)
+    }
+
     pub fn is_linked(&self, input: usize) -> bool {
         matches!(self.inputs.get(input), Some(InputLink::Linked(_)))
     }
@@ -497,9 +501,15 @@ impl Net {
         }
     }
 
-    /// Reads everything the socket has (edge-triggered), handling each complete frame.
+    /// Handles what is buffered, then reads until the socket is drained (edge-triggered),
+    /// handling each complete frame. A paused reliable input stops reading; whatever it already
+    /// holds is handled first when it resumes.
     fn read_conn(&mut self, core: &mut Core, token: Token) {
         loop {
+            if let Err(err) = self.handle_frames(core, token) {
+                self.fail(core, token, &err);
+                return;
+            }
             let Some(conn) = self.conns.get_mut(&token) else {
                 return;
             };
@@ -519,8 +529,12 @@ impl Net {
                     return;
                 }
             }
-            if let Err(err) = self.handle_frames(core, token) {
-                self.fail(core, token, &err);
+            // A short read drained the socket: handle what came, and let readiness tell of more
+            // (saves a read that would only say "would block").
+            if conn.reader.drained() {
+                if let Err(err) = self.handle_frames(core, token) {
+                    self.fail(core, token, &err);
+                }
                 return;
             }
         }

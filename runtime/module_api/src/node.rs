@@ -35,8 +35,10 @@ use crate::protocol::{ModuleConfig, ToSupervisor};
 use crate::types::{CodecError, Datum};
 use crate::wire::{self, DataFrame, WireError};
 
-/// A reliable input holds at most this many samples; beyond it the provider is made to wait.
+/// A reliable input holds at most this many samples, and this many bytes of them; beyond
+/// either, the provider is made to wait.
 pub(crate) const RELIABLE_QUEUE_LEN: usize = 1024;
+pub(crate) const RELIABLE_QUEUE_BYTES: usize = 16 * 1024 * 1024;
 
 #[derive(Debug, thiserror::Error)]
 pub enum ApiError {
@@ -143,6 +145,8 @@ pub(crate) struct InputSlot {
     /// Samples are stored with the link that brought them.
     pub latest: Option<(u64, DataFrame)>,
     pub queue: VecDeque<(u64, DataFrame)>,
+    /// Payload bytes in `queue`.
+    pub queued_bytes: usize,
     /// The current link's number (see [`Sample::link`]).
     pub link: u64,
     /// An `Event::Input` for this slot is waiting in the event queue.
@@ -151,7 +155,8 @@ pub(crate) struct InputSlot {
 
 impl InputSlot {
     pub fn has_room(&self) -> bool {
-        !self.reliable || self.queue.len() < RELIABLE_QUEUE_LEN
+        !self.reliable
+            || (self.queue.len() < RELIABLE_QUEUE_LEN && self.queued_bytes < RELIABLE_QUEUE_BYTES)
     }
 }
 
@@ -191,6 +196,7 @@ impl Core {
                 reliable: false,
                 latest: None,
                 queue: VecDeque::new(),
+                queued_bytes: 0,
                 link: 0,
                 notified: false,
             })
@@ -225,6 +231,7 @@ impl Core {
     pub fn deliver(&mut self, index: usize, frame: DataFrame) -> bool {
         let slot = &mut self.inputs[index];
         if slot.reliable {
+            slot.queued_bytes += frame.payload.len();
             slot.queue.push_back((slot.link, frame));
         } else {
             slot.latest = Some((slot.link, frame));
@@ -363,7 +370,10 @@ impl Node {
         if !slot.reliable {
             slot.reliable = true;
             // A sample that arrived before the switch is kept, first in the queue.
-            slot.queue.extend(slot.latest.take());
+            if let Some(sample) = slot.latest.take() {
+                slot.queued_bytes += sample.1.payload.len();
+                slot.queue.push_back(sample);
+            }
             if let Transport::Net(net) = &mut self.transport {
                 net.relink(&mut self.core, input.index);
             }
@@ -420,6 +430,16 @@ impl Node {
         Ok(())
     }
 
+    /// How many subscribers an output has right now. Values sent while it has none are lost,
+    /// as in any publish/subscribe system: a module that must not lose its first values waits
+    /// for a subscriber first.
+    pub fn subscriber_count<T>(&self, output: &Output<T>) -> usize {
+        match &self.transport {
+            Transport::Net(net) => net.subscriber_count(output.index),
+            Transport::Test(_) => 1,
+        }
+    }
+
     /// Writes everything sent so far without waiting for an event.
     pub fn flush(&mut self) -> Result<(), ApiError> {
         if let Transport::Net(net) = &mut self.transport {
@@ -432,7 +452,11 @@ impl Node {
     pub fn take<T: Datum>(&mut self, input: &Input<T>) -> Result<Option<Sample<T>>, ApiError> {
         let slot = &mut self.core.inputs[input.index];
         let frame = if slot.reliable {
-            slot.queue.pop_front()
+            let frame = slot.queue.pop_front();
+            if let Some((_, frame)) = &frame {
+                slot.queued_bytes -= frame.payload.len();
+            }
+            frame
         } else {
             slot.latest.take()
         };
@@ -445,7 +469,7 @@ impl Node {
                 .events
                 .push_back(Event::Input(PortId(input.index)));
         }
-        let value = T::decode(&frame.payload)?;
+        let value = T::decode_owned(frame.payload)?;
         Ok(Some(Sample {
             seq: frame.seq,
             stamp_ns: frame.stamp_ns,

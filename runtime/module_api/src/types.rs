@@ -17,6 +17,10 @@ pub trait Datum: Sized {
     const TYPE: &'static str;
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), CodecError>;
     fn decode(bytes: &[u8]) -> Result<Self, CodecError>;
+    /// Decodes from a buffer the value may keep (no copy for byte payloads).
+    fn decode_owned(bytes: Vec<u8>) -> Result<Self, CodecError> {
+        Self::decode(&bytes)
+    }
 }
 
 /// Implements [`Datum`] with postcard for serde types.
@@ -87,6 +91,9 @@ impl Datum for Blob {
     }
     fn decode(bytes: &[u8]) -> Result<Self, CodecError> {
         Ok(Blob(bytes.to_vec()))
+    }
+    fn decode_owned(bytes: Vec<u8>) -> Result<Self, CodecError> {
+        Ok(Blob(bytes))
     }
 }
 

@@ -137,6 +137,18 @@ pub struct FrameReader {
     start: usize,
     end: usize,
     hello_pending: bool,
+    /// A large data frame being read straight into its own payload buffer.
+    large: Option<LargeFrame>,
+    /// The last read filled less than the room it had: the socket was drained.
+    drained: bool,
+}
+
+/// A data frame whose payload is read directly where the receiver will keep it (no copy).
+struct LargeFrame {
+    seq: u64,
+    stamp_ns: u64,
+    payload: Vec<u8>,
+    filled: usize,
 }
 
 /// The most a single read reserves room for, whatever length a peer announces.
@@ -144,6 +156,8 @@ const MAX_READ_BYTES: usize = 16 * 1024 * 1024;
 const MIN_READ_BYTES: usize = 64 * 1024;
 /// An idle reader gives back storage beyond this.
 const IDLE_KEEP_BYTES: usize = 4 * 1024 * 1024;
+/// Data frames from this size on are read straight into their payload buffer.
+const LARGE_FRAME_BYTES: usize = 256 * 1024;
 
 impl FrameReader {
     /// For a new connection: the first six bytes must be a valid hello.
@@ -154,8 +168,21 @@ impl FrameReader {
         }
     }
 
-    /// Reads once from `source` into the buffer. `Ok(0)` means the peer closed the connection.
+    /// Whether the last read found the socket drained (it returned less than it had room for),
+    /// so that waiting for readiness is enough to learn of more data.
+    pub fn drained(&self) -> bool {
+        self.drained
+    }
+
+    /// Reads once from `source`. `Ok(0)` means the peer closed the connection.
     pub fn fill_from(&mut self, source: &mut impl Read) -> io::Result<usize> {
+        if let Some(large) = &mut self.large {
+            let room = large.payload.len() - large.filled;
+            let got = source.read(&mut large.payload[large.filled..])?;
+            large.filled += got;
+            self.drained = got < room;
+            return Ok(got);
+        }
         if self.start == self.end {
             self.start = 0;
             self.end = 0;
@@ -177,8 +204,10 @@ impl FrameReader {
         if self.buf.len() - self.end < want {
             self.buf.resize(self.end + want, 0);
         }
+        let room = self.buf.len() - self.end;
         let got = source.read(&mut self.buf[self.end..])?;
         self.end += got;
+        self.drained = got < room;
         Ok(got)
     }
 
@@ -190,8 +219,20 @@ impl FrameReader {
         Some(u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize + 4)
     }
 
-    /// The next complete frame in the buffer, if any.
+    /// The next complete frame, if any.
     pub fn next_frame(&mut self) -> Result<Option<Frame>, WireError> {
+        if let Some(large) = &self.large {
+            if large.filled < large.payload.len() {
+                return Ok(None);
+            }
+            return Ok(self.large.take().map(|large| {
+                Frame::Data(DataFrame {
+                    seq: large.seq,
+                    stamp_ns: large.stamp_ns,
+                    payload: large.payload,
+                })
+            }));
+        }
         if self.hello_pending {
             if self.end - self.start < HELLO.len() {
                 return Ok(None);
@@ -209,12 +250,41 @@ impl FrameReader {
         if len > MAX_FRAME_BYTES {
             return Err(WireError::FrameTooLarge(len));
         }
-        if self.end - self.start < total {
+        let buffered = self.end - self.start;
+        let prefix = 4 + 1 + DATA_HEADER_BYTES;
+        if len >= LARGE_FRAME_BYTES && buffered < total && buffered >= prefix {
+            if self.buf[self.start + 4] == KIND_DATA {
+                self.start_large(total);
+                return self.next_frame();
+            }
+        }
+        if buffered < total {
             return Ok(None);
         }
         let body = &self.buf[self.start + 4..self.start + total];
         self.start += total;
         decode_body(body).map(Some)
+    }
+
+    /// Moves the frame at `start` (a data frame of `total` bytes, header buffered) to its own
+    /// payload buffer, which the following reads fill directly.
+    fn start_large(&mut self, total: usize) {
+        let header = &self.buf[self.start + 5..self.start + 5 + DATA_HEADER_BYTES];
+        let mut seq = [0; 8];
+        let mut stamp = [0; 8];
+        seq.copy_from_slice(&header[..8]);
+        stamp.copy_from_slice(&header[8..]);
+        let payload_start = self.start + 5 + DATA_HEADER_BYTES;
+        let mut payload = vec![0; total - 5 - DATA_HEADER_BYTES];
+        let already = (self.end - payload_start).min(payload.len());
+        payload[..already].copy_from_slice(&self.buf[payload_start..payload_start + already]);
+        self.start = payload_start + already;
+        self.large = Some(LargeFrame {
+            seq: u64::from_le_bytes(seq),
+            stamp_ns: u64::from_le_bytes(stamp),
+            payload,
+            filled: already,
+        });
     }
 }
 
@@ -322,7 +392,8 @@ impl OutBuffer {
         let Some(&first) = self.frame_starts.front() else {
             return;
         };
-        if first >= 1024 * 1024 {
+        // Compact only when the sent part outweighs what is left, so each byte moves O(1) times.
+        if first >= 1024 * 1024 && first >= self.buf.len() - first {
             self.buf.drain(..first);
             self.written -= first;
             for start in &mut self.frame_starts {

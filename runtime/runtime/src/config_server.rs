@@ -6,7 +6,7 @@
 //! the old) and reloads it on change: a valid edit reaches every module whose configuration it
 //! changes; an invalid one is reported with `FILE:LINE:COL` and the last good one stays in force.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::Write as _;
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
@@ -52,10 +52,82 @@ struct ModuleConn {
     sent: ModuleConfig,
 }
 
+/// What the mission controller wants of the modules right now.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Control {
+    /// Controllable modules that must idle (without a mission: none).
+    pub inactive: BTreeSet<String>,
+    /// Parameter values of the marked places, over the system file's: module → name → value.
+    pub overlays: BTreeMap<String, BTreeMap<String, String>>,
+}
+
 struct State {
     loaded: Arc<Loaded>,
+    control: Control,
     conns: HashMap<String, ModuleConn>,
     next_conn_id: u64,
+}
+
+impl State {
+    /// A module's configuration: the system file's, under the controller's overlay.
+    fn config_of(&self, module: &str) -> Option<ModuleConfig> {
+        let instance = self.loaded.system.module(module)?;
+        let mut config = self.loaded.module_config(instance)?;
+        if let Some(overlay) = self.control.overlays.get(module) {
+            config.params.extend(overlay.clone());
+        }
+        let controllable = self
+            .loaded
+            .descriptions
+            .get(&instance.module_type)
+            .is_none_or(|description| description.controllable);
+        config.active = !(controllable && self.control.inactive.contains(module));
+        Some(config)
+    }
+
+    /// Sends every connected module whose configuration changed its new one (and a start or
+    /// stop if that is what changed). Returns the modules updated.
+    fn push_changes(&mut self) -> Vec<String> {
+        let mut updated = Vec::new();
+        let names: Vec<String> = self.conns.keys().cloned().collect();
+        for name in names {
+            let Some(config) = self.config_of(&name) else {
+                continue;
+            };
+            let Some(conn) = self.conns.get_mut(&name) else {
+                continue;
+            };
+            if config == conn.sent {
+                continue;
+            }
+            let mut message_ok = true;
+            let activity_changed = config.active != conn.sent.active;
+            let mut as_sent = config.clone();
+            as_sent.active = conn.sent.active;
+            if as_sent != conn.sent {
+                message_ok &= blocking::write_message(
+                    &mut conn.writer,
+                    &FromSupervisor::Config(config.clone()),
+                )
+                .is_ok();
+            }
+            if activity_changed {
+                let message = if config.active {
+                    FromSupervisor::Start
+                } else {
+                    FromSupervisor::Stop
+                };
+                message_ok &= blocking::write_message(&mut conn.writer, &message).is_ok();
+            }
+            let _ = conn.writer.flush();
+            if message_ok {
+                updated.push(name);
+            }
+            conn.sent = config;
+        }
+        updated.sort();
+        updated
+    }
 }
 
 #[derive(Clone)]
@@ -66,16 +138,18 @@ pub struct ConfigServer {
 }
 
 impl ConfigServer {
-    /// Listens on `addr` and serves `loaded` until the process ends.
+    /// Listens on `addr` and serves `loaded`, under `control`, until the process ends.
     pub fn start(
         addr: SocketAddr,
         loaded: Loaded,
+        control: Control,
     ) -> std::io::Result<(Self, Receiver<ServerEvent>)> {
         let listener = TcpListener::bind(addr)?;
         let (events, receiver) = mpsc::channel();
         let server = Self {
             state: Arc::new(Mutex::new(State {
                 loaded: Arc::new(loaded),
+                control,
                 conns: HashMap::new(),
                 next_conn_id: 0,
             })),
@@ -166,12 +240,7 @@ impl ConfigServer {
         stream.set_read_timeout(None)?;
         {
             let mut state = self.lock();
-            let config = state
-                .loaded
-                .system
-                .module(&name)
-                .and_then(|instance| state.loaded.module_config(instance));
-            let Some(config) = config else {
+            let Some(config) = state.config_of(&name) else {
                 drop(state);
                 let message = format!("no module `{name}` in this system");
                 tracing::warn!("{message}");
@@ -212,36 +281,25 @@ impl ConfigServer {
     /// configuration if it changed.
     pub fn apply(&self, loaded: Loaded) {
         let loaded = Arc::new(loaded);
-        let mut state = self.lock();
-        state.loaded = Arc::clone(&loaded);
-        let mut updated = Vec::new();
-        for (name, conn) in &mut state.conns {
-            let Some(config) = loaded
-                .system
-                .module(name)
-                .and_then(|instance| loaded.module_config(instance))
-            else {
-                continue;
-            };
-            if config != conn.sent {
-                if blocking::write_message(
-                    &mut conn.writer,
-                    &FromSupervisor::Config(config.clone()),
-                )
-                .is_ok()
-                {
-                    let _ = conn.writer.flush();
-                    updated.push(name.clone());
-                }
-                conn.sent = config;
-            }
-        }
-        drop(state);
+        let updated = {
+            let mut state = self.lock();
+            state.loaded = Arc::clone(&loaded);
+            state.push_changes()
+        };
         if !updated.is_empty() {
-            updated.sort();
             tracing::info!(modules = ?updated, "sent new configuration");
         }
         let _ = self.events.send(ServerEvent::Reloaded(loaded));
+    }
+
+    /// Puts the controller's wishes in force: modules stopped or started, place parameters.
+    pub fn set_control(&self, control: Control) {
+        let updated = {
+            let mut state = self.lock();
+            state.control = control;
+            state.push_changes()
+        };
+        tracing::debug!(modules = ?updated, "control applied");
     }
 
     /// Watches `file` and reloads it on every change, until the process ends.

@@ -1,11 +1,16 @@
 //! The ArMoR runtime: the central agent ([`agent`]), the config server ([`config_server`]), the
-//! supervisor behind `armor run` ([`supervisor`]), module discovery and probing ([`probe`]), and
-//! loading and checking system files ([`load`]). The `armor` binary is a thin command line over
+//! supervisor behind `armor run` ([`supervisor`]), the mission controller ([`controller`]) and
+//! its operator interface ([`control`]), module discovery and probing ([`probe`]), and loading
+//! and checking system and mission files ([`load`], [`mission`]). The `armor` binary is a thin command line over
 //! these. Nothing here knows egui.
 
 pub mod agent;
 pub mod config_server;
+pub mod control;
+pub mod controller;
+pub mod fs;
 pub mod load;
+pub mod mission;
 pub mod probe;
 pub mod supervisor;
 mod sys;

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context as _;
-use armor_runtime::{agent, load, probe, supervisor};
+use armor_runtime::{agent, control, load, mission, probe, supervisor};
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -18,6 +18,21 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+#[derive(Subcommand)]
+enum CtlCommand {
+    /// The marking, what each enabled transition waits for, the active modules.
+    Status,
+    /// Hold every controllable module; fire nothing until resumed.
+    Pause,
+    Resume,
+    /// End the mission now (armor run exits non-zero).
+    Abort,
+    /// Fire an enabled transition now, whatever its condition.
+    Fire {
+        transition: String,
+    },
 }
 
 #[derive(Subcommand)]
@@ -35,8 +50,24 @@ enum Command {
         /// Address for the agent (default: a free port on the system's host).
         #[arg(long)]
         agent: Option<SocketAddr>,
+        /// Address for a mission's control interface (default: a free port).
+        #[arg(long)]
+        control: Option<SocketAddr>,
+        /// Write a mission's timeline (every firing, start and stop) to this JSON file.
+        #[arg(long)]
+        report: Option<PathBuf>,
     },
-    /// Check a system file: schema, module types, links, parameters. Exit 1 on any problem.
+    /// Operate a running mission: status, pause, resume, abort, or fire a transition by hand.
+    Ctl {
+        /// The run's control interface (printed by `armor run`; default: $ARMOR_CONTROL).
+        #[arg(long, env = armor_runtime::control::ENV_CONTROL)]
+        addr: SocketAddr,
+        #[command(subcommand)]
+        request: CtlCommand,
+    },
+    /// Check a system or mission file: schema, module types, links, parameters; for a mission,
+    /// the names it uses and its behaviour (deadlocks, dead transitions, unboundedness).
+    /// Exit 1 on any problem.
     Check {
         /// The system XML file.
         file: PathBuf,
@@ -51,6 +82,25 @@ enum Command {
         /// Seconds a binary may take to answer.
         #[arg(long, default_value_t = 5.0)]
         timeout_secs: f64,
+    },
+    /// Export a mission net to another format.
+    Export {
+        /// Write ISO/IEC 15909-2 PNML (a P/T net; our extra data in toolspecific elements).
+        #[arg(long, required = true)]
+        pnml: bool,
+        /// The mission file.
+        mission: PathBuf,
+        /// The file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Import a PNML P/T net as an ArMoR mission file.
+    Import {
+        /// The PNML file.
+        file: PathBuf,
+        /// The mission file to write.
+        #[arg(short, long)]
+        output: PathBuf,
     },
     /// Run the central agent (name server) alone.
     Agent {
@@ -77,6 +127,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             time_scale,
             duration_secs,
             agent,
+            control,
+            report,
         } => {
             if !(time_scale.is_finite() && time_scale > 0.0) {
                 anyhow::bail!("--time-scale must be a positive number, not {time_scale}");
@@ -93,9 +145,30 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 time_scale,
                 duration,
                 agent_addr: agent,
+                control_addr: control,
+                report,
             })
         }
         Command::Check { file } => Ok(check(&file)),
+        Command::Ctl { addr, request } => {
+            let request = match request {
+                CtlCommand::Status => control::Request::Status,
+                CtlCommand::Pause => control::Request::Pause,
+                CtlCommand::Resume => control::Request::Resume,
+                CtlCommand::Abort => control::Request::Abort,
+                CtlCommand::Fire { transition } => control::Request::Fire { transition },
+            };
+            let reply = control::request(addr, &request)?;
+            println!("{}", reply.message);
+            if let Some(status) = reply.status {
+                println!("{}", serde_json::to_string_pretty(&status)?);
+            }
+            Ok(if reply.ok {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::FAILURE
+            })
+        }
         Command::Probe {
             paths,
             xml,
@@ -104,6 +177,46 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             let timeout = Duration::try_from_secs_f64(timeout_secs)
                 .context("--timeout-secs must be positive")?;
             Ok(probe_command(paths, xml, timeout))
+        }
+        Command::Export {
+            pnml: _,
+            mission,
+            output,
+        } => {
+            let text = read_text(&mission)?;
+            let net = match armor_model::net::MissionNet::parse(&text) {
+                Ok(net) => net,
+                Err(problems) => {
+                    return Ok(report(load::Diagnostics {
+                        file: mission,
+                        problems,
+                    }));
+                }
+            };
+            armor_runtime::fs::write_atomically(
+                &output,
+                armor_model::net::to_pnml(&net).as_bytes(),
+            )
+            .with_context(|| format!("cannot write {}", output.display()))?;
+            println!("{}: PNML written", output.display());
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Import { file, output } => {
+            let text = read_text(&file)?;
+            let net = match armor_model::net::from_pnml(&text) {
+                Ok(net) => net,
+                Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
+            };
+            armor_runtime::fs::write_atomically(&output, net.to_xml().as_bytes())
+                .with_context(|| format!("cannot write {}", output.display()))?;
+            println!(
+                "{}: mission `{}` written ({}, {})",
+                output.display(),
+                net.name,
+                plural(net.places.len(), "place"),
+                plural(net.transitions.len(), "transition")
+            );
+            Ok(ExitCode::SUCCESS)
         }
         Command::Agent { listen } => {
             let listener = std::net::TcpListener::bind(listen)
@@ -117,23 +230,45 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
 }
 
 fn check(file: &std::path::Path) -> ExitCode {
-    match load::load_system(file, &probe::module_path()) {
-        Ok(loaded) => {
-            println!(
-                "{}: ok (system `{}`: {}, {})",
-                file.display(),
+    let module_path = probe::module_path();
+    let summary = match mission::document_kind(file) {
+        Ok(mission::DocumentKind::System) => load::load_system(file, &module_path).map(|loaded| {
+            format!(
+                "system `{}`: {}, {}",
                 loaded.system.name,
                 plural(loaded.system.modules.len(), "module"),
                 plural(loaded.system.links.len(), "link")
-            );
+            )
+        }),
+        Ok(_) => mission::load_mission(file, &module_path).map(|mission| {
+            format!(
+                "mission `{}`: {}, {}, {} reachable",
+                mission.net.name,
+                plural(mission.net.places.len(), "place"),
+                plural(mission.net.transitions.len(), "transition"),
+                plural(mission.states, "marking")
+            )
+        }),
+        Err(diagnostics) => Err(diagnostics),
+    };
+    match summary {
+        Ok(summary) => {
+            println!("{}: ok ({summary})", file.display());
             ExitCode::SUCCESS
         }
-        Err(diagnostics) => {
-            println!("{diagnostics}");
-            eprintln!("{}", plural(diagnostics.problems.len(), "problem"));
-            ExitCode::FAILURE
-        }
+        Err(diagnostics) => report(diagnostics),
     }
+}
+
+/// Prints every problem of a file and returns the failure status.
+fn report(diagnostics: load::Diagnostics) -> ExitCode {
+    println!("{diagnostics}");
+    eprintln!("{}", plural(diagnostics.problems.len(), "problem"));
+    ExitCode::FAILURE
+}
+
+fn read_text(file: &std::path::Path) -> anyhow::Result<String> {
+    std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))
 }
 
 fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration) -> ExitCode {

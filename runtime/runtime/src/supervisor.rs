@@ -17,10 +17,13 @@ use anyhow::{Context as _, bail};
 use armor_model::RestartPolicy;
 use armor_module_api::clock::{ENV_EPOCH, ENV_TIME_SCALE, unix_now_ns};
 use armor_module_api::protocol::FromSupervisor;
-use armor_module_api::{ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR};
+use armor_module_api::{Clock, ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR};
 
 use crate::config_server::{ConfigServer, ServerEvent};
-use crate::load::{Loaded, load_system};
+use crate::control;
+use crate::controller::{Controller, Outcome};
+use crate::load::{Diagnostics, Loaded, load_system};
+use crate::mission::{DocumentKind, LoadedMission, document_kind, load_mission};
 use crate::probe;
 
 const TICK: Duration = Duration::from_millis(20);
@@ -43,6 +46,10 @@ pub struct RunOptions {
     pub duration: Option<Duration>,
     /// Where the agent listens; a free port on the system's host when `None`.
     pub agent_addr: Option<SocketAddr>,
+    /// Where a mission's control interface listens; a free port on the system's host when `None`.
+    pub control_addr: Option<SocketAddr>,
+    /// Where to write a mission's timeline (JSON) when it ends.
+    pub report: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,8 +83,19 @@ struct RunEnv {
     module_path: Vec<PathBuf>,
 }
 
+/// A file to run: a system, or a mission over a system.
+fn load(options: &RunOptions) -> Result<(Loaded, Option<LoadedMission>), Diagnostics> {
+    match document_kind(&options.file)? {
+        DocumentKind::System => Ok((load_system(&options.file, &options.module_path)?, None)),
+        DocumentKind::Mission | DocumentKind::Pnml => {
+            let mission = load_mission(&options.file, &options.module_path)?;
+            Ok((mission.system.clone(), Some(mission)))
+        }
+    }
+}
+
 pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
-    let loaded = match load_system(&options.file, &options.module_path) {
+    let (loaded, mission) = match load(&options) {
         Ok(loaded) => loaded,
         Err(diagnostics) => {
             eprintln!("{diagnostics}");
@@ -96,16 +114,55 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             .or_else(|_| format!("[{host}]:{port}").parse())
             .with_context(|| format!("bad host `{host}`"))
     };
+    let epoch_ns = unix_now_ns();
+    let clock = Clock::new(epoch_ns, options.time_scale);
+    let system_file = mission.as_ref().map_or_else(
+        || options.file.clone(),
+        |mission| mission.system_file.clone(),
+    );
+    let mut controller = mission.map(|mission| {
+        let controllable = loaded
+            .system
+            .modules
+            .iter()
+            .filter(|module| {
+                loaded
+                    .descriptions
+                    .get(&module.module_type)
+                    .is_some_and(|description| description.controllable)
+            })
+            .map(|module| module.name.clone())
+            .collect();
+        tracing::info!(
+            mission = mission.net.name,
+            states = mission.states,
+            "mission checked"
+        );
+        Controller::new(mission.net, controllable, clock, epoch_ns as f64 / 1e9)
+    });
     let mut agent = AgentProc::start(options.agent_addr.map_or_else(|| local(0), Ok)?)?;
-    let (server, events) =
-        ConfigServer::start(local(0)?, loaded.clone()).context("cannot start the config server")?;
-    if let Err(err) = server.watch(&options.file, options.module_path.clone()) {
-        tracing::warn!("cannot watch {} for changes: {err}", options.file.display());
+    let control = controller
+        .as_ref()
+        .map(Controller::control)
+        .unwrap_or_default();
+    let (server, events) = ConfigServer::start(local(0)?, loaded.clone(), control)
+        .context("cannot start the config server")?;
+    if let Err(err) = server.watch(&system_file, options.module_path.clone()) {
+        tracing::warn!("cannot watch {} for changes: {err}", system_file.display());
+    }
+    let (requests_tx, requests) = mpsc::channel::<control::Incoming>();
+    if controller.is_some() {
+        let addr = control::serve(
+            options.control_addr.map_or_else(|| local(0), Ok)?,
+            requests_tx,
+        )
+        .context("cannot start the control interface")?;
+        tracing::info!(%addr, "control interface listening (armor ctl --addr {addr} status|pause|resume|abort|fire NAME)");
     }
     let env = RunEnv {
         agent_addr: agent.addr,
         supervisor_addr: server.addr(),
-        epoch_ns: unix_now_ns(),
+        epoch_ns,
         time_scale: options.time_scale,
         module_path: options.module_path.clone(),
     };
@@ -133,7 +190,35 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             tracing::info!("run duration reached");
             break ExitCode::SUCCESS;
         }
-        match events.recv_timeout(TICK) {
+        if let Some(controller) = &mut controller {
+            controller.step(&server);
+            match controller.outcome() {
+                None => {}
+                Some(Outcome::Complete) => break ExitCode::SUCCESS,
+                Some(Outcome::Aborted) => {
+                    tracing::error!("mission aborted");
+                    break ExitCode::FAILURE;
+                }
+                Some(Outcome::Deadlock { marking }) => {
+                    tracing::error!("mission failed: deadlock in {marking}");
+                    break ExitCode::FAILURE;
+                }
+                Some(Outcome::Failed { module }) => {
+                    tracing::error!(
+                        "mission failed: module `{module}` failed and nothing in the mission handles module.{module}.failed"
+                    );
+                    break ExitCode::FAILURE;
+                }
+            }
+            while let Ok((request, reply)) = requests.try_recv() {
+                let _ = reply.send(controller.handle(request, &server));
+            }
+        }
+        let wake = controller.as_ref().and_then(Controller::next_wake);
+        let timeout = wake.map_or(TICK, |at| {
+            at.saturating_duration_since(Instant::now()).min(TICK)
+        });
+        match events.recv_timeout(timeout) {
             Ok(ServerEvent::Connected { module, pid }) => {
                 tracing::debug!(module, pid, "module connected")
             }
@@ -150,7 +235,12 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     );
                 }
             }
-            Ok(ServerEvent::Event { module, name }) => tracing::info!("event {module}.{name}"),
+            Ok(ServerEvent::Event { module, name }) => {
+                tracing::info!("event {module}.{name}");
+                if let Some(controller) = &mut controller {
+                    controller.on_event(&format!("{module}.{name}"), &server);
+                }
+            }
             Ok(ServerEvent::Disconnected { module }) => {
                 tracing::debug!(module, "module disconnected")
             }
@@ -159,13 +249,20 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
         }
         for module in modules.values_mut() {
+            let was_failed = module.state == ProcState::Failed;
             module.supervise(&env);
+            if !was_failed
+                && module.state == ProcState::Failed
+                && let Some(controller) = &mut controller
+            {
+                controller.on_failed(&module.name, &server);
+            }
         }
         agent.supervise();
         let finished = modules
             .values()
             .all(|module| matches!(module.state, ProcState::Exited | ProcState::Failed));
-        if finished && !modules.is_empty() {
+        if finished && !modules.is_empty() && controller.is_none() {
             let failed: Vec<&str> = modules
                 .values()
                 .filter(|module| module.state == ProcState::Failed)
@@ -181,6 +278,12 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     };
     stop_all(&mut modules, &server);
     agent.stop();
+    if let (Some(controller), Some(report)) = (&controller, &options.report) {
+        match controller.write_report(report) {
+            Ok(()) => tracing::info!(file = %report.display(), "mission report written"),
+            Err(err) => tracing::error!("cannot write the report {}: {err}", report.display()),
+        }
+    }
     Ok(outcome)
 }
 

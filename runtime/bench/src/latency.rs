@@ -1,0 +1,237 @@
+//! `latency_64b`: round trips of a 64-byte message, one in flight, between a node in this
+//! process and an `armor-mod-echo` process, against TCP ping-pong (TCP_NODELAY) with a child.
+
+use std::io::{Read as _, Write as _};
+use std::time::{Duration, Instant};
+
+use anyhow::bail;
+use armor_module_api::types::Blob;
+use armor_module_api::{Event, Input, ModuleSpec, Node, Output};
+
+use crate::Settings;
+use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
+use crate::procs::{ChildGuard, module_command};
+use crate::raw;
+use crate::report::Report;
+
+pub const NAME: &str = "latency_64b";
+const SIZE: usize = 64;
+/// How long a warm-up ping waits for its pong before another is sent.
+const LINK_PROBE: Duration = Duration::from_millis(20);
+/// After the first pong, how long stale pongs are drained.
+const SETTLE: Duration = Duration::from_millis(50);
+
+struct Counts {
+    warm_up: usize,
+    /// Timed round trips per block; blocks alternate between ArMoR and the reference, so that
+    /// a change in the machine's load weighs on both alike.
+    block: usize,
+    blocks: usize,
+}
+
+pub fn run(settings: &Settings) -> anyhow::Result<Report> {
+    let counts = if settings.quick {
+        Counts {
+            warm_up: 20,
+            block: 100,
+            blocks: 2,
+        }
+    } else {
+        Counts {
+            warm_up: 2_000,
+            block: 2_000,
+            blocks: 10,
+        }
+    };
+    let mut armor = ArmorPingPong::start()?;
+    let mut raw = RawPingPong::start()?;
+    armor.round_trips(counts.warm_up)?;
+    raw.round_trips(counts.warm_up)?;
+    let mut ours = Vec::with_capacity(counts.block * counts.blocks);
+    let mut reference = Vec::with_capacity(counts.block * counts.blocks);
+    for _ in 0..counts.blocks {
+        ours.extend(armor.round_trips(counts.block)?);
+        reference.extend(raw.round_trips(counts.block)?);
+    }
+    raw.finish()?;
+    Ok(Report::distribution(NAME, "us", 1e6, &ours, &reference))
+}
+
+/// The bench's node (output `ping`, reliable input `pong` bound to `echo.output`) and the echo
+/// process (input bound to `bench.ping`).
+struct ArmorPingPong {
+    node: Node,
+    ping: Output<Blob>,
+    pong: Input<Blob>,
+    echo: ChildGuard,
+    message: Blob,
+    seq: u64,
+}
+
+impl ArmorPingPong {
+    /// Connects both ways: keeps sending until a pong comes back.
+    fn start() -> anyhow::Result<Self> {
+        let agent = harness::agent()?;
+        let spec = ModuleSpec::new("bench", "armor-bench: the latency probe")
+            .output::<Blob>(
+                "ping",
+                "64-byte messages, each stamped with its sequence number",
+            )
+            .input::<Blob>("pong", "the same messages, echoed");
+        let mut node = harness::connect(spec, agent, &[("pong", "echo.output")])?;
+        let ping = node.output::<Blob>("ping")?;
+        let pong = node.reliable_input::<Blob>("pong")?;
+        let agent = agent.to_string();
+        let echo = ChildGuard::spawn(
+            "armor-mod-echo",
+            module_command(
+                "echo",
+                &[
+                    "--name",
+                    "echo",
+                    "--agent",
+                    &agent,
+                    "--bind",
+                    "input=bench.ping",
+                ],
+            )?,
+        )?;
+        let mut side = Self {
+            node,
+            ping,
+            pong,
+            echo,
+            message: Blob(vec![0xA5; SIZE]),
+            seq: 0,
+        };
+        let give_up = Instant::now() + LINK_TIMEOUT;
+        loop {
+            side.send_next()?;
+            if side.drain(Instant::now() + LINK_PROBE, true)? > 0 {
+                break;
+            }
+            side.echo.check_alive()?;
+            if Instant::now() >= give_up {
+                return Err(side
+                    .echo
+                    .failure(&format!("sent no pong back within {LINK_TIMEOUT:?}")));
+            }
+        }
+        side.drain(Instant::now() + SETTLE, false)?;
+        Ok(side)
+    }
+
+    fn send_next(&mut self) -> anyhow::Result<()> {
+        self.seq += 1;
+        stamp(&mut self.message, self.seq);
+        self.node.send(&self.ping, &self.message)?;
+        Ok(())
+    }
+
+    /// Times `count` round trips, one message in flight.
+    fn round_trips(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+        let mut samples = Vec::with_capacity(count);
+        for _ in 0..count {
+            let start = Instant::now();
+            self.send_next()?;
+            self.await_pong()?;
+            samples.push(start.elapsed());
+        }
+        Ok(samples)
+    }
+
+    /// Takes the pongs that arrive until `until` (or, with `first_only`, until some arrive);
+    /// returns how many.
+    fn drain(&mut self, until: Instant, first_only: bool) -> anyhow::Result<usize> {
+        let mut got = 0;
+        loop {
+            match self.node.next_event_until(until)? {
+                Event::Input(port) if port == self.pong.id() => {
+                    while self.node.take(&self.pong)?.is_some() {
+                        got += 1;
+                    }
+                    if first_only && got > 0 {
+                        return Ok(got);
+                    }
+                }
+                Event::Timeout => return Ok(got),
+                _ => {}
+            }
+        }
+    }
+
+    /// Waits for the pong of the last message sent, skipping stale ones.
+    fn await_pong(&mut self) -> anyhow::Result<()> {
+        loop {
+            match self.node.next_event(Some(STALL_TIMEOUT))? {
+                Event::Input(port) if port == self.pong.id() => {
+                    while let Some(sample) = self.node.take(&self.pong)? {
+                        if seq_of(&sample.value) == Some(self.seq) {
+                            return Ok(());
+                        }
+                    }
+                }
+                Event::Timeout => {
+                    self.echo.check_alive()?;
+                    bail!("no pong for message {} within {STALL_TIMEOUT:?}", self.seq);
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+/// TCP ping-pong with this binary run as `--raw-echo`.
+struct RawPingPong {
+    peer: raw::Peer,
+    message: [u8; SIZE],
+    echoed: [u8; SIZE],
+    seq: u64,
+}
+
+impl RawPingPong {
+    fn start() -> anyhow::Result<Self> {
+        Ok(Self {
+            peer: raw::start_peer("--raw-echo", &SIZE.to_string())?,
+            message: [0xA5; SIZE],
+            echoed: [0; SIZE],
+            seq: 0,
+        })
+    }
+
+    fn round_trips(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+        let mut samples = Vec::with_capacity(count);
+        for _ in 0..count {
+            self.seq += 1;
+            self.message[..8].copy_from_slice(&self.seq.to_le_bytes());
+            let start = Instant::now();
+            self.peer.stream.write_all(&self.message)?;
+            if let Err(err) = self.peer.stream.read_exact(&mut self.echoed) {
+                self.peer.child.check_alive()?;
+                return Err(err.into());
+            }
+            samples.push(start.elapsed());
+        }
+        if self.echoed != self.message {
+            bail!("the raw echo peer sent back different bytes");
+        }
+        Ok(samples)
+    }
+
+    /// Closes the connection and sees the peer exit cleanly.
+    fn finish(self) -> anyhow::Result<()> {
+        let raw::Peer { stream, mut child } = self.peer;
+        drop(stream);
+        child.wait_exit(Duration::from_secs(5))?;
+        Ok(())
+    }
+}
+
+fn stamp(message: &mut Blob, seq: u64) {
+    message.0[..8].copy_from_slice(&seq.to_le_bytes());
+}
+
+fn seq_of(message: &Blob) -> Option<u64> {
+    let bytes = message.0.get(..8)?;
+    Some(u64::from_le_bytes(bytes.try_into().ok()?))
+}

@@ -1,0 +1,159 @@
+//! `armor-bench`: ArMoR's speed measured against a reference in the same run.
+//!
+//! Each benchmark prints one JSON line: `{"bench", "ours", "reference", "unit", "ratio"}` (ratio
+//! = ours / reference), plus `p50`, `p99`, `reference_p50` and `reference_p99` for
+//! distributions (then `ours` and `reference` are medians). References are plain TCP or plain
+//! process spawns measured on the same machine in the same run, so ratios compare across
+//! machines where absolute numbers do not.
+//!
+//! The raw TCP references need a peer process: the binary re-executes itself in a hidden mode
+//! (`--raw-echo ADDR SIZE`, `--raw-sink ADDR BYTES`).
+
+mod harness;
+mod latency;
+mod procs;
+mod raw;
+mod report;
+mod startup;
+mod sys;
+mod throughput;
+
+use std::io::Write as _;
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use clap::Parser;
+
+use crate::report::Report;
+
+#[derive(Parser)]
+#[command(
+    name = "armor-bench",
+    version,
+    about = "Measures ArMoR against raw TCP and plain process spawns, one JSON line per benchmark"
+)]
+struct Cli {
+    /// Benchmarks to run, in this order (default: all; see --list).
+    names: Vec<String>,
+    /// Tiny iteration counts: checks that everything runs, measures nothing worth keeping.
+    #[arg(long)]
+    quick: bool,
+    /// Print the benchmark names and exit.
+    #[arg(long)]
+    list: bool,
+    /// Hidden reference peer: connect to ADDR and echo SIZE-byte messages until closed.
+    #[arg(long, hide = true, num_args = 2, value_names = ["ADDR", "SIZE"])]
+    raw_echo: Option<Vec<String>>,
+    /// Hidden reference peer: connect to ADDR, read BYTES bytes, answer one byte.
+    #[arg(long, hide = true, num_args = 2, value_names = ["ADDR", "BYTES"])]
+    raw_sink: Option<Vec<String>>,
+}
+
+/// What every benchmark gets.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    pub quick: bool,
+}
+
+struct Bench {
+    name: &'static str,
+    about: &'static str,
+    run: fn(&Settings) -> anyhow::Result<Report>,
+}
+
+const BENCHES: &[Bench] = &[
+    Bench {
+        name: latency::NAME,
+        about: "round trip of 64 bytes through armor-mod-echo vs TCP ping-pong (us)",
+        run: latency::run,
+    },
+    Bench {
+        name: throughput::NAME_1MIB,
+        about: "1 MiB messages into armor-mod-sink vs TCP streaming (msg/s)",
+        run: throughput::run_1mib,
+    },
+    Bench {
+        name: throughput::NAME_64B,
+        about: "64-byte messages into armor-mod-sink vs buffered TCP streaming (msg/s)",
+        run: throughput::run_64b,
+    },
+    Bench {
+        name: startup::NAME,
+        about: "`armor run` of ten counters until configured vs ten --describe spawns (ms)",
+        run: startup::run,
+    },
+];
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    if let Some(args) = &cli.raw_echo {
+        return raw::echo_main(&args[0], parse_number(&args[1], "--raw-echo SIZE")?);
+    }
+    if let Some(args) = &cli.raw_sink {
+        return raw::sink_main(&args[0], parse_number(&args[1], "--raw-sink BYTES")?);
+    }
+    if cli.list {
+        for bench in BENCHES {
+            println!("{:<20} {}", bench.name, bench.about);
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    let selected: Vec<&Bench> = if cli.names.is_empty() {
+        BENCHES.iter().collect()
+    } else {
+        let mut selected = Vec::new();
+        for name in &cli.names {
+            match BENCHES.iter().find(|bench| bench.name == name.as_str()) {
+                Some(bench) => selected.push(bench),
+                None => {
+                    let known: Vec<&str> = BENCHES.iter().map(|bench| bench.name).collect();
+                    eprintln!(
+                        "error: unknown benchmark `{name}` (known: {})",
+                        known.join(", ")
+                    );
+                    return Ok(ExitCode::from(2));
+                }
+            }
+        }
+        selected
+    };
+    let settings = Settings { quick: cli.quick };
+    let mut stdout = std::io::stdout().lock();
+    let mut failed = 0;
+    for bench in selected {
+        // A failing benchmark does not hide the others; the exit status still tells.
+        match (bench.run)(&settings) {
+            Ok(report) => {
+                writeln!(stdout, "{}", serde_json::to_string(&report)?)?;
+                stdout.flush()?;
+            }
+            Err(err) => {
+                eprintln!("error: benchmark {}: {err:#}", bench.name);
+                failed += 1;
+            }
+        }
+    }
+    if failed > 0 {
+        eprintln!("error: {failed} benchmark(s) failed");
+        return Ok(ExitCode::FAILURE);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn parse_number<T: std::str::FromStr>(text: &str, what: &str) -> anyhow::Result<T>
+where
+    T::Err: std::error::Error + Send + Sync + 'static,
+{
+    text.parse()
+        .with_context(|| format!("{what}: `{text}` is not a number"))
+}

@@ -1,0 +1,235 @@
+//! Child processes: finding their binaries, and a guard that never leaves one behind.
+
+use std::collections::VecDeque;
+use std::io::{BufRead as _, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::mpsc::{self, Receiver};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, anyhow, bail};
+use armor_module_api::{ENV_MODULE, ENV_SUPERVISOR};
+use armor_runtime::probe;
+
+/// Stderr lines kept to explain a child's failure.
+const TAIL_LINES: usize = 20;
+/// How long a graceful guard waits after SIGTERM before SIGKILL.
+const DROP_GRACE: Duration = Duration::from_secs(3);
+
+/// A module binary from the module path (`$ARMOR_MODULE_PATH`, else this executable's folder).
+pub fn module_binary(module_type: &str) -> anyhow::Result<PathBuf> {
+    let path = probe::module_path();
+    probe::find_module(&path, module_type).ok_or_else(|| {
+        anyhow!(
+            "no {}{module_type} in {}: build the whole workspace first \
+             (cargo build --release --workspace)",
+            probe::BINARY_PREFIX,
+            path.iter()
+                .map(|dir| dir.display().to_string())
+                .collect::<Vec<_>>()
+                .join(":")
+        )
+    })
+}
+
+/// A module process run by hand (standalone, on the agent at `--agent`).
+pub fn module_command(module_type: &str, args: &[&str]) -> anyhow::Result<Command> {
+    let mut command = Command::new(module_binary(module_type)?);
+    command
+        .args(args)
+        .env_remove(ENV_SUPERVISOR)
+        .env_remove(ENV_MODULE);
+    Ok(command)
+}
+
+/// A binary next to this executable (`armor` next to `armor-bench`).
+pub fn sibling_binary(name: &str) -> anyhow::Result<PathBuf> {
+    let exe = std::env::current_exe().context("cannot locate this executable")?;
+    let binary = exe.with_file_name(name);
+    if !binary.is_file() {
+        bail!(
+            "no {} next to {}: build the whole workspace first (cargo build --release --workspace)",
+            name,
+            exe.display()
+        );
+    }
+    Ok(binary)
+}
+
+/// This very executable, to run it in a hidden reference mode.
+pub fn self_command() -> anyhow::Result<Command> {
+    Ok(Command::new(
+        std::env::current_exe().context("cannot locate this executable")?,
+    ))
+}
+
+/// A child process that is killed when the guard is dropped (on success, error or panic), or by
+/// the kernel if this process dies without dropping it (`PR_SET_PDEATHSIG`). Its
+/// stderr is read on a thread: every line is sent to [`ChildGuard::take_lines`] and the last ones are
+/// kept to explain a failure.
+pub struct ChildGuard {
+    name: String,
+    child: Child,
+    exited: Option<ExitStatus>,
+    lines: Option<Receiver<String>>,
+    tail: Arc<Mutex<VecDeque<String>>>,
+    reader: Option<JoinHandle<()>>,
+    graceful: bool,
+}
+
+impl ChildGuard {
+    /// Starts `command` with stdin and stdout closed and stderr captured.
+    pub fn spawn(name: &str, mut command: Command) -> anyhow::Result<Self> {
+        command
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        crate::sys::die_with_parent(&mut command);
+        let mut child = command
+            .spawn()
+            .with_context(|| format!("cannot start {name} ({:?})", command.get_program()))?;
+        let tail = Arc::new(Mutex::new(VecDeque::new()));
+        let (sender, receiver) = mpsc::channel();
+        let reader = child.stderr.take().map(|stderr| {
+            let tail = Arc::clone(&tail);
+            std::thread::spawn(move || {
+                for line in BufReader::new(stderr).lines() {
+                    let Ok(line) = line else { break };
+                    {
+                        let mut tail = tail.lock().unwrap_or_else(PoisonError::into_inner);
+                        if tail.len() == TAIL_LINES {
+                            tail.pop_front();
+                        }
+                        tail.push_back(line.clone());
+                    }
+                    // Nobody listening is fine: the tail still has the line.
+                    let _ = sender.send(line);
+                }
+            })
+        });
+        Ok(Self::new(name, child, Some(receiver), tail, reader))
+    }
+
+    /// Starts a short-lived `command` with no pipes and no death signal: nothing between it and
+    /// the clock (a `pre_exec` hook would make std fork instead of posix_spawn). Only the guard
+    /// kills it.
+    pub fn spawn_quiet(name: &str, mut command: Command) -> anyhow::Result<Self> {
+        command
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null());
+        let child = command
+            .spawn()
+            .with_context(|| format!("cannot start {name} ({:?})", command.get_program()))?;
+        Ok(Self::new(name, child, None, Arc::default(), None))
+    }
+
+    fn new(
+        name: &str,
+        child: Child,
+        lines: Option<Receiver<String>>,
+        tail: Arc<Mutex<VecDeque<String>>>,
+        reader: Option<JoinHandle<()>>,
+    ) -> Self {
+        Self {
+            name: name.to_owned(),
+            child,
+            exited: None,
+            lines,
+            tail,
+            reader,
+            graceful: false,
+        }
+    }
+
+    /// On drop, SIGTERM first and SIGKILL only if it does not stop (for `armor run`, which
+    /// then stops its own children in order).
+    pub fn graceful(mut self) -> Self {
+        self.graceful = true;
+        self
+    }
+
+    /// The child's stderr, line by line (for a child started with [`ChildGuard::spawn`]; once).
+    pub fn take_lines(&mut self) -> Option<Receiver<String>> {
+        self.lines.take()
+    }
+
+    /// Whether the child has exited (and how), without waiting.
+    pub fn try_exited(&mut self) -> anyhow::Result<Option<ExitStatus>> {
+        if self.exited.is_none() {
+            self.exited = self
+                .child
+                .try_wait()
+                .with_context(|| format!("cannot wait for {}", self.name))?;
+        }
+        Ok(self.exited)
+    }
+
+    /// An error if the child has exited: it was meant to keep running.
+    pub fn check_alive(&mut self) -> anyhow::Result<()> {
+        match self.try_exited()? {
+            None => Ok(()),
+            Some(status) => Err(self.failure(&format!("exited early ({status})"))),
+        }
+    }
+
+    /// Waits for the child to exit on its own, at most `timeout`.
+    pub fn wait_exit(&mut self, timeout: Duration) -> anyhow::Result<ExitStatus> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.try_exited()? {
+                return Ok(status);
+            }
+            if Instant::now() >= deadline {
+                return Err(self.failure(&format!("still running after {timeout:?}")));
+            }
+            // Fine-grained: the start-up reference times short-lived children with this.
+            std::thread::sleep(Duration::from_micros(200));
+        }
+    }
+
+    /// Sends SIGTERM and waits for the child to exit, at most `timeout`.
+    pub fn terminate(&mut self, timeout: Duration) -> anyhow::Result<ExitStatus> {
+        if self.try_exited()?.is_none() {
+            crate::sys::terminate(self.child.id());
+        }
+        self.wait_exit(timeout)
+    }
+
+    /// An error naming the child, with the last lines of its stderr.
+    pub fn failure(&mut self, what: &str) -> anyhow::Error {
+        // Give the reader a moment to collect what a dying child wrote last.
+        if let Some(reader) = &self.reader {
+            let deadline = Instant::now() + Duration::from_millis(200);
+            while !reader.is_finished() && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+        let tail = self.tail.lock().unwrap_or_else(PoisonError::into_inner);
+        if tail.is_empty() {
+            anyhow!("{} {what}", self.name)
+        } else {
+            let lines: Vec<String> = tail.iter().map(|line| format!("  | {line}")).collect();
+            anyhow!(
+                "{} {what}; its last stderr lines:\n{}",
+                self.name,
+                lines.join("\n")
+            )
+        }
+    }
+}
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        if matches!(self.try_exited(), Ok(Some(_))) {
+            return;
+        }
+        if self.graceful && self.terminate(DROP_GRACE).is_ok() {
+            return;
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}

@@ -1,0 +1,130 @@
+//! One benchmark's result line, and the statistics behind it.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+/// A JSON line: `ours`, `reference`, their `unit` and `ratio` = ours / reference. Distributions
+/// also carry percentiles (then `ours` and `reference` are the medians).
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub bench: &'static str,
+    pub ours: f64,
+    pub reference: f64,
+    pub unit: &'static str,
+    pub ratio: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p50: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p99: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_p50: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_p99: Option<f64>,
+}
+
+impl Report {
+    /// A single figure each side (a rate, or the median of a few rounds).
+    pub fn single(bench: &'static str, unit: &'static str, ours: f64, reference: f64) -> Self {
+        Self {
+            bench,
+            ours: round(ours),
+            reference: round(reference),
+            unit,
+            ratio: round_ratio(ours / reference),
+            p50: None,
+            p99: None,
+            reference_p50: None,
+            reference_p99: None,
+        }
+    }
+
+    /// Two distributions of durations, reported in `scale` units per second (1e6 for µs).
+    pub fn distribution(
+        bench: &'static str,
+        unit: &'static str,
+        scale: f64,
+        ours: &[Duration],
+        reference: &[Duration],
+    ) -> Self {
+        let ours = Percentiles::of(ours, scale);
+        let reference = Percentiles::of(reference, scale);
+        Self {
+            bench,
+            ours: round(ours.p50),
+            reference: round(reference.p50),
+            unit,
+            ratio: round_ratio(ours.p50 / reference.p50),
+            p50: Some(round(ours.p50)),
+            p99: Some(round(ours.p99)),
+            reference_p50: Some(round(reference.p50)),
+            reference_p99: Some(round(reference.p99)),
+        }
+    }
+}
+
+struct Percentiles {
+    p50: f64,
+    p99: f64,
+}
+
+impl Percentiles {
+    fn of(samples: &[Duration], scale: f64) -> Self {
+        let mut sorted: Vec<f64> = samples.iter().map(|d| d.as_secs_f64() * scale).collect();
+        sorted.sort_by(f64::total_cmp);
+        Self {
+            p50: percentile(&sorted, 0.5),
+            p99: percentile(&sorted, 0.99),
+        }
+    }
+}
+
+/// Nearest-rank percentile of sorted values (NaN when there are none).
+pub fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let rank = (q * (sorted.len() - 1) as f64).round() as usize;
+    sorted[rank.min(sorted.len() - 1)]
+}
+
+/// The median of a few values.
+pub fn median(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    percentile(&sorted, 0.5)
+}
+
+/// Four significant digits, enough for any benchmark and easier to read.
+fn round(value: f64) -> f64 {
+    if !value.is_finite() || value == 0.0 {
+        return value;
+    }
+    let magnitude = value.abs().log10().floor() as i32;
+    let factor = 10f64.powi(3 - magnitude);
+    (value * factor).round() / factor
+}
+
+fn round_ratio(value: f64) -> f64 {
+    (value * 1000.0).round() / 1000.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_and_rounding() {
+        let sorted: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(percentile(&sorted, 0.5), 51.0);
+        assert_eq!(percentile(&sorted, 0.99), 99.0);
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(round(123_456.7), 123_500.0);
+        assert_eq!(round(0.012_346), 0.012_35);
+        let report = Report::single("x", "ms", 2.0, 4.0);
+        assert_eq!(
+            serde_json::to_string(&report).expect("json"),
+            r#"{"bench":"x","ours":2.0,"reference":4.0,"unit":"ms","ratio":0.5}"#
+        );
+    }
+}

@@ -1,0 +1,102 @@
+//! `armor-bench --quick` runs end to end and prints well-formed lines; no timing is asserted.
+//!
+//! It needs the module binaries next to `armor-bench` (in `target/debug`), which are built when
+//! the whole workspace's tests are (`cargo test --workspace`).
+#![allow(clippy::unwrap_used)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+const BENCH: &str = env!("CARGO_BIN_EXE_armor-bench");
+
+fn bench(args: &[&str]) -> Output {
+    Command::new(BENCH)
+        .args(args)
+        // Module binaries come from next to armor-bench, whatever the caller's environment.
+        .env_remove("ARMOR_MODULE_PATH")
+        .env_remove("ARMOR_SUPERVISOR")
+        .output()
+        .unwrap()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+#[test]
+fn quick_run_prints_one_json_line_per_benchmark() {
+    let folder = Path::new(BENCH).parent().unwrap();
+    for module in ["armor-mod-echo", "armor-mod-sink"] {
+        assert!(
+            folder.join(module).is_file(),
+            "{module} is missing from {}: build the whole workspace (cargo test --workspace)",
+            folder.display()
+        );
+    }
+    let output = bench(&["--quick", "latency_64b", "throughput_64b"]);
+    let stdout = text(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{}\nstdout:\n{stdout}\nstderr:\n{}",
+        output.status,
+        text(&output.stderr)
+    );
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 2, "stdout:\n{stdout}");
+    for (line, name) in lines.iter().zip(["latency_64b", "throughput_64b"]) {
+        let value: serde_json::Value = serde_json::from_str(line).unwrap();
+        assert_eq!(value["bench"], name, "{line}");
+        let unit = value["unit"].as_str().unwrap();
+        assert_eq!(
+            unit,
+            if name == "latency_64b" { "us" } else { "msg/s" },
+            "{line}"
+        );
+        for field in ["ours", "reference", "ratio"] {
+            let number = value[field].as_f64();
+            assert!(
+                number.is_some_and(|x| x.is_finite() && x > 0.0),
+                "{field} is not a positive number: {line}"
+            );
+        }
+    }
+    let latency: serde_json::Value = serde_json::from_str(lines[0]).unwrap();
+    for field in ["p50", "p99", "reference_p50", "reference_p99"] {
+        assert!(
+            latency[field].as_f64().is_some_and(|x| x > 0.0),
+            "{field} missing: {}",
+            lines[0]
+        );
+    }
+}
+
+#[test]
+fn unknown_benchmark_is_refused_by_name() {
+    let output = bench(&["--quick", "latency_64b", "no_such_bench"]);
+    assert!(!output.status.success());
+    assert!(
+        output.stdout.is_empty(),
+        "nothing runs: {}",
+        text(&output.stdout)
+    );
+    let stderr = text(&output.stderr);
+    assert!(
+        stderr.contains("unknown benchmark `no_such_bench`") && stderr.contains("latency_64b"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn list_names_every_benchmark() {
+    let output = bench(&["--list"]);
+    assert!(output.status.success());
+    let stdout = text(&output.stdout);
+    for name in [
+        "latency_64b",
+        "throughput_1mib",
+        "throughput_64b",
+        "startup_10_modules",
+    ] {
+        assert!(stdout.contains(name), "{stdout}");
+    }
+}

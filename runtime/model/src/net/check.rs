@@ -1,0 +1,249 @@
+//! The checks of a mission against the system it runs on and the module descriptions.
+
+use std::collections::BTreeMap;
+
+use armor_module_api::describe::ModuleDescription;
+use armor_module_api::xml::{Located, Pos};
+
+use super::{EventRef, MissionNet, listing};
+use crate::system::{ModuleInstance, SystemConfig};
+
+/// Every problem of the names a mission uses, sorted by position: the modules its places run
+/// exist in `system` and can be started and stopped; their parameters are declared by the
+/// module's type with valid values; the events of its transitions are `MODULE.EVENT` with the
+/// event declared by the module's type, or `module.ID.failed` with `ID` in the system.
+/// `descriptions` are keyed by module type; a module of a type without description is not
+/// checked further (the system's own check reports the unknown type).
+pub fn check_names(
+    net: &MissionNet,
+    system: &SystemConfig,
+    descriptions: &BTreeMap<String, ModuleDescription>,
+) -> Vec<Located> {
+    let mut problems = Vec::new();
+    let find = |name: &str, subject: &str, pos: Pos, problems: &mut Vec<Located>| {
+        find_module(system, descriptions, name, subject, pos, problems)
+    };
+    for place in &net.places {
+        let subject = format!("place `{}`", place.name);
+        for module in &place.modules {
+            if let Some((instance, Some(description))) =
+                find(module, &subject, place.pos, &mut problems)
+                && !description.controllable
+            {
+                problems.push(Located::new(
+                    place.pos,
+                    format!(
+                        "{subject}: module `{module}` ({}) cannot be started and stopped by a \
+                         mission: it is not controllable and runs all the time",
+                        type_of(instance)
+                    ),
+                ));
+            }
+        }
+        for param in &place.params {
+            let Some((instance, Some(description))) =
+                find(&param.module, &subject, param.pos, &mut problems)
+            else {
+                continue;
+            };
+            match description.param(&param.name) {
+                None => problems.push(Located::new(
+                    param.pos,
+                    format!(
+                        "{subject}: module `{}` ({}) has no parameter `{}` (parameters: {})",
+                        param.module,
+                        type_of(instance),
+                        param.name,
+                        listing(description.params.iter().map(|spec| spec.name.as_str()))
+                    ),
+                )),
+                Some(spec) => {
+                    if let Err(why) = spec.param_type.check_value(&param.value) {
+                        problems.push(Located::new(
+                            param.pos,
+                            format!(
+                                "{subject}: parameter `{}` of module `{}` ({}): {why}",
+                                param.name, param.module, spec.param_type
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    for transition in &net.transitions {
+        let Some(event) = &transition.condition.event else {
+            continue;
+        };
+        let pos = transition.pos;
+        match EventRef::parse(event) {
+            Some(EventRef::Module { module, event }) => {
+                let subject = format!("transition `{}`: event `{module}.{event}`", transition.name);
+                let Some((instance, Some(description))) =
+                    find(module, &subject, pos, &mut problems)
+                else {
+                    continue;
+                };
+                if description.event(event).is_none() {
+                    problems.push(Located::new(
+                        pos,
+                        format!(
+                            "transition `{}`: module `{module}` ({}) reports no event `{event}` \
+                             (events: {})",
+                            transition.name,
+                            type_of(instance),
+                            listing(description.events.iter().map(|spec| spec.name.as_str()))
+                        ),
+                    ));
+                }
+            }
+            Some(EventRef::Failed { module }) => {
+                let subject = format!(
+                    "transition `{}`: fault event `module.{module}.failed`",
+                    transition.name
+                );
+                find(module, &subject, pos, &mut problems);
+            }
+            None => problems.push(Located::new(
+                pos,
+                format!(
+                    "transition `{}`: `{event}` is not an event (MODULE.EVENT or module.ID.failed)",
+                    transition.name
+                ),
+            )),
+        }
+    }
+    problems.sort_by_key(|problem| problem.pos);
+    problems
+}
+
+/// The module instance `name` and its description, if known; reports a module missing from the
+/// system, the message starting with `subject`.
+fn find_module<'a>(
+    system: &'a SystemConfig,
+    descriptions: &'a BTreeMap<String, ModuleDescription>,
+    name: &str,
+    subject: &str,
+    pos: Pos,
+    problems: &mut Vec<Located>,
+) -> Option<(&'a ModuleInstance, Option<&'a ModuleDescription>)> {
+    let Some(instance) = system.module(name) else {
+        problems.push(Located::new(
+            pos,
+            format!(
+                "{subject}: no module `{name}` in the system (modules: {})",
+                listing(system.modules.iter().map(|module| module.name.as_str()))
+            ),
+        ));
+        return None;
+    };
+    Some((instance, descriptions.get(&instance.module_type)))
+}
+
+fn type_of(instance: &ModuleInstance) -> String {
+    format!("type {}", instance.module_type)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use armor_module_api::describe::{EventSpec, ParamSpec, ParamType};
+
+    const SYSTEM: &str = r#"<system name="robot">
+  <module name="nav" type="navigation"/>
+  <module name="sim" type="sim"/>
+  <module name="ui" type="console"/>
+  <module name="cam" type="camera"/>
+</system>"#;
+
+    fn descriptions() -> BTreeMap<String, ModuleDescription> {
+        let mut navigation = ModuleDescription::new("navigation", "goes places");
+        navigation
+            .params
+            .push(ParamSpec::new("goal_x", ParamType::Float, ""));
+        navigation
+            .params
+            .push(ParamSpec::new("verbose", ParamType::Bool, "").default("false"));
+        for event in ["goal_reached", "blocked"] {
+            navigation.events.push(EventSpec {
+                name: event.into(),
+                doc: String::new(),
+            });
+        }
+        let sim = ModuleDescription::new("sim", "simulates");
+        let mut console = ModuleDescription::new("console", "operator");
+        console.controllable = false;
+        // `camera` has no description: nothing more is checked about `cam`.
+        [navigation, sim, console]
+            .into_iter()
+            .map(|description| (description.module_type.clone(), description))
+            .collect()
+    }
+
+    /// The problems of the mission of `lines` (one per line from line 2) against [`SYSTEM`].
+    fn check(lines: &[&str], expected: &[&str]) {
+        let mut xml = String::from("<mission name=\"m\">\n");
+        for line in lines {
+            xml.push_str(line);
+            xml.push('\n');
+        }
+        xml.push_str("</mission>");
+        let net = MissionNet::parse(&xml).unwrap_or_else(|problems| {
+            panic!(
+                "{:?}",
+                problems.iter().map(ToString::to_string).collect::<Vec<_>>()
+            )
+        });
+        let system = SystemConfig::parse(SYSTEM).expect("valid system");
+        let got: Vec<String> = check_names(&net, &system, &descriptions())
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        assert_eq!(got, expected, "for:\n{xml}");
+    }
+
+    #[test]
+    fn clean_missions() {
+        check(&[], &[]);
+        check(
+            &[
+                "<place name=\"go\" tokens=\"1\"><module name=\"nav\"/><module name=\"sim\"/><module name=\"cam\"/>",
+                "  <param module=\"nav\" name=\"goal_x\" value=\"-2.5\"/><param module=\"nav\" name=\"verbose\" value=\"true\"/>",
+                "  <param module=\"cam\" name=\"anything\" value=\"goes\"/></place>",
+                "<place name=\"done\" final=\"true\"/>",
+                "<transition name=\"arrive\" event=\"nav.goal_reached\"><input place=\"go\"/><output place=\"done\"/></transition>",
+                "<transition name=\"fault\" event=\"module.sim.failed\"><input place=\"go\"/></transition>",
+                "<transition name=\"ui_fault\" event=\"module.ui.failed\"><input place=\"go\"/></transition>",
+                "<transition name=\"cam_event\" event=\"cam.whatever\"><input place=\"go\"/></transition>",
+            ],
+            &[],
+        );
+    }
+
+    #[test]
+    fn unknown_modules_parameters_and_events() {
+        check(
+            &[
+                "<place name=\"go\" tokens=\"1\"><module name=\"nac\"/><module name=\"ui\"/><module name=\"nav\"/>",
+                "  <param module=\"nav\" name=\"goal\" value=\"1\"/>",
+                "  <param module=\"nav\" name=\"goal_x\" value=\"ten\"/>",
+                "  <param module=\"nac\" name=\"x\" value=\"1\"/></place>",
+                "<transition name=\"arrive\" event=\"nav.goal_reched\"><input place=\"go\"/></transition>",
+                "<transition name=\"b\" event=\"sim.done\"><input place=\"go\"/></transition>",
+                "<transition name=\"c\" event=\"ghost.done\"><input place=\"go\"/></transition>",
+                "<transition name=\"d\" event=\"module.ghost.failed\"><input place=\"go\"/></transition>",
+            ],
+            &[
+                "2:1: place `go`: no module `nac` in the system (modules: nav, sim, ui, cam)",
+                "2:1: place `go`: module `ui` (type console) cannot be started and stopped by a mission: it is not controllable and runs all the time",
+                "3:3: place `go`: module `nav` (type navigation) has no parameter `goal` (parameters: goal_x, verbose)",
+                "4:3: place `go`: parameter `goal_x` of module `nav` (float): `ten` is not a finite number",
+                "5:3: place `go`: no module `nac` in the system (modules: nav, sim, ui, cam)",
+                "6:1: transition `arrive`: module `nav` (type navigation) reports no event `goal_reched` (events: goal_reached, blocked)",
+                "7:1: transition `b`: module `sim` (type sim) reports no event `done` (events: none)",
+                "8:1: transition `c`: event `ghost.done`: no module `ghost` in the system (modules: nav, sim, ui, cam)",
+                "9:1: transition `d`: fault event `module.ghost.failed`: no module `ghost` in the system (modules: nav, sim, ui, cam)",
+            ],
+        );
+    }
+}

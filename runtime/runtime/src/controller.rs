@@ -1,0 +1,306 @@
+//! The mission controller inside `armor run`: plays the mission's Petri net on the run clock.
+//! Module reports fire transitions at once (the supervisor hands them over as they arrive);
+//! delays and dates wake the supervisor's loop at the right moment. What a firing starts and
+//! stops, and the parameters of the marked places, reach the modules through the config server.
+
+use std::collections::BTreeSet;
+use std::path::Path;
+use std::time::Instant;
+
+use armor_model::net::{Engine, MissionNet};
+use armor_module_api::Clock;
+use serde_json::json;
+
+use crate::config_server::{ConfigServer, Control};
+use crate::control::{Reply, Request, Status};
+
+/// How a mission ended.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Outcome {
+    Complete,
+    Aborted,
+    Deadlock { marking: String },
+    Failed { module: String },
+}
+
+pub struct Controller {
+    net: MissionNet,
+    engine: Engine,
+    clock: Clock,
+    controllable: BTreeSet<String>,
+    paused: bool,
+    outcome: Option<Outcome>,
+    timeline: Vec<serde_json::Value>,
+}
+
+impl Controller {
+    /// Starts the net in its initial marking, now. `epoch_unix_secs` is the Unix time of run
+    /// time 0, against which the net's absolute dates are compared.
+    pub fn new(
+        net: MissionNet,
+        controllable: BTreeSet<String>,
+        clock: Clock,
+        epoch_unix_secs: f64,
+    ) -> Self {
+        let engine = Engine::start_at(&net, clock.now_secs()).with_date_origin(epoch_unix_secs);
+        let mut controller = Self {
+            net,
+            engine,
+            clock,
+            controllable,
+            paused: false,
+            outcome: None,
+            timeline: Vec::new(),
+        };
+        controller.record("started", json!({ "marking": controller.engine.marking() }));
+        controller
+    }
+
+    /// What the modules must be told: who idles, and the parameters of the marked places.
+    pub fn control(&self) -> Control {
+        let active = self.engine.active_modules();
+        Control {
+            inactive: self
+                .controllable
+                .iter()
+                .filter(|module| self.paused || !active.contains(*module))
+                .cloned()
+                .collect(),
+            overlays: self.engine.params(),
+        }
+    }
+
+    pub fn outcome(&self) -> Option<&Outcome> {
+        self.outcome.as_ref()
+    }
+
+    /// When the loop must wake for a delay or a date, if ever.
+    pub fn next_wake(&self) -> Option<Instant> {
+        if self.paused || self.outcome.is_some() {
+            return None;
+        }
+        self.engine
+            .next_deadline()
+            .map(|run_secs| self.clock.instant_at(run_secs))
+    }
+
+    fn record(&mut self, kind: &str, details: serde_json::Value) {
+        let mut entry = json!({ "run_secs": self.clock.now_secs(), "kind": kind });
+        if let (Some(entry), serde_json::Value::Object(details)) = (entry.as_object_mut(), details)
+        {
+            entry.extend(details);
+        }
+        self.timeline.push(entry);
+    }
+
+    /// A module reported an event (`module.event`, or `module.<id>.failed` from the supervisor).
+    pub fn on_event(&mut self, name: &str, server: &ConfigServer) {
+        let now = self.clock.now_secs();
+        let latched = self.engine.report_event(name, now);
+        self.record("event", json!({ "event": name, "latched_by": latched }));
+        if latched.is_empty() {
+            tracing::debug!(event = name, "no enabled transition waits for this event");
+        }
+        self.step(server);
+    }
+
+    /// A module died for good: the mission hears `module.<id>.failed`; if nothing in the net
+    /// waits for it while the module is needed, the mission cannot go on.
+    pub fn on_failed(&mut self, module: &str, server: &ConfigServer) {
+        let event = format!("module.{module}.failed");
+        let latched = self.engine.report_event(&event, self.clock.now_secs());
+        self.record("failed", json!({ "module": module, "latched_by": latched }));
+        let needed = self.engine.active_modules().contains(module);
+        self.step(server);
+        if latched.is_empty() && needed && self.outcome.is_none() {
+            self.outcome = Some(Outcome::Failed {
+                module: module.to_owned(),
+            });
+        }
+    }
+
+    /// Fires whatever can fire now and tells the modules.
+    pub fn step(&mut self, server: &ConfigServer) {
+        if self.paused || self.outcome.is_some() {
+            return;
+        }
+        let firings = self.engine.step(self.clock.now_secs());
+        for firing in &firings {
+            tracing::info!(
+                "fired `{}` at {:.2} s → {}{}{}",
+                firing.transition,
+                firing.at_secs,
+                marking_text(&firing.marking_after),
+                listed("; started", &firing.started),
+                listed("; stopped", &firing.stopped),
+            );
+            self.record(
+                "fired",
+                json!({
+                    "transition": firing.transition,
+                    "at_secs": firing.at_secs,
+                    "marking": firing.marking_after,
+                    "started": firing.started,
+                    "stopped": firing.stopped,
+                }),
+            );
+        }
+        if !firings.is_empty() {
+            server.set_control(self.control());
+        }
+        if self.engine.is_final() {
+            tracing::info!(
+                "mission `{}` complete: {}",
+                self.net.name,
+                marking_text(&self.engine.marking())
+            );
+            self.record("complete", json!({ "marking": self.engine.marking() }));
+            self.outcome = Some(Outcome::Complete);
+        } else if self.engine.is_dead() {
+            let marking = marking_text(&self.engine.marking());
+            tracing::error!("mission `{}` is deadlocked in {marking}", self.net.name);
+            self.record("deadlock", json!({ "marking": self.engine.marking() }));
+            self.outcome = Some(Outcome::Deadlock { marking });
+        }
+    }
+
+    pub fn status(&self) -> Status {
+        Status {
+            mission: self.net.name.clone(),
+            run_secs: self.clock.now_secs(),
+            paused: self.paused,
+            marking: self.engine.marking(),
+            enabled: self
+                .engine
+                .enabled()
+                .into_iter()
+                .map(|name| self.waits_for(&name))
+                .collect(),
+            active_modules: self.engine.active_modules().into_iter().collect(),
+        }
+    }
+
+    /// `name (waits for nav.goal_reached, 3.2 s)`: what an enabled transition waits for.
+    fn waits_for(&self, name: &str) -> String {
+        let Some(transition) = self.net.transition(name) else {
+            return name.to_owned();
+        };
+        let now = self.clock.now_secs();
+        let mut waits = Vec::new();
+        if let Some(event) = &transition.condition.event
+            && !self.engine.event_latched(name)
+        {
+            waits.push(event.clone());
+        }
+        if let (Some(delay), Some(since)) = (
+            transition.condition.delay_secs,
+            self.engine.enabled_since(name),
+        ) {
+            let left = since + delay - now;
+            if left > 0.0 {
+                waits.push(format!("{left:.1} s"));
+            }
+        }
+        if transition.condition.at_unix_secs.is_some() {
+            waits.push("its date".to_owned());
+        }
+        if waits.is_empty() {
+            name.to_owned()
+        } else {
+            format!("{name} (waits for {})", waits.join(", "))
+        }
+    }
+
+    /// Answers an operator's request.
+    pub fn handle(&mut self, request: Request, server: &ConfigServer) -> Reply {
+        let (ok, message) = match request {
+            Request::Status => (true, "status".to_owned()),
+            Request::Pause if self.paused => (false, "already paused".to_owned()),
+            Request::Pause => {
+                self.paused = true;
+                server.set_control(self.control());
+                self.record("paused", json!({}));
+                tracing::info!("mission paused by the operator");
+                (true, "paused: controllable modules hold".to_owned())
+            }
+            Request::Resume if !self.paused => (false, "not paused".to_owned()),
+            Request::Resume => {
+                self.paused = false;
+                server.set_control(self.control());
+                self.record("resumed", json!({}));
+                tracing::info!("mission resumed by the operator");
+                self.step(server);
+                (true, "resumed".to_owned())
+            }
+            Request::Abort => {
+                self.record("aborted", json!({ "marking": self.engine.marking() }));
+                tracing::warn!("mission aborted by the operator");
+                self.outcome = Some(Outcome::Aborted);
+                (true, "aborted".to_owned())
+            }
+            Request::Fire { transition } => {
+                match self.engine.fire_by_hand(&transition, self.clock.now_secs()) {
+                    Ok(firing) => {
+                        tracing::info!(
+                            "operator fired `{}` → {}",
+                            firing.transition,
+                            marking_text(&firing.marking_after)
+                        );
+                        self.record(
+                            "fired",
+                            json!({
+                                "transition": firing.transition,
+                                "by_hand": true,
+                                "marking": firing.marking_after,
+                                "started": firing.started,
+                                "stopped": firing.stopped,
+                            }),
+                        );
+                        server.set_control(self.control());
+                        self.step(server);
+                        (true, format!("fired `{transition}`"))
+                    }
+                    Err(err) => (false, err.to_string()),
+                }
+            }
+        };
+        Reply {
+            ok,
+            message,
+            status: Some(self.status()),
+        }
+    }
+
+    /// Writes the timeline as JSON.
+    pub fn write_report(&self, file: &Path) -> std::io::Result<()> {
+        let report = json!({
+            "mission": self.net.name,
+            "outcome": format!("{:?}", self.outcome),
+            "timeline": self.timeline,
+        });
+        let text = serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?;
+        crate::fs::write_atomically(file, text.as_bytes())
+    }
+}
+
+fn marking_text(marking: &armor_model::net::Marking) -> String {
+    let places: Vec<String> = marking
+        .iter()
+        .map(|(place, tokens)| {
+            if *tokens == 1 {
+                place.clone()
+            } else {
+                format!("{place}×{tokens}")
+            }
+        })
+        .collect();
+    format!("{{{}}}", places.join(", "))
+}
+
+fn listed(label: &str, names: &[String]) -> String {
+    if names.is_empty() {
+        String::new()
+    } else {
+        format!("{label} {}", names.join(", "))
+    }
+}
