@@ -64,18 +64,24 @@ impl fmt::Display for Diagnostics {
 
 impl std::error::Error for Diagnostics {}
 
+/// A file's text, or a diagnostic saying why it cannot be read.
+pub fn read_source(file: &Path) -> Result<String, Diagnostics> {
+    std::fs::read_to_string(file).map_err(|err| Diagnostics {
+        file: file.to_path_buf(),
+        problems: vec![Located::new(
+            Pos { line: 1, col: 1 },
+            format!("cannot read the file: {err}"),
+        )],
+    })
+}
+
 /// Reads, parses and checks a system file; probes the module types it uses on `module_path`.
 pub fn load_system(file: &Path, module_path: &[PathBuf]) -> Result<Loaded, Diagnostics> {
     let fail = |problems| Diagnostics {
         file: file.to_path_buf(),
         problems,
     };
-    let text = std::fs::read_to_string(file).map_err(|err| {
-        fail(vec![Located::new(
-            Pos { line: 1, col: 1 },
-            format!("cannot read the file: {err}"),
-        )])
-    })?;
+    let text = read_source(file)?;
     let system = SystemConfig::parse(&text).map_err(fail)?;
     let used = || {
         system

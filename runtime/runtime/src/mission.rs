@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use armor_model::net::{self, MissionNet};
 use armor_module_api::xml::{self, Located, Pos};
 
-use crate::load::{Diagnostics, Loaded, load_system};
+use crate::load::{Diagnostics, Loaded, load_system, read_source};
 
 /// More reachable markings than this and the analysis says so instead of going on.
 pub const ANALYSIS_LIMIT_STATES: usize = 1_000_000;
@@ -22,17 +22,15 @@ pub enum DocumentKind {
 
 /// Reads a file's top element to tell systems from missions. Errors are reported as for a load.
 pub fn document_kind(file: &Path) -> Result<DocumentKind, Diagnostics> {
+    kind_of(file, &read_source(file)?)
+}
+
+fn kind_of(file: &Path, text: &str) -> Result<DocumentKind, Diagnostics> {
     let fail = |message: String, pos: Pos| Diagnostics {
         file: file.to_path_buf(),
         problems: vec![Located::new(pos, message)],
     };
-    let text = std::fs::read_to_string(file).map_err(|err| {
-        fail(
-            format!("cannot read the file: {err}"),
-            Pos { line: 1, col: 1 },
-        )
-    })?;
-    let root = xml::parse(&text).map_err(|err| fail(err.message, err.pos))?;
+    let root = xml::parse(text).map_err(|err| fail(err.message, err.pos))?;
     match root.name.as_str() {
         "system" => Ok(DocumentKind::System),
         "mission" => Ok(DocumentKind::Mission),
@@ -61,13 +59,8 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         file: file.to_path_buf(),
         problems,
     };
-    let text = std::fs::read_to_string(file).map_err(|err| {
-        fail(vec![Located::new(
-            Pos { line: 1, col: 1 },
-            format!("cannot read the file: {err}"),
-        )])
-    })?;
-    let net = match document_kind(file)? {
+    let text = read_source(file)?;
+    let net = match kind_of(file, &text)? {
         DocumentKind::Pnml => net::from_pnml(&text),
         _ => MissionNet::parse(&text),
     }

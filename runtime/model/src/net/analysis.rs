@@ -719,20 +719,7 @@ pub fn dining_philosophers(n: usize) -> MissionNet {
 mod tests {
     use super::*;
 
-    fn net(lines: &[&str]) -> MissionNet {
-        let mut xml = String::from("<mission name=\"m\">\n");
-        for line in lines {
-            xml.push_str(line);
-            xml.push('\n');
-        }
-        xml.push_str("</mission>");
-        MissionNet::parse(&xml).unwrap_or_else(|problems| {
-            panic!(
-                "{:?}",
-                problems.iter().map(ToString::to_string).collect::<Vec<_>>()
-            )
-        })
-    }
+    use crate::net::test_net as net;
 
     /// The problems the analysis of the mission of `lines` reports.
     fn check(lines: &[&str], limit: usize, expected: &[&str]) {

@@ -422,20 +422,7 @@ impl Engine {
 mod tests {
     use super::*;
 
-    fn net(lines: &[&str]) -> MissionNet {
-        let mut xml = String::from("<mission name=\"m\">\n");
-        for line in lines {
-            xml.push_str(line);
-            xml.push('\n');
-        }
-        xml.push_str("</mission>");
-        MissionNet::parse(&xml).unwrap_or_else(|problems| {
-            panic!(
-                "{:?}",
-                problems.iter().map(ToString::to_string).collect::<Vec<_>>()
-            )
-        })
-    }
+    use crate::net::test_net as net;
 
     /// `transition@time` for each firing.
     fn fired(firings: &[Firing]) -> Vec<String> {
