@@ -10,10 +10,13 @@
 //! - [`echo`]: republishes every `Blob` it receives, unchanged and at once (latency benchmark).
 //! - [`sink`]: counts the `Blob`s it receives and publishes the count every `every` values
 //!   (throughput benchmark).
+//! - [`sim`]: a simulated differential-drive robot with a laser scanner in a 2-D world file,
+//!   on the run clock; its [`sim::world::World`] model is public for maps and tests.
 
 pub mod checker;
 pub mod counter;
 pub mod echo;
+pub mod sim;
 pub mod sink;
 
 use armor_module_api::Node;

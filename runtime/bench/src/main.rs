@@ -15,7 +15,6 @@ mod procs;
 mod raw;
 mod report;
 mod startup;
-mod sys;
 mod throughput;
 
 use std::io::Write as _;

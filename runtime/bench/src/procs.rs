@@ -86,7 +86,7 @@ impl ChildGuard {
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
-        crate::sys::die_with_parent(&mut command);
+        armor_runtime::process::die_with_parent(&mut command);
         let mut child = command
             .spawn()
             .with_context(|| format!("cannot start {name} ({:?})", command.get_program()))?;
@@ -193,7 +193,9 @@ impl ChildGuard {
     /// Sends SIGTERM and waits for the child to exit, at most `timeout`.
     pub fn terminate(&mut self, timeout: Duration) -> anyhow::Result<ExitStatus> {
         if self.try_exited()?.is_none() {
-            crate::sys::terminate(self.child.id());
+            if let Ok(pid) = libc::pid_t::try_from(self.child.id()) {
+                armor_runtime::process::kill(pid, libc::SIGTERM);
+            }
         }
         self.wait_exit(timeout)
     }

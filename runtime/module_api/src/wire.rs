@@ -252,11 +252,13 @@ impl FrameReader {
         }
         let buffered = self.end - self.start;
         let prefix = 4 + 1 + DATA_HEADER_BYTES;
-        if len >= LARGE_FRAME_BYTES && buffered < total && buffered >= prefix {
-            if self.buf[self.start + 4] == KIND_DATA {
-                self.start_large(total);
-                return self.next_frame();
-            }
+        if len >= LARGE_FRAME_BYTES
+            && buffered < total
+            && buffered >= prefix
+            && self.buf[self.start + 4] == KIND_DATA
+        {
+            self.start_large(total);
+            return self.next_frame();
         }
         if buffered < total {
             return Ok(None);

@@ -12,8 +12,8 @@ pub mod fs;
 pub mod load;
 pub mod mission;
 pub mod probe;
+pub mod process;
 pub mod supervisor;
-mod sys;
 
 /// The agent's first line on stdout, followed by the address it listens on.
 pub const AGENT_READY_PREFIX: &str = "armor agent listening on ";

@@ -385,7 +385,7 @@ fn end_children(children: &mut Vec<(String, Child)>) {
 
 fn signal(child: &Child, signal: libc::c_int) {
     if let Ok(pid) = libc::pid_t::try_from(child.id()) {
-        crate::sys::kill(pid, signal);
+        crate::process::kill(pid, signal);
     }
 }
 
@@ -410,7 +410,7 @@ impl ModuleProc {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
-        crate::sys::die_with_parent(&mut command);
+        crate::process::die_with_parent(&mut command);
         match command.spawn() {
             Ok(mut child) => {
                 tracing::info!(module = self.name, pid = child.id(), "module started");
@@ -612,7 +612,7 @@ fn spawn_agent(addr: SocketAddr) -> anyhow::Result<(Child, SocketAddr)> {
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    crate::sys::die_with_parent(&mut command);
+    crate::process::die_with_parent(&mut command);
     let mut child = command.spawn().context("cannot start the agent")?;
     stream_lines("agent", child.stderr.take());
     let stdout = child.stdout.take().context("agent has no stdout")?;

@@ -481,6 +481,23 @@ pub(crate) fn finish<T>(value: T, mut problems: Vec<Located>) -> Result<T, Vec<L
     }
 }
 
+/// A mission named `m` made of the given lines of XML, for tests; panics with the problems.
+#[cfg(test)]
+pub(crate) fn test_net(lines: &[&str]) -> MissionNet {
+    let mut xml = String::from("<mission name=\"m\">\n");
+    for line in lines {
+        xml.push_str(line);
+        xml.push('\n');
+    }
+    xml.push_str("</mission>");
+    MissionNet::parse(&xml).unwrap_or_else(|problems| {
+        panic!(
+            "{:?}",
+            problems.iter().map(ToString::to_string).collect::<Vec<_>>()
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -529,21 +546,4 @@ mod tests {
             assert!(!is_decimal(bad), "{bad}");
         }
     }
-}
-
-/// A mission named `m` made of the given lines of XML, for tests; panics with the problems.
-#[cfg(test)]
-pub(crate) fn test_net(lines: &[&str]) -> MissionNet {
-    let mut xml = String::from("<mission name=\"m\">\n");
-    for line in lines {
-        xml.push_str(line);
-        xml.push('\n');
-    }
-    xml.push_str("</mission>");
-    MissionNet::parse(&xml).unwrap_or_else(|problems| {
-        panic!(
-            "{:?}",
-            problems.iter().map(ToString::to_string).collect::<Vec<_>>()
-        )
-    })
 }

@@ -1,5 +1,5 @@
-//! The few operating-system calls std does not offer, in one audited place (the workspace denies
-//! `unsafe` everywhere else).
+//! Child processes that never outlive their parent, and signals: the few operating-system calls
+//! std does not offer, in one audited place (the workspace denies `unsafe` everywhere else).
 #![allow(unsafe_code)]
 
 use std::os::unix::process::CommandExt as _;

@@ -1,0 +1,122 @@
+//! The `sim` module binary: it describes itself completely, and refuses a bad world file with
+//! the file, line and column on stderr.
+
+use std::process::{Command, Output};
+
+use armor_module_api::describe::ModuleDescription;
+
+const SIM: &str = env!("CARGO_BIN_EXE_armor-mod-sim");
+
+fn describe() -> ModuleDescription {
+    let output = Command::new(SIM)
+        .arg("--describe")
+        .output()
+        .expect("run the simulator");
+    assert!(output.status.success(), "{:?}", output.status);
+    let xml = String::from_utf8(output.stdout).expect("UTF-8");
+    ModuleDescription::from_xml(&xml).unwrap_or_else(|problems| panic!("{problems:?}\n{xml}"))
+}
+
+/// Runs the module standalone (no supervisor; the agent is looked for lazily, so the body runs).
+fn run_standalone(params: &[String]) -> Output {
+    let mut command = Command::new(SIM);
+    command
+        .env_remove("ARMOR_SUPERVISOR")
+        .env("ARMOR_AGENT", "127.0.0.1:9")
+        .env("ARMOR_LOG", "info");
+    for param in params {
+        command.arg("--param").arg(param);
+    }
+    command.output().expect("run the simulator")
+}
+
+#[test]
+fn describes_ports_params_units_and_event() {
+    let description = describe();
+    assert_eq!(description.module_type, "sim");
+    assert_eq!(description.version, env!("CARGO_PKG_VERSION"));
+    assert!(!description.doc.is_empty());
+    assert!(
+        !description.controllable,
+        "the world runs whatever the mission does"
+    );
+    let ports = |ports: &[armor_module_api::describe::PortSpec]| -> Vec<(String, String)> {
+        ports
+            .iter()
+            .map(|port| (port.name.clone(), port.data_type.clone()))
+            .collect()
+    };
+    assert_eq!(
+        ports(&description.inputs),
+        [("cmd_vel".to_owned(), "Twist".to_owned())]
+    );
+    assert_eq!(
+        ports(&description.outputs),
+        [
+            ("odometry".to_owned(), "Odometry".to_owned()),
+            ("scan".to_owned(), "LaserScan".to_owned()),
+            ("pose_truth".to_owned(), "Pose2D".to_owned()),
+        ]
+    );
+    let world = description.param("world").expect("world");
+    assert!(world.is_required());
+    let expected = [
+        ("rate_hz", "Hz", "50"),
+        ("laser_rate_hz", "Hz", "10"),
+        ("laser_beams", "", "360"),
+        ("laser_fov_deg", "deg", "360"),
+        ("laser_range_m", "m", "8"),
+        ("laser_noise_m", "m", "0.01"),
+        ("odom_noise_dist", "m", "0.02"),
+        ("odom_noise_rot", "rad", "0.02"),
+        ("odom_noise_drift", "rad", "0.005"),
+        ("seed", "", "1"),
+        ("max_speed_mps", "m/s", "1.0"),
+        ("max_turn_radps", "rad/s", "1.5"),
+        ("robot_radius_m", "m", "0.25"),
+    ];
+    for (name, unit, default) in expected {
+        let param = description
+            .param(name)
+            .unwrap_or_else(|| panic!("no `{name}`"));
+        assert_eq!(param.unit, unit, "{name}");
+        assert_eq!(param.default.as_deref(), Some(default), "{name}");
+        assert!(!param.doc.is_empty(), "{name}");
+    }
+    assert_eq!(description.params.len(), expected.len() + 1);
+    assert!(description.event("collision").is_some());
+}
+
+#[test]
+fn a_bad_world_file_is_refused_with_its_place() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("broken.world");
+    std::fs::write(
+        &path,
+        "name broken\norigin 0 0\nstart 2 2 0\nboundary 0,0 10,0 10,10 0,10 0,0\nobstacle 4,4 6,6 6,4 4,6 4,4\n",
+    )
+    .expect("write");
+    let output = run_standalone(&[format!("world={}", path.display())]);
+    assert!(!output.status.success(), "{:?}", output.status);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let expected = format!(
+        "{}:5:10: the obstacle crosses itself: edge (4, 4)–(6, 6) meets edge (6, 4)–(4, 6)",
+        path.display()
+    );
+    assert!(stderr.contains(&expected), "{stderr}");
+}
+
+#[test]
+fn a_missing_world_file_is_refused() {
+    let output = run_standalone(&["world=no/such/place.world".to_owned()]);
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("world file `no/such/place.world` not found"),
+        "{stderr}"
+    );
+    let output = run_standalone(&[]);
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("parameter `world` is required"), "{stderr}");
+}
