@@ -12,12 +12,22 @@
 //!   (throughput benchmark).
 //! - [`sim`]: a simulated differential-drive robot with a laser scanner in a 2-D world file,
 //!   on the run clock; its [`sim::world::World`] model is public for maps and tests.
+//! - [`nav`]: navigation in two modules linked by `cmd_desired`: [`nav::follower`] drives
+//!   towards a goal set per leg (`goal_reached`, `blocked`), and [`nav::avoider`] bends that
+//!   command away from obstacles seen in the laser scan and stops short of them (`safety_stop`).
+//! - [`observer`]: turns on the spot through a sector measured on the odometry heading, then
+//!   reports `observation_done`.
+//! - [`teleop`]: operator velocity commands over a TCP line protocol, clamped and held for a
+//!   dead-man time (not controllable).
 
 pub mod checker;
 pub mod counter;
 pub mod echo;
+pub mod nav;
+pub mod observer;
 pub mod sim;
 pub mod sink;
+pub mod teleop;
 
 use armor_module_api::Node;
 

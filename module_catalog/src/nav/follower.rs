@@ -1,0 +1,520 @@
+//! `follower`: drives towards a goal with a proportional heading controller.
+//!
+//! Each pose received on `odometry` gives one command on `cmd_desired`: turn towards the goal
+//! in proportion to the heading error, and move forward at a speed that drops as the heading
+//! error grows (nothing beyond 90°, so the robot turns first when the goal is behind it) and as
+//! the goal gets close. Within `tolerance_m` of the goal it commands zero and reports
+//! `goal_reached`, once per goal: a new goal (a live change of `goal_x_m` or `goal_y_m`, as the
+//! mission sets each leg) or a new activation re-arms it. When the distance to the goal has not
+//! shrunk for `blocked_after_secs` of run time it reports `blocked`, once until progress resumes.
+
+use armor_module_api::types::{Odometry, Pose2D, Twist};
+use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
+
+use super::{float_param, wrap_angle};
+use crate::BodyError;
+
+pub const TYPE: &str = "follower";
+
+/// How often, in run time, the follower checks for lack of progress when no pose arrives.
+const TICK_SECS: f64 = 0.1;
+/// The distance to the goal must shrink by this much to count as progress.
+const PROGRESS_M: f64 = 0.05;
+/// Turning speed per radian of heading error (before clamping to `max_turn_radps`).
+const TURN_GAIN: f64 = 2.0;
+/// Closer than this to the goal, the forward speed drops in proportion to the distance.
+const SLOW_DOWN_M: f64 = 1.0;
+
+pub fn spec() -> ModuleSpec {
+    ModuleSpec::new(
+        TYPE,
+        "Drives towards a goal position: turns towards it, moves forward when roughly facing it, \
+         slows down near it, and reports goal_reached within tolerance (once per goal).",
+    )
+    .version(env!("CARGO_PKG_VERSION"))
+    .input::<Odometry>(
+        "odometry",
+        "the robot's pose (the odometry pose, or a corrected pose in the same frame as the goal)",
+    )
+    .output::<Twist>(
+        "cmd_desired",
+        "the velocity that would take the robot to the goal (one per pose received; zero at the \
+         goal, and once when the module is stopped)",
+    )
+    .param(
+        ParamSpec::new(
+            "goal_x_m",
+            ParamType::Float,
+            "goal x, in the frame of the odometry pose (tunable live: a new goal re-arms \
+             goal_reached)",
+        )
+        .unit("m"),
+    )
+    .param(
+        ParamSpec::new(
+            "goal_y_m",
+            ParamType::Float,
+            "goal y, in the frame of the odometry pose (tunable live)",
+        )
+        .unit("m"),
+    )
+    .param(
+        ParamSpec::new(
+            "tolerance_m",
+            ParamType::Float,
+            "the goal is reached within this distance (greater than 0)",
+        )
+        .unit("m")
+        .default("0.3"),
+    )
+    .param(
+        ParamSpec::new(
+            "max_speed_mps",
+            ParamType::Float,
+            "forward speed far from the goal when facing it (greater than 0)",
+        )
+        .unit("m/s")
+        .default("0.6"),
+    )
+    .param(
+        ParamSpec::new(
+            "max_turn_radps",
+            ParamType::Float,
+            "largest turning speed (greater than 0)",
+        )
+        .unit("rad/s")
+        .default("1.2"),
+    )
+    .param(
+        ParamSpec::new(
+            "blocked_after_secs",
+            ParamType::Float,
+            "report `blocked` when the distance to the goal has not shrunk for this long, in run \
+             time (0 or more; 0 reports at the first pose that shows no progress)",
+        )
+        .unit("s")
+        .default("10"),
+    )
+    .event(
+        "goal_reached",
+        "the robot is within tolerance_m of the goal (once per goal or activation)",
+    )
+    .event(
+        "blocked",
+        "no progress towards the goal for blocked_after_secs (once, until progress resumes)",
+    )
+}
+
+pub fn body(node: &mut Node) -> BodyResult {
+    let odometry = node.input::<Odometry>("odometry")?;
+    let output = node.output::<Twist>("cmd_desired")?;
+    let settings = Settings::read(node)?;
+    tracing::info!("goal ({}, {})", settings.goal_x_m, settings.goal_y_m);
+    let mut follower = Follower::new(settings, node.timestamp());
+    let mut next_tick = node.timestamp() + TICK_SECS;
+    loop {
+        let event = if node.is_active() {
+            let deadline = node.clock().instant_at(next_tick);
+            node.next_event_until(deadline)?
+        } else {
+            node.next_event(None)?
+        };
+        match event {
+            Event::Input(port) if port == odometry.id() => {
+                let Some(sample) = node.take(&odometry)? else {
+                    continue;
+                };
+                if node.is_active() {
+                    let control = follower.on_pose(sample.value.pose_in_odom, node.timestamp());
+                    node.send(&output, &control.twist)?;
+                    if let Some(event) = control.report {
+                        node.report(event)?;
+                    }
+                }
+            }
+            Event::Timeout if node.is_active() => {
+                let now = node.timestamp();
+                next_tick = now + TICK_SECS;
+                if let Some(event) = follower.on_tick(now) {
+                    node.report(event)?;
+                }
+            }
+            Event::Start => {
+                tracing::info!("active: heading for the goal");
+                follower.restart(node.timestamp());
+                next_tick = node.timestamp() + TICK_SECS;
+            }
+            Event::Stop => {
+                tracing::info!("inactive: stopping");
+                node.send(&output, &Twist::default())?;
+            }
+            Event::ParamsChanged(_) => match Settings::read(node) {
+                Ok(settings) => follower.retune(settings, node.timestamp()),
+                Err(err) => tracing::error!("{err}; keeping the previous settings"),
+            },
+            Event::Shutdown => return Ok(()),
+            _ => {}
+        }
+    }
+}
+
+/// The follower's parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    pub goal_x_m: f64,
+    pub goal_y_m: f64,
+    pub tolerance_m: f64,
+    pub max_speed_mps: f64,
+    pub max_turn_radps: f64,
+    pub blocked_after_secs: f64,
+}
+
+impl Settings {
+    fn read(node: &Node) -> Result<Self, BodyError> {
+        let any = |_| true;
+        let positive = |value| value > 0.0;
+        Ok(Self {
+            goal_x_m: float_param(node, "goal_x_m", any, "a finite number")?,
+            goal_y_m: float_param(node, "goal_y_m", any, "a finite number")?,
+            tolerance_m: float_param(node, "tolerance_m", positive, "greater than 0 m")?,
+            max_speed_mps: float_param(node, "max_speed_mps", positive, "greater than 0 m/s")?,
+            max_turn_radps: float_param(node, "max_turn_radps", positive, "greater than 0 rad/s")?,
+            blocked_after_secs: float_param(
+                node,
+                "blocked_after_secs",
+                |value| value >= 0.0,
+                "0 s or more",
+            )?,
+        })
+    }
+
+    fn same_goal(&self, other: &Settings) -> bool {
+        self.goal_x_m == other.goal_x_m && self.goal_y_m == other.goal_y_m
+    }
+}
+
+/// The command for one pose, and the event to report, if any.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Control {
+    twist: Twist,
+    report: Option<&'static str>,
+}
+
+/// The go-to-goal controller and its once-only events, on run time.
+#[derive(Clone, Debug)]
+struct Follower {
+    settings: Settings,
+    reached: bool,
+    blocked: bool,
+    /// The shortest distance to the goal so far, and when it was last shortened.
+    best_distance_m: f64,
+    last_progress: f64,
+}
+
+impl Follower {
+    fn new(settings: Settings, now: f64) -> Self {
+        let mut follower = Self {
+            settings,
+            reached: false,
+            blocked: false,
+            best_distance_m: f64::INFINITY,
+            last_progress: now,
+        };
+        follower.restart(now);
+        follower
+    }
+
+    /// A new goal or a new activation: `goal_reached` and `blocked` are re-armed, and progress
+    /// is counted from now.
+    fn restart(&mut self, now: f64) {
+        self.reached = false;
+        self.blocked = false;
+        self.best_distance_m = f64::INFINITY;
+        self.last_progress = now;
+    }
+
+    fn retune(&mut self, settings: Settings, now: f64) {
+        if !settings.same_goal(&self.settings) {
+            tracing::info!("new goal ({}, {})", settings.goal_x_m, settings.goal_y_m);
+            self.settings = settings;
+            self.restart(now);
+        } else {
+            self.settings = settings;
+        }
+    }
+
+    fn on_pose(&mut self, pose: Pose2D, now: f64) -> Control {
+        let Some((twist, distance_m)) = steer(&self.settings, pose) else {
+            tracing::warn!("ignoring a non-finite pose {pose:?}");
+            return Control {
+                twist: Twist::default(),
+                report: self.on_tick(now),
+            };
+        };
+        if self.reached {
+            return Control {
+                twist: Twist::default(),
+                report: None,
+            };
+        }
+        if distance_m <= self.settings.tolerance_m {
+            self.reached = true;
+            return Control {
+                twist: Twist::default(),
+                report: Some("goal_reached"),
+            };
+        }
+        let report = if distance_m < self.best_distance_m - PROGRESS_M {
+            self.best_distance_m = distance_m;
+            self.last_progress = now;
+            self.blocked = false;
+            None
+        } else {
+            self.on_tick(now)
+        };
+        Control { twist, report }
+    }
+
+    /// Reports `blocked` (once) when there was no progress for long enough.
+    fn on_tick(&mut self, now: f64) -> Option<&'static str> {
+        if self.reached
+            || self.blocked
+            || now - self.last_progress < self.settings.blocked_after_secs
+        {
+            return None;
+        }
+        self.blocked = true;
+        tracing::warn!(
+            "no progress towards the goal for {:.1} s",
+            now - self.last_progress
+        );
+        Some("blocked")
+    }
+}
+
+/// The command towards the goal from `pose`, and the distance to it (`None` if the pose is not
+/// finite).
+fn steer(settings: &Settings, pose: Pose2D) -> Option<(Twist, f64)> {
+    let dx = settings.goal_x_m - pose.x_m;
+    let dy = settings.goal_y_m - pose.y_m;
+    let distance_m = dx.hypot(dy);
+    let heading_error = wrap_angle(dy.atan2(dx) - pose.theta_rad);
+    if !distance_m.is_finite() || !heading_error.is_finite() {
+        return None;
+    }
+    let angular_radps =
+        (TURN_GAIN * heading_error).clamp(-settings.max_turn_radps, settings.max_turn_radps);
+    // Full speed when facing the goal, nothing from 90° off (turn on the spot first).
+    let facing = heading_error.cos().max(0.0);
+    let near = (distance_m / SLOW_DOWN_M).min(1.0);
+    let twist = Twist {
+        linear_mps: settings.max_speed_mps * facing * near,
+        angular_radps,
+    };
+    Some((twist, distance_m))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use armor_module_api::testing::{Step, TestBench};
+    use std::f64::consts::PI;
+
+    fn bench(params: &[(&str, &str)]) -> TestBench {
+        let mut all = vec![("goal_x_m", "2"), ("goal_y_m", "0")];
+        all.extend_from_slice(params);
+        TestBench::new(&spec(), &all).expect("bench")
+    }
+
+    fn odometry(x_m: f64, y_m: f64, theta_rad: f64) -> Odometry {
+        Odometry {
+            pose_in_odom: Pose2D {
+                x_m,
+                y_m,
+                theta_rad,
+            },
+            twist: Twist::default(),
+        }
+    }
+
+    fn at(x_m: f64, y_m: f64, theta_rad: f64) -> Step {
+        Step::push("odometry", &odometry(x_m, y_m, theta_rad)).expect("step")
+    }
+
+    fn sent(bench: &TestBench) -> Vec<Twist> {
+        bench.sent::<Twist>("cmd_desired").expect("sent")
+    }
+
+    #[test]
+    fn requires_a_goal_and_refuses_bad_settings() {
+        let mut bench = TestBench::new(&spec(), &[]).expect("bench");
+        let err = body(bench.node()).expect_err("no goal");
+        assert!(err.to_string().contains("goal_x_m"), "{err}");
+        let mut bench = bench_with_bad_tolerance();
+        let err = body(bench.node()).expect_err("bad tolerance");
+        assert!(err.to_string().contains("`tolerance_m` must be"), "{err}");
+    }
+
+    fn bench_with_bad_tolerance() -> TestBench {
+        bench(&[("tolerance_m", "0")])
+    }
+
+    #[test]
+    fn drives_towards_the_goal_and_reports_it_reached_once() {
+        let mut bench = bench(&[]);
+        bench.script([
+            at(0.0, 0.0, 0.0),
+            at(1.5, 0.0, 0.0),
+            at(1.8, 0.05, 0.0),
+            at(1.85, 0.0, 0.0),
+            at(1.9, 0.0, 0.0),
+        ]);
+        body(bench.node()).expect("body");
+        let sent = sent(&bench);
+        assert_eq!(sent.len(), 5);
+        assert!((sent[0].linear_mps - 0.6).abs() < 1e-9, "{:?}", sent[0]);
+        assert!(sent[0].angular_radps.abs() < 1e-9);
+        assert!(
+            sent[1].linear_mps > 0.0 && sent[1].linear_mps < sent[0].linear_mps,
+            "slows down near the goal: {sent:?}"
+        );
+        assert_eq!(sent[2..], [Twist::default(); 3]);
+        assert_eq!(bench.reported(), ["goal_reached"]);
+    }
+
+    #[test]
+    fn steers_towards_a_goal_off_to_the_side() {
+        let mut bench = bench(&[]);
+        bench.script([at(2.0, -3.0, 0.0), at(2.0, 3.0, 0.0)]);
+        body(bench.node()).expect("body");
+        let sent = sent(&bench);
+        assert!(sent[0].angular_radps > 0.0, "goal on the left: {sent:?}");
+        assert!(sent[1].angular_radps < 0.0, "goal on the right: {sent:?}");
+        for twist in &sent {
+            assert!(twist.angular_radps.abs() <= 1.2 + 1e-12);
+            assert!(twist.linear_mps.abs() < 1e-9, "90° off: turn first");
+        }
+    }
+
+    #[test]
+    fn turns_first_when_the_goal_is_behind() {
+        let mut bench = bench(&[]);
+        bench.script([at(0.0, 0.0, PI), at(0.0, 0.0, PI - 0.3), at(0.0, 0.0, 0.1)]);
+        body(bench.node()).expect("body");
+        let sent = sent(&bench);
+        for twist in &sent[..2] {
+            assert_eq!(twist.linear_mps, 0.0, "{sent:?}");
+            assert_eq!(twist.angular_radps.abs(), 1.2, "turns as fast as allowed");
+        }
+        assert!(sent[1].angular_radps < 0.0, "the short way round: {sent:?}");
+        assert!(sent[2].linear_mps > 0.5, "facing it again: {sent:?}");
+    }
+
+    #[test]
+    fn a_new_goal_re_arms_goal_reached() {
+        let mut bench = bench(&[]);
+        bench.script([
+            at(1.9, 0.0, 0.0),
+            at(1.9, 0.0, 0.0),
+            Step::param("goal_x_m", "5"),
+            at(1.9, 0.0, 0.0),
+            at(4.8, 0.1, 0.0),
+        ]);
+        body(bench.node()).expect("body");
+        let sent = sent(&bench);
+        assert_eq!(sent[..2], [Twist::default(); 2]);
+        assert!(sent[2].linear_mps > 0.5, "drives to the new goal: {sent:?}");
+        assert_eq!(sent[3], Twist::default());
+        assert_eq!(bench.reported(), ["goal_reached", "goal_reached"]);
+    }
+
+    #[test]
+    fn a_bad_live_goal_is_refused_and_the_old_one_kept() {
+        let mut bench = bench(&[]);
+        bench.script([
+            at(1.9, 0.0, 0.0),
+            Step::param("goal_x_m", "far"),
+            at(1.9, 0.0, 0.0),
+        ]);
+        body(bench.node()).expect("a bad value does not end the module");
+        assert_eq!(sent(&bench), [Twist::default(); 2]);
+        assert_eq!(bench.reported(), ["goal_reached"]);
+    }
+
+    #[test]
+    fn reports_blocked_once_when_odometry_stops_changing() {
+        let mut bench = bench(&[]);
+        bench.script([
+            at(0.0, 0.0, 0.0),
+            at(0.5, 0.0, 0.0),
+            // From now on, no progress is tolerated for any time at all.
+            Step::param("blocked_after_secs", "0"),
+            at(0.5, 0.0, 0.0),
+            at(0.5, 0.0, 0.0),
+            Step::Timeouts(2),
+            // Progress re-arms it.
+            at(1.0, 0.0, 0.0),
+            at(1.0, 0.0, 0.0),
+        ]);
+        body(bench.node()).expect("body");
+        assert_eq!(bench.reported(), ["blocked", "blocked"]);
+        assert!(
+            sent(&bench).iter().all(|twist| twist.linear_mps > 0.0),
+            "it keeps trying"
+        );
+    }
+
+    #[test]
+    fn blocked_waits_for_blocked_after_secs_of_run_time() {
+        let settings = Settings {
+            goal_x_m: 5.0,
+            goal_y_m: 0.0,
+            tolerance_m: 0.3,
+            max_speed_mps: 0.6,
+            max_turn_radps: 1.2,
+            blocked_after_secs: 10.0,
+        };
+        let pose = Pose2D::default();
+        let mut follower = Follower::new(settings, 100.0);
+        assert_eq!(follower.on_pose(pose, 100.0).report, None);
+        assert_eq!(follower.on_pose(pose, 109.0).report, None);
+        assert_eq!(follower.on_tick(109.9), None);
+        assert_eq!(follower.on_tick(110.0), Some("blocked"));
+        assert_eq!(follower.on_pose(pose, 115.0).report, None, "once");
+        let closer = Pose2D { x_m: 1.0, ..pose };
+        assert_eq!(follower.on_pose(closer, 116.0).report, None);
+        assert_eq!(follower.on_tick(125.0), None);
+        assert_eq!(follower.on_tick(126.0), Some("blocked"));
+        follower.restart(130.0);
+        assert_eq!(follower.on_tick(139.0), None, "activation re-arms it");
+    }
+
+    #[test]
+    fn commands_nothing_when_stopped_and_re_arms_on_start() {
+        let mut bench = bench(&[]);
+        bench.script([
+            at(1.9, 0.0, 0.0),
+            Step::Active(false),
+            at(0.0, 0.0, 0.0),
+            Step::Timeouts(3),
+            at(0.0, 0.0, 0.0),
+            Step::Active(true),
+            at(1.9, 0.0, 0.0),
+        ]);
+        body(bench.node()).expect("body");
+        assert_eq!(
+            sent(&bench),
+            [Twist::default(); 3],
+            "at the goal, one zero when stopped, nothing while inactive, at the goal again"
+        );
+        assert_eq!(bench.reported(), ["goal_reached", "goal_reached"]);
+    }
+
+    #[test]
+    fn a_non_finite_pose_commands_zero() {
+        let mut bench = bench(&[]);
+        bench.script([at(f64::NAN, 0.0, 0.0), at(0.0, 0.0, f64::INFINITY)]);
+        body(bench.node()).expect("body");
+        assert_eq!(sent(&bench), [Twist::default(); 2]);
+    }
+}

@@ -1,0 +1,82 @@
+//! Navigation, as two modules linked by a typed port so the diagram shows the data flow:
+//!
+//! ```text
+//! odometry (or a corrected pose) ──▶ follower ──cmd_desired──▶ avoider ──cmd_vel──▶ robot
+//!                                                    scan ──▶ ┘
+//! ```
+//!
+//! - [`follower`]: go-to-goal. A proportional heading controller drives towards the goal set in
+//!   its parameters (changed per leg by the mission), reports `goal_reached` once per goal and
+//!   `blocked` when it makes no progress.
+//! - [`avoider`]: reactive obstacle avoidance and safety stop (the virtual force field of the JDE
+//!   schemas). It bends the desired command away from the close points of the laser scan, slows
+//!   down before obstacles, stops forward motion when one is too close, and stops altogether
+//!   without fresh scans.
+//!
+//! Both publish nothing while inactive, after one zero command when stopped so that the robot
+//! does not keep the last motion command.
+
+pub mod avoider;
+pub mod follower;
+
+use armor_module_api::Node;
+use armor_module_api::types::Twist;
+
+use crate::BodyError;
+
+/// An angle brought into [-π, π).
+pub(crate) fn wrap_angle(angle_rad: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    (angle_rad + PI).rem_euclid(TAU) - PI
+}
+
+/// A finite number, or 0 for NaN and infinities.
+pub(crate) fn finite_or_zero(value: f64) -> f64 {
+    if value.is_finite() { value } else { 0.0 }
+}
+
+/// A command with every non-finite component replaced by 0.
+pub(crate) fn sanitized(twist: Twist) -> Twist {
+    Twist {
+        linear_mps: finite_or_zero(twist.linear_mps),
+        angular_radps: finite_or_zero(twist.angular_radps),
+    }
+}
+
+/// Reads a float parameter, refusing it in words unless it is finite and `accept`s it.
+pub(crate) fn float_param(
+    node: &Node,
+    name: &str,
+    accept: impl Fn(f64) -> bool,
+    meaning: &str,
+) -> Result<f64, BodyError> {
+    let value: f64 = node.param(name)?;
+    if value.is_finite() && accept(value) {
+        Ok(value)
+    } else {
+        Err(format!("parameter `{name}` must be {meaning}, not {value}").into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn angles_wrap_into_one_turn() {
+        assert!((wrap_angle(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
+        assert!((wrap_angle(-3.0 * PI / 2.0) - PI / 2.0).abs() < 1e-12);
+        assert_eq!(wrap_angle(0.25), 0.25);
+        assert!(wrap_angle(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn non_finite_commands_become_zero() {
+        let twist = sanitized(Twist {
+            linear_mps: f64::NAN,
+            angular_radps: f64::NEG_INFINITY,
+        });
+        assert_eq!(twist, Twist::default());
+    }
+}

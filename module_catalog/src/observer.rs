@@ -1,0 +1,235 @@
+//! `observer`: turns on the spot through a sector (a full circle by default), to look around,
+//! then reports `observation_done` and stands still.
+//!
+//! The angle turned is measured on the `odometry` heading: each pose adds the (wrapped) heading
+//! change in the direction of the turn, so a turn through more than half a circle is counted
+//! right and a jolt backwards counts against it. One command is published per pose received.
+//! Each start (activation) begins a new turn from wherever the robot is heading.
+
+use armor_module_api::types::{Odometry, Twist};
+use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
+
+use crate::BodyError;
+use crate::nav::{float_param, wrap_angle};
+
+pub const TYPE: &str = "observer";
+
+pub fn spec() -> ModuleSpec {
+    ModuleSpec::new(
+        TYPE,
+        "Turns on the spot through a sector (a full circle by default), measured on the odometry \
+         heading, then reports observation_done and commands zero. Each activation starts a new \
+         turn.",
+    )
+    .version(env!("CARGO_PKG_VERSION"))
+    .input::<Odometry>(
+        "odometry",
+        "the robot's pose: its heading tells how far the robot has turned",
+    )
+    .output::<Twist>(
+        "cmd_vel",
+        "the turning command, one per pose received (zero once the sector is covered, and once \
+         when the module is stopped)",
+    )
+    .param(
+        ParamSpec::new(
+            "sector_deg",
+            ParamType::Float,
+            "how far to turn (greater than 0; more than 360 turns more than once)",
+        )
+        .unit("deg")
+        .default("360"),
+    )
+    .param(
+        ParamSpec::new(
+            "turn_radps",
+            ParamType::Float,
+            "turning speed, counter-clockwise (negative: clockwise; not 0)",
+        )
+        .unit("rad/s")
+        .default("0.6"),
+    )
+    .event(
+        "observation_done",
+        "the robot has turned through the whole sector (once per activation)",
+    )
+}
+
+pub fn body(node: &mut Node) -> BodyResult {
+    let odometry = node.input::<Odometry>("odometry")?;
+    let output = node.output::<Twist>("cmd_vel")?;
+    let mut settings = Settings::read(node)?;
+    let mut turn = Turn::default();
+    loop {
+        match node.next_event(None)? {
+            Event::Input(port) if port == odometry.id() => {
+                let Some(sample) = node.take(&odometry)? else {
+                    continue;
+                };
+                if node.is_active() {
+                    let (twist, done) =
+                        turn.on_heading(sample.value.pose_in_odom.theta_rad, &settings);
+                    node.send(&output, &twist)?;
+                    if done {
+                        tracing::info!("turned through {} degrees", settings.sector_deg);
+                        node.report("observation_done")?;
+                    }
+                }
+            }
+            Event::Start => {
+                tracing::info!("active: turning through {} degrees", settings.sector_deg);
+                turn = Turn::default();
+            }
+            Event::Stop => {
+                tracing::info!("inactive: stopping");
+                node.send(&output, &Twist::default())?;
+            }
+            Event::ParamsChanged(_) => match Settings::read(node) {
+                Ok(new) => settings = new,
+                Err(err) => tracing::error!("{err}; keeping the previous settings"),
+            },
+            Event::Shutdown => return Ok(()),
+            _ => {}
+        }
+    }
+}
+
+/// The observer's parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    pub sector_deg: f64,
+    pub turn_radps: f64,
+}
+
+impl Settings {
+    fn read(node: &Node) -> Result<Self, BodyError> {
+        Ok(Self {
+            sector_deg: float_param(node, "sector_deg", |value| value > 0.0, "greater than 0")?,
+            turn_radps: float_param(node, "turn_radps", |value| value != 0.0, "non-zero")?,
+        })
+    }
+}
+
+/// One turn through the sector.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Turn {
+    last_heading: Option<f64>,
+    /// Angle turned so far in the direction of the turn (radians).
+    turned_rad: f64,
+    done: bool,
+}
+
+impl Turn {
+    /// The command for a new heading, and whether the sector was covered just now.
+    fn on_heading(&mut self, heading_rad: f64, settings: &Settings) -> (Twist, bool) {
+        if self.done {
+            return (Twist::default(), false);
+        }
+        if !heading_rad.is_finite() {
+            tracing::warn!("ignoring a non-finite heading");
+            return (Twist::default(), false);
+        }
+        if let Some(last) = self.last_heading {
+            self.turned_rad += wrap_angle(heading_rad - last) * settings.turn_radps.signum();
+        }
+        self.last_heading = Some(heading_rad);
+        if self.turned_rad >= settings.sector_deg.to_radians() {
+            self.done = true;
+            return (Twist::default(), true);
+        }
+        let twist = Twist {
+            linear_mps: 0.0,
+            angular_radps: settings.turn_radps,
+        };
+        (twist, false)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use armor_module_api::testing::{Step, TestBench};
+    use armor_module_api::types::Pose2D;
+
+    fn heading(theta_rad: f64) -> Step {
+        let odometry = Odometry {
+            pose_in_odom: Pose2D {
+                x_m: 1.0,
+                y_m: 2.0,
+                theta_rad,
+            },
+            twist: Twist::default(),
+        };
+        Step::push("odometry", &odometry).expect("step")
+    }
+
+    fn run(params: &[(&str, &str)], steps: impl IntoIterator<Item = Step>) -> TestBench {
+        let mut bench = TestBench::new(&spec(), params).expect("bench");
+        bench.script(steps);
+        body(bench.node()).expect("body");
+        bench
+    }
+
+    fn turning(angular_radps: f64) -> Twist {
+        Twist {
+            linear_mps: 0.0,
+            angular_radps,
+        }
+    }
+
+    /// Headings 0, 1, 2, … rad, as odometry reports them (wrapped into one turn).
+    fn headings(count: usize) -> Vec<Step> {
+        (0..count).map(|i| heading(wrap_angle(i as f64))).collect()
+    }
+
+    #[test]
+    fn turns_through_a_full_circle_then_reports_once_and_stands_still() {
+        // Headings 0 … 6 rad are short of a full turn (2π ≈ 6.28); 7 rad is past it.
+        let bench = run(&[], headings(10));
+        let sent = bench.sent::<Twist>("cmd_vel").expect("sent");
+        assert_eq!(sent[..7], [turning(0.6); 7]);
+        assert_eq!(sent[7..], [Twist::default(); 3]);
+        assert_eq!(bench.reported(), ["observation_done"]);
+    }
+
+    #[test]
+    fn turns_clockwise_through_a_sector() {
+        let steps = [0.0, -0.5, -1.0, 0.9, -1.5, -1.55, -1.7].map(heading);
+        let bench = run(&[("sector_deg", "90"), ("turn_radps", "-0.4")], steps);
+        let sent = bench.sent::<Twist>("cmd_vel").expect("sent");
+        // A jolt the wrong way (to 0.9) counts against the turn.
+        assert_eq!(sent[..6], [turning(-0.4); 6]);
+        assert_eq!(sent[6], Twist::default());
+        assert_eq!(bench.reported(), ["observation_done"]);
+    }
+
+    #[test]
+    fn restarts_its_turn_on_each_start_and_commands_nothing_while_stopped() {
+        let mut steps = headings(8);
+        steps.extend([Step::Active(false), heading(0.5), Step::Active(true)]);
+        steps.extend(headings(3));
+        let bench = run(&[], steps);
+        let sent = bench.sent::<Twist>("cmd_vel").expect("sent");
+        assert_eq!(sent.len(), 8 + 1 + 3, "{sent:?}");
+        assert_eq!(sent[8], Twist::default(), "one zero when stopped");
+        assert_eq!(sent[9..], [turning(0.6); 3], "a new turn");
+        assert_eq!(bench.reported(), ["observation_done"]);
+    }
+
+    #[test]
+    fn refuses_a_turning_speed_of_zero() {
+        let mut bench = TestBench::new(&spec(), &[("turn_radps", "0")]).expect("bench");
+        let err = body(bench.node()).expect_err("must refuse");
+        assert!(
+            err.to_string().contains("`turn_radps` must be non-zero"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_non_finite_heading_commands_zero_and_is_skipped() {
+        let bench = run(&[], [heading(0.0), heading(f64::NAN), heading(0.5)]);
+        let sent = bench.sent::<Twist>("cmd_vel").expect("sent");
+        assert_eq!(sent, [turning(0.6), Twist::default(), turning(0.6)]);
+    }
+}

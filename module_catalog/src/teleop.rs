@@ -1,0 +1,528 @@
+//! `teleop`: velocity commands from an operator, over a line protocol on a TCP socket.
+//!
+//! The module listens on `listen` and logs `teleop listening on ADDR` (with the port chosen
+//! when `listen` asks for port 0). Each line a client sends is one command, answered by one
+//! line, `ok` or `error: WHY`:
+//!
+//! - `v LINEAR ANGULAR`: drive at LINEAR m/s and turn at ANGULAR rad/s (counter-clockwise),
+//!   clamped to `max_speed_mps` and `max_turn_radps`;
+//! - `stop`: command zero.
+//!
+//! A command is held for `deadman_secs` of run time: an operator who stops sending stops the
+//! robot. The module publishes the current command 20 times per second of run time, and serves
+//! its clients from the same loop, with non-blocking sockets. It is an operator interface, so
+//! the mission controller never stops it.
+
+use std::io::{ErrorKind, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+
+use armor_module_api::types::Twist;
+use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
+
+use crate::BodyError;
+use crate::nav::float_param;
+
+pub const TYPE: &str = "teleop";
+
+/// How often, in run time, the module serves its clients and publishes the command.
+const TICK_SECS: f64 = 0.05;
+/// Longest command line accepted, in bytes.
+const MAX_LINE: usize = 256;
+/// At most this many operators at once; more are told so and disconnected.
+const MAX_CLIENTS: usize = 16;
+/// A client that leaves this many bytes of replies unread is disconnected.
+const MAX_UNREAD: usize = 64 * 1024;
+
+pub fn spec() -> ModuleSpec {
+    ModuleSpec::new(
+        TYPE,
+        "Operator velocity commands over TCP: lines `v LINEAR ANGULAR` or `stop`, answered `ok` \
+         or `error: ...`; commands are clamped and held for deadman_secs, after which it \
+         commands zero.",
+    )
+    .version(env!("CARGO_PKG_VERSION"))
+    .not_controllable()
+    .output::<Twist>(
+        "cmd_vel",
+        "the operator's command, 20 times per second of run time (zero when no command arrived \
+         within deadman_secs)",
+    )
+    .param(
+        ParamSpec::new(
+            "listen",
+            ParamType::String,
+            "the TCP address to listen on for operators (port 0: any free port; the address is \
+             logged as `teleop listening on ADDR`); read at start only",
+        )
+        .default("127.0.0.1:0"),
+    )
+    .param(
+        ParamSpec::new(
+            "max_speed_mps",
+            ParamType::Float,
+            "linear speeds are clamped to ± this (0 or more)",
+        )
+        .unit("m/s")
+        .default("0.5"),
+    )
+    .param(
+        ParamSpec::new(
+            "max_turn_radps",
+            ParamType::Float,
+            "turning speeds are clamped to ± this (0 or more)",
+        )
+        .unit("rad/s")
+        .default("1.0"),
+    )
+    .param(
+        ParamSpec::new(
+            "deadman_secs",
+            ParamType::Float,
+            "a command is held this long in run time, then zero is commanded until the next one \
+             (greater than 0)",
+        )
+        .unit("s")
+        .default("0.5"),
+    )
+}
+
+pub fn body(node: &mut Node) -> BodyResult {
+    let listen: String = node.param("listen")?;
+    let listen = listen.trim();
+    let listener =
+        TcpListener::bind(listen).map_err(|err| format!("cannot listen on `{listen}`: {err}"))?;
+    listener.set_nonblocking(true)?;
+    tracing::info!("teleop listening on {}", listener.local_addr()?);
+    serve(node, Server::new(listener))
+}
+
+/// The module's loop, serving `server`'s clients.
+fn serve(node: &mut Node, mut server: Server) -> BodyResult {
+    let output = node.output::<Twist>("cmd_vel")?;
+    let mut limits = Limits::read(node)?;
+    let mut command = Command::default();
+    let mut next_tick = node.timestamp();
+    loop {
+        let deadline = node.clock().instant_at(next_tick);
+        match node.next_event_until(deadline)? {
+            Event::Timeout => {
+                let now = node.timestamp();
+                next_tick = now + TICK_SECS;
+                server.poll(|line| command.handle(line, &limits, now));
+                node.send(&output, &command.current(now, limits.deadman_secs))?;
+            }
+            Event::ParamsChanged(names) => {
+                if names.iter().any(|name| name == "listen") {
+                    tracing::warn!("`listen` is read at start only: still on {}", server.addr());
+                }
+                match Limits::read(node) {
+                    Ok(new) => limits = new,
+                    Err(err) => tracing::error!("{err}; keeping the previous settings"),
+                }
+            }
+            Event::Shutdown => return Ok(()),
+            _ => {}
+        }
+    }
+}
+
+/// The teleop's tunable parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    pub max_speed_mps: f64,
+    pub max_turn_radps: f64,
+    pub deadman_secs: f64,
+}
+
+impl Limits {
+    fn read(node: &Node) -> Result<Self, BodyError> {
+        let at_least_zero = |value| value >= 0.0;
+        Ok(Self {
+            max_speed_mps: float_param(node, "max_speed_mps", at_least_zero, "0 m/s or more")?,
+            max_turn_radps: float_param(node, "max_turn_radps", at_least_zero, "0 rad/s or more")?,
+            deadman_secs: float_param(
+                node,
+                "deadman_secs",
+                |value| value > 0.0,
+                "greater than 0 s",
+            )?,
+        })
+    }
+}
+
+/// The operator's latest command and when it came, in run time.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Command {
+    twist: Twist,
+    at: Option<f64>,
+}
+
+impl Command {
+    /// Takes one command line; returns the reply (without its newline).
+    fn handle(&mut self, line: &str, limits: &Limits, now: f64) -> String {
+        match parse(line, limits) {
+            Ok(twist) => {
+                self.twist = twist;
+                self.at = Some(now);
+                "ok".to_owned()
+            }
+            Err(why) => format!("error: {why}"),
+        }
+    }
+
+    /// What to publish at `now`: the command, or zero once it is older than `deadman_secs`.
+    fn current(&self, now: f64, deadman_secs: f64) -> Twist {
+        match self.at {
+            Some(at) if now - at < deadman_secs => self.twist,
+            _ => Twist::default(),
+        }
+    }
+}
+
+/// Reads a command line: `v LINEAR ANGULAR` (clamped) or `stop`.
+fn parse(line: &str, limits: &Limits) -> Result<Twist, String> {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    match words.as_slice() {
+        ["stop"] => Ok(Twist::default()),
+        ["v", linear, angular] => {
+            let number = |text: &str, what: &str| match text.parse::<f64>() {
+                Ok(value) if value.is_finite() => Ok(value),
+                _ => Err(format!("{what} `{text}` is not a finite number")),
+            };
+            Ok(Twist {
+                linear_mps: number(linear, "LINEAR")?
+                    .clamp(-limits.max_speed_mps, limits.max_speed_mps),
+                angular_radps: number(angular, "ANGULAR")?
+                    .clamp(-limits.max_turn_radps, limits.max_turn_radps),
+            })
+        }
+        ["v", ..] => Err("expected `v LINEAR ANGULAR` (m/s, rad/s)".to_owned()),
+        _ => Err(format!(
+            "unknown command `{line}`: expected `v LINEAR ANGULAR` or `stop`"
+        )),
+    }
+}
+
+/// The listening socket and the connected operators, all non-blocking.
+struct Server {
+    listener: TcpListener,
+    clients: Vec<Client>,
+}
+
+struct Client {
+    stream: TcpStream,
+    peer: SocketAddr,
+    /// Bytes received but not yet a whole line.
+    inbox: Vec<u8>,
+    /// Replies not yet written.
+    outbox: Vec<u8>,
+    /// The current line is too long: skip it up to its end.
+    skipping: bool,
+    /// The client hung up or failed: drop it once its replies are written (or cannot be).
+    gone: bool,
+}
+
+impl Server {
+    fn new(listener: TcpListener) -> Self {
+        Self {
+            listener,
+            clients: Vec::new(),
+        }
+    }
+
+    fn addr(&self) -> String {
+        self.listener
+            .local_addr()
+            .map_or_else(|err| format!("(unknown: {err})"), |addr| addr.to_string())
+    }
+
+    /// Takes a connection accepted elsewhere.
+    fn adopt(&mut self, stream: TcpStream, peer: SocketAddr) {
+        let ready = stream
+            .set_nonblocking(true)
+            .and_then(|()| stream.set_nodelay(true));
+        if let Err(err) = ready {
+            tracing::warn!("dropping operator {peer}: {err}");
+            return;
+        }
+        if self.clients.len() >= MAX_CLIENTS {
+            tracing::warn!("refusing operator {peer}: {MAX_CLIENTS} already connected");
+            let _ = (&stream).write(b"error: too many operators connected\n");
+            return;
+        }
+        tracing::info!("operator connected from {peer}");
+        self.clients.push(Client {
+            stream,
+            peer,
+            inbox: Vec::new(),
+            outbox: Vec::new(),
+            skipping: false,
+            gone: false,
+        });
+    }
+
+    /// Accepts new operators, hands each complete line to `handle` and queues its reply, writes
+    /// what the sockets take, and drops the clients that are gone. Never blocks.
+    fn poll(&mut self, mut handle: impl FnMut(&str) -> String) {
+        loop {
+            match self.listener.accept() {
+                Ok((stream, peer)) => self.adopt(stream, peer),
+                Err(err) if err.kind() == ErrorKind::Interrupted => {}
+                Err(err) => {
+                    if err.kind() != ErrorKind::WouldBlock {
+                        tracing::warn!("cannot accept an operator: {err}");
+                    }
+                    break;
+                }
+            }
+        }
+        for client in &mut self.clients {
+            client.receive();
+            client.answer(&mut handle);
+            client.send();
+        }
+        self.clients.retain(|client| {
+            let keep = !client.gone;
+            if !keep {
+                tracing::info!("operator {} disconnected", client.peer);
+            }
+            keep
+        });
+    }
+}
+
+impl Client {
+    fn receive(&mut self) {
+        let mut buffer = [0u8; 1024];
+        loop {
+            match self.stream.read(&mut buffer) {
+                Ok(0) => {
+                    self.gone = true;
+                    break;
+                }
+                Ok(count) => self.inbox.extend_from_slice(&buffer[..count]),
+                Err(err) if err.kind() == ErrorKind::Interrupted => {}
+                Err(err) if err.kind() == ErrorKind::WouldBlock => break,
+                Err(err) => {
+                    tracing::warn!("operator {}: {err}", self.peer);
+                    self.gone = true;
+                    break;
+                }
+            }
+        }
+    }
+
+    fn answer(&mut self, handle: &mut impl FnMut(&str) -> String) {
+        while let Some(end) = self.inbox.iter().position(|byte| *byte == b'\n') {
+            let line: Vec<u8> = self.inbox.drain(..=end).collect();
+            if std::mem::take(&mut self.skipping) {
+                continue;
+            }
+            let reply = if line.len() > MAX_LINE + 1 {
+                format!("error: line longer than {MAX_LINE} bytes")
+            } else {
+                let text = String::from_utf8_lossy(&line);
+                let text = text.trim();
+                if text.is_empty() {
+                    continue;
+                }
+                handle(text)
+            };
+            self.queue(&reply);
+        }
+        if self.inbox.len() > MAX_LINE {
+            self.inbox.clear();
+            if !self.skipping {
+                self.skipping = true;
+                self.queue(&format!("error: line longer than {MAX_LINE} bytes"));
+            }
+        }
+    }
+
+    fn queue(&mut self, reply: &str) {
+        self.outbox.extend_from_slice(reply.as_bytes());
+        self.outbox.push(b'\n');
+    }
+
+    fn send(&mut self) {
+        while !self.outbox.is_empty() {
+            match self.stream.write(&self.outbox) {
+                Ok(0) => {
+                    self.gone = true;
+                    break;
+                }
+                Ok(count) => {
+                    self.outbox.drain(..count);
+                }
+                Err(err) if err.kind() == ErrorKind::Interrupted => {}
+                Err(err) if err.kind() == ErrorKind::WouldBlock => break,
+                Err(_) => {
+                    self.gone = true;
+                    break;
+                }
+            }
+        }
+        if self.outbox.len() > MAX_UNREAD {
+            tracing::warn!("operator {} does not read its replies", self.peer);
+            self.gone = true;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use armor_module_api::testing::{Step, TestBench};
+    use std::io::{BufRead, BufReader};
+    use std::time::Duration;
+
+    fn limits() -> Limits {
+        Limits {
+            max_speed_mps: 0.5,
+            max_turn_radps: 1.0,
+            deadman_secs: 0.5,
+        }
+    }
+
+    fn twist(linear_mps: f64, angular_radps: f64) -> Twist {
+        Twist {
+            linear_mps,
+            angular_radps,
+        }
+    }
+
+    #[test]
+    fn commands_are_parsed_and_clamped() {
+        let limits = limits();
+        assert_eq!(parse("v 0.2 -0.3", &limits), Ok(twist(0.2, -0.3)));
+        assert_eq!(parse("  v   3  -7 ", &limits), Ok(twist(0.5, -1.0)));
+        assert_eq!(parse("v -3 7", &limits), Ok(twist(-0.5, 1.0)));
+        assert_eq!(parse("stop", &limits), Ok(Twist::default()));
+    }
+
+    #[test]
+    fn garbage_is_an_error_and_leaves_the_command_alone() {
+        let limits = limits();
+        let mut command = Command::default();
+        assert_eq!(command.handle("v 0.2 0.1", &limits, 1.0), "ok");
+        for garbage in [
+            "fly", "v", "v 1", "v 1 2 3", "v one 2", "v NaN 0", "v 0 inf", "stop now",
+        ] {
+            let reply = command.handle(garbage, &limits, 1.1);
+            assert!(reply.starts_with("error: "), "{garbage}: {reply}");
+        }
+        assert_eq!(command.current(1.2, limits.deadman_secs), twist(0.2, 0.1));
+    }
+
+    #[test]
+    fn the_dead_man_zeroes_an_old_command() {
+        let limits = limits();
+        let mut command = Command::default();
+        assert_eq!(
+            command.current(0.0, 0.5),
+            Twist::default(),
+            "no command yet"
+        );
+        command.handle("v 0.3 0.2", &limits, 10.0);
+        assert_eq!(command.current(10.0, 0.5), twist(0.3, 0.2));
+        assert_eq!(command.current(10.49, 0.5), twist(0.3, 0.2));
+        assert_eq!(command.current(10.5, 0.5), Twist::default());
+        command.handle("v 0.1 0", &limits, 11.0);
+        assert_eq!(command.current(11.2, 0.5), twist(0.1, 0.0), "a new command");
+        command.handle("stop", &limits, 11.3);
+        assert_eq!(command.current(11.4, 0.5), Twist::default());
+    }
+
+    /// A server whose client has sent `lines`, already received on the server's side.
+    fn connected(lines: &[u8]) -> (Server, TcpStream) {
+        let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+        let mut client = TcpStream::connect(listener.local_addr().expect("addr")).expect("connect");
+        client.write_all(lines).expect("write");
+        let (stream, peer) = listener.accept().expect("accept");
+        let mut peeked = vec![0; lines.len()];
+        while stream.peek(&mut peeked).expect("peek") < lines.len() {}
+        listener.set_nonblocking(true).expect("non-blocking");
+        let mut server = Server::new(listener);
+        server.adopt(stream, peer);
+        client
+            .set_read_timeout(Some(Duration::from_secs(10)))
+            .expect("timeout");
+        (server, client)
+    }
+
+    fn replies(client: TcpStream, count: usize) -> Vec<String> {
+        BufReader::new(client)
+            .lines()
+            .take(count)
+            .map(|line| line.expect("reply"))
+            .collect()
+    }
+
+    #[test]
+    fn serves_the_socket_from_its_loop() {
+        let (server, client) = connected(b"v 5 -9\nfly\n\nv 1\n");
+        let mut bench = TestBench::new(&spec(), &[("deadman_secs", "60")]).expect("bench");
+        bench.script([Step::Timeouts(2)]);
+        serve(bench.node(), server).expect("serve");
+        let replies = replies(client, 3);
+        assert_eq!(replies[0], "ok");
+        assert!(
+            replies[1].starts_with("error: unknown command `fly`"),
+            "{replies:?}"
+        );
+        assert!(replies[2].starts_with("error: "), "{replies:?}");
+        assert_eq!(
+            bench.sent::<Twist>("cmd_vel").expect("sent"),
+            [twist(0.5, -1.0); 2],
+            "clamped, and held"
+        );
+    }
+
+    #[test]
+    fn refuses_overlong_lines_and_goes_on() {
+        let mut lines = vec![b'x'; 2000];
+        lines.extend_from_slice(b"\nstop\n");
+        lines.extend(std::iter::repeat_n(b'y', 300));
+        lines.extend_from_slice(b"\nv 0.1 0\n");
+        let (server, client) = connected(&lines);
+        let mut bench = TestBench::new(&spec(), &[("deadman_secs", "60")]).expect("bench");
+        bench.script([Step::Timeouts(1)]);
+        serve(bench.node(), server).expect("serve");
+        let replies = replies(client, 4);
+        assert!(replies[0].starts_with("error: line longer"), "{replies:?}");
+        assert_eq!(replies[1], "ok");
+        assert!(replies[2].starts_with("error: line longer"), "{replies:?}");
+        assert_eq!(replies[3], "ok");
+        assert_eq!(
+            bench.sent::<Twist>("cmd_vel").expect("sent"),
+            [twist(0.1, 0.0)]
+        );
+    }
+
+    #[test]
+    fn publishes_zero_without_an_operator_and_survives_a_bad_live_limit() {
+        let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+        listener.set_nonblocking(true).expect("non-blocking");
+        let mut bench = TestBench::new(&spec(), &[]).expect("bench");
+        bench.script([
+            Step::Timeouts(2),
+            Step::param("max_speed_mps", "-1"),
+            Step::Timeouts(1),
+        ]);
+        serve(bench.node(), Server::new(listener)).expect("serve");
+        assert_eq!(
+            bench.sent::<Twist>("cmd_vel").expect("sent"),
+            [Twist::default(); 3]
+        );
+    }
+
+    #[test]
+    fn refuses_an_address_it_cannot_listen_on() {
+        let mut bench = TestBench::new(&spec(), &[("listen", "nowhere")]).expect("bench");
+        let err = body(bench.node()).expect_err("must refuse");
+        assert!(
+            err.to_string().contains("cannot listen on `nowhere`"),
+            "{err}"
+        );
+    }
+}
