@@ -465,6 +465,22 @@ mod tests {
     }
 
     #[test]
+    fn the_body_reports_blocked_only_after_blocked_after_secs_of_run_time() {
+        // `blocked_after_secs` is 10: the run clock jumps without any progress.
+        for (jump_secs, expected) in [(9.0, &[][..]), (10.5, &["blocked"][..])] {
+            let mut bench = bench(&[]);
+            bench.script([
+                at(0.0, 0.0, 0.0),
+                Step::Advance(jump_secs),
+                at(0.0, 0.0, 0.0),
+                Step::Timeouts(1),
+            ]);
+            body(bench.node()).expect("body");
+            assert_eq!(bench.reported(), expected, "after {jump_secs} s");
+        }
+    }
+
+    #[test]
     fn blocked_waits_for_blocked_after_secs_of_run_time() {
         let settings = Settings {
             goal_x_m: 5.0,

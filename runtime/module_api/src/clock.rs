@@ -50,6 +50,13 @@ impl Clock {
         Self::new(epoch.unwrap_or_else(unix_now_ns), scale.unwrap_or(1.0))
     }
 
+    /// Moves run time forward by `run_secs` (test benches only: real clocks never jump).
+    pub(crate) fn advance(&mut self, run_secs: f64) {
+        if run_secs.is_finite() && run_secs > 0.0 {
+            self.offset_secs += run_secs / self.scale;
+        }
+    }
+
     pub fn scale(&self) -> f64 {
         self.scale
     }
@@ -110,6 +117,18 @@ mod tests {
         assert!((a.at(now) - b.at(now)).abs() < 0.01);
         assert!((a.at(now + Duration::from_secs(1)) - a.at(now) - 10.0).abs() < 1e-9);
         assert_eq!(a.real_duration(5.0), Duration::from_millis(500));
+    }
+
+    #[test]
+    fn advancing_moves_run_time_in_run_seconds() {
+        let mut clock = Clock::new(unix_now_ns(), 4.0);
+        let now = Instant::now();
+        let before = clock.at(now);
+        clock.advance(10.0);
+        assert!((clock.at(now) - before - 10.0).abs() < 1e-9);
+        clock.advance(f64::NAN);
+        clock.advance(-5.0);
+        assert!((clock.at(now) - before - 10.0).abs() < 1e-9);
     }
 
     #[test]

@@ -16,7 +16,7 @@
 //! ```
 //!
 //! When no event is queued, the bench plays the next step of its script ([`TestBench::script`]):
-//! timeouts, a parameter change, a start or stop, a value on an input. Without a script, waiting
+//! timeouts, a parameter change, a start or stop, a value on an input, a jump of the run clock. Without a script, waiting
 //! with a deadline returns [`Event::Timeout`] at once and waiting without one returns
 //! [`Event::Shutdown`]; once a script is played out, waiting returns [`Event::Shutdown`]. Either
 //! way a module body run on a bench ends by itself.
@@ -40,6 +40,8 @@ pub enum Step {
     Param(String, String),
     /// The controller starts (`true`) or stops (`false`) the module.
     Active(bool),
+    /// Run time jumps forward by this many seconds (for timeouts measured on the run clock).
+    Advance(f64),
     /// An encoded value arrives on an input; see [`Step::push`].
     Push { input: String, payload: Vec<u8> },
     /// The input loses its provider and links again (see [`Sample::link`](crate::Sample::link)).
@@ -125,6 +127,7 @@ impl TestTransport {
                     core.apply_config(config);
                 }
                 Step::Active(active) => core.set_active(active),
+                Step::Advance(secs) => core.clock.advance(secs),
                 Step::Push { input, payload } => {
                     if let Err(err) = self.deliver(core, &input, payload) {
                         tracing::error!("bench script: {err}");
