@@ -90,7 +90,9 @@ pub enum Event {
     ParamsChanged(Vec<String>),
     /// The controller activated the module.
     Start,
-    /// The controller deactivated the module: it should idle (publish nothing, command nothing).
+    /// The controller deactivated the module: it should idle, commanding nothing until
+    /// [`Event::Start`]. Inputs keep the latest value they received, so a module whose output
+    /// commands motion publishes one zero command first and then nothing.
     Stop,
     /// The run is ending: return from the module body.
     Shutdown,
