@@ -15,16 +15,25 @@
 //! - [`nav`]: navigation in two modules linked by `cmd_desired`: [`nav::follower`] drives
 //!   towards a goal set per leg (`goal_reached`, `blocked`), and [`nav::avoider`] bends that
 //!   command away from obstacles seen in the laser scan and stops short of them (`safety_stop`).
+//! - [`mapper`]: an occupancy grid from laser scans and odometry, with the pose corrected by
+//!   matching each scan against the map so far (published as `pose`, in place of odometry).
+//! - [`mux`]: the one source of the robot's `cmd_vel`: teleop when fresh and non-zero, else
+//!   observe, else auto, else zero (not controllable).
 //! - [`observer`]: turns on the spot through a sector measured on the odometry heading, then
 //!   reports `observation_done`.
 //! - [`teleop`]: operator velocity commands over a TCP line protocol, clamped and held for a
 //!   dead-man time (not controllable).
+//! - [`recorder`]: records every sample of the data names in `record`, with stamp and type,
+//!   into an MCAP file while active (JSON for the built-in types); `armor replay` plays it back.
 
 pub mod checker;
 pub mod counter;
 pub mod echo;
+pub mod mapper;
+pub mod mux;
 pub mod nav;
 pub mod observer;
+pub mod recorder;
 pub mod sim;
 pub mod sink;
 pub mod teleop;

@@ -7,12 +7,17 @@
 //! machines where absolute numbers do not.
 //!
 //! The raw TCP references need a peer process: the binary re-executes itself in a hidden mode
-//! (`--raw-echo ADDR SIZE`, `--raw-sink ADDR BYTES`).
+//! (`--raw-echo ADDR SIZE`, `--raw-sink ADDR BYTES`, `--raw-hop ADDR ROLE ROUNDS`). Called
+//! through a symlink named `armor-mod-benchprobe`, it is the module `event_to_start_ms` runs
+//! under `armor run` (see `benchprobe.rs`).
 
+mod benchprobe;
+mod event_start;
 mod harness;
 mod latency;
 mod procs;
 mod raw;
+mod reachability;
 mod report;
 mod startup;
 mod throughput;
@@ -46,6 +51,10 @@ struct Cli {
     /// Hidden reference peer: connect to ADDR, read BYTES bytes, answer one byte.
     #[arg(long, hide = true, num_args = 2, value_names = ["ADDR", "BYTES"])]
     raw_sink: Option<Vec<String>>,
+    /// Hidden reference peer: connect to ADDR as `a` or `b` and pass a byte back and forth
+    /// through the relay ROUNDS times, then print the times.
+    #[arg(long, hide = true, num_args = 3, value_names = ["ADDR", "ROLE", "ROUNDS"])]
+    raw_hop: Option<Vec<String>>,
 }
 
 /// What every benchmark gets.
@@ -81,9 +90,24 @@ const BENCHES: &[Bench] = &[
         about: "`armor run` of ten counters until configured vs ten --describe spawns (ms)",
         run: startup::run,
     },
+    Bench {
+        name: event_start::NAME,
+        about: "a module's event report to the next place's module started, through the mission \
+                controller, vs two TCP hops through a relay (ms)",
+        run: event_start::run,
+    },
+    Bench {
+        name: reachability::NAME,
+        about: "mission analysis of 10 dining philosophers vs a plain breadth-first search \
+                (states/s)",
+        run: reachability::run,
+    },
 ];
 
 fn main() -> ExitCode {
+    if benchprobe::invoked_as_module() {
+        return benchprobe::main();
+    }
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => code,
@@ -101,9 +125,16 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     if let Some(args) = &cli.raw_sink {
         return raw::sink_main(&args[0], parse_number(&args[1], "--raw-sink BYTES")?);
     }
+    if let Some(args) = &cli.raw_hop {
+        return event_start::hop_main(
+            &args[0],
+            &args[1],
+            parse_number(&args[2], "--raw-hop ROUNDS")?,
+        );
+    }
     if cli.list {
         for bench in BENCHES {
-            println!("{:<20} {}", bench.name, bench.about);
+            println!("{:<26} {}", bench.name, bench.about);
         }
         return Ok(ExitCode::SUCCESS);
     }

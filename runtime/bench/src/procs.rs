@@ -68,12 +68,14 @@ pub fn self_command() -> anyhow::Result<Command> {
 /// A child process that is killed when the guard is dropped (on success, error or panic), or by
 /// the kernel if this process dies without dropping it (`PR_SET_PDEATHSIG`). Its
 /// stderr is read on a thread: every line is sent to [`ChildGuard::take_lines`] and the last ones are
-/// kept to explain a failure.
+/// kept to explain a failure. Its stdout, when captured ([`ChildGuard::spawn_capturing_stdout`]),
+/// is read on another thread and sent to [`ChildGuard::take_stdout_lines`].
 pub struct ChildGuard {
     name: String,
     child: Child,
     exited: Option<ExitStatus>,
     lines: Option<Receiver<String>>,
+    stdout_lines: Option<Receiver<String>>,
     tail: Arc<Mutex<VecDeque<String>>>,
     reader: Option<JoinHandle<()>>,
     graceful: bool,
@@ -81,10 +83,23 @@ pub struct ChildGuard {
 
 impl ChildGuard {
     /// Starts `command` with stdin and stdout closed and stderr captured.
-    pub fn spawn(name: &str, mut command: Command) -> anyhow::Result<Self> {
+    pub fn spawn(name: &str, command: Command) -> anyhow::Result<Self> {
+        Self::spawn_with(name, command, false)
+    }
+
+    /// Like [`ChildGuard::spawn`], with stdout captured too, line by line.
+    pub fn spawn_capturing_stdout(name: &str, command: Command) -> anyhow::Result<Self> {
+        Self::spawn_with(name, command, true)
+    }
+
+    fn spawn_with(name: &str, mut command: Command, capture_stdout: bool) -> anyhow::Result<Self> {
         command
             .stdin(Stdio::null())
-            .stdout(Stdio::null())
+            .stdout(if capture_stdout {
+                Stdio::piped()
+            } else {
+                Stdio::null()
+            })
             .stderr(Stdio::piped());
         armor_runtime::process::die_with_parent(&mut command);
         let mut child = command
@@ -109,7 +124,20 @@ impl ChildGuard {
                 }
             })
         });
-        Ok(Self::new(name, child, Some(receiver), tail, reader))
+        let mut guard = Self::new(name, child, Some(receiver), tail, reader);
+        if let Some(stdout) = guard.child.stdout.take() {
+            let (sender, receiver) = mpsc::channel();
+            // Ends with the pipe, and keeps draining it when nobody listens any more, so that
+            // the child never blocks on a full pipe.
+            std::thread::spawn(move || {
+                for line in BufReader::new(stdout).lines() {
+                    let Ok(line) = line else { break };
+                    let _ = sender.send(line);
+                }
+            });
+            guard.stdout_lines = Some(receiver);
+        }
+        Ok(guard)
     }
 
     /// Starts a short-lived `command` with no pipes and no death signal: nothing between it and
@@ -138,6 +166,7 @@ impl ChildGuard {
             child,
             exited: None,
             lines,
+            stdout_lines: None,
             tail,
             reader,
             graceful: false,
@@ -154,6 +183,12 @@ impl ChildGuard {
     /// The child's stderr, line by line (for a child started with [`ChildGuard::spawn`]; once).
     pub fn take_lines(&mut self) -> Option<Receiver<String>> {
         self.lines.take()
+    }
+
+    /// The child's stdout, line by line (for a child started with
+    /// [`ChildGuard::spawn_capturing_stdout`]; once).
+    pub fn take_stdout_lines(&mut self) -> Option<Receiver<String>> {
+        self.stdout_lines.take()
     }
 
     /// Whether the child has exited (and how), without waiting.
@@ -192,10 +227,10 @@ impl ChildGuard {
 
     /// Sends SIGTERM and waits for the child to exit, at most `timeout`.
     pub fn terminate(&mut self, timeout: Duration) -> anyhow::Result<ExitStatus> {
-        if self.try_exited()?.is_none() {
-            if let Ok(pid) = libc::pid_t::try_from(self.child.id()) {
-                armor_runtime::process::kill(pid, libc::SIGTERM);
-            }
+        if self.try_exited()?.is_none()
+            && let Ok(pid) = libc::pid_t::try_from(self.child.id())
+        {
+            armor_runtime::process::kill(pid, libc::SIGTERM);
         }
         self.wait_exit(timeout)
     }

@@ -21,6 +21,9 @@ pub struct Report {
     pub reference_p50: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference_p99: Option<f64>,
+    /// For a state-space exploration: the states each side found (the same on both).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub states: Option<usize>,
 }
 
 impl Report {
@@ -36,7 +39,14 @@ impl Report {
             p99: None,
             reference_p50: None,
             reference_p99: None,
+            states: None,
         }
+    }
+
+    /// The same report with a `states` field.
+    pub fn with_states(mut self, states: usize) -> Self {
+        self.states = Some(states);
+        self
     }
 
     /// Two distributions of durations, reported in `scale` units per second (1e6 for µs).
@@ -59,6 +69,7 @@ impl Report {
             p99: Some(round(ours.p99)),
             reference_p50: Some(round(reference.p50)),
             reference_p99: Some(round(reference.p99)),
+            states: None,
         }
     }
 }
@@ -125,6 +136,11 @@ mod tests {
         assert_eq!(
             serde_json::to_string(&report).expect("json"),
             r#"{"bench":"x","ours":2.0,"reference":4.0,"unit":"ms","ratio":0.5}"#
+        );
+        let report = Report::single("y", "states/s", 3.0, 2.0).with_states(82);
+        assert_eq!(
+            serde_json::to_string(&report).expect("json"),
+            r#"{"bench":"y","ours":3.0,"reference":2.0,"unit":"states/s","ratio":1.5,"states":82}"#
         );
     }
 }

@@ -26,14 +26,24 @@ fn text(bytes: &[u8]) -> String {
 #[test]
 fn quick_run_prints_one_json_line_per_benchmark() {
     let folder = Path::new(BENCH).parent().unwrap();
-    for module in ["armor-mod-echo", "armor-mod-sink"] {
+    for module in ["armor", "armor-mod-echo", "armor-mod-sink"] {
         assert!(
             folder.join(module).is_file(),
             "{module} is missing from {}: build the whole workspace (cargo test --workspace)",
             folder.display()
         );
     }
-    let output = bench(&["--quick", "latency_64b", "throughput_64b"]);
+    // (name, unit, whether it is a distribution)
+    let expected = [
+        ("latency_64b", "us", true),
+        ("throughput_64b", "msg/s", false),
+        ("event_to_start_ms", "ms", true),
+        ("reachability_states_per_s", "states/s", false),
+    ];
+    let names: Vec<&str> = expected.iter().map(|(name, _, _)| *name).collect();
+    let mut args = vec!["--quick"];
+    args.extend(&names);
+    let output = bench(&args);
     let stdout = text(&output.stdout);
     assert!(
         output.status.success(),
@@ -42,16 +52,11 @@ fn quick_run_prints_one_json_line_per_benchmark() {
         text(&output.stderr)
     );
     let lines: Vec<&str> = stdout.lines().collect();
-    assert_eq!(lines.len(), 2, "stdout:\n{stdout}");
-    for (line, name) in lines.iter().zip(["latency_64b", "throughput_64b"]) {
+    assert_eq!(lines.len(), expected.len(), "stdout:\n{stdout}");
+    for (line, (name, unit, distribution)) in lines.iter().zip(expected) {
         let value: serde_json::Value = serde_json::from_str(line).unwrap();
         assert_eq!(value["bench"], name, "{line}");
-        let unit = value["unit"].as_str().unwrap();
-        assert_eq!(
-            unit,
-            if name == "latency_64b" { "us" } else { "msg/s" },
-            "{line}"
-        );
+        assert_eq!(value["unit"], unit, "{line}");
         for field in ["ours", "reference", "ratio"] {
             let number = value[field].as_f64();
             assert!(
@@ -59,15 +64,18 @@ fn quick_run_prints_one_json_line_per_benchmark() {
                 "{field} is not a positive number: {line}"
             );
         }
+        if distribution {
+            for field in ["p50", "p99", "reference_p50", "reference_p99"] {
+                assert!(
+                    value[field].as_f64().is_some_and(|x| x > 0.0),
+                    "{field} missing: {line}"
+                );
+            }
+        }
     }
-    let latency: serde_json::Value = serde_json::from_str(lines[0]).unwrap();
-    for field in ["p50", "p99", "reference_p50", "reference_p99"] {
-        assert!(
-            latency[field].as_f64().is_some_and(|x| x > 0.0),
-            "{field} missing: {}",
-            lines[0]
-        );
-    }
+    // Five dining philosophers: the companion Pell number Q(5).
+    let reachability: serde_json::Value = serde_json::from_str(lines[3]).unwrap();
+    assert_eq!(reachability["states"], 82, "{}", lines[3]);
 }
 
 #[test]
@@ -96,6 +104,8 @@ fn list_names_every_benchmark() {
         "throughput_1mib",
         "throughput_64b",
         "startup_10_modules",
+        "event_to_start_ms",
+        "reachability_states_per_s",
     ] {
         assert!(stdout.contains(name), "{stdout}");
     }

@@ -5,6 +5,8 @@
 //! the agent (who serves which datum), and gives the body a [`Node`]: typed [`Output`]s and
 //! [`Input`]s, parameters, event reports, the run [`Clock`], and an event loop
 //! ([`Node::next_event`]). [`testing::TestBench`] runs the same body with no network.
+//! Tools that handle data of any type (recorders, replay) add raw ports at run time, bound to
+//! data names: [`Node::subscribe_raw`] and [`Node::publish_raw`].
 //!
 //! The wire format ([`wire`], [`protocol`]) and the describe format ([`describe`]) are the
 //! contract for modules written in other languages; `docs/protocol.md` documents both.
@@ -26,7 +28,9 @@ pub use module::{
     BodyResult, DEFAULT_AGENT, ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR, ModuleSpec, Standalone,
     init_logging, run,
 };
-pub use node::{ApiError, Event, Input, Node, Output, PortId, Sample};
+pub use node::{
+    ApiError, Event, Input, Node, Output, PortId, RawInput, RawOutput, RawSample, Sample,
+};
 pub use types::Datum;
 
 /// Run time in seconds, common to every module of the run (the original API's `timestamp()`).

@@ -191,22 +191,46 @@ impl Net {
         Ok(token)
     }
 
+    /// Everything this module serves, for the agent (a registration replaces the previous one).
+    fn registration(&self, core: &Core) -> ToAgent {
+        ToAgent::Register {
+            module: core.name.clone(),
+            outputs: core
+                .outputs
+                .iter()
+                .map(|slot| Advert {
+                    data_name: slot.data_name.clone(),
+                    data_type: slot.data_type.clone(),
+                    addr: self.listen_addr.to_string(),
+                })
+                .collect(),
+        }
+    }
+
+    /// A raw input was added to `core` at `index`: look its provider up.
+    pub fn add_input(&mut self, core: &Core, index: usize) {
+        debug_assert_eq!(index, self.inputs.len());
+        self.inputs.push(match core.inputs[index].source {
+            Some(_) => InputLink::Resolve { at: Instant::now() },
+            None => InputLink::Unbound,
+        });
+    }
+
+    /// A raw output was added to `core` (last): register everything again, so that the agent
+    /// knows it (if the agent is unreachable, the next connection registers it).
+    pub fn add_output(&mut self, core: &Core) {
+        self.subscribers.push(Vec::new());
+        if let Link::Up(token) = self.agent {
+            let register = self.registration(core);
+            self.queue_message(token, &register);
+        }
+    }
+
     fn connect_agent(&mut self, core: &mut Core) {
         match self.open(self.agent_addr, Role::Agent) {
             Ok(token) => {
                 self.agent = Link::Up(token);
-                let register = ToAgent::Register {
-                    module: core.name.clone(),
-                    outputs: core
-                        .outputs
-                        .iter()
-                        .map(|slot| Advert {
-                            data_name: slot.data_name.clone(),
-                            data_type: slot.data_type.clone(),
-                            addr: self.listen_addr.to_string(),
-                        })
-                        .collect(),
-                };
+                let register = self.registration(core);
                 self.queue_message(token, &register);
                 // Lookups that were waiting for the agent go out now.
                 for link in &mut self.inputs {
@@ -607,7 +631,11 @@ impl Net {
         };
         match self.open(addr, Role::Input(index)) {
             Ok(token) => {
-                let slot = &core.inputs[index];
+                let slot = &mut core.inputs[index];
+                if slot.raw {
+                    // A raw input takes whatever its provider serves.
+                    slot.data_type.clone_from(&advert.data_type);
+                }
                 let subscribe = ToProvider::Subscribe {
                     data_name: advert.data_name.clone(),
                     data_type: slot.data_type.clone(),

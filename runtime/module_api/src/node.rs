@@ -75,6 +75,16 @@ pub enum ApiError {
     Wire(#[from] WireError),
     #[error("network: {0}")]
     Io(#[from] std::io::Error),
+    #[error("`{0}` is not a data name (expected `module.output`: no spaces, not empty)")]
+    BadDataName(String),
+    #[error("`{0}` is not a data type name")]
+    BadDataType(String),
+    #[error("`{data_name}` is already published as {declared}, not {requested}")]
+    DataNameTaken {
+        data_name: String,
+        declared: String,
+        requested: String,
+    },
 }
 
 /// Identifies an input in [`Event::Input`]; compare with [`Input::id`].
@@ -138,11 +148,50 @@ impl<T> Output<T> {
     }
 }
 
+/// An input added at run time by [`Node::subscribe_raw`]: bound to a data name, of whatever type
+/// its provider serves, read as bytes with [`Node::take_raw`].
+#[derive(Debug)]
+pub struct RawInput {
+    index: usize,
+}
+
+impl RawInput {
+    /// Compare with the port of an [`Event::Input`].
+    pub fn id(&self) -> PortId {
+        PortId(self.index)
+    }
+}
+
+/// An output added at run time by [`Node::publish_raw`], written as bytes with
+/// [`Node::send_raw`].
+#[derive(Debug)]
+pub struct RawOutput {
+    index: usize,
+}
+
+/// A received sample of a [`RawInput`]: the datum's bytes as they travelled, undecoded.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RawSample {
+    pub seq: u64,
+    pub stamp_ns: u64,
+    /// As in [`Sample::link`].
+    pub link: u64,
+    /// The provider's data type, as the agent announced it (empty on a test bench, which has no
+    /// agent).
+    pub data_type: String,
+    /// The encoded datum (see `docs/protocol.md`, section 3).
+    pub payload: Vec<u8>,
+}
+
 pub(crate) struct InputSlot {
     pub name: String,
+    /// For a raw input, the type of its current provider (empty until the agent names one).
     pub data_type: String,
     /// The unique data name of the output feeding this input, if linked in the configuration.
     pub source: Option<String>,
+    /// Added by [`Node::subscribe_raw`]: bound to `source` for good (configurations do not
+    /// rebind it), of any data type.
+    pub raw: bool,
     pub reliable: bool,
     /// Samples are stored with the link that brought them.
     pub latest: Option<(u64, DataFrame)>,
@@ -195,6 +244,7 @@ impl Core {
                 name: port.name.clone(),
                 data_type: port.data_type.clone(),
                 source: config.inputs.get(&port.name).cloned(),
+                raw: false,
                 reliable: false,
                 latest: None,
                 queue: VecDeque::new(),
@@ -262,6 +312,9 @@ impl Core {
             .collect();
         let mut relink = Vec::new();
         for (index, slot) in self.inputs.iter_mut().enumerate() {
+            if slot.raw {
+                continue;
+            }
             let source = config.inputs.get(&slot.name).cloned();
             if source != slot.source {
                 slot.source = source;
@@ -283,6 +336,18 @@ impl Core {
                 .push_back(if active { Event::Start } else { Event::Stop });
         }
     }
+}
+
+/// A data name is `module.output`: refused if empty or holding whitespace or control characters.
+fn check_data_name(data_name: &str) -> Result<(), ApiError> {
+    if data_name.is_empty()
+        || data_name
+            .chars()
+            .any(|c| c.is_whitespace() || c.is_control())
+    {
+        return Err(ApiError::BadDataName(data_name.to_owned()));
+    }
+    Ok(())
 }
 
 pub(crate) enum Transport {
@@ -353,8 +418,10 @@ impl Node {
     /// falls behind and never queues without bound.
     pub fn input<T: Datum>(&mut self, name: &str) -> Result<Input<T>, ApiError> {
         let index = self.port_index("input", name, T::TYPE, |core| {
+            // Raw inputs come after the declared ones, so indices agree.
             core.inputs
                 .iter()
+                .filter(|slot| !slot.raw)
                 .map(|slot| (&slot.name, &slot.data_type))
                 .collect()
         })?;
@@ -415,19 +482,35 @@ impl Node {
     /// next waits for an event (or calls [`Node::flush`]), so a burst of sends shares system calls
     /// without delaying anything the module waits on.
     pub fn send<T: Datum>(&mut self, output: &Output<T>, value: &T) -> Result<(), ApiError> {
-        let slot = &mut self.core.outputs[output.index];
+        self.send_frame(output.index, |out| {
+            value
+                .encode(out)
+                .map_err(|err| WireError::Io(std::io::Error::other(err)))
+        })
+    }
+
+    /// Publishes an encoded datum on a raw output, as [`Node::send`] does a value.
+    pub fn send_raw(&mut self, output: &RawOutput, payload: &[u8]) -> Result<(), ApiError> {
+        self.send_frame(output.index, |out| {
+            out.extend_from_slice(payload);
+            Ok(())
+        })
+    }
+
+    fn send_frame(
+        &mut self,
+        index: usize,
+        encode: impl FnOnce(&mut Vec<u8>) -> Result<(), WireError>,
+    ) -> Result<(), ApiError> {
+        let slot = &mut self.core.outputs[index];
         slot.seq += 1;
         let seq = slot.seq;
         let stamp_ns = self.core.clock.now_ns();
         self.scratch.clear();
-        wire::encode_data(&mut self.scratch, seq, stamp_ns, |out| {
-            value
-                .encode(out)
-                .map_err(|err| WireError::Io(std::io::Error::other(err)))
-        })?;
+        wire::encode_data(&mut self.scratch, seq, stamp_ns, encode)?;
         match &mut self.transport {
-            Transport::Net(net) => net.publish(&mut self.core, output.index, &self.scratch)?,
-            Transport::Test(test) => test.publish(output.index, &self.scratch),
+            Transport::Net(net) => net.publish(&mut self.core, index, &self.scratch)?,
+            Transport::Test(test) => test.publish(index, &self.scratch),
         }
         Ok(())
     }
@@ -436,8 +519,17 @@ impl Node {
     /// as in any publish/subscribe system: a module that must not lose its first values waits
     /// for a subscriber first.
     pub fn subscriber_count<T>(&self, output: &Output<T>) -> usize {
+        self.subscribers_of(output.index)
+    }
+
+    /// How many subscribers a raw output has right now (see [`Node::subscriber_count`]).
+    pub fn raw_subscriber_count(&self, output: &RawOutput) -> usize {
+        self.subscribers_of(output.index)
+    }
+
+    fn subscribers_of(&self, index: usize) -> usize {
         match &self.transport {
-            Transport::Net(net) => net.subscriber_count(output.index),
+            Transport::Net(net) => net.subscriber_count(index),
             Transport::Test(_) => 1,
         }
     }
@@ -452,7 +544,107 @@ impl Node {
 
     /// The newest sample of a best-effort input, or the oldest queued one of a reliable input.
     pub fn take<T: Datum>(&mut self, input: &Input<T>) -> Result<Option<Sample<T>>, ApiError> {
-        let slot = &mut self.core.inputs[input.index];
+        let Some((link, frame)) = self.pop_frame(input.index) else {
+            return Ok(None);
+        };
+        let value = T::decode_owned(frame.payload)?;
+        Ok(Some(Sample {
+            seq: frame.seq,
+            stamp_ns: frame.stamp_ns,
+            link,
+            value,
+        }))
+    }
+
+    /// The next sample of a raw input (the newest, or the oldest queued if it is reliable), as
+    /// bytes with the data type its provider announced.
+    pub fn take_raw(&mut self, input: &RawInput) -> Option<RawSample> {
+        let (link, frame) = self.pop_frame(input.index)?;
+        Some(RawSample {
+            seq: frame.seq,
+            stamp_ns: frame.stamp_ns,
+            link,
+            data_type: self.core.inputs[input.index].data_type.clone(),
+            payload: frame.payload,
+        })
+    }
+
+    /// Whether a raw input is linked to its provider right now.
+    pub fn is_raw_linked(&self, input: &RawInput) -> bool {
+        match &self.transport {
+            Transport::Net(net) => net.is_linked(input.index),
+            Transport::Test(_) => true,
+        }
+    }
+
+    /// Adds an input at run time, bound to the output `data_name` (`module.output`) whatever
+    /// its type: the agent's answer names the type, which [`RawSample::data_type`] then tells.
+    /// `reliable` as for [`Node::reliable_input`]. Samples arrive as [`Event::Input`] with
+    /// [`RawInput::id`]; read them with [`Node::take_raw`]. Each call adds one more input (and
+    /// subscription), even for a data name already subscribed.
+    pub fn subscribe_raw(&mut self, data_name: &str, reliable: bool) -> Result<RawInput, ApiError> {
+        check_data_name(data_name)?;
+        let index = self.core.inputs.len();
+        self.core.inputs.push(InputSlot {
+            name: data_name.to_owned(),
+            data_type: String::new(),
+            source: Some(data_name.to_owned()),
+            raw: true,
+            reliable,
+            latest: None,
+            queue: VecDeque::new(),
+            queued_bytes: 0,
+            link: 0,
+            notified: false,
+        });
+        if let Transport::Net(net) = &mut self.transport {
+            net.add_input(&self.core, index);
+        }
+        Ok(RawInput { index })
+    }
+
+    /// Adds an output at run time, served under exactly `data_name` and carrying `data_type`,
+    /// and registers it with the agent so that subscribers find it. Publishing a data name this
+    /// node already serves with the same type returns that output again; with another type it
+    /// is refused. The output is also reachable by [`Node::output`] under its data name.
+    pub fn publish_raw(&mut self, data_name: &str, data_type: &str) -> Result<RawOutput, ApiError> {
+        check_data_name(data_name)?;
+        if data_type.is_empty() || data_type.chars().any(char::is_whitespace) {
+            return Err(ApiError::BadDataType(data_type.to_owned()));
+        }
+        if let Some(index) = self
+            .core
+            .outputs
+            .iter()
+            .position(|slot| slot.data_name == data_name)
+        {
+            let declared = &self.core.outputs[index].data_type;
+            if declared != data_type {
+                return Err(ApiError::DataNameTaken {
+                    data_name: data_name.to_owned(),
+                    declared: declared.clone(),
+                    requested: data_type.to_owned(),
+                });
+            }
+            return Ok(RawOutput { index });
+        }
+        let index = self.core.outputs.len();
+        self.core.outputs.push(OutputSlot {
+            name: data_name.to_owned(),
+            data_type: data_type.to_owned(),
+            data_name: data_name.to_owned(),
+            seq: 0,
+        });
+        if let Transport::Net(net) = &mut self.transport {
+            net.add_output(&self.core);
+        }
+        Ok(RawOutput { index })
+    }
+
+    /// Takes the next sample of an input: the newest of a best-effort one, the oldest queued of
+    /// a reliable one.
+    fn pop_frame(&mut self, index: usize) -> Option<(u64, DataFrame)> {
+        let slot = &mut self.core.inputs[index];
         let frame = if slot.reliable {
             let frame = slot.queue.pop_front();
             if let Some((_, frame)) = &frame {
@@ -462,22 +654,11 @@ impl Node {
         } else {
             slot.latest.take()
         };
-        let Some((link, frame)) = frame else {
-            return Ok(None);
-        };
-        if !slot.queue.is_empty() && !slot.notified {
+        if frame.is_some() && !slot.queue.is_empty() && !slot.notified {
             slot.notified = true;
-            self.core
-                .events
-                .push_back(Event::Input(PortId(input.index)));
+            self.core.events.push_back(Event::Input(PortId(index)));
         }
-        let value = T::decode_owned(frame.payload)?;
-        Ok(Some(Sample {
-            seq: frame.seq,
-            stamp_ns: frame.stamp_ns,
-            link,
-            value,
-        }))
+        frame
     }
 
     /// Whether an input is linked to its provider right now.
@@ -562,5 +743,221 @@ impl Node {
                 Transport::Test(test) => return Ok(test.next_event(&mut self.core, deadline)),
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::HashMap;
+    use std::net::{TcpListener, TcpStream};
+    use std::sync::{Arc, Mutex};
+
+    use super::*;
+    use crate::module::{ModuleSpec, Standalone};
+    use crate::protocol::{Advert, FromAgent, ToAgent};
+    use crate::testing::{Step, TestBench};
+    use crate::types::{Counter, Text};
+    use crate::wire::blocking;
+
+    fn bench() -> TestBench {
+        let spec = ModuleSpec::new("tool", "a tool").input::<Counter>("input", "");
+        TestBench::new(&spec, &[]).expect("bench")
+    }
+
+    #[test]
+    fn a_raw_input_gets_every_sample_as_bytes_and_keeps_its_binding_on_reload() {
+        let mut bench = bench();
+        let node = bench.node();
+        let raw = node.subscribe_raw("counter.count", true).expect("raw");
+        assert_ne!(
+            raw.id(),
+            node.input::<Counter>("input").expect("typed").id()
+        );
+        assert!(
+            node.input::<Counter>("counter.count").is_err(),
+            "raw inputs are not declared ports"
+        );
+        bench.set_param("unused", "1");
+        bench.script([
+            Step::push("counter.count", &Counter(7)).expect("step"),
+            Step::push("counter.count", &Counter(300)).expect("step"),
+        ]);
+        let node = bench.node();
+        let mut samples = Vec::new();
+        loop {
+            match node.next_event(None).expect("event") {
+                Event::Input(port) => {
+                    assert_eq!(port, raw.id());
+                    while let Some(sample) = node.take_raw(&raw) {
+                        samples.push(sample);
+                    }
+                }
+                Event::Shutdown => break,
+                _ => {}
+            }
+        }
+        let payloads: Vec<Vec<u8>> = samples.iter().map(|s| s.payload.clone()).collect();
+        assert_eq!(payloads, [vec![7], vec![0xAC, 0x02]]);
+        assert!(samples[0].seq < samples[1].seq);
+        assert_eq!(samples[0].link, 1);
+        assert_eq!(
+            samples[0].data_type, "",
+            "a bench has no agent to name the type"
+        );
+        let slot = &bench.node().core.inputs[raw.index];
+        assert_eq!(slot.source.as_deref(), Some("counter.count"));
+    }
+
+    #[test]
+    fn raw_ports_refuse_bad_names_and_type_clashes() {
+        let mut bench = bench();
+        let node = bench.node();
+        for bad in ["", "a b", "x\n"] {
+            assert!(matches!(
+                node.subscribe_raw(bad, false),
+                Err(ApiError::BadDataName(_))
+            ));
+            assert!(matches!(
+                node.publish_raw(bad, "Counter"),
+                Err(ApiError::BadDataName(_))
+            ));
+        }
+        assert!(matches!(
+            node.publish_raw("replay.x", ""),
+            Err(ApiError::BadDataType(_))
+        ));
+        let first = node.publish_raw("sim.odometry", "Odometry").expect("first");
+        let again = node.publish_raw("sim.odometry", "Odometry").expect("same");
+        assert_eq!(first.index, again.index);
+        let err = node
+            .publish_raw("sim.odometry", "Pose2D")
+            .expect_err("clash");
+        assert!(
+            err.to_string().contains("already published as Odometry"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_raw_output_sends_bytes_under_its_exact_data_name() {
+        let mut bench = bench();
+        let node = bench.node();
+        let output = node.publish_raw("counter.count", "Counter").expect("raw");
+        let text = node.publish_raw("other.text", "Text").expect("raw");
+        node.send_raw(&output, &[5]).expect("send");
+        node.send_raw(&output, &[0xAC, 0x02]).expect("send");
+        let mut payload = Vec::new();
+        Text("hi".into()).encode(&mut payload).expect("encode");
+        node.send_raw(&text, &payload).expect("send");
+        assert_eq!(node.raw_subscriber_count(&output), 1);
+        let typed = node
+            .output::<Counter>("counter.count")
+            .expect("by data name");
+        assert_eq!(node.data_name(&typed), "counter.count");
+        assert_eq!(
+            bench.sent::<Counter>("counter.count").expect("sent"),
+            [Counter(5), Counter(300)]
+        );
+        assert_eq!(
+            bench.sent::<Text>("other.text").expect("sent"),
+            [Text("hi".into())]
+        );
+    }
+
+    /// A minimal agent: registrations replace the connection's previous ones; lookups answer.
+    fn fake_agent() -> String {
+        let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+        let addr = listener.local_addr().expect("addr").to_string();
+        let registry: Arc<Mutex<HashMap<String, (usize, Advert)>>> = Arc::default();
+        std::thread::spawn(move || {
+            for (conn, stream) in listener.incoming().enumerate() {
+                let Ok(mut stream) = stream else { return };
+                let registry = Arc::clone(&registry);
+                std::thread::spawn(move || {
+                    blocking::read_hello(&mut stream)?;
+                    blocking::write_hello(&mut stream)?;
+                    loop {
+                        let reply = match blocking::read_message::<ToAgent>(&mut stream)? {
+                            ToAgent::Register { outputs, .. } => {
+                                let mut registry = registry.lock().expect("lock");
+                                registry.retain(|_, (owner, _)| *owner != conn);
+                                for advert in outputs {
+                                    registry.insert(advert.data_name.clone(), (conn, advert));
+                                }
+                                FromAgent::Registered
+                            }
+                            ToAgent::Lookup { data_name } => {
+                                match registry.lock().expect("lock").get(&data_name) {
+                                    Some((_, advert)) => FromAgent::Provider(advert.clone()),
+                                    None => FromAgent::Unknown { data_name },
+                                }
+                            }
+                        };
+                        blocking::write_message(&mut stream, &reply)?;
+                    }
+                    #[allow(unreachable_code)]
+                    Ok::<(), WireError>(())
+                });
+            }
+        });
+        addr
+    }
+
+    fn connect(name: &str, agent: &str) -> Node {
+        let options = Standalone {
+            name: Some(name.to_owned()),
+            agent: Some(agent.to_owned()),
+            ..Standalone::default()
+        };
+        Node::connect(ModuleSpec::new(name, "test node"), options).expect("connect")
+    }
+
+    #[test]
+    fn raw_ports_link_over_the_network_taking_the_providers_type() {
+        let agent = fake_agent();
+        // Check that the agent is up before the nodes look for it.
+        TcpStream::connect(&agent).expect("agent up");
+        let mut provider = connect("replay", &agent);
+        let mut recorder = connect("recorder", &agent);
+        let input = recorder.subscribe_raw("counter.count", true).expect("raw");
+        let output = provider
+            .publish_raw("counter.count", "Counter")
+            .expect("raw");
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while provider.raw_subscriber_count(&output) == 0 {
+            assert!(Instant::now() < deadline, "no subscriber in time");
+            provider
+                .next_event(Some(Duration::from_millis(5)))
+                .expect("poll");
+            recorder
+                .next_event(Some(Duration::from_millis(5)))
+                .expect("poll");
+        }
+        assert!(recorder.is_raw_linked(&input));
+        for value in 1..=3u8 {
+            provider.send_raw(&output, &[value]).expect("send");
+        }
+        provider.flush().expect("flush");
+        let mut samples = Vec::new();
+        while samples.len() < 3 {
+            assert!(Instant::now() < deadline, "samples: {samples:?}");
+            if let Event::Input(port) = recorder
+                .next_event(Some(Duration::from_millis(20)))
+                .expect("event")
+            {
+                assert_eq!(port, input.id());
+                while let Some(sample) = recorder.take_raw(&input) {
+                    samples.push(sample);
+                }
+            }
+        }
+        assert!(samples.iter().all(|s| s.data_type == "Counter"));
+        assert_eq!(
+            samples
+                .iter()
+                .map(|s| (s.seq, s.payload.clone()))
+                .collect::<Vec<_>>(),
+            [(1, vec![1]), (2, vec![2]), (3, vec![3])]
+        );
     }
 }

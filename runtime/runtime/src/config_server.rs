@@ -89,8 +89,20 @@ impl State {
     /// stop if that is what changed). Returns the modules updated.
     fn push_changes(&mut self) -> Vec<String> {
         let mut updated = Vec::new();
-        let names: Vec<String> = self.conns.keys().cloned().collect();
-        for name in names {
+        // Modules that stop go first, so two modules commanding the same thing never overlap;
+        // then the others, in name order.
+        let mut names: Vec<(bool, String)> = self
+            .conns
+            .iter()
+            .map(|(name, conn)| {
+                let starts = self
+                    .config_of(name)
+                    .is_some_and(|config| config.active && !conn.sent.active);
+                (starts, name.clone())
+            })
+            .collect();
+        names.sort();
+        for (_, name) in names {
             let Some(config) = self.config_of(&name) else {
                 continue;
             };

@@ -30,17 +30,25 @@ pub struct Controller {
     controllable: BTreeSet<String>,
     paused: bool,
     outcome: Option<Outcome>,
-    timeline: Vec<serde_json::Value>,
+    /// Kept only when a report was asked for, and then at most [`MAX_TIMELINE`] entries: a
+    /// looping mission fires forever.
+    timeline: Option<Vec<serde_json::Value>>,
+    timeline_dropped: usize,
 }
+
+/// The most timeline entries a report keeps (the first ones; later ones are counted).
+pub const MAX_TIMELINE: usize = 100_000;
 
 impl Controller {
     /// Starts the net in its initial marking, now. `epoch_unix_secs` is the Unix time of run
-    /// time 0, against which the net's absolute dates are compared.
+    /// time 0, against which the net's absolute dates are compared. The timeline (for
+    /// [`Controller::write_report`]) is kept only with `keep_timeline`.
     pub fn new(
         net: MissionNet,
         controllable: BTreeSet<String>,
         clock: Clock,
         epoch_unix_secs: f64,
+        keep_timeline: bool,
     ) -> Self {
         let engine = Engine::start_at(&net, clock.now_secs()).with_date_origin(epoch_unix_secs);
         let mut controller = Self {
@@ -50,7 +58,8 @@ impl Controller {
             controllable,
             paused: false,
             outcome: None,
-            timeline: Vec::new(),
+            timeline: keep_timeline.then(Vec::new),
+            timeline_dropped: 0,
         };
         controller.record("started", json!({ "marking": controller.engine.marking() }));
         controller
@@ -85,12 +94,21 @@ impl Controller {
     }
 
     fn record(&mut self, kind: &str, details: serde_json::Value) {
+        let Some(timeline) = &self.timeline else {
+            return;
+        };
+        if timeline.len() >= MAX_TIMELINE {
+            self.timeline_dropped += 1;
+            return;
+        }
         let mut entry = json!({ "run_secs": self.clock.now_secs(), "kind": kind });
         if let (Some(entry), serde_json::Value::Object(details)) = (entry.as_object_mut(), details)
         {
             entry.extend(details);
         }
-        self.timeline.push(entry);
+        if let Some(timeline) = &mut self.timeline {
+            timeline.push(entry);
+        }
     }
 
     /// A module reported an event (`module.event`, or `module.<id>.failed` from the supervisor).
@@ -276,7 +294,8 @@ impl Controller {
         let report = json!({
             "mission": self.net.name,
             "outcome": format!("{:?}", self.outcome),
-            "timeline": self.timeline,
+            "timeline": self.timeline.as_deref().unwrap_or_default(),
+            "timeline_dropped": self.timeline_dropped,
         });
         let text = serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?;
         crate::fs::write_atomically(file, text.as_bytes())

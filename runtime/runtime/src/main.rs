@@ -9,6 +9,8 @@ use anyhow::Context as _;
 use armor_runtime::{agent, control, load, mission, probe, supervisor};
 use clap::{Parser, Subcommand};
 
+mod replay;
+
 #[derive(Parser)]
 #[command(
     name = "armor",
@@ -101,6 +103,23 @@ enum Command {
         /// The mission file to write.
         #[arg(short, long)]
         output: PathBuf,
+    },
+    /// Publish a recording (an MCAP file of armor-mod-recorder) again, with its timing.
+    Replay {
+        /// The MCAP file.
+        file: PathBuf,
+        /// Play this many times faster than recorded.
+        #[arg(long, default_value_t = 1.0)]
+        time_scale: f64,
+        /// The agent (default: $ARMOR_AGENT, else 127.0.0.1:7400).
+        #[arg(long)]
+        agent: Option<String>,
+        /// Play again from the start after the end, until killed.
+        #[arg(long = "loop")]
+        looping: bool,
+        /// Before playing, wait at most this long for every channel to have a subscriber.
+        #[arg(long = "wait", value_name = "SECS", default_value_t = 0.0)]
+        wait_secs: f64,
     },
     /// Run the central agent (name server) alone.
     Agent {
@@ -216,6 +235,24 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 plural(net.places.len(), "place"),
                 plural(net.transitions.len(), "transition")
             );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Replay {
+            file,
+            time_scale,
+            agent,
+            looping,
+            wait_secs,
+        } => {
+            let wait_for_subscribers = Duration::try_from_secs_f64(wait_secs)
+                .context("--wait must be a number of seconds, 0 or more")?;
+            replay::run(&replay::Options {
+                file,
+                time_scale,
+                agent,
+                looping,
+                wait_for_subscribers,
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Agent { listen } => {

@@ -138,7 +138,13 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             states = mission.states,
             "mission checked"
         );
-        Controller::new(mission.net, controllable, clock, epoch_ns as f64 / 1e9)
+        Controller::new(
+            mission.net,
+            controllable,
+            clock,
+            epoch_ns as f64 / 1e9,
+            options.report.is_some(),
+        )
     });
     let mut agent = AgentProc::start(options.agent_addr.map_or_else(|| local(0), Ok)?)?;
     let control = controller
@@ -229,7 +235,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 if !all_ready_logged && modules.keys().all(|name| ready.contains(name)) {
                     all_ready_logged = true;
                     tracing::info!(
-                        elapsed_ms = started.elapsed().as_secs_f64() * 1e3,
+                        elapsed_ms = (started.elapsed().as_secs_f64() * 1e4).round() / 10.0,
                         "all {} modules configured",
                         modules.len()
                     );

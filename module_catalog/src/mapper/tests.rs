@@ -1,0 +1,415 @@
+use std::path::Path;
+
+use super::*;
+use crate::sim::world::World;
+use crate::sim::{SimParams, Simulator};
+use armor_module_api::testing::{Step, TestBench};
+use armor_module_api::types::Twist;
+
+fn pose(x_m: f64, y_m: f64, theta_rad: f64) -> Pose2D {
+    Pose2D {
+        x_m,
+        y_m,
+        theta_rad,
+    }
+}
+
+fn close(a: Pose2D, b: Pose2D) -> bool {
+    (a.x_m - b.x_m).abs() < 1e-9
+        && (a.y_m - b.y_m).abs() < 1e-9
+        && wrap_angle(a.theta_rad - b.theta_rad).abs() < 1e-9
+}
+
+fn distance(a: Pose2D, b: Pose2D) -> f64 {
+    (a.x_m - b.x_m).hypot(a.y_m - b.y_m)
+}
+
+#[test]
+fn poses_compose_and_invert() {
+    use std::f64::consts::FRAC_PI_2;
+    // Facing north at (1, 2), one metre ahead and a quarter turn left: (1, 3) facing west.
+    let a = pose(1.0, 2.0, FRAC_PI_2);
+    let b = compose(a, pose(1.0, 0.0, FRAC_PI_2));
+    assert!(close(b, pose(1.0, 3.0, std::f64::consts::PI)), "{b:?}");
+    assert!(close(between(a, b), pose(1.0, 0.0, FRAC_PI_2)));
+    // Round trips, across the ±π seam too.
+    let c = pose(-4.0, 0.5, 3.1);
+    let d = pose(2.0, -1.5, -3.0);
+    assert!(close(compose(c, between(c, d)), d));
+    assert!(close(compose(d, between(d, c)), c));
+    assert!(close(between(c, c), Pose2D::default()));
+    assert!(wrap_angle(between(c, d).theta_rad - (std::f64::consts::TAU - 6.1)).abs() < 1e-9);
+}
+
+/// A 12 m × 10 m room with a few walls to match against, for quick tests.
+const ROOM: &str = "\
+name room
+origin 0 0
+start 3 3 0
+boundary 0,0 12,0 12,10 0,10 0,0
+wall 6,0 6,4
+wall 6,6 6,10
+rect 2,7 3,8
+circle 9,3 0.5
+";
+
+fn room() -> World {
+    World::parse(ROOM, "room.world").expect("valid")
+}
+
+#[test]
+fn the_first_scan_sets_the_map_frame_and_the_grid_centre() {
+    let world = room();
+    let mut sim = Simulator::new(world, SimParams::default()).expect("fits");
+    let report = sim.step();
+    let odometry = pose(3.0, 3.0, 0.0);
+    let mut mapper = Mapper::new(Settings::default()).expect("settings");
+    assert_eq!(mapper.occupancy_grid(), None);
+    let corrected = mapper.on_scan(sim.scan(), odometry).expect("scan");
+    assert!(report.scanned);
+    assert_eq!(corrected, odometry);
+    let map = mapper.occupancy_grid().expect("a map");
+    assert_eq!((map.width, map.height, map.resolution_m), (600, 600, 0.1));
+    assert!((map.origin_x_m + 27.0).abs() < 1e-9 && (map.origin_y_m + 27.0).abs() < 1e-9);
+    let cell = |x: f64, y: f64| {
+        let col = ((x - map.origin_x_m) / 0.1).floor() as usize;
+        let row = ((y - map.origin_y_m) / 0.1).floor() as usize;
+        map.cells[row * 600 + col]
+    };
+    assert!((0..50).contains(&cell(4.05, 3.05)), "free before the wall");
+    assert!(
+        cell(6.05, 3.05) > 50 || cell(5.95, 3.05) > 50,
+        "the wall at x = 6"
+    );
+    assert_eq!(cell(20.0, 20.0), -1, "out of reach");
+    assert_eq!(cell(7.05, 1.05), -1, "behind the wall");
+}
+
+#[test]
+fn scans_with_bad_geometry_are_refused() {
+    let mut mapper = Mapper::new(Settings::default()).expect("settings");
+    let scan = LaserScan {
+        angle_min_rad: f64::NAN,
+        angle_increment_rad: 0.1,
+        range_max_m: 8.0,
+        ranges_m: vec![1.0; 10],
+    };
+    let err = mapper
+        .on_scan(&scan, Pose2D::default())
+        .expect_err("refused");
+    assert!(err.contains("not finite"), "{err}");
+    assert_eq!(mapper.stats().scans, 0);
+    let bad = Settings {
+        size_m: 0.01,
+        ..Settings::default()
+    };
+    assert!(Mapper::new(bad).is_err());
+}
+
+#[test]
+fn corrects_a_biased_odometry_in_a_room() {
+    // The robot drives a slow circle; its odometry overestimates every turn by 10 %. The
+    // mapper's pose stays on the truth.
+    let world = room();
+    let params = SimParams {
+        odom_noise: crate::sim::robot::OdometryNoise::default(),
+        ..SimParams::default()
+    };
+    let mut sim = Simulator::new(world, params).expect("fits");
+    let mut mapper = Mapper::new(Settings::default()).expect("settings");
+    let mut biased = sim.truth();
+    let mut previous = sim.truth();
+    let mut worst = 0.0_f64;
+    for _ in 0..400 {
+        let _ = sim.command(Twist {
+            linear_mps: 0.4,
+            angular_radps: 0.3,
+        });
+        let report = sim.step();
+        let mut increment = between(previous, report.truth);
+        increment.theta_rad *= 1.1;
+        biased = compose(biased, increment);
+        previous = report.truth;
+        if report.scanned {
+            let corrected = mapper.on_scan(sim.scan(), biased).expect("scan");
+            worst = worst.max(distance(corrected, report.truth));
+        }
+    }
+    let odometry_error = distance(biased, sim.truth());
+    assert!(odometry_error > 0.3, "{odometry_error}");
+    assert!(worst < 0.05, "worst corrected error {worst} m");
+    let stats = mapper.stats();
+    assert_eq!(stats.scans, 80);
+    assert!(stats.matched >= 75, "{stats:?}");
+}
+
+fn bench(params: &[(&str, &str)]) -> TestBench {
+    TestBench::new(&spec(), params).expect("bench")
+}
+
+fn push<T: armor_module_api::types::Datum>(input: &str, value: &T) -> Step {
+    Step::push(input, value).expect("encode")
+}
+
+#[test]
+fn the_module_publishes_a_pose_per_scan_and_the_map_on_time() {
+    let mut sim = Simulator::new(room(), SimParams::default()).expect("fits");
+    let mut script = vec![push("scan", &sim.scan().clone())];
+    let mut truths = Vec::new();
+    for _ in 0..3 {
+        let mut report = sim.step();
+        let _ = sim.command(Twist {
+            linear_mps: 0.5,
+            angular_radps: 0.0,
+        });
+        while !report.scanned {
+            report = sim.step();
+        }
+        truths.push(report.truth);
+        script.push(push("odometry", &report.odometry));
+        script.push(push("scan", &sim.scan().clone()));
+    }
+    script.push(Step::Timeouts(2));
+    // A 200 × 200 grid: the bench loses frames over 64 KiB.
+    let mut bench = bench(&[("size_m", "20")]);
+    bench.script(script);
+    body(bench.node()).expect("body");
+    // The scan before any odometry is ignored; each later one gives a pose.
+    let poses = bench.sent::<Odometry>("pose").expect("sent");
+    let shown = bench.sent::<Pose2D>("pose_map").expect("sent");
+    assert_eq!(poses.len(), 3);
+    assert_eq!(shown.len(), 3);
+    for ((sent, shown), truth) in poses.iter().zip(&shown).zip(&truths) {
+        assert_eq!(sent.pose_in_odom, *shown);
+        assert!(distance(*shown, *truth) < 0.05, "{shown:?} {truth:?}");
+    }
+    assert!((poses[2].twist.linear_mps - 0.5).abs() < 0.1);
+    let maps = bench.sent::<OccupancyGrid>("map").expect("sent");
+    assert_eq!(maps.len(), 2, "one per timeout");
+    assert_eq!(maps[0].cells.len(), 200 * 200);
+    assert!(maps[1].cells.iter().any(|&c| c > 50));
+    assert!(bench.reported().is_empty());
+}
+
+#[test]
+fn no_map_before_the_first_scan_and_live_tuning() {
+    let mut bench = bench(&[("map_rate_hz", "5")]);
+    bench.script([
+        Step::Timeouts(2),
+        Step::param("match_search_m", "-1"),
+        Step::param("match_search_deg", "5"),
+        Step::Timeouts(1),
+    ]);
+    body(bench.node()).expect("a bad live value does not end the module");
+    assert!(bench.sent::<OccupancyGrid>("map").expect("sent").is_empty());
+}
+
+#[test]
+fn refuses_bad_parameters() {
+    let refusal = |params: &[(&str, &str)]| {
+        let mut bench = bench(params);
+        body(bench.node()).expect_err("must refuse").to_string()
+    };
+    assert_eq!(
+        refusal(&[("resolution_m", "0")]),
+        "parameter `resolution_m` must be greater than 0 m, not 0"
+    );
+    assert_eq!(
+        refusal(&[("match_search_deg", "90")]),
+        "parameter `match_search_deg` must be between 0° and 45°, not 90"
+    );
+    assert_eq!(
+        refusal(&[("map_rate_hz", "0")]),
+        "parameter `map_rate_hz` must be greater than 0 Hz and at most 100 Hz, not 0"
+    );
+    assert_eq!(
+        refusal(&[("max_range_m", "500")]),
+        "parameter `max_range_m` must be greater than 0 m and at most 100 m, not 500"
+    );
+    let err = refusal(&[("size_m", "1000"), ("resolution_m", "0.01")]);
+    assert!(err.contains("100000 cells a side (1 to 4000)"), "{err}");
+}
+
+/// Waypoints of a loop through the office floor (`building.world`): east along the corridor,
+/// round the middle north room, round the middle south room past the meeting table, and back
+/// west along the corridor to the start.
+const BUILDING_LOOP: &[(f64, f64)] = &[
+    (14.7, 9.5),
+    (14.7, 13.0),
+    (12.0, 13.0),
+    (12.0, 18.5),
+    (18.0, 18.5),
+    (18.0, 13.0),
+    (14.7, 13.0),
+    (14.7, 9.5),
+    (19.7, 9.5),
+    (19.7, 6.0),
+    (17.0, 6.0),
+    (17.0, 1.0),
+    (23.0, 1.0),
+    (23.0, 5.5),
+    (19.7, 5.5),
+    (19.7, 9.5),
+    (2.5, 9.5),
+];
+
+/// A command towards a waypoint from the true pose: turn on the spot when far off course.
+fn steer(truth: Pose2D, (x, y): (f64, f64)) -> Twist {
+    let heading = (y - truth.y_m).atan2(x - truth.x_m);
+    let error = wrap_angle(heading - truth.theta_rad);
+    let angular_radps = (2.0 * error).clamp(-1.2, 1.2);
+    let linear_mps = if error.abs() > 0.4 {
+        0.0
+    } else {
+        (0.8 * (1.0 - error.abs() / 0.4)).max(0.2)
+    };
+    Twist {
+        linear_mps,
+        angular_radps,
+    }
+}
+
+/// The intersection over union of the occupied cells (over 50 %) of the mapper's grid and the
+/// true one, whose cells are aligned at the same resolution; and the same over the cells the
+/// mapper has observed only.
+fn occupied_iou(map: &OccupancyGrid, truth: &OccupancyGrid) -> (f64, f64) {
+    let res = truth.resolution_m;
+    let (tw, th) = (truth.width as i64, truth.height as i64);
+    let truth_occupied = truth.cells.iter().filter(|&&c| c > 50).count();
+    let (mut both, mut mapped, mut mapped_known, mut truth_known) =
+        (0usize, 0usize, 0usize, 0usize);
+    for (index, &cell) in map.cells.iter().enumerate() {
+        let (col, row) = (index % map.width as usize, index / map.width as usize);
+        let x = map.origin_x_m + (col as f64 + 0.5) * map.resolution_m;
+        let y = map.origin_y_m + (row as f64 + 0.5) * map.resolution_m;
+        let tc = ((x - truth.origin_x_m) / res).floor() as i64;
+        let tr = ((y - truth.origin_y_m) / res).floor() as i64;
+        let occupied = cell > 50;
+        mapped += usize::from(occupied);
+        if tc < 0 || tr < 0 || tc >= tw || tr >= th {
+            continue;
+        }
+        let truly_occupied = truth.cells[(tr * tw + tc) as usize] > 50;
+        both += usize::from(occupied && truly_occupied);
+        if cell >= 0 {
+            mapped_known += usize::from(occupied);
+            truth_known += usize::from(truly_occupied);
+        }
+    }
+    let iou = both as f64 / (mapped + truth_occupied - both) as f64;
+    let known_iou = both as f64 / (mapped_known + truth_known - both) as f64;
+    (iou, known_iou)
+}
+
+/// One drive round [`BUILDING_LOOP`] with the simulator, feeding the mapper with each scan and
+/// the odometry of the same step.
+struct LoopRun {
+    odometry_error_m: f64,
+    mapper_error_m: f64,
+    max_mapper_error_m: f64,
+    iou: f64,
+    known_iou: f64,
+    stats: Stats,
+    travelled_m: f64,
+}
+
+fn drive_the_building_loop(seed: u64, odometry_noise_scale: f64) -> LoopRun {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/worlds/building.world");
+    let world = World::load(path).expect("the building");
+    let truth_grid = world.occupancy_grid(0.1).expect("grid");
+    let defaults = SimParams::default();
+    let noise = defaults.odom_noise;
+    let params = SimParams {
+        seed,
+        odom_noise: crate::sim::robot::OdometryNoise {
+            dist: noise.dist * odometry_noise_scale,
+            rot: noise.rot * odometry_noise_scale,
+            drift: noise.drift * odometry_noise_scale,
+        },
+        ..defaults
+    };
+    let mut sim = Simulator::new(world, params).expect("fits");
+    let mut mapper = Mapper::new(Settings::default()).expect("settings");
+    let mut waypoints = BUILDING_LOOP.iter();
+    let mut target = waypoints.next().copied();
+    // At the last scan: the corrected pose, the odometry and the truth.
+    let (mut corrected, mut odometry, mut truth_at_scan) = (sim.truth(), sim.truth(), sim.truth());
+    let mut max_mapper_error_m = 0.0_f64;
+    let mut travelled_m = 0.0;
+    let mut steps = 0;
+    while let Some(goal) = target {
+        let truth = sim.truth();
+        if (goal.0 - truth.x_m).hypot(goal.1 - truth.y_m) < 0.15 {
+            target = waypoints.next().copied();
+            continue;
+        }
+        let _ = sim.command(steer(truth, goal));
+        let report = sim.step();
+        travelled_m += distance(truth, report.truth);
+        if report.scanned {
+            odometry = report.odometry.pose_in_odom;
+            truth_at_scan = report.truth;
+            corrected = mapper.on_scan(sim.scan(), odometry).expect("scan");
+            max_mapper_error_m = max_mapper_error_m.max(distance(corrected, report.truth));
+        }
+        steps += 1;
+        assert!(steps < 20_000, "the robot got stuck at {:?}", sim.truth());
+    }
+    assert_eq!(sim.collisions(), 0);
+    let map = mapper.occupancy_grid().expect("a map");
+    let (iou, known_iou) = occupied_iou(&map, &truth_grid);
+    LoopRun {
+        odometry_error_m: distance(odometry, truth_at_scan),
+        mapper_error_m: distance(corrected, truth_at_scan),
+        max_mapper_error_m,
+        iou,
+        known_iou,
+        stats: mapper.stats(),
+        travelled_m,
+    }
+}
+
+/// The issue's acceptance test: round the building with twice the default odometry noise, the
+/// corrected pose ends at least 3 times closer to the truth than the odometry. Measured (seed 1):
+/// odometry 2.27 m off after 91.6 m, the mapper 1 mm (back on the part of the map made at the
+/// start), 0.27 m at worst on the way; IoU 0.16 against the whole true grid (which counts
+/// obstacles' insides, walls two cells thick where they lie on cell boundaries, and rooms never
+/// entered), 0.42 over the cells the mapper observed. Other seeds and up to 5 times the default
+/// noise gave ratios of 9 to 4000, worst errors of 0.06 to 0.44 m and IoUs of 0.10 to 0.21.
+#[test]
+fn the_mapper_beats_odometry_round_the_building() {
+    let run = drive_the_building_loop(1, 2.0);
+    let ratio = run.odometry_error_m / run.mapper_error_m;
+    println!(
+        "building loop, {:.1} m: final error odometry {:.3} m, mapper {:.3} m (×{ratio:.1} \
+         smaller; worst {:.3} m on the way); occupied IoU {:.3} ({:.3} over observed cells); \
+         {} scans, {} matched, {:.2} ms per scan",
+        run.travelled_m,
+        run.odometry_error_m,
+        run.mapper_error_m,
+        run.max_mapper_error_m,
+        run.iou,
+        run.known_iou,
+        run.stats.scans,
+        run.stats.matched,
+        run.stats.ms_per_scan()
+    );
+    assert!(run.travelled_m > 80.0, "{} m", run.travelled_m);
+    assert!(
+        run.odometry_error_m > 1.0,
+        "the odometry must drift meaningfully"
+    );
+    assert!(ratio >= 3.0, "only ×{ratio:.2}");
+    assert!(run.max_mapper_error_m < 0.5, "{} m", run.max_mapper_error_m);
+    assert!(
+        run.stats.matched * 100 >= run.stats.scans * 95,
+        "{:?}",
+        run.stats
+    );
+    assert!(
+        run.iou >= 0.12 && run.known_iou >= 0.3,
+        "IoU {} / {}",
+        run.iou,
+        run.known_iou
+    );
+}

@@ -1,0 +1,481 @@
+//! `armor replay`: publishes a recording made by `armor-mod-recorder` (an MCAP file) again.
+//!
+//! Every channel is published under its original data name (the channel's topic) and data type
+//! (the channel's `armor.data_type` metadata, else its schema name), through a node hosted in
+//! this process. Messages go out at their recorded log times, counted from the first one and
+//! divided by the time scale. Message encodings: `json` (the recorder's form of the built-in
+//! types) is turned back into the type's postcard bytes; `postcard` and `raw` are sent as they
+//! are; anything else is refused before anything is published. An unfinished recording (a
+//! `.partial` file left by a crash) is played as far as it goes.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use armor_module_api::types::{Counter, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist};
+use armor_module_api::{Datum, Event, ModuleSpec, Node, RawOutput, Standalone};
+use serde::Deserialize;
+use serde::de::DeserializeOwned;
+
+/// The channel metadata key the recorder writes the data type under.
+pub const DATA_TYPE_KEY: &str = "armor.data_type";
+/// The node's name, as the agent and subscribers' logs show it.
+pub const NODE_NAME: &str = "replay";
+/// After the last message, how long the node keeps writing what subscribers have not taken yet.
+const LINGER: Duration = Duration::from_millis(500);
+
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub file: PathBuf,
+    /// Play this many times faster than recorded.
+    pub time_scale: f64,
+    /// The agent's address (else `$ARMOR_AGENT`, else the default).
+    pub agent: Option<String>,
+    /// Play again from the start after the end, until killed.
+    pub looping: bool,
+    /// Before playing, wait at most this long for every channel to have a subscriber.
+    pub wait_for_subscribers: Duration,
+}
+
+/// How a channel's messages become samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Conversion {
+    /// JSON of a built-in type, back to postcard.
+    FromJson,
+    /// Sent as recorded.
+    AsIs,
+}
+
+/// What a channel is published as.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Plan {
+    data_name: String,
+    data_type: String,
+    conversion: Conversion,
+}
+
+/// Reads a channel's data name, type and encoding, refusing what cannot be published.
+fn plan(channel: &mcap::Channel) -> anyhow::Result<Plan> {
+    let topic = &channel.topic;
+    let data_type = channel
+        .metadata
+        .get(DATA_TYPE_KEY)
+        .filter(|data_type| !data_type.is_empty())
+        .or_else(|| {
+            channel
+                .schema
+                .as_ref()
+                .map(|schema| &schema.name)
+                .filter(|name| !name.is_empty())
+        })
+        .with_context(|| {
+            format!(
+                "channel `{topic}` names no data type (no `{DATA_TYPE_KEY}` metadata, no schema)"
+            )
+        })?
+        .clone();
+    let conversion = match channel.message_encoding.as_str() {
+        "json" if json_type(&data_type) => Conversion::FromJson,
+        "json" => bail!(
+            "channel `{topic}`: JSON messages of type `{data_type}`, which has no known JSON form"
+        ),
+        "postcard" | "raw" => Conversion::AsIs,
+        other => bail!(
+            "channel `{topic}`: unknown message encoding `{other}` (armor replay reads json, postcard and raw)"
+        ),
+    };
+    Ok(Plan {
+        data_name: topic.clone(),
+        data_type,
+        conversion,
+    })
+}
+
+fn json_type(data_type: &str) -> bool {
+    matches!(
+        data_type,
+        "Counter" | "Text" | "Pose2D" | "Twist" | "Odometry" | "LaserScan" | "OccupancyGrid"
+    )
+}
+
+#[derive(Deserialize)]
+struct CounterJson {
+    value: u64,
+}
+
+#[derive(Deserialize)]
+struct TextJson {
+    text: String,
+}
+
+/// The postcard bytes of a built-in type's JSON form (as the recorder writes it).
+fn from_json(data_type: &str, json: &[u8]) -> anyhow::Result<Vec<u8>> {
+    fn encode<J: DeserializeOwned, T: Datum>(
+        json: &[u8],
+        to_value: impl FnOnce(J) -> T,
+    ) -> anyhow::Result<Vec<u8>> {
+        let value = to_value(serde_json::from_slice(json)?);
+        let mut out = Vec::new();
+        value.encode(&mut out)?;
+        Ok(out)
+    }
+    let bytes = match data_type {
+        "Counter" => encode(json, |json: CounterJson| Counter(json.value)),
+        "Text" => encode(json, |json: TextJson| Text(json.text)),
+        "Pose2D" => encode(json, |value: Pose2D| value),
+        "Twist" => encode(json, |value: Twist| value),
+        "Odometry" => encode(json, |value: Odometry| value),
+        "LaserScan" => encode(json, |value: LaserScan| value),
+        "OccupancyGrid" => encode(json, |value: OccupancyGrid| value),
+        _ => bail!("no JSON form is known for type `{data_type}`"),
+    };
+    bytes.with_context(|| format!("a JSON message is not a {data_type}"))
+}
+
+/// The channels of a finished recording, from its summary; `None` for an unfinished one.
+fn read_plans(file: &str, bytes: &[u8]) -> anyhow::Result<Option<HashMap<u16, Plan>>> {
+    if !bytes.starts_with(mcap::MAGIC) {
+        bail!("{file} is not an MCAP file");
+    }
+    let summary = match mcap::Summary::read(bytes) {
+        Ok(Some(summary)) => summary,
+        Ok(None) | Err(_) => return Ok(None),
+    };
+    let mut channels: Vec<_> = summary.channels.values().collect();
+    channels.sort_by_key(|channel| channel.id);
+    let mut plans = HashMap::new();
+    for channel in channels {
+        let plan = plan(channel).with_context(|| format!("cannot replay {file}"))?;
+        plans.insert(channel.id, plan);
+    }
+    Ok(Some(plans))
+}
+
+/// Replays a recording until its end (or forever with `looping`).
+pub fn run(options: &Options) -> anyhow::Result<()> {
+    let scale = options.time_scale;
+    if !(scale.is_finite() && scale > 0.0) {
+        bail!("--time-scale must be a positive number, not {scale}");
+    }
+    let name = options.file.display().to_string();
+    let bytes = std::fs::read(&options.file).with_context(|| format!("cannot read {name}"))?;
+    let plans = read_plans(&name, &bytes)?;
+    if plans.is_none() {
+        tracing::warn!("{name} has no summary (an unfinished recording?): playing what it holds");
+    }
+    let spec = ModuleSpec::new(NODE_NAME, "Publishes a recording again.");
+    let mut node = Node::connect(
+        spec,
+        Standalone {
+            name: Some(NODE_NAME.to_owned()),
+            agent: options.agent.clone(),
+            ..Standalone::default()
+        },
+    )?;
+    let mut player = Player {
+        node: &mut node,
+        outputs: HashMap::new(),
+    };
+    if let Some(plans) = &plans {
+        let mut ids: Vec<u16> = plans.keys().copied().collect();
+        ids.sort_unstable();
+        for id in ids {
+            player.publish(id, plans[&id].clone())?;
+        }
+        player.wait_for_subscribers(options.wait_for_subscribers)?;
+    }
+    loop {
+        let started = Instant::now();
+        let played = player.play_once(&name, &bytes, scale)?;
+        tracing::info!(
+            "replayed {played} messages from {name} in {:.2} s",
+            started.elapsed().as_secs_f64()
+        );
+        if !options.looping {
+            break;
+        }
+        if played == 0 {
+            bail!("{name} holds no message to play in a loop");
+        }
+    }
+    player.linger()
+}
+
+struct Player<'a> {
+    node: &'a mut Node,
+    /// Channel id → where its messages go.
+    outputs: HashMap<u16, (RawOutput, Plan)>,
+}
+
+impl Player<'_> {
+    fn publish(&mut self, channel_id: u16, plan: Plan) -> anyhow::Result<()> {
+        let output = self
+            .node
+            .publish_raw(&plan.data_name, &plan.data_type)
+            .with_context(|| format!("cannot publish `{}`", plan.data_name))?;
+        tracing::info!(
+            data_name = plan.data_name,
+            data_type = plan.data_type,
+            "publishing"
+        );
+        self.outputs.insert(channel_id, (output, plan));
+        Ok(())
+    }
+
+    fn wait_for_subscribers(&mut self, patience: Duration) -> anyhow::Result<()> {
+        if patience.is_zero() {
+            return Ok(());
+        }
+        let deadline = Instant::now() + patience;
+        loop {
+            let waiting: Vec<&str> = self
+                .outputs
+                .values()
+                .filter(|(output, _)| self.node.raw_subscriber_count(output) == 0)
+                .map(|(_, plan)| plan.data_name.as_str())
+                .collect();
+            if waiting.is_empty() {
+                return Ok(());
+            }
+            if Instant::now() >= deadline {
+                tracing::warn!("no subscriber for {}; playing anyway", waiting.join(", "));
+                return Ok(());
+            }
+            self.pause_until((Instant::now() + Duration::from_millis(20)).min(deadline))?;
+        }
+    }
+
+    /// Keeps the node's connections turning until `until`.
+    fn pause_until(&mut self, until: Instant) -> anyhow::Result<()> {
+        loop {
+            match self.node.next_event_until(until)? {
+                Event::Timeout => return Ok(()),
+                Event::Shutdown => bail!("asked to shut down"),
+                _ => {}
+            }
+        }
+    }
+
+    /// Plays every message once, at its recorded time from the first; returns how many.
+    fn play_once(&mut self, name: &str, bytes: &[u8], scale: f64) -> anyhow::Result<u64> {
+        let options = mcap::read::Options::IgnoreEndMagic.into();
+        let stream = mcap::MessageStream::new_with_options(bytes, options)
+            .with_context(|| format!("{name} is not a valid MCAP file"))?;
+        let started = Instant::now();
+        let mut first_ns = None;
+        let mut played = 0;
+        for message in stream {
+            let message = match message {
+                Ok(message) => message,
+                Err(err) if played > 0 => {
+                    tracing::warn!("{name}: stopped at a damaged or unfinished part: {err}");
+                    break;
+                }
+                Err(err) => {
+                    return Err(err).with_context(|| format!("{name} is not a valid MCAP file"));
+                }
+            };
+            let channel_id = message.channel.id;
+            if !self.outputs.contains_key(&channel_id) {
+                let plan =
+                    plan(&message.channel).with_context(|| format!("cannot replay {name}"))?;
+                self.publish(channel_id, plan)?;
+            }
+            let first = *first_ns.get_or_insert(message.log_time);
+            let offset = message.log_time.saturating_sub(first) as f64 / 1e9 / scale;
+            let due = started + Duration::from_secs_f64(offset);
+            if due > Instant::now() {
+                self.pause_until(due)?;
+            }
+            let (output, plan) = &self.outputs[&channel_id];
+            let payload = match plan.conversion {
+                Conversion::FromJson => from_json(&plan.data_type, &message.data)
+                    .with_context(|| format!("channel `{}`", plan.data_name))?,
+                Conversion::AsIs => message.data.into_owned(),
+            };
+            self.node.send_raw(output, &payload)?;
+            played += 1;
+        }
+        Ok(played)
+    }
+
+    /// Lets subscribers take what is still buffered before the process exits.
+    fn linger(&mut self) -> anyhow::Result<()> {
+        self.node.flush()?;
+        self.pause_until(Instant::now() + LINGER)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use std::collections::BTreeMap;
+    use std::io::Cursor;
+
+    use super::*;
+
+    fn encode<T: Datum>(value: &T) -> Vec<u8> {
+        let mut out = Vec::new();
+        value.encode(&mut out).unwrap();
+        out
+    }
+
+    #[test]
+    fn json_forms_turn_back_into_postcard() {
+        assert_eq!(
+            from_json("Counter", br#"{"value":300}"#).unwrap(),
+            encode(&Counter(300))
+        );
+        assert_eq!(
+            from_json("Text", br#"{"text":"hi"}"#).unwrap(),
+            encode(&Text("hi".into()))
+        );
+        let odometry = Odometry {
+            pose_in_odom: Pose2D {
+                x_m: 1.0,
+                y_m: 2.0,
+                theta_rad: 0.5,
+            },
+            twist: Twist {
+                linear_mps: 0.25,
+                angular_radps: -0.1,
+            },
+        };
+        let json = serde_json::to_vec(&serde_json::json!({
+            "pose_in_odom": {"x_m": 1.0, "y_m": 2.0, "theta_rad": 0.5},
+            "twist": {"linear_mps": 0.25, "angular_radps": -0.1},
+        }))
+        .unwrap();
+        assert_eq!(from_json("Odometry", &json).unwrap(), encode(&odometry));
+        let grid = br#"{"resolution_m":0.5,"width":2,"height":1,"origin_x_m":0,"origin_y_m":0,"cells":[-1,100]}"#;
+        assert_eq!(
+            from_json("OccupancyGrid", grid).unwrap(),
+            encode(&OccupancyGrid {
+                resolution_m: 0.5,
+                width: 2,
+                height: 1,
+                cells: vec![-1, 100],
+                ..OccupancyGrid::default()
+            })
+        );
+        let err = from_json("Counter", br#"{"count":1}"#).unwrap_err();
+        assert!(format!("{err:#}").contains("not a Counter"), "{err:#}");
+        assert!(from_json("Imu", b"{}").is_err());
+    }
+
+    fn channel(topic: &str, encoding: &str, data_type: Option<&str>) -> mcap::Channel<'static> {
+        mcap::Channel {
+            id: 1,
+            topic: topic.into(),
+            schema: None,
+            message_encoding: encoding.into(),
+            metadata: data_type
+                .map(|data_type| BTreeMap::from([(DATA_TYPE_KEY.into(), data_type.into())]))
+                .unwrap_or_default(),
+        }
+    }
+
+    #[test]
+    fn channels_are_planned_from_their_encoding_and_type() {
+        let plan_of = |encoding, data_type| plan(&channel("a.b", encoding, data_type));
+        assert_eq!(
+            plan_of("json", Some("Counter")).unwrap().conversion,
+            Conversion::FromJson
+        );
+        assert_eq!(
+            plan_of("postcard", Some("Imu")).unwrap(),
+            Plan {
+                data_name: "a.b".into(),
+                data_type: "Imu".into(),
+                conversion: Conversion::AsIs
+            }
+        );
+        assert_eq!(
+            plan_of("raw", Some("Blob")).unwrap().conversion,
+            Conversion::AsIs
+        );
+        let err = plan_of("cdr", Some("Imu")).unwrap_err().to_string();
+        assert!(err.contains("unknown message encoding `cdr`"), "{err}");
+        let err = plan_of("json", Some("Imu")).unwrap_err().to_string();
+        assert!(err.contains("no known JSON form"), "{err}");
+        let err = plan_of("postcard", None).unwrap_err().to_string();
+        assert!(err.contains("names no data type"), "{err}");
+    }
+
+    /// An MCAP file with one channel of the given encoding and one message.
+    fn mcap_with(encoding: &str) -> Vec<u8> {
+        let mut writer = mcap::Writer::new(Cursor::new(Vec::new())).unwrap();
+        let schema = writer.add_schema("Counter", "", &[]).unwrap();
+        let metadata = BTreeMap::from([(DATA_TYPE_KEY.to_owned(), "Counter".to_owned())]);
+        let channel = writer
+            .add_channel(schema, "counter.count", encoding, &metadata)
+            .unwrap();
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: 1,
+            log_time: 5,
+            publish_time: 5,
+        };
+        writer.write_to_known_channel(&header, &[1]).unwrap();
+        writer.finish().unwrap();
+        writer.into_inner().into_inner()
+    }
+
+    fn options(file: PathBuf) -> Options {
+        Options {
+            file,
+            time_scale: 1.0,
+            // Nothing listens there: every case below fails before connecting.
+            agent: Some("127.0.0.1:9".into()),
+            looping: false,
+            wait_for_subscribers: Duration::ZERO,
+        }
+    }
+
+    #[test]
+    fn clear_errors_before_anything_is_published() {
+        let dir = tempfile::tempdir().unwrap();
+        let error = |file: PathBuf| format!("{:#}", run(&options(file)).unwrap_err());
+
+        let missing = dir.path().join("missing.mcap");
+        let err = error(missing);
+        assert!(
+            err.contains("cannot read") && err.contains("missing.mcap"),
+            "{err}"
+        );
+
+        let text = dir.path().join("notes.mcap");
+        std::fs::write(&text, "not a recording").unwrap();
+        assert!(error(text).contains("is not an MCAP file"));
+
+        let cdr = dir.path().join("cdr.mcap");
+        std::fs::write(&cdr, mcap_with("cdr")).unwrap();
+        let err = error(cdr);
+        assert!(err.contains("unknown message encoding `cdr`"), "{err}");
+
+        let mut scale = options(dir.path().join("x"));
+        scale.time_scale = 0.0;
+        assert!(
+            run(&scale)
+                .unwrap_err()
+                .to_string()
+                .contains("--time-scale")
+        );
+    }
+
+    #[test]
+    fn a_finished_file_plans_every_channel() {
+        let bytes = mcap_with("postcard");
+        let plans = read_plans("f", &bytes).unwrap().unwrap();
+        assert_eq!(plans.len(), 1);
+        assert_eq!(plans.values().next().unwrap().data_name, "counter.count");
+        // Cut short, it has no summary: channels are then planned as they come.
+        assert!(
+            read_plans("f", &bytes[..bytes.len() / 2])
+                .unwrap()
+                .is_none()
+        );
+    }
+}

@@ -1,0 +1,237 @@
+//! Recording a live stream into an MCAP file with `armor-mod-recorder`, then publishing it again
+//! with `armor replay` to a module that checks it, as a user would.
+#![allow(clippy::unwrap_used)]
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::process::Command;
+
+use armor_tests::{PATIENCE, Proc, bin};
+
+/// How many values the recording should hold at least (0.01 s apart: a second or more).
+const ENOUGH: u64 = 100;
+
+fn start_agent() -> (Proc, String) {
+    let agent = Proc::start(Command::new(bin("armor")).args(["agent", "--listen", "127.0.0.1:0"]));
+    let line = agent.wait_for("with the agent's address", PATIENCE, |line| {
+        line.starts_with("armor agent listening on ")
+    });
+    let addr = line
+        .trim_start_matches("armor agent listening on ")
+        .to_owned();
+    (agent, addr)
+}
+
+/// The `N` of a recorder's `recorded N messages` line.
+fn recorded(line: &str) -> Option<u64> {
+    let rest = &line[line.find("recorded ")? + "recorded ".len()..];
+    rest.split_whitespace().next()?.parse().ok()
+}
+
+/// One message of a channel: its log time and data.
+type Message = (u64, Vec<u8>);
+
+/// The messages of every channel of an MCAP file whose chunks are not compressed, by (topic,
+/// message encoding): read with nothing but the MCAP specification, independently of the crate
+/// the recorder writes with.
+fn read_mcap(file: &Path) -> HashMap<(String, String), Vec<Message>> {
+    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+    let bytes = std::fs::read(file).unwrap();
+    assert!(
+        bytes.starts_with(MAGIC) && bytes.ends_with(MAGIC),
+        "not a complete MCAP file"
+    );
+    let mut channels: HashMap<u16, (String, String)> = HashMap::new();
+    let mut messages: Vec<(u16, Message)> = Vec::new();
+    read_records(
+        &bytes[MAGIC.len()..bytes.len() - MAGIC.len()],
+        &mut channels,
+        &mut messages,
+    );
+    let mut by_channel: HashMap<(String, String), Vec<Message>> = HashMap::new();
+    for (channel, message) in messages {
+        let key = channels[&channel].clone();
+        by_channel.entry(key).or_default().push(message);
+    }
+    by_channel
+}
+
+struct Cursor<'a>(&'a [u8]);
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: usize) -> &'a [u8] {
+        let (head, rest) = self.0.split_at(n);
+        self.0 = rest;
+        head
+    }
+    fn u16(&mut self) -> u16 {
+        u16::from_le_bytes(self.take(2).try_into().unwrap())
+    }
+    fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.take(4).try_into().unwrap())
+    }
+    fn u64(&mut self) -> u64 {
+        u64::from_le_bytes(self.take(8).try_into().unwrap())
+    }
+    fn string(&mut self) -> String {
+        let len = self.u32() as usize;
+        String::from_utf8(self.take(len).to_vec()).unwrap()
+    }
+}
+
+fn read_records(
+    bytes: &[u8],
+    channels: &mut HashMap<u16, (String, String)>,
+    messages: &mut Vec<(u16, Message)>,
+) {
+    let mut records = Cursor(bytes);
+    while !records.0.is_empty() {
+        let opcode = records.take(1)[0];
+        let len = records.u64() as usize;
+        let mut body = Cursor(records.take(len));
+        match opcode {
+            // Channel: id, schema id, topic, message encoding, metadata.
+            0x04 => {
+                let id = body.u16();
+                body.u16();
+                let topic = body.string();
+                let encoding = body.string();
+                channels.insert(id, (topic, encoding));
+            }
+            // Message: channel id, sequence, log time, publish time, data.
+            0x05 => {
+                let channel = body.u16();
+                body.u32();
+                let log_time = body.u64();
+                body.u64();
+                messages.push((channel, (log_time, body.0.to_vec())));
+            }
+            // Chunk: start and end times, size and CRC, compression, records.
+            0x06 => {
+                body.take(8 + 8 + 8 + 4);
+                let compression = body.string();
+                assert_eq!(compression, "", "the test records without compression");
+                let len = body.u64() as usize;
+                read_records(body.take(len), channels, messages);
+            }
+            _ => {}
+        }
+    }
+}
+
+#[test]
+fn a_recorded_stream_is_saved_on_sigterm_and_replayed_in_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("run.mcap");
+    let (agent, addr) = start_agent();
+    let counter = Proc::start(Command::new(bin("armor-mod-counter")).args([
+        "--agent",
+        &addr,
+        "--param",
+        "period_secs=0.01",
+    ]));
+    let mut recorder = Proc::start(Command::new(bin("armor-mod-recorder")).args([
+        "--agent",
+        &addr,
+        "--param",
+        "record=counter.count",
+        "--param",
+        &format!("file={}", file.display()),
+        "--param",
+        "compression=none",
+        "--param",
+        "report_secs=0.2",
+    ]));
+    recorder.wait_for("saying enough values were recorded", PATIENCE, |line| {
+        recorded(line).is_some_and(|count| count >= ENOUGH)
+    });
+
+    // SIGTERM: the recorder completes the file and renames it into place.
+    recorder.signal(libc::SIGTERM);
+    let status = recorder.wait_exit(PATIENCE);
+    assert!(status.success(), "{status}: {:#?}", recorder.lines());
+    let saved = recorder.wait_for("saying the file was saved", PATIENCE, |line| {
+        line.contains("saved") && line.contains("run.mcap")
+    });
+    assert!(file.exists(), "{saved}");
+    assert!(!dir.path().join("run.mcap.partial").exists());
+
+    let channels = read_mcap(&file);
+    let messages = &channels[&("counter.count".to_owned(), "json".to_owned())];
+    assert_eq!(channels.len(), 1, "{:?}", channels.keys());
+    let values: Vec<u64> = messages
+        .iter()
+        .map(|(_, data)| {
+            let json: serde_json::Value = serde_json::from_slice(data).unwrap();
+            json["value"].as_u64().unwrap()
+        })
+        .collect();
+    assert!(values.len() as u64 >= ENOUGH, "{values:?}");
+    assert!(
+        values.windows(2).all(|pair| pair[1] == pair[0] + 1),
+        "every value, in order: {values:?}"
+    );
+    assert!(
+        messages.windows(2).all(|pair| pair[1].0 > pair[0].0),
+        "log times increase"
+    );
+    let span_secs = (messages[messages.len() - 1].0 - messages[0].0) as f64 / 1e9;
+
+    // The counter goes away; the replay takes its data name over.
+    let skip = agent.line_count();
+    drop(counter);
+    agent.wait_for_from(skip, "forgetting the counter", PATIENCE, |line| {
+        line.contains("provider unregistered") && line.contains("counter.count")
+    });
+    let checker = Proc::start(Command::new(bin("armor-mod-checker")).args([
+        "--agent",
+        &addr,
+        "--bind",
+        "input=counter.count",
+        "--param",
+        "report_every=10",
+    ]));
+    let mut replay = Proc::start(Command::new(bin("armor")).args([
+        "replay",
+        file.to_str().unwrap(),
+        "--agent",
+        &addr,
+        "--time-scale",
+        "2",
+        "--wait",
+        "20",
+    ]));
+    let status = replay.wait_exit(PATIENCE);
+    assert!(status.success(), "{status}: {:#?}", replay.lines());
+    let done = replay.wait_for("with a summary", PATIENCE, |line| {
+        line.contains("replayed") && line.contains("messages")
+    });
+    assert!(
+        done.contains(&format!("replayed {} messages", values.len())),
+        "{done}"
+    );
+    // The recorded timing is kept, twice as fast.
+    let took: f64 = done
+        .rsplit(" in ")
+        .next()
+        .and_then(|rest| rest.trim_end_matches(" s").parse().ok())
+        .unwrap();
+    assert!(took >= span_secs / 2.0 * 0.95, "{took} s for {span_secs} s");
+
+    // The checker linked before the replay started: it got every value, in order.
+    let reported = values.len() / 10 * 10;
+    let last = values[reported - 1];
+    checker.wait_for("with the replayed values", PATIENCE, |line| {
+        line.contains(&format!(
+            "received {reported} values, last {last}, in order"
+        ))
+    });
+    assert!(
+        !checker
+            .lines()
+            .iter()
+            .any(|line| line.contains("out of order")),
+        "{:#?}",
+        checker.lines()
+    );
+}

@@ -1,0 +1,284 @@
+//! The simulated robot's missions (`missions/robot/`), run headless by `armor run` faster than
+//! real time, as a user would: each must end in its final place with exactly the planned
+//! arrivals, observations and waits, without the robot touching anything and without the
+//! follower ever being stuck. A goal inside an obstacle ends the mission in its contingency.
+#![allow(clippy::unwrap_used)]
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use armor_tests::{PATIENCE, Proc, bin, bin_dir, field, process_alive, workspace_root};
+
+/// Run time passes this many times faster than real time: a mission of one to two simulated
+/// minutes takes a few seconds. The sim, the follower and the avoider all run on the run clock,
+/// and the follower declares a leg blocked only after `blocked_after_secs` of run time without
+/// progress (the system files set 20 s, a second of real time at this scale), so a busy machine
+/// slows a run down without failing it.
+const TIME_SCALE: &str = "20";
+
+/// How long a whole mission may take in real time: five to ten times what it needs on an idle
+/// machine.
+const MISSION_DEADLINE: Duration = Duration::from_secs(60);
+
+/// `armor run MISSION --time-scale TIME_SCALE --report REPORT`, with the workspace's modules.
+fn armor_run(mission: &Path, report: &Path) -> Proc {
+    Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(mission)
+            .args(["--time-scale", TIME_SCALE, "--report"])
+            .arg(report)
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            // The sim looks its `world` up relative to the current directory only (as given,
+            // then under assets/worlds/), so the missions run from the workspace root.
+            .current_dir(workspace_root()),
+    )
+}
+
+/// What a finished run left: its output and its report.
+struct Finished {
+    lines: Vec<String>,
+    report: serde_json::Value,
+}
+
+impl Finished {
+    /// The transitions fired, in order, with the run time of each.
+    fn fired(&self) -> Vec<(String, f64)> {
+        self.report["timeline"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|entry| entry["kind"] == "fired")
+            .map(|entry| {
+                (
+                    entry["transition"].as_str().unwrap().to_owned(),
+                    entry["at_secs"].as_f64().unwrap(),
+                )
+            })
+            .collect()
+    }
+
+    fn fired_names(&self) -> Vec<String> {
+        self.fired().into_iter().map(|(name, _)| name).collect()
+    }
+
+    /// Run time between two firings.
+    fn between(&self, first: &str, second: &str) -> f64 {
+        let fired = self.fired();
+        let at = |name: &str| {
+            fired
+                .iter()
+                .find(|(fired, _)| fired == name)
+                .unwrap_or_else(|| panic!("`{name}` did not fire: {fired:?}"))
+                .1
+        };
+        at(second) - at(first)
+    }
+
+    /// The marking the mission completed in.
+    fn final_marking(&self) -> serde_json::Value {
+        let timeline = self.report["timeline"].as_array().unwrap();
+        let complete = timeline
+            .iter()
+            .find(|entry| entry["kind"] == "complete")
+            .unwrap_or_else(|| panic!("the mission did not complete: {timeline:#?}"));
+        complete["marking"].clone()
+    }
+
+    fn any_line(&self, pred: impl Fn(&str) -> bool) -> bool {
+        self.lines.iter().any(|line| pred(line))
+    }
+
+    /// The robot never touched anything, and the follower never gave up on a leg.
+    fn assert_clean(&self) {
+        let bad: Vec<&String> = self
+            .lines
+            .iter()
+            .filter(|line| line.contains("event sim.collision") || line.contains("blocked"))
+            .collect();
+        assert!(bad.is_empty(), "{bad:#?}\n{}", self.lines.join("\n"));
+    }
+}
+
+/// Runs a mission to its end; it must exit 0 within [`MISSION_DEADLINE`].
+fn run_mission(mission: &Path) -> Finished {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.json");
+    let mut run = armor_run(mission, &report);
+    let status = run.wait_exit(MISSION_DEADLINE);
+    let lines = run.lines();
+    assert!(status.success(), "{status}:\n{}", lines.join("\n"));
+    let report = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let finished = Finished { lines, report };
+    assert_eq!(finished.report["outcome"], "Some(Complete)");
+    finished
+}
+
+fn robot_mission(name: &str) -> std::path::PathBuf {
+    workspace_root().join("missions/robot").join(name)
+}
+
+#[test]
+fn the_yard_patrol_looks_around_waits_and_comes_back_clean() {
+    let run = run_mission(&robot_mission("yard.xml"));
+    assert_eq!(
+        run.fired_names(),
+        [
+            "arrived_1",
+            "observed_1",
+            "arrived_2",
+            "arrived_3",
+            "waited_3",
+            "arrived_4"
+        ]
+    );
+    assert_eq!(run.final_marking(), serde_json::json!({ "done": 1 }));
+    run.assert_clean();
+    // A full turn at the observer's 0.6 rad/s takes 10.5 s of run time; the wait is 3 s.
+    let observing = run.between("arrived_1", "observed_1");
+    assert!(observing >= 10.0, "observed for {observing} s");
+    let waiting = run.between("arrived_3", "waited_3");
+    assert!(waiting >= 3.0, "waited for {waiting} s");
+    // The mux handed the robot from navigation to the observer and back.
+    for source in ["auto", "observe", "none"] {
+        assert!(
+            run.any_line(
+                |line| line.starts_with("[mux]") && line.contains(&format!("in control: {source}"))
+            ),
+            "mux never gave control to {source}:\n{}",
+            run.lines.join("\n")
+        );
+    }
+}
+
+#[test]
+fn the_building_mission_goes_through_two_doorways_clean() {
+    let run = run_mission(&robot_mission("building.xml"));
+    assert_eq!(
+        run.fired_names(),
+        [
+            "arrived_1",
+            "arrived_2",
+            "arrived_3",
+            "arrived_4",
+            "arrived_5"
+        ]
+    );
+    assert_eq!(run.final_marking(), serde_json::json!({ "done": 1 }));
+    run.assert_clean();
+}
+
+#[test]
+fn the_field_mission_crosses_the_clutter_clean() {
+    let run = run_mission(&robot_mission("field.xml"));
+    assert_eq!(
+        run.fired_names(),
+        ["arrived_1", "arrived_2", "arrived_3", "arrived_4"]
+    );
+    assert_eq!(run.final_marking(), serde_json::json!({ "done": 1 }));
+    run.assert_clean();
+}
+
+/// A one-leg yard mission whose goal lies inside the shipping container (18..30 × 8..10.4), with
+/// or without a way out when the follower reports `blocked`.
+fn into_the_container(handled: bool) -> String {
+    let system = robot_mission("system.xml");
+    let contingency = if handled {
+        r#"
+  <place name="aborted_leg" final="true"/>
+  <transition name="blocked_1" event="follower.blocked">
+    <input place="leg_1"/>
+    <output place="aborted_leg"/>
+  </transition>"#
+    } else {
+        ""
+    };
+    format!(
+        r#"<mission name="into-the-container" system="{}">
+  <place name="leg_1" tokens="1">
+    <module name="follower"/>
+    <module name="avoider"/>
+    <param module="follower" name="goal_x_m" value="24"/>
+    <param module="follower" name="goal_y_m" value="9.2"/>
+  </place>
+  <place name="done" final="true"/>
+  <transition name="arrived_1" event="follower.goal_reached">
+    <input place="leg_1"/>
+    <output place="done"/>
+  </transition>{contingency}
+</mission>"#,
+        system.display()
+    )
+}
+
+/// Nothing refuses a goal inside an obstacle: `armor check` knows no world, and the follower
+/// drives towards it until the avoider holds the robot in front of the container. The follower
+/// then reports `blocked`. Unhandled, that leaves the mission waiting for `goal_reached` for
+/// ever (it would end only by `--for`, with status 0, or by an operator's abort); handled, the
+/// mission ends at once in its `aborted_leg` place (a final place, so status 0 too: the report
+/// and the log say how it ended).
+#[test]
+fn a_goal_inside_an_obstacle_ends_the_mission_in_its_contingency() {
+    let dir = tempfile::tempdir().unwrap();
+    let handled = dir.path().join("handled.xml");
+    let unhandled = dir.path().join("unhandled.xml");
+    std::fs::write(&handled, into_the_container(true)).unwrap();
+    std::fs::write(&unhandled, into_the_container(false)).unwrap();
+    for mission in [&handled, &unhandled] {
+        let output = Command::new(bin("armor"))
+            .arg("check")
+            .arg(mission)
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .output()
+            .unwrap();
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stdout)
+        );
+    }
+
+    let stuck = armor_run(&unhandled, &dir.path().join("unhandled.json"));
+    let run = run_mission(&handled);
+    assert_eq!(run.fired_names(), ["blocked_1"]);
+    assert_eq!(run.final_marking(), serde_json::json!({ "aborted_leg": 1 }));
+    assert!(
+        run.any_line(|line| line.contains("mission `into-the-container` complete: {aborted_leg}")),
+        "{}",
+        run.lines.join("\n")
+    );
+    assert!(
+        run.any_line(
+            |line| line.starts_with("[follower]") && line.contains("no progress towards the goal")
+        ),
+        "{}",
+        run.lines.join("\n")
+    );
+    assert!(
+        !run.any_line(|line| line.contains("event sim.collision")),
+        "the avoider let the robot hit the container:\n{}",
+        run.lines.join("\n")
+    );
+
+    // Without the contingency the same report changes nothing: the mission still waits.
+    let line = stuck.wait_for("with the control address", PATIENCE, |line| {
+        line.contains("control interface listening")
+    });
+    let addr = field(&line, "addr").unwrap().to_owned();
+    stuck.wait_for("reporting the follower blocked", MISSION_DEADLINE, |line| {
+        line.contains("event follower.blocked")
+    });
+    let status = Command::new(bin("armor"))
+        .args(["ctl", "--addr", &addr, "status"])
+        .output()
+        .unwrap();
+    let status = String::from_utf8_lossy(&status.stdout);
+    assert!(
+        status.contains("arrived_1 (waits for follower.goal_reached)"),
+        "{status}"
+    );
+    assert!(status.contains("\"leg_1\": 1"), "{status}");
+    assert!(process_alive(stuck.pid()), "{}", stuck.lines().join("\n"));
+    assert!(!stuck.lines().iter().any(|line| line.contains("fired")));
+}
