@@ -78,7 +78,7 @@ fn the_demo_mission_runs_to_its_final_place_and_reports_its_timeline() {
     // Ten values at 0.1 s of run time each, then the two-second delay, in run time.
     assert!(fired[0].1 >= 1.0, "{fired:?}");
     assert!(fired[1].1 - fired[0].1 >= 2.0, "{fired:?}");
-    assert_eq!(report["outcome"], "Some(Complete)");
+    assert_eq!(report["outcome"], "complete");
     // The counter was stopped when its place emptied; the checker saw ten values in order.
     let lines = run.lines();
     assert!(
@@ -214,4 +214,27 @@ fn armor_check_finds_what_would_go_wrong() {
             "`{expected}` missing from:\n{report}"
         );
     }
+}
+
+#[test]
+fn a_mission_cut_short_by_for_ends_with_a_failure() {
+    let dir = mission_files(
+        "",
+        "",
+        r#"<mission name="endless" system="system.xml">
+  <place name="waiting" tokens="1"><module name="counter"/></place>
+  <place name="done" final="true"/>
+  <transition name="go" event="checker.out_of_order"><input place="waiting"/><output place="done"/></transition>
+</mission>"#,
+    );
+    let mut run = armor_run(&dir.path().join("mission.xml"), &["--for", "1"]);
+    let status = run.wait_exit(PATIENCE);
+    assert_eq!(status.code(), Some(1));
+    assert!(
+        run.lines()
+            .iter()
+            .any(|line| line.contains("run duration reached before the mission ended")),
+        "{:#?}",
+        run.lines()
+    );
 }

@@ -111,7 +111,7 @@ fn run_mission(mission: &Path) -> Finished {
     assert!(status.success(), "{status}:\n{}", lines.join("\n"));
     let report = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let finished = Finished { lines, report };
-    assert_eq!(finished.report["outcome"], "Some(Complete)");
+    assert_eq!(finished.report["outcome"], "complete");
     finished
 }
 

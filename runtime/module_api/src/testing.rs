@@ -73,11 +73,22 @@ pub(crate) struct TestTransport {
 
 impl TestTransport {
     pub fn publish(&mut self, output: usize, frame: &[u8]) {
+        // One read may not take a whole large frame: read until the frame is complete.
         let mut reader = FrameReader::default();
-        if reader.fill_from(&mut &frame[..]).is_ok()
-            && let Ok(Some(Frame::Data(data))) = reader.next_frame()
-        {
-            self.sent.push((output, data));
+        let mut source = frame;
+        loop {
+            match reader.next_frame() {
+                Ok(Some(Frame::Data(data))) => {
+                    self.sent.push((output, data));
+                    return;
+                }
+                Ok(None) if !source.is_empty() => {
+                    if reader.fill_from(&mut source).is_err() {
+                        return;
+                    }
+                }
+                _ => return,
+            }
         }
     }
 
@@ -261,5 +272,22 @@ impl TestBench {
                 _ => None,
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::types::Blob;
+
+    #[test]
+    fn large_values_are_recorded_whole() {
+        let spec = ModuleSpec::new("big", "sends a large blob").output::<Blob>("out", "");
+        let mut bench = TestBench::new(&spec, &[]).expect("bench");
+        let node = bench.node();
+        let out = node.output::<Blob>("out").expect("output");
+        let blob = Blob(vec![7; 3 * 1024 * 1024]);
+        node.send(&out, &blob).expect("send");
+        assert_eq!(bench.sent::<Blob>("out").expect("sent"), [blob]);
     }
 }

@@ -23,6 +23,18 @@ pub enum Outcome {
     Failed { module: String },
 }
 
+impl Outcome {
+    /// The word the report uses: `complete`, `aborted`, `deadlock` or `failed`.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Outcome::Complete => "complete",
+            Outcome::Aborted => "aborted",
+            Outcome::Deadlock { .. } => "deadlock",
+            Outcome::Failed { .. } => "failed",
+        }
+    }
+}
+
 pub struct Controller {
     net: MissionNet,
     engine: Engine,
@@ -293,7 +305,7 @@ impl Controller {
     pub fn write_report(&self, file: &Path) -> std::io::Result<()> {
         let report = json!({
             "mission": self.net.name,
-            "outcome": format!("{:?}", self.outcome),
+            "outcome": self.outcome.as_ref().map_or("unfinished", Outcome::as_str),
             "timeline": self.timeline.as_deref().unwrap_or_default(),
             "timeline_dropped": self.timeline_dropped,
         });

@@ -193,6 +193,11 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             .duration
             .is_some_and(|duration| started.elapsed() >= duration)
         {
+            // A mission cut short has not done its job; a plain system run has.
+            if controller.is_some() {
+                tracing::error!("run duration reached before the mission ended");
+                break ExitCode::FAILURE;
+            }
             tracing::info!("run duration reached");
             break ExitCode::SUCCESS;
         }
