@@ -3,7 +3,7 @@
 use armor_module_api::types::Counter;
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
-use crate::int_at_least;
+use crate::params::int_at_least;
 
 pub const TYPE: &str = "checker";
 

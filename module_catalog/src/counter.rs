@@ -3,7 +3,8 @@
 use armor_module_api::types::Counter;
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
-use crate::{BodyError, int_at_least};
+use crate::BodyError;
+use crate::params::{FloatRange, float_in, int_at_least};
 
 pub const TYPE: &str = "counter";
 
@@ -82,12 +83,7 @@ fn retune(node: &Node, schedule: &mut Schedule) {
 
 /// The `period_secs` parameter, refused unless it is a positive number of seconds.
 fn period(node: &Node) -> Result<f64, BodyError> {
-    let period_secs: f64 = node.param("period_secs")?;
-    if period_secs.is_finite() && period_secs > 0.0 {
-        Ok(period_secs)
-    } else {
-        Err(format!("parameter `period_secs` must be greater than 0 s, not {period_secs}").into())
-    }
+    float_in(node, "period_secs", FloatRange::above(0.0, "s"))
 }
 
 /// When the counter publishes, in run time (seconds).

@@ -11,9 +11,10 @@
 //! - [`sink`]: counts the `Blob`s it receives and publishes the count every `every` values
 //!   (throughput benchmark).
 //! - [`sim`]: a simulated differential-drive robot with a laser scanner in a 2-D world file,
-//!   on the run clock; its [`sim::world::World`] model is public for maps and tests.
+//!   on the run clock; its world model is [`armor_model::world`], shared with plans and maps.
 //! - [`nav`]: navigation in two modules linked by `cmd_desired`: [`nav::follower`] drives
-//!   towards a goal set per leg (`goal_reached`, `blocked`), and [`nav::avoider`] bends that
+//!   towards a goal set per leg (`goal_reached`, `blocked`), round the plan's no-go areas,
+//!   and [`nav::avoider`] bends that
 //!   command away from obstacles seen in the laser scan and stops short of them (`safety_stop`).
 //! - [`mapper`]: an occupancy grid from laser scans and odometry, with the pose corrected by
 //!   matching each scan against the map so far (published as `pose`, in place of odometry).
@@ -23,6 +24,8 @@
 //!   reports `observation_done`.
 //! - [`teleop`]: operator velocity commands over a TCP line protocol, clamped and held for a
 //!   dead-man time (not controllable).
+//! - [`params`]: numeric parameters read with their range, refused in the same words by every
+//!   module.
 //! - [`recorder`]: records every sample of the data names in `record`, with stamp and type,
 //!   into an MCAP file while active (JSON for the built-in types); `armor replay` plays it back.
 
@@ -33,22 +36,11 @@ pub mod mapper;
 pub mod mux;
 pub mod nav;
 pub mod observer;
+pub mod params;
 pub mod recorder;
 pub mod sim;
 pub mod sink;
 pub mod teleop;
 
-use armor_module_api::Node;
-
 /// The error a module body returns when it refuses its configuration.
 pub type BodyError = Box<dyn std::error::Error + Send + Sync>;
-
-/// Reads an integer parameter that must be at least `min`, refusing anything else in words.
-fn int_at_least(node: &Node, name: &str, min: i64, meaning: &str) -> Result<u64, BodyError> {
-    let value: i64 = node.param(name)?;
-    if value < min {
-        return Err(format!("parameter `{name}` must be {meaning}, not {value}").into());
-    }
-    // `min` is never negative here, so neither is `value`.
-    Ok(value.unsigned_abs())
-}

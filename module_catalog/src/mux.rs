@@ -18,7 +18,8 @@ use armor_module_api::types::Twist;
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
-use crate::nav::{float_param, sanitized};
+use crate::nav::sanitized;
+use crate::params::{FloatRange, float_in};
 
 pub const TYPE: &str = "mux";
 
@@ -136,12 +137,11 @@ pub struct Settings {
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
         Ok(Self {
-            fresh_secs: float_param(node, "fresh_secs", |value| value > 0.0, "greater than 0 s")?,
-            rate_hz: float_param(
+            fresh_secs: float_in(node, "fresh_secs", FloatRange::above(0.0, "s"))?,
+            rate_hz: float_in(
                 node,
                 "rate_hz",
-                |value| value > 0.0 && value <= MAX_RATE_HZ,
-                "greater than 0 Hz and at most 1000 Hz",
+                FloatRange::above(0.0, "Hz").at_most(MAX_RATE_HZ),
             )?,
         })
     }

@@ -10,7 +10,8 @@ use armor_module_api::types::{Odometry, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
-use crate::nav::{float_param, wrap_angle};
+use crate::nav::wrap_angle;
+use crate::params::{FloatRange, float_in, float_where};
 
 pub const TYPE: &str = "observer";
 
@@ -104,8 +105,8 @@ pub struct Settings {
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
         Ok(Self {
-            sector_deg: float_param(node, "sector_deg", |value| value > 0.0, "greater than 0")?,
-            turn_radps: float_param(node, "turn_radps", |value| value != 0.0, "non-zero")?,
+            sector_deg: float_in(node, "sector_deg", FloatRange::above(0.0, "°"))?,
+            turn_radps: float_where(node, "turn_radps", |value| value != 0.0, "non-zero")?,
         })
     }
 }

@@ -35,6 +35,7 @@ use serde::de::DeserializeOwned;
 use serde_json::json;
 
 use crate::BodyError;
+use crate::params::{FloatRange, float_in};
 
 pub const TYPE: &str = "recorder";
 /// Channel metadata key naming the ArMoR data type of a channel's messages.
@@ -58,7 +59,7 @@ pub fn spec() -> ModuleSpec {
     .param(ParamSpec::new(
         "file",
         ParamType::String,
-        "the file to write: written as FILE.partial and renamed into place when recording stops; after a stop, the next start records into NAME-2.EXT, NAME-3.EXT, ...",
+        "the file to write: written as FILE.partial and renamed into place when recording stops; after a stop, the next start records into NAME-2.EXT, NAME-3.EXT, ... (tunable live: a new file is used from the next start, as a mission sets it per place)",
     ))
     .param(
         ParamSpec::new(
@@ -95,7 +96,7 @@ pub fn body(node: &mut Node) -> BodyResult {
 /// The module body, which also ends (saving the file) once `terminate` is set: the binary sets
 /// it on SIGTERM and SIGINT, which would otherwise kill the process with the file unfinished.
 pub fn body_until(node: &mut Node, terminate: &AtomicBool) -> BodyResult {
-    let settings = Settings::from_node(node)?;
+    let mut settings = Settings::from_node(node)?;
     let mut inputs: Vec<(RawInput, String)> = Vec::new();
     for data_name in &settings.record {
         inputs.push((node.subscribe_raw(data_name, true)?, data_name.clone()));
@@ -151,7 +152,31 @@ pub fn body_until(node: &mut Node, terminate: &AtomicBool) -> BodyResult {
                 }
             }
             Event::ParamsChanged(names) => {
-                for name in names.iter().filter(|name| name.as_str() != "report_secs") {
+                // A mission sets `file` per place: the next start records into the new file
+                // (its first segment), while a recording under way goes on in its own.
+                if names
+                    .iter()
+                    .any(|name| name == "file" || name == "compression")
+                {
+                    match Settings::from_node(node) {
+                        Ok(new) => {
+                            if new.file != settings.file {
+                                segments = 0;
+                            }
+                            settings.file = new.file;
+                            settings.compression = new.compression;
+                            tracing::info!(
+                                "from the next start, recording into {}",
+                                settings.file.display()
+                            );
+                        }
+                        Err(err) => tracing::error!("{err}; keeping the previous file"),
+                    }
+                }
+                for name in names
+                    .iter()
+                    .filter(|name| !["report_secs", "file", "compression"].contains(&name.as_str()))
+                {
                     tracing::warn!("a new `{name}` takes effect when the module is restarted");
                 }
                 if names.iter().any(|name| name == "report_secs") {
@@ -234,14 +259,8 @@ impl Settings {
     }
 
     fn report_period(node: &Node) -> Result<Option<Duration>, BodyError> {
-        let secs: f64 = node.param("report_secs")?;
-        match secs {
-            0.0 => Ok(None),
-            secs if secs.is_finite() && secs > 0.0 => Ok(Some(Duration::from_secs_f64(secs))),
-            secs => {
-                Err(format!("parameter `report_secs` must be 0 or more seconds, not {secs}").into())
-            }
-        }
+        let secs = float_in(node, "report_secs", FloatRange::at_least(0.0, "s"))?;
+        Ok((secs > 0.0).then(|| Duration::from_secs_f64(secs)))
     }
 }
 
@@ -918,6 +937,26 @@ mod tests {
             .map(|entry| entry.expect("entry").file_name())
             .collect();
         assert_eq!(left.len(), 2, "no partial file left: {left:?}");
+    }
+
+    #[test]
+    fn a_new_file_is_used_from_the_next_start() {
+        let dir = tempfile::tempdir().expect("dir");
+        let first = dir.path().join("run.mcap");
+        let second = dir.path().join("leg.mcap");
+        let mut bench = bench(&first, &[]);
+        bench.script([
+            push(1),
+            Step::Active(false),
+            Step::param("file", second.to_str().expect("utf-8")),
+            push(2),
+            Step::Active(true),
+            push(3),
+        ]);
+        body(bench.node()).expect("body");
+        assert_eq!(recorded_payloads(&first), [vec![1]]);
+        // The new file's first segment, not `leg-2.mcap`.
+        assert_eq!(recorded_payloads(&second), [vec![3]]);
     }
 
     #[test]

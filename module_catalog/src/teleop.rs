@@ -20,7 +20,7 @@ use armor_module_api::types::Twist;
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
-use crate::nav::float_param;
+use crate::params::{FloatRange, float_in};
 
 pub const TYPE: &str = "teleop";
 
@@ -136,16 +136,10 @@ pub struct Limits {
 
 impl Limits {
     fn read(node: &Node) -> Result<Self, BodyError> {
-        let at_least_zero = |value| value >= 0.0;
         Ok(Self {
-            max_speed_mps: float_param(node, "max_speed_mps", at_least_zero, "0 m/s or more")?,
-            max_turn_radps: float_param(node, "max_turn_radps", at_least_zero, "0 rad/s or more")?,
-            deadman_secs: float_param(
-                node,
-                "deadman_secs",
-                |value| value > 0.0,
-                "greater than 0 s",
-            )?,
+            max_speed_mps: float_in(node, "max_speed_mps", FloatRange::at_least(0.0, "m/s"))?,
+            max_turn_radps: float_in(node, "max_turn_radps", FloatRange::at_least(0.0, "rad/s"))?,
+            deadman_secs: float_in(node, "deadman_secs", FloatRange::above(0.0, "s"))?,
         })
     }
 }

@@ -106,6 +106,52 @@ fn a_bad_world_file_is_refused_with_its_place() {
     assert!(stderr.contains(&expected), "{stderr}");
 }
 
+/// Bad worlds from the issue, each refused by the process with its place and in words: an
+/// open polygon, a robot starting inside an obstacle or outside the boundary, a robot too big
+/// for its start. Never a panic.
+#[test]
+fn bad_worlds_and_starts_are_refused_by_the_process_in_words() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let room = "boundary 0,0 10,0 10,10 0,10 0,0\nobstacle 4,4 6,4 6,6 4,6 4,4\n";
+    for (name, text, params, expected) in [
+        (
+            "open",
+            "name open\norigin 0 0\nstart 2 2 0\nboundary 0,0 10,0 10,10 0,10\n".to_owned(),
+            vec![],
+            ":4:25: the boundary is not closed: it starts at (0, 0) but ends at (0, 10)",
+        ),
+        (
+            "inside",
+            format!("name inside\norigin 0 0\nstart 5 5 0\n{room}"),
+            vec![],
+            ":3:7: the start pose (5, 5) is inside the obstacle on line 5",
+        ),
+        (
+            "outside",
+            format!("name outside\norigin 0 0\nstart 12 5 0\n{room}"),
+            vec![],
+            ":3:7: the start pose (12, 5) is outside the boundary (line 4)",
+        ),
+        (
+            "touching",
+            format!("name touching\norigin 0 0\nstart 3.8 5 0\n{room}"),
+            vec!["robot_radius_m=0.5".to_owned()],
+            ":3:7: the robot (radius 0.5 m) at the start pose (3.8, 5) overlaps the obstacle on line 5",
+        ),
+    ] {
+        let path = dir.path().join(format!("{name}.world"));
+        std::fs::write(&path, text).expect("write");
+        let mut args = vec![format!("world={}", path.display())];
+        args.extend(params);
+        let output = run_standalone(&args);
+        assert!(!output.status.success(), "{name}: {:?}", output.status);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        let expected = format!("{}{expected}", path.display());
+        assert!(stderr.contains(&expected), "{name}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+    }
+}
+
 #[test]
 fn a_missing_world_file_is_refused() {
     let output = run_standalone(&["world=no/such/place.world".to_owned()]);

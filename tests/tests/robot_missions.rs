@@ -90,6 +90,27 @@ impl Finished {
         self.lines.iter().any(|line| pred(line))
     }
 
+    /// The one leg ended in `aborted_leg` because the follower was blocked, the robot having
+    /// touched nothing.
+    fn assert_aborted_without_a_collision(&self) {
+        assert_eq!(self.fired_names(), ["blocked_1"]);
+        assert_eq!(
+            self.final_marking(),
+            serde_json::json!({ "aborted_leg": 1 })
+        );
+        assert!(
+            self.any_line(|line| line.starts_with("[follower]")
+                && line.contains("no progress towards the goal")),
+            "{}",
+            self.lines.join("\n")
+        );
+        assert!(
+            !self.any_line(|line| line.contains("event sim.collision")),
+            "the robot hit something:\n{}",
+            self.lines.join("\n")
+        );
+    }
+
     /// The robot never touched anything, and the follower never gave up on a leg.
     fn assert_clean(&self) {
         let bad: Vec<&String> = self
@@ -180,9 +201,58 @@ fn the_field_mission_crosses_the_clutter_clean() {
     run.assert_clean();
 }
 
+/// Two legs in a row to the same goal: the second must end with its own `goal_reached`. The
+/// follower is active in both places and its goal does not change, so nothing would tell it that
+/// a new leg began: the controller starts the modules of a place entered afresh.
+#[test]
+fn two_legs_in_a_row_to_the_same_goal_both_arrive() {
+    let system = robot_mission("system.xml");
+    let leg = |name: &str, tokens: u32| {
+        format!(
+            r#"<place name="{name}" tokens="{tokens}">
+    <module name="follower"/>
+    <module name="avoider"/>
+    <param module="follower" name="goal_x_m" value="6"/>
+    <param module="follower" name="goal_y_m" value="4"/>
+  </place>"#
+        )
+    };
+    let mission = format!(
+        r#"<mission name="same-goal-twice" system="{}">
+  {}
+  {}
+  <place name="done" final="true"/>
+  <transition name="arrived_1" event="follower.goal_reached">
+    <input place="leg_1"/>
+    <output place="leg_2"/>
+  </transition>
+  <transition name="arrived_2" event="follower.goal_reached">
+    <input place="leg_2"/>
+    <output place="done"/>
+  </transition>
+</mission>"#,
+        system.display(),
+        leg("leg_1", 1),
+        leg("leg_2", 0)
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("same-goal.xml");
+    std::fs::write(&file, mission).unwrap();
+    let run = run_mission(&file);
+    assert_eq!(run.fired_names(), ["arrived_1", "arrived_2"]);
+    assert_eq!(run.final_marking(), serde_json::json!({ "done": 1 }));
+    run.assert_clean();
+}
+
 /// A one-leg yard mission whose goal lies inside the shipping container (18..30 × 8..10.4), with
 /// or without a way out when the follower reports `blocked`.
 fn into_the_container(handled: bool) -> String {
+    one_leg("into-the-container", (24.0, 9.2), handled)
+}
+
+/// A one-leg yard mission named `name` to `goal`, with or without a way out when the follower
+/// reports `blocked`.
+fn one_leg(name: &str, (goal_x_m, goal_y_m): (f64, f64), handled: bool) -> String {
     let system = robot_mission("system.xml");
     let contingency = if handled {
         r#"
@@ -195,12 +265,12 @@ fn into_the_container(handled: bool) -> String {
         ""
     };
     format!(
-        r#"<mission name="into-the-container" system="{}">
+        r#"<mission name="{name}" system="{}">
   <place name="leg_1" tokens="1">
     <module name="follower"/>
     <module name="avoider"/>
-    <param module="follower" name="goal_x_m" value="24"/>
-    <param module="follower" name="goal_y_m" value="9.2"/>
+    <param module="follower" name="goal_x_m" value="{goal_x_m}"/>
+    <param module="follower" name="goal_y_m" value="{goal_y_m}"/>
   </place>
   <place name="done" final="true"/>
   <transition name="arrived_1" event="follower.goal_reached">
@@ -241,23 +311,10 @@ fn a_goal_inside_an_obstacle_ends_the_mission_in_its_contingency() {
 
     let stuck = armor_run(&unhandled, &dir.path().join("unhandled.json"));
     let run = run_mission(&handled);
-    assert_eq!(run.fired_names(), ["blocked_1"]);
-    assert_eq!(run.final_marking(), serde_json::json!({ "aborted_leg": 1 }));
+    run.assert_aborted_without_a_collision();
     assert!(
         run.any_line(|line| line.contains("mission `into-the-container` complete: {aborted_leg}")),
         "{}",
-        run.lines.join("\n")
-    );
-    assert!(
-        run.any_line(
-            |line| line.starts_with("[follower]") && line.contains("no progress towards the goal")
-        ),
-        "{}",
-        run.lines.join("\n")
-    );
-    assert!(
-        !run.any_line(|line| line.contains("event sim.collision")),
-        "the avoider let the robot hit the container:\n{}",
         run.lines.join("\n")
     );
 
@@ -281,4 +338,15 @@ fn a_goal_inside_an_obstacle_ends_the_mission_in_its_contingency() {
     assert!(status.contains("\"leg_1\": 1"), "{status}");
     assert!(process_alive(stuck.pid()), "{}", stuck.lines().join("\n"));
     assert!(!stuck.lines().iter().any(|line| line.contains("fired")));
+}
+
+/// A goal outside the world (the yard is 40 m × 30 m): the robot drives east until the avoider
+/// has slowed it to a halt in front of the boundary, never touching it nor leaving the world,
+/// and the follower reports `blocked`, which ends the mission in its contingency.
+#[test]
+fn a_goal_outside_the_world_ends_in_the_contingency_without_a_collision() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = dir.path().join("outside.xml");
+    std::fs::write(&mission, one_leg("beyond-the-fence", (60.0, 2.0), true)).unwrap();
+    run_mission(&mission).assert_aborted_without_a_collision();
 }

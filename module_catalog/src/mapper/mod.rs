@@ -31,7 +31,8 @@ use armor_module_api::types::{LaserScan, OccupancyGrid, Odometry, Pose2D};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
-use crate::nav::{float_param, wrap_angle};
+use crate::nav::wrap_angle;
+use crate::params::{FloatRange, float_in};
 use grid::LogOddsGrid;
 use matcher::{Matcher, SearchWindow};
 
@@ -164,31 +165,27 @@ impl Settings {
     /// Reads and checks the parameters, refusing nonsense in words.
     pub fn read(node: &Node) -> Result<Self, BodyError> {
         let settings = Self {
-            resolution_m: float_param(node, "resolution_m", |v| v > 0.0, "greater than 0 m")?,
-            size_m: float_param(node, "size_m", |v| v > 0.0, "greater than 0 m")?,
-            match_search_m: float_param(
+            resolution_m: float_in(node, "resolution_m", FloatRange::above(0.0, "m"))?,
+            size_m: float_in(node, "size_m", FloatRange::above(0.0, "m"))?,
+            match_search_m: float_in(
                 node,
                 "match_search_m",
-                |v| (0.0..=2.0).contains(&v),
-                "between 0 m and 2 m",
+                FloatRange::at_least(0.0, "m").at_most(2.0),
             )?,
-            match_search_deg: float_param(
+            match_search_deg: float_in(
                 node,
                 "match_search_deg",
-                |v| (0.0..=45.0).contains(&v),
-                "between 0° and 45°",
+                FloatRange::at_least(0.0, "°").at_most(45.0),
             )?,
-            max_range_m: float_param(
+            max_range_m: float_in(
                 node,
                 "max_range_m",
-                |v| v > 0.0 && v <= 100.0,
-                "greater than 0 m and at most 100 m",
+                FloatRange::above(0.0, "m").at_most(100.0),
             )?,
-            map_rate_hz: float_param(
+            map_rate_hz: float_in(
                 node,
                 "map_rate_hz",
-                |v| v > 0.0 && v <= 100.0,
-                "greater than 0 Hz and at most 100 Hz",
+                FloatRange::above(0.0, "Hz").at_most(100.0),
             )?,
         };
         settings.check_grid()?;
@@ -335,23 +332,7 @@ impl Mapper {
     /// corrected pose. Refuses a scan whose geometry is not finite.
     pub fn on_scan(&mut self, scan: &LaserScan, odometry: Pose2D) -> Result<Pose2D, String> {
         let started = Instant::now();
-        let finite = [
-            scan.angle_min_rad,
-            scan.angle_increment_rad,
-            scan.range_max_m,
-            odometry.x_m,
-            odometry.y_m,
-            odometry.theta_rad,
-        ]
-        .iter()
-        .all(|v| v.is_finite());
-        if !finite {
-            return Err(format!(
-                "ignored a scan or odometry that is not finite (angle_min_rad {}, \
-                 angle_increment_rad {}, range_max_m {}, odometry {odometry:?})",
-                scan.angle_min_rad, scan.angle_increment_rad, scan.range_max_m
-            ));
-        }
+        check_finite(scan, odometry)?;
         self.read_beams(scan);
         let pose = match self.last {
             None => odometry,
@@ -363,6 +344,25 @@ impl Mapper {
                 self.corrected(predicted)
             }
         };
+        self.integrate_at(pose)?;
+        self.last = Some((pose, Some(odometry)));
+        self.stats.scans += 1;
+        self.stats.busy_secs += started.elapsed().as_secs_f64();
+        Ok(pose)
+    }
+
+    /// Integrates a scan taken at a known `pose` in the map frame, without matching: the grid
+    /// update alone (a map from the true pose; the reference of `armor-bench mapper_scan_ms`).
+    /// The pose and statistics of [`Mapper::on_scan`] are left alone.
+    pub fn place_scan(&mut self, scan: &LaserScan, pose: Pose2D) -> Result<(), String> {
+        check_finite(scan, pose)?;
+        self.read_beams(scan);
+        self.integrate_at(pose)
+    }
+
+    /// Puts the beams read last into the grid from `pose` (making the grid, centred there, at
+    /// the first scan).
+    fn integrate_at(&mut self, pose: Pose2D) -> Result<(), String> {
         let grid = match &mut self.grid {
             Some(grid) => grid,
             None => self.grid.insert(LogOddsGrid::centred(
@@ -373,10 +373,7 @@ impl Mapper {
             )?),
         };
         grid.integrate(pose, self.beams.iter().copied());
-        self.last = Some((pose, Some(odometry)));
-        self.stats.scans += 1;
-        self.stats.busy_secs += started.elapsed().as_secs_f64();
-        Ok(pose)
+        Ok(())
     }
 
     /// The scan's beams as (angle, length, ends on an echo), lengths cut to `max_range_m`, and
@@ -428,6 +425,29 @@ impl Mapper {
             }
             _ => predicted,
         }
+    }
+}
+
+/// Refuses a scan whose geometry, or a pose, that is not finite.
+fn check_finite(scan: &LaserScan, pose: Pose2D) -> Result<(), String> {
+    let finite = [
+        scan.angle_min_rad,
+        scan.angle_increment_rad,
+        scan.range_max_m,
+        pose.x_m,
+        pose.y_m,
+        pose.theta_rad,
+    ]
+    .iter()
+    .all(|v| v.is_finite());
+    if finite {
+        Ok(())
+    } else {
+        Err(format!(
+            "ignored a scan or odometry that is not finite (angle_min_rad {}, \
+             angle_increment_rad {}, range_max_m {}, odometry {pose:?})",
+            scan.angle_min_rad, scan.angle_increment_rad, scan.range_max_m
+        ))
     }
 }
 

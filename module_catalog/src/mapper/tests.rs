@@ -1,6 +1,7 @@
 use std::path::Path;
 
 use super::*;
+use crate::sim::tour::{BUILDING_LOOP, Tour};
 use crate::sim::world::World;
 use crate::sim::{SimParams, Simulator};
 use armor_module_api::testing::{Step, TestBench};
@@ -83,6 +84,22 @@ fn the_first_scan_sets_the_map_frame_and_the_grid_centre() {
     );
     assert_eq!(cell(20.0, 20.0), -1, "out of reach");
     assert_eq!(cell(7.05, 1.05), -1, "behind the wall");
+}
+
+#[test]
+fn a_placed_scan_updates_the_grid_as_a_matched_one_would() {
+    // The first scan is never matched: placing it at the same pose gives the same map.
+    let mut sim = Simulator::new(room(), SimParams::default()).expect("fits");
+    sim.step();
+    let at = pose(3.0, 3.0, 0.0);
+    let mut matched = Mapper::new(Settings::default()).expect("settings");
+    let mut placed = Mapper::new(Settings::default()).expect("settings");
+    matched.on_scan(sim.scan(), at).expect("scan");
+    placed.place_scan(sim.scan(), at).expect("scan");
+    assert_eq!(placed.occupancy_grid(), matched.occupancy_grid());
+    assert_eq!((placed.pose(), placed.stats().scans), (None, 0));
+    let bad = pose(f64::NAN, 0.0, 0.0);
+    assert!(placed.place_scan(sim.scan(), bad).is_err());
 }
 
 #[test]
@@ -230,45 +247,6 @@ fn refuses_bad_parameters() {
     assert!(err.contains("100000 cells a side (1 to 4000)"), "{err}");
 }
 
-/// Waypoints of a loop through the office floor (`building.world`): east along the corridor,
-/// round the middle north room, round the middle south room past the meeting table, and back
-/// west along the corridor to the start.
-const BUILDING_LOOP: &[(f64, f64)] = &[
-    (14.7, 9.5),
-    (14.7, 13.0),
-    (12.0, 13.0),
-    (12.0, 18.5),
-    (18.0, 18.5),
-    (18.0, 13.0),
-    (14.7, 13.0),
-    (14.7, 9.5),
-    (19.7, 9.5),
-    (19.7, 6.0),
-    (17.0, 6.0),
-    (17.0, 1.0),
-    (23.0, 1.0),
-    (23.0, 5.5),
-    (19.7, 5.5),
-    (19.7, 9.5),
-    (2.5, 9.5),
-];
-
-/// A command towards a waypoint from the true pose: turn on the spot when far off course.
-fn steer(truth: Pose2D, (x, y): (f64, f64)) -> Twist {
-    let heading = (y - truth.y_m).atan2(x - truth.x_m);
-    let error = wrap_angle(heading - truth.theta_rad);
-    let angular_radps = (2.0 * error).clamp(-1.2, 1.2);
-    let linear_mps = if error.abs() > 0.4 {
-        0.0
-    } else {
-        (0.8 * (1.0 - error.abs() / 0.4)).max(0.2)
-    };
-    Twist {
-        linear_mps,
-        angular_radps,
-    }
-}
-
 /// The intersection over union of the occupied cells (over 50 %) of the mapper's grid and the
 /// true one, whose cells are aligned at the same resolution; and the same over the cells the
 /// mapper has observed only.
@@ -315,7 +293,7 @@ struct LoopRun {
 
 fn drive_the_building_loop(seed: u64, odometry_noise_scale: f64) -> LoopRun {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/worlds/building.world");
-    let world = World::load(path).expect("the building");
+    let world = crate::sim::load_world_file(path.as_ref()).expect("the building");
     let truth_grid = world.occupancy_grid(0.1).expect("grid");
     let defaults = SimParams::default();
     let noise = defaults.odom_noise;
@@ -330,31 +308,17 @@ fn drive_the_building_loop(seed: u64, odometry_noise_scale: f64) -> LoopRun {
     };
     let mut sim = Simulator::new(world, params).expect("fits");
     let mut mapper = Mapper::new(Settings::default()).expect("settings");
-    let mut waypoints = BUILDING_LOOP.iter();
-    let mut target = waypoints.next().copied();
+    let mut tour = Tour::new(BUILDING_LOOP, 20_000);
     // At the last scan: the corrected pose, the odometry and the truth.
     let (mut corrected, mut odometry, mut truth_at_scan) = (sim.truth(), sim.truth(), sim.truth());
     let mut max_mapper_error_m = 0.0_f64;
-    let mut travelled_m = 0.0;
-    let mut steps = 0;
-    while let Some(goal) = target {
-        let truth = sim.truth();
-        if (goal.0 - truth.x_m).hypot(goal.1 - truth.y_m) < 0.15 {
-            target = waypoints.next().copied();
-            continue;
-        }
-        let _ = sim.command(steer(truth, goal));
-        let report = sim.step();
-        travelled_m += distance(truth, report.truth);
-        if report.scanned {
-            odometry = report.odometry.pose_in_odom;
-            truth_at_scan = report.truth;
-            corrected = mapper.on_scan(sim.scan(), odometry).expect("scan");
-            max_mapper_error_m = max_mapper_error_m.max(distance(corrected, report.truth));
-        }
-        steps += 1;
-        assert!(steps < 20_000, "the robot got stuck at {:?}", sim.truth());
+    while let Some(report) = tour.next_scan(&mut sim) {
+        odometry = report.odometry.pose_in_odom;
+        truth_at_scan = report.truth;
+        corrected = mapper.on_scan(sim.scan(), odometry).expect("scan");
+        max_mapper_error_m = max_mapper_error_m.max(distance(corrected, report.truth));
     }
+    assert!(tour.finished(), "the robot got stuck at {:?}", sim.truth());
     assert_eq!(sim.collisions(), 0);
     let map = mapper.occupancy_grid().expect("a map");
     let (iou, known_iou) = occupied_iou(&map, &truth_grid);
@@ -365,7 +329,7 @@ fn drive_the_building_loop(seed: u64, odometry_noise_scale: f64) -> LoopRun {
         iou,
         known_iou,
         stats: mapper.stats(),
-        travelled_m,
+        travelled_m: tour.travelled_m(),
     }
 }
 

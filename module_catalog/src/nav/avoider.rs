@@ -16,8 +16,9 @@ use std::f64::consts::FRAC_PI_2;
 use armor_module_api::types::{LaserScan, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
-use super::{finite_or_zero, float_param, sanitized, wrap_angle};
+use super::{finite_or_zero, sanitized, wrap_angle};
 use crate::BodyError;
+use crate::params::{FloatRange, float_in, float_where};
 
 pub const TYPE: &str = "avoider";
 
@@ -39,6 +40,10 @@ const FULL_STEERING_MPS: f64 = 0.2;
 /// The resulting direction keeps at least this forward component (or the desired one, if
 /// smaller): obstacles ahead on both sides slow the robot down instead of turning it round.
 const MIN_FORWARD: f64 = 0.2;
+/// A stop counts as released only once the way it held back is this much clearer than
+/// `stop_m`. Range noise and a desired command that alternates between turning on the spot
+/// and moving on would otherwise engage and release it at every scan.
+pub const RELEASE_MARGIN_M: f64 = 0.1;
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
@@ -103,7 +108,8 @@ pub fn spec() -> ModuleSpec {
     .event(
         "safety_stop",
         "the stop engaged: an obstacle closer than stop_m in the robot's path, or scans stopped \
-         coming (once each time it engages)",
+         coming or became unusable (once per stop: it releases when that way is 0.1 m clearer \
+         than stop_m, or usable scans come again)",
     )
 }
 
@@ -150,7 +156,7 @@ pub fn body(node: &mut Node) -> BodyResult {
             }
             Event::Start => {
                 tracing::info!("active");
-                avoider.stop_engaged = false;
+                avoider.stops = Stops::default();
                 next_tick = node.timestamp() + TICK_SECS;
             }
             Event::Stop => {
@@ -178,22 +184,17 @@ pub struct Settings {
 
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
-        let stop_m = float_param(node, "stop_m", |value| value > 0.0, "greater than 0 m")?;
+        let stop_m = float_in(node, "stop_m", FloatRange::above(0.0, "m"))?;
         Ok(Self {
-            influence_m: float_param(
+            influence_m: float_where(
                 node,
                 "influence_m",
                 |value| value > stop_m,
                 &format!("greater than stop_m ({stop_m} m)"),
             )?,
             stop_m,
-            gain: float_param(node, "gain", |value| value >= 0.0, "0 or more")?,
-            robot_radius_m: float_param(
-                node,
-                "robot_radius_m",
-                |value| value >= 0.0,
-                "0 m or more",
-            )?,
+            gain: float_in(node, "gain", FloatRange::at_least(0.0, ""))?,
+            robot_radius_m: float_in(node, "robot_radius_m", FloatRange::at_least(0.0, "m"))?,
         })
     }
 }
@@ -205,6 +206,38 @@ struct Output {
     report: Option<&'static str>,
 }
 
+/// Which stops are engaged. Each is reported when it engages and releases with hysteresis
+/// (see [`Stops::track`]), so that one obstacle gives one `safety_stop`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Stops {
+    /// An obstacle in the robot's path ahead held forward motion back.
+    ahead: bool,
+    /// ... behind, backward motion.
+    behind: bool,
+    /// No fresh, usable scan: everything held back.
+    blind: bool,
+}
+
+impl Stops {
+    /// Updates the stops with one decision; `safety_stop` if one engaged.
+    fn track(&mut self, settings: &Settings, decision: &Decision) -> Option<&'static str> {
+        let was = *self;
+        match decision.clearance_m {
+            None => self.blind = decision.stopped,
+            Some((ahead_m, behind_m)) => {
+                let release_m = settings.stop_m + RELEASE_MARGIN_M;
+                self.blind = false;
+                self.ahead = decision.held_ahead || (self.ahead && ahead_m < release_m);
+                self.behind = decision.held_behind || (self.behind && behind_m < release_m);
+            }
+        }
+        let engaged = (self.ahead && !was.ahead)
+            || (self.behind && !was.behind)
+            || (self.blind && !was.blind);
+        engaged.then_some("safety_stop")
+    }
+}
+
 /// The latest inputs and the state of the stop, on run time.
 #[derive(Clone, Debug)]
 struct Avoider {
@@ -212,8 +245,7 @@ struct Avoider {
     scan: Option<(LaserScan, f64)>,
     /// When the latest desired command arrived.
     desired_at: Option<f64>,
-    /// The stop is engaged (reported once until it releases).
-    stop_engaged: bool,
+    stops: Stops,
     /// A zero command was published because an input went stale.
     stale_published: bool,
 }
@@ -224,7 +256,7 @@ impl Avoider {
             settings,
             scan: None,
             desired_at: None,
-            stop_engaged: false,
+            stops: Stops::default(),
             stale_published: false,
         }
     }
@@ -242,21 +274,25 @@ impl Avoider {
     fn on_desired(&mut self, desired: Twist, now: f64) -> Output {
         self.desired_at = Some(now);
         self.stale_published = false;
-        let (twist, stopped) = match &self.scan {
-            Some((scan, _)) if self.scan_is_fresh(now) => {
-                let decision = avoid(&self.settings, scan, desired);
-                (decision.twist, decision.stopped)
-            }
+        let decision = match &self.scan {
+            Some((scan, _)) if self.scan_is_fresh(now) => avoid(&self.settings, scan, desired),
             Some(_) => {
-                tracing::warn!("no scan for {STALE_SECS} s: stopping");
-                (Twist::default(), true)
+                if !self.stops.blind {
+                    tracing::warn!("no scan for {STALE_SECS} s: stopping");
+                }
+                Decision::blind()
             }
             // Waiting for a first scan is no safety event.
-            None => (Twist::default(), false),
+            None => {
+                return Output {
+                    twist: Twist::default(),
+                    report: None,
+                };
+            }
         };
         Output {
-            twist,
-            report: self.engage(stopped),
+            twist: decision.twist,
+            report: self.stops.track(&self.settings, &decision),
         }
     }
 
@@ -272,20 +308,18 @@ impl Avoider {
             return None;
         }
         self.stale_published = true;
-        if scan_lost {
-            tracing::warn!("no scan for {STALE_SECS} s: stopping");
-        }
+        let report = if scan_lost {
+            if !self.stops.blind {
+                tracing::warn!("no scan for {STALE_SECS} s: stopping");
+            }
+            self.stops.track(&self.settings, &Decision::blind())
+        } else {
+            None
+        };
         Some(Output {
             twist: Twist::default(),
-            report: self.engage(scan_lost),
+            report,
         })
-    }
-
-    /// Tracks the stop; `safety_stop` when it engages.
-    fn engage(&mut self, stopped: bool) -> Option<&'static str> {
-        let engages = stopped && !self.stop_engaged;
-        self.stop_engaged = stopped;
-        engages.then_some("safety_stop")
     }
 }
 
@@ -293,7 +327,25 @@ impl Avoider {
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Decision {
     twist: Twist,
+    /// The stop held some motion back (either way, or for want of a usable scan).
     stopped: bool,
+    held_ahead: bool,
+    held_behind: bool,
+    /// The clearance in the robot's path ahead and behind, if the scan was usable.
+    clearance_m: Option<(f64, f64)>,
+}
+
+impl Decision {
+    /// Nothing usable to go by: stop.
+    fn blind() -> Self {
+        Self {
+            twist: Twist::default(),
+            stopped: true,
+            held_ahead: false,
+            held_behind: false,
+            clearance_m: None,
+        }
+    }
 }
 
 /// What the scan says around the robot.
@@ -351,10 +403,7 @@ fn survey(settings: &Settings, scan: &LaserScan) -> Option<Surroundings> {
 fn avoid(settings: &Settings, scan: &LaserScan, desired: Twist) -> Decision {
     let desired = sanitized(desired);
     let Some(around) = survey(settings, scan) else {
-        return Decision {
-            twist: Twist::default(),
-            stopped: true,
-        };
+        return Decision::blind();
     };
     let (linear, angular) = (desired.linear_mps, desired.angular_radps);
     let twist = if linear > 0.0 {
@@ -384,8 +433,9 @@ fn avoid(settings: &Settings, scan: &LaserScan, desired: Twist) -> Decision {
     } else {
         desired
     };
-    let stopped = (linear > 0.0 && around.clearance_ahead_m < settings.stop_m)
-        || (linear < 0.0 && around.clearance_behind_m < settings.stop_m);
+    let held_ahead = linear > 0.0 && around.clearance_ahead_m < settings.stop_m;
+    let held_behind = linear < 0.0 && around.clearance_behind_m < settings.stop_m;
+    let stopped = held_ahead || held_behind;
     let twist = Twist {
         linear_mps: if stopped {
             0.0
@@ -394,7 +444,13 @@ fn avoid(settings: &Settings, scan: &LaserScan, desired: Twist) -> Decision {
         },
         angular_radps: finite_or_zero(twist.angular_radps),
     };
-    Decision { twist, stopped }
+    Decision {
+        twist,
+        stopped,
+        held_ahead,
+        held_behind,
+        clearance_m: Some((around.clearance_ahead_m, around.clearance_behind_m)),
+    }
 }
 
 #[cfg(test)]
@@ -596,6 +652,62 @@ mod tests {
         );
         assert_eq!(sent[5].linear_mps, 0.0);
         assert_eq!(bench.reported(), ["safety_stop", "safety_stop"]);
+    }
+
+    #[test]
+    fn one_safety_stop_per_stop_despite_noise_and_turns() {
+        // Held in front of a wall whose range reads either side of stop_m, with the follower
+        // alternating between turning on the spot and moving on: one stop, not one per scan.
+        let mut script = Vec::new();
+        for round in 0..50 {
+            let range_m = if round % 2 == 0 { 0.34 } else { 0.37 };
+            script.push(scan_step(&scan_with_obstacle(0.0, 30.0, range_m)));
+            script.push(desired(0.5, 0.0));
+            script.push(desired(0.0, 0.8));
+        }
+        // The way clears by more than the margin, then the wall is back: a second stop.
+        script.push(scan_step(&scan_with_obstacle(0.0, 30.0, 0.5)));
+        script.push(desired(0.5, 0.0));
+        script.push(scan_step(&scan_with_obstacle(0.0, 30.0, 0.3)));
+        script.push(desired(0.5, 0.0));
+        let bench = run(script);
+        assert_eq!(bench.reported(), ["safety_stop", "safety_stop"]);
+        let sent = sent(&bench);
+        assert_eq!(sent[0].linear_mps, 0.0, "{sent:?}");
+        assert!(sent[sent.len() - 2].linear_mps > 0.0, "released: {sent:?}");
+        assert_eq!(sent[sent.len() - 1].linear_mps, 0.0);
+    }
+
+    #[test]
+    fn stops_ahead_behind_and_blind_are_each_reported_once() {
+        let mut stops = Stops::default();
+        let settings = settings();
+        let decide = |range_deg: f64, range_m: f32, linear_mps: f64| {
+            avoid(
+                &settings,
+                &scan_with_obstacle(range_deg, 30.0, range_m),
+                twist(linear_mps, 0.0),
+            )
+        };
+        assert_eq!(
+            stops.track(&settings, &decide(0.0, 0.3, 0.5)),
+            Some("safety_stop")
+        );
+        assert_eq!(stops.track(&settings, &decide(0.0, 0.3, 0.0)), None);
+        assert_eq!(stops.track(&settings, &decide(0.0, 0.4, 0.5)), None);
+        assert!(stops.ahead, "within the release margin");
+        assert_eq!(
+            stops.track(&settings, &decide(180.0, 0.3, -0.5)),
+            Some("safety_stop"),
+            "a stop behind is another stop"
+        );
+        assert_eq!(
+            stops.track(&settings, &Decision::blind()),
+            Some("safety_stop")
+        );
+        assert_eq!(stops.track(&settings, &Decision::blind()), None);
+        assert_eq!(stops.track(&settings, &decide(0.0, 8.0, 0.5)), None);
+        assert_eq!(stops, Stops::default(), "all clear");
     }
 
     #[test]

@@ -5,14 +5,24 @@
 //! error grows (nothing beyond 90°, so the robot turns first when the goal is behind it) and as
 //! the goal gets close. Within `tolerance_m` of the goal it commands zero and reports
 //! `goal_reached`, once per goal: a new goal (a live change of `goal_x_m` or `goal_y_m`, as the
-//! mission sets each leg) or a new activation re-arms it. When the distance to the goal has not
-//! shrunk for `blocked_after_secs` of run time it reports `blocked`, once until progress resumes.
+//! mission sets each leg) or a new activation re-arms it (the mission controller starts the
+//! follower afresh at each leg, even when the goal is the previous leg's). When the distance to
+//! the goal has not shrunk for `blocked_after_secs` of run time since the first pose after a
+//! (re)start, it reports `blocked`, once until progress resumes.
+//!
+//! Areas given in `no_go` (as a mission compiled from a plan gives them) are kept out of: at
+//! every pose the follower takes the shortest way round them to the goal
+//! ([`armor_model::geo::route`], [`CLEARANCE_M`] away from them) and heads for its first corner.
+//! With no way round it stops, and `blocked` follows.
 
+use armor_model::geo::{self, Polygon};
+use armor_model::world::Point;
 use armor_module_api::types::{Odometry, Pose2D, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
-use super::{float_param, wrap_angle};
+use super::wrap_angle;
 use crate::BodyError;
+use crate::params::{FloatRange, float_in};
 
 pub const TYPE: &str = "follower";
 
@@ -24,6 +34,8 @@ const PROGRESS_M: f64 = 0.05;
 const TURN_GAIN: f64 = 2.0;
 /// Closer than this to the goal, the forward speed drops in proportion to the distance.
 const SLOW_DOWN_M: f64 = 1.0;
+/// How far the way round a no-go area keeps from it (what plans are compiled with).
+pub const CLEARANCE_M: f64 = armor_model::plan::CLEARANCE_M;
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
@@ -95,6 +107,16 @@ pub fn spec() -> ModuleSpec {
         .unit("s")
         .default("10"),
     )
+    .param(
+        ParamSpec::new(
+            "no_go",
+            ParamType::String,
+            "areas to keep out of, in the frame of the odometry pose: polygons `X,Y X,Y X,Y` in \
+             metres separated by `;` (a plan's no-go areas); the follower drives round them, \
+             1 m away, and stops when there is no way round (tunable live)",
+        )
+        .default(""),
+    )
     .event(
         "goal_reached",
         "the robot is within tolerance_m of the goal (once per goal or activation)",
@@ -109,7 +131,12 @@ pub fn body(node: &mut Node) -> BodyResult {
     let odometry = node.input::<Odometry>("odometry")?;
     let output = node.output::<Twist>("cmd_desired")?;
     let settings = Settings::read(node)?;
-    tracing::info!("goal ({}, {})", settings.goal_x_m, settings.goal_y_m);
+    tracing::info!(
+        "goal ({}, {}), {} no-go area(s)",
+        settings.goal_x_m,
+        settings.goal_y_m,
+        settings.no_go.len()
+    );
     let mut follower = Follower::new(settings, node.timestamp());
     let mut next_tick = node.timestamp() + TICK_SECS;
     loop {
@@ -159,7 +186,7 @@ pub fn body(node: &mut Node) -> BodyResult {
 }
 
 /// The follower's parameters.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
     pub goal_x_m: f64,
     pub goal_y_m: f64,
@@ -167,24 +194,24 @@ pub struct Settings {
     pub max_speed_mps: f64,
     pub max_turn_radps: f64,
     pub blocked_after_secs: f64,
+    pub no_go: Vec<Polygon>,
 }
 
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
-        let any = |_| true;
-        let positive = |value| value > 0.0;
         Ok(Self {
-            goal_x_m: float_param(node, "goal_x_m", any, "a finite number")?,
-            goal_y_m: float_param(node, "goal_y_m", any, "a finite number")?,
-            tolerance_m: float_param(node, "tolerance_m", positive, "greater than 0 m")?,
-            max_speed_mps: float_param(node, "max_speed_mps", positive, "greater than 0 m/s")?,
-            max_turn_radps: float_param(node, "max_turn_radps", positive, "greater than 0 rad/s")?,
-            blocked_after_secs: float_param(
+            goal_x_m: float_in(node, "goal_x_m", FloatRange::any("m"))?,
+            goal_y_m: float_in(node, "goal_y_m", FloatRange::any("m"))?,
+            tolerance_m: float_in(node, "tolerance_m", FloatRange::above(0.0, "m"))?,
+            max_speed_mps: float_in(node, "max_speed_mps", FloatRange::above(0.0, "m/s"))?,
+            max_turn_radps: float_in(node, "max_turn_radps", FloatRange::above(0.0, "rad/s"))?,
+            blocked_after_secs: float_in(
                 node,
                 "blocked_after_secs",
-                |value| value >= 0.0,
-                "0 s or more",
+                FloatRange::at_least(0.0, "s"),
             )?,
+            no_go: geo::parse_polygons(&node.param::<String>("no_go")?)
+                .map_err(|why| format!("parameter `no_go`: {why}"))?,
         })
     }
 
@@ -225,7 +252,7 @@ impl Follower {
     }
 
     /// A new goal or a new activation: `goal_reached` and `blocked` are re-armed, and progress
-    /// is counted from now.
+    /// is counted from the next pose.
     fn restart(&mut self, now: f64) {
         self.reached = false;
         self.blocked = false;
@@ -244,7 +271,7 @@ impl Follower {
     }
 
     fn on_pose(&mut self, pose: Pose2D, now: f64) -> Control {
-        let Some((twist, distance_m)) = steer(&self.settings, pose) else {
+        let Some((twist, distance_m)) = steer_round(&self.settings, pose) else {
             tracing::warn!("ignoring a non-finite pose {pose:?}");
             return Control {
                 twist: Twist::default(),
@@ -275,9 +302,14 @@ impl Follower {
         Control { twist, report }
     }
 
-    /// Reports `blocked` (once) when there was no progress for long enough.
+    /// Reports `blocked` (once) when there was no progress for long enough. Progress is timed
+    /// from the first pose after a (re)start: without a pose, the follower cannot tell a robot
+    /// that does not move from one whose odometry has not arrived yet (modules link up in any
+    /// order, and at high time scales that takes seconds of run time).
     fn on_tick(&mut self, now: f64) -> Option<&'static str> {
-        if self.reached
+        let has_pose = self.best_distance_m.is_finite();
+        if !has_pose
+            || self.reached
             || self.blocked
             || now - self.last_progress < self.settings.blocked_after_secs
         {
@@ -292,26 +324,45 @@ impl Follower {
     }
 }
 
-/// The command towards the goal from `pose`, and the distance to it (`None` if the pose is not
-/// finite).
-fn steer(settings: &Settings, pose: Pose2D) -> Option<(Twist, f64)> {
-    let dx = settings.goal_x_m - pose.x_m;
-    let dy = settings.goal_y_m - pose.y_m;
-    let distance_m = dx.hypot(dy);
+/// The command from `pose` along the way round the no-go areas, and the straight distance to
+/// the goal (`None` if the pose is not finite). Without a way round, the command is to stop.
+fn steer_round(settings: &Settings, pose: Pose2D) -> Option<(Twist, f64)> {
+    let goal = Point::new(settings.goal_x_m, settings.goal_y_m);
+    let here = Point::new(pose.x_m, pose.y_m);
+    let distance_m = geo::distance(here, goal);
+    if settings.no_go.is_empty() || !distance_m.is_finite() {
+        return steer(settings, pose, goal, distance_m).map(|twist| (twist, distance_m));
+    }
+    match geo::route(here, goal, &settings.no_go, CLEARANCE_M, &[], &|_, _| true) {
+        Some(route) => {
+            let remaining_m = geo::distance(here, route[0]) + geo::path_length(&route);
+            steer(settings, pose, route[0], remaining_m).map(|twist| (twist, distance_m))
+        }
+        None => {
+            tracing::debug!("no way round the no-go areas from {here}");
+            Some((Twist::default(), distance_m))
+        }
+    }
+}
+
+/// The command towards `target` from `pose`, slowing down when `remaining_m` (the way left to
+/// the goal) is short; `None` if the pose is not finite.
+fn steer(settings: &Settings, pose: Pose2D, target: Point, remaining_m: f64) -> Option<Twist> {
+    let dx = target.x - pose.x_m;
+    let dy = target.y - pose.y_m;
     let heading_error = wrap_angle(dy.atan2(dx) - pose.theta_rad);
-    if !distance_m.is_finite() || !heading_error.is_finite() {
+    if !remaining_m.is_finite() || !heading_error.is_finite() {
         return None;
     }
     let angular_radps =
         (TURN_GAIN * heading_error).clamp(-settings.max_turn_radps, settings.max_turn_radps);
     // Full speed when facing the goal, nothing from 90° off (turn on the spot first).
     let facing = heading_error.cos().max(0.0);
-    let near = (distance_m / SLOW_DOWN_M).min(1.0);
-    let twist = Twist {
+    let near = (remaining_m / SLOW_DOWN_M).min(1.0);
+    Some(Twist {
         linear_mps: settings.max_speed_mps * facing * near,
         angular_radps,
-    };
-    Some((twist, distance_m))
+    })
 }
 
 #[cfg(test)]
@@ -319,6 +370,55 @@ mod tests {
     use super::*;
     use armor_module_api::testing::{Step, TestBench};
     use std::f64::consts::PI;
+
+    fn settings_with(no_go: &str) -> Settings {
+        Settings {
+            goal_x_m: 10.0,
+            no_go: geo::parse_polygons(no_go).expect("polygons"),
+            ..settings()
+        }
+    }
+
+    #[test]
+    fn no_go_areas_are_driven_round() {
+        let facing_goal = Pose2D {
+            x_m: 0.0,
+            y_m: 0.0,
+            theta_rad: 0.0,
+        };
+        // Straight on without areas.
+        let (twist, distance) = steer_round(&settings_with(""), facing_goal).expect("finite");
+        assert_eq!(distance, 10.0);
+        assert_eq!(twist.angular_radps, 0.0);
+        assert!(twist.linear_mps > 0.5);
+        // A box across the line, longer to the north: the way round is south, so it turns right.
+        let (twist, distance) =
+            steer_round(&settings_with("4,-2 6,-2 6,3 4,3"), facing_goal).expect("finite");
+        assert_eq!(distance, 10.0);
+        assert!(twist.angular_radps < -0.1, "{twist:?}");
+        // Walled in: no way round, so it stops (and `blocked` will follow).
+        let (twist, _) = steer_round(
+            &settings_with("-3,-3 -2,-3 -2,3 -3,3; 2,-3 3,-3 3,3 2,3; -3,2 3,2 3,3 -3,3; -3,-3 3,-3 3,-2 -3,-2"),
+            facing_goal,
+        )
+        .expect("finite");
+        assert_eq!(twist, Twist::default());
+    }
+
+    #[test]
+    fn bad_no_go_text_is_refused_in_words() {
+        let mut bench = TestBench::new(
+            &spec(),
+            &[("goal_x_m", "2"), ("goal_y_m", "0"), ("no_go", "0,0 1,0")],
+        )
+        .expect("bench");
+        let err = body(bench.node()).expect_err("refused");
+        assert!(
+            err.to_string()
+                .contains("parameter `no_go`: polygon 1 has 2 corners"),
+            "{err}"
+        );
+    }
 
     fn bench(params: &[(&str, &str)]) -> TestBench {
         let mut all = vec![("goal_x_m", "2"), ("goal_y_m", "0")];
@@ -343,6 +443,19 @@ mod tests {
 
     fn sent(bench: &TestBench) -> Vec<Twist> {
         bench.sent::<Twist>("cmd_desired").expect("sent")
+    }
+
+    /// The defaults, with the goal 5 m ahead.
+    fn settings() -> Settings {
+        Settings {
+            goal_x_m: 5.0,
+            goal_y_m: 0.0,
+            tolerance_m: 0.3,
+            max_speed_mps: 0.6,
+            max_turn_radps: 1.2,
+            blocked_after_secs: 10.0,
+            no_go: Vec::new(),
+        }
     }
 
     #[test]
@@ -481,17 +594,37 @@ mod tests {
     }
 
     #[test]
+    fn no_blocked_before_the_first_pose() {
+        // Twice `blocked_after_secs` without odometry (the sim not linked yet): nothing to time.
+        // Then the first pose starts the clock, and only no progress after it counts.
+        for (after_pose_secs, expected) in [(9.0, &[][..]), (10.5, &["blocked"][..])] {
+            let mut bench = bench(&[]);
+            bench.script([
+                Step::Timeouts(1),
+                Step::Advance(20.0),
+                Step::Timeouts(2),
+                at(0.0, 0.0, 0.0),
+                Step::Advance(after_pose_secs),
+                Step::Timeouts(1),
+            ]);
+            body(bench.node()).expect("body");
+            assert_eq!(bench.reported(), expected, "{after_pose_secs} s after");
+        }
+
+        // The same after a restart: progress is timed from the next pose.
+        let mut follower = Follower::new(settings(), 0.0);
+        assert_eq!(follower.on_tick(50.0), None, "no pose yet");
+        assert_eq!(follower.on_pose(Pose2D::default(), 50.0).report, None);
+        assert_eq!(follower.on_tick(59.0), None);
+        assert_eq!(follower.on_tick(60.0), Some("blocked"));
+        follower.restart(70.0);
+        assert_eq!(follower.on_tick(100.0), None, "no pose since the restart");
+    }
+
+    #[test]
     fn blocked_waits_for_blocked_after_secs_of_run_time() {
-        let settings = Settings {
-            goal_x_m: 5.0,
-            goal_y_m: 0.0,
-            tolerance_m: 0.3,
-            max_speed_mps: 0.6,
-            max_turn_radps: 1.2,
-            blocked_after_secs: 10.0,
-        };
         let pose = Pose2D::default();
-        let mut follower = Follower::new(settings, 100.0);
+        let mut follower = Follower::new(settings(), 100.0);
         assert_eq!(follower.on_pose(pose, 100.0).report, None);
         assert_eq!(follower.on_pose(pose, 109.0).report, None);
         assert_eq!(follower.on_tick(109.9), None);

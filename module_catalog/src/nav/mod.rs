@@ -19,10 +19,7 @@
 pub mod avoider;
 pub mod follower;
 
-use armor_module_api::Node;
 use armor_module_api::types::Twist;
-
-use crate::BodyError;
 
 /// An angle brought into [-π, π).
 pub(crate) fn wrap_angle(angle_rad: f64) -> f64 {
@@ -40,21 +37,6 @@ pub(crate) fn sanitized(twist: Twist) -> Twist {
     Twist {
         linear_mps: finite_or_zero(twist.linear_mps),
         angular_radps: finite_or_zero(twist.angular_radps),
-    }
-}
-
-/// Reads a float parameter, refusing it in words unless it is finite and `accept`s it.
-pub(crate) fn float_param(
-    node: &Node,
-    name: &str,
-    accept: impl Fn(f64) -> bool,
-    meaning: &str,
-) -> Result<f64, BodyError> {
-    let value: f64 = node.param(name)?;
-    if value.is_finite() && accept(value) {
-        Ok(value)
-    } else {
-        Err(format!("parameter `{name}` must be {meaning}, not {value}").into())
     }
 }
 

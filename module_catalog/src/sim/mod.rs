@@ -10,7 +10,9 @@
 pub mod laser;
 pub mod rng;
 pub mod robot;
-pub mod world;
+pub mod tour;
+/// The world model lives in `armor_model` (plans and the studio's maps use it too).
+pub use armor_model::world;
 
 use std::path::{Path, PathBuf};
 
@@ -18,6 +20,7 @@ use armor_module_api::types::{LaserScan, Odometry, Pose2D, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
+use crate::params::{FloatRange, float_in, int_in};
 use laser::Laser;
 use rng::Rng;
 use robot::{OdometryNoise, Robot};
@@ -237,67 +240,45 @@ impl Default for SimParams {
     }
 }
 
-/// A float parameter that must lie in `range` (`lower_open`: strictly above its start).
-fn float_param(
-    node: &Node,
-    name: &str,
-    unit: &str,
-    lower_open: bool,
-    range: std::ops::RangeInclusive<f64>,
-) -> Result<f64, BodyError> {
-    let value: f64 = node.param(name)?;
-    let (lo, hi) = (*range.start(), *range.end());
-    let above = if lower_open { value > lo } else { value >= lo };
-    if value.is_finite() && above && value <= hi {
-        return Ok(value);
-    }
-    let lower = if lower_open {
-        format!("greater than {lo}{unit}")
-    } else {
-        format!("{lo}{unit} or more")
-    };
-    let upper = if hi.is_finite() {
-        format!(" and at most {hi}{unit}")
-    } else {
-        String::new()
-    };
-    Err(format!("parameter `{name}` must be {lower}{upper}, not {value}").into())
-}
-
 impl SimParams {
     /// Reads and checks the parameters, refusing nonsense in words.
     pub fn from_node(node: &Node) -> Result<Self, BodyError> {
-        let positive =
-            |name: &str, unit: &str| float_param(node, name, unit, true, 0.0..=f64::INFINITY);
+        let positive = |name: &str, unit| float_in(node, name, FloatRange::above(0.0, unit));
         let at_least_zero =
-            |name: &str, unit: &str| float_param(node, name, unit, false, 0.0..=f64::INFINITY);
-        let rate_hz = float_param(node, "rate_hz", " Hz", true, 0.0..=1000.0)?;
-        let laser_rate_hz = float_param(node, "laser_rate_hz", " Hz", true, 0.0..=rate_hz)
-            .map_err(|err| format!("{err} (scans are taken at physics steps)"))?;
-        let laser_beams: i64 = node.param("laser_beams")?;
-        if !(1..=100_000).contains(&laser_beams) {
-            return Err(format!(
-                "parameter `laser_beams` must be between 1 and 100000, not {laser_beams}"
-            )
-            .into());
-        }
+            |name: &str, unit| float_in(node, name, FloatRange::at_least(0.0, unit));
+        let rate_hz = float_in(
+            node,
+            "rate_hz",
+            FloatRange::above(0.0, "Hz").at_most(1000.0),
+        )?;
+        let laser_rate_hz = float_in(
+            node,
+            "laser_rate_hz",
+            FloatRange::above(0.0, "Hz").at_most(rate_hz),
+        )
+        .map_err(|err| format!("{err} (scans are taken at physics steps)"))?;
+        let laser_beams = int_in(node, "laser_beams", 1..=100_000)?;
         let seed: i64 = node.param("seed")?;
         Ok(Self {
             rate_hz,
             laser_rate_hz,
             laser_beams: laser_beams.unsigned_abs() as usize,
-            laser_fov_deg: float_param(node, "laser_fov_deg", "°", true, 0.0..=360.0)?,
-            laser_range_m: positive("laser_range_m", " m")?,
-            laser_noise_m: at_least_zero("laser_noise_m", " m")?,
+            laser_fov_deg: float_in(
+                node,
+                "laser_fov_deg",
+                FloatRange::above(0.0, "°").at_most(360.0),
+            )?,
+            laser_range_m: positive("laser_range_m", "m")?,
+            laser_noise_m: at_least_zero("laser_noise_m", "m")?,
             odom_noise: OdometryNoise {
-                dist: at_least_zero("odom_noise_dist", " m")?,
-                rot: at_least_zero("odom_noise_rot", " rad")?,
-                drift: at_least_zero("odom_noise_drift", " rad")?,
+                dist: at_least_zero("odom_noise_dist", "m")?,
+                rot: at_least_zero("odom_noise_rot", "rad")?,
+                drift: at_least_zero("odom_noise_drift", "rad")?,
             },
             seed: u64::from_ne_bytes(seed.to_ne_bytes()),
-            max_speed_mps: positive("max_speed_mps", " m/s")?,
-            max_turn_radps: positive("max_turn_radps", " rad/s")?,
-            robot_radius_m: positive("robot_radius_m", " m")?,
+            max_speed_mps: positive("max_speed_mps", "m/s")?,
+            max_turn_radps: positive("max_turn_radps", "rad/s")?,
+            robot_radius_m: positive("robot_radius_m", "m")?,
         })
     }
 }
@@ -490,7 +471,19 @@ fn load_world(node: &Node) -> Result<World, BodyError> {
          assets/worlds/yard.world)"
     })?;
     let path = find_world(name.trim())?;
-    Ok(World::load(path)?)
+    Ok(load_world_file(&path)?)
+}
+
+/// Reads and checks a world file.
+pub fn load_world_file(path: &std::path::Path) -> Result<World, world::WorldError> {
+    let file_name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|err| world::WorldError {
+        file: file_name.clone(),
+        line: 0,
+        col: 0,
+        message: format!("cannot read the world file: {err}"),
+    })?;
+    World::parse(&text, &file_name)
 }
 
 pub fn body(node: &mut Node) -> BodyResult {
@@ -905,7 +898,7 @@ boundary 0,0 10,0 10,10 0,10 0,0
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
         for name in ["yard", "building", "field"] {
             let path = root.join(WORLDS_DIR).join(format!("{name}.world"));
-            let world = World::load(&path).expect("loads");
+            let world = load_world_file(&path).expect("loads");
             let mut sim = Simulator::new(world, SimParams::default()).expect("fits");
             sim.command(twist(0.5, 0.2)).expect("finite");
             for _ in 0..25 {

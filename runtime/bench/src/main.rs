@@ -2,7 +2,9 @@
 //!
 //! Each benchmark prints one JSON line: `{"bench", "ours", "reference", "unit", "ratio"}` (ratio
 //! = ours / reference), plus `p50`, `p99`, `reference_p50` and `reference_p99` for
-//! distributions (then `ours` and `reference` are medians). References are plain TCP or plain
+//! distributions (then `ours` and `reference` are medians), and whatever else a benchmark says
+//! of its figures (`goal`, `reference_is`: what the reference is when it is no plain TCP or
+//! spawn). References are plain TCP or plain
 //! process spawns measured on the same machine in the same run, so ratios compare across
 //! machines where absolute numbers do not.
 //!
@@ -12,13 +14,16 @@
 //! under `armor run` (see `benchprobe.rs`).
 
 mod benchprobe;
+mod compile_plan;
 mod event_start;
 mod harness;
 mod latency;
+mod mapper_scan;
 mod procs;
 mod raw;
 mod reachability;
 mod report;
+mod sim_realtime;
 mod startup;
 mod throughput;
 
@@ -101,6 +106,24 @@ const BENCHES: &[Bench] = &[
         about: "mission analysis of 10 dining philosophers vs a plain breadth-first search \
                 (states/s)",
         run: reachability::run,
+    },
+    Bench {
+        name: compile_plan::NAME,
+        about: "compile and check a 10,000-waypoint plan vs load and check the net it compiles \
+                to (ms; goal < 100)",
+        run: compile_plan::run,
+    },
+    Bench {
+        name: sim_realtime::NAME,
+        about: "simulated seconds per wall second of the robot demo system on one core vs the \
+                bare simulator stepped in one thread (goal >= 50)",
+        run: sim_realtime::run,
+    },
+    Bench {
+        name: mapper_scan::NAME,
+        about: "one 360-beam scan matched and integrated by the mapper vs the grid update alone \
+                (ms)",
+        run: mapper_scan::run,
     },
 ];
 

@@ -4,7 +4,7 @@ use std::collections::VecDeque;
 use std::io::{BufRead as _, BufReader};
 use std::path::PathBuf;
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::mpsc::{self, Receiver};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -233,6 +233,48 @@ impl ChildGuard {
             armor_runtime::process::kill(pid, libc::SIGTERM);
         }
         self.wait_exit(timeout)
+    }
+
+    /// Waits at most `timeout` for a line from `lines` (the child's, from
+    /// [`ChildGuard::take_lines`] or [`ChildGuard::take_stdout_lines`]) that `pick` turns into a
+    /// value; `what` names it in the error. Fails at once if the child exits.
+    pub fn wait_line<T>(
+        &mut self,
+        lines: &Receiver<String>,
+        what: &str,
+        timeout: Duration,
+        mut pick: impl FnMut(&str) -> Option<T>,
+    ) -> anyhow::Result<T> {
+        let give_up = Instant::now() + timeout;
+        loop {
+            match lines.recv_timeout(Duration::from_millis(50)) {
+                Ok(line) => {
+                    if let Some(value) = pick(&line) {
+                        return Ok(value);
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    self.check_alive()?;
+                    if Instant::now() >= give_up {
+                        return Err(self.failure(&format!("did not log {what} within {timeout:?}")));
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    self.check_alive()?;
+                    return Err(self.failure("closed its output"));
+                }
+            }
+        }
+    }
+
+    /// Sends SIGTERM and expects the child to exit well within `timeout`.
+    pub fn stop(&mut self, timeout: Duration) -> anyhow::Result<()> {
+        let status = self.terminate(timeout)?;
+        if status.success() {
+            Ok(())
+        } else {
+            Err(self.failure(&format!("stopped badly after SIGTERM ({status})")))
+        }
     }
 
     /// An error naming the child, with the last lines of its stderr.

@@ -24,6 +24,9 @@ pub struct Report {
     /// For a state-space exploration: the states each side found (the same on both).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub states: Option<usize>,
+    /// Whatever else a benchmark says about its figures (`goal`, `reference_is`, ...).
+    #[serde(flatten)]
+    pub extra: serde_json::Map<String, serde_json::Value>,
 }
 
 impl Report {
@@ -40,12 +43,19 @@ impl Report {
             reference_p50: None,
             reference_p99: None,
             states: None,
+            extra: serde_json::Map::new(),
         }
     }
 
     /// The same report with a `states` field.
     pub fn with_states(mut self, states: usize) -> Self {
         self.states = Some(states);
+        self
+    }
+
+    /// The same report with one more field.
+    pub fn with(mut self, key: &str, value: impl Into<serde_json::Value>) -> Self {
+        self.extra.insert(key.to_owned(), value.into());
         self
     }
 
@@ -70,6 +80,7 @@ impl Report {
             reference_p50: Some(round(reference.p50)),
             reference_p99: Some(round(reference.p99)),
             states: None,
+            extra: serde_json::Map::new(),
         }
     }
 }
@@ -141,6 +152,11 @@ mod tests {
         assert_eq!(
             serde_json::to_string(&report).expect("json"),
             r#"{"bench":"y","ours":3.0,"reference":2.0,"unit":"states/s","ratio":1.5,"states":82}"#
+        );
+        let report = Report::single("z", "x", 60.0, 50.0).with("goal", 50.0);
+        assert_eq!(
+            serde_json::to_string(&report).expect("json"),
+            r#"{"bench":"z","ours":60.0,"reference":50.0,"unit":"x","ratio":1.2,"goal":50.0}"#
         );
     }
 }

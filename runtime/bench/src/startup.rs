@@ -5,7 +5,6 @@
 use std::fmt::Write as _;
 use std::path::Path;
 use std::process::Command;
-use std::sync::mpsc::RecvTimeoutError;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
@@ -73,30 +72,11 @@ fn armor_startup(armor: &Path, file: &Path) -> anyhow::Result<f64> {
     let Some(lines) = child.take_lines() else {
         bail!("armor run: no stderr to read");
     };
-    let give_up = start + LINK_TIMEOUT;
-    loop {
-        match lines.recv_timeout(Duration::from_millis(50)) {
-            Ok(line) if line.contains(&expected) => break,
-            Ok(_) => {}
-            Err(RecvTimeoutError::Timeout) => {
-                child.check_alive()?;
-                if Instant::now() >= give_up {
-                    return Err(
-                        child.failure(&format!("did not log `{expected}` within {LINK_TIMEOUT:?}"))
-                    );
-                }
-            }
-            Err(RecvTimeoutError::Disconnected) => {
-                child.check_alive()?;
-                return Err(child.failure("closed its stderr"));
-            }
-        }
-    }
+    child.wait_line(&lines, &format!("`{expected}`"), LINK_TIMEOUT, |line| {
+        line.contains(&expected).then_some(())
+    })?;
     let elapsed = start.elapsed();
-    let status = child.terminate(STOP_TIMEOUT)?;
-    if !status.success() {
-        return Err(child.failure(&format!("stopped badly after SIGTERM ({status})")));
-    }
+    child.stop(STOP_TIMEOUT)?;
     Ok(elapsed.as_secs_f64() * 1e3)
 }
 

@@ -26,7 +26,13 @@ fn text(bytes: &[u8]) -> String {
 #[test]
 fn quick_run_prints_one_json_line_per_benchmark() {
     let folder = Path::new(BENCH).parent().unwrap();
-    for module in ["armor", "armor-mod-echo", "armor-mod-sink"] {
+    for module in [
+        "armor",
+        "armor-mod-echo",
+        "armor-mod-sink",
+        "armor-mod-sim",
+        "armor-mod-mux",
+    ] {
         assert!(
             folder.join(module).is_file(),
             "{module} is missing from {}: build the whole workspace (cargo test --workspace)",
@@ -39,6 +45,8 @@ fn quick_run_prints_one_json_line_per_benchmark() {
         ("throughput_64b", "msg/s", false),
         ("event_to_start_ms", "ms", true),
         ("reachability_states_per_s", "states/s", false),
+        ("sim_realtime_factor", "sim s/s", false),
+        ("mapper_scan_ms", "ms", true),
     ];
     let names: Vec<&str> = expected.iter().map(|(name, _, _)| *name).collect();
     let mut args = vec!["--quick"];
@@ -76,6 +84,12 @@ fn quick_run_prints_one_json_line_per_benchmark() {
     // Five dining philosophers: the companion Pell number Q(5).
     let reachability: serde_json::Value = serde_json::from_str(lines[3]).unwrap();
     assert_eq!(reachability["states"], 82, "{}", lines[3]);
+    // The robot's figures say what they are measured against.
+    let sim: serde_json::Value = serde_json::from_str(lines[4]).unwrap();
+    assert_eq!(sim["goal"], 50.0, "{}", lines[4]);
+    assert!(sim["reference_is"].is_string(), "{}", lines[4]);
+    let mapper: serde_json::Value = serde_json::from_str(lines[5]).unwrap();
+    assert!(mapper["reference_is"].is_string(), "{}", lines[5]);
 }
 
 #[test]
@@ -106,6 +120,8 @@ fn list_names_every_benchmark() {
         "startup_10_modules",
         "event_to_start_ms",
         "reachability_states_per_s",
+        "sim_realtime_factor",
+        "mapper_scan_ms",
     ] {
         assert!(stdout.contains(name), "{stdout}");
     }

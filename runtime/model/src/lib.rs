@@ -6,9 +6,16 @@
 //! Missions are Petri nets ([`net`]): their XML and PNML forms, the checks of their names against
 //! a system, an engine that plays them with the time given as a parameter, and a state-space
 //! analysis that finds deadlocks, dead transitions and unbounded places.
+//!
+//! Plans ([`plan`]) are what an operator draws on a map (waypoints, legs, actions, time
+//! constraints, contingencies, tactical graphics); they compile into mission nets, on a
+//! [`world`] (the simulated robot's plane, which [`geo`] routes through around no-go areas).
 
+pub mod geo;
 pub mod net;
+pub mod plan;
 pub mod system;
+pub mod world;
 
 pub use net::{
     Analysis, Condition, Engine, EngineError, EventRef, Firing, Marking, MissionNet, Place,

@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 use std::time::Instant;
 
-use armor_model::net::{Engine, MissionNet};
+use armor_model::net::{Engine, Firing, MissionNet};
 use armor_module_api::Clock;
 use serde_json::json;
 
@@ -154,6 +154,7 @@ impl Controller {
         if self.paused || self.outcome.is_some() {
             return;
         }
+        let before = self.engine.active_modules();
         let firings = self.engine.step(self.clock.now_secs());
         for firing in &firings {
             tracing::info!(
@@ -176,7 +177,7 @@ impl Controller {
             );
         }
         if !firings.is_empty() {
-            server.set_control(self.control());
+            self.apply_firings(server, &before, &firings);
         }
         if self.engine.is_final() {
             tracing::info!(
@@ -192,6 +193,37 @@ impl Controller {
             self.record("deadlock", json!({ "marking": self.engine.marking() }));
             self.outcome = Some(Outcome::Deadlock { marking });
         }
+    }
+
+    /// Tells the modules what `firings` changed, `before` being the modules active before them.
+    ///
+    /// Entering a place starts its modules afresh, even one that was already active in the place
+    /// just left: two legs in a row drive the same follower, and each must report its own
+    /// `goal_reached`. The config server sends a module only what changed for it, so a second
+    /// leg with the same goal would otherwise reach the follower as nothing at all, and the
+    /// mission would wait for ever. Such modules are stopped, then started again.
+    fn apply_firings(&self, server: &ConfigServer, before: &BTreeSet<String>, firings: &[Firing]) {
+        let after = self.engine.active_modules();
+        let entered_again: BTreeSet<String> = firings
+            .iter()
+            .filter_map(|firing| self.net.transition(&firing.transition))
+            .flat_map(|transition| &transition.outputs)
+            .filter_map(|arc| self.net.place(&arc.place))
+            .flat_map(|place| &place.modules)
+            .filter(|module| {
+                self.controllable.contains(*module)
+                    && before.contains(*module)
+                    && after.contains(*module)
+            })
+            .cloned()
+            .collect();
+        if !entered_again.is_empty() {
+            tracing::info!(modules = ?entered_again, "restarting the modules of a place entered");
+            let mut control = self.control();
+            control.inactive.extend(entered_again);
+            server.set_control(control);
+        }
+        server.set_control(self.control());
     }
 
     pub fn status(&self) -> Status {
@@ -234,6 +266,9 @@ impl Controller {
         if transition.condition.at_unix_secs.is_some() {
             waits.push("its date".to_owned());
         }
+        if transition.condition.operator {
+            waits.push("the operator".to_owned());
+        }
         if waits.is_empty() {
             name.to_owned()
         } else {
@@ -269,6 +304,7 @@ impl Controller {
                 (true, "aborted".to_owned())
             }
             Request::Fire { transition } => {
+                let before = self.engine.active_modules();
                 match self.engine.fire_by_hand(&transition, self.clock.now_secs()) {
                     Ok(firing) => {
                         tracing::info!(
@@ -286,7 +322,7 @@ impl Controller {
                                 "stopped": firing.stopped,
                             }),
                         );
-                        server.set_control(self.control());
+                        self.apply_firings(server, &before, std::slice::from_ref(&firing));
                         self.step(server);
                         (true, format!("fired `{transition}`"))
                     }

@@ -58,6 +58,18 @@ enum Command {
         /// Write a mission's timeline (every firing, start and stop) to this JSON file.
         #[arg(long)]
         report: Option<PathBuf>,
+        /// The date the run starts at, for a mission's dates (appointments, deadlines), like
+        /// 2026-11-23T08:00:00Z: rehearse a plan made for another day. Default: now.
+        #[arg(long, value_name = "DATE")]
+        start_at: Option<String>,
+    },
+    /// Compile a plan (waypoints, legs, actions, time constraints) into a mission net.
+    Compile {
+        /// The plan file.
+        plan: PathBuf,
+        /// The mission file to write.
+        #[arg(short, long)]
+        output: PathBuf,
     },
     /// Operate a running mission: status, pause, resume, abort, or fire a transition by hand.
     Ctl {
@@ -85,24 +97,35 @@ enum Command {
         #[arg(long, default_value_t = 5.0)]
         timeout_secs: f64,
     },
-    /// Export a mission net to another format.
+    /// Export a mission net or a plan to another format.
+    #[command(group(clap::ArgGroup::new("format").required(true).args(["pnml", "gpx"])))]
     Export {
-        /// Write ISO/IEC 15909-2 PNML (a P/T net; our extra data in toolspecific elements).
-        #[arg(long, required = true)]
+        /// Write a mission (or a plan's net) as ISO/IEC 15909-2 PNML (a P/T net; our extra data
+        /// in toolspecific elements).
+        #[arg(long)]
         pnml: bool,
-        /// The mission file.
-        mission: PathBuf,
+        /// Write a plan's waypoints and route as GPX 1.1.
+        #[arg(long)]
+        gpx: bool,
+        /// The mission or plan file.
+        file: PathBuf,
         /// The file to write.
         #[arg(short, long)]
         output: PathBuf,
     },
-    /// Import a PNML P/T net as an ArMoR mission file.
+    /// Import a PNML P/T net as a mission, or a GPX file (waypoints, routes, tracks) as a plan.
     Import {
-        /// The PNML file.
+        /// The PNML or GPX file.
         file: PathBuf,
-        /// The mission file to write.
+        /// The mission or plan file to write.
         #[arg(short, long)]
         output: PathBuf,
+        /// For GPX: the system file the plan runs (relative to the plan).
+        #[arg(long, default_value = "system.xml")]
+        system: String,
+        /// For GPX: the world file the plan is drawn on (default: the system's).
+        #[arg(long)]
+        world: Option<String>,
     },
     /// Publish a recording (an MCAP file of armor-mod-recorder) again, with its timing.
     Replay {
@@ -148,7 +171,14 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             agent,
             control,
             report,
+            start_at,
         } => {
+            let start_at_unix_secs = start_at
+                .map(|text| {
+                    armor_model::net::parse_rfc3339(&text)
+                        .map_err(|why| anyhow::anyhow!("--start-at `{text}`: {why}"))
+                })
+                .transpose()?;
             if !(time_scale.is_finite() && time_scale > 0.0) {
                 anyhow::bail!("--time-scale must be a positive number, not {time_scale}");
             }
@@ -166,6 +196,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 agent_addr: agent,
                 control_addr: control,
                 report,
+                start_at_unix_secs,
             })
         }
         Command::Check { file } => Ok(check(&file)),
@@ -197,44 +228,87 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 .context("--timeout-secs must be positive")?;
             Ok(probe_command(paths, xml, timeout))
         }
+        Command::Compile { plan, output } => compile(&plan, &output),
         Command::Export {
-            pnml: _,
-            mission,
+            pnml,
+            gpx: _,
+            file,
             output,
         } => {
-            let text = read_text(&mission)?;
-            let net = match armor_model::net::MissionNet::parse(&text) {
-                Ok(net) => net,
-                Err(problems) => {
-                    return Ok(report(load::Diagnostics {
-                        file: mission,
-                        problems,
-                    }));
+            let text = read_text(&file)?;
+            let written = if pnml {
+                let net = match mission::document_kind(&file) {
+                    Ok(mission::DocumentKind::Plan) => {
+                        match mission::load_mission(&file, &probe::module_path()) {
+                            Ok(loaded) => loaded.net,
+                            Err(diagnostics) => return Ok(report(diagnostics)),
+                        }
+                    }
+                    _ => match armor_model::net::MissionNet::parse(&text) {
+                        Ok(net) => net,
+                        Err(problems) => {
+                            return Ok(report(load::Diagnostics { file, problems }));
+                        }
+                    },
+                };
+                armor_model::net::to_pnml(&net)
+            } else {
+                match armor_model::plan::Plan::parse(&text) {
+                    Ok(plan) => armor_model::plan::gpx::export(&plan),
+                    Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
                 }
             };
-            armor_runtime::fs::write_atomically(
-                &output,
-                armor_model::net::to_pnml(&net).as_bytes(),
-            )
-            .with_context(|| format!("cannot write {}", output.display()))?;
-            println!("{}: PNML written", output.display());
-            Ok(ExitCode::SUCCESS)
-        }
-        Command::Import { file, output } => {
-            let text = read_text(&file)?;
-            let net = match armor_model::net::from_pnml(&text) {
-                Ok(net) => net,
-                Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
-            };
-            armor_runtime::fs::write_atomically(&output, net.to_xml().as_bytes())
+            armor_runtime::fs::write_atomically(&output, written.as_bytes())
                 .with_context(|| format!("cannot write {}", output.display()))?;
             println!(
-                "{}: mission `{}` written ({}, {})",
+                "{}: {} written",
                 output.display(),
-                net.name,
-                plural(net.places.len(), "place"),
-                plural(net.transitions.len(), "transition")
+                if pnml { "PNML" } else { "GPX" }
             );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Import {
+            file,
+            output,
+            system,
+            world,
+        } => {
+            let text = read_text(&file)?;
+            let is_gpx = armor_module_api::xml::parse(&text)
+                .is_ok_and(|root| root.name.rsplit(':').next() == Some("gpx"));
+            let (written, summary) = if is_gpx {
+                let name = output
+                    .file_stem()
+                    .map(|stem| stem.to_string_lossy().into_owned())
+                    .unwrap_or_else(|| "plan".into());
+                let mut plan = match armor_model::plan::gpx::import(&text, &name, &system) {
+                    Ok(plan) => plan,
+                    Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
+                };
+                plan.world = world.unwrap_or_default();
+                let summary = format!(
+                    "plan `{}` written ({}, {})",
+                    plan.name,
+                    plural(plan.waypoints.len(), "waypoint"),
+                    plural(plan.legs.len(), "leg")
+                );
+                (plan.to_xml(), summary)
+            } else {
+                let net = match armor_model::net::from_pnml(&text) {
+                    Ok(net) => net,
+                    Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
+                };
+                let summary = format!(
+                    "mission `{}` written ({}, {})",
+                    net.name,
+                    plural(net.places.len(), "place"),
+                    plural(net.transitions.len(), "transition")
+                );
+                (net.to_xml(), summary)
+            };
+            armor_runtime::fs::write_atomically(&output, written.as_bytes())
+                .with_context(|| format!("cannot write {}", output.display()))?;
+            println!("{}: {summary}", output.display());
             Ok(ExitCode::SUCCESS)
         }
         Command::Replay {
@@ -266,6 +340,67 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     }
 }
 
+/// Compiles a plan, checks the net against its system and writes it as a mission file whose
+/// `system` path is right from where the mission is written.
+fn compile(plan: &std::path::Path, output: &std::path::Path) -> anyhow::Result<ExitCode> {
+    let loaded = match mission::load_mission(plan, &probe::module_path()) {
+        Ok(loaded) => loaded,
+        Err(diagnostics) => return Ok(report(diagnostics)),
+    };
+    print_warnings(plan, &loaded.warnings);
+    let mut net = loaded.net;
+    let output_dir = output
+        .parent()
+        .filter(|dir| !dir.as_os_str().is_empty())
+        .unwrap_or_else(|| std::path::Path::new("."));
+    net.system = relative_path(&loaded.system_file, output_dir)
+        .to_string_lossy()
+        .into_owned();
+    armor_runtime::fs::write_atomically(output, net.to_xml().as_bytes())
+        .with_context(|| format!("cannot write {}", output.display()))?;
+    println!(
+        "{}: mission `{}` written ({}, {}, {} reachable)",
+        output.display(),
+        net.name,
+        plural(net.places.len(), "place"),
+        plural(net.transitions.len(), "transition"),
+        plural(loaded.states, "marking")
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `target` as seen from the folder `from`: relative when both resolve, else absolute.
+fn relative_path(target: &std::path::Path, from: &std::path::Path) -> PathBuf {
+    let (Ok(target), Ok(from)) = (std::fs::canonicalize(target), std::fs::canonicalize(from))
+    else {
+        return std::path::absolute(target).unwrap_or_else(|_| target.to_path_buf());
+    };
+    let common = target
+        .components()
+        .zip(from.components())
+        .take_while(|(a, b)| a == b)
+        .count();
+    let mut relative = PathBuf::new();
+    for _ in from.components().skip(common) {
+        relative.push("..");
+    }
+    for part in target.components().skip(common) {
+        relative.push(part);
+    }
+    relative
+}
+
+fn print_warnings(file: &std::path::Path, warnings: &[armor_module_api::xml::Located]) {
+    for warning in warnings {
+        eprintln!(
+            "{}:{}: warning: {}",
+            file.display(),
+            warning.pos,
+            warning.message
+        );
+    }
+}
+
 fn check(file: &std::path::Path) -> ExitCode {
     let module_path = probe::module_path();
     let summary = match mission::document_kind(file) {
@@ -278,6 +413,7 @@ fn check(file: &std::path::Path) -> ExitCode {
             )
         }),
         Ok(_) => mission::load_mission(file, &module_path).map(|mission| {
+            print_warnings(file, &mission.warnings);
             format!(
                 "mission `{}`: {}, {}, {} reachable",
                 mission.net.name,

@@ -1,10 +1,13 @@
-//! Mission files: a Petri net over a system file. Loading one loads and checks its system, then
-//! checks every name the net uses against it and analyses the net (deadlocks, dead transitions,
-//! places never marked, unboundedness) before anything runs.
+//! Mission files: a Petri net over a system file, or a plan that compiles into one. Loading one
+//! loads and checks its system, compiles a plan on its world, then checks every name the net
+//! uses against the system and analyses the net (deadlocks, dead transitions, places never
+//! marked, unboundedness) before anything runs.
 
 use std::path::{Path, PathBuf};
 
 use armor_model::net::{self, MissionNet};
+use armor_model::plan::{self, Compiled, Plan};
+use armor_model::world::World;
 use armor_module_api::xml::{self, Located, Pos};
 
 use crate::load::{Diagnostics, Loaded, load_system, read_source};
@@ -18,6 +21,7 @@ pub enum DocumentKind {
     System,
     Mission,
     Pnml,
+    Plan,
 }
 
 /// Reads a file's top element to tell systems from missions. Errors are reported as for a load.
@@ -35,8 +39,9 @@ fn kind_of(file: &Path, text: &str) -> Result<DocumentKind, Diagnostics> {
         "system" => Ok(DocumentKind::System),
         "mission" => Ok(DocumentKind::Mission),
         "pnml" => Ok(DocumentKind::Pnml),
+        "plan" => Ok(DocumentKind::Plan),
         other => Err(fail(
-            format!("expected <system>, <mission> or <pnml> at the top, found <{other}>"),
+            format!("expected <system>, <mission>, <plan> or <pnml> at the top, found <{other}>"),
             root.pos,
         )),
     }
@@ -51,41 +56,69 @@ pub struct LoadedMission {
     pub system: Loaded,
     /// Reachable markings of the untimed net.
     pub states: usize,
+    /// The compiled plan, when the file is a plan.
+    pub compiled: Option<Compiled>,
+    /// What may keep the mission from going as planned without stopping it.
+    pub warnings: Vec<Located>,
 }
 
-/// Reads a mission file (our XML or PNML), loads its system, and checks both.
+/// Reads a mission file (our XML, PNML, or a plan), loads its system, and checks both.
 pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMission, Diagnostics> {
     let fail = |problems| Diagnostics {
         file: file.to_path_buf(),
         problems,
     };
     let text = read_source(file)?;
-    let net = match kind_of(file, &text)? {
-        DocumentKind::Pnml => net::from_pnml(&text),
-        _ => MissionNet::parse(&text),
-    }
-    .map_err(fail)?;
-    if net.system.is_empty() {
+    let kind = kind_of(file, &text)?;
+    let plan = match kind {
+        DocumentKind::Plan => Some(Plan::parse(&text).map_err(fail)?),
+        _ => None,
+    };
+    let system_name = match &plan {
+        Some(plan) => plan.system.clone(),
+        None => String::new(),
+    };
+    let mut net = match kind {
+        DocumentKind::Pnml => Some(net::from_pnml(&text).map_err(fail)?),
+        DocumentKind::Plan => None,
+        _ => Some(MissionNet::parse(&text).map_err(fail)?),
+    };
+    let (system_name, pos) = match &net {
+        Some(net) => (net.system.clone(), net.pos),
+        None => (
+            system_name,
+            plan.as_ref().map(|plan| plan.pos).unwrap_or_default(),
+        ),
+    };
+    if system_name.is_empty() {
         return Err(fail(vec![Located::new(
-            net.pos,
+            pos,
             "the mission names no system file (attribute `system`)",
         )]));
     }
-    let system_file = file
-        .parent()
-        .unwrap_or_else(|| Path::new("."))
-        .join(&net.system);
+    let base = file.parent().unwrap_or_else(|| Path::new("."));
+    let system_file = base.join(&system_name);
     if let Err(err) = std::fs::metadata(&system_file) {
         return Err(fail(vec![Located::new(
-            net.pos,
+            pos,
             format!(
-                "cannot read the mission's system file `{}` ({}): {err}",
-                net.system,
+                "cannot read the mission's system file `{system_name}` ({}): {err}",
                 system_file.display()
             ),
         )]));
     }
     let system = load_system(&system_file, module_path)?;
+    let mut compiled = None;
+    if let Some(plan) = &plan {
+        let world = plan_world(plan, &system, base)
+            .map_err(|message| fail(vec![Located::new(plan.pos, message)]))?;
+        let result = plan::compile(plan, world.as_ref()).map_err(fail)?;
+        net = Some(result.net.clone());
+        compiled = Some(result);
+    }
+    let Some(net) = net else {
+        return Err(fail(vec![Located::new(pos, "no mission net")]));
+    };
     let mut problems = net::check_names(&net, &system.system, &system.descriptions);
     let analysis = net::analyse(&net, ANALYSIS_LIMIT_STATES);
     problems.extend(analysis.problems(&net));
@@ -99,5 +132,56 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         system_file,
         system,
         states: analysis.states,
+        warnings: compiled
+            .as_ref()
+            .map(|compiled| compiled.warnings.clone())
+            .unwrap_or_default(),
+        compiled,
     })
+}
+
+/// The world a plan is drawn on: the one it names, else the one its system's simulator loads
+/// (a module parameter called `world`); `None` when neither names one (a real robot).
+fn plan_world(plan: &Plan, system: &Loaded, base: &Path) -> Result<Option<World>, String> {
+    let name = if plan.world.is_empty() {
+        let from_system = system.system.modules.iter().find_map(|module| {
+            module
+                .param("world")
+                .map(|param| param.value.clone())
+                .filter(|value| !value.is_empty())
+        });
+        match from_system {
+            Some(name) => name,
+            None => return Ok(None),
+        }
+    } else {
+        plan.world.clone()
+    };
+    let Some(path) = find_world(&name, base) else {
+        return Err(format!(
+            "cannot find the world `{name}`: looked next to the plan, then in assets/worlds/ \
+             of the folders above it and of the current folder"
+        ));
+    };
+    let text = std::fs::read_to_string(&path)
+        .map_err(|err| format!("cannot read the world {}: {err}", path.display()))?;
+    World::parse(&text, &path.display().to_string())
+        .map(Some)
+        .map_err(|err| format!("the world does not load: {err}"))
+}
+
+/// `name` as given, next to the plan, or under `assets/worlds/` of the plan's folder, one of
+/// its parents or the current folder (where the simulator looks too).
+pub fn find_world(name: &str, base: &Path) -> Option<PathBuf> {
+    let given = Path::new(name);
+    if given.is_absolute() {
+        return given.is_file().then(|| given.to_path_buf());
+    }
+    let mut candidates = vec![base.join(given)];
+    let absolute_base = std::fs::canonicalize(base).unwrap_or_else(|_| base.to_path_buf());
+    for folder in absolute_base.ancestors() {
+        candidates.push(folder.join("assets/worlds").join(given));
+    }
+    candidates.push(Path::new("assets/worlds").join(given));
+    candidates.into_iter().find(|candidate| candidate.is_file())
 }

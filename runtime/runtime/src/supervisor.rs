@@ -50,6 +50,9 @@ pub struct RunOptions {
     pub control_addr: Option<SocketAddr>,
     /// Where to write a mission's timeline (JSON) when it ends.
     pub report: Option<PathBuf>,
+    /// The date (Unix seconds) run time 0 stands for, against which a mission's dates are
+    /// compared: to rehearse a plan made for another day. Now when `None`.
+    pub start_at_unix_secs: Option<f64>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,8 +90,16 @@ struct RunEnv {
 fn load(options: &RunOptions) -> Result<(Loaded, Option<LoadedMission>), Diagnostics> {
     match document_kind(&options.file)? {
         DocumentKind::System => Ok((load_system(&options.file, &options.module_path)?, None)),
-        DocumentKind::Mission | DocumentKind::Pnml => {
+        DocumentKind::Mission | DocumentKind::Pnml | DocumentKind::Plan => {
             let mission = load_mission(&options.file, &options.module_path)?;
+            for warning in &mission.warnings {
+                tracing::warn!(
+                    "{}:{}: {}",
+                    options.file.display(),
+                    warning.pos,
+                    warning.message
+                );
+            }
             Ok((mission.system.clone(), Some(mission)))
         }
     }
@@ -142,7 +153,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             mission.net,
             controllable,
             clock,
-            epoch_ns as f64 / 1e9,
+            options.start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9),
             options.report.is_some(),
         )
     });

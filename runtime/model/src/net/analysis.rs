@@ -216,11 +216,24 @@ struct Compiled {
     /// Net effect of the firing on each place it changes: (place, tokens added or taken).
     effect_start: Vec<usize>,
     effect: Vec<(usize, i64)>,
+    /// The transitions with an input arc from each place, in order: only those can be enabled
+    /// by a marking of that place (a mission net marks a handful of its thousands of places).
+    consumers: Vec<Vec<u32>>,
+    /// Transitions without input arcs (refused by every reader, but the analysis takes any
+    /// net): enabled in every marking.
+    sourceless: Vec<u32>,
 }
 
 impl Compiled {
     fn new(net: &MissionNet) -> Compiled {
-        let index = |name: &str| net.places.iter().position(|place| place.name == name);
+        let by_name: std::collections::HashMap<&str, usize> = net
+            .places
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(p, place)| (place.name.as_str(), p))
+            .collect();
+        let index = |name: &str| by_name.get(name).copied();
         let mut compiled = Compiled {
             place_names: net.places.iter().map(|place| place.name.clone()).collect(),
             transition_names: net.transitions.iter().map(|t| t.name.clone()).collect(),
@@ -232,6 +245,8 @@ impl Compiled {
             pre: Vec::new(),
             effect_start: vec![0],
             effect: Vec::new(),
+            consumers: vec![Vec::new(); net.places.len()],
+            sourceless: Vec::new(),
         };
         for transition in &net.transitions {
             let mut pre: Vec<(usize, u64)> = Vec::new();
@@ -256,6 +271,15 @@ impl Compiled {
                 pre.push((usize::MAX, u64::MAX));
             }
             effect.retain(|&(_, delta)| delta != 0);
+            let t = compiled.pre_start.len() as u32 - 1;
+            if pre.is_empty() {
+                compiled.sourceless.push(t);
+            }
+            for &(p, _) in &pre {
+                if let Some(consumers) = compiled.consumers.get_mut(p) {
+                    consumers.push(t);
+                }
+            }
             compiled.pre.extend(pre);
             compiled.pre_start.push(compiled.pre.len());
             compiled.effect.extend(effect);
@@ -491,6 +515,9 @@ fn explore<const B: usize>(net: &Compiled, limit: usize) -> Option<Explored> {
     let mut unmarked = places;
     let mut truncated = false;
     let mut current = vec![0u32; places];
+    let mut occupied: Vec<usize> = Vec::new();
+    let mut candidates: Vec<u32> = Vec::new();
+    let mut listed = vec![false; net.transitions()];
     // The successors of a batch of markings: probing them together lets the memory accesses
     // of the hash table overlap instead of waiting for each other.
     let mut batch_words: Vec<u64> = Vec::new();
@@ -500,24 +527,59 @@ fn explore<const B: usize>(net: &Compiled, limit: usize) -> Option<Explored> {
         let end = store.count.min(state + BATCH);
         for from in state..end {
             let current_words = store.state(from);
-            for (p, count) in current.iter_mut().enumerate() {
-                *count = get::<B>(current_words, p);
+            // Only the marked places are decoded, found word by word; `current` is zero
+            // everywhere else (the previous marking's places are cleared first).
+            for &p in &occupied {
+                current[p] = 0;
+            }
+            occupied.clear();
+            for (w, &word) in current_words.iter().enumerate() {
+                if word == 0 {
+                    continue;
+                }
+                let first = w * 64 / B;
+                let last = (first + 64 / B).min(places);
+                for (p, slot) in current.iter_mut().enumerate().take(last).skip(first) {
+                    let count = get::<B>(current_words, p);
+                    if count > 0 {
+                        *slot = count;
+                        occupied.push(p);
+                    }
+                }
             }
             if unmarked > 0 {
-                for (p, &count) in current.iter().enumerate() {
-                    if count > 0 && !marked[p] {
+                for &p in &occupied {
+                    if !marked[p] {
                         marked[p] = true;
                         unmarked -= 1;
                     }
                 }
             }
+            // The transitions that may be enabled, in declaration order (which fixes which
+            // firing sequence reaches a marking first).
+            candidates.clear();
+            for &t in &net.sourceless {
+                listed[t as usize] = true;
+                candidates.push(t);
+            }
+            for &p in &occupied {
+                for &t in &net.consumers[p] {
+                    if !listed[t as usize] {
+                        listed[t as usize] = true;
+                        candidates.push(t);
+                    }
+                }
+            }
+            candidates.sort_unstable();
             let mut any = false;
-            for (t, fired) in fired.iter_mut().enumerate() {
+            for &t in &candidates {
+                let t = t as usize;
+                listed[t] = false;
                 if !net.enabled(t, &current) {
                     continue;
                 }
                 any = true;
-                *fired = true;
+                fired[t] = true;
                 let at = batch_words.len();
                 batch_words.extend_from_slice(current_words);
                 let next = &mut batch_words[at..];

@@ -60,7 +60,7 @@ fn digits(text: &str, at: usize, len: usize) -> Option<i64> {
 }
 
 /// Seconds since 1970-01-01T00:00:00Z, or why the text is not a date.
-pub(crate) fn parse_rfc3339(text: &str) -> Result<f64, String> {
+pub fn parse_rfc3339(text: &str) -> Result<f64, String> {
     let separators = [(4, b'-'), (7, b'-'), (10, b'T'), (13, b':'), (16, b':')];
     let bytes = text.as_bytes();
     if separators
@@ -141,7 +141,7 @@ pub(crate) fn parse_rfc3339(text: &str) -> Result<f64, String> {
 /// The date of `unix_secs` in UTC, in the form [`parse_rfc3339`] reads back to the same value.
 /// Values outside the years 0001 to 9999 (or not finite) are written as plain numbers, which
 /// are not dates.
-pub(crate) fn format_rfc3339(unix_secs: f64) -> String {
+pub fn format_rfc3339(unix_secs: f64) -> String {
     let first = days_from_civil(1, 1, 1) * 86_400;
     let end = days_from_civil(10_000, 1, 1) * 86_400;
     if !unix_secs.is_finite() || unix_secs < first as f64 || unix_secs >= end as f64 {

@@ -242,7 +242,7 @@ impl Engine {
                 continue;
             };
             let condition = &transition.condition;
-            if condition.event.is_some() && !self.latched[t] {
+            if (condition.event.is_some() && !self.latched[t]) || condition.operator {
                 continue;
             }
             let mut due = since;
@@ -358,6 +358,7 @@ impl Engine {
                 .at_unix_secs
                 .is_none_or(|at| now >= at - self.date_origin)
             && (condition.event.is_none() || self.latched[t])
+            && !condition.operator
     }
 
     fn why_disabled(&self, t: usize) -> String {
@@ -666,6 +667,20 @@ mod tests {
         assert_eq!(firing.started, ["nav"]);
         assert_eq!(firing.at_secs, 1.0);
         assert!(engine.fire_by_hand("go", 2.0).is_err());
+    }
+
+    #[test]
+    fn operator_transitions_wait_for_a_person() {
+        let mut engine = Engine::new(&net(&[
+            "<place name=\"held\" tokens=\"1\"/><place name=\"leg\"/>",
+            "<transition name=\"resume\" operator=\"true\"><input place=\"held\"/><output place=\"leg\"/></transition>",
+        ]));
+        assert!(engine.step(1e9).is_empty());
+        assert_eq!(engine.next_deadline(), None);
+        assert_eq!(engine.enabled(), ["resume"]);
+        let firing = engine.fire_by_hand("resume", 1e9 + 1.0).expect("enabled");
+        assert_eq!(firing.transition, "resume");
+        assert_eq!(marking(&engine), "leg=1");
     }
 
     #[test]

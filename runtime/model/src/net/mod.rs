@@ -24,6 +24,7 @@
 //!
 //! Places and transitions share one set of names (as in PNML, where they are ids). Events are
 //! `MODULE.EVENT`, or `module.ID.failed`, which the runtime reports when module `ID` dies for good.
+//! A transition marked `operator="true"` waits for an operator to fire it by hand.
 //! The schema is `assets/schema/mission.xsd`.
 //!
 //! Everything here is pure: texts in, values and problems out; time is always a parameter.
@@ -38,10 +39,11 @@ mod check;
 mod date;
 pub mod engine;
 pub mod pnml;
-mod xml;
+pub(crate) mod xml;
 
 pub use analysis::{Analysis, analyse, dining_philosophers};
 pub use check::check_names;
+pub use date::{format_rfc3339, parse_rfc3339};
 pub use engine::{Engine, EngineError, Firing, MAX_FIRINGS_PER_STEP};
 pub use pnml::{PNML_NAMESPACE, PTNET_TYPE, from_pnml, to_pnml};
 
@@ -104,12 +106,18 @@ pub struct Condition {
     pub at_unix_secs: Option<f64>,
     /// `MODULE.EVENT` or `module.ID.failed`, reported while the transition is enabled.
     pub event: Option<String>,
+    /// Only an operator fires the transition (by hand, `armor ctl fire NAME`): a choice left to
+    /// a person, such as resuming a leg after the robot was held.
+    pub operator: bool,
 }
 
 impl Condition {
     /// `true` when the condition has no part: the transition fires as soon as it is enabled.
     pub fn is_empty(&self) -> bool {
-        self.delay_secs.is_none() && self.at_unix_secs.is_none() && self.event.is_none()
+        self.delay_secs.is_none()
+            && self.at_unix_secs.is_none()
+            && self.event.is_none()
+            && !self.operator
     }
 }
 
@@ -327,12 +335,20 @@ pub(crate) fn read_event(field: Field<'_>) -> Result<String, Located> {
 }
 
 pub(crate) fn read_final(field: Field<'_>) -> Result<bool, Located> {
+    read_bool(field, "final")
+}
+
+pub(crate) fn read_operator(field: Field<'_>) -> Result<bool, Located> {
+    read_bool(field, "operator")
+}
+
+fn read_bool(field: Field<'_>, what: &str) -> Result<bool, Located> {
     match field.value.trim() {
         "true" => Ok(true),
         "false" => Ok(false),
         _ => Err(Located::new(
             field.pos,
-            format!("`final` must be `true` or `false`, not `{}`", field.value),
+            format!("`{what}` must be `true` or `false`, not `{}`", field.value),
         )),
     }
 }

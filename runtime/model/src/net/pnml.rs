@@ -40,8 +40,8 @@ use armor_module_api::xml::{self as tree, Element, Located, Pos};
 use super::xml::{identifier, no_children, no_text, optional, required};
 use super::{
     Arc, Condition, Field, MissionNet, Place, PlaceParam, Transition, check_structure, escape,
-    finish, format_date, read_date, read_delay, read_event, read_identifier, read_priority,
-    read_tokens, read_weight,
+    finish, format_date, read_date, read_delay, read_event, read_identifier, read_operator,
+    read_priority, read_tokens, read_weight,
 };
 
 /// The namespace of PNML 2009 documents.
@@ -133,6 +133,9 @@ pub fn to_pnml(net: &MissionNet) -> String {
             }
             if let Some(at) = condition.at_unix_secs {
                 let _ = write!(out, " at=\"{}\"", format_date(at));
+            }
+            if condition.operator {
+                out.push_str(" operator=\"true\"");
             }
             out.push_str("/>\n        </toolspecific>\n");
         }
@@ -595,6 +598,7 @@ impl<'a> Reader<'a> {
                             "event",
                             "delay_secs",
                             "at",
+                            "operator",
                         ]));
                         no_children(data, problems);
                         no_text(data, problems);
@@ -604,6 +608,8 @@ impl<'a> Reader<'a> {
                             delay_secs: optional(data, "delay_secs", read_delay, problems),
                             at_unix_secs: optional(data, "at", read_date, problems),
                             event: optional(data, "event", read_event, problems),
+                            operator: optional(data, "operator", read_operator, problems)
+                                .unwrap_or(false),
                         };
                     }
                 }
@@ -1036,7 +1042,7 @@ mod tests {
                 "5:83: `delay_secs` must be a number of seconds, 0 or more (like 2 or 0.5), not `-1`",
                 "5:99: `at` must be a date like 2026-11-22T20:00:00Z or 2026-11-22T21:00:00+01:00, not `now`: expected YYYY-MM-DDTHH:MM:SS, an optional fraction of a second, then `Z` or an offset ±hh:mm",
                 "5:108: `event` must be MODULE.EVENT, or module.ID.failed for the failure of module ID, not `e`",
-                "5:118: unknown attribute `guard` on <condition> (expected one of: priority, event, delay_secs, at)",
+                "5:118: unknown attribute `guard` on <condition> (expected one of: priority, event, delay_secs, at, operator)",
                 "6:35: ArMoR keeps no data here: remove this <toolspecific tool=\"ArMoR\">",
                 "7:1: transition `u` has no input arc: it would always be enabled and fire forever (give it an <input place=\"...\"/>)",
                 "7:47: ArMoR data of version `2` is not supported (this ArMoR reads version 1)",

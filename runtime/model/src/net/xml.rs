@@ -9,7 +9,7 @@ use armor_module_api::xml::{self as tree, Element, Located, Pos};
 use super::{
     Arc, Condition, Field, MissionNet, Place, PlaceParam, Transition, check_structure, escape,
     finish, format_date, read_date, read_delay, read_event, read_final, read_identifier,
-    read_priority, read_tokens, read_weight,
+    read_operator, read_priority, read_tokens, read_weight,
 };
 
 impl MissionNet {
@@ -102,6 +102,9 @@ impl MissionNet {
             if let Some(at) = condition.at_unix_secs {
                 let _ = write!(out, " at=\"{}\"", format_date(at));
             }
+            if condition.operator {
+                out.push_str(" operator=\"true\"");
+            }
             out.push_str(">\n");
             for (tag, arcs) in [
                 ("input", &transition.inputs),
@@ -184,7 +187,14 @@ fn read_place(element: &Element, problems: &mut Vec<Located>) -> Place {
 }
 
 fn read_transition(element: &Element, problems: &mut Vec<Located>) -> Transition {
-    problems.extend(element.unknown_attrs(&["name", "priority", "event", "delay_secs", "at"]));
+    problems.extend(element.unknown_attrs(&[
+        "name",
+        "priority",
+        "event",
+        "delay_secs",
+        "at",
+        "operator",
+    ]));
     problems.extend(element.unknown_children(&["input", "output"]));
     no_text(element, problems);
     let mut transition = Transition {
@@ -194,6 +204,7 @@ fn read_transition(element: &Element, problems: &mut Vec<Located>) -> Transition
             delay_secs: optional(element, "delay_secs", read_delay, problems),
             at_unix_secs: optional(element, "at", read_date, problems),
             event: optional(element, "event", read_event, problems),
+            operator: optional(element, "operator", read_operator, problems).unwrap_or(false),
         },
         pos: element.pos,
         ..Transition::default()
@@ -217,7 +228,7 @@ fn read_transition(element: &Element, problems: &mut Vec<Located>) -> Transition
 }
 
 /// The attribute, which must be present and not blank.
-pub(super) fn required<'a>(
+pub(crate) fn required<'a>(
     element: &'a Element,
     name: &str,
     problems: &mut Vec<Located>,
@@ -229,7 +240,7 @@ pub(super) fn required<'a>(
         .ok()
 }
 
-pub(super) fn identifier(
+pub(crate) fn identifier(
     element: &Element,
     name: &str,
     what: &str,
@@ -242,7 +253,7 @@ pub(super) fn identifier(
 }
 
 /// The attribute read by `read` when present; `None` when absent or wrong (reported).
-pub(super) fn optional<T>(
+pub(crate) fn optional<T>(
     element: &Element,
     name: &str,
     read: fn(Field<'_>) -> Result<T, Located>,
@@ -254,7 +265,7 @@ pub(super) fn optional<T>(
         .ok()
 }
 
-pub(super) fn no_children(element: &Element, problems: &mut Vec<Located>) {
+pub(crate) fn no_children(element: &Element, problems: &mut Vec<Located>) {
     for child in &element.children {
         problems.push(Located::new(
             child.pos,
@@ -266,7 +277,7 @@ pub(super) fn no_children(element: &Element, problems: &mut Vec<Located>) {
     }
 }
 
-pub(super) fn no_text(element: &Element, problems: &mut Vec<Located>) {
+pub(crate) fn no_text(element: &Element, problems: &mut Vec<Located>) {
     let text = element.text.trim();
     if !text.is_empty() {
         let shown: String = text.chars().take(40).collect();
@@ -347,6 +358,7 @@ mod tests {
                 delay_secs: Some(2.0),
                 at_unix_secs: Some(1_795_377_600.0),
                 event: Some("nav.goal_reached".into()),
+                operator: false,
             }
         );
         assert_eq!(arrive.inputs[0].weight, 1);
@@ -384,7 +396,7 @@ mod tests {
                 "2:29: unknown element <modul> inside <place> (expected one of: module, param)",
                 "3:1: unknown element <arc> inside <mission> (expected one of: place, transition)",
                 "4:1: <transition> must not contain text (found `hello`)",
-                "4:22: unknown attribute `guard` on <transition> (expected one of: name, priority, event, delay_secs, at)",
+                "4:22: unknown attribute `guard` on <transition> (expected one of: name, priority, event, delay_secs, at, operator)",
                 "4:54: unknown attribute `kind` on <input> (expected one of: place, weight)",
                 "4:64: unknown element <inhibitor> inside <transition> (expected one of: input, output)",
                 "5:1: <place> needs the attribute `name`",

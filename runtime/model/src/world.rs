@@ -1,6 +1,6 @@
-//! The simulated world: a plane of walls and obstacles read from a `.world` file, with the
-//! queries a simulator, a map display or a mapper's test needs (ray casting, collision, an
-//! occupancy grid, latitude and longitude).
+//! The simulated world: a plane of walls and obstacles read from the text of a `.world` file,
+//! with the queries a simulator, a map display, a plan compiler or a mapper's test needs (ray
+//! casting, collision, an occupancy grid, latitude and longitude).
 //!
 //! # The `.world` format
 //!
@@ -24,7 +24,6 @@
 //! reported as `FILE:LINE:COL: message` ([`WorldError`]).
 
 use std::fmt;
-use std::path::Path;
 
 use armor_module_api::types::{OccupancyGrid, Pose2D};
 
@@ -427,19 +426,6 @@ pub struct World {
 }
 
 impl World {
-    /// Reads and checks a world file.
-    pub fn load(path: impl AsRef<Path>) -> Result<World, WorldError> {
-        let path = path.as_ref();
-        let file_name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|err| WorldError {
-            file: file_name.clone(),
-            line: 0,
-            col: 0,
-            message: format!("cannot read the world file: {err}"),
-        })?;
-        World::parse(&text, &file_name)
-    }
-
     /// Reads and checks the text of a world file; `file_name` is only used in error messages.
     pub fn parse(text: &str, file_name: &str) -> Result<World, WorldError> {
         let mut parser = Parser {
@@ -462,7 +448,7 @@ impl World {
         &self.name
     }
 
-    /// The file it was read from, as given to [`World::load`] or [`World::parse`].
+    /// The file it was read from, as given to [`World::parse`].
     pub fn file_name(&self) -> &str {
         &self.file_name
     }
@@ -1308,6 +1294,7 @@ impl Parser<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::Path;
 
     const ROOM: &str = "\
 name Test room
@@ -1632,19 +1619,16 @@ boundary 0,0 10,0 10,10 0,10 0,0
             error("name\n"),
             "bad.world:1:1: `name` needs the world's name"
         );
-        assert_eq!(
-            World::load("/no/such/dir/x.world")
-                .expect_err("missing")
-                .to_string(),
-            "/no/such/dir/x.world: cannot read the world file: No such file or directory (os error 2)"
-        );
     }
 
     #[test]
     fn the_bundled_worlds_load() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/worlds");
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/worlds");
         for name in ["yard.world", "building.world", "field.world"] {
-            let world = World::load(dir.join(name)).unwrap_or_else(|err| panic!("{err}"));
+            let path = dir.join(name);
+            let text = std::fs::read_to_string(&path).unwrap_or_else(|err| panic!("{err}"));
+            let world = World::parse(&text, &path.display().to_string())
+                .unwrap_or_else(|err| panic!("{err}"));
             world
                 .check_start(0.25)
                 .unwrap_or_else(|err| panic!("{err}"));

@@ -1,0 +1,371 @@
+use super::*;
+use crate::net::analyse;
+
+/// A 40 m × 30 m world with a block in the middle, anchored at (43.5615, 1.469).
+const WORLD: &str = "name Test yard
+origin 43.5615 1.469
+start 4 4 0
+boundary 0,0 40,0 40,30 0,30 0,0
+rect 18,8 22,12
+";
+
+fn world() -> World {
+    World::parse(WORLD, "test.world").unwrap_or_else(|err| panic!("{err}"))
+}
+
+fn origin() -> LatLon {
+    LatLon::new(43.5615, 1.469)
+}
+
+/// `<waypoint>` at world point (x, y).
+fn waypoint(name: &str, x: f64, y: f64) -> String {
+    let at = LatLon::from_local(Point::new(x, y), origin());
+    format!(
+        "<waypoint name=\"{name}\" lat=\"{:.8}\" lon=\"{:.8}\"/>",
+        at.lat_deg, at.lon_deg
+    )
+}
+
+fn plan(body: &str) -> Plan {
+    let text = format!(
+        "<plan name=\"p\" system=\"system.xml\" start=\"2026-11-23T08:00:00Z\">\n\
+         <navigation><module name=\"avoider\"/></navigation>\n{}\n{body}\n</plan>",
+        [
+            waypoint("home", 4.0, 4.0),
+            waypoint("gate", 34.0, 4.0),
+            waypoint("hill", 34.0, 24.0)
+        ]
+        .join("\n")
+    );
+    Plan::parse(&text).unwrap_or_else(|problems| panic!("{problems:?}"))
+}
+
+fn compiled(body: &str) -> Compiled {
+    compile(&plan(body), Some(&world())).unwrap_or_else(|problems| panic!("{problems:?}"))
+}
+
+fn errors(body: &str) -> Vec<String> {
+    match compile(&plan(body), Some(&world())) {
+        Ok(_) => Vec::new(),
+        Err(problems) => problems.iter().map(|p| p.message.clone()).collect(),
+    }
+}
+
+/// `name: input -> output [condition]`, one line per transition, and the places with their
+/// modules and tokens: a readable picture of a net to compare.
+fn picture(net: &MissionNet) -> String {
+    let mut lines = Vec::new();
+    for place in &net.places {
+        let mut line = format!("place {}", place.name);
+        if place.tokens > 0 {
+            line.push_str(" (1)");
+        }
+        if place.is_final {
+            line.push_str(" final");
+        }
+        if !place.modules.is_empty() {
+            line.push_str(&format!(" [{}]", place.modules.join(" ")));
+        }
+        lines.push(line);
+    }
+    for t in &net.transitions {
+        let c = &t.condition;
+        let mut why = Vec::new();
+        if let Some(event) = &c.event {
+            why.push(event.clone());
+        }
+        if let Some(delay) = c.delay_secs {
+            why.push(format!("{delay} s"));
+        }
+        if let Some(at) = c.at_unix_secs {
+            why.push(format_date(at));
+        }
+        if c.operator {
+            why.push("operator".into());
+        }
+        lines.push(format!(
+            "{}: {} -> {} {}",
+            t.name,
+            t.inputs[0].place,
+            t.outputs[0].place,
+            why.join(", ")
+        ));
+    }
+    lines.join("\n")
+}
+
+#[test]
+fn a_plan_with_every_kind_of_step_becomes_a_sound_net() {
+    let compiled = compiled(
+        r#"<leg from="home" to="gate" arrive_by="2026-11-23T08:10:00Z" wait_secs="5">
+  <during><module name="recorder"/></during>
+  <arrival until="observer.observation_done" for_secs="60">
+    <module name="observer"><param name="sector_deg" value="180"/></module>
+  </arrival>
+</leg>
+<leg from="gate" to="hill" not_before="2026-11-23T08:20:00Z">
+  <contingency on="blocked" do="return" waypoint="home"/>
+</leg>
+<contingency on="failed" module="mapper" do="skip"/>"#,
+    );
+    assert_eq!(
+        picture(&compiled.net),
+        "place leg1_drive (1) [follower avoider recorder]
+place leg1_hold
+place leg1_drive_late [follower avoider recorder]
+place leg1_arrival [observer]
+place leg1_wait
+place leg2_depart
+place leg2_drive [follower avoider]
+place leg2_return [follower avoider]
+place returned_home final
+place leg2_return_hold
+place done final
+leg1_arrived: leg1_drive -> leg1_arrival follower.goal_reached
+leg1_retry: leg1_hold -> leg1_drive operator
+leg1_skip: leg1_hold -> leg2_depart operator
+leg1_blocked: leg1_drive -> leg1_hold follower.blocked
+leg1_arrived_late: leg1_drive_late -> leg1_arrival follower.goal_reached
+leg1_blocked_late: leg1_drive_late -> leg1_hold follower.blocked
+leg1_late: leg1_drive -> leg1_drive_late 2026-11-23T08:10:00Z
+leg1_arrival_done: leg1_arrival -> leg1_wait observer.observation_done
+leg1_arrival_timeout: leg1_arrival -> leg1_wait 60 s
+leg1_waited: leg1_wait -> leg2_depart 5 s
+leg1_drive_mapper_failed: leg1_drive -> leg2_depart module.mapper.failed
+leg1_drive_late_mapper_failed: leg1_drive_late -> leg2_depart module.mapper.failed
+leg1_arrival_mapper_failed: leg1_arrival -> leg2_depart module.mapper.failed
+leg1_wait_mapper_failed: leg1_wait -> leg2_depart module.mapper.failed
+leg2_appointment: leg2_depart -> leg2_drive 2026-11-23T08:20:00Z
+leg2_arrived: leg2_drive -> done follower.goal_reached
+leg2_returned: leg2_return -> returned_home follower.goal_reached
+leg2_return_blocked: leg2_return -> leg2_return_hold follower.blocked
+leg2_return_retry: leg2_return_hold -> leg2_return operator
+leg2_blocked: leg2_drive -> leg2_return follower.blocked
+leg2_depart_mapper_failed: leg2_depart -> done module.mapper.failed
+leg2_drive_mapper_failed: leg2_drive -> done module.mapper.failed"
+    );
+    // Goals are the destinations in the world frame, to the millimetre.
+    let drive = compiled.net.place("leg1_drive").expect("drive");
+    let goal: Vec<(&str, &str)> = drive
+        .params
+        .iter()
+        .map(|p| (p.name.as_str(), p.value.as_str()))
+        .collect();
+    assert_eq!(goal, [("goal_x_m", "34"), ("goal_y_m", "4")]);
+    let observer = &compiled.net.place("leg1_arrival").expect("arrival").params[0];
+    assert_eq!(
+        (observer.name.as_str(), observer.value.as_str()),
+        ("sector_deg", "180")
+    );
+    // The net reads back, has no deadlock, no dead transition and stays bounded.
+    let again = MissionNet::parse(&compiled.net.to_xml()).expect("reads back");
+    assert_eq!(again.without_positions(), compiled.net.without_positions());
+    let analysis = analyse(&compiled.net, 100_000);
+    assert_eq!(analysis.problems(&compiled.net), []);
+    // Every element traces back to its leg, the ends to the plan and the return waypoint.
+    assert_eq!(compiled.trace["leg1_arrival_timeout"], Origin::Leg(0));
+    assert_eq!(compiled.trace["leg2_return_retry"], Origin::Leg(1));
+    assert_eq!(
+        compiled.trace["returned_home"],
+        Origin::Waypoint("home".into())
+    );
+    assert_eq!(compiled.trace["done"], Origin::Plan);
+    assert_eq!(
+        compiled.trace.len(),
+        compiled.net.places.len() + compiled.net.transitions.len()
+    );
+}
+
+#[test]
+fn compiling_is_deterministic() {
+    let body = r#"<leg from="home" to="gate" wait_secs="3"/><leg from="gate" to="hill"/>"#;
+    assert_eq!(compiled(body).net.to_xml(), compiled(body).net.to_xml());
+}
+
+#[test]
+fn legs_go_around_no_go_areas_and_the_navigation_learns_them() {
+    // A no-go strip across the straight line from home to gate.
+    let corners = [(12.0, 1.0), (14.0, 1.0), (14.0, 7.0), (12.0, 7.0)]
+        .map(|(x, y)| {
+            let at = LatLon::from_local(Point::new(x, y), origin());
+            format!(
+                "<point lat=\"{:.8}\" lon=\"{:.8}\"/>",
+                at.lat_deg, at.lon_deg
+            )
+        })
+        .join("");
+    let compiled = compiled(&format!(
+        "<leg from=\"home\" to=\"gate\"/><area name=\"mines\" kind=\"no-go\">{corners}</area>"
+    ));
+    let route = &compiled.routes[0];
+    assert!(route.len() > 2, "{route:?}");
+    let area = Polygon::new(vec![
+        Point::new(12.0, 1.0),
+        Point::new(14.0, 1.0),
+        Point::new(14.0, 7.0),
+        Point::new(12.0, 7.0),
+    ]);
+    for pair in route.windows(2) {
+        assert!(
+            !area.blocks(pair[0], pair[1], CLEARANCE_M * 0.99),
+            "{route:?}"
+        );
+    }
+    let drive = compiled.net.place("leg1_drive").expect("drive");
+    let no_go = drive
+        .params
+        .iter()
+        .find(|p| p.name == "no_go")
+        .expect("no_go");
+    let polygons = geo::parse_polygons(&no_go.value).expect("polygons");
+    assert_eq!(polygons.len(), 1);
+    for (got, want) in polygons[0].corners.iter().zip(&area.corners) {
+        assert!((got.x - want.x).abs() < 0.01 && (got.y - want.y).abs() < 0.01);
+    }
+}
+
+#[test]
+fn places_the_robot_cannot_reach_are_refused() {
+    let text = format!(
+        "<plan name=\"p\" system=\"s.xml\">{}{}{}<leg from=\"a\" to=\"b\"/><leg from=\"b\" to=\"c\"/></plan>",
+        waypoint("a", -5.0, 4.0),
+        waypoint("b", 20.0, 10.0),
+        waypoint("c", 30.0, 20.0),
+    );
+    let plan = Plan::parse(&text).expect("reads");
+    let found: Vec<String> = compile(&plan, Some(&world()))
+        .expect_err("refused")
+        .iter()
+        .map(|p| p.message.clone())
+        .collect();
+    assert_eq!(
+        found,
+        [
+            "waypoint `a` is outside the world `Test yard`: it is at (-5, 4) m, the world spans 0 to 40 m east and 0 to 30 m north",
+            "waypoint `b` at (20, 10) m is inside an obstacle of the world `Test yard`",
+        ]
+    );
+}
+
+#[test]
+fn areas_that_cross_themselves_or_close_the_way_are_refused() {
+    let at = |x: f64, y: f64| {
+        let p = LatLon::from_local(Point::new(x, y), origin());
+        format!("<point lat=\"{:.8}\" lon=\"{:.8}\"/>", p.lat_deg, p.lon_deg)
+    };
+    let bow_tie = format!(
+        "{}{}{}{}",
+        at(2.0, 20.0),
+        at(6.0, 24.0),
+        at(6.0, 20.0),
+        at(2.0, 24.0)
+    );
+    // A box around the gate.
+    let fence = format!(
+        "{}{}{}{}",
+        at(30.0, 1.0),
+        at(38.0, 1.0),
+        at(38.0, 2.0),
+        at(30.0, 2.0)
+    );
+    let wall_w = format!(
+        "{}{}{}{}",
+        at(30.0, 1.0),
+        at(31.0, 1.0),
+        at(31.0, 8.0),
+        at(30.0, 8.0)
+    );
+    let wall_e = format!(
+        "{}{}{}{}",
+        at(37.0, 1.0),
+        at(38.0, 1.0),
+        at(38.0, 8.0),
+        at(37.0, 8.0)
+    );
+    let wall_n = format!(
+        "{}{}{}{}",
+        at(30.0, 7.0),
+        at(38.0, 7.0),
+        at(38.0, 8.0),
+        at(30.0, 8.0)
+    );
+    let found = errors(&format!(
+        "<leg from=\"home\" to=\"gate\"/>\
+         <area name=\"knot\" kind=\"no-go\">{bow_tie}</area>\
+         <area name=\"s\" kind=\"no-go\">{fence}</area>\
+         <area name=\"w\" kind=\"no-go\">{wall_w}</area>\
+         <area name=\"e\" kind=\"no-go\">{wall_e}</area>\
+         <area name=\"n\" kind=\"no-go\">{wall_n}</area>"
+    ));
+    assert_eq!(
+        found,
+        [
+            "leg `leg1`: no way from `home` to `gate` keeps 1 m from the no-go areas",
+            "area `knot`: its outline crosses itself, so it has no clear inside",
+        ]
+    );
+    let found = errors(&format!(
+        "<leg from=\"home\" to=\"gate\"/><area name=\"on_gate\" kind=\"no-go\">{}{}{}</area>",
+        at(33.0, 3.0),
+        at(36.0, 3.0),
+        at(34.0, 6.0)
+    ));
+    assert_eq!(
+        found,
+        ["waypoint `gate` is in the no-go area `on_gate` or closer than 1 m to it"]
+    );
+}
+
+#[test]
+fn time_constraints_that_cannot_be_met_are_warned_with_the_numbers() {
+    // home → gate is 30 m, 60 s at 0.5 m/s, then 20 s of waiting; gate → hill 20 m, 40 s.
+    let tight = compiled(
+        r#"<leg from="home" to="gate" arrive_by="2026-11-23T08:00:50Z" wait_secs="20"/>
+<leg from="gate" to="hill" not_before="2026-11-23T08:01:00Z" arrive_by="2026-11-23T08:01:50Z"/>"#,
+    );
+    let warnings: Vec<&str> = tight.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert_eq!(
+        warnings,
+        [
+            "leg `leg1`: the deadline to reach `gate` at 2026-11-23T08:00:50Z is 10 s before the earliest possible arrival (2026-11-23T08:01:00Z: 30 m at 0.5 m/s from 2026-11-23T08:00:00Z)",
+            "leg `leg2`: the appointment to leave `gate` at 2026-11-23T08:01:00Z is 20 s before the earliest possible arrival there (2026-11-23T08:01:20Z: 30 m at 0.5 m/s and 20 s of waiting from 2026-11-23T08:00:00Z)",
+            "leg `leg2`: the deadline to reach `hill` at 2026-11-23T08:01:50Z is 10 s before the earliest possible arrival (2026-11-23T08:02:00Z: 50 m at 0.5 m/s and 20 s of waiting from 2026-11-23T08:00:00Z)",
+        ]
+    );
+    // Met constraints say nothing.
+    let loose = compiled(
+        r#"<leg from="home" to="gate" arrive_by="2026-11-23T08:02:00Z"/>
+<leg from="gate" to="hill" not_before="2026-11-23T08:05:00Z" arrive_by="2026-11-23T08:06:00Z"/>"#,
+    );
+    assert!(loose.warnings.is_empty(), "{:?}", loose.warnings);
+}
+
+#[test]
+fn without_a_world_the_origin_places_the_plan() {
+    let text = format!(
+        "<plan name=\"p\" system=\"s.xml\"><origin lat=\"43.5615\" lon=\"1.469\"/>{}{}<leg from=\"a\" to=\"b\"/></plan>",
+        waypoint("a", 0.0, 0.0),
+        waypoint("b", -100.0, 250.0),
+    );
+    let plan = Plan::parse(&text).expect("reads");
+    let compiled = compile(&plan, None).expect("compiles");
+    let b = compiled.positions["b"];
+    assert!(
+        (b.x + 100.0).abs() < 0.01 && (b.y - 250.0).abs() < 0.01,
+        "{b:?}"
+    );
+    let no_origin = text.replace("<origin lat=\"43.5615\" lon=\"1.469\"/>", "");
+    let plan = Plan::parse(&no_origin).expect("reads");
+    assert!(compile(&plan, None).is_err());
+    // An origin far from the world's is refused.
+    let moved = text.replace(
+        "lat=\"43.5615\" lon=\"1.469\"",
+        "lat=\"43.5625\" lon=\"1.469\"",
+    );
+    let plan = Plan::parse(&moved).expect("reads");
+    let problems = compile(&plan, Some(&world())).expect_err("refused");
+    assert!(
+        problems[0].message.contains("111.2 m from the origin"),
+        "{problems:?}"
+    );
+}

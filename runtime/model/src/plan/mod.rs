@@ -1,0 +1,347 @@
+//! Mission plans: what an operator draws on a map — waypoints, legs between them, actions, time
+//! constraints, contingencies and tactical graphics — and their compilation into a mission net.
+//!
+//! ```xml
+//! <plan name="recon" system="system.xml" world="yard.world" start="2026-11-23T08:00:00Z">
+//!   <navigation module="follower" speed_mps="0.5">
+//!     <module name="avoider"/>
+//!   </navigation>
+//!   <waypoint name="home" lat="43.561536" lon="1.469049"/>
+//!   <waypoint name="gate" lat="43.561590" lon="1.469250" symbol="SFGPUCR----"/>
+//!   <leg from="home" to="gate" arrive_by="2026-11-23T08:05:00Z" wait_secs="10">
+//!     <arrival until="observer.observation_done" for_secs="60">
+//!       <module name="observer"><param name="sector_deg" value="360"/></module>
+//!     </arrival>
+//!   </leg>
+//!   <leg from="gate" to="home" not_before="2026-11-23T08:10:00Z"/>
+//!   <contingency on="blocked" do="hold"/>
+//!   <area name="minefield" kind="no-go">
+//!     <point lat="43.56156" lon="1.46912"/> …
+//!   </area>
+//! </plan>
+//! ```
+//!
+//! The legs are driven in the order written, each from where the previous one ended. The
+//! navigation module (with its companions) runs on every leg with its goal set to the leg's
+//! destination in the world frame; an action `during` a leg runs beside it, an action on
+//! `arrival` runs at the destination until its event (or for at most `for_secs`). Time
+//! constraints: `not_before` (do not leave before: an appointment), `arrive_by` (a deadline),
+//! `wait_secs` (stay at the destination). Contingencies say what to do when the robot is
+//! `blocked`, a module `failed`, or the robot is `late`: `skip` the rest of the leg, `hold` for
+//! the operator (who may retry or skip), `return` to a waypoint and end there, or (`late` only)
+//! `continue`. An action `throughout` runs from start to end (a recorder). The schema is `assets/schema/plan.xsd`; [`compile`] makes the net and [`gpx`]
+//! exchanges waypoints and routes with GIS tools.
+
+use armor_module_api::xml::Pos;
+
+mod compile;
+pub mod gpx;
+mod xml;
+
+pub use crate::geo::LatLon;
+pub use compile::{CLEARANCE_M, Compiled, Origin, compile};
+
+/// A whole plan.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Plan {
+    pub name: String,
+    /// The system file, relative to the plan file.
+    pub system: String,
+    /// The world file the plan is drawn on; empty: the one the system's simulator loads.
+    pub world: String,
+    /// The geographic point of the world frame's (0, 0) when there is no world (a real robot);
+    /// with a world, the world's origin is used and this one must agree.
+    pub origin: Option<LatLon>,
+    /// The planned start, for the checks of time constraints (Unix seconds).
+    pub start_unix_secs: Option<f64>,
+    pub navigation: Navigation,
+    /// Runs from the start of the mission to its end, in every place (a recorder).
+    pub throughout: Option<Action>,
+    pub waypoints: Vec<Waypoint>,
+    pub legs: Vec<Leg>,
+    /// Contingencies for every leg that does not say otherwise.
+    pub contingencies: Vec<Contingency>,
+    pub graphics: Vec<Graphic>,
+    pub units: Vec<Unit>,
+    pub pos: Pos,
+}
+
+/// How legs are driven: the module that drives to a goal, its parameters and events, the
+/// modules that run with it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Navigation {
+    pub module: String,
+    /// Modules that run on every leg beside [`Navigation::module`] (an obstacle avoider).
+    pub companions: Vec<String>,
+    pub goal_x_param: String,
+    pub goal_y_param: String,
+    /// The parameter that gets the no-go areas (polygons in the world frame), if there are any.
+    pub no_go_param: String,
+    pub reached_event: String,
+    pub blocked_event: String,
+    /// The speed assumed for the earliest arrival times the time constraints are checked against.
+    pub speed_mps: f64,
+    pub pos: Pos,
+}
+
+impl Default for Navigation {
+    fn default() -> Self {
+        Self {
+            module: "follower".into(),
+            companions: Vec::new(),
+            goal_x_param: "goal_x_m".into(),
+            goal_y_param: "goal_y_m".into(),
+            no_go_param: "no_go".into(),
+            reached_event: "goal_reached".into(),
+            blocked_event: "blocked".into(),
+            speed_mps: 0.5,
+            pos: Pos::default(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Waypoint {
+    pub name: String,
+    pub position: LatLon,
+    /// A symbol to draw it with: an APP-6 / MIL-STD-2525 SIDC.
+    pub symbol: Option<String>,
+    pub pos: Pos,
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Leg {
+    /// The name its places and transitions start with (`leg1`, `leg2`, … when not given).
+    pub name: String,
+    pub from: String,
+    pub to: String,
+    /// Runs while the robot drives the leg.
+    pub during: Option<Action>,
+    /// Runs on arrival, before the wait.
+    pub arrival: Option<Action>,
+    /// Seconds to stay at the destination after the arrival action.
+    pub wait_secs: Option<f64>,
+    /// Do not leave before this date (an appointment), Unix seconds.
+    pub not_before_unix_secs: Option<f64>,
+    /// Arrive by this date (a deadline), Unix seconds.
+    pub arrive_by_unix_secs: Option<f64>,
+    /// Contingencies of this leg; they replace the plan's for the same trigger.
+    pub contingencies: Vec<Contingency>,
+    pub pos: Pos,
+}
+
+/// A set of modules with parameter values. On arrival it ends with `until` (an event
+/// `MODULE.EVENT`), after `for_secs`, or whichever comes first.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Action {
+    pub modules: Vec<ActionModule>,
+    pub until: Option<String>,
+    pub for_secs: Option<f64>,
+    pub pos: Pos,
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ActionModule {
+    pub name: String,
+    pub params: Vec<ActionParam>,
+    pub pos: Pos,
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ActionParam {
+    pub name: String,
+    pub value: String,
+    pub pos: Pos,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Contingency {
+    pub trigger: Trigger,
+    pub response: Response,
+    pub pos: Pos,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Trigger {
+    /// The navigation reports that the robot makes no progress.
+    Blocked,
+    /// The module failed for good (the runtime's `module.ID.failed`).
+    Failed { module: String },
+    /// The leg's deadline passed before the arrival.
+    Late,
+}
+
+impl Trigger {
+    pub fn describe(&self) -> String {
+        match self {
+            Trigger::Blocked => "blocked".into(),
+            Trigger::Failed { module } => format!("failed (module `{module}`)"),
+            Trigger::Late => "late".into(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Response {
+    /// Give up the rest of the leg (its arrival action and wait) and go on with the next one.
+    Skip,
+    /// Stop and wait for the operator, who fires `LEG_retry` or `LEG_skip`.
+    Hold,
+    /// Drive to the waypoint and end the mission there.
+    Return { waypoint: String },
+    /// Go on as if nothing happened (only for `late`: the net records that the robot was late).
+    Continue,
+}
+
+/// A tactical graphic: a line or an area with a meaning, drawn on the map.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Graphic {
+    pub kind: GraphicKind,
+    pub name: String,
+    pub points: Vec<LatLon>,
+    /// For a phase line: when units are to cross it (shown on the map like a plan's
+    /// synchronisation line).
+    pub at_unix_secs: Option<f64>,
+    pub pos: Pos,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GraphicKind {
+    #[default]
+    PhaseLine,
+    Boundary,
+    Area(AreaKind),
+}
+
+/// What an area means; only `no-go` changes how the robot drives.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AreaKind {
+    #[default]
+    NoGo,
+    Objective,
+    Assembly,
+    Named,
+}
+
+impl AreaKind {
+    pub const ALL: [AreaKind; 4] = [
+        AreaKind::NoGo,
+        AreaKind::Objective,
+        AreaKind::Assembly,
+        AreaKind::Named,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            AreaKind::NoGo => "no-go",
+            AreaKind::Objective => "objective",
+            AreaKind::Assembly => "assembly",
+            AreaKind::Named => "named",
+        }
+    }
+}
+
+/// A unit symbol on the map.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Unit {
+    pub name: String,
+    /// The symbol identification code (APP-6 / MIL-STD-2525).
+    pub sidc: String,
+    pub position: LatLon,
+    pub pos: Pos,
+}
+
+impl Plan {
+    pub fn waypoint(&self, name: &str) -> Option<&Waypoint> {
+        self.waypoints.iter().find(|waypoint| waypoint.name == name)
+    }
+
+    /// The no-go areas.
+    pub fn no_go_areas(&self) -> impl Iterator<Item = &Graphic> {
+        self.graphics
+            .iter()
+            .filter(|graphic| graphic.kind == GraphicKind::Area(AreaKind::NoGo))
+    }
+
+    /// The contingency that applies to `trigger` on leg `leg`: the leg's own, else the plan's.
+    pub fn contingency<'a>(&'a self, leg: &'a Leg, trigger: &Trigger) -> Option<&'a Contingency> {
+        leg.contingencies
+            .iter()
+            .chain(&self.contingencies)
+            .find(|contingency| &contingency.trigger == trigger)
+    }
+
+    /// Every module whose failure some contingency handles, sorted, once each.
+    pub fn failure_modules(&self) -> Vec<String> {
+        let mut modules: Vec<String> = self
+            .contingencies
+            .iter()
+            .chain(self.legs.iter().flat_map(|leg| &leg.contingencies))
+            .filter_map(|contingency| match &contingency.trigger {
+                Trigger::Failed { module } => Some(module.clone()),
+                _ => None,
+            })
+            .collect();
+        modules.sort_unstable();
+        modules.dedup();
+        modules
+    }
+}
+
+/// Checks the form of a symbol identification code: 15 characters of APP-6 B / MIL-STD-2525 C
+/// (letters, digits, `-` and `*`, the second an affiliation) or 20 digits of APP-6 D /
+/// MIL-STD-2525 D. The message says what is wrong.
+pub fn check_sidc(code: &str) -> Result<(), String> {
+    let chars: Vec<char> = code.chars().collect();
+    match chars.len() {
+        15 => {
+            if let Some(bad) = chars
+                .iter()
+                .find(|c| !(c.is_ascii_alphanumeric() || **c == '-' || **c == '*'))
+            {
+                return Err(format!("`{bad}` is not allowed in a 15-character SIDC"));
+            }
+            let affiliation = chars[1].to_ascii_uppercase();
+            if !"PUAFNSHGWMDLJK-*".contains(affiliation) {
+                return Err(format!(
+                    "`{}` (the second character) is not an affiliation (F friend, H hostile, N neutral, U unknown, …)",
+                    chars[1]
+                ));
+            }
+            Ok(())
+        }
+        20 => {
+            if chars.iter().all(char::is_ascii_digit) {
+                Ok(())
+            } else {
+                Err("a 20-character SIDC (APP-6 D) has only digits".into())
+            }
+        }
+        n => Err(format!(
+            "a SIDC has 15 characters (APP-6 B, MIL-STD-2525 C) or 20 digits (APP-6 D), not {n}"
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sidc_forms() {
+        assert_eq!(check_sidc("SFGPUCI----K---"), Ok(()));
+        assert_eq!(check_sidc("10031000001211000000"), Ok(()));
+        assert!(check_sidc("SFGP").expect_err("refused").contains("not 4"));
+        assert!(
+            check_sidc("SQGPUCI--------")
+                .expect_err("refused")
+                .contains("affiliation")
+        );
+        assert!(
+            check_sidc("SFGPUCI----K-%-")
+                .expect_err("refused")
+                .contains("`%`")
+        );
+        assert!(check_sidc("1003100000121100000X").is_err());
+    }
+}
