@@ -51,19 +51,26 @@ pub struct Analysis {
 pub fn analyse(net: &MissionNet, limit_states: usize) -> Analysis {
     let compiled = Compiled::new(net);
     let limit = limit_states.clamp(1, u32::MAX as usize - 1);
+    single_token_state_machine(&compiled, limit)
+        .unwrap_or_else(|| analyse_by_exploration(&compiled, limit))
+}
+
+/// The general analysis: the reachable markings packed as bit fields, explored breadth-first,
+/// then the coverability tree when they are too many.
+fn analyse_by_exploration(compiled: &Compiled, limit: usize) -> Analysis {
     // The narrowest fields that hold the initial counts, wider when a count outgrows them.
     let widest = u64::from(compiled.initial.iter().copied().max().unwrap_or(0));
     let explored = [1, 2, 4, 8, 16]
         .into_iter()
         .filter(|&bits| widest < 1 << bits)
         .find_map(|bits| match bits {
-            1 => explore::<1>(&compiled, limit),
-            2 => explore::<2>(&compiled, limit),
-            4 => explore::<4>(&compiled, limit),
-            8 => explore::<8>(&compiled, limit),
-            _ => explore::<16>(&compiled, limit),
+            1 => explore::<1>(compiled, limit),
+            2 => explore::<2>(compiled, limit),
+            4 => explore::<4>(compiled, limit),
+            8 => explore::<8>(compiled, limit),
+            _ => explore::<16>(compiled, limit),
         })
-        .or_else(|| explore::<32>(&compiled, limit));
+        .or_else(|| explore::<32>(compiled, limit));
     let Some(explored) = explored else {
         // Unreachable: 32 bits hold any count.
         return Analysis::default();
@@ -80,12 +87,12 @@ pub fn analyse(net: &MissionNet, limit_states: usize) -> Analysis {
         let sequence = explored
             .sequence(state)
             .into_iter()
-            .map(|t| compiled.transition_names[t].clone())
+            .map(|t| compiled.transition_names[t].to_owned())
             .collect();
         analysis.dead_markings.push((marking, sequence));
     }
     let (fired, marked) = if explored.truncated {
-        let coverability = karp_miller(&compiled, limit);
+        let coverability = karp_miller(compiled, limit);
         analysis.unbounded = names(&compiled.place_names, &coverability.unbounded, true);
         analysis.coverability_truncated = !coverability.complete;
         if coverability.complete {
@@ -101,13 +108,96 @@ pub fn analyse(net: &MissionNet, limit_states: usize) -> Analysis {
     analysis
 }
 
+/// The analysis of a net that moves one token around: a single token at the start and every
+/// transition taking one token from one place and putting one in one place (what a plan
+/// compiles to, whatever its size). Its markings are its places, so the reachable markings are
+/// the places a breadth-first search reaches, in the order the general exploration finds them,
+/// which gives the same results in time linear in the net. `None` for any other net, or when
+/// the places reached are more than `limit`.
+fn single_token_state_machine(net: &Compiled, limit: usize) -> Option<Analysis> {
+    let places = net.place_names.len();
+    let mut start = None;
+    for (p, &tokens) in net.initial.iter().enumerate() {
+        match tokens {
+            0 => {}
+            1 if start.is_none() => start = Some(p),
+            _ => return None,
+        }
+    }
+    let start = start?;
+    // Each transition's (input, output) place.
+    let mut moves = Vec::with_capacity(net.transitions());
+    for t in 0..net.transitions() {
+        let [(from, 1)] = net.pre(t) else {
+            return None;
+        };
+        let to = match net.effect(t) {
+            [] => *from,
+            [(a, -1), (b, 1)] if a == from => *b,
+            [(b, 1), (a, -1)] if a == from => *b,
+            _ => return None,
+        };
+        moves.push((*from, to));
+    }
+    let mut parent = vec![usize::MAX; places];
+    let mut via = vec![usize::MAX; places];
+    let mut reached = vec![false; places];
+    let mut order = vec![start];
+    reached[start] = true;
+    let mut fired = vec![false; net.transitions()];
+    let mut dead = Vec::new();
+    let mut next = 0;
+    while next < order.len() {
+        let p = order[next];
+        next += 1;
+        let mut any = false;
+        for &t in &net.consumers[p] {
+            let t = t as usize;
+            any = true;
+            fired[t] = true;
+            let q = moves[t].1;
+            if !reached[q] {
+                if order.len() >= limit {
+                    return None;
+                }
+                reached[q] = true;
+                parent[q] = p;
+                via[q] = t;
+                order.push(q);
+            }
+        }
+        if !any && !net.finals.contains(&p) {
+            dead.push(p);
+        }
+    }
+    let mut analysis = Analysis {
+        states: order.len(),
+        dead_count: dead.len(),
+        ..Analysis::default()
+    };
+    for &p in dead.iter().take(MAX_DEAD_MARKINGS) {
+        let mut sequence = Vec::new();
+        let mut at = p;
+        while at != start {
+            sequence.push(net.transition_names[via[at]].to_owned());
+            at = parent[at];
+        }
+        sequence.reverse();
+        let marking = Marking::from([(net.place_names[p].to_owned(), 1)]);
+        analysis.dead_markings.push((marking, sequence));
+    }
+    analysis.never_fired = names(&net.transition_names, &fired, false);
+    analysis.never_marked = names(&net.place_names, &reached, false);
+    Some(analysis)
+}
+
 /// The names whose flag is `wanted`.
-fn names(names: &[String], flags: &[bool], wanted: bool) -> Vec<String> {
+fn names(names: &[&str], flags: &[bool], wanted: bool) -> Vec<String> {
     names
         .iter()
         .zip(flags)
         .filter(|(_, flag)| **flag == wanted)
-        .map(|(name, _)| name.clone())
+        .map(|(name, _)| (*name).to_owned())
         .collect()
 }
 
@@ -203,9 +293,9 @@ fn render_marking(marking: &Marking) -> String {
 }
 
 /// The net as the analysis needs it: indices and flat arrays.
-struct Compiled {
-    place_names: Vec<String>,
-    transition_names: Vec<String>,
+struct Compiled<'a> {
+    place_names: Vec<&'a str>,
+    transition_names: Vec<&'a str>,
     initial: Vec<u32>,
     finals: Vec<usize>,
     /// Transition `t`'s inputs are `pre[pre_start[t]..pre_start[t + 1]]`: (place, weight), one
@@ -224,8 +314,8 @@ struct Compiled {
     sourceless: Vec<u32>,
 }
 
-impl Compiled {
-    fn new(net: &MissionNet) -> Compiled {
+impl<'a> Compiled<'a> {
+    fn new(net: &'a MissionNet) -> Compiled<'a> {
         let by_name: std::collections::HashMap<&str, usize> = net
             .places
             .iter()
@@ -235,8 +325,8 @@ impl Compiled {
             .collect();
         let index = |name: &str| by_name.get(name).copied();
         let mut compiled = Compiled {
-            place_names: net.places.iter().map(|place| place.name.clone()).collect(),
-            transition_names: net.transitions.iter().map(|t| t.name.clone()).collect(),
+            place_names: net.places.iter().map(|place| place.name.as_str()).collect(),
+            transition_names: net.transitions.iter().map(|t| t.name.as_str()).collect(),
             initial: net.places.iter().map(|place| place.tokens).collect(),
             finals: (0..net.places.len())
                 .filter(|&p| net.places[p].is_final)
@@ -317,7 +407,7 @@ impl Compiled {
             .iter()
             .zip(counts)
             .filter(|(_, tokens)| **tokens > 0)
-            .map(|(name, tokens)| (name.clone(), *tokens))
+            .map(|(name, tokens)| ((*name).to_owned(), *tokens))
             .collect()
     }
 }
@@ -489,6 +579,10 @@ impl Explored {
     }
 }
 
+/// From this many transitions on, the exploration looks only at the transitions fed by the
+/// marked places.
+const SPARSE_FROM_TRANSITIONS: usize = 128;
+
 /// Breadth-first exploration packing `B` bits per place; `None` when a count does not fit.
 /// Counts beyond `u32::MAX` (32 bits) end the exploration as truncated.
 fn explore<const B: usize>(net: &Compiled, limit: usize) -> Option<Explored> {
@@ -518,6 +612,9 @@ fn explore<const B: usize>(net: &Compiled, limit: usize) -> Option<Explored> {
     let mut occupied: Vec<usize> = Vec::new();
     let mut candidates: Vec<u32> = Vec::new();
     let mut listed = vec![false; net.transitions()];
+    // Large nets mark few of their places at a time (a mission's places are its steps): only
+    // the marked places and the transitions they feed are looked at.
+    let sparse = net.transitions() > SPARSE_FROM_TRANSITIONS;
     // The successors of a batch of markings: probing them together lets the memory accesses
     // of the hash table overlap instead of waiting for each other.
     let mut batch_words: Vec<u64> = Vec::new();
@@ -527,50 +624,67 @@ fn explore<const B: usize>(net: &Compiled, limit: usize) -> Option<Explored> {
         let end = store.count.min(state + BATCH);
         for from in state..end {
             let current_words = store.state(from);
-            // Only the marked places are decoded, found word by word; `current` is zero
-            // everywhere else (the previous marking's places are cleared first).
-            for &p in &occupied {
-                current[p] = 0;
-            }
-            occupied.clear();
-            for (w, &word) in current_words.iter().enumerate() {
-                if word == 0 {
-                    continue;
+            if !sparse {
+                // A small net: decoding every place and trying every transition is cheapest.
+                for (p, count) in current.iter_mut().enumerate() {
+                    *count = get::<B>(current_words, p);
                 }
-                let first = w * 64 / B;
-                let last = (first + 64 / B).min(places);
-                for (p, slot) in current.iter_mut().enumerate().take(last).skip(first) {
-                    let count = get::<B>(current_words, p);
-                    if count > 0 {
-                        *slot = count;
-                        occupied.push(p);
+                if unmarked > 0 {
+                    for (p, &count) in current.iter().enumerate() {
+                        if count > 0 && !marked[p] {
+                            marked[p] = true;
+                            unmarked -= 1;
+                        }
                     }
                 }
-            }
-            if unmarked > 0 {
+                candidates.clear();
+                candidates.extend(0..net.transitions() as u32);
+            } else {
+                // Only the marked places are decoded, found word by word; `current` is zero
+                // everywhere else (the previous marking's places are cleared first).
                 for &p in &occupied {
-                    if !marked[p] {
-                        marked[p] = true;
-                        unmarked -= 1;
+                    current[p] = 0;
+                }
+                occupied.clear();
+                for (w, &word) in current_words.iter().enumerate() {
+                    if word == 0 {
+                        continue;
+                    }
+                    let first = w * 64 / B;
+                    let last = (first + 64 / B).min(places);
+                    for (p, slot) in current.iter_mut().enumerate().take(last).skip(first) {
+                        let count = get::<B>(current_words, p);
+                        if count > 0 {
+                            *slot = count;
+                            occupied.push(p);
+                        }
                     }
                 }
-            }
-            // The transitions that may be enabled, in declaration order (which fixes which
-            // firing sequence reaches a marking first).
-            candidates.clear();
-            for &t in &net.sourceless {
-                listed[t as usize] = true;
-                candidates.push(t);
-            }
-            for &p in &occupied {
-                for &t in &net.consumers[p] {
-                    if !listed[t as usize] {
-                        listed[t as usize] = true;
-                        candidates.push(t);
+                if unmarked > 0 {
+                    for &p in &occupied {
+                        if !marked[p] {
+                            marked[p] = true;
+                            unmarked -= 1;
+                        }
                     }
                 }
+                // The transitions that may be enabled, in declaration order (which fixes which
+                // firing sequence reaches a marking first).
+                candidates.clear();
+                for &t in &net.sourceless {
+                    listed[t as usize] = true;
+                    candidates.push(t);
+                }
+                for &p in &occupied {
+                    for &t in &net.consumers[p] {
+                        if !listed[t as usize] {
+                            listed[t as usize] = true;
+                            candidates.push(t);
+                        }
+                    }
+                }
+                candidates.sort_unstable();
             }
-            candidates.sort_unstable();
             let mut any = false;
             for &t in &candidates {
                 let t = t as usize;
@@ -786,12 +900,63 @@ mod tests {
     /// The problems the analysis of the mission of `lines` reports.
     fn check(lines: &[&str], limit: usize, expected: &[&str]) {
         let net = net(lines);
+        same_by_both_ways(&net, limit);
         let got: Vec<String> = analyse(&net, limit)
             .problems(&net)
             .iter()
             .map(ToString::to_string)
             .collect();
         assert_eq!(got, expected, "for {lines:#?}");
+    }
+
+    /// When the one-token shortcut applies, it finds what the general exploration finds.
+    fn same_by_both_ways(net: &MissionNet, limit: usize) -> bool {
+        let compiled = Compiled::new(net);
+        let limit = limit.clamp(1, u32::MAX as usize - 1);
+        match single_token_state_machine(&compiled, limit) {
+            Some(fast) => {
+                assert_eq!(fast, analyse_by_exploration(&compiled, limit));
+                true
+            }
+            None => false,
+        }
+    }
+
+    #[test]
+    fn one_token_nets_take_the_shortcut_with_the_same_findings() {
+        let lines = [
+            "<place name=\"a\" tokens=\"1\"/><place name=\"b\"/><place name=\"c\"/>",
+            "<place name=\"stuck\"/><place name=\"island\"/><place name=\"done\" final=\"true\"/>",
+            "<transition name=\"ab\"><input place=\"a\"/><output place=\"b\"/></transition>",
+            "<transition name=\"bb\"><input place=\"b\"/><output place=\"b\"/></transition>",
+            "<transition name=\"bc\"><input place=\"b\"/><output place=\"c\"/></transition>",
+            "<transition name=\"cs\"><input place=\"c\"/><output place=\"stuck\"/></transition>",
+            "<transition name=\"cd\"><input place=\"c\"/><output place=\"done\"/></transition>",
+            "<transition name=\"back\"><input place=\"done\"/><output place=\"a\"/></transition>",
+            "<transition name=\"never\"><input place=\"island\"/><output place=\"a\"/></transition>",
+        ];
+        let net = net(&lines);
+        assert!(same_by_both_ways(&net, 1000));
+        let analysis = analyse(&net, 1000);
+        assert_eq!(analysis.states, 5);
+        assert_eq!(analysis.dead_count, 1);
+        assert_eq!(
+            analysis.dead_markings[0],
+            (
+                Marking::from([("stuck".to_owned(), 1)]),
+                vec!["ab".into(), "bc".into(), "cs".into()]
+            )
+        );
+        assert_eq!(analysis.never_fired, ["never"]);
+        assert_eq!(analysis.never_marked, ["island"]);
+        // Too many places for the limit, two tokens, or a token that vanishes: the general way.
+        assert!(!same_by_both_ways(&net, 3));
+        let mut two = net.clone();
+        two.places[1].tokens = 1;
+        assert!(!same_by_both_ways(&two, 1000));
+        let mut sink = net.clone();
+        sink.transitions[3].outputs.clear();
+        assert!(!same_by_both_ways(&sink, 1000));
     }
 
     #[test]

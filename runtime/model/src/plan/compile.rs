@@ -18,7 +18,7 @@
 //! holds, a late one continues, and a failure is left to the runtime (the mission fails).
 //! The modules of `throughout` run in every place, the final ones too.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 
 use armor_module_api::xml::{Located, Pos};
 
@@ -420,9 +420,8 @@ struct Builder<'a> {
     positions: &'a BTreeMap<String, Point>,
     no_go: String,
     net: MissionNet,
+    /// Also the names made so far (the net's own lookup is a linear search).
     trace: BTreeMap<String, Origin>,
-    /// The names of the places made so far (the net's own lookup is a linear search).
-    places: BTreeSet<String>,
     /// The modules whose failure some contingency handles.
     failure_modules: Vec<String>,
 }
@@ -445,7 +444,6 @@ impl<'a> Builder<'a> {
                 ..MissionNet::default()
             },
             trace: BTreeMap::new(),
-            places: BTreeSet::new(),
             failure_modules: plan.failure_modules(),
         }
     }
@@ -657,7 +655,7 @@ impl<'a> Builder<'a> {
             Response::Skip | Response::Continue => self.entry(index + 1),
             Response::Hold => {
                 let hold = format!("{name}_hold");
-                if !self.places.contains(&hold) {
+                if !self.trace.contains_key(&hold) {
                     self.place(&hold, origin(), leg.pos, Vec::new(), Vec::new());
                     let operator = Condition {
                         operator: true,
@@ -686,11 +684,11 @@ impl<'a> Builder<'a> {
             }
             Response::Return { waypoint } => {
                 let drive = format!("{name}_return");
-                if !self.places.contains(&drive) {
+                if !self.trace.contains_key(&drive) {
                     let (modules, params) = self.drive_action(waypoint, None, leg.pos);
                     self.place(&drive, origin(), leg.pos, modules, params);
                     let end = format!("returned_{waypoint}");
-                    if !self.places.contains(&end) {
+                    if !self.trace.contains_key(&end) {
                         self.place(
                             &end,
                             Origin::Waypoint(waypoint.clone()),
@@ -792,7 +790,6 @@ impl<'a> Builder<'a> {
             params.extend(more_params);
         }
         self.trace.insert(name.to_owned(), origin);
-        self.places.insert(name.to_owned());
         self.net.places.push(Place {
             name: name.to_owned(),
             modules,
