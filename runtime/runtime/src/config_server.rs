@@ -5,6 +5,11 @@
 //! It watches the system file (its parent folder, since editors save by renaming a new file over
 //! the old) and reloads it on change: a valid edit reaches every module whose configuration it
 //! changes; an invalid one is reported with `FILE:LINE:COL` and the last good one stays in force.
+//!
+//! Heartbeat: every module is pinged several times per lease; one that has sent nothing (its
+//! answers included) for a whole lease is reported [`ServerEvent::Unresponsive`] — stopped
+//! (SIGSTOP) or stuck in its own code — and the supervisor handles it as a crash. A module's
+//! event loop answers pings by itself whenever the module waits for its next event.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::Write as _;
@@ -12,7 +17,7 @@ use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use armor_module_api::protocol::{FromSupervisor, ModuleConfig, ToSupervisor};
 use armor_module_api::wire::{WireError, blocking};
@@ -23,6 +28,11 @@ use crate::load::{Loaded, load_system};
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
 /// Editors write a file in several steps; wait for this much quiet before reloading.
 const SETTLE: Duration = Duration::from_millis(50);
+/// Pings per lease: a module answers within a fraction of the lease when it is alive.
+const PINGS_PER_LEASE: u32 = 4;
+/// A write to a module that does not read (stopped) gives up after this long, so that one such
+/// module never holds up the others.
+const WRITE_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// What the config server tells the supervisor.
 #[derive(Debug)]
@@ -42,6 +52,11 @@ pub enum ServerEvent {
     Disconnected {
         module: String,
     },
+    /// A connected module has sent nothing, not even an answer to a ping, for a whole lease.
+    Unresponsive {
+        module: String,
+        silent_for: Duration,
+    },
     /// A valid edit of the system file is now in force.
     Reloaded(Arc<Loaded>),
 }
@@ -50,6 +65,10 @@ struct ModuleConn {
     conn_id: u64,
     writer: TcpStream,
     sent: ModuleConfig,
+    /// When the module last sent anything.
+    last_heard: Instant,
+    /// Reported unresponsive since it was last heard (reported once).
+    reported: bool,
 }
 
 /// What the mission controller wants of the modules right now.
@@ -150,11 +169,13 @@ pub struct ConfigServer {
 }
 
 impl ConfigServer {
-    /// Listens on `addr` and serves `loaded`, under `control`, until the process ends.
+    /// Listens on `addr` and serves `loaded`, under `control`, until the process ends; with a
+    /// `lease`, pings the modules and reports those silent for longer.
     pub fn start(
         addr: SocketAddr,
         loaded: Loaded,
         control: Control,
+        lease: Option<Duration>,
     ) -> std::io::Result<(Self, Receiver<ServerEvent>)> {
         let listener = TcpListener::bind(addr)?;
         let (events, receiver) = mpsc::channel();
@@ -170,7 +191,50 @@ impl ConfigServer {
         };
         let accepting = server.clone();
         std::thread::spawn(move || accepting.accept_loop(listener));
+        if let Some(lease) = lease {
+            let pinging = server.clone();
+            std::thread::spawn(move || pinging.heartbeat_loop(lease));
+        }
         Ok((server, receiver))
+    }
+
+    /// Pings every module a few times per lease and reports those silent for a whole lease.
+    fn heartbeat_loop(&self, lease: Duration) {
+        loop {
+            std::thread::sleep(lease / PINGS_PER_LEASE);
+            let now = Instant::now();
+            let mut silent = Vec::new();
+            {
+                let mut state = self.lock();
+                for (name, conn) in &mut state.conns {
+                    let quiet = now.saturating_duration_since(conn.last_heard);
+                    if quiet >= lease {
+                        if !conn.reported {
+                            conn.reported = true;
+                            silent.push((name.clone(), quiet));
+                        }
+                        continue;
+                    }
+                    let _ = blocking::write_message(&mut conn.writer, &FromSupervisor::Ping);
+                }
+            }
+            for (module, silent_for) in silent {
+                let _ = self
+                    .events
+                    .send(ServerEvent::Unresponsive { module, silent_for });
+            }
+        }
+    }
+
+    /// Notes that `module` (on connection `conn_id`) was heard from.
+    fn heard(&self, module: &str, conn_id: u64) {
+        let mut state = self.lock();
+        if let Some(conn) = state.conns.get_mut(module)
+            && conn.conn_id == conn_id
+        {
+            conn.last_heard = Instant::now();
+            conn.reported = false;
+        }
     }
 
     pub fn addr(&self) -> SocketAddr {
@@ -260,12 +324,15 @@ impl ConfigServer {
                 return Ok(());
             };
             blocking::write_message(stream, &FromSupervisor::Config(config.clone()))?;
+            stream.set_write_timeout(Some(WRITE_TIMEOUT))?;
             state.conns.insert(
                 name.clone(),
                 ModuleConn {
                     conn_id,
                     writer: stream.try_clone()?,
                     sent: config,
+                    last_heard: Instant::now(),
+                    reported: false,
                 },
             );
         }
@@ -275,7 +342,9 @@ impl ConfigServer {
             pid,
         });
         loop {
-            let event = match blocking::read_message::<ToSupervisor>(stream)? {
+            let message = blocking::read_message::<ToSupervisor>(stream)?;
+            self.heard(&name, conn_id);
+            let event = match message {
                 ToSupervisor::Ready => ServerEvent::Ready {
                     module: name.clone(),
                 },

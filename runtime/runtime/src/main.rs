@@ -62,6 +62,10 @@ enum Command {
         /// 2026-11-23T08:00:00Z: rehearse a plan made for another day. Default: now.
         #[arg(long, value_name = "DATE")]
         start_at: Option<String>,
+        /// A module that answers no ping for this long (stopped, or stuck in its own code) is
+        /// killed and restarted like one that crashed; 0 turns the heartbeat off.
+        #[arg(long, value_name = "SECS", default_value_t = 2.0)]
+        lease_secs: f64,
     },
     /// Compile a plan (waypoints, legs, actions, time constraints) into a mission net.
     Compile {
@@ -172,7 +176,15 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             control,
             report,
             start_at,
+            lease_secs,
         } => {
+            let lease = match lease_secs {
+                0.0 => None,
+                secs => Some(
+                    Duration::try_from_secs_f64(secs)
+                        .context("--lease-secs must be a number of seconds, 0 or more")?,
+                ),
+            };
             let start_at_unix_secs = start_at
                 .map(|text| {
                     armor_model::net::parse_rfc3339(&text)
@@ -197,6 +209,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 control_addr: control,
                 report,
                 start_at_unix_secs,
+                lease,
             })
         }
         Command::Check { file } => Ok(check(&file)),

@@ -53,6 +53,9 @@ pub struct RunOptions {
     /// The date (Unix seconds) run time 0 stands for, against which a mission's dates are
     /// compared: to rehearse a plan made for another day. Now when `None`.
     pub start_at_unix_secs: Option<f64>,
+    /// A module silent for this long (no answer to pings) is killed and handled as a crash;
+    /// `None` turns the heartbeat off.
+    pub lease: Option<Duration>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -162,7 +165,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         .as_ref()
         .map(Controller::control)
         .unwrap_or_default();
-    let (server, events) = ConfigServer::start(local(0)?, loaded.clone(), control)
+    let (server, events) = ConfigServer::start(local(0)?, loaded.clone(), control, options.lease)
         .context("cannot start the config server")?;
     if let Err(err) = server.watch(&system_file, options.module_path.clone()) {
         tracing::warn!("cannot watch {} for changes: {err}", system_file.display());
@@ -265,6 +268,16 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             }
             Ok(ServerEvent::Disconnected { module }) => {
                 tracing::debug!(module, "module disconnected")
+            }
+            Ok(ServerEvent::Unresponsive { module, silent_for }) => {
+                if let Some(process) = modules.get_mut(&module) {
+                    tracing::error!(
+                        "module `{module}` has not answered for {:.1} s (stopped or stuck): \
+                         killing it",
+                        silent_for.as_secs_f64()
+                    );
+                    process.kill();
+                }
             }
             Ok(ServerEvent::Reloaded(loaded)) => apply_reload(&mut modules, &loaded, &env, &server),
             Err(RecvTimeoutError::Timeout) => {}
@@ -521,6 +534,16 @@ impl ModuleProc {
         );
         self.state = ProcState::Restarting(now + self.backoff);
         self.backoff = (self.backoff * 2).min(MAX_BACKOFF);
+    }
+
+    /// Kills the module's process group at once (a module declared dead by the heartbeat);
+    /// its exit is then handled as a crash, by its restart policy.
+    fn kill(&mut self) {
+        if let Some(child) = &self.child {
+            let pid = child.id() as libc::pid_t;
+            crate::process::kill(-pid, libc::SIGKILL);
+            crate::process::kill(pid, libc::SIGKILL);
+        }
     }
 
     fn stop(&mut self, server: &ConfigServer) {
