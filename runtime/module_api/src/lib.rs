@@ -11,6 +11,7 @@
 //! The wire format ([`wire`], [`protocol`]) and the describe format ([`describe`]) are the
 //! contract for modules written in other languages; `docs/protocol.md` documents both.
 
+pub mod auth;
 pub mod clock;
 pub mod describe;
 mod module;

@@ -208,10 +208,11 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
         .unwrap_or_else(|| DEFAULT_AGENT.to_owned());
     let agent = resolve(&agent)?;
     let clock = Clock::from_env();
+    let secret = crate::auth::Secret::from_env()?;
     let (config, supervisor) = match std::env::var(ENV_SUPERVISOR) {
         Ok(addr) => {
             let addr = resolve(&addr)?;
-            let (config, stream) = configure(&name, addr)?;
+            let (config, stream) = configure(&name, addr, secret.as_ref())?;
             (config, Some((addr, stream)))
         }
         Err(_) => (
@@ -220,7 +221,7 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
         ),
     };
     let mut core = Core::new(name, description, config, clock);
-    let net = Net::start(&mut core, agent, supervisor)?;
+    let net = Net::start(&mut core, agent, supervisor, secret)?;
     let mut node = Node::from_parts(core, Transport::Net(Box::new(net)));
     if let Transport::Net(net) = &mut node.transport {
         net.tell_supervisor(&ToSupervisor::Ready);
@@ -238,7 +239,11 @@ impl Node {
 }
 
 /// Greets the supervisor and waits for this module's configuration ("wait for all parameters").
-fn configure(name: &str, addr: SocketAddr) -> Result<(ModuleConfig, TcpStream), ApiError> {
+fn configure(
+    name: &str,
+    addr: SocketAddr,
+    secret: Option<&crate::auth::Secret>,
+) -> Result<(ModuleConfig, TcpStream), ApiError> {
     let started = Instant::now();
     let mut stream = loop {
         match TcpStream::connect_timeout(&addr, Duration::from_secs(1)) {
@@ -256,7 +261,7 @@ fn configure(name: &str, addr: SocketAddr) -> Result<(ModuleConfig, TcpStream), 
     };
     stream.set_nodelay(true)?;
     stream.set_read_timeout(Some(SUPERVISOR_PATIENCE))?;
-    blocking::write_hello(&mut stream)?;
+    blocking::handshake(&mut stream, secret)?;
     blocking::write_message(
         &mut stream,
         &ToSupervisor::Hello {
@@ -264,7 +269,6 @@ fn configure(name: &str, addr: SocketAddr) -> Result<(ModuleConfig, TcpStream), 
             pid: std::process::id(),
         },
     )?;
-    blocking::read_hello(&mut stream)?;
     loop {
         match blocking::read_message::<FromSupervisor>(&mut stream)? {
             FromSupervisor::Config(config) => {

@@ -14,6 +14,7 @@ use std::time::{Duration, Instant};
 use mio::net::{TcpListener, TcpStream};
 use mio::{Events, Interest, Poll, Token};
 
+use crate::auth::{Handshake, Secret};
 use crate::node::{ApiError, Core};
 use crate::protocol::{
     Advert, FromAgent, FromProvider, FromSupervisor, ToAgent, ToProvider, ToSupervisor,
@@ -55,6 +56,9 @@ struct Conn {
     /// A reliable input stopped reading because its queue is full.
     paused: bool,
     handshake_deadline: Option<Instant>,
+    /// Messages queued before this side could send its proof (it needs the peer's challenge):
+    /// they follow the proof, since the peer takes nothing before it.
+    held: Option<OutBuffer>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,6 +90,8 @@ pub(crate) struct Net {
     supervisor: Link,
     inputs: Vec<InputLink>,
     subscribers: Vec<Vec<Token>>,
+    /// With a shared secret, every connection authenticates.
+    secret: Option<Secret>,
 }
 
 impl Net {
@@ -95,6 +101,7 @@ impl Net {
         core: &mut Core,
         agent_addr: SocketAddr,
         supervisor: Option<(SocketAddr, std::net::TcpStream)>,
+        secret: Option<Secret>,
     ) -> Result<Self, ApiError> {
         let poll = Poll::new()?;
         let bind_host = if core.config.host.is_empty() {
@@ -127,15 +134,14 @@ impl Net {
             supervisor: Link::Down { retry_at: now },
             inputs: Vec::new(),
             subscribers: vec![Vec::new(); core.outputs.len()],
+            secret,
         };
         if let Some((addr, stream)) = supervisor {
             net.supervisor_addr = Some(addr);
             stream.set_nonblocking(true)?;
-            let token = net.add_conn(TcpStream::from_std(stream), Role::Supervisor)?;
-            if let Some(conn) = net.conns.get_mut(&token) {
-                // The hello exchange and the first configuration happened before, blocking.
-                conn.reader = FrameReader::default();
-            }
+            // The hello exchange (and authentication) and the first configuration happened
+            // before, blocking.
+            let token = net.add_conn(TcpStream::from_std(stream), Role::Supervisor, false)?;
             net.supervisor = Link::Up(token);
         }
         net.inputs = core
@@ -159,7 +165,9 @@ impl Net {
         matches!(self.inputs.get(input), Some(InputLink::Linked(_)))
     }
 
-    fn add_conn(&mut self, mut stream: TcpStream, role: Role) -> io::Result<Token> {
+    /// Registers a connection; with `greet`, queues the hello (and the challenge, with a
+    /// secret) and expects the peer's.
+    fn add_conn(&mut self, mut stream: TcpStream, role: Role, greet: bool) -> io::Result<Token> {
         let token = Token(self.next_token);
         self.next_token += 1;
         stream.set_nodelay(true)?;
@@ -168,15 +176,26 @@ impl Net {
             token,
             Interest::READABLE | Interest::WRITABLE,
         )?;
+        let handshake = greet
+            .then(|| self.secret.as_ref().map(Handshake::new))
+            .flatten();
+        let mut out = OutBuffer::default();
+        let reader = if greet {
+            out.push_hello_auth(handshake.as_ref());
+            FrameReader::expecting_hello_auth(handshake.clone())
+        } else {
+            FrameReader::default()
+        };
         self.conns.insert(
             token,
             Conn {
                 stream,
-                reader: FrameReader::expecting_hello(),
-                out: OutBuffer::default(),
+                reader,
+                out,
                 role,
                 paused: false,
                 handshake_deadline: None,
+                held: handshake.map(|_| OutBuffer::default()),
             },
         );
         Ok(token)
@@ -184,11 +203,7 @@ impl Net {
 
     fn open(&mut self, addr: SocketAddr, role: Role) -> io::Result<Token> {
         let stream = TcpStream::connect(addr)?;
-        let token = self.add_conn(stream, role)?;
-        if let Some(conn) = self.conns.get_mut(&token) {
-            conn.out.push_hello();
-        }
-        Ok(token)
+        self.add_conn(stream, role, true)
     }
 
     /// Everything this module serves, for the agent (a registration replaces the previous one).
@@ -250,7 +265,11 @@ impl Net {
 
     fn queue_message<T: serde::Serialize>(&mut self, token: Token, message: &T) {
         if let Some(conn) = self.conns.get_mut(&token)
-            && let Err(err) = conn.out.push_message(message)
+            && let Err(err) = conn
+                .held
+                .as_mut()
+                .unwrap_or(&mut conn.out)
+                .push_message(message)
         {
             tracing::error!("cannot encode a control message: {err}");
         }
@@ -489,11 +508,10 @@ impl Net {
     fn accept_all(&mut self) {
         loop {
             match self.listener.accept() {
-                Ok((stream, peer)) => match self.add_conn(stream, Role::Incoming) {
+                Ok((stream, peer)) => match self.add_conn(stream, Role::Incoming, true) {
                     Ok(token) => {
                         tracing::debug!(%peer, "subscriber connecting");
                         if let Some(conn) = self.conns.get_mut(&token) {
-                            conn.out.push_hello();
                             conn.handshake_deadline = Some(Instant::now() + HANDSHAKE_TIMEOUT);
                         }
                     }
@@ -575,6 +593,13 @@ impl Net {
             let Some(frame) = conn.reader.next_frame()? else {
                 return Ok(());
             };
+            if let Frame::ProofDue(proof) = frame {
+                conn.out.push_proof(&proof);
+                if let Some(held) = conn.held.take() {
+                    conn.out.append(held);
+                }
+                continue;
+            }
             let role = conn.role;
             match role {
                 Role::Agent => self.on_agent(core, frame.message()?),
@@ -703,6 +728,10 @@ impl Net {
                 {
                     conn.paused = true;
                 }
+            }
+            // The reader handles authentication frames; none reaches a linked input.
+            Frame::Challenge(_) | Frame::Proof(_) | Frame::ProofDue(_) => {
+                return Err(WireError::Unauthenticated("an authentication frame"));
             }
         }
         Ok(())

@@ -70,6 +70,8 @@ pub enum ApiError {
     #[error("the supervisor refused this module: {0}")]
     Refused(String),
     #[error(transparent)]
+    Secret(#[from] crate::auth::SecretError),
+    #[error(transparent)]
     Codec(#[from] CodecError),
     #[error(transparent)]
     Wire(#[from] WireError),

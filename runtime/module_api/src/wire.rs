@@ -4,12 +4,18 @@
 //! version as a little-endian `u16`. After it come frames: a little-endian `u32` length (of what
 //! follows it), one kind byte, then the payload. The length is checked against
 //! [`MAX_FRAME_BYTES`] before anything is allocated, so a peer announcing 4 GiB costs nothing.
+//!
+//! With a shared secret ([`crate::auth`]), each side sends a challenge frame right after its
+//! hello, answers the peer's challenge with a proof frame, and takes no other frame until the
+//! peer's proof checks out.
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 
 use serde::Serialize;
 use serde::de::DeserializeOwned;
+
+use crate::auth::{Handshake, NONCE_BYTES, Nonce, Proof};
 
 pub const MAGIC: [u8; 4] = *b"ARMR";
 pub const VERSION: u16 = 1;
@@ -29,6 +35,10 @@ pub const KIND_MESSAGE: u8 = 1;
 /// A data sample: `seq: u64 LE`, `stamp_ns: u64 LE`, then the encoded datum.
 pub const KIND_DATA: u8 = 2;
 const DATA_HEADER_BYTES: usize = 16;
+/// An authentication challenge: 32 random bytes.
+pub const KIND_CHALLENGE: u8 = 3;
+/// An authentication proof: the HMAC of both challenges (see [`crate::auth`]).
+pub const KIND_PROOF: u8 = 4;
 
 #[derive(Debug, thiserror::Error)]
 pub enum WireError {
@@ -50,6 +60,16 @@ pub enum WireError {
     UnexpectedData,
     #[error("connection closed")]
     Closed,
+    #[error(
+        "the peer asks for authentication and this side has no shared secret (armor run --secret FILE, or ARMOR_SECRET_FILE)"
+    )]
+    AuthNotConfigured,
+    #[error("the peer sent {0} before authenticating: this side requires the shared secret")]
+    Unauthenticated(&'static str),
+    #[error("the peer's proof does not match: it does not hold the shared secret")]
+    AuthFailed,
+    #[error("authentication frame of {0} bytes (expected 32)")]
+    BadAuthFrame(usize),
     #[error(transparent)]
     Io(#[from] io::Error),
 }
@@ -71,6 +91,13 @@ pub fn check_hello(hello: &[u8; 6]) -> Result<(), WireError> {
 pub enum Frame {
     Message(Vec<u8>),
     Data(DataFrame),
+    /// The peer's authentication challenge.
+    Challenge(Nonce),
+    /// The peer's answer to our challenge.
+    Proof(Proof),
+    /// Not from the wire: a [`FrameReader`] with a handshake received the peer's challenge, and
+    /// this proof must be sent back.
+    ProofDue(Proof),
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -85,6 +112,9 @@ impl Frame {
         match self {
             Frame::Message(json) => Ok(serde_json::from_slice(json)?),
             Frame::Data(_) => Err(WireError::UnexpectedData),
+            Frame::Challenge(_) | Frame::Proof(_) | Frame::ProofDue(_) => {
+                Err(WireError::AuthNotConfigured)
+            }
         }
     }
 }
@@ -117,6 +147,13 @@ pub fn encode_data(
     finish_frame(out, start)
 }
 
+/// Appends a challenge or proof frame to `out`.
+pub fn encode_auth(out: &mut Vec<u8>, kind: u8, bytes: &[u8; NONCE_BYTES]) {
+    out.extend_from_slice(&(1 + NONCE_BYTES as u32).to_le_bytes());
+    out.push(kind);
+    out.extend_from_slice(bytes);
+}
+
 fn finish_frame(out: &mut Vec<u8>, start: usize) -> Result<(), WireError> {
     let len = out.len() - start - 4;
     if len > MAX_FRAME_BYTES {
@@ -141,6 +178,16 @@ pub struct FrameReader {
     large: Option<LargeFrame>,
     /// The last read filled less than the room it had: the socket was drained.
     drained: bool,
+    /// This side's handshake, when the connection must authenticate.
+    auth: Option<Box<AuthState>>,
+}
+
+struct AuthState {
+    handshake: Handshake,
+    /// The peer's challenge, once received.
+    peer: Option<Nonce>,
+    /// The peer's proof checked out: ordinary frames may pass.
+    verified: bool,
 }
 
 /// A data frame whose payload is read directly where the receiver will keep it (no copy).
@@ -166,6 +213,27 @@ impl FrameReader {
             hello_pending: true,
             ..Self::default()
         }
+    }
+
+    /// For a new connection that must authenticate with `handshake` (when given): after the
+    /// hello, the peer's challenge comes out as [`Frame::ProofDue`] (send that proof), its
+    /// proof is checked, and nothing else passes before.
+    pub fn expecting_hello_auth(handshake: Option<Handshake>) -> Self {
+        Self {
+            hello_pending: true,
+            auth: handshake.map(|handshake| {
+                Box::new(AuthState {
+                    handshake,
+                    peer: None,
+                    verified: false,
+                })
+            }),
+            ..Self::default()
+        }
+    }
+
+    fn auth_pending(&self) -> bool {
+        self.auth.as_ref().is_some_and(|auth| !auth.verified)
     }
 
     /// Whether the last read found the socket drained (it returned less than it had room for),
@@ -219,8 +287,50 @@ impl FrameReader {
         Some(u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize + 4)
     }
 
-    /// The next complete frame, if any.
+    /// The next complete frame, if any (authentication frames are handled here).
     pub fn next_frame(&mut self) -> Result<Option<Frame>, WireError> {
+        loop {
+            let Some(frame) = self.next_wire_frame()? else {
+                return Ok(None);
+            };
+            if let Some(frame) = self.admit(frame)? {
+                return Ok(Some(frame));
+            }
+        }
+    }
+
+    /// Lets a frame through, or takes part in the authentication (`None`: nothing for the
+    /// caller), or refuses the peer.
+    fn admit(&mut self, frame: Frame) -> Result<Option<Frame>, WireError> {
+        let Some(auth) = &mut self.auth else {
+            return match frame {
+                Frame::Challenge(_) | Frame::Proof(_) => Err(WireError::AuthNotConfigured),
+                frame => Ok(Some(frame)),
+            };
+        };
+        match frame {
+            Frame::Challenge(peer) if auth.peer.is_none() => {
+                auth.peer = Some(peer);
+                Ok(Some(Frame::ProofDue(auth.handshake.proof_for(&peer))))
+            }
+            Frame::Proof(proof) if !auth.verified => match auth.peer {
+                Some(peer) if auth.handshake.verify(&peer, &proof) => {
+                    auth.verified = true;
+                    Ok(None)
+                }
+                Some(_) => Err(WireError::AuthFailed),
+                None => Err(WireError::Unauthenticated("a proof before its challenge")),
+            },
+            Frame::Challenge(_) | Frame::Proof(_) | Frame::ProofDue(_) => {
+                Err(WireError::Unauthenticated("a second authentication frame"))
+            }
+            frame if auth.verified => Ok(Some(frame)),
+            Frame::Message(_) => Err(WireError::Unauthenticated("a message")),
+            Frame::Data(_) => Err(WireError::Unauthenticated("data")),
+        }
+    }
+
+    fn next_wire_frame(&mut self) -> Result<Option<Frame>, WireError> {
         if let Some(large) = &self.large {
             if large.filled < large.payload.len() {
                 return Ok(None);
@@ -257,8 +367,12 @@ impl FrameReader {
             && buffered >= prefix
             && self.buf[self.start + 4] == KIND_DATA
         {
+            if self.auth_pending() {
+                // No room is made for a large frame from a peer that has not authenticated.
+                return Err(WireError::Unauthenticated("data"));
+            }
             self.start_large(total);
-            return self.next_frame();
+            return self.next_wire_frame();
         }
         if buffered < total {
             return Ok(None);
@@ -309,6 +423,16 @@ fn decode_body(body: &[u8]) -> Result<Frame, WireError> {
                 payload: payload.to_vec(),
             }))
         }
+        KIND_CHALLENGE | KIND_PROOF => {
+            let bytes: [u8; NONCE_BYTES] = rest
+                .try_into()
+                .map_err(|_| WireError::BadAuthFrame(rest.len()))?;
+            Ok(if kind == KIND_CHALLENGE {
+                Frame::Challenge(bytes)
+            } else {
+                Frame::Proof(bytes)
+            })
+        }
         other => Err(WireError::UnknownKind(other)),
     }
 }
@@ -337,6 +461,33 @@ impl OutBuffer {
     pub fn push_hello(&mut self) {
         self.frame_starts.push_back(self.buf.len());
         self.buf.extend_from_slice(&HELLO);
+    }
+
+    /// The hello, then the challenge of `handshake` when the connection authenticates.
+    pub fn push_hello_auth(&mut self, handshake: Option<&Handshake>) {
+        self.push_hello();
+        if let Some(handshake) = handshake {
+            self.frame_starts.push_back(self.buf.len());
+            encode_auth(&mut self.buf, KIND_CHALLENGE, handshake.challenge());
+        }
+    }
+
+    /// Appends what `other` holds and has not started to send.
+    pub fn append(&mut self, other: OutBuffer) {
+        let offset = self.buf.len();
+        self.frame_starts.extend(
+            other
+                .frame_starts
+                .iter()
+                .filter(|&&start| start >= other.written)
+                .map(|start| start - other.written + offset),
+        );
+        self.buf.extend_from_slice(&other.buf[other.written..]);
+    }
+
+    pub fn push_proof(&mut self, proof: &Proof) {
+        self.frame_starts.push_back(self.buf.len());
+        encode_auth(&mut self.buf, KIND_PROOF, proof);
     }
 
     pub fn push_message<T: Serialize>(&mut self, message: &T) -> Result<(), WireError> {
@@ -417,6 +568,42 @@ pub mod blocking {
         let mut hello = [0; 6];
         read_exact(stream, &mut hello)?;
         check_hello(&hello)
+    }
+
+    /// The whole start of a connection, for either end: hellos both ways, then, with a
+    /// secret, challenges and proofs both ways (see [`crate::auth`]).
+    pub fn handshake<S: Read + Write>(
+        stream: &mut S,
+        secret: Option<&crate::auth::Secret>,
+    ) -> Result<(), WireError> {
+        let handshake = secret.map(Handshake::new);
+        let mut out = HELLO.to_vec();
+        if let Some(handshake) = &handshake {
+            encode_auth(&mut out, KIND_CHALLENGE, handshake.challenge());
+        }
+        stream.write_all(&out)?;
+        read_hello(stream)?;
+        let Some(handshake) = handshake else {
+            return Ok(());
+        };
+        let peer = match read_frame(stream)? {
+            Frame::Challenge(peer) => peer,
+            Frame::Proof(_) => {
+                return Err(WireError::Unauthenticated("a proof before its challenge"));
+            }
+            Frame::Message(_) | Frame::ProofDue(_) => {
+                return Err(WireError::Unauthenticated("a message"));
+            }
+            Frame::Data(_) => return Err(WireError::Unauthenticated("data")),
+        };
+        let mut proof = Vec::new();
+        encode_auth(&mut proof, KIND_PROOF, &handshake.proof_for(&peer));
+        stream.write_all(&proof)?;
+        match read_frame(stream)? {
+            Frame::Proof(proof) if handshake.verify(&peer, &proof) => Ok(()),
+            Frame::Proof(_) => Err(WireError::AuthFailed),
+            _ => Err(WireError::Unauthenticated("a frame other than its proof")),
+        }
     }
 
     pub fn write_message<T: Serialize>(

@@ -9,6 +9,7 @@ use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
+use armor_module_api::auth::Secret;
 use armor_module_api::protocol::{Advert, FromAgent, ToAgent};
 use armor_module_api::wire::{WireError, blocking};
 
@@ -27,8 +28,9 @@ struct Registry {
     next_conn_id: u64,
 }
 
-/// Serves agent connections until the process ends, one thread each.
-pub fn serve(listener: TcpListener) {
+/// Serves agent connections until the process ends, one thread each; with a `secret`, only
+/// peers that prove they hold it.
+pub fn serve(listener: TcpListener, secret: Option<Secret>) {
     let registry = Arc::new(Mutex::new(Registry::default()));
     for stream in listener.incoming() {
         let stream = match stream {
@@ -39,6 +41,7 @@ pub fn serve(listener: TcpListener) {
             }
         };
         let registry = Arc::clone(&registry);
+        let secret = secret.clone();
         let conn_id = {
             let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
             registry.next_conn_id += 1;
@@ -46,7 +49,7 @@ pub fn serve(listener: TcpListener) {
         };
         std::thread::spawn(move || {
             let peer = stream.peer_addr().ok();
-            if let Err(err) = serve_module(&registry, conn_id, stream) {
+            if let Err(err) = serve_module(&registry, conn_id, stream, secret.as_ref()) {
                 match err {
                     WireError::Closed => {}
                     err => tracing::warn!(?peer, "dropped a connection: {err}"),
@@ -61,7 +64,7 @@ pub fn serve(listener: TcpListener) {
 pub fn spawn(addr: SocketAddr) -> std::io::Result<SocketAddr> {
     let listener = TcpListener::bind(addr)?;
     let local = listener.local_addr()?;
-    std::thread::spawn(move || serve(listener));
+    std::thread::spawn(move || serve(listener, None));
     Ok(local)
 }
 
@@ -80,11 +83,11 @@ fn serve_module(
     registry: &Mutex<Registry>,
     conn_id: u64,
     mut stream: TcpStream,
+    secret: Option<&Secret>,
 ) -> Result<(), WireError> {
     stream.set_nodelay(true)?;
     stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
-    blocking::read_hello(&mut stream)?;
-    blocking::write_hello(&mut stream)?;
+    blocking::handshake(&mut stream, secret)?;
     stream.set_read_timeout(None)?;
     loop {
         let reply = match blocking::read_message::<ToAgent>(&mut stream)? {

@@ -19,6 +19,7 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use armor_module_api::auth::Secret;
 use armor_module_api::protocol::{FromSupervisor, ModuleConfig, ToSupervisor};
 use armor_module_api::wire::{WireError, blocking};
 use notify::{RecursiveMode, Watcher as _};
@@ -81,6 +82,7 @@ pub struct Control {
 }
 
 struct State {
+    secret: Option<Secret>,
     loaded: Arc<Loaded>,
     control: Control,
     conns: HashMap<String, ModuleConn>,
@@ -176,11 +178,13 @@ impl ConfigServer {
         loaded: Loaded,
         control: Control,
         lease: Option<Duration>,
+        secret: Option<Secret>,
     ) -> std::io::Result<(Self, Receiver<ServerEvent>)> {
         let listener = TcpListener::bind(addr)?;
         let (events, receiver) = mpsc::channel();
         let server = Self {
             state: Arc::new(Mutex::new(State {
+                secret,
                 loaded: Arc::new(loaded),
                 control,
                 conns: HashMap::new(),
@@ -306,8 +310,8 @@ impl ConfigServer {
     ) -> Result<(), WireError> {
         stream.set_nodelay(true)?;
         stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
-        blocking::read_hello(stream)?;
-        blocking::write_hello(stream)?;
+        let secret = self.lock().secret.clone();
+        blocking::handshake(stream, secret.as_ref())?;
         let ToSupervisor::Hello { module: name, pid } = blocking::read_message(stream)? else {
             let message = "the first message must be `hello`".to_owned();
             blocking::write_message(stream, &FromSupervisor::Error { message })?;

@@ -6,6 +6,15 @@
 //! → {"command":"fire","transition":"leave_wp1"}
 //! ← {"ok":true,"message":"fired `leave_wp1`","status":{...}}
 //! ```
+//!
+//! With a shared secret (see `armor_module_api::auth`) the client speaks first and both sides
+//! prove the secret before any request, in three lines (hex bytes):
+//!
+//! ```text
+//! → {"challenge":"…"}
+//! ← {"challenge":"…","proof":"…"}
+//! → {"proof":"…"}
+//! ```
 
 use std::io::{BufRead as _, BufReader, Read as _, Write as _};
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -13,6 +22,7 @@ use std::sync::mpsc::{self, Sender};
 use std::time::Duration;
 
 use armor_model::net::Marking;
+use armor_module_api::auth::{Handshake, NONCE_BYTES, Secret};
 use serde::{Deserialize, Serialize};
 
 pub const ENV_CONTROL: &str = "ARMOR_CONTROL";
@@ -51,16 +61,31 @@ pub struct Reply {
 /// A request from a client, with where to send the answer.
 pub type Incoming = (Request, Sender<Reply>);
 
-/// Serves the control interface on `addr`, handing each request to `requests`.
-pub fn serve(addr: SocketAddr, requests: Sender<Incoming>) -> std::io::Result<SocketAddr> {
+/// One line of the authentication exchange.
+#[derive(Debug, Default, Serialize, Deserialize)]
+struct AuthLine {
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    challenge: String,
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    proof: String,
+}
+
+/// Serves the control interface on `addr`, handing each request to `requests`; with a
+/// `secret`, only to clients that prove they hold it.
+pub fn serve(
+    addr: SocketAddr,
+    requests: Sender<Incoming>,
+    secret: Option<Secret>,
+) -> std::io::Result<SocketAddr> {
     let listener = TcpListener::bind(addr)?;
     let local = listener.local_addr()?;
     std::thread::spawn(move || {
         for stream in listener.incoming().flatten() {
             let requests = requests.clone();
+            let secret = secret.clone();
             std::thread::spawn(move || {
-                if let Err(err) = serve_client(stream, &requests) {
-                    tracing::debug!("control client: {err}");
+                if let Err(err) = serve_client(stream, &requests, secret.as_ref()) {
+                    tracing::warn!("control client: {err}");
                 }
             });
         }
@@ -68,9 +93,97 @@ pub fn serve(addr: SocketAddr, requests: Sender<Incoming>) -> std::io::Result<So
     Ok(local)
 }
 
-fn serve_client(stream: TcpStream, requests: &Sender<Incoming>) -> std::io::Result<()> {
+fn read_line(reader: &mut BufReader<TcpStream>) -> std::io::Result<Option<String>> {
+    let mut line = String::new();
+    if reader.take(MAX_LINE_BYTES).read_line(&mut line)? == 0 {
+        return Ok(None);
+    }
+    Ok(Some(line))
+}
+
+fn write_json(writer: &mut TcpStream, value: &impl Serialize) -> std::io::Result<()> {
+    let mut text = serde_json::to_string(value).map_err(std::io::Error::other)?;
+    text.push('\n');
+    writer.write_all(text.as_bytes())
+}
+
+/// The server's side of the authentication; an error ends the connection.
+fn authenticate_client(
+    reader: &mut BufReader<TcpStream>,
+    writer: &mut TcpStream,
+    secret: &Secret,
+) -> std::io::Result<()> {
+    let refuse = |writer: &mut TcpStream, message: &str| {
+        let _ = write_json(
+            writer,
+            &Reply {
+                ok: false,
+                message: message.to_owned(),
+                status: None,
+            },
+        );
+        Err(std::io::Error::other(message.to_owned()))
+    };
+    let Some(line) = read_line(reader)? else {
+        return Ok(());
+    };
+    let client = serde_json::from_str::<AuthLine>(&line)
+        .ok()
+        .and_then(|auth| from_hex(&auth.challenge));
+    let Some(client) = client else {
+        return refuse(
+            writer,
+            "this run requires the shared secret: give armor ctl --secret FILE (or ARMOR_SECRET_FILE)",
+        );
+    };
+    let handshake = Handshake::new(secret);
+    write_json(
+        writer,
+        &AuthLine {
+            challenge: to_hex(handshake.challenge()),
+            proof: to_hex(&handshake.proof_for(&client)),
+        },
+    )?;
+    let Some(line) = read_line(reader)? else {
+        return Err(std::io::Error::other("closed during authentication"));
+    };
+    let proof = serde_json::from_str::<AuthLine>(&line)
+        .ok()
+        .and_then(|auth| from_hex(&auth.proof));
+    match proof {
+        Some(proof) if handshake.verify(&client, &proof) => Ok(()),
+        _ => refuse(writer, "the proof does not match: wrong shared secret"),
+    }
+}
+
+fn to_hex(bytes: &[u8; NONCE_BYTES]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn from_hex(text: &str) -> Option<[u8; NONCE_BYTES]> {
+    let text = text.trim();
+    if text.len() != NONCE_BYTES * 2 || !text.is_ascii() {
+        return None;
+    }
+    let mut bytes = [0; NONCE_BYTES];
+    for (i, byte) in bytes.iter_mut().enumerate() {
+        *byte = u8::from_str_radix(&text[i * 2..i * 2 + 2], 16).ok()?;
+    }
+    Some(bytes)
+}
+
+fn serve_client(
+    stream: TcpStream,
+    requests: &Sender<Incoming>,
+    secret: Option<&Secret>,
+) -> std::io::Result<()> {
     let mut writer = stream.try_clone()?;
     let mut reader = BufReader::new(stream);
+    if let Some(secret) = secret {
+        reader.get_ref().set_read_timeout(Some(REPLY_TIMEOUT))?;
+        authenticate_client(&mut reader, &mut writer, secret)?;
+        reader.get_ref().set_read_timeout(None)?;
+    }
     loop {
         let mut line = String::new();
         if (&mut reader).take(MAX_LINE_BYTES).read_line(&mut line)? == 0 {
@@ -102,19 +215,49 @@ fn serve_client(stream: TcpStream, requests: &Sender<Incoming>) -> std::io::Resu
     }
 }
 
-/// Sends one request to a run's control interface and returns its reply.
-pub fn request(addr: SocketAddr, request: &Request) -> anyhow::Result<Reply> {
+/// Sends one request to a run's control interface and returns its reply; with a `secret`, first
+/// proves it (and checks the run's proof).
+pub fn request(
+    addr: SocketAddr,
+    request: &Request,
+    secret: Option<&Secret>,
+) -> anyhow::Result<Reply> {
     use anyhow::Context as _;
     let stream = TcpStream::connect_timeout(&addr, REPLY_TIMEOUT)
         .with_context(|| format!("cannot reach the run's control interface at {addr}"))?;
     stream.set_read_timeout(Some(REPLY_TIMEOUT * 2))?;
     let mut writer = stream.try_clone()?;
-    let mut text = serde_json::to_string(request)?;
-    text.push('\n');
-    writer.write_all(text.as_bytes())?;
-    let mut line = String::new();
-    BufReader::new(stream)
-        .read_line(&mut line)
-        .context("no reply from the run")?;
+    let mut reader = BufReader::new(stream);
+    if let Some(secret) = secret {
+        let handshake = Handshake::new(secret);
+        write_json(
+            &mut writer,
+            &AuthLine {
+                challenge: to_hex(handshake.challenge()),
+                proof: String::new(),
+            },
+        )?;
+        let line = read_line(&mut reader)?.context("the run closed the connection")?;
+        let answer: AuthLine = serde_json::from_str(&line).unwrap_or_default();
+        let (Some(run), Some(proof)) = (from_hex(&answer.challenge), from_hex(&answer.proof))
+        else {
+            anyhow::bail!(
+                "the run does not authenticate (started without --secret?): it answered `{}`",
+                line.trim()
+            );
+        };
+        if !handshake.verify(&run, &proof) {
+            anyhow::bail!("the run's proof does not match: it holds another secret");
+        }
+        write_json(
+            &mut writer,
+            &AuthLine {
+                challenge: String::new(),
+                proof: to_hex(&handshake.proof_for(&run)),
+            },
+        )?;
+    }
+    write_json(&mut writer, request)?;
+    let line = read_line(&mut reader)?.context("no reply from the run")?;
     serde_json::from_str(&line).with_context(|| format!("unreadable reply `{}`", line.trim()))
 }

@@ -66,6 +66,10 @@ enum Command {
         /// killed and restarted like one that crashed; 0 turns the heartbeat off.
         #[arg(long, value_name = "SECS", default_value_t = 2.0)]
         lease_secs: f64,
+        /// A file (readable by its owner only) with a shared secret: every connection of the
+        /// run — agent, config server, control, module to module — must prove it holds it.
+        #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
+        secret: Option<PathBuf>,
     },
     /// Compile a plan (waypoints, legs, actions, time constraints) into a mission net.
     Compile {
@@ -80,6 +84,9 @@ enum Command {
         /// The run's control interface (printed by `armor run`; default: $ARMOR_CONTROL).
         #[arg(long, env = armor_runtime::control::ENV_CONTROL)]
         addr: SocketAddr,
+        /// The run's shared secret, when it was started with one.
+        #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
+        secret: Option<PathBuf>,
         #[command(subcommand)]
         request: CtlCommand,
     },
@@ -152,6 +159,9 @@ enum Command {
     Agent {
         #[arg(long, default_value = armor_module_api::DEFAULT_AGENT)]
         listen: SocketAddr,
+        /// Accept only peers that prove this shared secret (a file readable by its owner only).
+        #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
+        secret: Option<PathBuf>,
     },
 }
 
@@ -177,6 +187,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             report,
             start_at,
             lease_secs,
+            secret,
         } => {
             let lease = match lease_secs {
                 0.0 => None,
@@ -210,10 +221,19 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 report,
                 start_at_unix_secs,
                 lease,
+                secret_file: secret.filter(|file| !file.as_os_str().is_empty()),
             })
         }
         Command::Check { file } => Ok(check(&file)),
-        Command::Ctl { addr, request } => {
+        Command::Ctl {
+            addr,
+            secret,
+            request,
+        } => {
+            let secret = secret
+                .filter(|file| !file.as_os_str().is_empty())
+                .map(|file| armor_module_api::auth::Secret::load(&file))
+                .transpose()?;
             let request = match request {
                 CtlCommand::Status => control::Request::Status,
                 CtlCommand::Pause => control::Request::Pause,
@@ -221,7 +241,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 CtlCommand::Abort => control::Request::Abort,
                 CtlCommand::Fire { transition } => control::Request::Fire { transition },
             };
-            let reply = control::request(addr, &request)?;
+            let reply = control::request(addr, &request, secret.as_ref())?;
             println!("{}", reply.message);
             if let Some(status) = reply.status {
                 println!("{}", serde_json::to_string_pretty(&status)?);
@@ -342,12 +362,16 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             })?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Agent { listen } => {
+        Command::Agent { listen, secret } => {
+            let secret = secret
+                .filter(|file| !file.as_os_str().is_empty())
+                .map(|file| armor_module_api::auth::Secret::load(&file))
+                .transpose()?;
             let listener = std::net::TcpListener::bind(listen)
                 .with_context(|| format!("cannot listen on {listen}"))?;
             let addr = listener.local_addr()?;
             println!("{}{addr}", armor_runtime::AGENT_READY_PREFIX);
-            agent::serve(listener);
+            agent::serve(listener, secret);
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -6,7 +6,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::io::{BufRead as _, BufReader, Read, Write as _};
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, ExitStatus, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use armor_model::RestartPolicy;
+use armor_module_api::auth::{ENV_SECRET_FILE, Secret};
 use armor_module_api::clock::{ENV_EPOCH, ENV_TIME_SCALE, unix_now_ns};
 use armor_module_api::protocol::FromSupervisor;
 use armor_module_api::{Clock, ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR};
@@ -56,6 +57,9 @@ pub struct RunOptions {
     /// A module silent for this long (no answer to pings) is killed and handled as a crash;
     /// `None` turns the heartbeat off.
     pub lease: Option<Duration>,
+    /// A file holding the shared secret every connection of the run must prove (see
+    /// `armor_module_api::auth`); passed on to the agent and the modules.
+    pub secret_file: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,6 +91,7 @@ struct RunEnv {
     epoch_ns: u64,
     time_scale: f64,
     module_path: Vec<PathBuf>,
+    secret_file: Option<PathBuf>,
 }
 
 /// A file to run: a system, or a mission over a system.
@@ -109,6 +114,19 @@ fn load(options: &RunOptions) -> Result<(Loaded, Option<LoadedMission>), Diagnos
 }
 
 pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
+    // An absolute path, so that children started elsewhere find it too.
+    let secret_file = options
+        .secret_file
+        .as_ref()
+        .map(|file| std::path::absolute(file).unwrap_or_else(|_| file.clone()));
+    let secret = secret_file
+        .as_deref()
+        .map(Secret::load)
+        .transpose()
+        .context("the run's secret")?;
+    if secret.is_some() {
+        tracing::info!("links are authenticated with the shared secret");
+    }
     let (loaded, mission) = match load(&options) {
         Ok(loaded) => loaded,
         Err(diagnostics) => {
@@ -160,13 +178,22 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             options.report.is_some(),
         )
     });
-    let mut agent = AgentProc::start(options.agent_addr.map_or_else(|| local(0), Ok)?)?;
+    let mut agent = AgentProc::start(
+        options.agent_addr.map_or_else(|| local(0), Ok)?,
+        secret_file.clone(),
+    )?;
     let control = controller
         .as_ref()
         .map(Controller::control)
         .unwrap_or_default();
-    let (server, events) = ConfigServer::start(local(0)?, loaded.clone(), control, options.lease)
-        .context("cannot start the config server")?;
+    let (server, events) = ConfigServer::start(
+        local(0)?,
+        loaded.clone(),
+        control,
+        options.lease,
+        secret.clone(),
+    )
+    .context("cannot start the config server")?;
     if let Err(err) = server.watch(&system_file, options.module_path.clone()) {
         tracing::warn!("cannot watch {} for changes: {err}", system_file.display());
     }
@@ -175,6 +202,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         let addr = control::serve(
             options.control_addr.map_or_else(|| local(0), Ok)?,
             requests_tx,
+            secret.clone(),
         )
         .context("cannot start the control interface")?;
         tracing::info!(%addr, "control interface listening (armor ctl --addr {addr} status|pause|resume|abort|fire NAME)");
@@ -185,6 +213,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         epoch_ns,
         time_scale: options.time_scale,
         module_path: options.module_path.clone(),
+        secret_file: secret_file.clone(),
     };
     let started = Instant::now();
     tracing::info!(
@@ -445,6 +474,7 @@ impl ModuleProc {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
+        pass_secret(&mut command, env.secret_file.as_deref());
         crate::process::die_with_parent(&mut command);
         match command.spawn() {
             Ok(mut child) => {
@@ -594,16 +624,18 @@ struct AgentProc {
     child: Option<Child>,
     restart_at: Option<Instant>,
     backoff: Duration,
+    secret_file: Option<PathBuf>,
 }
 
 impl AgentProc {
-    fn start(addr: SocketAddr) -> anyhow::Result<Self> {
-        let (child, addr) = spawn_agent(addr)?;
+    fn start(addr: SocketAddr, secret_file: Option<PathBuf>) -> anyhow::Result<Self> {
+        let (child, addr) = spawn_agent(addr, secret_file.as_deref())?;
         Ok(Self {
             addr,
             child: Some(child),
             restart_at: None,
             backoff: FIRST_BACKOFF,
+            secret_file,
         })
     }
 
@@ -622,7 +654,7 @@ impl AgentProc {
             return;
         }
         if self.restart_at.is_some_and(|at| Instant::now() >= at) {
-            match spawn_agent(self.addr) {
+            match spawn_agent(self.addr, self.secret_file.as_deref()) {
                 Ok((child, _)) => {
                     self.child = Some(child);
                     self.restart_at = None;
@@ -648,8 +680,19 @@ impl AgentProc {
     }
 }
 
+/// Gives a child the run's secret file, or makes sure it has none.
+fn pass_secret(command: &mut Command, secret_file: Option<&Path>) {
+    match secret_file {
+        Some(file) => command.env(ENV_SECRET_FILE, file),
+        None => command.env_remove(ENV_SECRET_FILE),
+    };
+}
+
 /// Starts `armor agent` and reads the address it reports listening on.
-fn spawn_agent(addr: SocketAddr) -> anyhow::Result<(Child, SocketAddr)> {
+fn spawn_agent(
+    addr: SocketAddr,
+    secret_file: Option<&Path>,
+) -> anyhow::Result<(Child, SocketAddr)> {
     let exe = std::env::current_exe().context("cannot find the armor executable")?;
     let mut command = Command::new(exe);
     command
@@ -657,6 +700,7 @@ fn spawn_agent(addr: SocketAddr) -> anyhow::Result<(Child, SocketAddr)> {
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
+    pass_secret(&mut command, secret_file);
     crate::process::die_with_parent(&mut command);
     let mut child = command.spawn().context("cannot start the agent")?;
     stream_lines("agent", child.stderr.take());
