@@ -201,3 +201,111 @@ fn a_secret_others_can_read_is_refused() {
         run.lines()
     );
 }
+
+/// The demo system with access lists: the checker may subscribe to the counter only.
+const LIMITED: &str = r#"<system name="limited">
+  <module name="counter" type="counter" may_publish="counter.*" may_subscribe="">
+    <param name="period_secs" value="0.1"/>
+  </module>
+  <module name="checker" type="checker" may_subscribe="counter.count"/>
+  <link from="counter.count" to="checker.input"/>
+</system>
+"#;
+
+fn agent_reply(stream: &mut TcpStream, message: &ToAgent) -> FromAgent {
+    blocking::write_message(stream, message).unwrap();
+    blocking::read_message(stream).unwrap()
+}
+
+fn refusal(reply: FromAgent) -> String {
+    match reply {
+        FromAgent::Error { message } => message,
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+}
+
+#[test]
+fn access_lists_limit_what_each_module_may_publish_and_subscribe_to() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = dir.path().join("system.xml");
+    std::fs::write(&system, LIMITED).unwrap();
+    let run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(&system)
+            .env("ARMOR_MODULE_PATH", armor_tests::bin_dir()),
+    );
+    let agent = agent_addr(&run);
+    run.wait_for("the checker, within its lists", PATIENCE, checker_in_order);
+
+    let mut stream = connect(agent);
+    blocking::handshake(&mut stream, None).unwrap();
+    let lookup = |data_name: &str| ToAgent::Lookup {
+        data_name: data_name.into(),
+    };
+    let register = |module: &str| ToAgent::Register {
+        module: module.into(),
+        outputs: Vec::new(),
+    };
+    // No identity yet, then a name the system does not know.
+    assert!(refusal(agent_reply(&mut stream, &lookup("counter.count"))).contains("register"));
+    assert!(refusal(agent_reply(&mut stream, &register("spy"))).contains("no module `spy`"));
+    // As the checker: its own source is served, another module's output is not.
+    assert_eq!(
+        agent_reply(&mut stream, &register("checker")),
+        FromAgent::Registered
+    );
+    assert!(matches!(
+        agent_reply(&mut stream, &lookup("counter.count")),
+        FromAgent::Provider(_)
+    ));
+    assert!(
+        refusal(agent_reply(&mut stream, &lookup("checker.received")))
+            .contains("may not subscribe to `checker.received`")
+    );
+    // The counter may subscribe to nothing at all.
+    let mut counter = connect(agent);
+    blocking::handshake(&mut counter, None).unwrap();
+    assert_eq!(
+        agent_reply(&mut counter, &register("counter")),
+        FromAgent::Registered
+    );
+    assert!(refusal(agent_reply(&mut counter, &lookup("counter.count"))).contains("may not"));
+}
+
+#[test]
+fn armor_check_reports_links_and_outputs_outside_the_lists() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = dir.path().join("system.xml");
+    std::fs::write(
+        &system,
+        LIMITED
+            .replace(
+                r#"may_subscribe="counter.count""#,
+                r#"may_subscribe="sim.*""#,
+            )
+            .replace(
+                r#"may_publish="counter.*""#,
+                r#"may_publish="counter.other""#,
+            ),
+    )
+    .unwrap();
+    let output = Command::new(bin("armor"))
+        .arg("check")
+        .arg(&system)
+        .env("ARMOR_MODULE_PATH", armor_tests::bin_dir())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(!output.status.success());
+    assert!(
+        stdout.contains(":2:3: module `counter`: its output `counter.count` is not in may_publish"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains(
+            "module `checker` may not subscribe to `counter.count` (may_subscribe: sim.*)"
+        ),
+        "{stdout}"
+    );
+}

@@ -11,6 +11,11 @@
 //! </system>
 //! ```
 //!
+//! A module may be limited to what it publishes and subscribes to: `may_publish` and
+//! `may_subscribe` list data names (`module.output`, `module.*` or `*`), separated by spaces or
+//! commas. The agent refuses registrations and lookups outside the lists; without a list, a
+//! module may publish its outputs and subscribe to anything.
+//!
 //! [`SystemConfig::parse`] reports structural problems (the XML alone), [`check`] reports the
 //! problems found against the module descriptions, both with line and column. The schema is
 //! `assets/schema/system.xsd`.
@@ -122,6 +127,10 @@ pub struct ModuleInstance {
     pub host: Option<String>,
     pub restart: RestartPolicy,
     pub params: Vec<ParamValue>,
+    /// Data name patterns the module may publish (all of its outputs when `None`).
+    pub may_publish: Option<Vec<String>>,
+    /// Data name patterns the module may subscribe to (any when `None`).
+    pub may_subscribe: Option<Vec<String>>,
     /// The `<module>` element.
     pub pos: Pos,
     /// The `type` attribute.
@@ -133,6 +142,57 @@ impl ModuleInstance {
     pub fn param(&self, name: &str) -> Option<&ParamValue> {
         self.params.iter().find(|param| param.name == name)
     }
+
+    /// Whether the module may publish `data_name`.
+    pub fn may_publish(&self, data_name: &str) -> bool {
+        allowed(self.may_publish.as_deref(), data_name)
+    }
+
+    /// Whether the module may subscribe to `data_name`.
+    pub fn may_subscribe(&self, data_name: &str) -> bool {
+        allowed(self.may_subscribe.as_deref(), data_name)
+    }
+}
+
+/// Whether `data_name` matches one of `patterns` (`None`: no limit).
+pub fn allowed(patterns: Option<&[String]>, data_name: &str) -> bool {
+    patterns.is_none_or(|patterns| {
+        patterns
+            .iter()
+            .any(|pattern| match pattern.strip_suffix('*') {
+                Some(prefix) => data_name.starts_with(prefix),
+                None => pattern == data_name,
+            })
+    })
+}
+
+/// A list of data name patterns: `module.output`, `module.*` or `*`.
+fn read_patterns(attr: &Attr, problems: &mut Vec<Located>) -> Vec<String> {
+    let mut patterns = Vec::new();
+    for item in attr
+        .value
+        .split([' ', ',', '\t', '\n'])
+        .filter(|s| !s.is_empty())
+    {
+        let valid = item == "*"
+            || match item.split_once('.') {
+                Some((module, "*")) => is_identifier(module),
+                Some((module, port)) => is_identifier(module) && is_identifier(port),
+                None => false,
+            };
+        if valid {
+            patterns.push(item.to_owned());
+        } else {
+            problems.push(Located::new(
+                attr.pos,
+                format!(
+                    "`{}`: `{item}` is not a data name pattern (expected module.output, module.* or *)",
+                    attr.name
+                ),
+            ));
+        }
+    }
+    patterns
 }
 
 /// Data flowing from an output of a module to an input of a module.
@@ -237,6 +297,14 @@ impl SystemConfig {
             );
             if let Some(host) = &module.host {
                 let _ = write!(out, " host=\"{}\"", escape_attr(host));
+            }
+            for (attr, list) in [
+                ("may_publish", &module.may_publish),
+                ("may_subscribe", &module.may_subscribe),
+            ] {
+                if let Some(list) = list {
+                    let _ = write!(out, " {attr}=\"{}\"", escape_attr(&list.join(" ")));
+                }
             }
             if module.params.is_empty() {
                 out.push_str("/>\n");
@@ -345,7 +413,14 @@ fn escape_attr(value: &str) -> String {
 }
 
 fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleInstance> {
-    problems.extend(element.unknown_attrs(&["name", "type", "restart", "host"]));
+    problems.extend(element.unknown_attrs(&[
+        "name",
+        "type",
+        "restart",
+        "host",
+        "may_publish",
+        "may_subscribe",
+    ]));
     problems.extend(element.unknown_children(&["param"]));
     no_text(element, problems);
     let name = identifier_attr(element, "name", "name", problems);
@@ -370,6 +445,12 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
         host,
         restart: restart?,
         params,
+        may_publish: element
+            .attr("may_publish")
+            .map(|attr| read_patterns(attr, problems)),
+        may_subscribe: element
+            .attr("may_subscribe")
+            .map(|attr| read_patterns(attr, problems)),
         pos: element.pos,
         type_pos: type_attr.map_or(element.pos, |attr| attr.pos),
     })
@@ -518,7 +599,22 @@ pub fn check(
             }
         }
         match descriptions.get(&module.module_type) {
-            Some(description) => check_params(module, description, &mut problems),
+            Some(description) => {
+                check_params(module, description, &mut problems);
+                for output in &description.outputs {
+                    let data_name = format!("{}.{}", module.name, output.name);
+                    if !module.may_publish(&data_name) {
+                        problems.push(Located::new(
+                            module.pos,
+                            format!(
+                                "module `{}`: its output `{data_name}` is not in may_publish \
+                                 (the agent would refuse its registration); add it or `{}.*`",
+                                module.name, module.name
+                            ),
+                        ));
+                    }
+                }
+            }
             None => problems.push(Located::new(
                 module.type_pos,
                 format!(
@@ -549,6 +645,23 @@ pub fn check(
             descriptions,
             &mut problems,
         );
+        if let Some(subscriber) = modules.get(link.to.module.as_str())
+            && !subscriber.may_subscribe(&link.from.to_string())
+        {
+            problems.push(Located::new(
+                link.to_pos,
+                format!(
+                    "module `{}` may not subscribe to `{}` (may_subscribe: {})",
+                    link.to.module,
+                    link.from,
+                    subscriber
+                        .may_subscribe
+                        .as_deref()
+                        .unwrap_or_default()
+                        .join(" ")
+                ),
+            ));
+        }
         if let (Some(Some(output)), Some(Some(input))) = (from, to)
             && output.data_type != input.data_type
         {
@@ -878,7 +991,7 @@ mod tests {
             &[
                 "1:18: unknown attribute `color` on <system> (expected one of: name, host)",
                 "2:3: unknown element <modul> inside <system> (expected one of: module, link)",
-                "3:29: unknown attribute `prio` on <module> (expected one of: name, type, restart, host)",
+                "3:29: unknown attribute `prio` on <module> (expected one of: name, type, restart, host, may_publish, may_subscribe)",
                 "4:5: unknown element <parameter> inside <module> (expected one of: param)",
                 "5:31: unknown attribute `unit` on <param> (expected one of: name, value)",
                 "5:40: unknown element <x> inside <param> (it has no elements)",

@@ -3,8 +3,13 @@
 //! It never carries data: modules connect to each other directly, so links keep flowing when the
 //! agent dies. A registration lives as long as the module's connection to the agent: when a
 //! module dies its entries go with it, and when the agent restarts, modules register again.
+//!
+//! With an [`Acl`] (the system's `may_publish` and `may_subscribe` lists), the agent serves only
+//! the system's modules: it refuses a registration of a data name the module may not publish,
+//! and a lookup of one it may not subscribe to. Names are the modules' own word: the lists
+//! guard against mistakes, and the shared secret against strangers.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
@@ -12,6 +17,81 @@ use std::time::Duration;
 use armor_module_api::auth::Secret;
 use armor_module_api::protocol::{Advert, FromAgent, ToAgent};
 use armor_module_api::wire::{WireError, blocking};
+
+/// The environment variable that carries the [`Acl`] (JSON) to `armor agent`.
+pub const ENV_ACL: &str = "ARMOR_ACL";
+
+/// What each module of the system may publish and subscribe to (`None`: no limit).
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Acl {
+    pub modules: BTreeMap<String, Permissions>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Permissions {
+    pub publish: Option<Vec<String>>,
+    pub subscribe: Option<Vec<String>>,
+}
+
+impl Acl {
+    /// The system's lists, or `None` when no module has one (then the agent serves anyone).
+    pub fn of(system: &armor_model::SystemConfig) -> Option<Acl> {
+        let limited = system
+            .modules
+            .iter()
+            .any(|module| module.may_publish.is_some() || module.may_subscribe.is_some());
+        limited.then(|| Acl {
+            modules: system
+                .modules
+                .iter()
+                .map(|module| {
+                    (
+                        module.name.clone(),
+                        Permissions {
+                            publish: module.may_publish.clone(),
+                            subscribe: module.may_subscribe.clone(),
+                        },
+                    )
+                })
+                .collect(),
+        })
+    }
+
+    /// The ACL in `ARMOR_ACL`, if set and not empty.
+    pub fn from_env() -> Result<Option<Acl>, serde_json::Error> {
+        match std::env::var(ENV_ACL) {
+            Ok(text) if !text.trim().is_empty() => serde_json::from_str(&text).map(Some),
+            _ => Ok(None),
+        }
+    }
+
+    fn check_publish(&self, module: &str, data_name: &str) -> Result<(), String> {
+        let permissions = self.permissions(module)?;
+        if armor_model::system::allowed(permissions.publish.as_deref(), data_name) {
+            Ok(())
+        } else {
+            Err(format!("module `{module}` may not publish `{data_name}`"))
+        }
+    }
+
+    fn check_subscribe(&self, module: Option<&str>, data_name: &str) -> Result<(), String> {
+        let module = module.ok_or("register before looking a provider up")?;
+        let permissions = self.permissions(module)?;
+        if armor_model::system::allowed(permissions.subscribe.as_deref(), data_name) {
+            Ok(())
+        } else {
+            Err(format!(
+                "module `{module}` may not subscribe to `{data_name}`"
+            ))
+        }
+    }
+
+    fn permissions(&self, module: &str) -> Result<&Permissions, String> {
+        self.modules
+            .get(module)
+            .ok_or_else(|| format!("no module `{module}` in this system"))
+    }
+}
 
 /// How long a new connection has to send its hello.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
@@ -29,9 +109,10 @@ struct Registry {
 }
 
 /// Serves agent connections until the process ends, one thread each; with a `secret`, only
-/// peers that prove they hold it.
-pub fn serve(listener: TcpListener, secret: Option<Secret>) {
+/// peers that prove they hold it; with an `acl`, only within it.
+pub fn serve(listener: TcpListener, secret: Option<Secret>, acl: Option<Acl>) {
     let registry = Arc::new(Mutex::new(Registry::default()));
+    let acl = acl.map(Arc::new);
     for stream in listener.incoming() {
         let stream = match stream {
             Ok(stream) => stream,
@@ -42,6 +123,7 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>) {
         };
         let registry = Arc::clone(&registry);
         let secret = secret.clone();
+        let acl = acl.clone();
         let conn_id = {
             let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
             registry.next_conn_id += 1;
@@ -49,7 +131,8 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>) {
         };
         std::thread::spawn(move || {
             let peer = stream.peer_addr().ok();
-            if let Err(err) = serve_module(&registry, conn_id, stream, secret.as_ref()) {
+            let acl = acl.as_deref();
+            if let Err(err) = serve_module(&registry, conn_id, stream, secret.as_ref(), acl) {
                 match err {
                     WireError::Closed => {}
                     err => tracing::warn!(?peer, "dropped a connection: {err}"),
@@ -64,7 +147,7 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>) {
 pub fn spawn(addr: SocketAddr) -> std::io::Result<SocketAddr> {
     let listener = TcpListener::bind(addr)?;
     let local = listener.local_addr()?;
-    std::thread::spawn(move || serve(listener, None));
+    std::thread::spawn(move || serve(listener, None, None));
     Ok(local)
 }
 
@@ -84,14 +167,41 @@ fn serve_module(
     conn_id: u64,
     mut stream: TcpStream,
     secret: Option<&Secret>,
+    acl: Option<&Acl>,
 ) -> Result<(), WireError> {
     stream.set_nodelay(true)?;
     stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
     blocking::handshake(&mut stream, secret)?;
     stream.set_read_timeout(None)?;
+    // The module this connection registered as.
+    let mut identity: Option<String> = None;
     loop {
         let reply = match blocking::read_message::<ToAgent>(&mut stream)? {
-            ToAgent::Register { module, outputs } => register(registry, conn_id, module, outputs),
+            ToAgent::Register { module, outputs } => {
+                let refused = acl.and_then(|acl| {
+                    outputs
+                        .iter()
+                        .find_map(|advert| acl.check_publish(&module, &advert.data_name).err())
+                        .or_else(|| acl.permissions(&module).err())
+                });
+                match refused {
+                    Some(message) => {
+                        tracing::warn!(module, "refused a registration: {message}");
+                        FromAgent::Error { message }
+                    }
+                    None => {
+                        identity = Some(module.clone());
+                        register(registry, conn_id, module, outputs)
+                    }
+                }
+            }
+            ToAgent::Lookup { data_name }
+                if let Some(Err(message)) =
+                    acl.map(|acl| acl.check_subscribe(identity.as_deref(), &data_name)) =>
+            {
+                tracing::warn!(module = identity.as_deref(), "refused a lookup: {message}");
+                FromAgent::Error { message }
+            }
             ToAgent::Lookup { data_name } => {
                 let registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
                 match registry.by_data_name.get(&data_name) {

@@ -371,7 +371,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 .with_context(|| format!("cannot listen on {listen}"))?;
             let addr = listener.local_addr()?;
             println!("{}{addr}", armor_runtime::AGENT_READY_PREFIX);
-            agent::serve(listener, secret);
+            let acl = agent::Acl::from_env()
+                .with_context(|| format!("{} is not a valid access list", agent::ENV_ACL))?;
+            agent::serve(listener, secret, acl);
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -20,6 +20,7 @@ use armor_module_api::clock::{ENV_EPOCH, ENV_TIME_SCALE, unix_now_ns};
 use armor_module_api::protocol::FromSupervisor;
 use armor_module_api::{Clock, ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR};
 
+use crate::agent::{Acl, ENV_ACL};
 use crate::config_server::{ConfigServer, ServerEvent};
 use crate::control;
 use crate::controller::{Controller, Outcome};
@@ -181,6 +182,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     let mut agent = AgentProc::start(
         options.agent_addr.map_or_else(|| local(0), Ok)?,
         secret_file.clone(),
+        Acl::of(&loaded.system),
     )?;
     let control = controller
         .as_ref()
@@ -308,7 +310,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     process.kill();
                 }
             }
-            Ok(ServerEvent::Reloaded(loaded)) => apply_reload(&mut modules, &loaded, &env, &server),
+            Ok(ServerEvent::Reloaded(loaded)) => {
+                agent.set_acl(Acl::of(&loaded.system));
+                apply_reload(&mut modules, &loaded, &env, &server);
+            }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
         }
@@ -625,18 +630,37 @@ struct AgentProc {
     restart_at: Option<Instant>,
     backoff: Duration,
     secret_file: Option<PathBuf>,
+    acl: Option<Acl>,
 }
 
 impl AgentProc {
-    fn start(addr: SocketAddr, secret_file: Option<PathBuf>) -> anyhow::Result<Self> {
-        let (child, addr) = spawn_agent(addr, secret_file.as_deref())?;
+    fn start(
+        addr: SocketAddr,
+        secret_file: Option<PathBuf>,
+        acl: Option<Acl>,
+    ) -> anyhow::Result<Self> {
+        let (child, addr) = spawn_agent(addr, secret_file.as_deref(), acl.as_ref())?;
         Ok(Self {
             addr,
             child: Some(child),
             restart_at: None,
             backoff: FIRST_BACKOFF,
             secret_file,
+            acl,
         })
+    }
+
+    /// A new access list (an edit of the system file): the agent restarts with it. Links keep
+    /// flowing meanwhile, and modules register again.
+    fn set_acl(&mut self, acl: Option<Acl>) {
+        if acl == self.acl {
+            return;
+        }
+        tracing::info!("the access lists changed: restarting the agent with them");
+        self.acl = acl;
+        if let Some(child) = &self.child {
+            signal(child, libc::SIGTERM);
+        }
     }
 
     fn supervise(&mut self) {
@@ -654,7 +678,7 @@ impl AgentProc {
             return;
         }
         if self.restart_at.is_some_and(|at| Instant::now() >= at) {
-            match spawn_agent(self.addr, self.secret_file.as_deref()) {
+            match spawn_agent(self.addr, self.secret_file.as_deref(), self.acl.as_ref()) {
                 Ok((child, _)) => {
                     self.child = Some(child);
                     self.restart_at = None;
@@ -692,6 +716,7 @@ fn pass_secret(command: &mut Command, secret_file: Option<&Path>) {
 fn spawn_agent(
     addr: SocketAddr,
     secret_file: Option<&Path>,
+    acl: Option<&Acl>,
 ) -> anyhow::Result<(Child, SocketAddr)> {
     let exe = std::env::current_exe().context("cannot find the armor executable")?;
     let mut command = Command::new(exe);
@@ -701,6 +726,10 @@ fn spawn_agent(
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
     pass_secret(&mut command, secret_file);
+    match acl {
+        Some(acl) => command.env(ENV_ACL, serde_json::to_string(acl)?),
+        None => command.env_remove(ENV_ACL),
+    };
     crate::process::die_with_parent(&mut command);
     let mut child = command.spawn().context("cannot start the agent")?;
     stream_lines("agent", child.stderr.take());
