@@ -17,6 +17,7 @@ mod benchprobe;
 mod compile_plan;
 mod event_start;
 mod harness;
+mod kill;
 mod latency;
 mod mapper_scan;
 mod procs;
@@ -112,6 +113,18 @@ const BENCHES: &[Bench] = &[
         about: "compile and check a 10,000-waypoint plan vs load and check the net it compiles \
                 to (ms; goal < 100)",
         run: compile_plan::run,
+    },
+    Bench {
+        name: kill::NAME_RECOVER,
+        about: "SIGKILL of a module to its subscriber's first value from the restarted process, \
+                vs spawning the binary (ms)",
+        run: kill::run_recover,
+    },
+    Bench {
+        name: kill::NAME_LOST,
+        about: "values lost, duplicated or reordered on a 1 kHz link while another module is \
+                killed again and again (must be 0)",
+        run: kill::run_lost,
     },
     Bench {
         name: sim_realtime::NAME,
