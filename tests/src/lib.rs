@@ -130,6 +130,7 @@ impl Proc {
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(status) = self.child.try_wait().unwrap() {
+                self.wait_for_pipes(deadline);
                 return status;
             }
             assert!(
@@ -140,6 +141,26 @@ impl Proc {
             );
             // Waiting on a child has no notification in std; poll it finely.
             std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+impl Proc {
+    /// Waits until the reader threads have seen both pipes close (or `deadline`), so that
+    /// [`Proc::lines`] holds everything an exited process wrote. Children that kept the pipes
+    /// open (a module outliving its supervisor would) make this give up at the deadline.
+    fn wait_for_pipes(&self, deadline: Instant) {
+        let (lock, changed) = &*self.output;
+        let mut output = lock.lock().unwrap_or_else(PoisonError::into_inner);
+        while output.closed_pipes < 2 {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return;
+            }
+            output = changed
+                .wait_timeout(output, left)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
         }
     }
 }

@@ -191,15 +191,12 @@ fn a_secret_others_can_read_is_refused() {
         0o644,
     );
     let mut run = armor_run("missions/demo/system.xml", &secret);
+    // The message may reach the pipe reader after the exit is seen: wait for it first.
+    run.wait_for("the refusal", PATIENCE, |line| {
+        line.contains("readable by its owner only")
+    });
     let status = run.wait_exit(PATIENCE);
     assert!(!status.success());
-    assert!(
-        run.lines()
-            .iter()
-            .any(|line| line.contains("readable by its owner only")),
-        "{:#?}",
-        run.lines()
-    );
 }
 
 /// The demo system with access lists: the checker may subscribe to the counter only.

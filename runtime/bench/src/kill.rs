@@ -7,7 +7,8 @@
 //!   backoff, which doubles for crashes within ten seconds: the kills are spaced so that there
 //!   are at most three in a window), registered, found and relinked, and a message delivered.
 //!   Reference: spawning the same binary with `--describe` until it exits, the floor of any
-//!   restart.
+//!   restart. The output also gives each restart's backoff (from the supervisor's log) and the
+//!   median time beyond it: what the runtime itself adds.
 //! - `messages_lost_under_kill`: on the steady link, the values that went missing, came twice or
 //!   out of order while the victim was killed, from the checker's own count (reliable input,
 //!   sequence-checked). It must be 0; the reference is 0.
@@ -54,6 +55,8 @@ const SYSTEM: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
 /// What one run of the scenario measured.
 struct Outcome {
     recover_ms: Vec<f64>,
+    /// The supervisor's backoff before each restart, from its log.
+    backoff_ms: Vec<f64>,
     spawn_ms: Vec<f64>,
     /// Values the steady checker should have had between the first and last summaries, minus
     /// those it had.
@@ -73,6 +76,18 @@ pub fn run_recover(settings: &Settings) -> anyhow::Result<Report> {
     )
     .with("p99", percentile_99(&outcome.recover_ms))
     .with("kills", outcome.recover_ms.len())
+    .with("backoff_ms", outcome.backoff_ms.clone())
+    .with(
+        "beyond_backoff_ms_p50",
+        median(
+            &outcome
+                .recover_ms
+                .iter()
+                .zip(&outcome.backoff_ms)
+                .map(|(recover, backoff)| recover - backoff)
+                .collect::<Vec<_>>(),
+        ),
+    )
     .with(
         "reference_is",
         "spawning armor-mod-counter --describe until it exits",
@@ -135,6 +150,7 @@ fn scenario(settings: &Settings) -> anyhow::Result<Outcome> {
     })?;
     let first = log.wait(&lines, &mut run, "a steady summary", |log| log.steady)?;
     let mut recover_ms = Vec::with_capacity(kills);
+    let mut backoff_ms = Vec::with_capacity(kills);
     let mut spawn_ms = Vec::with_capacity(kills);
     for _ in 0..kills {
         let killed_at = Instant::now();
@@ -145,6 +161,7 @@ fn scenario(settings: &Settings) -> anyhow::Result<Outcome> {
             (log.restarts_seen > 0).then_some(())
         })?;
         recover_ms.push(killed_at.elapsed().as_secs_f64() * 1e3);
+        backoff_ms.push(log.backoff_ms.take().unwrap_or(0.0));
         victim = log.wait(&lines, &mut run, "the victim's new pid", |log| {
             log.victim_pid
         })?;
@@ -168,6 +185,7 @@ fn scenario(settings: &Settings) -> anyhow::Result<Outcome> {
     let received = last.received as i64 - first.received as i64;
     Ok(Outcome {
         recover_ms,
+        backoff_ms,
         spawn_ms,
         lost: expected - received,
         disorder: last.out_of_order + log.steady_relinks,
@@ -220,6 +238,7 @@ impl Summary {
 #[derive(Default)]
 struct Log {
     victim_pid: Option<libc::pid_t>,
+    backoff_ms: Option<f64>,
     watch_values: bool,
     restarts_seen: u32,
     steady: Option<Summary>,
@@ -235,6 +254,12 @@ impl Log {
                 .nth(1)
                 .and_then(|rest| rest.split_whitespace().next())
                 .and_then(|pid| pid.parse().ok());
+        } else if line.contains("module=\"victim\"") && line.contains("restarting in ") {
+            self.backoff_ms = line
+                .split("restarting in ")
+                .nth(1)
+                .and_then(|rest| rest.split("ms").next())
+                .and_then(|ms| ms.trim().parse().ok());
         } else if line.starts_with("[watch]") && line.contains("received ") {
             self.watch_values = true;
         } else if line.contains("event watch.restarted") {

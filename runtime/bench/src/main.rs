@@ -16,6 +16,7 @@
 mod benchprobe;
 mod compile_plan;
 mod event_start;
+mod fuzz;
 mod harness;
 mod kill;
 mod latency;
@@ -137,6 +138,12 @@ const BENCHES: &[Bench] = &[
         about: "one 360-beam scan matched and integrated by the mapper vs the grid update alone \
                 (ms)",
         run: mapper_scan::run,
+    },
+    Bench {
+        name: fuzz::NAME,
+        about: "inputs run through each parser's fuzz target by fuzz/run.sh, with the crashes \
+                found (must be 0); needs cargo-fuzz",
+        run: fuzz::run,
     },
 ];
 

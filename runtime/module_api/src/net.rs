@@ -622,9 +622,13 @@ impl Net {
                 tracing::debug!("registered with the agent");
             }
             FromAgent::Provider(advert) => {
+                // An answer, or the agent telling of a provider asked for in vain before.
                 for index in 0..self.inputs.len() {
-                    let waiting = matches!(self.inputs[index], InputLink::Asked { .. })
-                        && core.inputs[index].source.as_deref() == Some(advert.data_name.as_str());
+                    let waiting = matches!(
+                        self.inputs[index],
+                        InputLink::Asked { .. } | InputLink::Resolve { .. }
+                    ) && core.inputs[index].source.as_deref()
+                        == Some(advert.data_name.as_str());
                     if waiting {
                         self.connect_input(core, index, &advert);
                     }

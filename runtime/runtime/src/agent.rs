@@ -102,10 +102,21 @@ struct Entry {
     conn_id: u64,
 }
 
+/// The writing half of a connection, shared by its own thread (replies) and by the threads of
+/// registering modules (providers pushed to those who asked in vain).
+type Writer = Arc<Mutex<TcpStream>>;
+
 #[derive(Default)]
 struct Registry {
     by_data_name: HashMap<String, Entry>,
     next_conn_id: u64,
+    /// Data names asked for and not yet served, with the connections that asked.
+    waiting: HashMap<String, Vec<(u64, Writer)>>,
+}
+
+fn write(writer: &Writer, message: &FromAgent) -> Result<(), WireError> {
+    let mut stream = writer.lock().unwrap_or_else(PoisonError::into_inner);
+    blocking::write_message(&mut *stream, message)
 }
 
 /// Serves agent connections until the process ends, one thread each; with a `secret`, only
@@ -153,6 +164,10 @@ pub fn spawn(addr: SocketAddr) -> std::io::Result<SocketAddr> {
 
 fn forget(registry: &Mutex<Registry>, conn_id: u64) {
     let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+    for askers in registry.waiting.values_mut() {
+        askers.retain(|(asker, _)| *asker != conn_id);
+    }
+    registry.waiting.retain(|_, askers| !askers.is_empty());
     registry.by_data_name.retain(|data_name, entry| {
         let gone = entry.conn_id == conn_id;
         if gone {
@@ -173,6 +188,7 @@ fn serve_module(
     stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
     blocking::handshake(&mut stream, secret)?;
     stream.set_read_timeout(None)?;
+    let writer: Writer = Arc::new(Mutex::new(stream.try_clone()?));
     // The module this connection registered as.
     let mut identity: Option<String> = None;
     loop {
@@ -191,7 +207,12 @@ fn serve_module(
                     }
                     None => {
                         identity = Some(module.clone());
-                        register(registry, conn_id, module, outputs)
+                        let (reply, pushes) = register(registry, conn_id, module, outputs);
+                        for (asker, advert) in pushes {
+                            // An asker that went away is forgotten by its own thread.
+                            let _ = write(&asker, &FromAgent::Provider(advert));
+                        }
+                        reply
                     }
                 }
             }
@@ -203,23 +224,30 @@ fn serve_module(
                 FromAgent::Error { message }
             }
             ToAgent::Lookup { data_name } => {
-                let registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+                let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
                 match registry.by_data_name.get(&data_name) {
                     Some(entry) => FromAgent::Provider(entry.advert.clone()),
-                    None => FromAgent::Unknown { data_name },
+                    None => {
+                        let askers = registry.waiting.entry(data_name.clone()).or_default();
+                        if !askers.iter().any(|(asker, _)| *asker == conn_id) {
+                            askers.push((conn_id, Arc::clone(&writer)));
+                        }
+                        FromAgent::Unknown { data_name }
+                    }
                 }
             }
         };
-        blocking::write_message(&mut stream, &reply)?;
+        write(&writer, &reply)?;
     }
 }
 
+/// Registers `outputs`; the reply, and the providers to push to those who asked for them.
 fn register(
     registry: &Mutex<Registry>,
     conn_id: u64,
     module: String,
     outputs: Vec<Advert>,
-) -> FromAgent {
+) -> (FromAgent, Vec<(Writer, Advert)>) {
     let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
     // A data name belongs to one module. The same module registering again (it restarted before
     // its old connection was noticed closed) takes it over; another module may not.
@@ -232,13 +260,13 @@ fn register(
     }) {
         let (data_name, owner) = clash;
         tracing::warn!(module, data_name, owner, "refused a registration");
-        return FromAgent::Error {
-            message: format!("`{data_name}` is already served by module `{owner}`"),
-        };
+        let message = format!("`{data_name}` is already served by module `{owner}`");
+        return (FromAgent::Error { message }, Vec::new());
     }
     registry
         .by_data_name
         .retain(|_, entry| entry.conn_id != conn_id);
+    let mut pushes = Vec::new();
     for advert in outputs {
         tracing::info!(
             data_name = advert.data_name,
@@ -246,6 +274,13 @@ fn register(
             module,
             "provider registered"
         );
+        for (_, asker) in registry
+            .waiting
+            .remove(&advert.data_name)
+            .unwrap_or_default()
+        {
+            pushes.push((asker, advert.clone()));
+        }
         registry.by_data_name.insert(
             advert.data_name.clone(),
             Entry {
@@ -255,5 +290,5 @@ fn register(
             },
         );
     }
-    FromAgent::Registered
+    (FromAgent::Registered, pushes)
 }

@@ -559,16 +559,20 @@ impl ModuleProc {
             self.state = ProcState::Failed;
             return;
         }
-        if self.crashes.len() == 1 {
-            self.backoff = FIRST_BACKOFF;
-        }
+        // The wait doubles with each crash still in the window, so a module that crashes now
+        // and then always comes back after the first backoff.
+        let doublings = u32::try_from(self.crashes.len() - 1)
+            .unwrap_or(u32::MAX)
+            .min(16);
+        self.backoff = FIRST_BACKOFF
+            .saturating_mul(1 << doublings)
+            .min(MAX_BACKOFF);
         tracing::warn!(
             module = self.name,
             "module {how}; restarting in {:?}",
             self.backoff
         );
         self.state = ProcState::Restarting(now + self.backoff);
-        self.backoff = (self.backoff * 2).min(MAX_BACKOFF);
     }
 
     /// Kills the module's process group at once (a module declared dead by the heartbeat);
