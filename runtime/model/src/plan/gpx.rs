@@ -109,7 +109,8 @@ pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>
         }
         let index = plan.legs.len();
         plan.legs.push(Leg {
-            name: default_leg_name(index),
+            // Not the default name as such: a point may be called `leg1` (found by fuzzing).
+            name: names.identifier(&default_leg_name(index), "leg"),
             from: pair[0].clone(),
             to: pair[1].clone(),
             pos: root.pos,
@@ -349,6 +350,21 @@ mod tests {
                 (pa.lat_deg - pb.lat_deg).abs() < 1e-7 && (pa.lon_deg - pb.lon_deg).abs() < 1e-7
             );
         }
+    }
+
+    #[test]
+    fn a_point_named_like_a_leg_does_not_take_its_name() {
+        // Found by fuzzing (fuzz/fuzz_targets/gpx.rs): the leg was named `leg1` too, and the
+        // plan reader refused the imported plan.
+        let text = r#"<gpx><rte>
+  <rtept lat="43.561536" lon="1.4690496"><name>home</name></rtept>
+  <rtept lat="21.561536" lon="1.4691986"><name>leg1</name></rtept>
+</rte></gpx>"#;
+        let plan = import(text, "p", "system.xml").expect("imports");
+        assert_eq!(plan.waypoints[1].name, "leg1");
+        assert_eq!(plan.legs[0].name, "leg1_2");
+        let again = Plan::parse(&plan.to_xml()).unwrap_or_else(|p| panic!("{p:?}"));
+        assert_eq!(again.legs[0].name, "leg1_2");
     }
 
     #[test]
