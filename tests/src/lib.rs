@@ -1,7 +1,11 @@
 //! Support for the end-to-end suites in `tests/tests/`: find the workspace's binaries, start real
 //! processes whose output is captured line by line, wait for a line with a deadline (never a bare
-//! sleep), and kill every process a test started when it ends, even if it fails.
+//! sleep), and kill every process a test started when it ends, even if it fails. [`mission`]
+//! runs a mission or plan headless and reads its report; [`mcap`] reads what a recorder wrote.
 #![allow(clippy::unwrap_used)]
+
+pub mod mcap;
+pub mod mission;
 
 use std::io::{BufRead as _, BufReader, Read};
 use std::path::{Path, PathBuf};

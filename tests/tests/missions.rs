@@ -1,4 +1,4 @@
-//! Every example under `missions/` (systems and missions) is valid: against the shipped XSDs
+//! Every example under `missions/` (systems, missions and plans) is valid: against the shipped XSDs
 //! (checked by xmllint, an independent reader) and by `armor check` against the real module
 //! binaries.
 #![allow(clippy::unwrap_used)]
@@ -41,7 +41,11 @@ fn xmllint(schema: &str, file: &Path) -> std::process::Output {
 
 #[test]
 fn examples_validate_against_the_schema() {
-    for (top, schema) in [("system", "system.xsd"), ("mission", "mission.xsd")] {
+    for (top, schema) in [
+        ("system", "system.xsd"),
+        ("mission", "mission.xsd"),
+        ("plan", "plan.xsd"),
+    ] {
         for file in examples(top) {
             let output = xmllint(schema, &file);
             assert!(
@@ -88,8 +92,74 @@ fn the_schema_refuses_what_the_loader_refuses() {
 }
 
 #[test]
+fn the_plan_schema_refuses_what_the_plan_reader_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = workspace_root().join("missions/robot/system.xml");
+    let plan = |body: &str| {
+        format!(
+            r#"<plan name="p" system="{}">
+  <waypoint name="a" lat="43.561536" lon="1.4690496"/>
+  {body}
+</plan>"#,
+            system.display()
+        )
+    };
+    // The problem's line: the waypoints and leg are on line 3, the area on line 4.
+    for (name, says, line, text) in [
+        (
+            "leg-without-to",
+            "`to`",
+            3,
+            plan(r#"<waypoint name="b" lat="43.561536" lon="1.4691986"/><leg from="a"/>"#),
+        ),
+        (
+            "latitude-not-a-number",
+            "`north`",
+            3,
+            plan(r#"<waypoint name="b" lat="north" lon="1.4691986"/><leg from="a" to="b"/>"#),
+        ),
+        (
+            "unknown-area-kind",
+            "`lava`",
+            4,
+            plan(
+                r#"<waypoint name="b" lat="43.561536" lon="1.4691986"/><leg from="a" to="b"/>
+  <area name="x" kind="lava"><point lat="43.5615" lon="1.4692"/><point lat="43.5616" lon="1.4692"/><point lat="43.5616" lon="1.4693"/></area>"#,
+            ),
+        ),
+    ] {
+        let file = dir.path().join(format!("{name}.xml"));
+        std::fs::write(&file, text).unwrap();
+        assert!(
+            !xmllint("plan.xsd", &file).status.success(),
+            "{name} should fail the schema"
+        );
+        let check = Command::new(bin("armor"))
+            .arg("check")
+            .arg(&file)
+            .env("ARMOR_MODULE_PATH", armor_tests::bin_dir())
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&check.stdout);
+        assert_eq!(
+            check.status.code(),
+            Some(1),
+            "{name} should fail armor check: {out}"
+        );
+        assert!(
+            out.contains(&format!("{}:{line}:", file.display())) && out.contains(says),
+            "{name}: {out}"
+        );
+    }
+}
+
+#[test]
 fn examples_pass_armor_check() {
-    for file in examples("system").into_iter().chain(examples("mission")) {
+    for file in examples("system")
+        .into_iter()
+        .chain(examples("mission"))
+        .chain(examples("plan"))
+    {
         let output = Command::new(bin("armor"))
             .arg("check")
             .arg(&file)

@@ -2,10 +2,9 @@
 //! with `armor replay` to a module that checks it, as a user would.
 #![allow(clippy::unwrap_used)]
 
-use std::collections::HashMap;
-use std::path::Path;
 use std::process::Command;
 
+use armor_tests::mcap::read_mcap;
 use armor_tests::{PATIENCE, Proc, bin};
 
 /// How many values the recording should hold at least (0.01 s apart: a second or more).
@@ -26,97 +25,6 @@ fn start_agent() -> (Proc, String) {
 fn recorded(line: &str) -> Option<u64> {
     let rest = &line[line.find("recorded ")? + "recorded ".len()..];
     rest.split_whitespace().next()?.parse().ok()
-}
-
-/// One message of a channel: its log time and data.
-type Message = (u64, Vec<u8>);
-
-/// The messages of every channel of an MCAP file whose chunks are not compressed, by (topic,
-/// message encoding): read with nothing but the MCAP specification, independently of the crate
-/// the recorder writes with.
-fn read_mcap(file: &Path) -> HashMap<(String, String), Vec<Message>> {
-    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
-    let bytes = std::fs::read(file).unwrap();
-    assert!(
-        bytes.starts_with(MAGIC) && bytes.ends_with(MAGIC),
-        "not a complete MCAP file"
-    );
-    let mut channels: HashMap<u16, (String, String)> = HashMap::new();
-    let mut messages: Vec<(u16, Message)> = Vec::new();
-    read_records(
-        &bytes[MAGIC.len()..bytes.len() - MAGIC.len()],
-        &mut channels,
-        &mut messages,
-    );
-    let mut by_channel: HashMap<(String, String), Vec<Message>> = HashMap::new();
-    for (channel, message) in messages {
-        let key = channels[&channel].clone();
-        by_channel.entry(key).or_default().push(message);
-    }
-    by_channel
-}
-
-struct Cursor<'a>(&'a [u8]);
-
-impl<'a> Cursor<'a> {
-    fn take(&mut self, n: usize) -> &'a [u8] {
-        let (head, rest) = self.0.split_at(n);
-        self.0 = rest;
-        head
-    }
-    fn u16(&mut self) -> u16 {
-        u16::from_le_bytes(self.take(2).try_into().unwrap())
-    }
-    fn u32(&mut self) -> u32 {
-        u32::from_le_bytes(self.take(4).try_into().unwrap())
-    }
-    fn u64(&mut self) -> u64 {
-        u64::from_le_bytes(self.take(8).try_into().unwrap())
-    }
-    fn string(&mut self) -> String {
-        let len = self.u32() as usize;
-        String::from_utf8(self.take(len).to_vec()).unwrap()
-    }
-}
-
-fn read_records(
-    bytes: &[u8],
-    channels: &mut HashMap<u16, (String, String)>,
-    messages: &mut Vec<(u16, Message)>,
-) {
-    let mut records = Cursor(bytes);
-    while !records.0.is_empty() {
-        let opcode = records.take(1)[0];
-        let len = records.u64() as usize;
-        let mut body = Cursor(records.take(len));
-        match opcode {
-            // Channel: id, schema id, topic, message encoding, metadata.
-            0x04 => {
-                let id = body.u16();
-                body.u16();
-                let topic = body.string();
-                let encoding = body.string();
-                channels.insert(id, (topic, encoding));
-            }
-            // Message: channel id, sequence, log time, publish time, data.
-            0x05 => {
-                let channel = body.u16();
-                body.u32();
-                let log_time = body.u64();
-                body.u64();
-                messages.push((channel, (log_time, body.0.to_vec())));
-            }
-            // Chunk: start and end times, size and CRC, compression, records.
-            0x06 => {
-                body.take(8 + 8 + 8 + 4);
-                let compression = body.string();
-                assert_eq!(compression, "", "the test records without compression");
-                let len = body.u64() as usize;
-                read_records(body.take(len), channels, messages);
-            }
-            _ => {}
-        }
-    }
 }
 
 #[test]

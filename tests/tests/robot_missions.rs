@@ -4,136 +4,33 @@
 //! follower ever being stuck. A goal inside an obstacle ends the mission in its contingency.
 #![allow(clippy::unwrap_used)]
 
-use std::path::Path;
 use std::process::Command;
-use std::time::Duration;
 
-use armor_tests::{PATIENCE, Proc, bin, bin_dir, field, process_alive, workspace_root};
+use armor_tests::mission::{Finished, MISSION_DEADLINE, armor_run};
+use armor_tests::{PATIENCE, bin, bin_dir, field, process_alive, workspace_root};
 
-/// Run time passes this many times faster than real time: a mission of one to two simulated
-/// minutes takes a few seconds. The sim, the follower and the avoider all run on the run clock,
-/// and the follower declares a leg blocked only after `blocked_after_secs` of run time without
-/// progress (the system files set 20 s, a second of real time at this scale), so a busy machine
-/// slows a run down without failing it.
-const TIME_SCALE: &str = "20";
-
-/// How long a whole mission may take in real time: five to ten times what it needs on an idle
-/// machine.
-const MISSION_DEADLINE: Duration = Duration::from_secs(60);
-
-/// `armor run MISSION --time-scale TIME_SCALE --report REPORT`, with the workspace's modules.
-fn armor_run(mission: &Path, report: &Path) -> Proc {
-    Proc::start(
-        Command::new(bin("armor"))
-            .arg("run")
-            .arg(mission)
-            .args(["--time-scale", TIME_SCALE, "--report"])
-            .arg(report)
-            .env("ARMOR_MODULE_PATH", bin_dir())
-            // The sim looks its `world` up relative to the current directory only (as given,
-            // then under assets/worlds/), so the missions run from the workspace root.
-            .current_dir(workspace_root()),
-    )
-}
-
-/// What a finished run left: its output and its report.
-struct Finished {
-    lines: Vec<String>,
-    report: serde_json::Value,
-}
-
-impl Finished {
-    /// The transitions fired, in order, with the run time of each.
-    fn fired(&self) -> Vec<(String, f64)> {
-        self.report["timeline"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|entry| entry["kind"] == "fired")
-            .map(|entry| {
-                (
-                    entry["transition"].as_str().unwrap().to_owned(),
-                    entry["at_secs"].as_f64().unwrap(),
-                )
-            })
-            .collect()
-    }
-
-    fn fired_names(&self) -> Vec<String> {
-        self.fired().into_iter().map(|(name, _)| name).collect()
-    }
-
-    /// Run time between two firings.
-    fn between(&self, first: &str, second: &str) -> f64 {
-        let fired = self.fired();
-        let at = |name: &str| {
-            fired
-                .iter()
-                .find(|(fired, _)| fired == name)
-                .unwrap_or_else(|| panic!("`{name}` did not fire: {fired:?}"))
-                .1
-        };
-        at(second) - at(first)
-    }
-
-    /// The marking the mission completed in.
-    fn final_marking(&self) -> serde_json::Value {
-        let timeline = self.report["timeline"].as_array().unwrap();
-        let complete = timeline
-            .iter()
-            .find(|entry| entry["kind"] == "complete")
-            .unwrap_or_else(|| panic!("the mission did not complete: {timeline:#?}"));
-        complete["marking"].clone()
-    }
-
-    fn any_line(&self, pred: impl Fn(&str) -> bool) -> bool {
-        self.lines.iter().any(|line| pred(line))
-    }
-
-    /// The one leg ended in `aborted_leg` because the follower was blocked, the robot having
-    /// touched nothing.
-    fn assert_aborted_without_a_collision(&self) {
-        assert_eq!(self.fired_names(), ["blocked_1"]);
-        assert_eq!(
-            self.final_marking(),
-            serde_json::json!({ "aborted_leg": 1 })
-        );
-        assert!(
-            self.any_line(|line| line.starts_with("[follower]")
-                && line.contains("no progress towards the goal")),
-            "{}",
-            self.lines.join("\n")
-        );
-        assert!(
-            !self.any_line(|line| line.contains("event sim.collision")),
-            "the robot hit something:\n{}",
-            self.lines.join("\n")
-        );
-    }
-
-    /// The robot never touched anything, and the follower never gave up on a leg.
-    fn assert_clean(&self) {
-        let bad: Vec<&String> = self
-            .lines
-            .iter()
-            .filter(|line| line.contains("event sim.collision") || line.contains("blocked"))
-            .collect();
-        assert!(bad.is_empty(), "{bad:#?}\n{}", self.lines.join("\n"));
-    }
+/// The one leg ended in `aborted_leg` because the follower was blocked, the robot having touched
+/// nothing.
+fn assert_aborted_without_a_collision(run: &Finished) {
+    assert_eq!(run.fired_names(), ["blocked_1"]);
+    assert_eq!(run.final_marking(), serde_json::json!({ "aborted_leg": 1 }));
+    assert!(
+        run.any_line(
+            |line| line.starts_with("[follower]") && line.contains("no progress towards the goal")
+        ),
+        "{}",
+        run.lines.join("\n")
+    );
+    assert!(
+        !run.any_line(|line| line.contains("event sim.collision")),
+        "the robot hit something:\n{}",
+        run.lines.join("\n")
+    );
 }
 
 /// Runs a mission to its end; it must exit 0 within [`MISSION_DEADLINE`].
-fn run_mission(mission: &Path) -> Finished {
-    let dir = tempfile::tempdir().unwrap();
-    let report = dir.path().join("report.json");
-    let mut run = armor_run(mission, &report);
-    let status = run.wait_exit(MISSION_DEADLINE);
-    let lines = run.lines();
-    assert!(status.success(), "{status}:\n{}", lines.join("\n"));
-    let report = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    let finished = Finished { lines, report };
-    assert_eq!(finished.report["outcome"], "complete");
-    finished
+fn run_mission(mission: &std::path::Path) -> Finished {
+    armor_tests::mission::run_mission(mission, &[], MISSION_DEADLINE)
 }
 
 fn robot_mission(name: &str) -> std::path::PathBuf {
@@ -309,9 +206,9 @@ fn a_goal_inside_an_obstacle_ends_the_mission_in_its_contingency() {
         );
     }
 
-    let stuck = armor_run(&unhandled, &dir.path().join("unhandled.json"));
+    let stuck = armor_run(&unhandled, &dir.path().join("unhandled.json"), &[]);
     let run = run_mission(&handled);
-    run.assert_aborted_without_a_collision();
+    assert_aborted_without_a_collision(&run);
     assert!(
         run.any_line(|line| line.contains("mission `into-the-container` complete: {aborted_leg}")),
         "{}",
@@ -348,5 +245,5 @@ fn a_goal_outside_the_world_ends_in_the_contingency_without_a_collision() {
     let dir = tempfile::tempdir().unwrap();
     let mission = dir.path().join("outside.xml");
     std::fs::write(&mission, one_leg("beyond-the-fence", (60.0, 2.0), true)).unwrap();
-    run_mission(&mission).assert_aborted_without_a_collision();
+    assert_aborted_without_a_collision(&run_mission(&mission));
 }

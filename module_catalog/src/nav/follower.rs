@@ -34,6 +34,10 @@ const PROGRESS_M: f64 = 0.05;
 const TURN_GAIN: f64 = 2.0;
 /// Closer than this to the goal, the forward speed drops in proportion to the distance.
 const SLOW_DOWN_M: f64 = 1.0;
+/// A way round no-go areas is given up for a shorter one only when that one is this much shorter.
+const SWITCH_M: f64 = 1.0;
+/// Closer than this to a corner of the way round, the follower heads for the next one.
+const VIA_REACHED_M: f64 = 0.4;
 /// How far the way round a no-go area keeps from it (what plans are compiled with).
 pub const CLEARANCE_M: f64 = armor_model::plan::CLEARANCE_M;
 
@@ -231,6 +235,8 @@ struct Control {
 #[derive(Clone, Debug)]
 struct Follower {
     settings: Settings,
+    /// The corner of the way round the no-go areas headed for.
+    via: Option<Point>,
     reached: bool,
     blocked: bool,
     /// The shortest distance to the goal so far, and when it was last shortened.
@@ -242,6 +248,7 @@ impl Follower {
     fn new(settings: Settings, now: f64) -> Self {
         let mut follower = Self {
             settings,
+            via: None,
             reached: false,
             blocked: false,
             best_distance_m: f64::INFINITY,
@@ -254,6 +261,7 @@ impl Follower {
     /// A new goal or a new activation: `goal_reached` and `blocked` are re-armed, and progress
     /// is counted from the next pose.
     fn restart(&mut self, now: f64) {
+        self.via = None;
         self.reached = false;
         self.blocked = false;
         self.best_distance_m = f64::INFINITY;
@@ -271,7 +279,7 @@ impl Follower {
     }
 
     fn on_pose(&mut self, pose: Pose2D, now: f64) -> Control {
-        let Some((twist, distance_m)) = steer_round(&self.settings, pose) else {
+        let Some((twist, distance_m)) = steer_round(&self.settings, pose, &mut self.via) else {
             tracing::warn!("ignoring a non-finite pose {pose:?}");
             return Control {
                 twist: Twist::default(),
@@ -326,23 +334,45 @@ impl Follower {
 
 /// The command from `pose` along the way round the no-go areas, and the straight distance to
 /// the goal (`None` if the pose is not finite). Without a way round, the command is to stop.
-fn steer_round(settings: &Settings, pose: Pose2D) -> Option<(Twist, f64)> {
+///
+/// `via` is the corner headed for at the previous pose: the follower keeps to it while the way
+/// through it is not [`SWITCH_M`] longer than the shortest, so that two nearly equal ways round
+/// an area (and the avoider's swerves) do not make it waver between them.
+fn steer_round(settings: &Settings, pose: Pose2D, via: &mut Option<Point>) -> Option<(Twist, f64)> {
     let goal = Point::new(settings.goal_x_m, settings.goal_y_m);
     let here = Point::new(pose.x_m, pose.y_m);
     let distance_m = geo::distance(here, goal);
     if settings.no_go.is_empty() || !distance_m.is_finite() {
+        *via = None;
         return steer(settings, pose, goal, distance_m).map(|twist| (twist, distance_m));
     }
-    match geo::route(here, goal, &settings.no_go, CLEARANCE_M, &[], &|_, _| true) {
-        Some(route) => {
-            let remaining_m = geo::distance(here, route[0]) + geo::path_length(&route);
-            steer(settings, pose, route[0], remaining_m).map(|twist| (twist, distance_m))
-        }
-        None => {
-            tracing::debug!("no way round the no-go areas from {here}");
-            Some((Twist::default(), distance_m))
+    let way = |from: Point| geo::route(from, goal, &settings.no_go, CLEARANCE_M, &[], &|_, _| true);
+    let Some(route) = way(here) else {
+        tracing::debug!("no way round the no-go areas from {here}");
+        *via = None;
+        return Some((Twist::default(), distance_m));
+    };
+    let mut target = route[0];
+    let mut remaining_m = geo::distance(here, target) + geo::path_length(&route);
+    if let Some(previous) = *via
+        && previous != target
+        && geo::distance(here, previous) > VIA_REACHED_M
+        && !settings
+            .no_go
+            .iter()
+            .any(|area| area.blocks(here, previous, CLEARANCE_M * 0.9))
+        && let Some(rest) = way(previous)
+    {
+        let through_m = geo::distance(here, previous)
+            + geo::distance(previous, rest[0])
+            + geo::path_length(&rest);
+        if through_m <= remaining_m + SWITCH_M {
+            target = previous;
+            remaining_m = through_m;
         }
     }
+    *via = (target != goal).then_some(target);
+    steer(settings, pose, target, remaining_m).map(|twist| (twist, distance_m))
 }
 
 /// The command towards `target` from `pose`, slowing down when `remaining_m` (the way left to
@@ -387,19 +417,22 @@ mod tests {
             theta_rad: 0.0,
         };
         // Straight on without areas.
-        let (twist, distance) = steer_round(&settings_with(""), facing_goal).expect("finite");
+        let (twist, distance) =
+            steer_round(&settings_with(""), facing_goal, &mut None).expect("finite");
         assert_eq!(distance, 10.0);
         assert_eq!(twist.angular_radps, 0.0);
         assert!(twist.linear_mps > 0.5);
         // A box across the line, longer to the north: the way round is south, so it turns right.
         let (twist, distance) =
-            steer_round(&settings_with("4,-2 6,-2 6,3 4,3"), facing_goal).expect("finite");
+            steer_round(&settings_with("4,-2 6,-2 6,3 4,3"), facing_goal, &mut None)
+                .expect("finite");
         assert_eq!(distance, 10.0);
         assert!(twist.angular_radps < -0.1, "{twist:?}");
         // Walled in: no way round, so it stops (and `blocked` will follow).
         let (twist, _) = steer_round(
             &settings_with("-3,-3 -2,-3 -2,3 -3,3; 2,-3 3,-3 3,3 2,3; -3,2 3,2 3,3 -3,3; -3,-3 3,-3 3,-2 -3,-2"),
             facing_goal,
+            &mut None,
         )
         .expect("finite");
         assert_eq!(twist, Twist::default());

@@ -226,7 +226,11 @@ pub(crate) struct Core {
     pub description: ModuleDescription,
     pub config: ModuleConfig,
     pub clock: Clock,
+    /// What the supervisor wants now (a start or stop is queued when it changes).
     pub active: bool,
+    /// What the module has been told: changed when it takes the `Start` or `Stop` event, so that
+    /// events queued before (an input, new parameters) are still handled in the old state.
+    pub told_active: bool,
     pub inputs: Vec<InputSlot>,
     pub outputs: Vec<OutputSlot>,
     pub events: VecDeque<Event>,
@@ -271,6 +275,7 @@ impl Core {
             .collect();
         Self {
             active: config.active,
+            told_active: config.active,
             name,
             description,
             config,
@@ -329,6 +334,19 @@ impl Core {
             self.events.push_back(Event::ParamsChanged(changed_params));
         }
         relink
+    }
+
+    /// The next queued event, as the module takes it: an input is no longer notified, and a
+    /// start or stop now shows in [`Node::is_active`].
+    pub fn take_event(&mut self) -> Option<Event> {
+        let event = self.events.pop_front()?;
+        match event {
+            Event::Input(PortId(index)) => self.inputs[index].notified = false,
+            Event::Start => self.told_active = true,
+            Event::Stop => self.told_active = false,
+            _ => {}
+        }
+        Some(event)
     }
 
     pub fn set_active(&mut self, active: bool) {
@@ -392,9 +410,10 @@ impl Node {
         self.core.clock.now_secs()
     }
 
-    /// Whether the controller has the module active. Non-controllable modules always are.
+    /// Whether the module is active, as far as the events it has taken go: a `Start` or `Stop`
+    /// still queued has not changed it yet. Non-controllable modules always are.
     pub fn is_active(&self) -> bool {
-        self.core.active || !self.core.description.controllable
+        self.core.told_active || !self.core.description.controllable
     }
 
     /// The unique data name of an output (`module.output`).
@@ -728,10 +747,7 @@ impl Node {
 
     fn wait_event(&mut self, deadline: Option<Instant>) -> Result<Event, ApiError> {
         loop {
-            if let Some(event) = self.core.events.pop_front() {
-                if let Event::Input(PortId(index)) = event {
-                    self.core.inputs[index].notified = false;
-                }
+            if let Some(event) = self.core.take_event() {
                 return Ok(event);
             }
             match &mut self.transport {

@@ -150,10 +150,7 @@ impl TestTransport {
                     }
                 }
             }
-            if let Some(event) = core.events.pop_front() {
-                if let Event::Input(port) = &event {
-                    core.inputs[port.0].notified = false;
-                }
+            if let Some(event) = core.take_event() {
                 break event;
             }
         };
@@ -242,9 +239,11 @@ impl TestBench {
         self.node.core.apply_config(config);
     }
 
-    /// Activates or deactivates the module now, as the controller would.
+    /// Activates or deactivates the module now, as the controller would (before the body
+    /// runs: the body starts in that state, its `Start` or `Stop` event still queued).
     pub fn set_active(&mut self, active: bool) {
         self.node.core.set_active(active);
+        self.node.core.told_active = active;
     }
 
     /// Every value sent on an output so far, decoded.

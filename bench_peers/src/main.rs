@@ -1,0 +1,177 @@
+//! `armor-bench-peers`: ArMoR measured against its best peers in the same run (issue 10): the
+//! Spin model checker, the `libpetri` crate, roxmltree and xml-rs, plain process spawns, and
+//! (with `--features zenoh`) zenoh.
+//!
+//! It prints one JSON line per benchmark in `armor-bench`'s format: `bench`, `ours`,
+//! `reference`, `unit`, `ratio` (= ours / reference), plus what each benchmark says of its
+//! figures (`goal`, `reference_is`, details per size or per net). The crate is excluded from the
+//! root workspace, so `cargo build/test --workspace` never builds its dependencies:
+//!
+//! ```sh
+//! CARGO_TARGET_DIR=target/peers cargo build --release --manifest-path bench_peers/Cargo.toml
+//! target/peers/release/armor-bench-peers [NAME...] [--quick] [--list]
+//! ```
+
+mod firings;
+mod probe_cold;
+mod report;
+mod spin;
+mod xml_load;
+#[cfg(feature = "zenoh")]
+mod zenoh_bench;
+
+use std::io::Write as _;
+use std::process::ExitCode;
+
+use clap::Parser;
+
+use crate::report::Report;
+
+#[derive(Parser)]
+#[command(
+    name = "armor-bench-peers",
+    version,
+    about = "Measures ArMoR against its best peers (Spin, libpetri, xml-rs, zenoh), one JSON \
+             line per benchmark"
+)]
+struct Cli {
+    /// Benchmarks to run, in this order (default: all; see --list).
+    names: Vec<String>,
+    /// Tiny iteration counts: checks that everything runs, measures nothing worth keeping.
+    #[arg(long)]
+    quick: bool,
+    /// Print the benchmark names and exit.
+    #[arg(long)]
+    list: bool,
+    /// Hidden peer process of the zenoh benchmarks.
+    #[cfg(feature = "zenoh")]
+    #[arg(long, hide = true, num_args = 1.., value_name = "ARGS")]
+    zenoh_peer: Option<Vec<String>>,
+}
+
+/// What every benchmark gets.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    pub quick: bool,
+}
+
+struct Bench {
+    name: &'static str,
+    about: &'static str,
+    run: fn(&Settings) -> anyhow::Result<Report>,
+}
+
+const BENCHES: &[Bench] = &[
+    Bench {
+        name: spin::NAME,
+        about: "reachable markings per second of dining philosophers (10, 12, 14) vs Spin on the \
+                same net in Promela (states/s, identical counts)",
+        run: spin::run,
+    },
+    Bench {
+        name: firings::NAME,
+        about: "firings per second of our mission engine vs libpetri on a 100-transition chain \
+                and a 10-branch mission (firings/s)",
+        run: firings::run,
+    },
+    Bench {
+        name: xml_load::NAME,
+        about: "load of a 5,000-module system and a 10,000-waypoint plan vs xml-rs (and \
+                roxmltree) parsing the same bytes (ms)",
+        run: xml_load::run,
+    },
+    Bench {
+        name: probe_cold::NAME,
+        about: "50 module binaries probed without cache vs 50 spawns of /bin/true, and served \
+                warm from the probe cache (ms)",
+        run: probe_cold::run,
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::NAME_LATENCY,
+        about: "round trip of 64 bytes through armor-mod-echo vs zenoh peers (us)",
+        run: zenoh_bench::run_latency,
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::NAME_THROUGHPUT,
+        about: "64-byte messages per second into armor-mod-sink vs a zenoh subscriber (msg/s)",
+        run: zenoh_bench::run_throughput,
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::NAME_PULL,
+        about: "request for the latest value vs raw TCP request/reply and zenoh get (us)",
+        run: zenoh_bench::run_pull,
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::NAME_DISCOVERY,
+        about: "module start to first delivered message vs zenoh session open to first \
+                sample (ms)",
+        run: zenoh_bench::run_discovery,
+    },
+];
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    #[cfg(feature = "zenoh")]
+    if let Some(args) = &cli.zenoh_peer {
+        return zenoh_bench::peer_main(args);
+    }
+    if cli.list {
+        for bench in BENCHES {
+            println!("{:<26} {}", bench.name, bench.about);
+        }
+        return ExitCode::SUCCESS;
+    }
+    let mut selected = Vec::new();
+    if cli.names.is_empty() {
+        selected.extend(BENCHES.iter());
+    }
+    for name in &cli.names {
+        match BENCHES.iter().find(|bench| bench.name == name.as_str()) {
+            Some(bench) => selected.push(bench),
+            None => {
+                let known: Vec<&str> = BENCHES.iter().map(|bench| bench.name).collect();
+                eprintln!(
+                    "error: unknown benchmark `{name}` (known: {})",
+                    known.join(", ")
+                );
+                return ExitCode::from(2);
+            }
+        }
+    }
+    let settings = Settings { quick: cli.quick };
+    let mut stdout = std::io::stdout().lock();
+    let mut failed = 0;
+    for bench in selected {
+        // A failing benchmark does not hide the others; the exit status still tells.
+        match (bench.run)(&settings) {
+            Ok(report) => {
+                let line = serde_json::to_string(&report).unwrap_or_default();
+                let _ = writeln!(stdout, "{line}");
+                let _ = stdout.flush();
+            }
+            Err(err) => {
+                eprintln!("error: benchmark {}: {err:#}", bench.name);
+                failed += 1;
+            }
+        }
+    }
+    if failed > 0 {
+        eprintln!("error: {failed} benchmark(s) failed");
+        return ExitCode::FAILURE;
+    }
+    ExitCode::SUCCESS
+}
+
+/// Four significant digits, for the figures inside a report's details.
+pub fn round4(value: f64) -> f64 {
+    if !value.is_finite() || value == 0.0 {
+        return value;
+    }
+    let magnitude = value.abs().log10().floor() as i32;
+    let factor = 10f64.powi(3 - magnitude);
+    (value * factor).round() / factor
+}

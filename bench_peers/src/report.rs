@@ -1,0 +1,120 @@
+//! One benchmark's result line, and the statistics behind it (the same format as `armor-bench`,
+//! copied from `runtime/bench/src/report.rs`: that crate is a binary and exports nothing).
+
+use serde::Serialize;
+
+/// A JSON line: `ours`, `reference`, their `unit` and `ratio` = ours / reference. Distributions
+/// also carry percentiles (then `ours` and `reference` are the medians).
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub bench: &'static str,
+    pub ours: f64,
+    pub reference: f64,
+    pub unit: &'static str,
+    pub ratio: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p50: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p99: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_p50: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_p99: Option<f64>,
+    /// For a state-space exploration: the states each side found (the same on both).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub states: Option<usize>,
+    /// Whatever else a benchmark says about its figures (`goal`, `reference_is`, ...).
+    #[serde(flatten)]
+    pub extra: serde_json::Map<String, serde_json::Value>,
+}
+
+impl Report {
+    /// A single figure each side (a rate, or the median of a few rounds).
+    pub fn single(bench: &'static str, unit: &'static str, ours: f64, reference: f64) -> Self {
+        Self {
+            bench,
+            ours: round(ours),
+            reference: round(reference),
+            unit,
+            ratio: round_ratio(ours / reference),
+            p50: None,
+            p99: None,
+            reference_p50: None,
+            reference_p99: None,
+            states: None,
+            extra: serde_json::Map::new(),
+        }
+    }
+
+    /// The same report with a `states` field.
+    pub fn with_states(mut self, states: usize) -> Self {
+        self.states = Some(states);
+        self
+    }
+
+    /// The same report with one more field.
+    pub fn with(mut self, key: &str, value: impl Into<serde_json::Value>) -> Self {
+        self.extra.insert(key.to_owned(), value.into());
+        self
+    }
+}
+
+/// Nearest-rank percentile of sorted values (NaN when there are none).
+pub fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let rank = (q * (sorted.len() - 1) as f64).round() as usize;
+    sorted[rank.min(sorted.len() - 1)]
+}
+
+/// The median of a few values.
+pub fn median(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    percentile(&sorted, 0.5)
+}
+
+/// Four significant digits, enough for any benchmark and easier to read.
+fn round(value: f64) -> f64 {
+    if !value.is_finite() || value == 0.0 {
+        return value;
+    }
+    let magnitude = value.abs().log10().floor() as i32;
+    let factor = 10f64.powi(3 - magnitude);
+    (value * factor).round() / factor
+}
+
+fn round_ratio(value: f64) -> f64 {
+    (value * 1000.0).round() / 1000.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_and_rounding() {
+        let sorted: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(percentile(&sorted, 0.5), 51.0);
+        assert_eq!(percentile(&sorted, 0.99), 99.0);
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(round(123_456.7), 123_500.0);
+        assert_eq!(round(0.012_346), 0.012_35);
+        let report = Report::single("x", "ms", 2.0, 4.0);
+        assert_eq!(
+            serde_json::to_string(&report).expect("json"),
+            r#"{"bench":"x","ours":2.0,"reference":4.0,"unit":"ms","ratio":0.5}"#
+        );
+        let report = Report::single("y", "states/s", 3.0, 2.0).with_states(82);
+        assert_eq!(
+            serde_json::to_string(&report).expect("json"),
+            r#"{"bench":"y","ours":3.0,"reference":2.0,"unit":"states/s","ratio":1.5,"states":82}"#
+        );
+        let report = Report::single("z", "x", 60.0, 50.0).with("goal", 50.0);
+        assert_eq!(
+            serde_json::to_string(&report).expect("json"),
+            r#"{"bench":"z","ours":60.0,"reference":50.0,"unit":"x","ratio":1.2,"goal":50.0}"#
+        );
+    }
+}

@@ -1,0 +1,556 @@
+//! The messaging anchors against zenoh (crate `zenoh`, peer mode over TCP on 127.0.0.1,
+//! multicast scouting off), built only with `--features zenoh`.
+//!
+//! Our side is measured by `armor-bench` itself (the same binary and method as its own
+//! `latency_64b`, `throughput_64b` and `kill_recover_ms`), run as a child of this one in the
+//! same run; zenoh is measured here, between this process and a child of it (this binary
+//! re-executed with `--zenoh-peer ROLE ...`), each with its own session:
+//!
+//! - `latency_64b_vs_zenoh`: round trip of 64 bytes, one in flight; zenoh: publisher `ping`
+//!   (express, blocking congestion control) to a peer whose subscriber callback puts the
+//!   payload back on `pong`; ours: `armor-bench latency_64b` (a node to `armor-mod-echo`).
+//! - `throughput_64b_vs_zenoh`: 64-byte messages per second into another process; zenoh: a
+//!   publisher (batching, blocking congestion control) to a counting subscriber; ours:
+//!   `armor-bench throughput_64b` (into `armor-mod-sink`).
+//! - `pull_vs_raw_tcp`: a request for the latest value. ArMoR has no pull request in its API: a
+//!   module asks by sending on an output and gets the answer on an input, so ours is the
+//!   `latency_64b` round trip; the reference is raw TCP request/reply (1 byte asked, 64 answered,
+//!   TCP_NODELAY), and zenoh `get` on a queryable is given beside it.
+//! - `discovery_vs_zenoh`: a process started to its first message delivered; zenoh: a child
+//!   that opens a session, connects to ours (already subscribed) and publishes; ours: the
+//!   restart of a killed module under `armor run` to its subscriber's first value from the new
+//!   process, minus the supervisor's backoff (`kill_recover_ms`'s `beyond_backoff_ms_p50`).
+
+use std::io::{BufRead as _, BufReader, Read as _, Write as _};
+use std::net::{TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail, ensure};
+use zenoh::Wait as _;
+use zenoh::qos::CongestionControl;
+
+use crate::Settings;
+use crate::report::{Report, median, percentile};
+
+pub const NAME_LATENCY: &str = "latency_64b_vs_zenoh";
+pub const NAME_THROUGHPUT: &str = "throughput_64b_vs_zenoh";
+pub const NAME_PULL: &str = "pull_vs_raw_tcp";
+pub const NAME_DISCOVERY: &str = "discovery_vs_zenoh";
+
+const SIZE: usize = 64;
+const KEY_PING: &str = "armor/bench/ping";
+const KEY_PONG: &str = "armor/bench/pong";
+const KEY_DATA: &str = "armor/bench/data";
+const KEY_DONE: &str = "armor/bench/done";
+const KEY_LATEST: &str = "armor/bench/latest";
+const KEY_DISCOVERY: &str = "armor/bench/discovery";
+const TIMEOUT: Duration = Duration::from_secs(10);
+
+fn zerr(err: zenoh::Error) -> anyhow::Error {
+    anyhow::anyhow!("zenoh: {err}")
+}
+
+/// A peer-mode configuration: listening on `listen` or connecting to `connect`, no multicast
+/// scouting.
+fn config(listen: Option<&str>, connect: Option<&str>) -> anyhow::Result<zenoh::Config> {
+    let mut config = zenoh::Config::default();
+    config.insert_json5("mode", r#""peer""#).map_err(zerr)?;
+    config
+        .insert_json5("scouting/multicast/enabled", "false")
+        .map_err(zerr)?;
+    let endpoints = |endpoint: Option<&str>| match endpoint {
+        Some(endpoint) => format!(r#"["{endpoint}"]"#),
+        None => "[]".to_owned(),
+    };
+    config
+        .insert_json5("listen/endpoints", &endpoints(listen))
+        .map_err(zerr)?;
+    config
+        .insert_json5("connect/endpoints", &endpoints(connect))
+        .map_err(zerr)?;
+    Ok(config)
+}
+
+/// A free TCP port on 127.0.0.1 as a zenoh endpoint.
+fn free_endpoint() -> anyhow::Result<String> {
+    let listener = TcpListener::bind("127.0.0.1:0")?;
+    Ok(format!("tcp/127.0.0.1:{}", listener.local_addr()?.port()))
+}
+
+/// A child process killed when dropped.
+struct Peer(Child);
+
+impl Drop for Peer {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts this binary as a zenoh peer in `role` and waits for its `ready` line.
+fn start_peer(args: &[&str]) -> anyhow::Result<Peer> {
+    let mut child = Command::new(std::env::current_exe()?)
+        .arg("--zenoh-peer")
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .context("starting the zenoh peer")?;
+    let stdout = child.stdout.take().context("peer stdout")?;
+    let peer = Peer(child);
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line)?;
+    ensure!(
+        line.trim() == "ready",
+        "the zenoh peer said `{}`",
+        line.trim()
+    );
+    Ok(peer)
+}
+
+/// The `armor-bench` binary: `$ARMOR_BENCH`, else the workspace's `target/release`.
+fn armor_bench() -> PathBuf {
+    std::env::var_os("ARMOR_BENCH").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/release/armor-bench"),
+        PathBuf::from,
+    )
+}
+
+/// Runs one `armor-bench` benchmark and returns its JSON line.
+fn ours(name: &str, settings: &Settings) -> anyhow::Result<serde_json::Value> {
+    let bench = armor_bench();
+    let mut command = Command::new(&bench);
+    command.arg(name).stderr(Stdio::inherit());
+    if settings.quick {
+        command.arg("--quick");
+    }
+    let output = command
+        .output()
+        .with_context(|| format!("running {} (build it first)", bench.display()))?;
+    ensure!(output.status.success(), "armor-bench {name} failed");
+    let text = String::from_utf8_lossy(&output.stdout);
+    let line = text.lines().last().context("armor-bench printed nothing")?;
+    Ok(serde_json::from_str(line)?)
+}
+
+fn field(value: &serde_json::Value, key: &str) -> anyhow::Result<f64> {
+    value
+        .get(key)
+        .and_then(serde_json::Value::as_f64)
+        .with_context(|| format!("no `{key}` in armor-bench's line"))
+}
+
+/// Round trips of 64 bytes through a zenoh peer, in µs.
+fn zenoh_round_trips(count: usize) -> anyhow::Result<Vec<f64>> {
+    let endpoint = free_endpoint()?;
+    let session = zenoh::open(config(Some(&endpoint), None)?)
+        .wait()
+        .map_err(zerr)?;
+    let publisher = session
+        .declare_publisher(KEY_PING)
+        .congestion_control(CongestionControl::Block)
+        .express(true)
+        .wait()
+        .map_err(zerr)?;
+    let subscriber = session.declare_subscriber(KEY_PONG).wait().map_err(zerr)?;
+    let _peer = start_peer(&["pong", &endpoint])?;
+    let payload = vec![7u8; SIZE];
+    // Until the routes are known both ways, pings are dropped: ping until a pong comes.
+    let deadline = Instant::now() + TIMEOUT;
+    loop {
+        ensure!(Instant::now() < deadline, "no pong from the zenoh peer");
+        publisher.put(payload.clone()).wait().map_err(zerr)?;
+        if subscriber
+            .recv_timeout(Duration::from_millis(20))
+            .map_err(zerr)?
+            .is_some()
+        {
+            break;
+        }
+    }
+    while subscriber
+        .recv_timeout(Duration::from_millis(50))
+        .map_err(zerr)?
+        .is_some()
+    {}
+    let mut times = Vec::with_capacity(count);
+    for _ in 0..count {
+        let start = Instant::now();
+        publisher.put(payload.clone()).wait().map_err(zerr)?;
+        let sample = subscriber
+            .recv_timeout(TIMEOUT)
+            .map_err(zerr)?
+            .context("a pong never came")?;
+        times.push(start.elapsed().as_secs_f64() * 1e6);
+        ensure!(sample.payload().len() == SIZE, "a pong of the wrong size");
+    }
+    Ok(times)
+}
+
+pub fn run_latency(settings: &Settings) -> anyhow::Result<Report> {
+    let count = if settings.quick { 200 } else { 20_000 };
+    let ours = ours("latency_64b", settings)?;
+    let mut zenoh = zenoh_round_trips(count)?;
+    zenoh.sort_by(f64::total_cmp);
+    let ours_p50 = field(&ours, "p50")?;
+    let zenoh_p50 = percentile(&zenoh, 0.5);
+    let mut report = Report::single(NAME_LATENCY, "us", ours_p50, zenoh_p50);
+    report.p50 = Some(ours_p50);
+    report.p99 = Some(field(&ours, "p99")?);
+    report.reference_p50 = Some(crate::round4(zenoh_p50));
+    report.reference_p99 = Some(crate::round4(percentile(&zenoh, 0.99)));
+    Ok(report
+        .with("reference_p999", crate::round4(percentile(&zenoh, 0.999)))
+        .with("raw_tcp_p50", field(&ours, "reference_p50")?)
+        .with("ratio_vs_raw_tcp", field(&ours, "ratio")?)
+        .with("goal", "<= 0.5x zenoh, <= 1.3x raw TCP")
+        .with(
+            "reference_is",
+            "zenoh 1.10 peers over TCP, express publisher to a callback that puts it back",
+        ))
+}
+
+/// 64-byte messages per second into a zenoh subscriber in another process.
+fn zenoh_throughput(count: u64, rounds: usize) -> anyhow::Result<Vec<f64>> {
+    let endpoint = free_endpoint()?;
+    let session = zenoh::open(config(Some(&endpoint), None)?)
+        .wait()
+        .map_err(zerr)?;
+    let publisher = session
+        .declare_publisher(KEY_DATA)
+        .congestion_control(CongestionControl::Block)
+        .wait()
+        .map_err(zerr)?;
+    let done = session.declare_subscriber(KEY_DONE).wait().map_err(zerr)?;
+    let _peer = start_peer(&["sink", &endpoint, &count.to_string()])?;
+    // A hello (first byte 1) is answered at once and not counted: send them until one is.
+    let mut hello = vec![0u8; SIZE];
+    hello[0] = 1;
+    let deadline = Instant::now() + TIMEOUT;
+    loop {
+        ensure!(Instant::now() < deadline, "the zenoh sink never answered");
+        publisher.put(hello.clone()).wait().map_err(zerr)?;
+        if done
+            .recv_timeout(Duration::from_millis(20))
+            .map_err(zerr)?
+            .is_some()
+        {
+            break;
+        }
+    }
+    while done
+        .recv_timeout(Duration::from_millis(50))
+        .map_err(zerr)?
+        .is_some()
+    {}
+    let payload = vec![0u8; SIZE];
+    let mut rates = Vec::with_capacity(rounds);
+    for _ in 0..rounds {
+        let start = Instant::now();
+        for _ in 0..count {
+            publisher.put(payload.clone()).wait().map_err(zerr)?;
+        }
+        done.recv_timeout(TIMEOUT * 6)
+            .map_err(zerr)?
+            .context("the zenoh sink did not get every message")?;
+        rates.push(count as f64 / start.elapsed().as_secs_f64());
+    }
+    Ok(rates)
+}
+
+pub fn run_throughput(settings: &Settings) -> anyhow::Result<Report> {
+    let (count, rounds) = if settings.quick {
+        (10_000, 1)
+    } else {
+        (500_000, 5)
+    };
+    let ours = ours("throughput_64b", settings)?;
+    let zenoh = median(&zenoh_throughput(count, rounds)?);
+    Ok(
+        Report::single(NAME_THROUGHPUT, "msg/s", field(&ours, "ours")?, zenoh)
+            .with("raw_tcp", field(&ours, "reference")?)
+            .with("goal", ">= 1x zenoh")
+            .with(
+                "reference_is",
+                "zenoh 1.10 peers over TCP, batching publisher (blocking congestion control) \
+                 to a counting subscriber in another process",
+            ),
+    )
+}
+
+/// Raw TCP request/reply with a child: 1 byte asked, 64 answered; µs each.
+fn raw_requests(count: usize) -> anyhow::Result<Vec<f64>> {
+    let listener = TcpListener::bind("127.0.0.1:0")?;
+    let addr = listener.local_addr()?.to_string();
+    let _peer = start_peer(&["raw", &addr])?;
+    let (mut stream, _) = listener.accept()?;
+    stream.set_nodelay(true)?;
+    let mut reply = [0u8; SIZE];
+    let mut times = Vec::with_capacity(count);
+    for i in 0..count + count / 10 {
+        let start = Instant::now();
+        stream.write_all(&[1])?;
+        stream.read_exact(&mut reply)?;
+        if i >= count / 10 {
+            times.push(start.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+    Ok(times)
+}
+
+/// zenoh `get` on a queryable in another process; µs each.
+fn zenoh_gets(count: usize) -> anyhow::Result<Vec<f64>> {
+    let endpoint = free_endpoint()?;
+    let session = zenoh::open(config(Some(&endpoint), None)?)
+        .wait()
+        .map_err(zerr)?;
+    let _peer = start_peer(&["queryable", &endpoint])?;
+    let get = || -> anyhow::Result<usize> {
+        let replies = session.get(KEY_LATEST).wait().map_err(zerr)?;
+        let mut answers = 0;
+        while let Ok(reply) = replies.recv() {
+            if let Ok(sample) = reply.result() {
+                ensure!(sample.payload().len() == SIZE, "a reply of the wrong size");
+                answers += 1;
+            }
+        }
+        Ok(answers)
+    };
+    let deadline = Instant::now() + TIMEOUT;
+    while get()? == 0 {
+        ensure!(
+            Instant::now() < deadline,
+            "the zenoh queryable never answered"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let mut times = Vec::with_capacity(count);
+    for i in 0..count + count / 10 {
+        let start = Instant::now();
+        ensure!(get()? == 1, "a get without its one reply");
+        if i >= count / 10 {
+            times.push(start.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+    Ok(times)
+}
+
+pub fn run_pull(settings: &Settings) -> anyhow::Result<Report> {
+    let count = if settings.quick { 200 } else { 10_000 };
+    let ours = ours("latency_64b", settings)?;
+    let mut raw = raw_requests(count)?;
+    raw.sort_by(f64::total_cmp);
+    let mut zenoh = zenoh_gets(count)?;
+    zenoh.sort_by(f64::total_cmp);
+    let ours_p50 = field(&ours, "p50")?;
+    let mut report = Report::single(NAME_PULL, "us", ours_p50, percentile(&raw, 0.5));
+    report.p50 = Some(ours_p50);
+    report.p99 = Some(field(&ours, "p99")?);
+    report.reference_p50 = Some(crate::round4(percentile(&raw, 0.5)));
+    report.reference_p99 = Some(crate::round4(percentile(&raw, 0.99)));
+    Ok(report
+        .with("zenoh_get_p50", crate::round4(percentile(&zenoh, 0.5)))
+        .with("zenoh_get_p99", crate::round4(percentile(&zenoh, 0.99)))
+        .with("goal", "<= 1.2x raw TCP")
+        .with(
+            "ours_is",
+            "no pull request in the module API: a request on an output answered on an input \
+             (armor-bench latency_64b, through armor-mod-echo)",
+        )
+        .with(
+            "reference_is",
+            "raw TCP request/reply with a child (1 byte asked, 64 answered, TCP_NODELAY)",
+        ))
+}
+
+/// A zenoh process started to its first sample here, in ms.
+fn zenoh_discovery(rounds: usize) -> anyhow::Result<Vec<f64>> {
+    let endpoint = free_endpoint()?;
+    let session = zenoh::open(config(Some(&endpoint), None)?)
+        .wait()
+        .map_err(zerr)?;
+    let subscriber = session
+        .declare_subscriber(KEY_DISCOVERY)
+        .wait()
+        .map_err(zerr)?;
+    let exe = std::env::current_exe()?;
+    let mut times = Vec::with_capacity(rounds);
+    for _ in 0..rounds {
+        let start = Instant::now();
+        let child = Command::new(&exe)
+            .args(["--zenoh-peer", "pub", &endpoint])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit())
+            .spawn()?;
+        let child = Peer(child);
+        subscriber
+            .recv_timeout(TIMEOUT)
+            .map_err(zerr)?
+            .context("no sample from the started publisher")?;
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+        drop(child);
+        // Let this session see the peer go before the next one comes.
+        std::thread::sleep(Duration::from_millis(300));
+        while subscriber.try_recv().map_err(zerr)?.is_some() {}
+    }
+    Ok(times)
+}
+
+pub fn run_discovery(settings: &Settings) -> anyhow::Result<Report> {
+    let rounds = if settings.quick { 2 } else { 15 };
+    let ours = ours("kill_recover_ms", settings)?;
+    let zenoh = median(&zenoh_discovery(rounds)?);
+    Ok(Report::single(
+        NAME_DISCOVERY,
+        "ms",
+        field(&ours, "beyond_backoff_ms_p50")?,
+        zenoh,
+    )
+    .with("ours_with_backoff", field(&ours, "ours")?)
+    .with("process_spawn_ms", field(&ours, "reference")?)
+    .with("goal", "<= 0.5x zenoh")
+    .with(
+        "ours_is",
+        "a killed module restarted under armor run to its subscriber's first value, minus the \
+         supervisor's backoff (armor-bench kill_recover_ms)",
+    )
+    .with(
+        "reference_is",
+        "a process spawned that opens a zenoh peer session, connects to ours (subscribed) and \
+         publishes, to the first sample here",
+    ))
+}
+
+/// The hidden child roles: `pong ENDPOINT`, `sink ENDPOINT COUNT`, `queryable ENDPOINT`,
+/// `raw ADDR`, `pub ENDPOINT`. Each prints `ready` when set up and lives until its stdin
+/// closes (or it is killed).
+pub fn peer_main(args: &[String]) -> ExitCode {
+    match peer(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: zenoh peer: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn ready() -> anyhow::Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    writeln!(stdout, "ready")?;
+    stdout.flush()?;
+    Ok(())
+}
+
+fn until_stdin_closes() {
+    let mut sink = Vec::new();
+    let _ = std::io::stdin().read_to_end(&mut sink);
+}
+
+fn peer(args: &[String]) -> anyhow::Result<()> {
+    let arg = |i: usize| -> anyhow::Result<&str> {
+        args.get(i)
+            .map(String::as_str)
+            .with_context(|| format!("--zenoh-peer: argument {i} missing"))
+    };
+    match arg(0)? {
+        "raw" => {
+            let mut stream = TcpStream::connect(arg(1)?)?;
+            stream.set_nodelay(true)?;
+            ready()?;
+            let latest = [9u8; SIZE];
+            let mut ask = [0u8; 1];
+            while stream.read_exact(&mut ask).is_ok() {
+                stream.write_all(&latest)?;
+            }
+            Ok(())
+        }
+        "pong" => {
+            let session = zenoh::open(config(None, Some(arg(1)?))?)
+                .wait()
+                .map_err(zerr)?;
+            let publisher = session
+                .declare_publisher(KEY_PONG)
+                .congestion_control(CongestionControl::Block)
+                .express(true)
+                .wait()
+                .map_err(zerr)?;
+            let _subscriber = session
+                .declare_subscriber(KEY_PING)
+                .callback(move |sample| {
+                    let _ = publisher.put(sample.payload().clone()).wait();
+                })
+                .wait()
+                .map_err(zerr)?;
+            ready()?;
+            until_stdin_closes();
+            Ok(())
+        }
+        "sink" => {
+            let count: u64 = arg(2)?.parse()?;
+            let session = zenoh::open(config(None, Some(arg(1)?))?)
+                .wait()
+                .map_err(zerr)?;
+            let done = session
+                .declare_publisher(KEY_DONE)
+                .congestion_control(CongestionControl::Block)
+                .express(true)
+                .wait()
+                .map_err(zerr)?;
+            let received = Arc::new(AtomicU64::new(0));
+            let _subscriber = session
+                .declare_subscriber(KEY_DATA)
+                .callback(move |sample| {
+                    let hello = sample.payload().to_bytes().first() == Some(&1);
+                    if hello {
+                        let _ = done.put(vec![0u8]).wait();
+                    } else if received.fetch_add(1, Ordering::Relaxed) + 1 == count {
+                        received.store(0, Ordering::Relaxed);
+                        let _ = done.put(vec![0u8]).wait();
+                    }
+                })
+                .wait()
+                .map_err(zerr)?;
+            ready()?;
+            until_stdin_closes();
+            Ok(())
+        }
+        "queryable" => {
+            let session = zenoh::open(config(None, Some(arg(1)?))?)
+                .wait()
+                .map_err(zerr)?;
+            let latest = vec![9u8; SIZE];
+            let _queryable = session
+                .declare_queryable(KEY_LATEST)
+                .callback(move |query| {
+                    let _ = query.reply(KEY_LATEST, latest.clone()).wait();
+                })
+                .wait()
+                .map_err(zerr)?;
+            ready()?;
+            until_stdin_closes();
+            Ok(())
+        }
+        "pub" => {
+            let session = zenoh::open(config(None, Some(arg(1)?))?)
+                .wait()
+                .map_err(zerr)?;
+            let publisher = session
+                .declare_publisher(KEY_DISCOVERY)
+                .express(true)
+                .wait()
+                .map_err(zerr)?;
+            // Publishes until killed: the first sample that finds the subscriber is the figure.
+            loop {
+                publisher.put(vec![1u8; SIZE]).wait().map_err(zerr)?;
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+        other => bail!("--zenoh-peer: unknown role `{other}`"),
+    }
+}

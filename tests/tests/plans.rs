@@ -1,0 +1,1073 @@
+//! Mission plans (issue 5), as a user would use them: the four example plans of
+//! `missions/robot/` run headless by `armor run PLAN` at accelerated time, checked against the
+//! recorded ground truth (the robot visited the legs' destinations in order, waited where told,
+//! left no earlier than each appointment, never entered a no-go area); `armor compile`, GPX
+//! import and export (read back by gpxpy, an independent GPX library), and bad input through
+//! the command line.
+//!
+//! The waypoints and areas are placed in the world frame by `armor_model` (the plan's own
+//! coordinates, the world's origin), the same way the compiler does, and the robot's true pose
+//! is what the sim publishes as `sim.pose_truth`, recorded by the plans' `recorder` throughout.
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::{Mutex, PoisonError};
+use std::time::Duration;
+
+use armor_model::MissionNet;
+use armor_model::SystemConfig;
+use armor_model::geo::{self, LatLon, Polygon};
+use armor_model::plan::{self, Compiled, Plan};
+use armor_model::world::{Point, World};
+use armor_module_api::Datum as _;
+use armor_module_api::types::Pose2D;
+use armor_tests::mcap::{read_mcap, recorder_segments};
+use armor_tests::mission::{Finished, run_mission};
+use armor_tests::{bin, bin_dir, workspace_root};
+
+/// How close the robot must come to a waypoint. The legs' goals are given to the follower in
+/// its odometry frame, which drifts from the true one, and the follower stops within its own
+/// `tolerance_m` (0.3 m) of the goal in that frame. The drift is mostly heading error: the
+/// yard plan's full turn at the gate (the observer) leaves the robot 1.1 to 1.4 m from `north`
+/// and `rally` forty metres later; waypoints are 3 m apart and more.
+const TOLERANCE_M: f64 = 1.5;
+
+/// How far a robot told to stay put (waiting, or before an appointment) may move: it may still
+/// be slowing down when the transition fires, or turn on the spot to look around (it moves by
+/// a centimetre or so).
+const STILL_M: f64 = 0.1;
+
+/// Slack on the run time of things the controller starts and stops (a module's first and last
+/// samples): a few tens of milliseconds of real time at the accelerated clock.
+const SLACK_SECS: f64 = 1.5;
+
+/// How long a plan's run may take in real time: the longest (plan-field, three minutes of run
+/// time with its appointment) takes about ten seconds at the time scale on an idle machine.
+const PLAN_DEADLINE: Duration = Duration::from_secs(120);
+
+/// The plans run one at a time: each starts a whole simulated robot (eight processes), and
+/// the machines have two cores; the follower's `blocked` would fire on a starved robot.
+static ONE_ROBOT_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+fn robot_file(name: &str) -> PathBuf {
+    workspace_root().join("missions/robot").join(name)
+}
+
+/// The value of attribute `name` in the first tag that has it.
+fn attribute<'a>(text: &'a str, name: &str) -> Option<&'a str> {
+    let key = format!(" {name}=\"");
+    let start = text.find(&key)? + key.len();
+    Some(&text[start..start + text[start..].find('"')?])
+}
+
+/// An example plan, with what `armor_model` makes of it on its world.
+struct Example {
+    file: PathBuf,
+    text: String,
+    plan: Plan,
+    world: World,
+    origin: LatLon,
+    compiled: Compiled,
+}
+
+impl Example {
+    fn load(name: &str) -> Example {
+        let file = robot_file(name);
+        let text = std::fs::read_to_string(&file).unwrap();
+        let plan = Plan::parse(&text).unwrap_or_else(|err| panic!("{name}: {err:?}"));
+        let system_text = std::fs::read_to_string(robot_file(&plan.system)).unwrap();
+        let system = SystemConfig::parse(&system_text).unwrap();
+        let world_name = if plan.world.is_empty() {
+            system
+                .modules
+                .iter()
+                .find_map(|module| module.param("world"))
+                .map(|param| param.value.clone())
+                .expect("the plan's system runs a sim with a world")
+        } else {
+            plan.world.clone()
+        };
+        let world_file = workspace_root().join("assets/worlds").join(&world_name);
+        let world = World::parse(
+            &std::fs::read_to_string(&world_file).unwrap(),
+            &world_file.display().to_string(),
+        )
+        .unwrap();
+        let (lat, lon) = world.origin_lat_lon();
+        let compiled = plan::compile(&plan, Some(&world))
+            .unwrap_or_else(|problems| panic!("{name} does not compile: {problems:?}"));
+        Example {
+            file,
+            text,
+            plan,
+            world,
+            origin: LatLon::new(lat, lon),
+            compiled,
+        }
+    }
+
+    fn position(&self, waypoint: &str) -> Point {
+        self.compiled.positions[waypoint]
+    }
+
+    /// The no-go areas in the world frame, with their names.
+    fn no_go(&self) -> Vec<(String, Polygon)> {
+        self.plan
+            .no_go_areas()
+            .map(|area| {
+                let corners = area
+                    .points
+                    .iter()
+                    .map(|p| p.to_local(self.origin))
+                    .collect();
+                (area.name.clone(), Polygon::new(corners))
+            })
+            .collect()
+    }
+
+    /// The run time of a date of the plan: seconds since its `start`.
+    fn run_secs(&self, unix_secs: f64) -> f64 {
+        unix_secs
+            - self
+                .plan
+                .start_unix_secs
+                .expect("a plan with dates has a start")
+    }
+
+    /// The plan's text for a run in `dir`: its system an absolute path, every recorder `file`
+    /// in `dir` and written without compression (for our MCAP reader), so that a run writes
+    /// nothing into the repository.
+    fn copy_into(&self, dir: &Path) -> PathBuf {
+        assert!(
+            !self.text.contains("name=\"compression\""),
+            "{}: the test adds the recorders' compression itself",
+            self.file.display()
+        );
+        let mut text = self.text.replacen(
+            &format!("system=\"{}\"", self.plan.system),
+            &format!("system=\"{}\"", robot_file(&self.plan.system).display()),
+            1,
+        );
+        let key = "<param name=\"file\" value=\"";
+        let mut from = 0;
+        while let Some(found) = text[from..].find(key) {
+            let start = from + found + key.len();
+            let end = start + text[start..].find("\"/>").unwrap();
+            let value = text[start..end].to_owned();
+            let replacement = format!(
+                "{}\"/><param name=\"compression\" value=\"none",
+                dir.join(&value).display()
+            );
+            text.replace_range(start..end, &replacement);
+            from = start + replacement.len();
+        }
+        let copy = dir.join(self.file.file_name().unwrap());
+        std::fs::write(&copy, &text).unwrap();
+        // The copy is the same plan but for the paths and the recorders' compression.
+        let copied = Plan::parse(&text).unwrap();
+        assert_eq!(copied.waypoints, self.plan.waypoints);
+        assert_eq!(copied.legs.len(), self.plan.legs.len());
+        copy
+    }
+
+    /// The file a module's action writes (its `file` parameter), in `dir`.
+    fn action_file(&self, action: &plan::Action, module: &str, dir: &Path) -> PathBuf {
+        let file = action
+            .modules
+            .iter()
+            .filter(|m| m.name == module)
+            .flat_map(|m| &m.params)
+            .find(|param| param.name == "file")
+            .unwrap_or_else(|| panic!("module `{module}` has no `file` in {action:?}"));
+        dir.join(&file.value)
+    }
+}
+
+/// The robot's true position at run time `secs`.
+#[derive(Clone, Copy, Debug)]
+struct Sample {
+    secs: f64,
+    at: Point,
+}
+
+/// A finished run of an example plan.
+struct PlanRun {
+    example: Example,
+    run: Finished,
+    dir: tempfile::TempDir,
+    /// The recorded ground truth, in time order.
+    truth: Vec<Sample>,
+}
+
+/// Runs an example plan to its end, headless at accelerated time, from a copy in a temporary
+/// folder; it must end in `done` with the robot never touching anything nor being blocked.
+fn run_example(name: &str) -> PlanRun {
+    let example = Example::load(name);
+    let dir = tempfile::tempdir().unwrap();
+    let copy = example.copy_into(dir.path());
+    let plan_tag = &example.text[example.text.find("<plan ").unwrap()..];
+    let plan_tag = &plan_tag[..plan_tag.find('>').unwrap()];
+    let extra = match attribute(plan_tag, "start") {
+        Some(start) => vec!["--start-at", start],
+        None => Vec::new(),
+    };
+    let run = {
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        run_mission(&copy, &extra, PLAN_DEADLINE)
+    };
+    assert_eq!(
+        run.final_marking(),
+        serde_json::json!({ "done": 1 }),
+        "{:?}",
+        run.fired()
+    );
+    run.assert_clean();
+
+    let recording = example.action_file(
+        example.plan.throughout.as_ref().expect("the plan records"),
+        "recorder",
+        dir.path(),
+    );
+    let truth = read_truth(&recording);
+    PlanRun {
+        example,
+        run,
+        dir,
+        truth,
+    }
+}
+
+/// The `sim.pose_truth` samples of every file a recorder wrote for `file` (it is started afresh
+/// in each place of the mission, and starts a new file each time), in time order. The recorder
+/// stores a sample as JSON when JSON gives it back exactly, else as its postcard bytes on a
+/// second channel of the same topic: both are read.
+fn read_truth(file: &Path) -> Vec<Sample> {
+    let segments = recorder_segments(file);
+    assert!(!segments.is_empty(), "{} was not written", file.display());
+    let mut truth = Vec::new();
+    for segment in &segments {
+        let channels = read_mcap(segment);
+        for ((topic, encoding), messages) in channels {
+            assert_eq!(topic, "sim.pose_truth", "{}", segment.display());
+            for (log_time, data) in messages {
+                let pose = match encoding.as_str() {
+                    "json" => serde_json::from_slice::<Pose2D>(&data).unwrap(),
+                    "postcard" => Pose2D::decode(&data).unwrap(),
+                    other => panic!("{}: encoding {other}", segment.display()),
+                };
+                truth.push(Sample {
+                    secs: log_time as f64 / 1e9,
+                    at: Point::new(pose.x_m, pose.y_m),
+                });
+            }
+        }
+    }
+    truth.sort_by(|a, b| a.secs.total_cmp(&b.secs));
+    assert!(truth.len() > 100, "{} samples of the truth", truth.len());
+    truth
+}
+
+impl PlanRun {
+    /// What the run did, for a failure's message: the firings and the lines of the controller
+    /// and the follower.
+    fn context(&self) -> String {
+        let lines: Vec<&str> = self
+            .run
+            .lines
+            .iter()
+            .filter(|line| !line.starts_with('[') || line.starts_with("[follower]"))
+            .map(String::as_str)
+            .collect();
+        format!("fired: {:?}\n{}", self.run.fired(), lines.join("\n"))
+    }
+
+    /// The truth sample nearest in time to `secs`.
+    fn at(&self, secs: f64) -> Sample {
+        *self
+            .truth
+            .iter()
+            .min_by(|a, b| (a.secs - secs).abs().total_cmp(&(b.secs - secs).abs()))
+            .unwrap()
+    }
+
+    fn samples_between(&self, from: f64, to: f64) -> impl Iterator<Item = &Sample> {
+        self.truth
+            .iter()
+            .filter(move |sample| sample.secs >= from && sample.secs <= to)
+    }
+
+    /// When leg `index` arrived (its `LEG_arrived`, or `LEG_arrived_late` after its deadline).
+    fn arrival(&self, index: usize) -> f64 {
+        let leg = &self.example.plan.legs[index];
+        self.run
+            .fired_at(&format!("{}_arrived", leg.name))
+            .or_else(|| self.run.fired_at(&format!("{}_arrived_late", leg.name)))
+            .unwrap_or_else(|| panic!("leg `{}` never arrived: {:?}", leg.name, self.run.fired()))
+    }
+
+    /// The recording covers the whole run, without holes: the checks below see every moment.
+    fn check_the_truth_covers_the_run(&self) {
+        let end = self.run.fired().last().unwrap().1;
+        let first = self.truth[0].secs;
+        let last = self.truth[self.truth.len() - 1].secs;
+        assert!(first <= 2.0 * SLACK_SECS, "the truth starts at {first} s");
+        assert!(
+            last >= end - SLACK_SECS,
+            "the truth ends at {last} s, the mission at {end} s"
+        );
+        let (gap, at) = self
+            .truth
+            .windows(2)
+            .map(|pair| (pair[1].secs - pair[0].secs, pair[0].secs))
+            .fold(
+                (0.0, 0.0),
+                |worst, gap| if gap.0 > worst.0 { gap } else { worst },
+            );
+        assert!(gap <= SLACK_SECS, "no truth for {gap} s after {at} s");
+    }
+
+    /// The robot started at the first leg's origin and was at each leg's destination when the
+    /// leg arrived, the legs in order; the truth alone shows the visits in the same order.
+    fn check_visits_in_order(&self) {
+        let plan = &self.example.plan;
+        let start = self.example.position(&plan.legs[0].from);
+        let d = geo::distance(self.truth[0].at, start);
+        assert!(
+            d <= TOLERANCE_M,
+            "the robot started {d:.2} m from `{}`",
+            plan.legs[0].from
+        );
+        let mut previous = 0.0;
+        for (index, leg) in plan.legs.iter().enumerate() {
+            let arrived = self.arrival(index);
+            assert!(
+                arrived > previous,
+                "leg `{}` arrived at {arrived} s",
+                leg.name
+            );
+            previous = arrived;
+            let goal = self.example.position(&leg.to);
+            let sample = self.at(arrived);
+            let d = geo::distance(sample.at, goal);
+            assert!(
+                d <= TOLERANCE_M,
+                "leg `{}` arrived at {arrived} s with the robot at {} m, {d:.2} m from `{}` at \
+                 {goal} m\n{}",
+                leg.name,
+                sample.at,
+                leg.to,
+                self.context()
+            );
+        }
+        let mut next = 0;
+        for sample in &self.truth {
+            if let Some(leg) = plan.legs.get(next)
+                && geo::distance(sample.at, self.example.position(&leg.to)) <= TOLERANCE_M
+            {
+                next += 1;
+            }
+        }
+        assert_eq!(
+            next,
+            plan.legs.len(),
+            "the truth shows the robot at the destinations of the first {next} legs only"
+        );
+    }
+
+    /// Each wait lasted its `wait_secs`, the robot standing at the destination.
+    fn check_waits(&self) -> usize {
+        let mut waits = 0;
+        for leg in &self.example.plan.legs {
+            let Some(wait_secs) = leg.wait_secs else {
+                continue;
+            };
+            waits += 1;
+            let place = format!("{}_wait", leg.name);
+            let (from, _) = self
+                .run
+                .entered(&place)
+                .unwrap_or_else(|| panic!("`{place}` was never entered: {:?}", self.run.fired()));
+            let to = self
+                .run
+                .fired_at(&format!("{}_waited", leg.name))
+                .unwrap_or_else(|| panic!("`{}` never waited: {:?}", leg.name, self.run.fired()));
+            assert!(
+                to - from >= wait_secs - 0.01,
+                "leg `{}` waited {} s of {wait_secs} s",
+                leg.name,
+                to - from
+            );
+            let here = self.at(from).at;
+            let goal = self.example.position(&leg.to);
+            for sample in self.samples_between(from, to) {
+                assert!(
+                    geo::distance(sample.at, here) <= STILL_M,
+                    "leg `{}`: the robot moved from {here} m to {} m at {} s while waiting",
+                    leg.name,
+                    sample.at,
+                    sample.secs
+                );
+                assert!(geo::distance(sample.at, goal) <= TOLERANCE_M);
+            }
+        }
+        waits
+    }
+
+    /// No leg with an appointment left before it: its `LEG_appointment` fired no earlier, and
+    /// the robot stayed at the leg's origin from its arrival there until then.
+    fn check_appointments(&self) -> usize {
+        let plan = &self.example.plan;
+        let mut appointments = 0;
+        for (index, leg) in plan.legs.iter().enumerate() {
+            let Some(not_before) = leg.not_before_unix_secs else {
+                continue;
+            };
+            appointments += 1;
+            let due = self.example.run_secs(not_before);
+            let fired = self
+                .run
+                .fired_at(&format!("{}_appointment", leg.name))
+                .unwrap_or_else(|| panic!("no appointment fired: {:?}", self.run.fired()));
+            assert!(
+                fired >= due - 0.01,
+                "leg `{}` left at {fired} s, its appointment is at {due} s",
+                leg.name
+            );
+            let there = if index == 0 {
+                0.0
+            } else {
+                self.arrival(index - 1)
+            };
+            assert!(
+                there < due,
+                "the robot reached `{}` at {there} s, after the appointment at {due} s: the \
+                 check would be empty",
+                leg.from
+            );
+            let origin = self.example.position(&leg.from);
+            let here = self.at(there).at;
+            for sample in self.samples_between(there, due) {
+                let d = geo::distance(sample.at, here);
+                assert!(
+                    d <= STILL_M && geo::distance(sample.at, origin) <= TOLERANCE_M,
+                    "leg `{}`: the robot was at {} m at {} s, {d:.2} m from where it stood at \
+                     `{}`, before its appointment at {due} s",
+                    leg.name,
+                    sample.at,
+                    sample.secs,
+                    leg.from
+                );
+            }
+            // It did leave afterwards.
+            let left = self
+                .samples_between(due, f64::INFINITY)
+                .find(|sample| geo::distance(sample.at, origin) > TOLERANCE_M)
+                .unwrap_or_else(|| panic!("the robot never left `{}`", leg.from));
+            assert!(left.secs >= fired);
+        }
+        appointments
+    }
+
+    /// Every sample of the truth is outside every no-go area; a leg's route goes round one, so
+    /// that this is not true by chance. Returns how close the robot came.
+    fn check_no_go(&self) -> f64 {
+        let areas = self.example.no_go();
+        let mut closest = f64::INFINITY;
+        for (name, polygon) in &areas {
+            for sample in &self.truth {
+                assert!(
+                    !polygon.contains(sample.at),
+                    "the robot entered the no-go area `{name}`: at {} m at {} s",
+                    sample.at,
+                    sample.secs
+                );
+                closest = closest.min(polygon.distance_to_outline(sample.at));
+            }
+        }
+        if !areas.is_empty() {
+            let plan = &self.example.plan;
+            let detours: Vec<&str> = plan
+                .legs
+                .iter()
+                .filter(|leg| {
+                    let (a, b) = (
+                        self.example.position(&leg.from),
+                        self.example.position(&leg.to),
+                    );
+                    areas.iter().any(|(_, polygon)| polygon.blocks(a, b, 0.0))
+                })
+                .map(|leg| leg.name.as_str())
+                .collect();
+            assert!(
+                !detours.is_empty(),
+                "no leg of {} would cross a no-go area driven straight: the check proves nothing",
+                self.example.file.display()
+            );
+        }
+        closest
+    }
+
+    fn check_all(&self) -> (usize, usize) {
+        self.check_the_truth_covers_the_run();
+        self.check_visits_in_order();
+        let waits = self.check_waits();
+        let appointments = self.check_appointments();
+        self.check_no_go();
+        (waits, appointments)
+    }
+}
+
+#[test]
+fn the_yard_plan_waits_for_its_appointment_and_goes_round_the_minefield() {
+    let run = run_example("plan-yard.xml");
+    assert_eq!((1, 1), run.check_all());
+    assert!(run.example.world.name().contains("yard"));
+    let names = run.run.fired_names();
+    assert_eq!(
+        names,
+        [
+            "advance_arrived",
+            "advance_arrival_done",
+            "cross_appointment",
+            "cross_arrived",
+            "cross_waited",
+            "climb_arrived",
+            "regroup_arrived"
+        ]
+    );
+    // The appointment is at 08:01:30, the run starting at 08:00:00.
+    assert!(run.run.fired_at("cross_appointment").unwrap() >= 90.0);
+    // Looking around at the gate took a full turn (10.5 s at the observer's 0.6 rad/s).
+    let observing = run.run.between("advance_arrived", "advance_arrival_done");
+    assert!(observing >= 10.0, "observed for {observing} s");
+}
+
+#[test]
+fn the_building_plan_looks_into_the_north_room_and_waits_in_both() {
+    let run = run_example("plan-building.xml");
+    assert_eq!((2, 0), run.check_all());
+    let names = run.run.fired_names();
+    assert_eq!(
+        names,
+        [
+            "leg1_arrived",
+            "enter_north_arrived",
+            "enter_north_arrival_done",
+            "enter_north_waited",
+            "leave_north_arrived",
+            "to_south_arrived",
+            "enter_south_arrived",
+            "enter_south_waited"
+        ]
+    );
+}
+
+#[test]
+fn the_field_plan_logs_the_laser_on_one_leg_and_keeps_out_of_the_contaminated_area() {
+    let run = run_example("plan-field.xml");
+    assert_eq!((0, 1), run.check_all());
+
+    // The laser log holds the scans of the leg `pass_area` only.
+    let leg = run
+        .example
+        .plan
+        .legs
+        .iter()
+        .find(|leg| leg.name == "pass_area")
+        .unwrap();
+    let file = run
+        .example
+        .action_file(leg.during.as_ref().unwrap(), "scan_log", run.dir.path());
+    assert!(file.exists(), "{} was not written", file.display());
+    let (began, _) = run.run.entered("pass_area_drive").unwrap();
+    let ended = run.run.fired_at("pass_area_arrived").unwrap();
+    let mut times = Vec::new();
+    for segment in recorder_segments(&file) {
+        for ((topic, _), messages) in read_mcap(&segment) {
+            assert_eq!(topic, "sim.scan", "{}", segment.display());
+            times.extend(messages.iter().map(|(log_time, _)| *log_time as f64 / 1e9));
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    let (first, last) = (times[0], times[times.len() - 1]);
+    assert!(
+        first >= began - SLACK_SECS && last <= ended + SLACK_SECS,
+        "scans from {first} s to {last} s, the leg from {began} s to {ended} s"
+    );
+    assert!(
+        first <= began + SLACK_SECS && last >= ended - SLACK_SECS,
+        "scans from {first} s to {last} s do not cover the leg ({began} s to {ended} s)"
+    );
+    // The sim scans at 10 Hz of run time.
+    let expected = (ended - began) * 10.0;
+    assert!(
+        times.len() as f64 >= expected * 0.8,
+        "{} scans in {} s",
+        times.len(),
+        ended - began
+    );
+    // The log was started once, on that leg: one file.
+    assert_eq!(recorder_segments(&file).len(), 1);
+}
+
+#[test]
+fn the_plan_imported_from_gpx_drives_the_route() {
+    let run = run_example("plan-yard-route.xml");
+    assert_eq!((0, 0), run.check_all());
+    assert_eq!(
+        run.run.fired_names(),
+        ["leg1_arrived", "leg2_arrived", "leg3_arrived"]
+    );
+}
+
+/// `armor` with `args`, from the workspace root, with the workspace's modules.
+fn armor(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(bin("armor"))
+        .args(args)
+        .env("ARMOR_MODULE_PATH", bin_dir())
+        .current_dir(workspace_root())
+        .output()
+        .unwrap()
+}
+
+fn output_text(output: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    )
+}
+
+/// The `FILE:LINE:COL: message` lines about `file` in the output: (line, col, message).
+fn located(output: &Output, file: &Path) -> Vec<(usize, usize, String)> {
+    let prefix = format!("{}:", file.display());
+    output_text(output)
+        .lines()
+        .filter_map(|line| {
+            let mut parts = line.strip_prefix(&prefix)?.splitn(3, ':');
+            let line_no = parts.next()?.parse().ok()?;
+            let col = parts.next()?.parse().ok()?;
+            Some((line_no, col, parts.next()?.trim().to_owned()))
+        })
+        .collect()
+}
+
+/// The 1-based number of the first line of `text` containing `needle`.
+fn line_of(text: &str, needle: &str) -> usize {
+    text.lines()
+        .position(|line| line.contains(needle))
+        .unwrap_or_else(|| panic!("no `{needle}` in {text}"))
+        + 1
+}
+
+/// A refusal: exit status 1 (not a panic's 101), a message at `line` saying `says`.
+fn assert_refused(output: &Output, file: &Path, line: usize, says: &[&str]) {
+    let all = output_text(output);
+    assert_eq!(output.status.code(), Some(1), "{all}");
+    assert!(!all.contains("panicked"), "{all}");
+    let problems = located(output, file);
+    assert!(
+        problems.iter().any(|(at, col, message)| *at == line
+            && *col > 0
+            && says.iter().all(|word| message.contains(word))),
+        "expected a message at line {line} saying {says:?}:\n{all}"
+    );
+}
+
+#[test]
+fn a_gpx_route_imports_as_the_example_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let imported = dir.path().join("plan.xml");
+    let output = armor(&[
+        "import".as_ref(),
+        robot_file("yard-route.gpx").as_os_str(),
+        "-o".as_ref(),
+        imported.as_os_str(),
+        "--system".as_ref(),
+        "system.xml".as_ref(),
+    ]);
+    assert!(output.status.success(), "{}", output_text(&output));
+    assert!(
+        output_text(&output).contains("5 waypoints, 3 legs"),
+        "{}",
+        output_text(&output)
+    );
+    let imported = Plan::parse(&std::fs::read_to_string(&imported).unwrap()).unwrap();
+    let example = Example::load("plan-yard-route.xml").plan;
+    assert_eq!(imported.system, "system.xml");
+    let waypoints = |plan: &Plan| -> Vec<(String, f64, f64)> {
+        plan.waypoints
+            .iter()
+            .map(|w| (w.name.clone(), w.position.lat_deg, w.position.lon_deg))
+            .collect()
+    };
+    let (got, want) = (waypoints(&imported), waypoints(&example));
+    assert_eq!(got.len(), want.len(), "{got:?}");
+    for (got, want) in got.iter().zip(&want) {
+        assert_eq!(got.0, want.0);
+        assert!(
+            (got.1 - want.1).abs() < 1e-9 && (got.2 - want.2).abs() < 1e-9,
+            "{got:?} against {want:?}"
+        );
+    }
+    let legs = |plan: &Plan| -> Vec<(String, String, String)> {
+        plan.legs
+            .iter()
+            .map(|leg| (leg.name.clone(), leg.from.clone(), leg.to.clone()))
+            .collect()
+    };
+    assert_eq!(legs(&imported), legs(&example));
+}
+
+#[test]
+fn an_exported_plan_is_read_by_gpxpy_with_its_waypoints_and_route() {
+    let dir = tempfile::tempdir().unwrap();
+    let gpx = dir.path().join("x.gpx");
+    let output = armor(&[
+        "export".as_ref(),
+        "--gpx".as_ref(),
+        robot_file("plan-yard.xml").as_os_str(),
+        "-o".as_ref(),
+        gpx.as_os_str(),
+    ]);
+    assert!(output.status.success(), "{}", output_text(&output));
+    let script = r#"
+import json, sys
+import gpxpy
+with open(sys.argv[1]) as f:
+    gpx = gpxpy.parse(f)
+point = lambda p: [p.name, p.latitude, p.longitude, p.symbol]
+print(json.dumps({
+    "waypoints": [point(p) for p in gpx.waypoints],
+    "routes": [[point(p) for p in r.points] for r in gpx.routes],
+    "tracks": len(gpx.tracks),
+}))
+"#;
+    let read = Command::new("python3")
+        .args(["-c", script])
+        .arg(&gpx)
+        .output()
+        .expect("python3 with gpxpy (`python3 -m pip install gpxpy`; .ci/run installs it)");
+    assert!(read.status.success(), "{}", output_text(&read));
+    let read: serde_json::Value = serde_json::from_slice(&read.stdout).unwrap();
+
+    let plan = Example::load("plan-yard.xml").plan;
+    let same = |got: &serde_json::Value, want: &plan::Waypoint| {
+        assert_eq!(got[0], want.name.as_str(), "{got}");
+        let (lat, lon) = (got[1].as_f64().unwrap(), got[2].as_f64().unwrap());
+        assert!(
+            (lat - want.position.lat_deg).abs() < 1e-8
+                && (lon - want.position.lon_deg).abs() < 1e-8,
+            "{got} against {want:?}"
+        );
+        assert_eq!(got[3].as_str(), want.symbol.as_deref(), "{got}");
+    };
+    let waypoints = read["waypoints"].as_array().unwrap();
+    assert_eq!(waypoints.len(), plan.waypoints.len(), "{read}");
+    for (got, want) in waypoints.iter().zip(&plan.waypoints) {
+        same(got, want);
+    }
+    let routes = read["routes"].as_array().unwrap();
+    assert_eq!(routes.len(), 1, "{read}");
+    let stops: Vec<&str> = std::iter::once(plan.legs[0].from.as_str())
+        .chain(plan.legs.iter().map(|leg| leg.to.as_str()))
+        .collect();
+    assert_eq!(stops, ["home", "gate", "east", "north", "rally"]);
+    let points = routes[0].as_array().unwrap();
+    assert_eq!(points.len(), stops.len(), "{read}");
+    for (got, stop) in points.iter().zip(&stops) {
+        same(got, plan.waypoint(stop).unwrap());
+    }
+    assert_eq!(read["tracks"], 0);
+}
+
+#[test]
+fn a_compiled_plan_is_a_mission_that_passes_armor_check_with_names_from_the_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = dir.path().join("m.xml");
+    let compile = || {
+        armor(&[
+            "compile".as_ref(),
+            robot_file("plan-yard.xml").as_os_str(),
+            "-o".as_ref(),
+            mission.as_os_str(),
+        ])
+    };
+    let output = compile();
+    assert!(output.status.success(), "{}", output_text(&output));
+    let written = std::fs::read_to_string(&mission).unwrap();
+    // Deterministic: compiled again, the same file.
+    assert!(compile().status.success());
+    assert_eq!(std::fs::read_to_string(&mission).unwrap(), written);
+
+    // The system path is right from where the mission was written.
+    let system = attribute(&written, "system").unwrap();
+    assert!(Path::new(system).is_relative(), "{system}");
+    assert_eq!(
+        std::fs::canonicalize(dir.path().join(system)).unwrap(),
+        std::fs::canonicalize(robot_file("system.xml")).unwrap()
+    );
+    let check = armor(&["check".as_ref(), mission.as_os_str()]);
+    assert!(check.status.success(), "{}", output_text(&check));
+    assert!(
+        output_text(&check).contains(": ok (mission `yard-recon`"),
+        "{}",
+        output_text(&check)
+    );
+
+    // Every place and transition traces to a leg of the plan, or is the end.
+    let net = MissionNet::parse(&written).unwrap();
+    let plan = Example::load("plan-yard.xml").plan;
+    let names: Vec<&str> = net
+        .places
+        .iter()
+        .map(|place| place.name.as_str())
+        .chain(
+            net.transitions
+                .iter()
+                .map(|transition| transition.name.as_str()),
+        )
+        .collect();
+    for name in [
+        "advance_drive",
+        "advance_arrived",
+        "advance_arrival",
+        "advance_arrival_done",
+        "advance_arrival_timeout",
+        "advance_late",
+        "cross_depart",
+        "cross_appointment",
+        "cross_drive",
+        "cross_wait",
+        "cross_waited",
+        "climb_drive",
+        "climb_blocked",
+        "climb_hold",
+        "climb_retry",
+        "climb_skip",
+        "regroup_drive_late",
+        "regroup_arrived_late",
+        "done",
+    ] {
+        assert!(names.contains(&name), "no `{name}` in {names:?}");
+    }
+    for name in &names {
+        assert!(
+            *name == "done"
+                || plan
+                    .legs
+                    .iter()
+                    .any(|leg| name.starts_with(&format!("{}_", leg.name))),
+            "`{name}` traces to no leg of the plan"
+        );
+    }
+    // The places that drive carry the goal and the no-go areas to the follower.
+    let cross = net.places.iter().find(|p| p.name == "cross_drive").unwrap();
+    let param = |name: &str| {
+        cross
+            .params
+            .iter()
+            .find(|param| param.module == "follower" && param.name == name)
+            .unwrap_or_else(|| panic!("no follower `{name}` in {cross:?}"))
+            .value
+            .clone()
+    };
+    let example = Example::load("plan-yard.xml");
+    let east = example.position("east");
+    assert!((param("goal_x_m").parse::<f64>().unwrap() - east.x).abs() < 0.01);
+    assert!((param("goal_y_m").parse::<f64>().unwrap() - east.y).abs() < 0.01);
+    let no_go = geo::parse_polygons(&param("no_go")).unwrap();
+    assert_eq!(no_go.len(), 1);
+    let minefield = &example.no_go()[0].1;
+    for (got, want) in no_go[0].corners.iter().zip(&minefield.corners) {
+        assert!(geo::distance(*got, *want) < 0.01, "{got} against {want}");
+    }
+}
+
+/// A small yard plan (its system the yard's), with `body` in it after its two waypoints; the
+/// file and its text.
+fn yard_plan(dir: &Path, name: &str, body: &str) -> (PathBuf, String) {
+    let text = format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<plan name="{name}" system="{}" start="2026-11-23T08:00:00Z">
+  <waypoint name="home" lat="43.5615360" lon="1.4690496"/>
+  <waypoint name="gate" lat="43.5615360" lon="1.4691986"/>
+{body}
+</plan>
+"#,
+        robot_file("system.xml").display()
+    );
+    let file = dir.join(format!("{name}.xml"));
+    std::fs::write(&file, &text).unwrap();
+    (file, text)
+}
+
+#[test]
+fn a_leg_to_a_missing_waypoint_is_refused_where_it_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, text) = yard_plan(
+        dir.path(),
+        "missing",
+        r#"  <leg from="home" to="gate"/>
+  <leg from="gate" to="nowhere"/>"#,
+    );
+    let line = line_of(&text, "nowhere");
+    assert_refused(
+        &armor(&["check".as_ref(), file.as_os_str()]),
+        &file,
+        line,
+        &["nowhere"],
+    );
+    // `armor compile` refuses it the same way, and writes nothing.
+    let mission = dir.path().join("m.xml");
+    let output = armor(&[
+        "compile".as_ref(),
+        file.as_os_str(),
+        "-o".as_ref(),
+        mission.as_os_str(),
+    ]);
+    assert_refused(&output, &file, line, &["nowhere"]);
+    assert!(!mission.exists());
+    // So does `armor run`, before starting anything.
+    let output = armor(&["run".as_ref(), file.as_os_str()]);
+    assert_refused(&output, &file, line, &["nowhere"]);
+}
+
+#[test]
+fn an_appointment_before_the_earliest_arrival_is_a_warning_with_the_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, text) = yard_plan(
+        dir.path(),
+        "hurry",
+        r#"  <waypoint name="east" lat="43.5615450" lon="1.4693909"/>
+  <navigation speed_mps="0.5"/>
+  <leg from="home" to="gate"/>
+  <leg name="rush" from="gate" to="east" not_before="2026-11-23T08:00:10Z"/>"#,
+    );
+    // Home to gate, straight (no no-go area): about 12 m, 24 s at 0.5 m/s; the appointment to
+    // leave the gate is 10 s after the start.
+    let home = LatLon::new(43.5615360, 1.4690496);
+    let metres = geo::distance(
+        LatLon::new(43.5615360, 1.4691986).to_local(home),
+        Point::default(),
+    );
+    let earliest = (metres / 0.5).round();
+    assert!((20.0..30.0).contains(&earliest), "{metres} m");
+    let output = armor(&["check".as_ref(), file.as_os_str()]);
+    let all = output_text(&output);
+    assert_eq!(output.status.code(), Some(0), "a warning only:\n{all}");
+    let warnings = located(&output, &file);
+    let line = line_of(&text, "name=\"rush\"");
+    let warning = warnings
+        .iter()
+        .find(|(at, _, _)| *at == line)
+        .unwrap_or_else(|| panic!("no warning at line {line}:\n{all}"));
+    let message = &warning.2;
+    for number in [
+        "warning:".to_owned(),
+        "rush".to_owned(),
+        "2026-11-23T08:00:10Z".to_owned(),
+        format!("{} s before", earliest - 10.0),
+        format!("2026-11-23T08:00:{earliest:02}Z"),
+        format!("{} m at", geo::round_mm((metres * 10.0).round() / 10.0)),
+        "0.5 m/s".to_owned(),
+    ] {
+        assert!(message.contains(&number), "no `{number}` in: {message}");
+    }
+    assert!(all.contains(": ok (mission `hurry`"), "{all}");
+}
+
+#[test]
+fn a_waypoint_outside_the_world_is_refused_with_the_world_s_extent() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, text) = yard_plan(
+        dir.path(),
+        "abroad",
+        r#"  <waypoint name="far" lat="43.5715360" lon="1.4690496"/>
+  <leg from="home" to="gate"/>
+  <leg from="gate" to="far"/>"#,
+    );
+    let line = line_of(&text, "name=\"far\"");
+    assert_refused(
+        &armor(&["check".as_ref(), file.as_os_str()]),
+        &file,
+        line,
+        &["`far`", "outside the world"],
+    );
+}
+
+#[test]
+fn a_waypoint_in_a_no_go_area_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, text) = yard_plan(
+        dir.path(),
+        "mined",
+        r#"  <waypoint name="mine" lat="43.5615340" lon="1.4692980"/>
+  <leg from="home" to="gate"/>
+  <leg from="gate" to="mine"/>
+  <area name="minefield" kind="no-go">
+    <point lat="43.5615180" lon="1.4692730"/>
+    <point lat="43.5615180" lon="1.4693227"/>
+    <point lat="43.5615495" lon="1.4693227"/>
+    <point lat="43.5615495" lon="1.4692730"/>
+  </area>"#,
+    );
+    let line = line_of(&text, "name=\"mine\"");
+    assert_refused(
+        &armor(&["check".as_ref(), file.as_os_str()]),
+        &file,
+        line,
+        &["`mine`", "no-go area `minefield`"],
+    );
+}
+
+#[test]
+fn broken_gpx_is_refused_where_it_breaks_and_writes_no_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read_to_string(robot_file("yard-route.gpx")).unwrap();
+    let import = |name: &str, text: &str| {
+        let file = dir.path().join(format!("{name}.gpx"));
+        std::fs::write(&file, text).unwrap();
+        let plan = dir.path().join(format!("{name}.xml"));
+        let output = armor(&[
+            "import".as_ref(),
+            file.as_os_str(),
+            "-o".as_ref(),
+            plan.as_os_str(),
+        ]);
+        assert!(
+            !plan.exists(),
+            "{name}: a plan was written:\n{}",
+            output_text(&output)
+        );
+        (file, output)
+    };
+
+    // Cut in the middle of the route.
+    let cut = good.find("East corner").unwrap();
+    let (file, output) = import("truncated", &good[..cut]);
+    let all = output_text(&output);
+    assert_eq!(output.status.code(), Some(1), "{all}");
+    assert!(!all.contains("panicked"), "{all}");
+    assert!(!located(&output, &file).is_empty(), "{all}");
+
+    // A latitude beyond the pole, and one that is no number.
+    for (name, lat) in [
+        ("beyond-the-pole", "143.5615450"),
+        ("not-a-number", "north"),
+    ] {
+        let broken = good.replacen("lat=\"43.5615450\"", &format!("lat=\"{lat}\""), 1);
+        let (file, output) = import(name, &broken);
+        let line = line_of(&broken, lat);
+        assert_refused(&output, &file, line, &["`lat`", lat, "90"]);
+    }
+
+    // A file of another kind.
+    let (file, output) = import("not-gpx", "<gpx><wpt lat=\"1\" lon=\"2\"></gpx>");
+    let all = output_text(&output);
+    assert_eq!(output.status.code(), Some(1), "{all}");
+    assert!(!located(&output, &file).is_empty(), "{all}");
+}
