@@ -753,6 +753,13 @@ impl Node {
             match &mut self.transport {
                 Transport::Net(net) => {
                     if deadline.is_some_and(|deadline| Instant::now() >= deadline) {
+                        // Behind schedule: look at the sockets all the same, without waiting,
+                        // so that a module that is always late still reads its inputs and its
+                        // supervisor's messages (pings, stops, new parameters).
+                        net.poll_once(&mut self.core, Some(Instant::now()))?;
+                        if let Some(event) = self.core.take_event() {
+                            return Ok(event);
+                        }
                         net.flush_all(&mut self.core);
                         return Ok(Event::Timeout);
                     }
