@@ -27,6 +27,7 @@ mod reachability;
 mod report;
 mod sim_realtime;
 mod startup;
+mod studio;
 mod throughput;
 
 use std::io::Write as _;
@@ -138,6 +139,17 @@ const BENCHES: &[Bench] = &[
         about: "one 360-beam scan matched and integrated by the mapper vs the grid update alone \
                 (ms)",
         run: mapper_scan::run,
+    },
+    Bench {
+        name: studio::NAME_FRAME,
+        about: "one UI frame of armor-studio (headless) on a 1,000-block, 1,500-link diagram vs \
+                a 60 Hz frame budget (ms; goal < 16)",
+        run: studio::run_frame,
+    },
+    Bench {
+        name: studio::NAME_LOAD,
+        about: "armor-studio opening that diagram (parse and check) vs the bare parse (ms)",
+        run: studio::run_load,
     },
     Bench {
         name: fuzz::NAME,

@@ -126,3 +126,32 @@ fn list_names_every_benchmark() {
         assert!(stdout.contains(name), "{stdout}");
     }
 }
+
+#[test]
+fn studio_figures_are_relayed_from_armor_studio() {
+    let output = bench(&[
+        "--quick",
+        "studio_frame_ms_1000_blocks",
+        "studio_load_ms_1000_blocks",
+    ]);
+    let stdout = text(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{}\nstdout:\n{stdout}\nstderr:\n{}",
+        output.status,
+        text(&output.stderr)
+    );
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|line| serde_json::from_str(line).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2, "stdout:\n{stdout}");
+    assert_eq!(lines[0]["bench"], "studio_frame_ms_1000_blocks");
+    assert_eq!(lines[0]["blocks"], 1000);
+    assert_eq!(lines[0]["links"], 1500);
+    assert_eq!(lines[1]["bench"], "studio_load_ms_1000_blocks");
+    for line in &lines {
+        assert_eq!(line["unit"], "ms", "{line}");
+        assert!(line["ours"].as_f64().is_some_and(|x| x > 0.0), "{line}");
+    }
+}

@@ -1,0 +1,229 @@
+//! `armor-studio bench`: the studio's own timings, printed as JSON lines in `armor-bench`'s
+//! format (`bench`, `ours`, `reference`, `unit`, `ratio`), which `armor-bench` runs and relays
+//! (the runtime must not depend on egui, so the measuring happens here).
+//!
+//! - `studio_frame_ms_1000_blocks`: time of one UI frame on one thread (its CPU time) (layout, the canvas and its 1,500
+//!   wires, tessellation; no GPU) in a headless egui context, on a 1,000-block diagram, at the
+//!   view the studio opens it with (everything fitted in the window: the overview), and
+//!   at 1:1 around the first blocks (`one_to_one_ms`), and at the smallest zoom that still
+//!   draws blocks as widgets (`half_scale_ms`, the worst case). The reference is the goal: a
+//!   60 Hz frame budget.
+//! - `studio_load_ms_1000_blocks`: opening that file (read, parse into the diagram, check it as
+//!   the validation panel does); the reference is the bare parse by `SystemConfig::parse`.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use armor_module_api::ModuleDescription;
+use armor_module_api::describe::{ParamSpec, ParamType, PortSpec};
+
+use crate::app::{Options, StudioApp};
+use crate::diagram::{Diagram, Pin, PinSide, PortRef};
+use crate::files::{self, Home};
+use crate::palette::Palette;
+
+pub const FRAME: &str = "studio_frame_ms_1000_blocks";
+pub const LOAD: &str = "studio_load_ms_1000_blocks";
+const FRAME_BUDGET_MS: f64 = 16.0;
+
+/// The module type every block of the bench diagram has.
+pub fn relay() -> ModuleDescription {
+    let mut relay = ModuleDescription::new("relay", "passes values on");
+    for (name, data_type) in [("a", "Counter"), ("b", "Twist")] {
+        let port = PortSpec {
+            name: name.into(),
+            data_type: data_type.into(),
+            doc: String::new(),
+        };
+        relay.inputs.push(PortSpec {
+            name: format!("in_{name}"),
+            ..port.clone()
+        });
+        relay.outputs.push(PortSpec {
+            name: format!("out_{name}"),
+            ..port
+        });
+    }
+    relay
+        .params
+        .push(ParamSpec::new("gain", ParamType::Float, "gain").default("1"));
+    relay
+        .params
+        .push(ParamSpec::new("rate_hz", ParamType::Float, "rate").unit("Hz"));
+    relay
+}
+
+/// `blocks` relays in rows of 40; block i feeds i+1 on `a`, and i+2 on `b` until there are
+/// `links` links.
+pub fn diagram(blocks: usize, links: usize) -> Diagram {
+    let relay = relay();
+    let catalog = [(relay.module_type.clone(), relay)].into_iter().collect();
+    let mut diagram = Diagram::new("bench");
+    let ids: Vec<_> = (0..blocks)
+        .map(|i| {
+            let pos = [(i % 40) as f32 * 260.0, (i / 40) as f32 * 140.0];
+            let id = diagram.add_block("relay", pos);
+            diagram.set_param(id, "rate_hz", Some("10".into()));
+            id
+        })
+        .collect();
+    let pin = |side, block, port: &str| Pin {
+        side,
+        port: PortRef {
+            block,
+            port: port.into(),
+        },
+    };
+    let mut count = 0;
+    'outer: for (step, port) in [(1, "a"), (2, "b")] {
+        for i in 0..blocks.saturating_sub(step) {
+            if count >= links {
+                break 'outer;
+            }
+            let from = pin(PinSide::Output, ids[i], &format!("out_{port}"));
+            let to = pin(PinSide::Input, ids[i + step], &format!("in_{port}"));
+            if diagram.connect(&catalog, &from, &to).is_ok() {
+                count += 1;
+            }
+        }
+    }
+    diagram
+}
+
+fn median_ms(mut samples: Vec<Duration>) -> f64 {
+    samples.sort();
+    samples
+        .get(samples.len() / 2)
+        .map_or(f64::NAN, |d| d.as_secs_f64() * 1e3)
+}
+
+fn round(value: f64) -> f64 {
+    (value * 1000.0).round() / 1000.0
+}
+
+fn line(bench: &str, ours: f64, reference: f64, extra: serde_json::Value) -> String {
+    let mut object = serde_json::json!({
+        "bench": bench,
+        "ours": round(ours),
+        "reference": round(reference),
+        "unit": "ms",
+        "ratio": round(ours / reference),
+    });
+    if let (Some(object), serde_json::Value::Object(extra)) = (object.as_object_mut(), extra) {
+        object.extend(extra);
+    }
+    object.to_string()
+}
+
+/// Runs `frames` frames and returns the median time of one.
+fn frame_time(ctx: &egui::Context, app: &mut StudioApp, frames: usize) -> f64 {
+    let screen = egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(1600.0, 1000.0));
+    let mut samples = Vec::with_capacity(frames);
+    for _ in 0..frames {
+        let input = egui::RawInput {
+            screen_rect: Some(screen),
+            ..Default::default()
+        };
+        let start = Instant::now();
+        let mut output = ctx.run_ui(input, |ui| app.ui(ui));
+        let primitives = ctx.tessellate(output.shapes, output.pixels_per_point);
+        samples.push(start.elapsed());
+        // No renderer takes the font atlas's updates here.
+        output.textures_delta.clear();
+        std::hint::black_box(primitives);
+    }
+    median_ms(samples)
+}
+
+pub fn run(args: &[String]) -> anyhow::Result<()> {
+    let quick = args.iter().any(|arg| arg == "--quick");
+    let which: Vec<&str> = args
+        .iter()
+        .map(String::as_str)
+        .filter(|arg| !arg.starts_with("--"))
+        .collect();
+    let wants = |name: &str| which.is_empty() || which.contains(&name);
+    let dir = tempfile_dir()?;
+    let file = dir.join("bench-1000.xml");
+    let diagram = diagram(1000, 1500);
+    std::fs::write(&file, diagram.to_xml())
+        .with_context(|| format!("cannot write {}", file.display()))?;
+    let rounds = if quick { 3 } else { 21 };
+
+    if wants(LOAD) || wants("load") {
+        let (ours, reference) = load_times(&file, rounds)?;
+        println!(
+            "{}",
+            line(
+                LOAD,
+                ours,
+                reference,
+                serde_json::json!({"reference_is": "SystemConfig::parse of the same file"})
+            )
+        );
+    }
+    if wants(FRAME) || wants("frame") {
+        let ctx = egui::Context::default();
+        let mut options = Options::new(Home::new(dir.join("home")));
+        options.palette = Some(Palette::from_descriptions([relay()]));
+        options.file = Some(file.clone());
+        let mut app = StudioApp::new(options);
+        // The first frames measure the blocks (egui-snarl sizes nodes from their content).
+        frame_time(&ctx, &mut app, 5);
+        let fitted = frame_time(&ctx, &mut app, rounds);
+        app.view_at_scale(1.0);
+        frame_time(&ctx, &mut app, 3);
+        let one_to_one = frame_time(&ctx, &mut app, rounds);
+        // The most blocks drawn as widgets: just above the overview's zoom.
+        app.view_at_scale(crate::viewer::DETAIL_SCALE + 0.01);
+        frame_time(&ctx, &mut app, 3);
+        let most_detail = frame_time(&ctx, &mut app, rounds);
+        println!(
+            "{}",
+            line(
+                FRAME,
+                fitted,
+                FRAME_BUDGET_MS,
+                serde_json::json!({
+                    "goal": "< 16",
+                    "reference_is": "a 60 Hz frame budget",
+                    "one_to_one_ms": round(one_to_one),
+                    "half_scale_ms": round(most_detail),
+                    "blocks": app.editor().diagram.len(),
+                    "links": app.editor().diagram.links().count(),
+                })
+            )
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
+
+fn load_times(file: &Path, rounds: usize) -> anyhow::Result<(f64, f64)> {
+    let catalog = Palette::from_descriptions([relay()]).catalog;
+    let mut ours = Vec::new();
+    let mut reference = Vec::new();
+    for _ in 0..rounds {
+        let start = Instant::now();
+        let diagram = files::open(file)?;
+        let problems = crate::validation::validate(&diagram, &catalog, &[]);
+        ours.push(start.elapsed());
+        anyhow::ensure!(
+            problems.is_empty(),
+            "the bench diagram has problems: {problems:?}"
+        );
+        let start = Instant::now();
+        let text = std::fs::read_to_string(file)?;
+        let parsed = armor_model::SystemConfig::parse(&text);
+        reference.push(start.elapsed());
+        anyhow::ensure!(parsed.is_ok(), "the bench file does not parse");
+    }
+    Ok((median_ms(ours), median_ms(reference)))
+}
+
+fn tempfile_dir() -> anyhow::Result<std::path::PathBuf> {
+    let dir = std::env::temp_dir().join(format!("armor-studio-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    Ok(dir)
+}

@@ -1,0 +1,212 @@
+//! Where the studio keeps its own files (recent files, the recovery copy) and how documents
+//! are read and written. Saves go through `armor_runtime::fs::write_atomically`: a failed save
+//! leaves the existing file as it was.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+
+use crate::diagram::{Catalog, Diagram};
+
+/// Overrides the folder of the studio's own files (tests use a temporary one).
+pub const ENV_STUDIO_HOME: &str = "ARMOR_STUDIO_HOME";
+
+/// How many files the Recent menu lists.
+const RECENT_LIMIT: usize = 10;
+
+/// The first line of a recovery file says which document it is a copy of.
+const RECOVERY_TAG: &str = "<!-- armor-studio recovery of: ";
+
+/// The studio's folder: `$ARMOR_STUDIO_HOME`, else `$XDG_CONFIG_HOME/armor-studio`, else
+/// `~/.config/armor-studio`, else a folder in the temporary directory.
+pub fn default_home() -> PathBuf {
+    if let Some(home) = std::env::var_os(ENV_STUDIO_HOME).filter(|v| !v.is_empty()) {
+        return PathBuf::from(home);
+    }
+    if let Some(config) = std::env::var_os("XDG_CONFIG_HOME").filter(|v| !v.is_empty()) {
+        return PathBuf::from(config).join("armor-studio");
+    }
+    if let Some(home) = std::env::var_os("HOME").filter(|v| !v.is_empty()) {
+        return PathBuf::from(home).join(".config").join("armor-studio");
+    }
+    std::env::temp_dir().join("armor-studio")
+}
+
+/// The studio's own files.
+#[derive(Clone, Debug)]
+pub struct Home {
+    pub dir: PathBuf,
+}
+
+/// What a recovery file holds.
+#[derive(Clone, Debug)]
+pub struct Recovery {
+    /// The document it is a copy of, if it had been saved before.
+    pub original: Option<PathBuf>,
+    pub text: String,
+}
+
+impl Home {
+    pub fn new(dir: impl Into<PathBuf>) -> Home {
+        Home { dir: dir.into() }
+    }
+
+    fn recent_file(&self) -> PathBuf {
+        self.dir.join("recent.txt")
+    }
+
+    pub fn recovery_file(&self) -> PathBuf {
+        self.dir.join("recovery.xml")
+    }
+
+    /// The recent files, newest first. A missing or unreadable list is an empty one.
+    pub fn recent(&self) -> Vec<PathBuf> {
+        std::fs::read_to_string(self.recent_file())
+            .unwrap_or_default()
+            .lines()
+            .filter(|line| !line.trim().is_empty())
+            .map(PathBuf::from)
+            .collect()
+    }
+
+    /// Puts `file` first in the recent list.
+    pub fn add_recent(&self, file: &Path) -> anyhow::Result<()> {
+        let file = std::path::absolute(file).unwrap_or_else(|_| file.to_path_buf());
+        let mut recent = self.recent();
+        recent.retain(|other| other != &file);
+        recent.insert(0, file);
+        recent.truncate(RECENT_LIMIT);
+        let text: String = recent
+            .iter()
+            .map(|path| format!("{}\n", path.display()))
+            .collect();
+        self.write(&self.recent_file(), text.as_bytes())
+    }
+
+    /// Writes the recovery copy of the document being edited.
+    pub fn write_recovery(&self, original: Option<&Path>, diagram: &Diagram) -> anyhow::Result<()> {
+        let original = original
+            .map(|path| path.display().to_string())
+            .unwrap_or_default();
+        // `--` may not appear inside an XML comment; a path with one is not worth recording.
+        let original = if original.contains("--") {
+            String::new()
+        } else {
+            original
+        };
+        let text = format!("{RECOVERY_TAG}{original} -->\n{}", diagram.to_xml());
+        self.write(&self.recovery_file(), text.as_bytes())
+    }
+
+    /// The recovery copy left by a session that did not end cleanly, if any.
+    pub fn recovery(&self) -> Option<Recovery> {
+        let text = std::fs::read_to_string(self.recovery_file()).ok()?;
+        let first = text.lines().next().unwrap_or_default();
+        let original = first
+            .strip_prefix(RECOVERY_TAG)
+            .and_then(|rest| rest.strip_suffix(" -->"))
+            .filter(|path| !path.is_empty())
+            .map(PathBuf::from);
+        let text = match first.starts_with(RECOVERY_TAG) {
+            true => text
+                .split_once('\n')
+                .map(|(_, rest)| rest.to_owned())
+                .unwrap_or_default(),
+            false => text,
+        };
+        Some(Recovery { original, text })
+    }
+
+    /// Forgets the recovery copy (after a save, a clean exit, or when the user declines it).
+    pub fn clear_recovery(&self) {
+        match std::fs::remove_file(self.recovery_file()) {
+            Ok(()) => {}
+            Err(err) if err.kind() == std::io::ErrorKind::NotFound => {}
+            Err(err) => tracing::warn!("cannot remove the recovery file: {err}"),
+        }
+    }
+
+    fn write(&self, file: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+        std::fs::create_dir_all(&self.dir)
+            .with_context(|| format!("cannot create {}", self.dir.display()))?;
+        armor_runtime::fs::write_atomically(file, bytes)
+            .with_context(|| format!("cannot write {}", file.display()))
+    }
+}
+
+/// Reads a system file into a diagram; the error lists every problem as `FILE:LINE:COL: message`.
+pub fn open(file: &Path) -> anyhow::Result<Diagram> {
+    let text =
+        std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
+    Diagram::from_xml(&text).map_err(|problems| {
+        let lines: Vec<String> = problems
+            .iter()
+            .map(|problem| format!("{}:{}: {}", file.display(), problem.pos, problem.message))
+            .collect();
+        anyhow::anyhow!("{}", lines.join("\n"))
+    })
+}
+
+/// Saves a diagram, refusing while a required parameter is unset, and naming each one.
+pub fn save(file: &Path, diagram: &Diagram, catalog: &Catalog) -> anyhow::Result<()> {
+    let missing = diagram.all_missing_required(catalog);
+    if !missing.is_empty() {
+        anyhow::bail!(
+            "not saved: required parameters are unset: {}",
+            missing.join(", ")
+        );
+    }
+    armor_runtime::fs::write_atomically(file, diagram.to_xml().as_bytes())
+        .with_context(|| format!("cannot save {}", file.display()))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use armor_module_api::ModuleDescription;
+    use armor_module_api::describe::{ParamSpec, ParamType};
+
+    #[test]
+    fn a_refused_or_failed_save_leaves_the_file_as_it_was() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("system.xml");
+        std::fs::write(&file, "the good version").unwrap();
+        let mut nav = ModuleDescription::new("nav", "drives");
+        nav.params
+            .push(ParamSpec::new("goal_m", ParamType::Float, "goal"));
+        let catalog: Catalog = [("nav".to_owned(), nav)].into_iter().collect();
+        let mut diagram = Diagram::default();
+        let id = diagram.add_block("nav", [0.0, 0.0]);
+        let err = save(&file, &diagram, &catalog).unwrap_err();
+        assert!(format!("{err:#}").contains("nav.goal_m"), "{err:#}");
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "the good version");
+        diagram.set_param(id, "goal_m", Some("3".into()));
+        assert!(save(&dir.path().join("missing/system.xml"), &diagram, &catalog).is_err());
+        save(&file, &diagram, &catalog).unwrap();
+        assert_eq!(open(&file).unwrap(), diagram);
+    }
+
+    #[test]
+    fn recent_files_and_the_recovery_copy() {
+        let dir = tempfile::tempdir().unwrap();
+        let home = Home::new(dir.path().join("home"));
+        assert!(home.recent().is_empty() && home.recovery().is_none());
+        for name in ["a.xml", "b.xml", "a.xml"] {
+            home.add_recent(&dir.path().join(name)).unwrap();
+        }
+        assert_eq!(
+            home.recent(),
+            [dir.path().join("a.xml"), dir.path().join("b.xml")]
+        );
+        let mut diagram = Diagram::default();
+        diagram.add_block("sink", [1.0, 2.0]);
+        home.write_recovery(Some(&dir.path().join("a.xml")), &diagram)
+            .unwrap();
+        let recovery = home.recovery().unwrap();
+        assert_eq!(recovery.original, Some(dir.path().join("a.xml")));
+        assert_eq!(Diagram::from_xml(&recovery.text).unwrap(), diagram);
+        home.clear_recovery();
+        assert!(home.recovery().is_none());
+    }
+}

@@ -1,0 +1,35 @@
+//! `armor-studio [FILE]`: the block-diagram editor. `armor-studio bench` (hidden) prints the
+//! studio's timings as JSON lines for `armor-bench`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("--help" | "-h") => {
+            println!(
+                "usage: armor-studio [FILE]\n\nOpens the ArMoR block-diagram editor, with FILE (a system XML file) if given."
+            );
+            Ok(())
+        }
+        Some("bench") => armor_studio::bench::run(&args[1..]),
+        Some(file) if args.len() == 1 => armor_studio::run(Some(PathBuf::from(file))),
+        None => armor_studio::run(None),
+        Some(_) => Err(anyhow::anyhow!("usage: armor-studio [FILE]")),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("armor-studio: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,752 @@
+//! The canvas: egui-snarl drawing the diagram. The snarl holds only block ids and positions; the
+//! [`DiagramViewer`] is a thin adapter that reads the document to draw blocks and pins and turns
+//! what the user does into [`Command`]s, applied after the frame. egui-snarl 0.12 keeps its
+//! in-progress wire private and has no "may connect?" hook, so the wire's origin is tracked
+//! here from egui's pointer state and the pins it was drawn at last frame.
+
+use std::cell::RefCell;
+use std::collections::{BTreeSet, HashMap};
+use std::rc::Rc;
+
+use egui::emath::TSTransform;
+use egui::{Color32, Pos2, Rect, RichText, Stroke, Ui, Vec2};
+use egui_snarl::ui::{PinInfo, PinWireInfo, SnarlPin, SnarlStyle, SnarlViewer};
+use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
+
+use crate::diagram::{BlockId, Catalog, Diagram, Pin, PinSide, PortRef};
+use crate::editor::Command;
+
+/// Pins drawn this frame, in canvas coordinates.
+type PinSink = Rc<RefCell<Vec<(Pin, Rect)>>>;
+
+/// Where a wire may land while one is being dragged.
+const LEGAL: Color32 = Color32::from_rgb(60, 200, 90);
+const ILLEGAL: Color32 = Color32::from_rgb(90, 90, 90);
+const SELECTED: Color32 = Color32::from_rgb(255, 200, 60);
+const WARNING: Color32 = Color32::from_rgb(230, 90, 70);
+
+/// Below this zoom, text is too small to read: the diagram is painted as an overview of boxes
+/// and wires instead of widgets (and blocks are edited once zoomed in).
+pub const DETAIL_SCALE: f32 = 0.5;
+
+/// The canvas's state across frames.
+pub struct Canvas {
+    pub snarl: Snarl<BlockId>,
+    node_of: HashMap<BlockId, NodeId>,
+    /// The editor revision the snarl was built from.
+    synced: Option<u64>,
+    /// Canvas to screen, as of the last frame.
+    pub to_global: TSTransform,
+    /// The screen rectangle of the canvas.
+    pub rect: Rect,
+    /// Pins and blocks as drawn in the last frame, in canvas coordinates.
+    pub pins: Vec<(Pin, Rect)>,
+    pub node_rects: HashMap<BlockId, Rect>,
+    /// The pin a wire is being dragged from.
+    pub wire_from: Option<Pin>,
+    /// The document as it was when blocks began to move, for one undo step per drag.
+    pub move_before: Option<Diagram>,
+    /// A canvas rectangle to show whole on the next frame (zoom to fit, find).
+    pub view_request: Option<Rect>,
+    /// The snarl's own selection as last seen (shift-click and rectangle selection).
+    snarl_selection: Vec<NodeId>,
+}
+
+impl Default for Canvas {
+    fn default() -> Self {
+        Canvas {
+            snarl: Snarl::new(),
+            node_of: HashMap::new(),
+            synced: None,
+            to_global: TSTransform::IDENTITY,
+            rect: Rect::NOTHING,
+            pins: Vec::new(),
+            node_rects: HashMap::new(),
+            wire_from: None,
+            move_before: None,
+            view_request: None,
+            snarl_selection: Vec::new(),
+        }
+    }
+}
+
+/// The snarl's style: its own selection highlight is hidden, because the editor's selection
+/// (which select-all and the problem list can set) is drawn by [`DiagramViewer::node_frame`].
+pub fn style() -> SnarlStyle {
+    let mut style = SnarlStyle::new();
+    style.min_scale = Some(0.05);
+    style.max_scale = Some(2.0);
+    style.centering = Some(false);
+    style.select_style = Some(egui_snarl::ui::SelectionStyle {
+        margin: egui::Margin::ZERO,
+        rounding: egui::CornerRadius::ZERO,
+        fill: Color32::TRANSPARENT,
+        stroke: Stroke::NONE,
+    });
+    style.pin_size = Some(10.0);
+    // Pins on the frame's edge, so that they never cover the end of a label.
+    style.pin_placement = Some(egui_snarl::ui::PinPlacement::Edge);
+    style
+}
+
+impl Canvas {
+    /// Keeps the snarl in step with the document and the view. Only the blocks in (or near) the
+    /// view are given to egui-snarl, which lays out every node it holds each frame, and every
+    /// pin by walking every wire: past a few hundred blocks that is more than a frame's budget.
+    /// Below [`DETAIL_SCALE`] no block is given to it: the overview is painted as shapes.
+    pub fn sync(&mut self, diagram: &Diagram, catalog: &Catalog, revision: u64) {
+        let wanted = self.wanted(diagram, catalog);
+        if self.synced != Some(revision) {
+            self.synced = Some(revision);
+            self.snarl = Snarl::new();
+            self.node_of.clear();
+            self.node_rects.retain(|id, _| diagram.block(*id).is_some());
+        } else if wanted.len() == self.node_of.len()
+            && wanted.iter().all(|id| self.node_of.contains_key(id))
+        {
+            return;
+        }
+        let gone: Vec<BlockId> = self
+            .node_of
+            .keys()
+            .filter(|id| !wanted.contains(id))
+            .copied()
+            .collect();
+        for id in gone {
+            if let Some(node) = self.node_of.remove(&id) {
+                self.snarl.remove_node(node);
+            }
+        }
+        let mut added = BTreeSet::new();
+        for id in wanted {
+            if self.node_of.contains_key(&id) {
+                continue;
+            }
+            if let Some(block) = diagram.block(id) {
+                let node = self
+                    .snarl
+                    .insert_node(Pos2::new(block.pos[0], block.pos[1]), id);
+                self.node_of.insert(id, node);
+                added.insert(id);
+            }
+        }
+        for link in diagram.links() {
+            if !added.contains(&link.from.block) && !added.contains(&link.to.block) {
+                continue;
+            }
+            let (Some(from), Some(to)) = (
+                self.pin_id(diagram, catalog, &link.from, PinSide::Output),
+                self.pin_id(diagram, catalog, &link.to, PinSide::Input),
+            ) else {
+                continue;
+            };
+            self.snarl.connect(
+                OutPinId {
+                    node: from.0,
+                    output: from.1,
+                },
+                InPinId {
+                    node: to.0,
+                    input: to.1,
+                },
+            );
+        }
+    }
+
+    /// Whether the view is zoomed out past the point where blocks are drawn as widgets.
+    pub fn is_overview(&self) -> bool {
+        self.to_global.scaling < DETAIL_SCALE
+    }
+
+    /// The part of the canvas on screen, in canvas coordinates.
+    pub fn viewport(&self) -> Rect {
+        self.to_global.inverse() * self.rect
+    }
+
+    fn wanted(&self, diagram: &Diagram, catalog: &Catalog) -> BTreeSet<BlockId> {
+        if self.is_overview() || !self.rect.is_finite() {
+            return BTreeSet::new();
+        }
+        // A margin, so that a block being dragged in from the edge is already there.
+        let view = self.viewport().expand(300.0);
+        diagram
+            .blocks()
+            .filter(|(id, _)| view.intersects(self.rect_of(diagram, catalog, *id)))
+            .map(|(id, _)| id)
+            .collect()
+    }
+
+    /// A block's rectangle: as drawn last time, else as it will roughly be.
+    pub fn rect_of(&self, diagram: &Diagram, catalog: &Catalog, id: BlockId) -> Rect {
+        let Some(block) = diagram.block(id) else {
+            return Rect::NOTHING;
+        };
+        let pos = Pos2::new(block.pos[0], block.pos[1]);
+        match self.node_rects.get(&id) {
+            Some(rect) => Rect::from_min_size(pos, rect.size()),
+            None => {
+                let rows = catalog.get(&block.module_type).map_or(0, |description| {
+                    description.inputs.len().max(description.outputs.len())
+                });
+                Rect::from_min_size(pos, Vec2::new(200.0, 44.0 + 20.0 * rows as f32))
+            }
+        }
+    }
+
+    fn pin_id(
+        &self,
+        diagram: &Diagram,
+        catalog: &Catalog,
+        port: &PortRef,
+        side: PinSide,
+    ) -> Option<(NodeId, usize)> {
+        let node = *self.node_of.get(&port.block)?;
+        let block = diagram.block(port.block)?;
+        let description = catalog.get(&block.module_type)?;
+        let ports = match side {
+            PinSide::Input => &description.inputs,
+            PinSide::Output => &description.outputs,
+        };
+        let index = ports.iter().position(|spec| spec.name == port.port)?;
+        Some((node, index))
+    }
+
+    /// Screen to canvas coordinates.
+    pub fn to_canvas(&self, screen: Pos2) -> Pos2 {
+        self.to_global.inverse() * screen
+    }
+
+    /// The pin drawn under a screen position last frame.
+    pub fn pin_at(&self, screen: Pos2) -> Option<&Pin> {
+        let pos = self.to_canvas(screen);
+        self.pins
+            .iter()
+            .find(|(_, rect)| rect.expand(3.0).contains(pos))
+            .map(|(pin, _)| pin)
+    }
+
+    /// The screen position of a pin, as drawn last frame.
+    pub fn pin_screen_pos(&self, pin: &Pin) -> Option<Pos2> {
+        self.pins
+            .iter()
+            .find(|(drawn, _)| drawn == pin)
+            .map(|(_, rect)| self.to_global * rect.center())
+    }
+
+    /// The block under a screen position (the top one).
+    pub fn block_at(&self, diagram: &Diagram, catalog: &Catalog, screen: Pos2) -> Option<BlockId> {
+        let pos = self.to_canvas(screen);
+        diagram
+            .blocks()
+            .filter(|(id, _)| self.rect_of(diagram, catalog, *id).contains(pos))
+            .map(|(id, _)| id)
+            .max()
+    }
+
+    /// The bounding box of the blocks, in canvas coordinates.
+    pub fn bounds(&self, diagram: &Diagram, only: Option<&BTreeSet<BlockId>>) -> Option<Rect> {
+        let mut bounds = Rect::NOTHING;
+        for (id, block) in diagram.blocks() {
+            if only.is_some_and(|only| !only.contains(&id)) {
+                continue;
+            }
+            let rect = self.node_rects.get(&id).copied().unwrap_or_else(|| {
+                Rect::from_min_size(
+                    Pos2::new(block.pos[0], block.pos[1]),
+                    Vec2::new(200.0, 100.0),
+                )
+            });
+            bounds = bounds.union(rect);
+        }
+        bounds.is_finite().then_some(bounds)
+    }
+
+    /// Blocks moved by the user this frame: their new positions.
+    pub fn moved_blocks(&self, diagram: &Diagram) -> Vec<(BlockId, [f32; 2])> {
+        self.snarl
+            .nodes_pos_ids()
+            .filter_map(|(_, pos, id)| {
+                let block = diagram.block(*id)?;
+                (block.pos != [pos.x, pos.y]).then_some((*id, [pos.x, pos.y]))
+            })
+            .collect()
+    }
+
+    /// The blocks of the snarl's own selection, when it changed since last asked.
+    pub fn snarl_selection_change(&mut self, selected: Vec<NodeId>) -> Option<BTreeSet<BlockId>> {
+        if selected == self.snarl_selection {
+            return None;
+        }
+        self.snarl_selection = selected;
+        Some(
+            self.snarl_selection
+                .iter()
+                .filter_map(|node| self.snarl.get_node(*node).copied())
+                .collect(),
+        )
+    }
+}
+
+/// What a frame of the canvas reports back besides commands.
+#[derive(Default)]
+pub struct CanvasEvents {
+    /// A block was double-clicked (or "Parameters…" chosen in its menu).
+    pub open_params: Option<BlockId>,
+}
+
+/// The adapter egui-snarl calls to draw and edit the diagram.
+pub struct DiagramViewer<'a> {
+    pub diagram: &'a Diagram,
+    pub catalog: &'a Catalog,
+    pub selection: &'a BTreeSet<BlockId>,
+    /// Blocks that have a problem in the validation panel.
+    pub flagged: &'a BTreeSet<BlockId>,
+    pub commands: &'a mut Vec<Command>,
+    pub events: &'a mut CanvasEvents,
+    pub wire_from: Option<&'a Pin>,
+    pub pins: PinSink,
+    pub node_rects: &'a mut HashMap<BlockId, Rect>,
+    /// The canvas transform: read by snarl, overridden to show `view_request`.
+    pub to_global: &'a mut TSTransform,
+    pub view_request: Option<Rect>,
+    pub screen_rect: Rect,
+    /// Where a double click happened this frame, on screen.
+    pub double_click: Option<Pos2>,
+    /// The canvas's state: which blocks egui-snarl holds, where the others are.
+    pub canvas: &'a Canvas,
+}
+
+impl DiagramViewer<'_> {
+    fn pin(
+        &self,
+        snarl: &Snarl<BlockId>,
+        node: NodeId,
+        index: usize,
+        side: PinSide,
+    ) -> Option<Pin> {
+        let id = *snarl.get_node(node)?;
+        let block = self.diagram.block(id)?;
+        let description = self.catalog.get(&block.module_type)?;
+        let ports = match side {
+            PinSide::Input => &description.inputs,
+            PinSide::Output => &description.outputs,
+        };
+        Some(Pin {
+            side,
+            port: PortRef {
+                block: id,
+                port: ports.get(index)?.name.clone(),
+            },
+        })
+    }
+
+    fn pin_ui(&mut self, pin: Option<Pin>, ui: &mut Ui) -> TrackedPin {
+        let Some(pin) = pin else {
+            return TrackedPin {
+                info: PinInfo::circle(),
+                pin: None,
+                sink: self.pins.clone(),
+            };
+        };
+        let data_type = self
+            .diagram
+            .block(pin.port.block)
+            .and_then(|block| self.catalog.get(&block.module_type))
+            .and_then(|description| match pin.side {
+                PinSide::Input => description.input(&pin.port.port),
+                PinSide::Output => description.output(&pin.port.port),
+            })
+            .map(|spec| (spec.data_type.clone(), spec.doc.clone()))
+            .unwrap_or_default();
+        let colour = type_colour(&data_type.0);
+        let mut info = PinInfo::circle().with_fill(colour).with_wire_color(colour);
+        if let Some(from) = self.wire_from
+            && from != &pin
+        {
+            let legal = self.diagram.link_between(self.catalog, from, &pin).is_ok();
+            info = info
+                .with_fill(if legal { LEGAL } else { ILLEGAL })
+                .with_stroke(Stroke::new(
+                    if legal { 2.0 } else { 1.0 },
+                    if legal { Color32::WHITE } else { ILLEGAL },
+                ));
+        }
+        let text = format!("{}: {}", pin.port.port, data_type.0);
+        ui.label(RichText::new(text).small())
+            .on_hover_text(data_type.1);
+        TrackedPin {
+            info,
+            pin: Some(pin),
+            sink: self.pins.clone(),
+        }
+    }
+}
+
+impl DiagramViewer<'_> {
+    /// Paints what egui-snarl does not hold: the blocks of the overview, and the links with an
+    /// end outside the view (egui-snarl draws only links between blocks it holds).
+    fn paint_outside_snarl(&self, viewport: &Rect, style: &egui::Style, painter: &egui::Painter) {
+        let canvas = self.canvas;
+        let held = |id: &BlockId| canvas.node_of.contains_key(id);
+        let overview = canvas.is_overview();
+        if overview {
+            let visuals = &style.visuals;
+            let fill = visuals.widgets.inactive.bg_fill;
+            let stroke = visuals.widgets.noninteractive.bg_stroke;
+            for (id, _) in self.diagram.blocks() {
+                let rect = canvas.rect_of(self.diagram, self.catalog, id);
+                if !viewport.intersects(rect) {
+                    continue;
+                }
+                let stroke = if self.selection.contains(&id) {
+                    Stroke::new(3.0 / canvas.to_global.scaling, SELECTED)
+                } else if self.flagged.contains(&id) {
+                    Stroke::new(2.0 / canvas.to_global.scaling, WARNING)
+                } else {
+                    stroke
+                };
+                painter.rect(rect, 6.0, fill, stroke, egui::StrokeKind::Inside);
+            }
+        }
+        let drawn: HashMap<(BlockId, PinSide, &str), Pos2> = canvas
+            .pins
+            .iter()
+            .map(|(pin, rect)| {
+                (
+                    (pin.port.block, pin.side, pin.port.port.as_str()),
+                    rect.center(),
+                )
+            })
+            .collect();
+        let pin_pos = |port: &PortRef, side: PinSide| -> Option<Pos2> {
+            if held(&port.block)
+                && let Some(pos) = drawn.get(&(port.block, side, port.port.as_str()))
+            {
+                return Some(*pos);
+            }
+            let block = self.diagram.block(port.block)?;
+            let description = self.catalog.get(&block.module_type)?;
+            let ports = match side {
+                PinSide::Input => &description.inputs,
+                PinSide::Output => &description.outputs,
+            };
+            let index = ports.iter().position(|spec| spec.name == port.port)?;
+            let rect = canvas.rect_of(self.diagram, self.catalog, port.block);
+            let x = if side == PinSide::Input {
+                rect.left()
+            } else {
+                rect.right()
+            };
+            Some(Pos2::new(x, rect.top() + 36.0 + 20.0 * index as f32))
+        };
+        let width = if overview {
+            1.0 / canvas.to_global.scaling
+        } else {
+            2.0
+        };
+        for link in self.diagram.links() {
+            if held(&link.from.block) && held(&link.to.block) {
+                continue;
+            }
+            let (Some(from), Some(to)) = (
+                pin_pos(&link.from, PinSide::Output),
+                pin_pos(&link.to, PinSide::Input),
+            ) else {
+                continue;
+            };
+            if !viewport.intersects(Rect::from_two_pos(from, to)) {
+                continue;
+            }
+            let colour = self
+                .diagram
+                .block(link.from.block)
+                .and_then(|block| self.catalog.get(&block.module_type))
+                .and_then(|description| description.output(&link.from.port))
+                .map_or(Color32::GRAY, |spec| type_colour(&spec.data_type));
+            painter.line_segment([from, to], Stroke::new(width, colour));
+        }
+    }
+}
+
+impl SnarlViewer<BlockId> for DiagramViewer<'_> {
+    fn title(&mut self, node: &BlockId) -> String {
+        self.diagram
+            .block(*node)
+            .map(|block| block.name.clone())
+            .unwrap_or_default()
+    }
+
+    fn show_header(
+        &mut self,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<BlockId>,
+    ) {
+        let Some(block) = self.diagram.block(snarl[node]) else {
+            return;
+        };
+        // egui-snarl sizes a node by its header and clips the pin labels to that width: make
+        // the header wide enough for the longest input and output labels side by side.
+        if let Some(description) = self.catalog.get(&block.module_type) {
+            let longest = |ports: &[armor_module_api::describe::PortSpec]| {
+                ports
+                    .iter()
+                    .map(|p| p.name.len() + p.data_type.len() + 2)
+                    .max()
+                    .unwrap_or(0)
+            };
+            let chars = longest(&description.inputs) + longest(&description.outputs);
+            ui.set_min_width(chars as f32 * 5.5 + 30.0);
+        }
+        ui.label(RichText::new(&block.name).strong());
+        ui.label(RichText::new(&block.module_type).weak().small());
+    }
+
+    fn inputs(&mut self, node: &BlockId) -> usize {
+        self.diagram
+            .block(*node)
+            .and_then(|block| self.catalog.get(&block.module_type))
+            .map_or(0, |description| description.inputs.len())
+    }
+
+    fn outputs(&mut self, node: &BlockId) -> usize {
+        self.diagram
+            .block(*node)
+            .and_then(|block| self.catalog.get(&block.module_type))
+            .map_or(0, |description| description.outputs.len())
+    }
+
+    fn show_input(
+        &mut self,
+        pin: &InPin,
+        ui: &mut Ui,
+        snarl: &mut Snarl<BlockId>,
+    ) -> impl SnarlPin + 'static {
+        let found = self.pin(snarl, pin.id.node, pin.id.input, PinSide::Input);
+        self.pin_ui(found, ui)
+    }
+
+    fn show_output(
+        &mut self,
+        pin: &OutPin,
+        ui: &mut Ui,
+        snarl: &mut Snarl<BlockId>,
+    ) -> impl SnarlPin + 'static {
+        let found = self.pin(snarl, pin.id.node, pin.id.output, PinSide::Output);
+        self.pin_ui(found, ui)
+    }
+
+    fn has_body(&mut self, _node: &BlockId) -> bool {
+        true
+    }
+
+    fn show_body(
+        &mut self,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<BlockId>,
+    ) {
+        let id = snarl[node];
+        let Some(block) = self.diagram.block(id) else {
+            return;
+        };
+        if !self.catalog.contains_key(&block.module_type) {
+            ui.colored_label(WARNING, "unknown type");
+            return;
+        }
+        let missing = self.diagram.missing_required(self.catalog, id).len();
+        if missing > 0 {
+            ui.colored_label(WARNING, format!("{missing} required unset"));
+        }
+    }
+
+    fn node_frame(
+        &mut self,
+        default: egui::Frame,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        snarl: &Snarl<BlockId>,
+    ) -> egui::Frame {
+        let id = snarl[node];
+        if self.selection.contains(&id) {
+            default.stroke(Stroke::new(2.5, SELECTED))
+        } else if self.flagged.contains(&id) {
+            default.stroke(Stroke::new(1.5, WARNING))
+        } else {
+            default
+        }
+    }
+
+    fn final_node_rect(
+        &mut self,
+        node: NodeId,
+        rect: Rect,
+        ui: &mut Ui,
+        snarl: &mut Snarl<BlockId>,
+    ) {
+        let id = snarl[node];
+        self.node_rects.insert(id, rect);
+        if let Some(at) = self.double_click
+            && rect.contains(self.to_global.inverse() * at)
+            && ui.is_enabled()
+        {
+            self.events.open_params = Some(id);
+        }
+    }
+
+    fn has_node_menu(&mut self, _node: &BlockId) -> bool {
+        true
+    }
+
+    fn show_node_menu(
+        &mut self,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<BlockId>,
+    ) {
+        let id = snarl[node];
+        if ui.button("Parameters…").clicked() {
+            self.events.open_params = Some(id);
+            ui.close();
+        }
+        if ui.button("Duplicate").clicked() {
+            self.commands.push(Command::Select([id].into()));
+            self.commands.push(Command::Duplicate);
+            ui.close();
+        }
+        if ui.button("Delete").clicked() {
+            self.commands.push(Command::Select([id].into()));
+            self.commands.push(Command::DeleteSelection);
+            ui.close();
+        }
+    }
+
+    fn has_graph_menu(&mut self, _pos: Pos2, _snarl: &mut Snarl<BlockId>) -> bool {
+        !self.catalog.is_empty()
+    }
+
+    fn show_graph_menu(&mut self, pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<BlockId>) {
+        ui.label("Add a block");
+        for module_type in self.catalog.keys() {
+            if ui.button(module_type).clicked() {
+                self.commands.push(Command::AddBlock {
+                    module_type: module_type.clone(),
+                    pos: [pos.x, pos.y],
+                });
+                ui.close();
+            }
+        }
+    }
+
+    fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<BlockId>) {
+        // Not connected in the snarl here: the command is checked and applied to the document,
+        // and the snarl is rebuilt from it.
+        if let (Some(from), Some(to)) = (
+            self.pin(snarl, from.id.node, from.id.output, PinSide::Output),
+            self.pin(snarl, to.id.node, to.id.input, PinSide::Input),
+        ) {
+            self.commands.push(Command::Connect { from, to });
+        }
+    }
+
+    fn disconnect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<BlockId>) {
+        if let (Some(from), Some(to)) = (
+            self.pin(snarl, from.id.node, from.id.output, PinSide::Output),
+            self.pin(snarl, to.id.node, to.id.input, PinSide::Input),
+        ) {
+            self.commands
+                .push(Command::RemoveLink(crate::diagram::Link {
+                    from: from.port,
+                    to: to.port,
+                }));
+        }
+    }
+
+    fn drop_outputs(&mut self, pin: &OutPin, snarl: &mut Snarl<BlockId>) {
+        if let Some(pin) = self.pin(snarl, pin.id.node, pin.id.output, PinSide::Output) {
+            self.commands.push(Command::DisconnectOutput(pin.port));
+        }
+    }
+
+    fn drop_inputs(&mut self, pin: &InPin, snarl: &mut Snarl<BlockId>) {
+        if let Some(pin) = self.pin(snarl, pin.id.node, pin.id.input, PinSide::Input) {
+            self.commands.push(Command::DisconnectInput(pin.port));
+        }
+    }
+
+    fn draw_background(
+        &mut self,
+        background: Option<&egui_snarl::ui::BackgroundPattern>,
+        viewport: &Rect,
+        snarl_style: &SnarlStyle,
+        style: &egui::Style,
+        painter: &egui::Painter,
+        _snarl: &Snarl<BlockId>,
+    ) {
+        if let Some(background) = background {
+            background.draw(viewport, snarl_style, style, painter);
+        }
+        self.paint_outside_snarl(viewport, style, painter);
+    }
+
+    fn current_transform(&mut self, to_global: &mut TSTransform, _snarl: &mut Snarl<BlockId>) {
+        if let Some(view) = self.view_request.take() {
+            *to_global = fit(view, self.screen_rect);
+        }
+        *self.to_global = *to_global;
+    }
+}
+
+/// The transform that shows `view` (canvas) whole and centred in `screen`, at most at 1:1.
+pub fn fit(view: Rect, screen: Rect) -> TSTransform {
+    let view = view.expand(40.0);
+    let scale = (screen.width() / view.width())
+        .min(screen.height() / view.height())
+        .clamp(0.05, 1.0);
+    let scale = if scale.is_finite() { scale } else { 1.0 };
+    TSTransform::new(
+        screen.center().to_vec2() - view.center().to_vec2() * scale,
+        scale,
+    )
+}
+
+/// A colour per data type, so that wires and pins of one type look alike.
+pub fn type_colour(data_type: &str) -> Color32 {
+    // FNV-1a: stable across runs and platforms, unlike the std hasher.
+    let hash = data_type
+        .bytes()
+        .fold(0xcbf2_9ce4_8422_2325_u64, |hash, byte| {
+            (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3)
+        });
+    let hue = (hash % 360) as f32 / 360.0;
+    egui::ecolor::Hsva::new(hue, 0.55, 0.95, 1.0).into()
+}
+
+/// A pin that records where it was drawn, so that the editor knows which pin a drag began on.
+struct TrackedPin {
+    info: PinInfo,
+    pin: Option<Pin>,
+    sink: PinSink,
+}
+
+impl SnarlPin for TrackedPin {
+    fn draw(
+        self,
+        snarl_style: &SnarlStyle,
+        style: &egui::Style,
+        rect: Rect,
+        painter: &egui::Painter,
+    ) -> PinWireInfo {
+        if let Some(pin) = self.pin {
+            self.sink.borrow_mut().push((pin, rect));
+        }
+        self.info.draw(snarl_style, style, rect, painter)
+    }
+}

@@ -1,0 +1,395 @@
+//! The studio driven as a user would: pointer drags from the palette, wires between pins, the
+//! parameters dialog, keyboard shortcuts, files typed into the path field.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::time::Duration;
+
+use armor_studio::diagram::{Diagram, PinSide};
+use common::*;
+use egui::{Key, Modifiers, Pos2};
+use egui_kittest::kittest::Queryable as _;
+
+fn type_into(
+    harness: &mut egui_kittest::Harness<'_, armor_studio::StudioApp>,
+    label: &str,
+    text: &str,
+) {
+    harness.get_by_label(label).click();
+    harness.run();
+    harness.get_by_label(label).type_text(text);
+    harness.run();
+}
+
+#[test]
+fn build_link_set_parameters_save_and_reopen() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(options(&dir.path().join("home"), None));
+
+    // Three modules dragged from the palette.
+    drop_module(&mut harness, "counter", Pos2::new(450.0, 200.0));
+    drop_module(&mut harness, "checker", Pos2::new(750.0, 200.0));
+    drop_module(&mut harness, "follower", Pos2::new(450.0, 450.0));
+    let names: Vec<String> = harness
+        .state()
+        .editor()
+        .diagram
+        .blocks()
+        .map(|(_, b)| b.name.clone())
+        .collect();
+    assert_eq!(names, ["counter", "checker", "follower"]);
+    assert!(
+        harness.state().title().starts_with('*'),
+        "{}",
+        harness.state().title()
+    );
+
+    // A compatible link: counter.count (Counter) → checker.input (Counter).
+    let from = pin(&harness, "counter", "count", PinSide::Output);
+    let to = pin(&harness, "checker", "input", PinSide::Input);
+    drag(&mut harness, from, to);
+    assert_eq!(harness.state().editor().diagram.links().count(), 1);
+
+    // An incompatible one is refused, with the reason on screen.
+    let to = pin(&harness, "follower", "odometry", PinSide::Input);
+    drag(&mut harness, from, to);
+    assert_eq!(harness.state().editor().diagram.links().count(), 1);
+    harness.get_by_label_contains(
+        "`follower.odometry` expects Odometry but `counter.count` is Counter",
+    );
+
+    // Input to input too.
+    let from = pin(&harness, "checker", "input", PinSide::Input);
+    drag(&mut harness, from, to);
+    assert_eq!(harness.state().editor().diagram.links().count(), 1);
+    harness.get_by_label_contains("cannot link two inputs");
+
+    // The follower has two required parameters unset; saving refuses and names them.
+    harness.get_by_label("2 required unset");
+    let file = dir.path().join("robot.xml");
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::S);
+    harness.run();
+    type_into(&mut harness, "Path:", &file.display().to_string());
+    harness.key_press(Key::Enter);
+    harness.run();
+    harness.get_by_label_contains(
+        "required parameters are unset: follower.goal_x_m, follower.goal_y_m",
+    );
+    assert!(!file.exists());
+
+    // Double-click the follower: its parameters, checked as they are typed.
+    let at = harness.state().block_pos("follower").unwrap();
+    double_click(&mut harness, at);
+    harness.get_by_label("Block follower");
+    type_into(&mut harness, "goal_x_m", "abc");
+    harness.get_by_label("`abc` is not a finite number");
+    assert!(
+        harness
+            .state()
+            .editor()
+            .diagram
+            .missing_required(
+                &harness.state().palette().catalog,
+                harness
+                    .state()
+                    .editor()
+                    .diagram
+                    .block_named("follower")
+                    .unwrap()
+            )
+            .len()
+            == 2
+    );
+    for _ in 0..3 {
+        harness.key_press(Key::Backspace);
+    }
+    harness.get_by_label("goal_x_m").type_text("1.5");
+    harness.run();
+    harness.get_by_label("1 required unset");
+    type_into(&mut harness, "goal_y_m", "-2");
+    assert!(harness.query_by_label("1 required unset").is_none());
+    // And a new name, unique.
+    let name = harness.get_by_label("Name");
+    name.click();
+    harness.run();
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    harness.get_by_label("Name").type_text("counter");
+    harness.run();
+    harness.get_by_label("another block has this name");
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    harness.get_by_label("Name").type_text("nav");
+    harness.run();
+    harness.get_by_label("Close").click();
+    harness.run();
+
+    // Save through the typed path: the file is what `armor check` accepts.
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::S);
+    harness.run();
+    type_into(&mut harness, "Path:", &file.display().to_string());
+    harness.key_press(Key::Enter);
+    harness.run();
+    assert!(file.exists(), "{}", harness.state().status().text);
+    assert_eq!(harness.state().title(), "robot.xml — ArMoR Studio");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let system = armor_model::SystemConfig::parse(&text).unwrap();
+    let catalog = armor_studio::palette::Palette::from_descriptions(descriptions()).catalog;
+    assert_eq!(armor_model::check(&system, &catalog), []);
+    assert!(
+        text.contains(r#"<param name="goal_x_m" value="1.5"/>"#),
+        "{text}"
+    );
+    assert!(
+        text.contains(r#"<link from="counter.count" to="checker.input"/>"#),
+        "{text}"
+    );
+    assert!(
+        text.contains(r#"<module name="nav" type="follower""#),
+        "{text}"
+    );
+    let saved = harness.state().editor().diagram.clone();
+
+    // Reopen in a fresh studio: the same document, and it is in the recent files.
+    let mut again = common::harness(options(&dir.path().join("home"), Some(file.clone())));
+    assert_eq!(
+        again.state().editor().diagram,
+        Diagram::from_xml(&text).unwrap()
+    );
+    assert_eq!(again.state().editor().diagram.to_xml(), saved.to_xml());
+    assert!(!again.state().is_dirty());
+    again.get_by_label("File").click();
+    again.run();
+    again.get_by_label_contains("Open recent").hover();
+    again.run();
+    again.get_by_label(&std::path::absolute(&file).unwrap().display().to_string());
+}
+
+#[test]
+fn undo_back_to_empty_and_redo() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(options(dir.path(), None));
+    harness.get_by_label("add counter").click();
+    harness.run();
+    harness.get_by_label("add checker").click();
+    harness.run();
+    let from = pin(&harness, "counter", "count", PinSide::Output);
+    let to = pin(&harness, "checker", "input", PinSide::Input);
+    drag(&mut harness, from, to);
+    assert_eq!(harness.state().editor().diagram.links().count(), 1);
+    // Select all, duplicate, delete: every step undoable.
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::D);
+    harness.run();
+    assert_eq!(harness.state().editor().diagram.len(), 4);
+    assert_eq!(harness.state().editor().diagram.links().count(), 2);
+    harness.key_press(Key::Delete);
+    harness.run();
+    assert_eq!(harness.state().editor().diagram.len(), 2);
+
+    let mut steps = 0;
+    while harness.state().editor().history.can_undo() {
+        harness.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+        harness.run();
+        steps += 1;
+        assert!(steps < 20, "undo does not end");
+    }
+    assert!(harness.state().editor().diagram.is_empty());
+    assert!(!harness.state().title().starts_with('*'));
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::Y);
+    harness.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z);
+    harness.run();
+    assert_eq!(harness.state().editor().diagram.len(), 2);
+}
+
+#[test]
+fn copy_paste_find_and_help() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(options(dir.path(), None));
+    harness.get_by_label("add checker").click();
+    harness.run();
+    // The new block is selected: copy, paste twice.
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::C);
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::V);
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::V);
+    harness.run();
+    let names: Vec<String> = harness
+        .state()
+        .editor()
+        .diagram
+        .blocks()
+        .map(|(_, b)| b.name.clone())
+        .collect();
+    assert_eq!(names, ["checker", "checker_2", "checker_3"]);
+
+    // Find a block by name: it becomes the selection.
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::F);
+    harness.run();
+    harness.get_by_label("Find:").type_text("checker_2");
+    harness.run();
+    harness.key_press(Key::Enter);
+    harness.run();
+    let selected = &harness.state().editor().selection;
+    let id = harness
+        .state()
+        .editor()
+        .diagram
+        .block_named("checker_2")
+        .unwrap();
+    assert_eq!(selected.iter().collect::<Vec<_>>(), [&id]);
+
+    // A click on a block selects it; a click on empty canvas clears the selection.
+    // (Block labels are drawn on the canvas's zoomed layer: the app says where they are.)
+    let at = harness.state().block_pos("checker_3").unwrap();
+    click(&mut harness, at);
+    let id3 = harness
+        .state()
+        .editor()
+        .diagram
+        .block_named("checker_3")
+        .unwrap();
+    assert_eq!(
+        harness
+            .state()
+            .editor()
+            .selection
+            .iter()
+            .collect::<Vec<_>>(),
+        [&id3]
+    );
+    let empty = harness.state().canvas_rect().left_bottom() + egui::vec2(20.0, -20.0);
+    click(&mut harness, empty);
+    assert!(harness.state().editor().selection.is_empty());
+
+    // The shortcuts sheet.
+    harness.key_press(Key::F1);
+    harness.run();
+    harness.get_by_label("Keyboard shortcuts");
+    harness.get_by_label("Ctrl+Y, Ctrl+Shift+Z");
+}
+
+#[test]
+fn problems_are_those_of_armor_check_and_select_their_block() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("bad.xml");
+    std::fs::write(
+        &file,
+        r#"<system name="bad">
+  <module name="c" type="counter"/>
+  <module name="f" type="follower">
+    <param name="goal_x_m" value="1"/>
+  </module>
+  <link from="c.count" to="f.odometry"/>
+</system>
+"#,
+    )
+    .unwrap();
+    let mut harness = harness(options(&dir.path().join("home"), Some(file.clone())));
+    let problems = harness.state().problems().to_vec();
+    // The same messages as the checker gives for the same file.
+    let system =
+        armor_model::SystemConfig::parse(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    let catalog = armor_studio::palette::Palette::from_descriptions(descriptions()).catalog;
+    let mut expected: Vec<String> = armor_model::check(&system, &catalog)
+        .into_iter()
+        .map(|p| p.message)
+        .collect();
+    let mut shown: Vec<String> = problems.iter().map(|p| p.message.clone()).collect();
+    expected.sort();
+    shown.sort();
+    assert_eq!(shown, expected);
+    assert!(shown.len() >= 2, "{shown:?}");
+
+    let problem = problems
+        .iter()
+        .find(|p| p.message.contains("goal_y_m"))
+        .expect("the missing parameter is a problem");
+    let label = format!("{}: {}", problem.pos, problem.message);
+    harness.get_by_label(&label).click();
+    harness.run();
+    let f = harness.state().editor().diagram.block_named("f").unwrap();
+    assert_eq!(
+        harness
+            .state()
+            .editor()
+            .selection
+            .iter()
+            .collect::<Vec<_>>(),
+        [&f]
+    );
+}
+
+#[test]
+fn autosave_is_offered_back_after_a_crash() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = options(dir.path(), None);
+    first.autosave_every = Duration::ZERO;
+    let mut harness = harness(first);
+    harness.get_by_label("add counter").click();
+    harness.run();
+    assert!(dir.path().join("recovery.xml").exists());
+    // The studio "crashes": it is dropped without on_exit.
+    drop(harness);
+
+    let mut harness = common::harness(options(dir.path(), None));
+    harness.get_by_label("Restore unsaved work?");
+    harness.get_by_label("Restore").click();
+    harness.run();
+    assert_eq!(harness.state().editor().diagram.len(), 1);
+    assert!(harness.state().is_dirty());
+}
+
+#[test]
+fn the_palette_probes_real_binaries_and_lists_a_broken_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let modules = dir.path().join("modules");
+    std::fs::create_dir(&modules).unwrap();
+    let description = descriptions().remove(0).to_xml();
+    write_script(
+        &modules.join("armor-mod-counter"),
+        &format!("#!/bin/sh\ncat <<'END'\n{description}END\n"),
+    );
+    write_script(
+        &modules.join("armor-mod-broken"),
+        "#!/bin/sh\necho 'no describe mode here' >&2\nexit 3\n",
+    );
+    let mut options = options(&dir.path().join("home"), None);
+    options.palette = None;
+    options.module_path = vec![modules];
+    let mut harness = harness(options);
+    run_until(&mut harness, Duration::from_secs(30), |app| {
+        !app.palette().is_probing()
+    });
+    harness.get_by_label("counter");
+    harness.get_by_label("broken (broken)");
+    harness.get_by_label_contains("--describe exited with");
+}
+
+fn write_script(path: &std::path::Path, text: &str) {
+    use std::os::unix::fs::PermissionsExt as _;
+    std::fs::write(path, text).unwrap();
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o755)).unwrap();
+}
+
+#[test]
+fn a_large_diagram_opens_as_an_overview_and_a_double_click_zooms_in() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("large.xml");
+    std::fs::write(&file, armor_studio::bench::diagram(400, 600).to_xml()).unwrap();
+    let mut options = options(&dir.path().join("home"), Some(file));
+    options.palette = Some(armor_studio::palette::Palette::from_descriptions([
+        armor_studio::bench::relay(),
+    ]));
+    let mut harness = harness(options);
+    assert!(harness.state().is_overview());
+    // No block is a widget in the overview: their names are not on screen as text.
+    assert!(harness.query_by_label("relay_200").is_none());
+    let at = harness.state().block_pos("relay_200").unwrap();
+    double_click(&mut harness, at);
+    harness.run_steps(3);
+    assert!(!harness.state().is_overview());
+    harness.get_by_label("relay_200");
+    // Home fits the whole diagram again.
+    harness.key_press(Key::Home);
+    harness.run_steps(3);
+    assert!(harness.state().is_overview());
+}

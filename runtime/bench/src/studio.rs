@@ -1,0 +1,68 @@
+//! The studio's figures: `studio_frame_ms_1000_blocks` (CPU time of one UI frame on a
+//! 1,000-block, 1,500-link diagram; goal < 16 ms) and `studio_load_ms_1000_blocks` (opening
+//! that file). The runtime must not depend on egui, so `armor-studio` measures them itself in
+//! its hidden `bench` mode and prints them as report lines; this relays them.
+
+use std::process::Command;
+
+use anyhow::Context as _;
+
+use crate::Settings;
+use crate::procs::sibling_binary;
+use crate::report::Report;
+
+pub const NAME_FRAME: &str = "studio_frame_ms_1000_blocks";
+pub const NAME_LOAD: &str = "studio_load_ms_1000_blocks";
+
+pub fn run_frame(settings: &Settings) -> anyhow::Result<Report> {
+    relay(NAME_FRAME, settings)
+}
+
+pub fn run_load(settings: &Settings) -> anyhow::Result<Report> {
+    relay(NAME_LOAD, settings)
+}
+
+fn relay(name: &'static str, settings: &Settings) -> anyhow::Result<Report> {
+    let studio = sibling_binary("armor-studio")?;
+    let mut command = Command::new(&studio);
+    command.arg("bench").arg(name);
+    if settings.quick {
+        command.arg("--quick");
+    }
+    let output = command
+        .output()
+        .with_context(|| format!("cannot run {}", studio.display()))?;
+    anyhow::ensure!(
+        output.status.success(),
+        "{} bench {name} failed ({}): {}",
+        studio.display(),
+        output.status,
+        String::from_utf8_lossy(&output.stderr).trim()
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let line = stdout
+        .lines()
+        .find(|line| line.contains(&format!("\"{name}\"")))
+        .with_context(|| format!("armor-studio printed no `{name}` line: {stdout}"))?;
+    let mut fields: serde_json::Map<String, serde_json::Value> =
+        serde_json::from_str(line).with_context(|| format!("not a report line: {line}"))?;
+    let number = |fields: &serde_json::Map<String, serde_json::Value>, key: &str| {
+        fields
+            .get(key)
+            .and_then(serde_json::Value::as_f64)
+            .with_context(|| format!("`{key}` missing from {line}"))
+    };
+    let mut report = Report::single(
+        name,
+        "ms",
+        number(&fields, "ours")?,
+        number(&fields, "reference")?,
+    );
+    for key in ["bench", "ours", "reference", "unit", "ratio"] {
+        fields.remove(key);
+    }
+    for (key, value) in fields {
+        report = report.with(&key, value);
+    }
+    Ok(report)
+}

@@ -1,0 +1,175 @@
+//! The studio in a real X window (Xvfb), driven with the mouse and keyboard through xdotool as a
+//! person would: it opens a system file given on its command line, duplicates the blocks,
+//! saves under a path typed into the path field, and the saved file passes the real
+//! `armor check`. Needs Debian's `xvfb` and `xdotool` (installed by `.ci/run`). Xvfb is started
+//! directly rather than through `xvfb-run`, so that the guard kills the server itself.
+#![allow(clippy::unwrap_used)]
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use armor_tests::{PATIENCE, Proc, bin, bin_dir, wait_until};
+
+const SYSTEM: &str = r#"<system name="demo">
+  <module name="counter" type="counter">
+    <param name="period_secs" value="0.1"/>
+  </module>
+  <module name="checker" type="checker"/>
+  <link from="counter.count" to="checker.input"/>
+</system>
+"#;
+
+/// Runs xdotool on the display; true if it succeeded.
+fn xdotool(display: &str, args: &[&str]) -> bool {
+    Command::new("xdotool")
+        .args(args)
+        .env("DISPLAY", display)
+        .output()
+        .map(|out| out.status.success())
+        .unwrap_or(false)
+}
+
+fn window(display: &str) -> Option<String> {
+    let out = Command::new("xdotool")
+        .args(["search", "--name", "ArMoR Studio"])
+        .env("DISPLAY", display)
+        .output()
+        .ok()?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    text.lines().next().map(str::to_owned)
+}
+
+/// Sends keys until the studio says (in its log) that they did what they should: the first keys
+/// after a window appears can be lost while X gives it the focus.
+fn keys_until(studio: &Proc, display: &str, window: &str, keys: &[&str], said: &str) {
+    let before = studio.line_count();
+    for _ in 0..10 {
+        assert!(xdotool(display, &["windowfocus", "--sync", window]));
+        for key in keys {
+            assert!(xdotool(display, &["key", "--window", window, key]));
+        }
+        let mut seen = false;
+        wait_until_or(Duration::from_secs(2), || {
+            seen = studio.lines()[before..]
+                .iter()
+                .any(|line| line.contains(said));
+            seen
+        });
+        if seen {
+            return;
+        }
+    }
+    panic!(
+        "the studio never said `{said}`:\n{}",
+        studio.lines().join("\n")
+    );
+}
+
+/// Like `wait_until`, but gives up quietly at the deadline.
+fn wait_until_or(timeout: Duration, mut condition: impl FnMut() -> bool) {
+    let deadline = std::time::Instant::now() + timeout;
+    while !condition() && std::time::Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn the_studio_edits_and_saves_a_file_with_mouse_and_keyboard() {
+    for tool in ["Xvfb", "xdotool"] {
+        assert!(
+            Command::new("sh")
+                .args(["-c", &format!("command -v {tool}")])
+                .output()
+                .is_ok_and(|out| out.status.success()),
+            "{tool} is not installed: run .ci/run, or apt-get install xvfb xdotool"
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("demo.xml");
+    std::fs::write(&file, SYSTEM).unwrap();
+    let saved = dir.path().join("edited.xml");
+
+    // Xvfb picks a free display and writes its number on stdout.
+    let xvfb = Proc::start(Command::new("Xvfb").args([
+        "-displayfd",
+        "1",
+        "-screen",
+        "0",
+        "1280x800x24",
+        "-nolisten",
+        "tcp",
+    ]));
+    let number = xvfb.wait_for("the display number", PATIENCE, |line| {
+        !line.is_empty() && line.bytes().all(|b| b.is_ascii_digit())
+    });
+    let display = format!(":{}", number.trim());
+
+    let studio = Proc::start(
+        Command::new(bin("armor-studio"))
+            .arg(&file)
+            .env("DISPLAY", &display)
+            .env_remove("WAYLAND_DISPLAY")
+            .env("ARMOR_STUDIO_HOME", dir.path().join("home"))
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .env("RUST_LOG", "armor_studio=info"),
+    );
+    studio.wait_for("the first frame", Duration::from_secs(60), |line| {
+        line.contains("window ready")
+    });
+    let mut found = None;
+    wait_until("the studio's window", PATIENCE, || {
+        found = window(&display);
+        found.is_some()
+    });
+    let window = found.unwrap();
+
+    // A click on the empty canvas, then select all and duplicate from the keyboard.
+    assert!(xdotool(
+        &display,
+        &["mousemove", "--sync", "700", "650", "click", "1"]
+    ));
+    keys_until(
+        &studio,
+        &display,
+        &window,
+        &["ctrl+a", "ctrl+d"],
+        "pasted 2 blocks",
+    );
+
+    // Save as: the path typed into the path field replaces the one it offers.
+    keys_until(&studio, &display, &window, &["ctrl+shift+s"], "type a path");
+    assert!(xdotool(&display, &["key", "--window", &window, "ctrl+a"]));
+    assert!(xdotool(
+        &display,
+        &["type", "--window", &window, &saved.display().to_string()]
+    ));
+    keys_until(&studio, &display, &window, &["Return"], "saved ");
+    wait_until("the saved file", PATIENCE, || saved.exists());
+
+    let text = std::fs::read_to_string(&saved).unwrap();
+    for expected in [
+        r#"<module name="counter_2" type="counter""#,
+        r#"<module name="checker_2" type="checker""#,
+        r#"<link from="counter_2.count" to="checker_2.input"/>"#,
+    ] {
+        assert!(text.contains(expected), "{expected} not in:\n{text}");
+    }
+    check(&saved);
+}
+
+/// The real `armor check` accepts the file.
+fn check(file: &Path) {
+    let out = Command::new(bin("armor"))
+        .arg("check")
+        .arg(file)
+        .env("ARMOR_MODULE_PATH", bin_dir())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "armor check failed:\n{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
