@@ -167,17 +167,16 @@ fn a_module_that_fails_for_good_takes_the_mission_to_its_contingency() {
     );
 }
 
-#[test]
-fn aborting_ends_the_run_with_a_failure() {
-    let dir = mission_files(
-        "",
-        "",
-        r#"<mission name="endless" system="system.xml">
+/// A mission that never ends by itself (the checker sees every value in order).
+const ENDLESS: &str = r#"<mission name="endless" system="system.xml">
   <place name="waiting" tokens="1"><module name="counter"/></place>
   <place name="done" final="true"/>
   <transition name="go" event="checker.out_of_order"><input place="waiting"/><output place="done"/></transition>
-</mission>"#,
-    );
+</mission>"#;
+
+#[test]
+fn aborting_ends_the_run_with_a_failure() {
+    let dir = mission_files("", "", ENDLESS);
     let mut run = armor_run(&dir.path().join("mission.xml"), &[]);
     let line = run.wait_for("with the control address", PATIENCE, |line| {
         line.contains("control interface listening")
@@ -218,15 +217,7 @@ fn armor_check_finds_what_would_go_wrong() {
 
 #[test]
 fn a_mission_cut_short_by_for_ends_with_a_failure() {
-    let dir = mission_files(
-        "",
-        "",
-        r#"<mission name="endless" system="system.xml">
-  <place name="waiting" tokens="1"><module name="counter"/></place>
-  <place name="done" final="true"/>
-  <transition name="go" event="checker.out_of_order"><input place="waiting"/><output place="done"/></transition>
-</mission>"#,
-    );
+    let dir = mission_files("", "", ENDLESS);
     let mut run = armor_run(&dir.path().join("mission.xml"), &["--for", "1"]);
     let status = run.wait_exit(PATIENCE);
     assert_eq!(status.code(), Some(1));

@@ -70,7 +70,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     let armor = sibling_binary("armor")?;
     module_binary("sim")?;
     let dir = tempfile::tempdir().context("cannot make a temporary folder")?;
-    std::fs::write(dir.path().join("system.xml"), without_recorder(SYSTEM_XML))
+    std::fs::write(dir.path().join("system.xml"), without_recorder(SYSTEM_XML)?)
         .context("cannot write the system file")?;
     std::fs::write(dir.path().join(WORLD_FILE), YARD_WORLD)
         .context("cannot write the world file")?;
@@ -246,20 +246,15 @@ fn system_factor(
     Ok(factor)
 }
 
-/// The system without its truth recorder, which missions start when they want a record (run
-/// without a mission it would record the whole time, and weigh on the figure).
-fn without_recorder(system: &str) -> String {
-    let Some(start) = system.find("  <!-- Records the true pose") else {
-        return system.to_owned();
-    };
-    let Some(end) = system[start..].find("</module>\n") else {
-        return system.to_owned();
-    };
-    format!(
-        "{}{}",
-        &system[..start],
-        &system[start + end + "</module>\n".len()..]
-    )
+/// The system without its recorders, which missions start when they want a record (run without
+/// a mission, one would record the whole time and weigh on the figure).
+fn without_recorder(system: &str) -> anyhow::Result<String> {
+    let mut system = armor_model::SystemConfig::parse(system)
+        .map_err(|problems| anyhow::anyhow!("the robot system does not parse: {problems:?}"))?;
+    system
+        .modules
+        .retain(|module| module.module_type != "recorder");
+    Ok(system.to_xml())
 }
 
 /// Simulated seconds per wall second of the bare simulator, stepped for about `window`.

@@ -72,16 +72,7 @@ impl Polygon {
 
     /// Even-odd rule: whether `p` is inside the outline.
     pub fn contains(&self, p: Point) -> bool {
-        let mut inside = false;
-        for (a, b) in self.edges() {
-            if (a.y > p.y) != (b.y > p.y) {
-                let x_cross = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
-                if p.x < x_cross {
-                    inside = !inside;
-                }
-            }
-        }
-        inside
+        inside(self.edges(), p)
     }
 
     /// Twice the signed area: positive when the corners turn counter-clockwise.
@@ -179,6 +170,20 @@ impl Polygon {
             })
             .collect()
     }
+}
+
+/// Even-odd rule: whether `p` is inside the outline made of `edges`.
+pub fn inside(edges: impl Iterator<Item = (Point, Point)>, p: Point) -> bool {
+    let mut inside = false;
+    for (a, b) in edges {
+        if (a.y > p.y) != (b.y > p.y) {
+            let x_cross = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
+            if p.x < x_cross {
+                inside = !inside;
+            }
+        }
+    }
+    inside
 }
 
 fn outward_normal(a: Point, b: Point, orientation: f64) -> Point {

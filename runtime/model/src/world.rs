@@ -63,18 +63,12 @@ impl Point {
 
 impl fmt::Display for Point {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "({}, {})", short(self.x), short(self.y))
-    }
-}
-
-/// A number for a message: at most three decimals, no trailing zeros.
-fn short(value: f64) -> String {
-    let text = format!("{value:.3}");
-    let text = text.trim_end_matches('0').trim_end_matches('.');
-    if text == "-0" {
-        "0".to_owned()
-    } else {
-        text.to_owned()
+        write!(
+            f,
+            "({}, {})",
+            crate::geo::round_mm(self.x),
+            crate::geo::round_mm(self.y)
+        )
     }
 }
 
@@ -165,16 +159,7 @@ impl Shape {
     /// Whether a point lies inside this shape's outline (even-odd rule; only meaningful for a
     /// closed shape).
     pub fn contains(&self, p: Point) -> bool {
-        let mut inside = false;
-        for (a, b) in self.edges() {
-            if (a.y > p.y) != (b.y > p.y) {
-                let x_cross = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
-                if p.x < x_cross {
-                    inside = !inside;
-                }
-            }
-        }
-        inside
+        crate::geo::inside(self.edges(), p)
     }
 }
 
@@ -663,7 +648,7 @@ impl World {
         let subject = if radius > 0.0 {
             format!(
                 "the robot (radius {} m) at the start pose {p}",
-                short(radius)
+                crate::geo::round_mm(radius)
             )
         } else {
             format!("the start pose {p}")

@@ -386,7 +386,7 @@ fn compile(plan: &std::path::Path, output: &std::path::Path) -> anyhow::Result<E
         Ok(loaded) => loaded,
         Err(diagnostics) => return Ok(report(diagnostics)),
     };
-    print_warnings(plan, &loaded.warnings);
+    print_warnings(plan, loaded.warnings());
     let mut net = loaded.net;
     let output_dir = output
         .parent()
@@ -452,7 +452,7 @@ fn check(file: &std::path::Path) -> ExitCode {
             )
         }),
         Ok(_) => mission::load_mission(file, &module_path).map(|mission| {
-            print_warnings(file, &mission.warnings);
+            print_warnings(file, mission.warnings());
             format!(
                 "mission `{}`: {}, {}, {} reachable",
                 mission.net.name,

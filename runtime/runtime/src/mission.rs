@@ -58,8 +58,16 @@ pub struct LoadedMission {
     pub states: usize,
     /// The compiled plan, when the file is a plan.
     pub compiled: Option<Compiled>,
-    /// What may keep the mission from going as planned without stopping it.
-    pub warnings: Vec<Located>,
+}
+
+impl LoadedMission {
+    /// What may keep the mission from going as planned without stopping it (a plan's time
+    /// constraints that cannot all be met).
+    pub fn warnings(&self) -> &[Located] {
+        self.compiled
+            .as_ref()
+            .map_or(&[], |compiled| compiled.warnings.as_slice())
+    }
 }
 
 /// Reads a mission file (our XML, PNML, or a plan), loads its system, and checks both.
@@ -69,26 +77,15 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         problems,
     };
     let text = read_source(file)?;
-    let kind = kind_of(file, &text)?;
-    let plan = match kind {
-        DocumentKind::Plan => Some(Plan::parse(&text).map_err(fail)?),
-        _ => None,
+    // A plan is compiled once its system (and so its world) is known.
+    let source = match kind_of(file, &text)? {
+        DocumentKind::Plan => Err(Plan::parse(&text).map_err(fail)?),
+        DocumentKind::Pnml => Ok(net::from_pnml(&text).map_err(fail)?),
+        _ => Ok(MissionNet::parse(&text).map_err(fail)?),
     };
-    let system_name = match &plan {
-        Some(plan) => plan.system.clone(),
-        None => String::new(),
-    };
-    let mut net = match kind {
-        DocumentKind::Pnml => Some(net::from_pnml(&text).map_err(fail)?),
-        DocumentKind::Plan => None,
-        _ => Some(MissionNet::parse(&text).map_err(fail)?),
-    };
-    let (system_name, pos) = match &net {
-        Some(net) => (net.system.clone(), net.pos),
-        None => (
-            system_name,
-            plan.as_ref().map(|plan| plan.pos).unwrap_or_default(),
-        ),
+    let (system_name, pos) = match &source {
+        Ok(net) => (net.system.clone(), net.pos),
+        Err(plan) => (plan.system.clone(), plan.pos),
     };
     if system_name.is_empty() {
         return Err(fail(vec![Located::new(
@@ -108,16 +105,14 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         )]));
     }
     let system = load_system(&system_file, module_path)?;
-    let mut compiled = None;
-    if let Some(plan) = &plan {
-        let world = plan_world(plan, &system, base)
-            .map_err(|message| fail(vec![Located::new(plan.pos, message)]))?;
-        let result = plan::compile(plan, world.as_ref()).map_err(fail)?;
-        net = Some(result.net.clone());
-        compiled = Some(result);
-    }
-    let Some(net) = net else {
-        return Err(fail(vec![Located::new(pos, "no mission net")]));
+    let (net, compiled) = match source {
+        Ok(net) => (net, None),
+        Err(plan) => {
+            let world = plan_world(&plan, &system, base)
+                .map_err(|message| fail(vec![Located::new(plan.pos, message)]))?;
+            let compiled = plan::compile(&plan, world.as_ref()).map_err(fail)?;
+            (compiled.net.clone(), Some(compiled))
+        }
     };
     let mut problems = net::check_names(&net, &system.system, &system.descriptions);
     let analysis = net::analyse(&net, ANALYSIS_LIMIT_STATES);
@@ -132,10 +127,6 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         system_file,
         system,
         states: analysis.states,
-        warnings: compiled
-            .as_ref()
-            .map(|compiled| compiled.warnings.clone())
-            .unwrap_or_default(),
         compiled,
     })
 }

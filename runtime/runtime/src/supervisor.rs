@@ -101,7 +101,7 @@ fn load(options: &RunOptions) -> Result<(Loaded, Option<LoadedMission>), Diagnos
         DocumentKind::System => Ok((load_system(&options.file, &options.module_path)?, None)),
         DocumentKind::Mission | DocumentKind::Pnml | DocumentKind::Plan => {
             let mission = load_mission(&options.file, &options.module_path)?;
-            for warning in &mission.warnings {
+            for warning in mission.warnings() {
                 tracing::warn!(
                     "{}:{}: {}",
                     options.file.display(),

@@ -285,7 +285,7 @@ pub(crate) fn read_priority(field: Field<'_>) -> Result<i32, Located> {
 }
 
 /// A decimal number as XSD's `xs:decimal` writes it: no exponent, no `inf` or `NaN`.
-fn is_decimal(text: &str) -> bool {
+pub(crate) fn is_decimal(text: &str) -> bool {
     let digits = text.strip_prefix(['+', '-']).unwrap_or(text);
     let (whole, fraction) = digits.split_once('.').unwrap_or((digits, ""));
     let all_digits = |s: &str| s.bytes().all(|b| b.is_ascii_digit());

@@ -11,7 +11,9 @@ use super::{
     Navigation, Plan, Response, Trigger, Unit, Waypoint, check_sidc,
 };
 use crate::net::xml::{identifier, no_children, no_text, optional, required};
-use crate::net::{Field, escape, finish, format_date, read_date, read_event, read_identifier};
+use crate::net::{
+    Field, escape, finish, format_date, is_decimal, read_date, read_event, read_identifier,
+};
 
 impl Plan {
     /// Reads a plan, reporting every problem of its form (malformed XML, unknown elements or
@@ -329,7 +331,7 @@ fn named_date(field: Field<'_>, name: &str) -> Result<f64, Located> {
 /// A number of seconds, 0 or more, or a speed above 0: finite decimals only.
 fn seconds(field: Field<'_>) -> Result<f64, Located> {
     match field.value.trim().parse::<f64>() {
-        Ok(value) if value.is_finite() && value >= 0.0 && is_plain_number(field.value) => Ok(value),
+        Ok(value) if value.is_finite() && value >= 0.0 && is_decimal(field.value) => Ok(value),
         _ => Err(Located::new(
             field.pos,
             format!(
@@ -342,7 +344,7 @@ fn seconds(field: Field<'_>) -> Result<f64, Located> {
 
 fn speed(field: Field<'_>) -> Result<f64, Located> {
     match field.value.trim().parse::<f64>() {
-        Ok(value) if value.is_finite() && value > 0.0 && is_plain_number(field.value) => Ok(value),
+        Ok(value) if value.is_finite() && value > 0.0 && is_decimal(field.value) => Ok(value),
         _ => Err(Located::new(
             field.pos,
             format!(
@@ -353,20 +355,11 @@ fn speed(field: Field<'_>) -> Result<f64, Located> {
     }
 }
 
-/// Digits with an optional sign and fraction: what XSD's `xs:decimal` accepts.
-fn is_plain_number(text: &str) -> bool {
-    let digits = text.strip_prefix(['+', '-']).unwrap_or(text);
-    let (whole, fraction) = digits.split_once('.').unwrap_or((digits, ""));
-    (!whole.is_empty() || !fraction.is_empty())
-        && whole.bytes().all(|b| b.is_ascii_digit())
-        && fraction.bytes().all(|b| b.is_ascii_digit())
-}
-
 fn lat_lon(element: &Element, problems: &mut Vec<Located>) -> Option<LatLon> {
     let mut read = |name: &str, limit: f64, what: &str| -> Option<f64> {
         let field = required(element, name, problems)?;
         match field.value.trim().parse::<f64>() {
-            Ok(value) if is_plain_number(field.value) && value.abs() <= limit => Some(value),
+            Ok(value) if is_decimal(field.value) && value.abs() <= limit => Some(value),
             _ => {
                 problems.push(Located::new(
                     field.pos,
