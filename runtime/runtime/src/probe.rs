@@ -98,15 +98,33 @@ pub fn probe(binary: &Path, timeout: Duration) -> Result<ModuleDescription, Prob
     probe_text(binary, timeout).map(|(_, description)| description)
 }
 
+/// Starts `binary --describe`. A binary just written (by a build, or a test) can be busy for a
+/// moment — another process forked while its file was open for writing — so that is retried
+/// within `timeout`.
+fn spawn_describe(binary: &Path, timeout: Duration) -> Result<std::process::Child, ProbeError> {
+    let give_up = Instant::now() + timeout;
+    loop {
+        match Command::new(binary)
+            .arg("--describe")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+        {
+            Err(err)
+                if err.kind() == std::io::ErrorKind::ExecutableFileBusy
+                    && Instant::now() < give_up =>
+            {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            result => return result.map_err(ProbeError::Spawn),
+        }
+    }
+}
+
 /// [`probe`], also returning the text the binary printed.
 fn probe_text(binary: &Path, timeout: Duration) -> Result<(String, ModuleDescription), ProbeError> {
-    let mut child = Command::new(binary)
-        .arg("--describe")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .map_err(ProbeError::Spawn)?;
+    let mut child = spawn_describe(binary, timeout)?;
     let stdout = child.stdout.take();
     // Read on a thread so that a child that fills the pipe does not block its own exit.
     let reader = std::thread::spawn(move || {
