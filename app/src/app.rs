@@ -12,7 +12,8 @@ use egui_snarl::ui::SnarlWidget;
 
 use crate::diagram::{BlockId, Diagram, Pin, PinSide};
 use crate::editor::{Command, Editor, Outcome};
-use crate::files::{self, Home, Recovery};
+use crate::files::{self, Document, Home, Recovery};
+use crate::mission::MissionView;
 use crate::palette::{Entry, Palette};
 use crate::validation::{self, Problem};
 use crate::viewer::{self, Canvas, CanvasEvents, DiagramViewer};
@@ -30,7 +31,7 @@ pub struct Options {
     pub module_path: Vec<PathBuf>,
     /// A palette made in advance (tests); else the module path is probed in the background.
     pub palette: Option<Palette>,
-    /// A file to open at start.
+    /// A file to open at start: a system, or a plan (opened in the Mission view).
     pub file: Option<PathBuf>,
     /// How often the recovery copy is written while there are unsaved changes.
     pub autosave_every: Duration,
@@ -55,12 +56,25 @@ pub struct Status {
     pub is_error: bool,
 }
 
+/// The studio's views: the system's block diagram, the mission's map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum View {
+    System,
+    Mission,
+}
+
 /// What a path dialog is for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PathPurpose {
     Open,
     SaveAs,
     ExportPng,
+    OpenPlan,
+    SavePlanAs,
+    ImportGpx,
+    ExportMission,
+    ExportPnml,
+    ExportMapPng,
 }
 
 struct PathDialog {
@@ -75,9 +89,13 @@ struct ParamsDialog {
     values: BTreeMap<String, String>,
 }
 
-/// A picture of the canvas requested from the renderer, to be written to this file.
+/// A picture requested from the renderer: the part under `crop` (the canvas or the map) is
+/// written to `path`.
 #[derive(Clone, Debug)]
-struct ExportRequest(PathBuf);
+struct ExportRequest {
+    path: PathBuf,
+    crop: egui::Rect,
+}
 
 pub struct StudioApp {
     editor: Editor,
@@ -97,17 +115,25 @@ pub struct StudioApp {
     path_dialog: Option<PathDialog>,
     search: Option<String>,
     help_open: bool,
-    recovery: Option<Recovery>,
+    /// Recovery copies left by a session that did not end cleanly, offered one at a time.
+    recovery: Vec<Recovery>,
     autosave_every: Duration,
     last_autosave: Option<Instant>,
     autosaved_revision: Option<u64>,
+    view: View,
+    /// Made at the first frame that needs it (its map draws with the window's context).
+    mission: Option<MissionView>,
+    /// A plan to open once the mission view exists.
+    plan_to_open: Option<PathBuf>,
+    last_plan_autosave: Option<Instant>,
+    plan_autosaved_revision: Option<u64>,
     title: String,
     /// The revision the title and dirty marker were computed for.
     seen_revision: Option<u64>,
     /// The last frame took place at least once (the first one lays blocks out).
     started: bool,
     /// A picture to take once this many more frames are drawn.
-    export_after: Option<(PathBuf, u32)>,
+    export_after: Option<(PathBuf, View, u32)>,
 }
 
 impl StudioApp {
@@ -115,7 +141,10 @@ impl StudioApp {
         let palette = options.palette.unwrap_or_else(|| {
             Palette::probe(&options.module_path, armor_runtime::probe::DEFAULT_TIMEOUT)
         });
-        let recovery = options.home.recovery();
+        let recovery = [Document::System, Document::Plan]
+            .into_iter()
+            .filter_map(|document| options.home.recovery(document))
+            .collect();
         let mut app = StudioApp {
             editor: Editor::default(),
             palette,
@@ -137,15 +166,101 @@ impl StudioApp {
             autosave_every: options.autosave_every,
             last_autosave: None,
             autosaved_revision: None,
+            view: View::System,
+            mission: None,
+            plan_to_open: None,
+            last_plan_autosave: None,
+            plan_autosaved_revision: None,
             title: String::new(),
             seen_revision: None,
             started: false,
             export_after: None,
         };
         if let Some(file) = options.file {
-            app.open(&file);
+            if is_plan(&file) {
+                app.view = View::Mission;
+                app.plan_to_open = Some(file);
+            } else {
+                app.open(&file);
+            }
         }
         app
+    }
+
+    pub fn view(&self) -> View {
+        self.view
+    }
+
+    pub fn set_view(&mut self, view: View) {
+        self.view = view;
+        self.seen_revision = None;
+    }
+
+    /// The Mission view, once a frame has shown it.
+    pub fn mission(&self) -> Option<&MissionView> {
+        self.mission.as_ref()
+    }
+
+    pub fn mission_mut(&mut self) -> Option<&mut MissionView> {
+        self.mission.as_mut()
+    }
+
+    /// Reports what a file operation of the mission view did on the status line.
+    fn report(&mut self, report: crate::mission::Report) {
+        match report {
+            Ok(text) => self.set_status(text, false),
+            Err(err) => self.set_status(format!("{err:#}"), true),
+        }
+    }
+
+    /// Runs a file operation of the mission view (which exists once its view was shown).
+    fn with_mission(&mut self, operation: impl FnOnce(&mut MissionView) -> crate::mission::Report) {
+        let report = match self.mission.as_mut() {
+            Some(mission) => operation(mission),
+            None => Err(anyhow::anyhow!("open the Mission view first")),
+        };
+        if report.is_ok() {
+            self.seen_revision = None;
+        }
+        self.report(report);
+    }
+
+    pub fn open_plan(&mut self, file: &Path) {
+        self.with_mission(|mission| mission.open(file));
+        if self.mission.as_ref().and_then(MissionView::path) == Some(file)
+            && let Err(err) = self.home.add_recent(file)
+        {
+            tracing::warn!("{err:#}");
+        }
+    }
+
+    pub fn save_plan(&mut self, file: Option<&Path>) {
+        let has_path = self.mission.as_ref().and_then(MissionView::path).is_some();
+        if file.is_none() && !has_path {
+            self.ask_path(PathPurpose::SavePlanAs, String::new());
+            return;
+        }
+        self.with_mission(|mission| mission.save(file));
+        if self.status.is_error {
+            return;
+        }
+        self.home.clear_recovery(Document::Plan);
+        self.plan_autosaved_revision = self.mission.as_ref().map(|m| m.editor.revision());
+        if let Some(path) = self
+            .mission
+            .as_ref()
+            .and_then(MissionView::path)
+            .map(Path::to_path_buf)
+            && let Err(err) = self.home.add_recent(&path)
+        {
+            tracing::warn!("{err:#}");
+        }
+    }
+
+    /// Starts a new plan on the system being edited (if it has a file).
+    fn new_plan(&mut self) {
+        let system = self.path.clone();
+        self.with_mission(|mission| mission.new_plan(system.as_deref()));
     }
 
     // ----- What tests and the bench read -----
@@ -242,7 +357,7 @@ impl StudioApp {
                 self.saved = self.editor.diagram.clone();
                 self.path = Some(file.clone());
                 self.seen_revision = None;
-                self.home.clear_recovery();
+                self.home.clear_recovery(Document::System);
                 self.autosaved_revision = Some(self.editor.revision());
                 if let Err(err) = self.home.add_recent(&file) {
                     tracing::warn!("{err:#}");
@@ -293,7 +408,10 @@ impl StudioApp {
     /// Called when the window closes: a clean document needs no recovery copy.
     pub fn on_exit(&mut self) {
         if !self.dirty {
-            self.home.clear_recovery();
+            self.home.clear_recovery(Document::System);
+        }
+        if !self.mission.as_ref().is_some_and(MissionView::is_dirty) {
+            self.home.clear_recovery(Document::Plan);
         }
     }
 
@@ -313,18 +431,11 @@ impl StudioApp {
 
         egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));
         egui::Panel::bottom("status").show(ui, |ui| self.status_ui(ui));
-        egui::Panel::left("palette")
-            .resizable(true)
-            .default_size(220.0)
-            .show(ui, |ui| self.palette_ui(ui));
-        egui::Panel::right("problems")
-            .resizable(true)
-            .default_size(300.0)
-            .min_size(240.0)
-            .show(ui, |ui| self.problems_ui(ui));
-        egui::CentralPanel::default()
-            .frame(egui::Frame::NONE)
-            .show(ui, |ui| self.canvas_ui(ui));
+        if self.view == View::Mission {
+            self.mission_ui(ui);
+        } else {
+            self.system_ui(ui);
+        }
 
         self.params_ui(ui);
         self.path_ui(ui);
@@ -341,6 +452,52 @@ impl StudioApp {
         self.started = true;
     }
 
+    /// The System view: palette, problems, canvas.
+    fn system_ui(&mut self, ui: &mut Ui) {
+        egui::Panel::left("palette")
+            .resizable(true)
+            .default_size(220.0)
+            .show(ui, |ui| self.palette_ui(ui));
+        egui::Panel::right("problems")
+            .resizable(true)
+            .default_size(300.0)
+            .min_size(240.0)
+            .show(ui, |ui| self.problems_ui(ui));
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| self.canvas_ui(ui));
+    }
+
+    /// The Mission view: tools, inspector, net, map.
+    fn mission_ui(&mut self, ui: &mut Ui) {
+        let ctx = ui.ctx().clone();
+        let mission = self.mission.get_or_insert_with(|| MissionView::new(&ctx));
+        mission.set_catalog(&self.palette.catalog);
+        if let Some(file) = self.plan_to_open.take() {
+            self.open_plan(&file);
+        }
+        let Some(mission) = self.mission.as_mut() else {
+            return;
+        };
+        egui::Panel::top("mission-tools").show(ui, |ui| mission.toolbar_ui(ui));
+        egui::Panel::right("mission-inspector")
+            .resizable(true)
+            .default_size(330.0)
+            .min_size(260.0)
+            .show(ui, |ui| mission.inspector_ui(ui));
+        egui::Panel::bottom("mission-net")
+            .resizable(true)
+            .default_size(230.0)
+            .min_size(150.0)
+            .show(ui, |ui| mission.net_ui(ui));
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| mission.map_ui(ui));
+        if let Some((text, is_error)) = mission.apply_commands() {
+            self.set_status(text, is_error);
+        }
+    }
+
     fn apply_commands(&mut self) {
         for command in std::mem::take(&mut self.commands) {
             match self.editor.apply(command, &self.palette.catalog) {
@@ -352,20 +509,29 @@ impl StudioApp {
     }
 
     fn after_frame(&mut self, ctx: &egui::Context) {
-        let revision = self.editor.revision();
+        // The title follows the document of the view shown.
+        let revision = match (self.view, &self.mission) {
+            (View::Mission, Some(mission)) => mission.editor.revision() ^ (1 << 63),
+            _ => self.editor.revision(),
+        };
         if self.seen_revision != Some(revision) {
             self.seen_revision = Some(revision);
             self.dirty = self.editor.diagram != self.saved;
-            let file = self.path.as_deref().and_then(Path::file_name).map_or_else(
+            let (path, dirty) = match (self.view, &self.mission) {
+                (View::Mission, Some(mission)) => (mission.path(), mission.is_dirty()),
+                _ => (self.path.as_deref(), self.dirty),
+            };
+            let file = path.and_then(Path::file_name).map_or_else(
                 || "untitled".to_owned(),
                 |name| name.to_string_lossy().into(),
             );
-            let title = format!("{}{file} — ArMoR Studio", if self.dirty { "*" } else { "" });
+            let title = format!("{}{file} — ArMoR Studio", if dirty { "*" } else { "" });
             if title != self.title {
                 ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
                 self.title = title;
             }
         }
+        let revision = self.editor.revision();
         if self.problems_revision != Some(revision) {
             self.problems_revision = Some(revision);
             self.problems = validation::validate(
@@ -379,8 +545,9 @@ impl StudioApp {
     }
 
     fn autosave(&mut self, ctx: &egui::Context) {
+        self.autosave_plan(ctx);
         let revision = self.editor.revision();
-        if !self.dirty || self.autosaved_revision == Some(revision) || self.recovery.is_some() {
+        if !self.dirty || self.autosaved_revision == Some(revision) || !self.recovery.is_empty() {
             return;
         }
         let due = self
@@ -392,9 +559,39 @@ impl StudioApp {
         }
         self.last_autosave = Some(Instant::now());
         self.autosaved_revision = Some(revision);
-        if let Err(err) = self
-            .home
-            .write_recovery(self.path.as_deref(), &self.editor.diagram)
+        if let Err(err) = self.home.write_recovery(
+            Document::System,
+            self.path.as_deref(),
+            &self.editor.diagram.to_xml(),
+        ) {
+            tracing::warn!("autosave: {err:#}");
+        }
+    }
+
+    /// The plan's recovery copy, written on the same schedule as the system's.
+    fn autosave_plan(&mut self, ctx: &egui::Context) {
+        let Some(mission) = &self.mission else {
+            return;
+        };
+        let revision = mission.editor.revision();
+        if !mission.is_dirty()
+            || self.plan_autosaved_revision == Some(revision)
+            || !self.recovery.is_empty()
+        {
+            return;
+        }
+        if self
+            .last_plan_autosave
+            .is_some_and(|last| last.elapsed() < self.autosave_every)
+        {
+            ctx.request_repaint_after(self.autosave_every);
+            return;
+        }
+        self.last_plan_autosave = Some(Instant::now());
+        self.plan_autosaved_revision = Some(revision);
+        if let Err(err) =
+            self.home
+                .write_recovery(Document::Plan, mission.path(), &mission.recovery_text())
         {
             tracing::warn!("autosave: {err:#}");
         }
@@ -407,6 +604,10 @@ impl StudioApp {
         let pressed = |modifiers, key| {
             ctx.input_mut(|input| input.consume_shortcut(&KeyboardShortcut::new(modifiers, key)))
         };
+        if self.view == View::Mission {
+            self.mission_shortcuts(ctx, typing);
+            return;
+        }
         // File shortcuts work while typing too; the others would steal the text field's keys.
         if pressed(shift_command, Key::S) {
             self.ask_path(PathPurpose::SaveAs, self.path_text());
@@ -469,11 +670,79 @@ impl StudioApp {
         }
     }
 
+    /// The Mission view's keys: files, undo, delete, and the map's tools.
+    fn mission_shortcuts(&mut self, ctx: &egui::Context, typing: bool) {
+        use crate::mission::plan_edit::{PlanCommand, Selection};
+        let command = Modifiers::COMMAND;
+        let shift_command = Modifiers::COMMAND | Modifiers::SHIFT;
+        let pressed = |modifiers, key| {
+            ctx.input_mut(|input| input.consume_shortcut(&KeyboardShortcut::new(modifiers, key)))
+        };
+        if pressed(shift_command, Key::S) {
+            self.ask_path(PathPurpose::SavePlanAs, self.plan_path_text());
+        }
+        if pressed(command, Key::S) {
+            self.save_plan(None);
+        }
+        if pressed(command, Key::O) {
+            self.ask_path(PathPurpose::OpenPlan, self.plan_path_text());
+        }
+        if pressed(Modifiers::NONE, Key::F1) {
+            self.help_open = !self.help_open;
+        }
+        let Some(mission) = self.mission.as_mut() else {
+            return;
+        };
+        if typing {
+            return;
+        }
+        let mut commands = Vec::new();
+        if pressed(shift_command, Key::Z) || pressed(command, Key::Y) {
+            commands.push(PlanCommand::Redo);
+        }
+        if pressed(command, Key::Z) {
+            commands.push(PlanCommand::Undo);
+        }
+        if pressed(Modifiers::NONE, Key::Delete) || pressed(Modifiers::NONE, Key::Backspace) {
+            commands.push(PlanCommand::DeleteSelection);
+        }
+        if pressed(Modifiers::NONE, Key::Escape) && mission.map.pending.is_empty() {
+            mission.set_tool(crate::mission::Tool::Select);
+            commands.push(PlanCommand::Select(Selection::None));
+        }
+        let mut chosen = None;
+        for (key, tool) in crate::mission::TOOL_KEYS {
+            if pressed(Modifiers::NONE, *key) {
+                mission.set_tool(*tool);
+                chosen = Some(*tool);
+            }
+        }
+        if pressed(Modifiers::NONE, Key::Home) || pressed(command, Key::Num0) {
+            mission.map.fit_requested = true;
+        }
+        mission.commands.extend(commands);
+        if let Some(tool) = chosen {
+            self.set_status(tool.help().to_owned(), false);
+        }
+    }
+
+    fn plan_path_text(&self) -> String {
+        self.mission
+            .as_ref()
+            .and_then(MissionView::path)
+            .map(|path| path.display().to_string())
+            .unwrap_or_default()
+    }
+
     fn ask_path(&mut self, purpose: PathPurpose, text: String) {
         let what = match purpose {
             PathPurpose::Open => "open",
-            PathPurpose::SaveAs => "save as",
-            PathPurpose::ExportPng => "export a picture",
+            PathPurpose::SaveAs | PathPurpose::SavePlanAs => "save as",
+            PathPurpose::ExportPng | PathPurpose::ExportMapPng => "export a picture",
+            PathPurpose::OpenPlan => "open a plan",
+            PathPurpose::ImportGpx => "import GPX",
+            PathPurpose::ExportMission => "export the mission",
+            PathPurpose::ExportPnml => "export PNML",
         };
         self.set_status(format!("{what}: type a path, then Enter"), false);
         self.path_dialog = Some(PathDialog { purpose, text });
@@ -488,6 +757,83 @@ impl StudioApp {
 
     fn menu_ui(&mut self, ui: &mut Ui) {
         egui::MenuBar::new().ui(ui, |ui| {
+            if self.view == View::Mission {
+                self.mission_file_menu_ui(ui);
+            } else {
+                self.system_menus_ui(ui);
+            }
+            ui.separator();
+            let mut view = self.view;
+            ui.selectable_value(&mut view, View::System, "System");
+            ui.selectable_value(&mut view, View::Mission, "Mission");
+            if view != self.view {
+                self.set_view(view);
+            }
+            ui.separator();
+            ui.label(RichText::new(&self.title).weak());
+        });
+    }
+
+    fn mission_file_menu_ui(&mut self, ui: &mut Ui) {
+        let with_extension = |this: &Self, extension: &str| {
+            this.mission
+                .as_ref()
+                .and_then(MissionView::path)
+                .map(|path| path.with_extension(extension).display().to_string())
+                .unwrap_or_default()
+        };
+        ui.menu_button("File", |ui| {
+            if ui.button("New plan").clicked() {
+                self.new_plan();
+            }
+            if ui.button("Open plan…").clicked() {
+                self.ask_path(PathPurpose::OpenPlan, self.plan_path_text());
+            }
+            if ui.button("Save plan").clicked() {
+                self.save_plan(None);
+            }
+            if ui.button("Save plan as…").clicked() {
+                self.ask_path(PathPurpose::SavePlanAs, self.plan_path_text());
+            }
+            ui.separator();
+            if ui.button("Import GPX…").clicked() {
+                self.ask_path(PathPurpose::ImportGpx, String::new());
+            }
+            if ui.button("Export mission XML…").clicked() {
+                let text = with_extension(self, "mission.xml");
+                self.ask_path(PathPurpose::ExportMission, text);
+            }
+            if ui.button("Export PNML…").clicked() {
+                let text = with_extension(self, "pnml");
+                self.ask_path(PathPurpose::ExportPnml, text);
+            }
+            if ui.button("Export map PNG…").clicked() {
+                let text = with_extension(self, "png");
+                self.ask_path(PathPurpose::ExportMapPng, text);
+            }
+            ui.separator();
+            if ui.button("Quit").clicked() {
+                ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+        });
+        ui.menu_button("Edit", |ui| {
+            use crate::mission::plan_edit::PlanCommand;
+            for (label, command) in [
+                ("Undo", PlanCommand::Undo),
+                ("Redo", PlanCommand::Redo),
+                ("Delete", PlanCommand::DeleteSelection),
+            ] {
+                if ui.button(label).clicked()
+                    && let Some(mission) = self.mission.as_mut()
+                {
+                    mission.commands.push(command);
+                }
+            }
+        });
+    }
+
+    fn system_menus_ui(&mut self, ui: &mut Ui) {
+        {
             ui.menu_button("File", |ui| {
                 if ui.button("New").clicked() {
                     self.new_document();
@@ -551,9 +897,7 @@ impl StudioApp {
                     self.help_open = true;
                 }
             });
-            ui.separator();
-            ui.label(RichText::new(&self.title).weak());
-        });
+        }
     }
 
     fn status_ui(&mut self, ui: &mut Ui) {
@@ -982,6 +1326,12 @@ impl StudioApp {
             PathPurpose::Open => ("Open a system file", "Open"),
             PathPurpose::SaveAs => ("Save the system as", "Save"),
             PathPurpose::ExportPng => ("Export a picture (PNG)", "Export"),
+            PathPurpose::OpenPlan => ("Open a plan", "Open"),
+            PathPurpose::SavePlanAs => ("Save the plan as", "Save"),
+            PathPurpose::ImportGpx => ("Import waypoints and a route (GPX)", "Import"),
+            PathPurpose::ExportMission => ("Export the mission (XML for armor run)", "Export"),
+            PathPurpose::ExportPnml => ("Export the net (PNML)", "Export"),
+            PathPurpose::ExportMapPng => ("Export the map (PNG)", "Export"),
         };
         let mut submit = false;
         let mut cancel = false;
@@ -1025,7 +1375,13 @@ impl StudioApp {
             match purpose {
                 PathPurpose::Open => self.open(&path),
                 PathPurpose::SaveAs => self.save(Some(&path)),
-                PathPurpose::ExportPng => self.export_png(ctx, path),
+                PathPurpose::ExportPng => self.export_png(ctx, path, View::System),
+                PathPurpose::OpenPlan => self.open_plan(&path),
+                PathPurpose::SavePlanAs => self.save_plan(Some(&path)),
+                PathPurpose::ImportGpx => self.with_mission(|m| m.import_gpx(&path)),
+                PathPurpose::ExportMission => self.with_mission(|m| m.export_mission(&path)),
+                PathPurpose::ExportPnml => self.with_mission(|m| m.export_pnml(&path)),
+                PathPurpose::ExportMapPng => self.export_png(ctx, path, View::Mission),
             }
         }
     }
@@ -1104,7 +1460,7 @@ impl StudioApp {
 
     fn recovery_ui(&mut self, ui: &mut Ui) {
         let ctx = &ui.ctx().clone();
-        let Some(recovery) = &self.recovery else {
+        let Some(recovery) = self.recovery.first().cloned() else {
             return;
         };
         let mut restore = false;
@@ -1112,7 +1468,7 @@ impl StudioApp {
         egui::Modal::new(egui::Id::new("recovery")).show(ctx, |ui| {
             ui.heading("Restore unsaved work?");
             let of = recovery.original.as_ref().map_or_else(
-                || "an unsaved system".to_owned(),
+                || format!("an unsaved {}", recovery.document.noun()),
                 |path| path.display().to_string(),
             );
             ui.label(format!(
@@ -1123,7 +1479,15 @@ impl StudioApp {
                 discard = ui.button("Discard").clicked();
             });
         });
-        if restore {
+        if restore && recovery.document == Document::Plan {
+            // The plan is restored into the Mission view, which exists from its first frame.
+            self.set_view(View::Mission);
+            let ctx = ui.ctx().clone();
+            let mission = self.mission.get_or_insert_with(|| MissionView::new(&ctx));
+            let report = mission.restore(recovery.original.as_deref(), &recovery.text);
+            self.report(report);
+            self.recovery.remove(0);
+        } else if restore {
             match Diagram::from_xml(&recovery.text) {
                 Ok(diagram) => {
                     self.path.clone_from(&recovery.original);
@@ -1140,35 +1504,43 @@ impl StudioApp {
                 }
                 Err(_) => self.set_status("the recovery copy cannot be read".to_owned(), true),
             }
-            self.recovery = None;
+            self.recovery.remove(0);
         } else if discard {
-            self.home.clear_recovery();
-            self.recovery = None;
+            self.home.clear_recovery(recovery.document);
+            self.recovery.remove(0);
         }
     }
 
     // ----- Picture export -----
 
-    fn export_png(&mut self, ctx: &egui::Context, path: PathBuf) {
-        // Deselect and frame everything so the picture shows the whole diagram as drawn; the
+    fn export_png(&mut self, ctx: &egui::Context, path: PathBuf, view: View) {
+        // Deselect and frame everything so the picture shows the whole document as drawn; the
         // screenshot waits two frames, for the new view and for the path dialog to be gone.
-        self.commands.push(Command::Select(BTreeSet::new()));
-        self.zoom_to_fit();
-        self.export_after = Some((path, 2));
+        if view == View::System {
+            self.commands.push(Command::Select(BTreeSet::new()));
+            self.zoom_to_fit();
+        } else if let Some(mission) = &mut self.mission {
+            mission.map.fit_requested = true;
+        }
+        self.export_after = Some((path, view, 2));
         self.set_status("exporting the picture…".to_owned(), false);
         ctx.request_repaint();
     }
 
     fn request_screenshot(&mut self, ctx: &egui::Context) {
         match self.export_after.take() {
-            Some((path, 0)) => {
+            Some((path, view, 0)) => {
+                let crop = match (view, &self.mission) {
+                    (View::Mission, Some(mission)) => mission.map_rect(),
+                    _ => self.canvas.rect,
+                };
                 ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(egui::UserData::new(
-                    ExportRequest(path),
+                    ExportRequest { path, crop },
                 )));
                 ctx.request_repaint();
             }
-            Some((path, frames)) => {
-                self.export_after = Some((path, frames - 1));
+            Some((path, view, frames)) => {
+                self.export_after = Some((path, view, frames - 1));
                 ctx.request_repaint();
             }
             None => {}
@@ -1176,7 +1548,7 @@ impl StudioApp {
     }
 
     fn handle_screenshots(&mut self, ctx: &egui::Context) {
-        let shots: Vec<(Arc<egui::ColorImage>, PathBuf)> = ctx.input(|input| {
+        let shots: Vec<(Arc<egui::ColorImage>, ExportRequest)> = ctx.input(|input| {
             input
                 .events
                 .iter()
@@ -1185,14 +1557,13 @@ impl StudioApp {
                         image, user_data, ..
                     } => {
                         let request = user_data.data.as_ref()?.downcast_ref::<ExportRequest>()?;
-                        Some((image.clone(), request.0.clone()))
+                        Some((image.clone(), request.clone()))
                     }
                     _ => None,
                 })
                 .collect()
         });
-        for (image, path) in shots {
-            let crop = self.canvas.rect;
+        for (image, ExportRequest { path, crop }) in shots {
             let scale = ctx.pixels_per_point();
             match crate::export::write_png(&image, crop, scale, &path) {
                 Ok(()) => self.set_status(format!("exported {}", path.display()), false),
@@ -1228,3 +1599,11 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Right-click a pin or wire", "remove its links"),
     ("Shift+drag", "select with a rectangle"),
 ];
+
+/// Whether a file is a plan (opened in the Mission view) rather than a system.
+fn is_plan(file: &Path) -> bool {
+    matches!(
+        armor_runtime::mission::document_kind(file),
+        Ok(armor_runtime::mission::DocumentKind::Plan)
+    )
+}

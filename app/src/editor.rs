@@ -14,15 +14,25 @@ const PASTE_OFFSET: [f32; 2] = [40.0, 40.0];
 
 /// Snapshots of the document before each edit: whole copies. A diagram of a thousand blocks is
 /// a few hundred kilobytes, so 200 steps stay within tens of megabytes, and copies cannot get
-/// out of step with the edits the way inverse operations can.
-#[derive(Debug, Default)]
-pub struct History {
-    undo: Vec<Diagram>,
-    redo: Vec<Diagram>,
+/// out of step with the edits the way inverse operations can. The mission view keeps its plan's
+/// history the same way.
+#[derive(Debug)]
+pub struct History<T = Diagram> {
+    undo: Vec<T>,
+    redo: Vec<T>,
 }
 
-impl History {
-    pub fn record(&mut self, before: Diagram) {
+impl<T> Default for History<T> {
+    fn default() -> Self {
+        Self {
+            undo: Vec::new(),
+            redo: Vec::new(),
+        }
+    }
+}
+
+impl<T> History<T> {
+    pub fn record(&mut self, before: T) {
         self.undo.push(before);
         if self.undo.len() > HISTORY_LIMIT {
             self.undo.remove(0);
@@ -38,7 +48,7 @@ impl History {
         !self.redo.is_empty()
     }
 
-    fn undo(&mut self, current: &mut Diagram) -> bool {
+    pub fn undo(&mut self, current: &mut T) -> bool {
         match self.undo.pop() {
             Some(before) => {
                 self.redo.push(std::mem::replace(current, before));
@@ -48,7 +58,7 @@ impl History {
         }
     }
 
-    fn redo(&mut self, current: &mut Diagram) -> bool {
+    pub fn redo(&mut self, current: &mut T) -> bool {
         match self.redo.pop() {
             Some(after) => {
                 self.undo.push(std::mem::replace(current, after));

@@ -38,9 +38,33 @@ pub struct Home {
     pub dir: PathBuf,
 }
 
+/// The kinds of document the studio edits, each with its own recovery copy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Document {
+    System,
+    Plan,
+}
+
+impl Document {
+    fn recovery_name(self) -> &'static str {
+        match self {
+            Document::System => "recovery.xml",
+            Document::Plan => "recovery-plan.xml",
+        }
+    }
+
+    pub fn noun(self) -> &'static str {
+        match self {
+            Document::System => "system",
+            Document::Plan => "plan",
+        }
+    }
+}
+
 /// What a recovery file holds.
 #[derive(Clone, Debug)]
 pub struct Recovery {
+    pub document: Document,
     /// The document it is a copy of, if it had been saved before.
     pub original: Option<PathBuf>,
     pub text: String,
@@ -55,8 +79,8 @@ impl Home {
         self.dir.join("recent.txt")
     }
 
-    pub fn recovery_file(&self) -> PathBuf {
-        self.dir.join("recovery.xml")
+    pub fn recovery_file(&self, document: Document) -> PathBuf {
+        self.dir.join(document.recovery_name())
     }
 
     /// The recent files, newest first. A missing or unreadable list is an empty one.
@@ -83,8 +107,13 @@ impl Home {
         self.write(&self.recent_file(), text.as_bytes())
     }
 
-    /// Writes the recovery copy of the document being edited.
-    pub fn write_recovery(&self, original: Option<&Path>, diagram: &Diagram) -> anyhow::Result<()> {
+    /// Writes the recovery copy of a document being edited (`text`: its XML).
+    pub fn write_recovery(
+        &self,
+        document: Document,
+        original: Option<&Path>,
+        text: &str,
+    ) -> anyhow::Result<()> {
         let original = original
             .map(|path| path.display().to_string())
             .unwrap_or_default();
@@ -94,13 +123,13 @@ impl Home {
         } else {
             original
         };
-        let text = format!("{RECOVERY_TAG}{original} -->\n{}", diagram.to_xml());
-        self.write(&self.recovery_file(), text.as_bytes())
+        let text = format!("{RECOVERY_TAG}{original} -->\n{text}");
+        self.write(&self.recovery_file(document), text.as_bytes())
     }
 
     /// The recovery copy left by a session that did not end cleanly, if any.
-    pub fn recovery(&self) -> Option<Recovery> {
-        let text = std::fs::read_to_string(self.recovery_file()).ok()?;
+    pub fn recovery(&self, document: Document) -> Option<Recovery> {
+        let text = std::fs::read_to_string(self.recovery_file(document)).ok()?;
         let first = text.lines().next().unwrap_or_default();
         let original = first
             .strip_prefix(RECOVERY_TAG)
@@ -114,12 +143,16 @@ impl Home {
                 .unwrap_or_default(),
             false => text,
         };
-        Some(Recovery { original, text })
+        Some(Recovery {
+            document,
+            original,
+            text,
+        })
     }
 
     /// Forgets the recovery copy (after a save, a clean exit, or when the user declines it).
-    pub fn clear_recovery(&self) {
-        match std::fs::remove_file(self.recovery_file()) {
+    pub fn clear_recovery(&self, document: Document) {
+        match std::fs::remove_file(self.recovery_file(document)) {
             Ok(()) => {}
             Err(err) if err.kind() == std::io::ErrorKind::NotFound => {}
             Err(err) => tracing::warn!("cannot remove the recovery file: {err}"),
@@ -191,7 +224,7 @@ mod tests {
     fn recent_files_and_the_recovery_copy() {
         let dir = tempfile::tempdir().unwrap();
         let home = Home::new(dir.path().join("home"));
-        assert!(home.recent().is_empty() && home.recovery().is_none());
+        assert!(home.recent().is_empty() && home.recovery(Document::System).is_none());
         for name in ["a.xml", "b.xml", "a.xml"] {
             home.add_recent(&dir.path().join(name)).unwrap();
         }
@@ -201,12 +234,17 @@ mod tests {
         );
         let mut diagram = Diagram::default();
         diagram.add_block("sink", [1.0, 2.0]);
-        home.write_recovery(Some(&dir.path().join("a.xml")), &diagram)
-            .unwrap();
-        let recovery = home.recovery().unwrap();
+        home.write_recovery(
+            Document::System,
+            Some(&dir.path().join("a.xml")),
+            &diagram.to_xml(),
+        )
+        .unwrap();
+        assert!(home.recovery(Document::Plan).is_none());
+        let recovery = home.recovery(Document::System).unwrap();
         assert_eq!(recovery.original, Some(dir.path().join("a.xml")));
         assert_eq!(Diagram::from_xml(&recovery.text).unwrap(), diagram);
-        home.clear_recovery();
-        assert!(home.recovery().is_none());
+        home.clear_recovery(Document::System);
+        assert!(home.recovery(Document::System).is_none());
     }
 }

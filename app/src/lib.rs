@@ -13,6 +13,7 @@ pub mod diagram;
 pub mod editor;
 pub mod export;
 pub mod files;
+pub mod mission;
 pub mod palette;
 pub mod validation;
 pub mod viewer;

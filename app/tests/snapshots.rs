@@ -67,14 +67,15 @@ fn dragging_a_wire_lights_its_legal_targets() {
     harness.snapshot("wire_drag");
 }
 
-#[test]
-fn the_diagram_exports_as_a_png_picture() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut harness = rendering_harness(dir.path());
-    let picture = dir.path().join("diagram.png");
+/// Exports a picture through the File menu item `item` into `picture`; its width and height.
+fn export_picture(
+    harness: &mut Harness<'_, StudioApp>,
+    item: &str,
+    picture: &std::path::Path,
+) -> (u32, u32) {
     harness.get_by_label("File").click();
     harness.run();
-    harness.get_by_label("Export PNG…").click();
+    harness.get_by_label(item).click();
     harness.run();
     harness.get_by_label("Path:").click();
     harness.run();
@@ -87,14 +88,68 @@ fn the_diagram_exports_as_a_png_picture() {
     harness.run();
     harness.run();
     assert!(picture.exists(), "{}", harness.state().status().text);
-    let bytes = std::fs::read(&picture).unwrap();
+    let bytes = std::fs::read(picture).unwrap();
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
-    // The canvas, not the window: narrower than the 1280-point window, at least 400 wide.
     let width = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
     let height = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+    (width, height)
+}
+
+#[test]
+fn the_diagram_exports_as_a_png_picture() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = rendering_harness(dir.path());
+    let picture = dir.path().join("diagram.png");
+    let (width, height) = export_picture(&mut harness, "Export PNG…", &picture);
+    // The canvas, not the window: narrower than the 1280-point window, at least 400 wide.
     assert!(
         (400..1280).contains(&width) && height >= 300,
         "{width}x{height}"
     );
     harness.get_by_label_contains("exported");
+}
+
+/// The yard's reconnaissance plan in the Mission view: the map rendered from the world, the
+/// route with its appointment and deadline lines, the phase line, the minefield, the symbols,
+/// and the net below.
+fn plan_harness(dir: &std::path::Path) -> Harness<'static, StudioApp> {
+    let plan =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../missions/robot/plan-yard.xml");
+    let mut harness = Harness::builder()
+        .with_size(SIZE)
+        .with_step_dt(1.0 / 60.0)
+        .with_max_steps(60)
+        .wgpu()
+        .build_ui_state(
+            |ui, app: &mut StudioApp| app.ui(ui),
+            StudioApp::new(options(&dir.join("home"), Some(plan))),
+        );
+    harness.run();
+    harness
+}
+
+#[test]
+fn mission_map_with_a_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = plan_harness(dir.path());
+    let mission = harness.state().mission().unwrap();
+    assert_eq!(mission.plan().name, "yard-recon");
+    assert!(mission.checked().net().is_some());
+    mask_status(&mut harness);
+    harness.snapshot("mission_map");
+}
+
+#[test]
+fn the_map_exports_as_a_png_for_a_briefing() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = plan_harness(dir.path());
+    let picture = dir.path().join("briefing.png");
+    let (width, height) = export_picture(&mut harness, "Export map PNG…", &picture);
+    // The map alone: the window less the inspector on the right and the net below.
+    let map = harness.state().mission().unwrap().map_rect();
+    assert_eq!(
+        (width, height),
+        (map.width().round() as u32, map.height().round() as u32)
+    );
+    assert!(width < 1100 && height < 700, "{width}x{height}");
 }

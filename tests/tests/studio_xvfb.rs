@@ -45,7 +45,11 @@ fn window(display: &str) -> Option<String> {
 fn keys_until(studio: &Proc, display: &str, window: &str, keys: &[&str], said: &str) {
     let before = studio.line_count();
     for _ in 0..10 {
-        assert!(xdotool(display, &["windowfocus", "--sync", window]));
+        // A window not yet mapped cannot take the focus: try again.
+        if !xdotool(display, &["windowfocus", "--sync", window]) {
+            wait_until_or(Duration::from_millis(200), || false);
+            continue;
+        }
         for key in keys {
             assert!(xdotool(display, &["key", "--window", window, key]));
         }
@@ -74,8 +78,16 @@ fn wait_until_or(timeout: Duration, mut condition: impl FnMut() -> bool) {
     }
 }
 
-#[test]
-fn the_studio_edits_and_saves_a_file_with_mouse_and_keyboard() {
+/// A studio in its own X server: the server, the studio, the display and the window.
+struct Session {
+    _xvfb: Proc,
+    studio: Proc,
+    display: String,
+    window: String,
+}
+
+/// Starts Xvfb and the studio on `file`, and waits for its window.
+fn start(dir: &Path, file: &Path) -> Session {
     for tool in ["Xvfb", "xdotool"] {
         assert!(
             Command::new("sh")
@@ -85,11 +97,6 @@ fn the_studio_edits_and_saves_a_file_with_mouse_and_keyboard() {
             "{tool} is not installed: run .ci/run, or apt-get install xvfb xdotool"
         );
     }
-    let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("demo.xml");
-    std::fs::write(&file, SYSTEM).unwrap();
-    let saved = dir.path().join("edited.xml");
-
     // Xvfb picks a free display and writes its number on stdout.
     let xvfb = Proc::start(Command::new("Xvfb").args([
         "-displayfd",
@@ -107,10 +114,10 @@ fn the_studio_edits_and_saves_a_file_with_mouse_and_keyboard() {
 
     let studio = Proc::start(
         Command::new(bin("armor-studio"))
-            .arg(&file)
+            .arg(file)
             .env("DISPLAY", &display)
             .env_remove("WAYLAND_DISPLAY")
-            .env("ARMOR_STUDIO_HOME", dir.path().join("home"))
+            .env("ARMOR_STUDIO_HOME", dir.join("home"))
             .env("ARMOR_MODULE_PATH", bin_dir())
             .env("RUST_LOG", "armor_studio=info"),
     );
@@ -122,30 +129,60 @@ fn the_studio_edits_and_saves_a_file_with_mouse_and_keyboard() {
         found = window(&display);
         found.is_some()
     });
-    let window = found.unwrap();
+    Session {
+        _xvfb: xvfb,
+        studio,
+        display,
+        window: found.unwrap(),
+    }
+}
+
+/// Save as: the path typed into the path field replaces the one it offers.
+fn save_as(session: &Session, saved: &Path) {
+    let Session {
+        studio,
+        display,
+        window,
+        ..
+    } = session;
+    keys_until(studio, display, window, &["ctrl+shift+s"], "type a path");
+    assert!(xdotool(display, &["key", "--window", window, "ctrl+a"]));
+    assert!(xdotool(
+        display,
+        &["type", "--window", window, &saved.display().to_string()]
+    ));
+    keys_until(studio, display, window, &["Return"], "saved ");
+    wait_until("the saved file", PATIENCE, || saved.exists());
+}
+
+#[test]
+fn the_studio_edits_and_saves_a_file_with_mouse_and_keyboard() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("demo.xml");
+    std::fs::write(&file, SYSTEM).unwrap();
+    let saved = dir.path().join("edited.xml");
+    let session = start(dir.path(), &file);
+    let Session {
+        studio,
+        display,
+        window,
+        ..
+    } = &session;
 
     // A click on the empty canvas, then select all and duplicate from the keyboard.
     assert!(xdotool(
-        &display,
+        display,
         &["mousemove", "--sync", "700", "650", "click", "1"]
     ));
     keys_until(
-        &studio,
-        &display,
-        &window,
+        studio,
+        display,
+        window,
         &["ctrl+a", "ctrl+d"],
         "pasted 2 blocks",
     );
 
-    // Save as: the path typed into the path field replaces the one it offers.
-    keys_until(&studio, &display, &window, &["ctrl+shift+s"], "type a path");
-    assert!(xdotool(&display, &["key", "--window", &window, "ctrl+a"]));
-    assert!(xdotool(
-        &display,
-        &["type", "--window", &window, &saved.display().to_string()]
-    ));
-    keys_until(&studio, &display, &window, &["Return"], "saved ");
-    wait_until("the saved file", PATIENCE, || saved.exists());
+    save_as(&session, &saved);
 
     let text = std::fs::read_to_string(&saved).unwrap();
     for expected in [
@@ -155,6 +192,41 @@ fn the_studio_edits_and_saves_a_file_with_mouse_and_keyboard() {
     ] {
         assert!(text.contains(expected), "{expected} not in:\n{text}");
     }
+    check(&saved);
+}
+
+#[test]
+fn the_mission_view_adds_waypoints_with_the_mouse_and_saves_the_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan = armor_tests::workspace_root().join("missions/robot/plan-yard.xml");
+    let before = armor_model::plan::Plan::parse(&std::fs::read_to_string(&plan).unwrap()).unwrap();
+    let saved = dir.path().join("yard-more.xml");
+    // A plan opens in the Mission view, fitted to the yard (40 m × 30 m) in the map, which
+    // takes the window but for the inspector on the right and the net below.
+    let session = start(dir.path(), &plan);
+    let Session {
+        studio,
+        display,
+        window,
+        ..
+    } = &session;
+    studio.wait_for("the plan", PATIENCE, |line| line.contains("opened "));
+    keys_until(studio, display, window, &["w"], "waypoint tool");
+    // Two clicks in the yard's open south-west: each adds a waypoint at the route's end.
+    for (x, y, said) in [("380", "390", "added `wp1`"), ("300", "430", "added `wp2`")] {
+        let lines = studio.line_count();
+        assert!(xdotool(
+            display,
+            &["mousemove", "--sync", x, y, "click", "1"]
+        ));
+        studio.wait_for(said, PATIENCE, |line| line.contains(said));
+        assert!(studio.line_count() > lines);
+    }
+    save_as(&session, &saved);
+    let after = armor_model::plan::Plan::parse(&std::fs::read_to_string(&saved).unwrap()).unwrap();
+    assert_eq!(after.waypoints.len(), before.waypoints.len() + 2);
+    assert_eq!(after.legs.len(), before.legs.len() + 2);
+    assert_eq!(after.legs.last().unwrap().to, "wp2");
     check(&saved);
 }
 

@@ -152,6 +152,12 @@ const BENCHES: &[Bench] = &[
         run: studio::run_load,
     },
     Bench {
+        name: studio::NAME_MAP,
+        about: "one frame of armor-studio's Mission view (headless) with a 500-waypoint plan, \
+                40 unit symbols and tactical graphics vs a 60 Hz frame budget (ms; goal < 16)",
+        run: studio::run_map,
+    },
+    Bench {
         name: fuzz::NAME,
         about: "inputs run through each parser's fuzz target by fuzz/run.sh, with the crashes \
                 found (must be 0); needs cargo-fuzz",

@@ -392,7 +392,7 @@ fn compile(plan: &std::path::Path, output: &std::path::Path) -> anyhow::Result<E
         .parent()
         .filter(|dir| !dir.as_os_str().is_empty())
         .unwrap_or_else(|| std::path::Path::new("."));
-    net.system = relative_path(&loaded.system_file, output_dir)
+    net.system = armor_runtime::fs::relative_path(&loaded.system_file, output_dir)
         .to_string_lossy()
         .into_owned();
     armor_runtime::fs::write_atomically(output, net.to_xml().as_bytes())
@@ -406,27 +406,6 @@ fn compile(plan: &std::path::Path, output: &std::path::Path) -> anyhow::Result<E
         plural(loaded.states, "marking")
     );
     Ok(ExitCode::SUCCESS)
-}
-
-/// `target` as seen from the folder `from`: relative when both resolve, else absolute.
-fn relative_path(target: &std::path::Path, from: &std::path::Path) -> PathBuf {
-    let (Ok(target), Ok(from)) = (std::fs::canonicalize(target), std::fs::canonicalize(from))
-    else {
-        return std::path::absolute(target).unwrap_or_else(|_| target.to_path_buf());
-    };
-    let common = target
-        .components()
-        .zip(from.components())
-        .take_while(|(a, b)| a == b)
-        .count();
-    let mut relative = PathBuf::new();
-    for _ in from.components().skip(common) {
-        relative.push("..");
-    }
-    for part in target.components().skip(common) {
-        relative.push(part);
-    }
-    relative
 }
 
 fn print_warnings(file: &std::path::Path, warnings: &[armor_module_api::xml::Located]) {

@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+use armor_model::SystemConfig;
 use armor_model::net::{self, MissionNet};
 use armor_model::plan::{self, Compiled, Plan};
 use armor_model::world::World;
@@ -108,7 +109,8 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
     let (net, compiled) = match source {
         Ok(net) => (net, None),
         Err(plan) => {
-            let world = plan_world(&plan, &system, base)
+            let system_dir = system_file.parent().unwrap_or(base);
+            let world = plan_world(&plan, &system.system, &[base, system_dir])
                 .map_err(|message| fail(vec![Located::new(plan.pos, message)]))?;
             let compiled = plan::compile(&plan, world.as_ref()).map_err(fail)?;
             (compiled.net.clone(), Some(compiled))
@@ -132,10 +134,15 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
 }
 
 /// The world a plan is drawn on: the one it names, else the one its system's simulator loads
-/// (a module parameter called `world`); `None` when neither names one (a real robot).
-fn plan_world(plan: &Plan, system: &Loaded, base: &Path) -> Result<Option<World>, String> {
+/// (a module parameter called `world`); `None` when neither names one (a real robot). It is
+/// looked for from each folder of `bases` in turn (the plan's, then its system file's).
+pub fn plan_world(
+    plan: &Plan,
+    system: &SystemConfig,
+    bases: &[&Path],
+) -> Result<Option<World>, String> {
     let name = if plan.world.is_empty() {
-        let from_system = system.system.modules.iter().find_map(|module| {
+        let from_system = system.modules.iter().find_map(|module| {
             module
                 .param("world")
                 .map(|param| param.value.clone())
@@ -148,7 +155,7 @@ fn plan_world(plan: &Plan, system: &Loaded, base: &Path) -> Result<Option<World>
     } else {
         plan.world.clone()
     };
-    let Some(path) = find_world(&name, base) else {
+    let Some(path) = bases.iter().find_map(|base| find_world(&name, base)) else {
         return Err(format!(
             "cannot find the world `{name}`: looked next to the plan, then in assets/worlds/ \
              of the folders above it and of the current folder"

@@ -1,0 +1,613 @@
+//! The Mission view: a plan drawn on a map of the world the robot runs in, compiled into its
+//! Petri net as it is edited, with the net beside the map.
+//!
+//! - [`plan_edit`]: the editing session over a plan (selection, undo, the route's rules);
+//! - [`tiles`]: the offline map, tiles rendered from the world with tiny-skia;
+//! - [`symbols`]: APP-6 / MIL-STD-2525 unit symbols from SIDC codes;
+//! - [`map`]: the plan drawn over the map and the clicks and drags that edit it;
+//! - [`inspector`]: the properties of what is selected;
+//! - [`net_view`]: the compiled net, laid out, linked to the map's selection.
+//!
+//! This file holds the view's state, what derives from the plan (its system, its world, the
+//! compiled net and its verification) and the files: plans, GPX, mission XML, PNML.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use armor_model::SystemConfig;
+use armor_model::net::{self, Analysis, MissionNet};
+use armor_model::plan::{self, Compiled, LatLon, Origin, Plan};
+use armor_model::world::World;
+use armor_module_api::xml::Located;
+
+use crate::diagram::Catalog;
+use plan_edit::{Outcome, PlanCommand, PlanEditor, Selection};
+
+pub mod inspector;
+pub mod map;
+pub mod net_view;
+pub mod plan_edit;
+pub mod symbols;
+pub mod tiles;
+
+/// Reachable markings explored when a plan's net is verified (as `armor check` does).
+const ANALYSIS_LIMIT_STATES: usize = 200_000;
+
+/// What a click on the map does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tool {
+    /// Select and drag what is on the map.
+    Select,
+    /// Add a waypoint at the end of the route.
+    Waypoint,
+    /// Draw a tactical graphic, corner by corner (double-click or Enter ends it).
+    Graphic(plan::GraphicKind),
+    /// Place a unit symbol.
+    Unit,
+}
+
+impl Tool {
+    /// The toolbar's tools, in order.
+    pub const ALL: [Tool; 7] = [
+        Tool::Select,
+        Tool::Waypoint,
+        Tool::Graphic(plan::GraphicKind::PhaseLine),
+        Tool::Graphic(plan::GraphicKind::Boundary),
+        Tool::Graphic(plan::GraphicKind::Area(plan::AreaKind::NoGo)),
+        Tool::Graphic(plan::GraphicKind::Area(plan::AreaKind::Objective)),
+        Tool::Unit,
+    ];
+
+    /// The toolbar's label.
+    pub fn label(self) -> &'static str {
+        match self {
+            Tool::Select => "Select (V)",
+            Tool::Waypoint => "Waypoint (W)",
+            Tool::Graphic(plan::GraphicKind::PhaseLine) => "Phase line (P)",
+            Tool::Graphic(plan::GraphicKind::Boundary) => "Boundary (B)",
+            Tool::Graphic(plan::GraphicKind::Area(plan::AreaKind::NoGo)) => "No-go area (N)",
+            Tool::Graphic(plan::GraphicKind::Area(plan::AreaKind::Objective)) => "Objective",
+            Tool::Graphic(plan::GraphicKind::Area(_)) => "Area",
+            Tool::Unit => "Unit (U)",
+        }
+    }
+
+    /// What it does, for the toolbar's hint and the status line.
+    pub fn help(self) -> &'static str {
+        match self {
+            Tool::Select => "select tool: click to select, drag to move, right-click for more",
+            Tool::Waypoint => "waypoint tool: click the map to add a waypoint at the route's end",
+            Tool::Graphic(plan::GraphicKind::Area(_)) => {
+                "area tool: click its corners, double-click or Enter to end, Escape to drop"
+            }
+            Tool::Graphic(_) => {
+                "line tool: click its points, double-click or Enter to end, Escape to drop"
+            }
+            Tool::Unit => "unit tool: click the map to place the unit symbol of the code beside",
+        }
+    }
+}
+
+/// The keys that choose a tool on the map.
+pub const TOOL_KEYS: &[(egui::Key, Tool)] = &[
+    (egui::Key::V, Tool::Select),
+    (egui::Key::W, Tool::Waypoint),
+    (egui::Key::P, Tool::Graphic(plan::GraphicKind::PhaseLine)),
+    (egui::Key::B, Tool::Graphic(plan::GraphicKind::Boundary)),
+    (
+        egui::Key::N,
+        Tool::Graphic(plan::GraphicKind::Area(plan::AreaKind::NoGo)),
+    ),
+    (egui::Key::U, Tool::Unit),
+];
+
+/// The plan's surroundings: its system and its world, read from the files it names.
+#[derive(Clone, Debug, Default)]
+pub struct Surroundings {
+    /// The folder the plan's relative paths start from.
+    pub base: PathBuf,
+    pub system_file: PathBuf,
+    pub system: Option<SystemConfig>,
+    pub world: Option<World>,
+    /// Why the system or the world could not be read.
+    pub problems: Vec<String>,
+    /// What they were read for: (base, system, world) of the plan.
+    key: (PathBuf, String, String),
+}
+
+impl Surroundings {
+    fn load(plan: &Plan, base: &Path) -> Surroundings {
+        let system_file = base.join(&plan.system);
+        let mut problems = Vec::new();
+        let system = if plan.system.is_empty() {
+            problems.push("the plan names no system file (set it with nothing selected)".into());
+            None
+        } else {
+            match std::fs::read_to_string(&system_file) {
+                Err(err) => {
+                    problems.push(format!("cannot read {}: {err}", system_file.display()));
+                    None
+                }
+                Ok(text) => match SystemConfig::parse(&text) {
+                    Ok(system) => Some(system),
+                    Err(errors) => {
+                        problems.extend(errors.iter().map(|err| {
+                            format!("{}:{}: {}", system_file.display(), err.pos, err.message)
+                        }));
+                        None
+                    }
+                },
+            }
+        };
+        let world = system.as_ref().and_then(|system| {
+            let system_dir = system_file.parent().unwrap_or(base);
+            armor_runtime::mission::plan_world(plan, system, &[base, system_dir])
+                .map_err(|err| problems.push(err))
+                .ok()
+                .flatten()
+        });
+        Surroundings {
+            base: base.to_path_buf(),
+            system_file,
+            system,
+            world,
+            problems,
+            key: key_of(plan, base),
+        }
+    }
+
+    /// The geographic point of the frame's (0, 0): the world's, else the plan's own.
+    pub fn origin(&self, plan: &Plan) -> LatLon {
+        match &self.world {
+            Some(world) => {
+                let (lat, lon) = world.origin_lat_lon();
+                LatLon::new(lat, lon)
+            }
+            None => plan.origin.unwrap_or_default(),
+        }
+    }
+
+    /// The instances of the system, by name.
+    pub fn module_names(&self) -> Vec<String> {
+        self.system
+            .iter()
+            .flat_map(|system| system.modules.iter().map(|m| m.name.clone()))
+            .collect()
+    }
+}
+
+fn key_of(plan: &Plan, base: &Path) -> (PathBuf, String, String) {
+    (base.to_path_buf(), plan.system.clone(), plan.world.clone())
+}
+
+/// The plan compiled and verified.
+#[derive(Clone, Debug, Default)]
+pub struct Checked {
+    pub compiled: Option<Compiled>,
+    pub analysis: Option<Analysis>,
+    /// What keeps the plan from compiling or running, as `armor check` says it.
+    pub errors: Vec<Located>,
+    /// What may keep it from going as drawn (time constraints).
+    pub warnings: Vec<Located>,
+}
+
+impl Checked {
+    fn of(plan: &Plan, surroundings: &Surroundings, catalog: &Catalog) -> Checked {
+        let mut checked = Checked::default();
+        if plan.waypoints.is_empty() {
+            return checked;
+        }
+        match plan::compile(plan, surroundings.world.as_ref()) {
+            Err(problems) => checked.errors = problems,
+            Ok(compiled) => {
+                if let Some(system) = &surroundings.system {
+                    // Only the module types the palette knows can be checked; the others are
+                    // the diagram's to report.
+                    let known = system
+                        .modules
+                        .iter()
+                        .all(|module| catalog.contains_key(&module.module_type));
+                    if known {
+                        checked.errors = net::check_names(&compiled.net, system, catalog);
+                    }
+                }
+                let analysis = net::analyse(&compiled.net, ANALYSIS_LIMIT_STATES);
+                checked.errors.extend(analysis.problems(&compiled.net));
+                checked.warnings = compiled.warnings.clone();
+                checked.analysis = Some(analysis);
+                checked.compiled = Some(compiled);
+            }
+        }
+        checked
+    }
+
+    pub fn net(&self) -> Option<&MissionNet> {
+        self.compiled.as_ref().map(|compiled| &compiled.net)
+    }
+
+    /// The verification in words.
+    pub fn summary(&self) -> Vec<String> {
+        let (Some(compiled), Some(analysis)) = (&self.compiled, &self.analysis) else {
+            return Vec::new();
+        };
+        let net = &compiled.net;
+        let mut lines = vec![format!(
+            "{} places, {} transitions, {} reachable states{}",
+            net.places.len(),
+            net.transitions.len(),
+            analysis.states,
+            if analysis.truncated {
+                " (stopped at the limit)"
+            } else {
+                ""
+            }
+        )];
+        lines.push(match analysis.dead_count {
+            0 if !analysis.truncated => {
+                "no deadlock: every run ends in a final place or goes on".to_owned()
+            }
+            0 => "no deadlock among the states explored".to_owned(),
+            n => format!("{n} deadlock(s): the mission can get stuck (see the problems)"),
+        });
+        lines.push(match analysis.never_fired.len() {
+            0 => "every transition can fire".to_owned(),
+            n => format!(
+                "{n} transition(s) can never fire: {}",
+                analysis.never_fired.join(", ")
+            ),
+        });
+        lines
+    }
+}
+
+/// What a file operation of the view reports: the status line's text.
+pub type Report = anyhow::Result<String>;
+
+pub struct MissionView {
+    pub editor: PlanEditor,
+    path: Option<PathBuf>,
+    /// The plan as last opened or saved.
+    saved: Plan,
+    pub surroundings: Surroundings,
+    checked: Checked,
+    checked_revision: Option<u64>,
+    pub(crate) commands: Vec<PlanCommand>,
+    pub(crate) map: map::MapState,
+    pub(crate) inspector: inspector::InspectorState,
+    net_layout: net_view::Layout,
+    /// The selection the net view last scrolled to.
+    net_scrolled_for: Option<Selection>,
+}
+
+impl MissionView {
+    pub fn new(ctx: &egui::Context) -> MissionView {
+        let mut view = MissionView {
+            editor: PlanEditor::default(),
+            path: None,
+            saved: Plan::default(),
+            surroundings: Surroundings::default(),
+            checked: Checked::default(),
+            checked_revision: None,
+            commands: Vec::new(),
+            map: map::MapState::new(ctx),
+            inspector: inspector::InspectorState::default(),
+            net_layout: net_view::Layout::default(),
+            net_scrolled_for: None,
+        };
+        view.refresh_surroundings(true);
+        view
+    }
+
+    // ----- What the window, tests and the bench read -----
+
+    pub fn plan(&self) -> &Plan {
+        &self.editor.plan
+    }
+
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+
+    pub fn is_dirty(&self) -> bool {
+        self.editor.plan != self.saved
+    }
+
+    pub fn checked(&self) -> &Checked {
+        &self.checked
+    }
+
+    /// The screen rectangle of the map, as drawn last frame.
+    pub fn map_rect(&self) -> egui::Rect {
+        self.map.rect
+    }
+
+    /// Where a geographic point is on screen (as drawn last frame).
+    pub fn screen_pos(&self, at: LatLon) -> Option<egui::Pos2> {
+        self.map.screen_pos(at)
+    }
+
+    /// Where a point of the world frame (metres) is on screen.
+    pub fn screen_pos_of_local(&self, x_m: f64, y_m: f64) -> Option<egui::Pos2> {
+        let origin = self.surroundings.origin(&self.editor.plan);
+        self.screen_pos(LatLon::from_local(
+            armor_model::world::Point::new(x_m, y_m),
+            origin,
+        ))
+    }
+
+    pub fn set_tool(&mut self, tool: Tool) {
+        self.map.tool = tool;
+        self.map.pending.clear();
+    }
+
+    // ----- Files -----
+
+    /// Starts a new plan on the system file `system` (may be empty: set it later).
+    pub fn new_plan(&mut self, system: Option<&Path>) -> Report {
+        let mut plan = Plan {
+            name: "plan".to_owned(),
+            ..Plan::default()
+        };
+        let base = std::env::current_dir().unwrap_or_default();
+        if let Some(system) = system {
+            plan.system = armor_runtime::fs::relative_path(system, &base)
+                .to_string_lossy()
+                .into_owned();
+        }
+        self.saved = plan.clone();
+        self.editor.replace(plan);
+        self.path = None;
+        self.refresh_surroundings(true);
+        Ok("new plan: click the map with the waypoint tool (W) to draw its route".to_owned())
+    }
+
+    pub fn open(&mut self, file: &Path) -> Report {
+        let text = std::fs::read_to_string(file)
+            .with_context(|| format!("cannot read {}", file.display()))?;
+        let plan = Plan::parse(&text).map_err(|problems| located_error(file, &problems))?;
+        self.saved = plan.clone();
+        self.editor.replace(plan);
+        self.path = Some(file.to_path_buf());
+        self.refresh_surroundings(true);
+        Ok(format!("opened {}", file.display()))
+    }
+
+    /// Saves to `file` (save as: the plan's relative paths are rewritten for the new folder),
+    /// or to the plan's own file.
+    pub fn save(&mut self, file: Option<&Path>) -> Report {
+        let Some(file) = file.map(Path::to_path_buf).or_else(|| self.path.clone()) else {
+            anyhow::bail!("the plan has no file yet: use Save as");
+        };
+        let folder = folder_of(&file);
+        let mut plan = self.editor.plan.clone();
+        if folder != self.surroundings.base && !plan.system.is_empty() {
+            plan.system = armor_runtime::fs::relative_path(&self.surroundings.system_file, &folder)
+                .to_string_lossy()
+                .into_owned();
+        }
+        armor_runtime::fs::write_atomically(&file, plan.to_xml().as_bytes())
+            .with_context(|| format!("cannot save {}", file.display()))?;
+        if plan != self.editor.plan {
+            self.commands.push(PlanCommand::Change {
+                plan: Box::new(plan.clone()),
+                field: "save as".to_owned(),
+            });
+        }
+        self.saved = plan;
+        self.path = Some(file.clone());
+        self.refresh_surroundings(false);
+        Ok(format!("saved {}", file.display()))
+    }
+
+    /// Replaces the plan's waypoints and legs with a GPX file's (the system stays).
+    pub fn import_gpx(&mut self, file: &Path) -> Report {
+        let text = std::fs::read_to_string(file)
+            .with_context(|| format!("cannot read {}", file.display()))?;
+        let name = file
+            .file_stem()
+            .map(|stem| stem.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "imported".to_owned());
+        let imported = plan::gpx::import(&text, &name, &self.editor.plan.system)
+            .map_err(|problems| located_error(file, &problems))?;
+        let mut plan = self.editor.plan.clone();
+        plan.waypoints = imported.waypoints;
+        plan.legs = imported.legs;
+        let count = plan.waypoints.len();
+        self.commands.push(PlanCommand::Change {
+            plan: Box::new(plan),
+            field: "import".to_owned(),
+        });
+        self.map.fit_requested = true;
+        Ok(format!(
+            "imported {count} waypoints from {}",
+            file.display()
+        ))
+    }
+
+    /// The compiled net, or why there is none.
+    fn net_for_export(&self) -> anyhow::Result<MissionNet> {
+        if let Some(first) = self.checked.errors.first() {
+            anyhow::bail!(
+                "the plan has problems; the first: {}: {}",
+                first.pos,
+                first.message
+            );
+        }
+        self.checked
+            .net()
+            .cloned()
+            .context("nothing to export: the plan has no route yet")
+    }
+
+    /// Writes the compiled mission for headless runs (`armor run FILE`), its system path
+    /// right from where it is written.
+    pub fn export_mission(&mut self, file: &Path) -> Report {
+        let mut net = self.net_for_export()?;
+        net.system =
+            armor_runtime::fs::relative_path(&self.surroundings.system_file, &folder_of(file))
+                .to_string_lossy()
+                .into_owned();
+        armor_runtime::fs::write_atomically(file, net.to_xml().as_bytes())
+            .with_context(|| format!("cannot write {}", file.display()))?;
+        Ok(format!(
+            "exported the mission to {} ({} places, {} transitions)",
+            file.display(),
+            net.places.len(),
+            net.transitions.len()
+        ))
+    }
+
+    pub fn export_pnml(&mut self, file: &Path) -> Report {
+        let net = self.net_for_export()?;
+        armor_runtime::fs::write_atomically(file, net::to_pnml(&net).as_bytes())
+            .with_context(|| format!("cannot write {}", file.display()))?;
+        Ok(format!("exported PNML to {}", file.display()))
+    }
+
+    /// The text of the recovery copy.
+    pub fn recovery_text(&self) -> String {
+        self.editor.plan.to_xml()
+    }
+
+    /// Takes back a recovery copy of a plan that was at `original`.
+    pub fn restore(&mut self, original: Option<&Path>, text: &str) -> Report {
+        let plan = Plan::parse(text)
+            .map_err(|problems| located_error(Path::new("the recovery copy"), &problems))?;
+        self.saved = original
+            .and_then(|path| std::fs::read_to_string(path).ok())
+            .and_then(|text| Plan::parse(&text).ok())
+            .unwrap_or_default();
+        self.editor.replace(plan);
+        self.path = original.map(Path::to_path_buf);
+        self.refresh_surroundings(true);
+        Ok("restored the recovery copy of the plan".to_owned())
+    }
+
+    // ----- The frame -----
+
+    /// Applies the queued commands; returns what the status line should say.
+    pub fn apply_commands(&mut self) -> Option<(String, bool)> {
+        let mut status = None;
+        for command in std::mem::take(&mut self.commands) {
+            let undoing = matches!(command, PlanCommand::Undo | PlanCommand::Redo);
+            match self.editor.apply(command) {
+                Outcome::Nothing => {}
+                Outcome::Done(text) => status = Some((text, false)),
+                Outcome::Refused(reason) => status = Some((format!("refused: {reason}"), true)),
+            }
+            if undoing {
+                self.inspector.drafts.clear();
+            }
+        }
+        self.refresh_surroundings(false);
+        self.recheck(false);
+        status
+    }
+
+    /// Reloads the system and world when the plan names others (or `force`).
+    fn refresh_surroundings(&mut self, force: bool) {
+        let base = self
+            .path
+            .as_deref()
+            .map(folder_of)
+            .unwrap_or_else(|| std::env::current_dir().unwrap_or_default());
+        if force || self.surroundings.key != key_of(&self.editor.plan, &base) {
+            self.surroundings = Surroundings::load(&self.editor.plan, &base);
+            let origin = self.surroundings.origin(&self.editor.plan);
+            self.map.set_world(self.surroundings.world.clone(), origin);
+            self.checked_revision = None;
+        }
+    }
+
+    /// Compiles and verifies the plan again when it changed.
+    pub fn recheck(&mut self, catalog_changed: bool) {
+        if catalog_changed {
+            self.checked_revision = None;
+        }
+        let revision = self.editor.revision();
+        if self.checked_revision == Some(revision) {
+            return;
+        }
+        self.checked_revision = Some(revision);
+        self.checked = Checked::of(
+            &self.editor.plan,
+            &self.surroundings,
+            &self.inspector.catalog,
+        );
+        self.net_layout = self.checked.net().map(net_view::layout).unwrap_or_default();
+    }
+
+    /// The net elements that come from the selection (a leg, or a waypoint's legs).
+    pub fn highlighted(&self) -> BTreeSet<String> {
+        let Some(compiled) = &self.checked.compiled else {
+            return BTreeSet::new();
+        };
+        let legs: Vec<usize> = match &self.editor.selection {
+            Selection::Leg(index) => vec![*index],
+            Selection::Waypoint(name) => self
+                .editor
+                .plan
+                .legs
+                .iter()
+                .enumerate()
+                .filter(|(_, leg)| &leg.to == name)
+                .map(|(index, _)| index)
+                .collect(),
+            _ => Vec::new(),
+        };
+        compiled
+            .trace
+            .iter()
+            .filter(|(_, origin)| matches!(origin, Origin::Leg(index) if legs.contains(index)))
+            .map(|(name, _)| name.clone())
+            .collect()
+    }
+
+    /// The net panel: verification in words, then the net.
+    pub fn net_ui(&mut self, ui: &mut egui::Ui) {
+        let highlighted = self.highlighted();
+        let Some(net) = self.checked.net() else {
+            ui.label("No net yet: draw a route of at least two waypoints on the map.");
+            return;
+        };
+        let scroll = self.net_scrolled_for.as_ref() != Some(&self.editor.selection);
+        self.net_scrolled_for = Some(self.editor.selection.clone());
+        let style = net_view::NetStyle {
+            highlighted: &highlighted,
+            marking: None,
+            scroll_to_highlight: scroll && !highlighted.is_empty(),
+        };
+        if let Some(element) = net_view::net_ui(ui, net, &self.net_layout, &style) {
+            let selection = match self
+                .checked
+                .compiled
+                .as_ref()
+                .and_then(|c| c.trace.get(&element))
+            {
+                Some(Origin::Leg(index)) => Selection::Leg(*index),
+                Some(Origin::Waypoint(name)) => Selection::Waypoint(name.clone()),
+                _ => Selection::None,
+            };
+            self.commands.push(PlanCommand::Select(selection));
+        }
+    }
+}
+
+/// The folder a file is in (`.` for a bare name).
+fn folder_of(file: &Path) -> PathBuf {
+    let folder = file
+        .parent()
+        .filter(|dir| !dir.as_os_str().is_empty())
+        .unwrap_or_else(|| Path::new("."));
+    std::path::absolute(folder).unwrap_or_else(|_| folder.to_path_buf())
+}
+
+/// Problems of a file as one error, a `FILE:LINE:COL: message` line each.
+fn located_error(file: &Path, problems: &[Located]) -> anyhow::Error {
+    let lines: Vec<String> = problems
+        .iter()
+        .map(|problem| format!("{}:{}: {}", file.display(), problem.pos, problem.message))
+        .collect();
+    anyhow::anyhow!("{}", lines.join("\n"))
+}

@@ -1,0 +1,240 @@
+//! The Mission view's editing, driven as an operator would: waypoints clicked, dragged,
+//! inserted and deleted on the map; a no-go area drawn corner by corner; a unit placed; undo;
+//! a GPX route imported; the net's selection linked to the map's.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use armor_model::plan::{AreaKind, GraphicKind};
+use armor_studio::StudioApp;
+use armor_studio::mission::plan_edit::Selection;
+use common::*;
+use egui::{Key, Modifiers, Pos2};
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable as _;
+
+fn robot(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../missions/robot")
+        .join(name)
+}
+
+/// The studio on a new plan for the yard's robot, in the Mission view.
+fn yard(dir: &std::path::Path) -> Harness<'static, StudioApp> {
+    let mut harness = Harness::builder()
+        .with_size(SIZE)
+        .with_step_dt(1.0 / 60.0)
+        .with_max_steps(60)
+        .build_ui_state(
+            |ui, app: &mut StudioApp| app.ui(ui),
+            StudioApp::new(options(&dir.join("home"), None)),
+        );
+    harness.run();
+    harness
+        .state_mut()
+        .set_view(armor_studio::app::View::Mission);
+    harness.run();
+    let report = harness
+        .state_mut()
+        .mission_mut()
+        .unwrap()
+        .new_plan(Some(&robot("system.xml")));
+    assert!(report.is_ok(), "{report:?}");
+    harness.run();
+    harness
+}
+
+fn at(harness: &Harness<'_, StudioApp>, x_m: f64, y_m: f64) -> Pos2 {
+    let mission = harness.state().mission().unwrap();
+    mission.screen_pos_of_local(x_m, y_m).unwrap()
+}
+
+/// A click, far enough in time from the last one not to make a double click with it.
+fn tap(harness: &mut Harness<'_, StudioApp>, at: Pos2) {
+    harness.run_steps(30);
+    click(harness, at);
+}
+
+fn local(harness: &Harness<'_, StudioApp>, name: &str) -> (f64, f64) {
+    let mission = harness.state().mission().unwrap();
+    let plan = mission.plan();
+    let p = plan
+        .waypoint(name)
+        .unwrap()
+        .position
+        .to_local(mission.surroundings.origin(plan));
+    (p.x, p.y)
+}
+
+fn route(harness: &Harness<'_, StudioApp>) -> Vec<String> {
+    let plan = harness.state().mission().unwrap().plan();
+    plan.legs
+        .iter()
+        .map(|leg| format!("{}>{}", leg.from, leg.to))
+        .collect()
+}
+
+#[test]
+fn waypoints_are_clicked_dragged_inserted_deleted_and_undone() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    harness.key_press(Key::W);
+    harness.run();
+    assert!(harness.state().status().text.starts_with("waypoint tool"));
+    for (x, y) in [(4.0, 4.0), (12.0, 4.0), (12.0, 14.0)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    assert_eq!(route(&harness), ["wp1>wp2", "wp2>wp3"]);
+
+    // Dragged: the waypoint follows the pointer, and one undo puts it back.
+    harness.key_press(Key::V);
+    harness.run();
+    let (from, to) = (at(&harness, 12.0, 4.0), at(&harness, 16.0, 5.0));
+    drag(&mut harness, from, to);
+    let (x, y) = local(&harness, "wp2");
+    assert!(
+        (x - 16.0).abs() < 0.2 && (y - 5.0).abs() < 0.2,
+        "({x}, {y})"
+    );
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    harness.run();
+    let (x, y) = local(&harness, "wp2");
+    assert!(
+        (x - 12.0).abs() < 0.1 && (y - 4.0).abs() < 0.1,
+        "({x}, {y})"
+    );
+
+    // A right-click on the second leg, then its menu: a waypoint in its middle.
+    let middle = at(&harness, 12.0, 9.0);
+    harness.run_steps(30);
+    harness.hover_at(middle);
+    for pressed in [true, false] {
+        harness.event(egui::Event::PointerButton {
+            pos: middle,
+            button: egui::PointerButton::Secondary,
+            pressed,
+            modifiers: Modifiers::NONE,
+        });
+    }
+    harness.run();
+    harness.get_by_label("Insert a waypoint").click();
+    harness.run();
+    assert_eq!(route(&harness), ["wp1>wp2", "wp2>wp4", "wp4>wp3"]);
+    let (x, y) = local(&harness, "wp4");
+    assert!(
+        (x - 12.0).abs() < 0.1 && (y - 9.0).abs() < 0.1,
+        "({x}, {y})"
+    );
+
+    // Selected on the map and deleted with the key: the route closes up.
+    let p = at(&harness, 12.0, 4.0);
+    tap(&mut harness, p);
+    assert_eq!(
+        harness.state().mission().unwrap().editor.selection,
+        Selection::Waypoint("wp2".into())
+    );
+    harness.key_press(Key::Delete);
+    harness.run();
+    assert_eq!(route(&harness), ["wp1>wp4", "wp4>wp3"]);
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    harness.run();
+    assert_eq!(route(&harness), ["wp1>wp2", "wp2>wp4", "wp4>wp3"]);
+    assert!(
+        harness.state().title().starts_with('*'),
+        "{}",
+        harness.state().title()
+    );
+}
+
+#[test]
+fn a_no_go_area_drawn_on_the_map_sends_the_route_round_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    harness.key_press(Key::W);
+    harness.run();
+    for (x, y) in [(4.0, 4.0), (16.0, 4.0)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    let straight = harness
+        .state()
+        .mission()
+        .unwrap()
+        .checked()
+        .compiled
+        .as_ref()
+        .unwrap()
+        .routes[0]
+        .len();
+    assert_eq!(straight, 2);
+
+    // Four corners across the leg, then Enter.
+    harness.key_press(Key::N);
+    harness.run();
+    for (x, y) in [(9.0, 2.5), (11.0, 2.5), (11.0, 5.5), (9.0, 5.5)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    harness.key_press(Key::Enter);
+    harness.run();
+    let mission = harness.state().mission().unwrap();
+    let area = &mission.plan().graphics[0];
+    assert_eq!(area.kind, GraphicKind::Area(AreaKind::NoGo));
+    assert_eq!(area.points.len(), 4);
+    assert_eq!(area.name, "nogo1");
+    let routes = &mission.checked().compiled.as_ref().unwrap().routes;
+    assert!(
+        routes[0].len() > 2,
+        "the leg goes round the area: {:?}",
+        routes[0]
+    );
+
+    // A unit symbol placed with the unit tool, its code described in the inspector.
+    harness.key_press(Key::U);
+    harness.run();
+    let p = at(&harness, 20.0, 20.0);
+    tap(&mut harness, p);
+    let mission = harness.state().mission().unwrap();
+    assert_eq!(mission.plan().units[0].sidc, "SFGPUCR----D---");
+    assert_eq!(mission.editor.selection, Selection::Unit(0));
+    harness.get_by_label_contains("friend");
+}
+
+#[test]
+fn a_gpx_route_imports_and_the_net_selects_its_leg_on_the_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    harness.get_by_label("File").click();
+    harness.run();
+    harness.get_by_label("Import GPX…").click();
+    harness.run();
+    harness
+        .get_by_label("Path:")
+        .type_text(&robot("yard-route.gpx").display().to_string());
+    harness.key_press(Key::Enter);
+    harness.run();
+    harness.get_by_label_contains("imported");
+    let plan = harness.state().mission().unwrap().plan().clone();
+    assert!(plan.legs.len() >= 3, "{:?}", plan.legs);
+    let checked = harness.state().mission().unwrap().checked();
+    assert!(checked.errors.is_empty(), "{:?}", checked.errors);
+
+    // A click on a transition of the second leg in the net selects that leg.
+    let transition = checked
+        .net()
+        .unwrap()
+        .transitions
+        .iter()
+        .find(|t| t.name.starts_with(&format!("{}_", plan.legs[1].name)))
+        .unwrap()
+        .name
+        .clone();
+    harness.get_by_label(&transition).click();
+    harness.run();
+    assert_eq!(
+        harness.state().mission().unwrap().editor.selection,
+        Selection::Leg(1)
+    );
+    harness.get_by_label_contains(&format!("Leg {}", plan.legs[1].name));
+}
