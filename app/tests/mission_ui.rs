@@ -19,16 +19,24 @@ fn robot(name: &str) -> std::path::PathBuf {
         .join(name)
 }
 
-/// The studio on a new plan for the yard's robot, in the Mission view.
-fn yard(dir: &std::path::Path) -> Harness<'static, StudioApp> {
-    let mut harness = Harness::builder()
+fn studio(options: armor_studio::Options) -> Harness<'static, StudioApp> {
+    Harness::builder()
         .with_size(SIZE)
         .with_step_dt(1.0 / 60.0)
         .with_max_steps(60)
         .build_ui_state(
             |ui, app: &mut StudioApp| app.ui(ui),
-            StudioApp::new(options(&dir.join("home"), None)),
-        );
+            StudioApp::new(options),
+        )
+}
+
+/// The studio on a new plan for the yard's robot, in the Mission view.
+fn yard(dir: &std::path::Path) -> Harness<'static, StudioApp> {
+    yard_with(options(&dir.join("home"), None))
+}
+
+fn yard_with(options: armor_studio::Options) -> Harness<'static, StudioApp> {
+    let mut harness = studio(options);
     harness.run();
     harness
         .state_mut()
@@ -237,4 +245,54 @@ fn a_gpx_route_imports_and_the_net_selects_its_leg_on_the_map() {
         Selection::Leg(1)
     );
     harness.get_by_label_contains(&format!("Leg {}", plan.legs[1].name));
+}
+
+#[test]
+fn an_unsaved_plan_is_offered_back_after_a_crash_and_its_net_exports_as_pnml() {
+    let dir = tempfile::tempdir().unwrap();
+    let home = dir.path().join("home");
+    let mut first = options(&home, None);
+    first.autosave_every = std::time::Duration::ZERO;
+    let mut harness = yard_with(first);
+    harness.key_press(Key::W);
+    harness.run();
+    for (x, y) in [(4.0, 4.0), (12.0, 4.0)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    assert!(home.join("recovery-plan.xml").exists());
+    // The studio "crashes": it is dropped without on_exit.
+    drop(harness);
+
+    let mut harness = studio(options(&home, None));
+    harness.run();
+    harness.get_by_label_contains("an unsaved plan");
+    harness.get_by_label("Restore").click();
+    harness.run();
+    assert_eq!(harness.state().view(), armor_studio::app::View::Mission);
+    assert_eq!(route(&harness), ["wp1>wp2"]);
+    assert!(harness.state().mission().unwrap().is_dirty());
+
+    let pnml = dir.path().join("net.pnml");
+    harness.get_by_label("File").click();
+    harness.run();
+    harness.get_by_label("Export PNML…").click();
+    harness.run();
+    harness
+        .get_by_label("Path:")
+        .type_text(&pnml.display().to_string());
+    harness.key_press(Key::Enter);
+    harness.run();
+    let text = std::fs::read_to_string(&pnml).unwrap();
+    let net = armor_model::net::from_pnml(&text).unwrap();
+    let compiled = harness
+        .state()
+        .mission()
+        .unwrap()
+        .checked()
+        .net()
+        .unwrap()
+        .clone();
+    assert_eq!(net.places.len(), compiled.places.len());
+    assert_eq!(net.transitions.len(), compiled.transitions.len());
 }
