@@ -692,7 +692,12 @@ impl Net {
             FromSupervisor::Start => core.set_active(true),
             FromSupervisor::Stop => core.set_active(false),
             FromSupervisor::Shutdown => core.events.push_back(crate::Event::Shutdown),
-            FromSupervisor::Ping => self.queue_message(token, &ToSupervisor::Pong),
+            FromSupervisor::Ping => self.queue_message(
+                token,
+                &ToSupervisor::Pong {
+                    stats: Some(core.stats()),
+                },
+            ),
             FromSupervisor::Error { message } => tracing::error!("supervisor: {message}"),
         }
     }

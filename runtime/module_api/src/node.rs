@@ -31,7 +31,7 @@ use std::time::{Duration, Instant};
 use crate::clock::Clock;
 use crate::describe::ModuleDescription;
 use crate::net::Net;
-use crate::protocol::{ModuleConfig, ToSupervisor};
+use crate::protocol::{ModuleConfig, NodeStats, ToSupervisor};
 use crate::types::{CodecError, Datum};
 use crate::wire::{self, DataFrame, WireError};
 
@@ -204,6 +204,8 @@ pub(crate) struct InputSlot {
     pub link: u64,
     /// An `Event::Input` for this slot is waiting in the event queue.
     pub notified: bool,
+    /// Samples received since the module started.
+    pub received: u64,
 }
 
 impl InputSlot {
@@ -234,6 +236,11 @@ pub(crate) struct Core {
     pub inputs: Vec<InputSlot>,
     pub outputs: Vec<OutputSlot>,
     pub events: VecDeque<Event>,
+    /// Events taken by the module's loop, and the real time spent in its code between them.
+    pub cycles: u64,
+    pub busy: Duration,
+    /// When the module last took an event (its code has been running since).
+    pub took_event_at: Option<Instant>,
 }
 
 impl Core {
@@ -257,6 +264,7 @@ impl Core {
                 queued_bytes: 0,
                 link: 0,
                 notified: false,
+                received: 0,
             })
             .collect();
         let outputs = description
@@ -283,12 +291,34 @@ impl Core {
             inputs,
             outputs,
             events: VecDeque::new(),
+            cycles: 0,
+            busy: Duration::ZERO,
+            took_event_at: None,
+        }
+    }
+
+    /// What the module did so far, for its supervisor (see [`NodeStats`]).
+    pub fn stats(&self) -> NodeStats {
+        NodeStats {
+            cycles: self.cycles,
+            busy_us: u64::try_from(self.busy.as_micros()).unwrap_or(u64::MAX),
+            sent: self
+                .outputs
+                .iter()
+                .map(|slot| (slot.data_name.clone(), slot.seq))
+                .collect(),
+            received: self
+                .inputs
+                .iter()
+                .map(|slot| (slot.name.clone(), slot.received))
+                .collect(),
         }
     }
 
     /// Stores a received sample. Returns whether the input can take more right now.
     pub fn deliver(&mut self, index: usize, frame: DataFrame) -> bool {
         let slot = &mut self.inputs[index];
+        slot.received += 1;
         if slot.reliable {
             slot.queued_bytes += frame.payload.len();
             slot.queue.push_back((slot.link, frame));
@@ -617,6 +647,7 @@ impl Node {
             queued_bytes: 0,
             link: 0,
             notified: false,
+            received: 0,
         });
         if let Transport::Net(net) = &mut self.transport {
             net.add_input(&self.core, index);
@@ -746,6 +777,16 @@ impl Node {
     }
 
     fn wait_event(&mut self, deadline: Option<Instant>) -> Result<Event, ApiError> {
+        if let Some(took) = self.core.took_event_at.take() {
+            self.core.busy += took.elapsed();
+        }
+        let event = self.next_queued_event(deadline);
+        self.core.cycles += 1;
+        self.core.took_event_at = Some(Instant::now());
+        event
+    }
+
+    fn next_queued_event(&mut self, deadline: Option<Instant>) -> Result<Event, ApiError> {
         loop {
             if let Some(event) = self.core.take_event() {
                 return Ok(event);

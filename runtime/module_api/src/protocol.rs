@@ -69,7 +69,27 @@ pub enum ToSupervisor {
     Event {
         name: String,
     },
-    Pong,
+    /// The answer to a ping, with what the module did so far (absent from modules that do not
+    /// count: `{"type":"pong"}` is a valid answer).
+    Pong {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        stats: Option<NodeStats>,
+    },
+}
+
+/// A module's work since it started, as its node counts it: the run view's rates and cycle
+/// times are differences between two of these.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NodeStats {
+    /// Events the module's loop has taken (returns of `next_event`).
+    pub cycles: u64,
+    /// Real time spent in the module's own code, between taking an event and asking for the
+    /// next, in microseconds.
+    pub busy_us: u64,
+    /// Samples published, per output (its unique data name).
+    pub sent: BTreeMap<String, u64>,
+    /// Samples received, per input name.
+    pub received: BTreeMap<String, u64>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]

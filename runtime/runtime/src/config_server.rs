@@ -20,7 +20,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use armor_module_api::auth::Secret;
-use armor_module_api::protocol::{FromSupervisor, ModuleConfig, ToSupervisor};
+use armor_module_api::protocol::{FromSupervisor, ModuleConfig, NodeStats, ToSupervisor};
 use armor_module_api::wire::{WireError, blocking};
 use notify::{RecursiveMode, Watcher as _};
 
@@ -87,6 +87,11 @@ struct State {
     control: Control,
     conns: HashMap<String, ModuleConn>,
     next_conn_id: u64,
+    /// The operator's hand on controllable modules (true: started, false: stopped), over
+    /// the controller's wishes until released.
+    overrides: BTreeMap<String, bool>,
+    /// What each module last said of its work (with its answers to pings).
+    stats: HashMap<String, NodeStats>,
 }
 
 impl State {
@@ -102,7 +107,12 @@ impl State {
             .descriptions
             .get(&instance.module_type)
             .is_none_or(|description| description.controllable);
-        config.active = !(controllable && self.control.inactive.contains(module));
+        config.active = !controllable
+            || self
+                .overrides
+                .get(module)
+                .copied()
+                .unwrap_or(!self.control.inactive.contains(module));
         Some(config)
     }
 
@@ -189,6 +199,8 @@ impl ConfigServer {
                 control,
                 conns: HashMap::new(),
                 next_conn_id: 0,
+                overrides: BTreeMap::new(),
+                stats: HashMap::new(),
             })),
             events,
             addr: listener.local_addr()?,
@@ -296,6 +308,7 @@ impl ConfigServer {
                 .is_some_and(|conn| conn.conn_id == conn_id)
             {
                 state.conns.remove(&module);
+                state.stats.remove(&module);
                 drop(state);
                 let _ = self.events.send(ServerEvent::Disconnected { module });
             }
@@ -356,7 +369,13 @@ impl ConfigServer {
                     module: name.clone(),
                     name: event,
                 },
-                ToSupervisor::Pong | ToSupervisor::Hello { .. } => continue,
+                ToSupervisor::Pong { stats } => {
+                    if let Some(stats) = stats {
+                        self.lock().stats.insert(name.clone(), stats);
+                    }
+                    continue;
+                }
+                ToSupervisor::Hello { .. } => continue,
             };
             let _ = self.events.send(event);
         }
@@ -385,6 +404,53 @@ impl ConfigServer {
             state.push_changes()
         };
         tracing::debug!(modules = ?updated, "control applied");
+    }
+
+    /// Starts (`Some(true)`) or stops (`Some(false)`) a controllable module by hand, whatever
+    /// the controller wants, or gives it back to the controller (`None`).
+    pub fn set_override(&self, module: &str, active: Option<bool>) -> Result<(), String> {
+        let mut state = self.lock();
+        let instance = state
+            .loaded
+            .system
+            .module(module)
+            .ok_or_else(|| format!("no module `{module}` in this system"))?;
+        let controllable = state
+            .loaded
+            .descriptions
+            .get(&instance.module_type)
+            .is_some_and(|description| description.controllable);
+        if !controllable {
+            return Err(format!(
+                "`{module}` is not controllable: it runs whenever its process does"
+            ));
+        }
+        match active {
+            Some(active) => state.overrides.insert(module.to_owned(), active),
+            None => state.overrides.remove(module),
+        };
+        state.push_changes();
+        Ok(())
+    }
+
+    /// For each connected module: whether it is active, and the operator's override if any.
+    pub fn activity(&self) -> BTreeMap<String, (bool, Option<bool>)> {
+        let state = self.lock();
+        state
+            .conns
+            .iter()
+            .map(|(name, conn)| {
+                (
+                    name.clone(),
+                    (conn.sent.active, state.overrides.get(name).copied()),
+                )
+            })
+            .collect()
+    }
+
+    /// What each module last said of its work.
+    pub fn stats(&self) -> HashMap<String, NodeStats> {
+        self.lock().stats.clone()
     }
 
     /// Watches `file` and reloads it on every change, until the process ends.

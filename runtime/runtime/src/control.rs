@@ -1,6 +1,7 @@
-//! The operator's hold on a running mission (adjustable autonomy): pause, resume, abort, fire a
-//! transition by hand, and ask for the state. `armor run` serves it on a TCP port as JSON lines,
-//! one request and one reply per line; `armor ctl` and the studio are its clients.
+//! The operator's hold on a run (adjustable autonomy): ask for the state of every module and of
+//! the mission, start and stop modules by hand, and pause, resume, abort a mission or fire a
+//! transition by hand. `armor run` serves it on a TCP port as JSON lines, one request and one
+//! reply per line; `armor ctl` and the studio's run view are its clients.
 //!
 //! ```text
 //! → {"command":"fire","transition":"leave_wp1"}
@@ -23,6 +24,7 @@ use std::time::Duration;
 
 use armor_model::net::Marking;
 use armor_module_api::auth::{Handshake, NONCE_BYTES, Secret};
+use armor_module_api::protocol::NodeStats;
 use serde::{Deserialize, Serialize};
 
 pub const ENV_CONTROL: &str = "ARMOR_CONTROL";
@@ -37,18 +39,125 @@ pub enum Request {
     Pause,
     Resume,
     Abort,
-    Fire { transition: String },
+    Fire {
+        transition: String,
+    },
+    /// Start a controllable module by hand, whatever the mission wants, until released.
+    StartModule {
+        module: String,
+    },
+    /// Stop a controllable module by hand, until released.
+    StopModule {
+        module: String,
+    },
+    /// Give a module back to the mission (or, without one, to running).
+    ReleaseModule {
+        module: String,
+    },
+}
+
+/// A run's state: every module, and the mission if there is one.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    pub system: String,
+    pub run_secs: f64,
+    pub time_scale: f64,
+    /// The agent's address, for a client that wants to subscribe to the run's data.
+    pub agent: String,
+    pub modules: Vec<ModuleStatus>,
+    pub mission: Option<MissionStatus>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Status {
-    pub mission: String,
-    pub run_secs: f64,
+pub struct MissionStatus {
+    pub name: String,
     pub paused: bool,
     pub marking: Marking,
     /// Transitions that may fire now or later, each with what it waits for.
-    pub enabled: Vec<String>,
+    pub enabled: Vec<Enabled>,
     pub active_modules: Vec<String>,
+    /// The latest firings, oldest first, and how many there were in all.
+    pub firings: Vec<FiringRecord>,
+    pub firings_total: usize,
+    /// `complete`, `aborted`, `deadlock` or `failed` once the mission has ended.
+    pub outcome: Option<String>,
+}
+
+/// An enabled transition and what it still waits for (an event, the rest of a delay, a date,
+/// the operator); nothing when it fires at the next step.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Enabled {
+    pub transition: String,
+    pub waits_for: Vec<String>,
+}
+
+impl std::fmt::Display for Enabled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.transition)?;
+        if !self.waits_for.is_empty() {
+            write!(f, " (waits for {})", self.waits_for.join(", "))?;
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FiringRecord {
+    pub run_secs: f64,
+    pub transition: String,
+    pub by_hand: bool,
+}
+
+/// A module's process and activity, as the run view's module monitor shows it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModuleState {
+    /// Its process is up, not yet configured.
+    #[default]
+    Starting,
+    /// Configured and at work.
+    Running,
+    /// Configured and idle: the mission (or the operator) stopped it.
+    Stopped,
+    /// Its process died; it is started again after a backoff.
+    Crashed,
+    /// Started again after a crash, not yet configured.
+    Restarting,
+    /// Crashed too often (or with restart `never`): given up.
+    Failed,
+    /// Ended on its own, successfully.
+    Exited,
+}
+
+impl ModuleState {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ModuleState::Starting => "starting",
+            ModuleState::Running => "running",
+            ModuleState::Stopped => "stopped",
+            ModuleState::Crashed => "crashed",
+            ModuleState::Restarting => "restarting",
+            ModuleState::Failed => "failed",
+            ModuleState::Exited => "exited",
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ModuleStatus {
+    pub name: String,
+    pub module_type: String,
+    pub state: ModuleState,
+    /// Whether the mission (and the operator) can start and stop it.
+    pub controllable: bool,
+    /// The operator's hand on it: started (`true`) or stopped (`false`) until released.
+    pub manual: Option<bool>,
+    pub pid: Option<u32>,
+    pub restarts: u32,
+    /// How its process last ended, when it crashed (`was killed by signal 9`).
+    pub last_exit: Option<String>,
+    /// What it did so far, as of its last answer to a ping.
+    pub stats: Option<NodeStats>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

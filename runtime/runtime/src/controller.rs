@@ -3,7 +3,7 @@
 //! delays and dates wake the supervisor's loop at the right moment. What a firing starts and
 //! stops, and the parameters of the marked places, reach the modules through the config server.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, VecDeque};
 use std::path::Path;
 use std::time::Instant;
 
@@ -12,7 +12,7 @@ use armor_module_api::Clock;
 use serde_json::json;
 
 use crate::config_server::{ConfigServer, Control};
-use crate::control::{Reply, Request, Status};
+use crate::control::{Enabled, FiringRecord, MissionStatus, Request};
 
 /// How a mission ended.
 #[derive(Clone, Debug, PartialEq)]
@@ -46,7 +46,13 @@ pub struct Controller {
     /// looping mission fires forever.
     timeline: Option<Vec<serde_json::Value>>,
     timeline_dropped: usize,
+    /// The latest firings, for the status, and how many there were.
+    recent: VecDeque<FiringRecord>,
+    firings_total: usize,
 }
+
+/// The most firings a status carries (the latest).
+const RECENT_FIRINGS: usize = 200;
 
 /// The most timeline entries a report keeps (the first ones; later ones are counted).
 pub const MAX_TIMELINE: usize = 100_000;
@@ -72,6 +78,8 @@ impl Controller {
             outcome: None,
             timeline: keep_timeline.then(Vec::new),
             timeline_dropped: 0,
+            recent: VecDeque::new(),
+            firings_total: 0,
         };
         controller.record("started", json!({ "marking": controller.engine.marking() }));
         controller
@@ -103,6 +111,18 @@ impl Controller {
         self.engine
             .next_deadline()
             .map(|run_secs| self.clock.instant_at(run_secs))
+    }
+
+    fn remember(&mut self, firing: &Firing, by_hand: bool) {
+        if self.recent.len() == RECENT_FIRINGS {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(FiringRecord {
+            run_secs: firing.at_secs,
+            transition: firing.transition.clone(),
+            by_hand,
+        });
+        self.firings_total += 1;
     }
 
     fn record(&mut self, kind: &str, details: serde_json::Value) {
@@ -157,6 +177,7 @@ impl Controller {
         let before = self.engine.active_modules();
         let firings = self.engine.step(self.clock.now_secs());
         for firing in &firings {
+            self.remember(firing, false);
             tracing::info!(
                 "fired `{}` at {:.2} s → {}{}{}",
                 firing.transition,
@@ -226,60 +247,67 @@ impl Controller {
         server.set_control(self.control());
     }
 
-    pub fn status(&self) -> Status {
-        Status {
-            mission: self.net.name.clone(),
-            run_secs: self.clock.now_secs(),
+    pub fn status(&self) -> MissionStatus {
+        MissionStatus {
+            name: self.net.name.clone(),
             paused: self.paused,
             marking: self.engine.marking(),
             enabled: self
                 .engine
                 .enabled()
                 .into_iter()
-                .map(|name| self.waits_for(&name))
+                .map(|name| self.waits_for(name))
                 .collect(),
             active_modules: self.engine.active_modules().into_iter().collect(),
+            firings: self.recent.iter().cloned().collect(),
+            firings_total: self.firings_total,
+            outcome: self.outcome.as_ref().map(|outcome| outcome.as_str().to_owned()),
         }
     }
 
-    /// `name (waits for nav.goal_reached, 3.2 s)`: what an enabled transition waits for.
-    fn waits_for(&self, name: &str) -> String {
-        let Some(transition) = self.net.transition(name) else {
-            return name.to_owned();
-        };
-        let now = self.clock.now_secs();
-        let mut waits = Vec::new();
-        if let Some(event) = &transition.condition.event
-            && !self.engine.event_latched(name)
-        {
-            waits.push(event.clone());
-        }
-        if let (Some(delay), Some(since)) = (
-            transition.condition.delay_secs,
-            self.engine.enabled_since(name),
-        ) {
-            let left = since + delay - now;
-            if left > 0.0 {
-                waits.push(format!("{left:.1} s"));
+    /// What an enabled transition waits for: its event, the rest of its delay, its date, the
+    /// operator.
+    fn waits_for(&self, name: String) -> Enabled {
+        let mut waits_for = Vec::new();
+        if let Some(transition) = self.net.transition(&name) {
+            let now = self.clock.now_secs();
+            if let Some(event) = &transition.condition.event
+                && !self.engine.event_latched(&name)
+            {
+                waits_for.push(event.clone());
+            }
+            if let (Some(delay), Some(since)) = (
+                transition.condition.delay_secs,
+                self.engine.enabled_since(&name),
+            ) {
+                let left = since + delay - now;
+                if left > 0.0 {
+                    waits_for.push(format!("{left:.1} s"));
+                }
+            }
+            if let Some(at) = transition.condition.at_unix_secs {
+                let left = at - self.engine.date_origin() - now;
+                if left > 0.0 {
+                    waits_for.push(format!("its date, in {left:.1} s"));
+                }
+            }
+            if transition.condition.operator {
+                waits_for.push("the operator".to_owned());
             }
         }
-        if transition.condition.at_unix_secs.is_some() {
-            waits.push("its date".to_owned());
-        }
-        if transition.condition.operator {
-            waits.push("the operator".to_owned());
-        }
-        if waits.is_empty() {
-            name.to_owned()
-        } else {
-            format!("{name} (waits for {})", waits.join(", "))
+        Enabled {
+            transition: name,
+            waits_for,
         }
     }
 
-    /// Answers an operator's request.
-    pub fn handle(&mut self, request: Request, server: &ConfigServer) -> Reply {
-        let (ok, message) = match request {
-            Request::Status => (true, "status".to_owned()),
+    /// Answers an operator's request about the mission: whether it was done, and what was.
+    pub fn handle(&mut self, request: Request, server: &ConfigServer) -> (bool, String) {
+        match request {
+            Request::Status
+            | Request::StartModule { .. }
+            | Request::StopModule { .. }
+            | Request::ReleaseModule { .. } => (false, "not a mission request".to_owned()),
             Request::Pause if self.paused => (false, "already paused".to_owned()),
             Request::Pause => {
                 self.paused = true;
@@ -307,6 +335,7 @@ impl Controller {
                 let before = self.engine.active_modules();
                 match self.engine.fire_by_hand(&transition, self.clock.now_secs()) {
                     Ok(firing) => {
+                        self.remember(&firing, true);
                         tracing::info!(
                             "operator fired `{}` → {}",
                             firing.transition,
@@ -329,11 +358,6 @@ impl Controller {
                     Err(err) => (false, err.to_string()),
                 }
             }
-        };
-        Reply {
-            ok,
-            message,
-            status: Some(self.status()),
         }
     }
 

@@ -13,7 +13,10 @@ pub mod load;
 pub mod mission;
 pub mod probe;
 pub mod process;
+pub mod replay;
 pub mod supervisor;
 
 /// The agent's first line on stdout, followed by the address it listens on.
 pub const AGENT_READY_PREFIX: &str = "armor agent listening on ";
+/// `armor run`'s line on stdout, followed by the address of its control interface.
+pub const CONTROL_READY_PREFIX: &str = "armor run control interface at ";

@@ -6,10 +6,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context as _;
-use armor_runtime::{agent, control, load, mission, probe, supervisor};
+use armor_runtime::{agent, control, load, mission, probe, replay, supervisor};
 use clap::{Parser, Subcommand};
-
-mod replay;
 
 #[derive(Parser)]
 #[command(
@@ -24,8 +22,19 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum CtlCommand {
-    /// The marking, what each enabled transition waits for, the active modules.
-    Status,
+    /// Every module's state, and the mission's marking and what each enabled transition waits
+    /// for.
+    Status {
+        /// Print the whole status as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Start a controllable module by hand, whatever the mission wants, until released.
+    Start { module: String },
+    /// Stop a controllable module by hand, until released.
+    Stop { module: String },
+    /// Give a module started or stopped by hand back to the mission.
+    Release { module: String },
     /// Hold every controllable module; fire nothing until resumed.
     Pause,
     Resume,
@@ -79,7 +88,8 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
-    /// Operate a running mission: status, pause, resume, abort, or fire a transition by hand.
+    /// Operate a run: status, start and stop modules; pause, resume, abort a mission, or fire a
+    /// transition by hand.
     Ctl {
         /// The run's control interface (printed by `armor run`; default: $ARMOR_CONTROL).
         #[arg(long, env = armor_runtime::control::ENV_CONTROL)]
@@ -234,8 +244,12 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 .filter(|file| !file.as_os_str().is_empty())
                 .map(|file| armor_module_api::auth::Secret::load(&file))
                 .transpose()?;
+            let json = matches!(request, CtlCommand::Status { json: true });
             let request = match request {
-                CtlCommand::Status => control::Request::Status,
+                CtlCommand::Status { .. } => control::Request::Status,
+                CtlCommand::Start { module } => control::Request::StartModule { module },
+                CtlCommand::Stop { module } => control::Request::StopModule { module },
+                CtlCommand::Release { module } => control::Request::ReleaseModule { module },
                 CtlCommand::Pause => control::Request::Pause,
                 CtlCommand::Resume => control::Request::Resume,
                 CtlCommand::Abort => control::Request::Abort,
@@ -243,8 +257,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             };
             let reply = control::request(addr, &request, secret.as_ref())?;
             println!("{}", reply.message);
-            if let Some(status) = reply.status {
-                println!("{}", serde_json::to_string_pretty(&status)?);
+            match reply.status {
+                Some(status) if json => println!("{}", serde_json::to_string_pretty(&status)?),
+                Some(status) => print!("{}", status_text(&status)),
+                None => {}
             }
             Ok(if reply.ok {
                 ExitCode::SUCCESS
@@ -492,6 +508,60 @@ fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration) -> ExitCode 
     } else {
         ExitCode::SUCCESS
     }
+}
+
+/// A run's status as `armor ctl status` prints it.
+fn status_text(status: &control::Status) -> String {
+    use std::fmt::Write as _;
+    let mut out = format!(
+        "system `{}` at {:.1} s of run time (×{})\n",
+        status.system, status.run_secs, status.time_scale
+    );
+    for module in &status.modules {
+        let _ = write!(
+            out,
+            "  {} ({}): {}",
+            module.name,
+            module.module_type,
+            module.state.as_str()
+        );
+        if let Some(manual) = module.manual {
+            out.push_str(if manual {
+                ", started by hand"
+            } else {
+                ", stopped by hand"
+            });
+        }
+        if module.restarts > 0 {
+            let _ = write!(out, ", {}", plural(module.restarts as usize, "restart"));
+        }
+        if let Some(exit) = &module.last_exit {
+            let _ = write!(out, " (last {exit})");
+        }
+        out.push('\n');
+    }
+    if let Some(mission) = &status.mission {
+        let marking: Vec<String> = mission
+            .marking
+            .iter()
+            .map(|(place, tokens)| match tokens {
+                1 => place.clone(),
+                _ => format!("{place}×{tokens}"),
+            })
+            .collect();
+        let _ = writeln!(
+            out,
+            "mission `{}`{}: {{{}}}, {}",
+            mission.name,
+            if mission.paused { " (paused)" } else { "" },
+            marking.join(", "),
+            plural(mission.firings_total, "firing")
+        );
+        for enabled in &mission.enabled {
+            let _ = writeln!(out, "  enabled: {enabled}");
+        }
+    }
+    out
 }
 
 fn plural(count: usize, noun: &str) -> String {

@@ -9,7 +9,7 @@
 //! `.partial` file left by a crash) is played as far as it goes.
 
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
@@ -152,6 +152,60 @@ fn read_plans(file: &str, bytes: &[u8]) -> anyhow::Result<Option<HashMap<u16, Pl
     Ok(Some(plans))
 }
 
+/// One message of a recording, as its node sent it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Recorded {
+    /// When the recorder logged it (Unix nanoseconds).
+    pub log_time_ns: u64,
+    pub data_name: String,
+    pub data_type: String,
+    /// The datum's encoding on the wire (postcard for the built-in types).
+    pub payload: Vec<u8>,
+}
+
+/// Every message of a recording, in order; an unfinished one is read as far as it goes.
+pub fn read_recording(file: &Path) -> anyhow::Result<Vec<Recorded>> {
+    let name = file.display().to_string();
+    let bytes = std::fs::read(file).with_context(|| format!("cannot read {name}"))?;
+    let plans = read_plans(&name, &bytes)?;
+    if plans.is_none() {
+        tracing::warn!("{name} has no summary (an unfinished recording?): reading what it holds");
+    }
+    let mut plans = plans.unwrap_or_default();
+    let options = mcap::read::Options::IgnoreEndMagic.into();
+    let stream = mcap::MessageStream::new_with_options(&bytes, options)
+        .with_context(|| format!("{name} is not a valid MCAP file"))?;
+    let mut messages = Vec::new();
+    for message in stream {
+        let message = match message {
+            Ok(message) => message,
+            Err(err) if !messages.is_empty() => {
+                tracing::warn!("{name}: stopped at a damaged or unfinished part: {err}");
+                break;
+            }
+            Err(err) => return Err(err).with_context(|| format!("{name} is not a valid MCAP file")),
+        };
+        let plan = match plans.entry(message.channel.id) {
+            std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
+            std::collections::hash_map::Entry::Vacant(entry) => entry.insert(
+                plan(&message.channel).with_context(|| format!("cannot replay {name}"))?,
+            ),
+        };
+        let payload = match plan.conversion {
+            Conversion::FromJson => from_json(&plan.data_type, &message.data)
+                .with_context(|| format!("channel `{}`", plan.data_name))?,
+            Conversion::AsIs => message.data.into_owned(),
+        };
+        messages.push(Recorded {
+            log_time_ns: message.log_time,
+            data_name: plan.data_name.clone(),
+            data_type: plan.data_type.clone(),
+            payload,
+        });
+    }
+    Ok(messages)
+}
+
 /// Replays a recording until its end (or forever with `looping`).
 pub fn run(options: &Options) -> anyhow::Result<()> {
     let scale = options.time_scale;
@@ -159,11 +213,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         bail!("--time-scale must be a positive number, not {scale}");
     }
     let name = options.file.display().to_string();
-    let bytes = std::fs::read(&options.file).with_context(|| format!("cannot read {name}"))?;
-    let plans = read_plans(&name, &bytes)?;
-    if plans.is_none() {
-        tracing::warn!("{name} has no summary (an unfinished recording?): playing what it holds");
-    }
+    let messages = read_recording(&options.file)?;
     let spec = ModuleSpec::new(NODE_NAME, "Publishes a recording again.");
     let mut node = Node::connect(
         spec,
@@ -177,25 +227,22 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         node: &mut node,
         outputs: HashMap::new(),
     };
-    if let Some(plans) = &plans {
-        let mut ids: Vec<u16> = plans.keys().copied().collect();
-        ids.sort_unstable();
-        for id in ids {
-            player.publish(id, plans[&id].clone())?;
-        }
-        player.wait_for_subscribers(options.wait_for_subscribers)?;
+    for message in &messages {
+        player.publish(&message.data_name, &message.data_type)?;
     }
+    player.wait_for_subscribers(options.wait_for_subscribers)?;
     loop {
         let started = Instant::now();
-        let played = player.play_once(&name, &bytes, scale)?;
+        player.play_once(&messages, scale)?;
         tracing::info!(
-            "replayed {played} messages from {name} in {:.2} s",
+            "replayed {} messages from {name} in {:.2} s",
+            messages.len(),
             started.elapsed().as_secs_f64()
         );
         if !options.looping {
             break;
         }
-        if played == 0 {
+        if messages.is_empty() {
             bail!("{name} holds no message to play in a loop");
         }
     }
@@ -204,22 +251,21 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
 
 struct Player<'a> {
     node: &'a mut Node,
-    /// Channel id → where its messages go.
-    outputs: HashMap<u16, (RawOutput, Plan)>,
+    /// Data name → where its messages go.
+    outputs: HashMap<String, RawOutput>,
 }
 
 impl Player<'_> {
-    fn publish(&mut self, channel_id: u16, plan: Plan) -> anyhow::Result<()> {
+    fn publish(&mut self, data_name: &str, data_type: &str) -> anyhow::Result<()> {
+        if self.outputs.contains_key(data_name) {
+            return Ok(());
+        }
         let output = self
             .node
-            .publish_raw(&plan.data_name, &plan.data_type)
-            .with_context(|| format!("cannot publish `{}`", plan.data_name))?;
-        tracing::info!(
-            data_name = plan.data_name,
-            data_type = plan.data_type,
-            "publishing"
-        );
-        self.outputs.insert(channel_id, (output, plan));
+            .publish_raw(data_name, data_type)
+            .with_context(|| format!("cannot publish `{data_name}`"))?;
+        tracing::info!(data_name, data_type, "publishing");
+        self.outputs.insert(data_name.to_owned(), output);
         Ok(())
     }
 
@@ -231,9 +277,9 @@ impl Player<'_> {
         loop {
             let waiting: Vec<&str> = self
                 .outputs
-                .values()
-                .filter(|(output, _)| self.node.raw_subscriber_count(output) == 0)
-                .map(|(_, plan)| plan.data_name.as_str())
+                .iter()
+                .filter(|(_, output)| self.node.raw_subscriber_count(output) == 0)
+                .map(|(data_name, _)| data_name.as_str())
                 .collect();
             if waiting.is_empty() {
                 return Ok(());
@@ -257,47 +303,22 @@ impl Player<'_> {
         }
     }
 
-    /// Plays every message once, at its recorded time from the first; returns how many.
-    fn play_once(&mut self, name: &str, bytes: &[u8], scale: f64) -> anyhow::Result<u64> {
-        let options = mcap::read::Options::IgnoreEndMagic.into();
-        let stream = mcap::MessageStream::new_with_options(bytes, options)
-            .with_context(|| format!("{name} is not a valid MCAP file"))?;
+    /// Plays every message once, at its recorded time from the first.
+    fn play_once(&mut self, messages: &[Recorded], scale: f64) -> anyhow::Result<()> {
         let started = Instant::now();
-        let mut first_ns = None;
-        let mut played = 0;
-        for message in stream {
-            let message = match message {
-                Ok(message) => message,
-                Err(err) if played > 0 => {
-                    tracing::warn!("{name}: stopped at a damaged or unfinished part: {err}");
-                    break;
-                }
-                Err(err) => {
-                    return Err(err).with_context(|| format!("{name} is not a valid MCAP file"));
-                }
-            };
-            let channel_id = message.channel.id;
-            if !self.outputs.contains_key(&channel_id) {
-                let plan =
-                    plan(&message.channel).with_context(|| format!("cannot replay {name}"))?;
-                self.publish(channel_id, plan)?;
-            }
-            let first = *first_ns.get_or_insert(message.log_time);
-            let offset = message.log_time.saturating_sub(first) as f64 / 1e9 / scale;
+        let Some(first_ns) = messages.first().map(|message| message.log_time_ns) else {
+            return Ok(());
+        };
+        for message in messages {
+            let offset = message.log_time_ns.saturating_sub(first_ns) as f64 / 1e9 / scale;
             let due = started + Duration::from_secs_f64(offset);
             if due > Instant::now() {
                 self.pause_until(due)?;
             }
-            let (output, plan) = &self.outputs[&channel_id];
-            let payload = match plan.conversion {
-                Conversion::FromJson => from_json(&plan.data_type, &message.data)
-                    .with_context(|| format!("channel `{}`", plan.data_name))?,
-                Conversion::AsIs => message.data.into_owned(),
-            };
-            self.node.send_raw(output, &payload)?;
-            played += 1;
+            let output = &self.outputs[&message.data_name];
+            self.node.send_raw(output, &message.payload)?;
         }
-        Ok(played)
+        Ok(())
     }
 
     /// Lets subscribers take what is still buffered before the process exits.

@@ -83,6 +83,10 @@ struct ModuleProc {
     crashes: VecDeque<Instant>,
     backoff: Duration,
     restarts: u32,
+    /// The process has its configuration (said `ready`).
+    configured: bool,
+    /// How the process last ended, when it crashed.
+    last_exit: Option<String>,
 }
 
 /// What every child needs to join the run.
@@ -200,15 +204,14 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         tracing::warn!("cannot watch {} for changes: {err}", system_file.display());
     }
     let (requests_tx, requests) = mpsc::channel::<control::Incoming>();
-    if controller.is_some() {
-        let addr = control::serve(
-            options.control_addr.map_or_else(|| local(0), Ok)?,
-            requests_tx,
-            secret.clone(),
-        )
-        .context("cannot start the control interface")?;
-        tracing::info!(%addr, "control interface listening (armor ctl --addr {addr} status|pause|resume|abort|fire NAME)");
-    }
+    let control_addr = control::serve(
+        options.control_addr.map_or_else(|| local(0), Ok)?,
+        requests_tx,
+        secret.clone(),
+    )
+    .context("cannot start the control interface")?;
+    tracing::info!(addr = %control_addr, "control interface listening (armor ctl --addr {control_addr} status|start|stop|pause|resume|abort|fire NAME)");
+    println!("{}{control_addr}", crate::CONTROL_READY_PREFIX);
     let env = RunEnv {
         agent_addr: agent.addr,
         supervisor_addr: server.addr(),
@@ -266,9 +269,30 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     break ExitCode::FAILURE;
                 }
             }
-            while let Ok((request, reply)) = requests.try_recv() {
-                let _ = reply.send(controller.handle(request, &server));
-            }
+        }
+        while let Ok((request, reply)) = requests.try_recv() {
+            let (ok, message) = match request {
+                control::Request::Status => (true, "status".to_owned()),
+                control::Request::StartModule { module } => {
+                    set_override(&server, &module, Some(true))
+                }
+                control::Request::StopModule { module } => {
+                    set_override(&server, &module, Some(false))
+                }
+                control::Request::ReleaseModule { module } => {
+                    set_override(&server, &module, None)
+                }
+                mission_request => match &mut controller {
+                    Some(controller) => controller.handle(mission_request, &server),
+                    None => (false, "this run has no mission".to_owned()),
+                },
+            };
+            let status = run_status(&modules, &server, controller.as_ref(), &env, &clock);
+            let _ = reply.send(control::Reply {
+                ok,
+                message,
+                status: Some(status),
+            });
         }
         let wake = controller.as_ref().and_then(Controller::next_wake);
         let timeout = wake.map_or(TICK, |at| {
@@ -279,6 +303,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 tracing::debug!(module, pid, "module connected")
             }
             Ok(ServerEvent::Ready { module }) => {
+                if let Some(process) = modules.get_mut(&module) {
+                    process.configured = true;
+                }
                 if !ready.contains(&module) {
                     ready.push(module);
                 }
@@ -356,6 +383,72 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     Ok(outcome)
 }
 
+fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (bool, String) {
+    match server.set_override(module, active) {
+        Ok(()) => (
+            true,
+            match active {
+                Some(true) => format!("`{module}` started by hand"),
+                Some(false) => format!("`{module}` stopped by hand"),
+                None => format!("`{module}` released"),
+            },
+        ),
+        Err(message) => (false, message),
+    }
+}
+
+/// The whole run as the control interface reports it.
+fn run_status(
+    modules: &BTreeMap<String, ModuleProc>,
+    server: &ConfigServer,
+    controller: Option<&Controller>,
+    env: &RunEnv,
+    clock: &Clock,
+) -> control::Status {
+    let loaded = server.loaded();
+    let activity = server.activity();
+    let mut stats = server.stats();
+    let modules = modules
+        .values()
+        .map(|module| {
+            let (active, manual) = activity.get(&module.name).copied().unwrap_or_default();
+            let state = match module.state {
+                ProcState::Running if !module.configured && module.restarts > 0 => {
+                    control::ModuleState::Restarting
+                }
+                ProcState::Running if !module.configured => control::ModuleState::Starting,
+                ProcState::Running if active => control::ModuleState::Running,
+                ProcState::Running => control::ModuleState::Stopped,
+                ProcState::Restarting(_) => control::ModuleState::Crashed,
+                ProcState::Failed => control::ModuleState::Failed,
+                ProcState::Exited => control::ModuleState::Exited,
+            };
+            control::ModuleStatus {
+                name: module.name.clone(),
+                module_type: module.module_type.clone(),
+                state,
+                controllable: loaded
+                    .descriptions
+                    .get(&module.module_type)
+                    .is_some_and(|description| description.controllable),
+                manual,
+                pid: module.child.as_ref().map(Child::id),
+                restarts: module.restarts,
+                last_exit: module.last_exit.clone(),
+                stats: stats.remove(&module.name),
+            }
+        })
+        .collect();
+    control::Status {
+        system: loaded.system.name.clone(),
+        run_secs: clock.now_secs(),
+        time_scale: env.time_scale,
+        agent: env.agent_addr.to_string(),
+        modules,
+        mission: controller.map(Controller::status),
+    }
+}
+
 fn add_modules(modules: &mut BTreeMap<String, ModuleProc>, loaded: &Loaded, env: &RunEnv) {
     for instance in &loaded.system.modules {
         if modules.contains_key(&instance.name) {
@@ -370,6 +463,8 @@ fn add_modules(modules: &mut BTreeMap<String, ModuleProc>, loaded: &Loaded, env:
             crashes: VecDeque::new(),
             backoff: FIRST_BACKOFF,
             restarts: 0,
+            configured: false,
+            last_exit: None,
         };
         module.spawn(env);
         modules.insert(instance.name.clone(), module);
@@ -533,6 +628,7 @@ impl ModuleProc {
     fn crashed(&mut self, status: Option<ExitStatus>) {
         let now = Instant::now();
         let how = status.map_or_else(|| "could not start".to_owned(), describe_exit);
+        self.last_exit = Some(how.clone());
         if self.restart == RestartPolicy::Never {
             tracing::error!(
                 module = self.name,

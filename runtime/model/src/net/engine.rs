@@ -155,6 +155,11 @@ impl Engine {
         self
     }
 
+    /// The Unix time of run-time 0 (see [`Engine::with_date_origin`]).
+    pub fn date_origin(&self) -> f64 {
+        self.date_origin
+    }
+
     /// The latest time given to the engine.
     pub fn now(&self) -> f64 {
         self.now
