@@ -15,6 +15,7 @@ use crate::editor::{Command, Editor, Outcome};
 use crate::files::{self, Document, Home, Recovery};
 use crate::mission::MissionView;
 use crate::palette::{Entry, Palette};
+use crate::run::{RunView, Surroundings as RunSurroundings, Target};
 use crate::validation::{self, Problem};
 use crate::viewer::{self, Canvas, CanvasEvents, DiagramViewer};
 
@@ -56,11 +57,12 @@ pub struct Status {
     pub is_error: bool,
 }
 
-/// The studio's views: the system's block diagram, the mission's map.
+/// The studio's views: the system's block diagram, the mission's map, the run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum View {
     System,
     Mission,
+    Run,
 }
 
 /// What a path dialog is for.
@@ -75,6 +77,7 @@ pub enum PathPurpose {
     ExportMission,
     ExportPnml,
     ExportMapPng,
+    OpenRecording,
 }
 
 struct PathDialog {
@@ -134,10 +137,12 @@ pub struct StudioApp {
     started: bool,
     /// A picture to take once this many more frames are drawn.
     export_after: Option<(PathBuf, View, u32)>,
+    run: RunView,
 }
 
 impl StudioApp {
     pub fn new(options: Options) -> StudioApp {
+        let run = RunView::new(options.module_path.clone());
         let palette = options.palette.unwrap_or_else(|| {
             Palette::probe(&options.module_path, armor_runtime::probe::DEFAULT_TIMEOUT)
         });
@@ -175,6 +180,7 @@ impl StudioApp {
             seen_revision: None,
             started: false,
             export_after: None,
+            run,
         };
         if let Some(file) = options.file {
             if is_plan(&file) {
@@ -194,6 +200,46 @@ impl StudioApp {
     pub fn set_view(&mut self, view: View) {
         self.view = view;
         self.seen_revision = None;
+    }
+
+    /// The Run view.
+    pub fn run(&self) -> &RunView {
+        &self.run
+    }
+
+    pub fn run_mut(&mut self) -> &mut RunView {
+        &mut self.run
+    }
+
+    /// Starts a run of the plan open in the Mission view, else of the system, after saving
+    /// what has unsaved changes; shows the Run view.
+    pub fn start_run(&mut self, ctx: &egui::Context) {
+        let target = self.run.target(&RunSurroundings {
+            mission: self.mission.as_mut(),
+            system_file: self.path.as_deref(),
+            catalog: &self.palette.catalog,
+        });
+        let Some(target) = target else {
+            self.set_status(
+                "nothing to run: open or save a system or a plan first".to_owned(),
+                true,
+            );
+            return;
+        };
+        match &target {
+            Target::Plan(_) if self.mission.as_ref().is_some_and(MissionView::is_dirty) => {
+                self.save_plan(None)
+            }
+            Target::System(_) if self.dirty => self.save(None),
+            _ => {}
+        }
+        self.set_view(View::Run);
+        let mut surroundings = RunSurroundings {
+            mission: self.mission.as_mut(),
+            system_file: self.path.as_deref(),
+            catalog: &self.palette.catalog,
+        };
+        self.run.start(target, &mut surroundings, ctx);
     }
 
     /// The Mission view, once a frame has shown it.
@@ -428,13 +474,17 @@ impl StudioApp {
         }
         self.handle_screenshots(&ctx);
         self.shortcuts(&ctx);
+        self.run.poll();
+        for (ok, message) in std::mem::take(&mut self.run.messages) {
+            self.set_status(message, !ok);
+        }
 
         egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));
         egui::Panel::bottom("status").show(ui, |ui| self.status_ui(ui));
-        if self.view == View::Mission {
-            self.mission_ui(ui);
-        } else {
-            self.system_ui(ui);
+        match self.view {
+            View::Mission => self.mission_ui(ui),
+            View::System => self.system_ui(ui),
+            View::Run => self.run_ui(ui),
         }
 
         self.params_ui(ui);
@@ -495,6 +545,18 @@ impl StudioApp {
             .show(ui, |ui| mission.map_ui(ui));
         if let Some((text, is_error)) = mission.apply_commands() {
             self.set_status(text, is_error);
+        }
+    }
+
+    /// The Run view.
+    fn run_ui(&mut self, ui: &mut Ui) {
+        let mut surroundings = RunSurroundings {
+            mission: self.mission.as_mut(),
+            system_file: self.path.as_deref(),
+            catalog: &self.palette.catalog,
+        };
+        if self.run.ui(ui, &mut surroundings).is_some() {
+            self.start_run(ui.ctx());
         }
     }
 
@@ -604,9 +666,21 @@ impl StudioApp {
         let pressed = |modifiers, key| {
             ctx.input_mut(|input| input.consume_shortcut(&KeyboardShortcut::new(modifiers, key)))
         };
-        if self.view == View::Mission {
-            self.mission_shortcuts(ctx, typing);
-            return;
+        if pressed(Modifiers::SHIFT, Key::F5) {
+            self.run.stop();
+        }
+        if pressed(Modifiers::NONE, Key::F5) && !self.run.is_running() {
+            self.start_run(ctx);
+        }
+        match self.view {
+            View::Mission => return self.mission_shortcuts(ctx, typing),
+            View::Run => {
+                if pressed(command, Key::O) {
+                    self.ask_path(PathPurpose::OpenRecording, String::new());
+                }
+                return;
+            }
+            View::System => {}
         }
         // File shortcuts work while typing too; the others would steal the text field's keys.
         if pressed(shift_command, Key::S) {
@@ -743,6 +817,7 @@ impl StudioApp {
             PathPurpose::ImportGpx => "import GPX",
             PathPurpose::ExportMission => "export the mission",
             PathPurpose::ExportPnml => "export PNML",
+            PathPurpose::OpenRecording => "open a recording",
         };
         self.set_status(format!("{what}: type a path, then Enter"), false);
         self.path_dialog = Some(PathDialog { purpose, text });
@@ -757,20 +832,46 @@ impl StudioApp {
 
     fn menu_ui(&mut self, ui: &mut Ui) {
         egui::MenuBar::new().ui(ui, |ui| {
-            if self.view == View::Mission {
-                self.mission_file_menu_ui(ui);
-            } else {
-                self.system_menus_ui(ui);
+            match self.view {
+                View::Mission => self.mission_file_menu_ui(ui),
+                View::System => self.system_menus_ui(ui),
+                View::Run => self.run_menu_ui(ui),
             }
             ui.separator();
             let mut view = self.view;
             ui.selectable_value(&mut view, View::System, "System");
             ui.selectable_value(&mut view, View::Mission, "Mission");
+            ui.selectable_value(&mut view, View::Run, "Run");
             if view != self.view {
                 self.set_view(view);
             }
             ui.separator();
             ui.label(RichText::new(&self.title).weak());
+        });
+    }
+
+    fn run_menu_ui(&mut self, ui: &mut Ui) {
+        let running = self.run.is_running();
+        ui.menu_button("Run", |ui| {
+            if ui
+                .add_enabled(!running, egui::Button::new("Run").shortcut_text("F5"))
+                .clicked()
+            {
+                self.start_run(ui.ctx());
+            }
+            if ui
+                .add_enabled(running, egui::Button::new("Stop").shortcut_text("Shift+F5"))
+                .clicked()
+            {
+                self.run.stop();
+            }
+            ui.separator();
+            if ui
+                .add(egui::Button::new("Open recording…").shortcut_text("Ctrl+O"))
+                .clicked()
+            {
+                self.ask_path(PathPurpose::OpenRecording, String::new());
+            }
         });
     }
 
@@ -1057,6 +1158,7 @@ impl StudioApp {
         let mut to_global = self.canvas.to_global;
         let view_request = self.canvas.view_request.take();
         let wire_from = self.canvas.wire_from.clone();
+        let live = self.run.module_states();
         // The viewer reads the canvas while egui-snarl edits the snarl: hold them apart.
         let mut canvas = std::mem::take(&mut self.canvas);
         let mut snarl = std::mem::take(&mut canvas.snarl);
@@ -1075,6 +1177,7 @@ impl StudioApp {
             screen_rect: canvas.rect,
             double_click: double_click.filter(|pos| canvas.rect.contains(*pos)),
             canvas: &canvas,
+            live: &live,
         };
         let widget = SnarlWidget::new().id_salt(CANVAS_ID).style(viewer::style());
         widget.show(&mut snarl, &mut viewer, ui);
@@ -1332,6 +1435,7 @@ impl StudioApp {
             PathPurpose::ExportMission => ("Export the mission (XML for armor run)", "Export"),
             PathPurpose::ExportPnml => ("Export the net (PNML)", "Export"),
             PathPurpose::ExportMapPng => ("Export the map (PNG)", "Export"),
+            PathPurpose::OpenRecording => ("Open a recording (MCAP)", "Open"),
         };
         let mut submit = false;
         let mut cancel = false;
@@ -1382,6 +1486,7 @@ impl StudioApp {
                 PathPurpose::ExportMission => self.with_mission(|m| m.export_mission(&path)),
                 PathPurpose::ExportPnml => self.with_mission(|m| m.export_pnml(&path)),
                 PathPurpose::ExportMapPng => self.export_png(ctx, path, View::Mission),
+                PathPurpose::OpenRecording => self.run.open_recording(&path),
             }
         }
     }

@@ -15,6 +15,7 @@ pub mod export;
 pub mod files;
 pub mod mission;
 pub mod palette;
+pub mod run;
 pub mod validation;
 pub mod viewer;
 

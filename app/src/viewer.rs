@@ -5,7 +5,7 @@
 //! here from egui's pointer state and the pins it was drawn at last frame.
 
 use std::cell::RefCell;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::rc::Rc;
 
 use egui::emath::TSTransform;
@@ -15,6 +15,8 @@ use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 
 use crate::diagram::{BlockId, Catalog, Diagram, Pin, PinSide, PortRef};
 use crate::editor::Command;
+use crate::run::monitor::state_colour;
+use armor_runtime::control::ModuleState;
 
 /// Pins drawn this frame, in canvas coordinates.
 type PinSink = Rc<RefCell<Vec<(Pin, Rect)>>>;
@@ -314,6 +316,8 @@ pub struct DiagramViewer<'a> {
     pub double_click: Option<Pos2>,
     /// The canvas's state: which blocks egui-snarl holds, where the others are.
     pub canvas: &'a Canvas,
+    /// During a run, each module's state: blocks and the links they feed are coloured by it.
+    pub live: &'a BTreeMap<String, ModuleState>,
 }
 
 impl DiagramViewer<'_> {
@@ -358,7 +362,12 @@ impl DiagramViewer<'_> {
             })
             .map(|spec| (spec.data_type.clone(), spec.doc.clone()))
             .unwrap_or_default();
-        let colour = type_colour(&data_type.0);
+        let live = self
+            .diagram
+            .block(pin.port.block)
+            .and_then(|block| self.live.get(&block.name))
+            .filter(|state| pin.side == PinSide::Output && **state != ModuleState::Running);
+        let colour = live.map_or_else(|| type_colour(&data_type.0), |state| state_colour(*state));
         let mut info = PinInfo::circle().with_fill(colour).with_wire_color(colour);
         if let Some(from) = self.wire_from
             && from != &pin
@@ -398,8 +407,14 @@ impl DiagramViewer<'_> {
                 if !viewport.intersects(rect) {
                     continue;
                 }
+                let live = self
+                    .diagram
+                    .block(id)
+                    .and_then(|block| self.live.get(&block.name));
                 let stroke = if self.selection.contains(&id) {
                     Stroke::new(3.0 / canvas.to_global.scaling, SELECTED)
+                } else if let Some(state) = live {
+                    Stroke::new(3.0 / canvas.to_global.scaling, state_colour(*state))
                 } else if self.flagged.contains(&id) {
                     Stroke::new(2.0 / canvas.to_global.scaling, WARNING)
                 } else {
@@ -501,7 +516,14 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
             ui.set_min_width(chars as f32 * 5.5 + 30.0);
         }
         ui.label(RichText::new(&block.name).strong());
-        ui.label(RichText::new(&block.module_type).weak().small());
+        match self.live.get(&block.name) {
+            Some(state) => ui.label(
+                RichText::new(format!("{} · {}", block.module_type, state.as_str()))
+                    .color(state_colour(*state))
+                    .small(),
+            ),
+            None => ui.label(RichText::new(&block.module_type).weak().small()),
+        };
     }
 
     fn inputs(&mut self, node: &BlockId) -> usize {
@@ -573,8 +595,14 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
         snarl: &Snarl<BlockId>,
     ) -> egui::Frame {
         let id = snarl[node];
+        let live = self
+            .diagram
+            .block(id)
+            .and_then(|block| self.live.get(&block.name));
         if self.selection.contains(&id) {
             default.stroke(Stroke::new(2.5, SELECTED))
+        } else if let Some(state) = live {
+            default.stroke(Stroke::new(2.5, state_colour(*state)))
         } else if self.flagged.contains(&id) {
             default.stroke(Stroke::new(1.5, WARNING))
         } else {

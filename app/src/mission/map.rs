@@ -141,8 +141,37 @@ struct Scene {
 }
 
 impl MissionView {
-    /// The map and what is drawn on it.
+    /// The map and what is drawn on it, for editing.
     pub fn map_ui(&mut self, ui: &mut Ui) {
+        let selection = self.editor.selection.clone();
+        let (scene, projector, response) = self.show_map(ui, &selection, |_, _| {});
+        let mut out = Vec::new();
+        self.handles_ui(ui, &scene, &projector, &mut out);
+        self.clicks_ui(ui, &response, &scene, &projector, &mut out);
+        self.pending_ui(ui, &response, &projector);
+        self.commands.extend(out);
+    }
+
+    /// The map for watching a run: the plan with `current` (a leg) highlighted and no editing;
+    /// `overlay` paints over it, given where a point of the world frame (metres) is on screen.
+    pub fn watch_ui(
+        &mut self,
+        ui: &mut Ui,
+        current: Option<usize>,
+        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2),
+    ) -> egui::Response {
+        let selection = current.map_or(Selection::None, Selection::Leg);
+        let (_, _, response) = self.show_map(ui, &selection, overlay);
+        response
+    }
+
+    /// Draws the map with the plan, `selection` highlighted, then `overlay`.
+    fn show_map(
+        &mut self,
+        ui: &mut Ui,
+        selection: &Selection,
+        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2),
+    ) -> (Scene, Projector, egui::Response) {
         let rect = ui.available_rect_before_wrap();
         if self.map.fit_requested && rect.width() > 50.0 {
             self.map.fit_requested = false;
@@ -187,9 +216,7 @@ impl MissionView {
         .zoom_with_ctrl(false)
         .double_click_to_zoom(false);
         let plan = &self.editor.plan;
-        let selection = &self.editor.selection;
         let routes = self.checked.compiled.as_ref().map(|c| &c.routes);
-        let mut out = Vec::new();
         let response = map.show(ui, |ui, response, projector, _| {
             let project = |at: LatLon| projector.project(position(at)).to_pos2();
             let scene = Scene {
@@ -227,16 +254,14 @@ impl MissionView {
             draw_waypoints(&painter, plan, selection, &scene, symbols, ui.ctx());
             draw_units(&painter, plan, selection, symbols, ui.ctx(), &project);
             draw_scale(&painter, response.rect, projector, origin);
+            overlay(&painter, &|p: Point| project(LatLon::from_local(p, origin)));
             (scene, projector.clone())
         });
         let (scene, projector) = response.inner;
         let response = response.response;
         self.map.rect = response.rect;
         self.map.projector = Some(projector.clone());
-        self.handles_ui(ui, &scene, &projector, &mut out);
-        self.clicks_ui(ui, &response, &scene, &projector, &mut out);
-        self.pending_ui(ui, &response, &projector);
-        self.commands.extend(out);
+        (scene, projector, response)
     }
 
     /// The tools above the map.

@@ -276,6 +276,8 @@ pub struct MissionView {
     pub(crate) map: map::MapState,
     pub(crate) inspector: inspector::InspectorState,
     net_layout: net_view::Layout,
+    /// The run's marking the net was last scrolled to.
+    net_scrolled_for_marking: Option<armor_model::net::Marking>,
     /// The selection the net view last scrolled to.
     net_scrolled_for: Option<Selection>,
 }
@@ -293,6 +295,7 @@ impl MissionView {
             map: map::MapState::new(ctx),
             inspector: inspector::InspectorState::default(),
             net_layout: net_view::Layout::default(),
+            net_scrolled_for_marking: None,
             net_scrolled_for: None,
         };
         view.refresh_surroundings(true);
@@ -562,6 +565,42 @@ impl MissionView {
             .filter(|(_, origin)| matches!(origin, Origin::Leg(index) if legs.contains(index)))
             .map(|(name, _)| name.clone())
             .collect()
+    }
+
+    /// The net of a run with its live marking, the current leg's elements lit.
+    pub fn marking_ui(&mut self, ui: &mut egui::Ui, marking: &armor_model::net::Marking) {
+        let Some(net) = self.checked.net() else {
+            ui.label("The plan does not compile: no net to show.");
+            return;
+        };
+        let current: BTreeSet<usize> = self
+            .checked
+            .compiled
+            .iter()
+            .flat_map(|compiled| {
+                marking
+                    .keys()
+                    .filter_map(|place| match compiled.trace.get(place) {
+                        Some(Origin::Leg(index)) => Some(*index),
+                        _ => None,
+                    })
+            })
+            .collect();
+        let highlighted: BTreeSet<String> = self
+            .checked
+            .compiled
+            .iter()
+            .flat_map(|compiled| &compiled.trace)
+            .filter(|(_, origin)| matches!(origin, Origin::Leg(index) if current.contains(index)))
+            .map(|(name, _)| name.clone())
+            .collect();
+        let style = net_view::NetStyle {
+            highlighted: &highlighted,
+            marking: Some(marking),
+            scroll_to_highlight: self.net_scrolled_for_marking.as_ref() != Some(marking),
+        };
+        self.net_scrolled_for_marking = Some(marking.clone());
+        net_view::net_ui(ui, net, &self.net_layout, &style);
     }
 
     /// The net panel: verification in words, then the net.

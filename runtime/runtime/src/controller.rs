@@ -261,7 +261,10 @@ impl Controller {
             active_modules: self.engine.active_modules().into_iter().collect(),
             firings: self.recent.iter().cloned().collect(),
             firings_total: self.firings_total,
-            outcome: self.outcome.as_ref().map(|outcome| outcome.as_str().to_owned()),
+            outcome: self
+                .outcome
+                .as_ref()
+                .map(|outcome| outcome.as_str().to_owned()),
         }
     }
 

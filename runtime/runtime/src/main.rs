@@ -30,11 +30,17 @@ enum CtlCommand {
         json: bool,
     },
     /// Start a controllable module by hand, whatever the mission wants, until released.
-    Start { module: String },
+    Start {
+        module: String,
+    },
     /// Stop a controllable module by hand, until released.
-    Stop { module: String },
+    Stop {
+        module: String,
+    },
     /// Give a module started or stopped by hand back to the mission.
-    Release { module: String },
+    Release {
+        module: String,
+    },
     /// Hold every controllable module; fire nothing until resumed.
     Pause,
     Resume,

@@ -183,13 +183,14 @@ pub fn read_recording(file: &Path) -> anyhow::Result<Vec<Recorded>> {
                 tracing::warn!("{name}: stopped at a damaged or unfinished part: {err}");
                 break;
             }
-            Err(err) => return Err(err).with_context(|| format!("{name} is not a valid MCAP file")),
+            Err(err) => {
+                return Err(err).with_context(|| format!("{name} is not a valid MCAP file"));
+            }
         };
         let plan = match plans.entry(message.channel.id) {
             std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
-            std::collections::hash_map::Entry::Vacant(entry) => entry.insert(
-                plan(&message.channel).with_context(|| format!("cannot replay {name}"))?,
-            ),
+            std::collections::hash_map::Entry::Vacant(entry) => entry
+                .insert(plan(&message.channel).with_context(|| format!("cannot replay {name}"))?),
         };
         let payload = match plan.conversion {
             Conversion::FromJson => from_json(&plan.data_type, &message.data)

@@ -279,9 +279,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 control::Request::StopModule { module } => {
                     set_override(&server, &module, Some(false))
                 }
-                control::Request::ReleaseModule { module } => {
-                    set_override(&server, &module, None)
-                }
+                control::Request::ReleaseModule { module } => set_override(&server, &module, None),
                 mission_request => match &mut controller {
                     Some(controller) => controller.handle(mission_request, &server),
                     None => (false, "this run has no mission".to_owned()),

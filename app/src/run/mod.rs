@@ -1,0 +1,782 @@
+//! The Run view: start the current system or plan with the runtime of `armor run` and watch it.
+//! The module monitor lists every module with its state, cycle time, rates and restarts, with
+//! switches to start and stop it by hand; the mission monitor shows the net with its live
+//! marking, what the enabled transitions wait for, the firings so far, and the operator's
+//! buttons; the live map shows the robot (estimated and true pose), its laser scan and the
+//! mapper's grid over the plan, the current leg highlighted; the operator drives through the
+//! teleop module from the keyboard or the on-screen pad; each module's log is kept and
+//! filterable. A recording of the recorder opens into the same map.
+
+pub mod live;
+pub mod monitor;
+pub mod session;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use armor_model::plan::Origin;
+use armor_runtime::control::{ModuleState, Request, Status};
+use egui::{Color32, RichText, Ui};
+
+use crate::diagram::Catalog;
+use crate::mission::MissionView;
+use live::{LiveData, Recording, Sources};
+use session::{Level, RunOptions, RunSession};
+
+/// Teleoperation speeds at full stick.
+const DRIVE_MPS: f64 = 0.4;
+const TURN_RADPS: f64 = 0.8;
+
+/// What to run: the plan open in the Mission view, or the system.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Target {
+    Plan(PathBuf),
+    System(PathBuf),
+}
+
+impl Target {
+    pub fn path(&self) -> &Path {
+        match self {
+            Target::Plan(path) | Target::System(path) => path,
+        }
+    }
+}
+
+/// What the run view needs of the rest of the studio each frame.
+pub struct Surroundings<'a> {
+    /// The Mission view, when a plan is open: its map and net are the run's.
+    pub mission: Option<&'a mut MissionView>,
+    /// The system document's file.
+    pub system_file: Option<&'a Path>,
+    pub catalog: &'a Catalog,
+}
+
+pub struct RunView {
+    pub session: Option<RunSession>,
+    pub time_scale: f64,
+    /// RFC 3339; empty for now (a plan's own start is offered).
+    pub start_at: String,
+    pub working_dir: PathBuf,
+    pub module_path: Vec<PathBuf>,
+    /// Run the system even when a plan is open.
+    pub prefer_system: bool,
+    pub log_filter: String,
+    /// Only this module's lines (all when `None`).
+    pub log_module: Option<String>,
+    pub log_min_level: Level,
+    pub recording: Option<Recording>,
+    /// The map of a run without a plan: an empty plan on the run's system.
+    own_map: Option<(PathBuf, MissionView)>,
+    grid_texture: Option<(u64, egui::TextureHandle)>,
+    /// The teleoperation command held now, and when it was last sent.
+    drive: (f64, f64),
+    drive_sent: Option<Instant>,
+    last_frame: Option<Instant>,
+    /// Answers to the operator, newest last, shown in the status line by the app.
+    pub messages: Vec<(bool, String)>,
+}
+
+impl RunView {
+    pub fn new(module_path: Vec<PathBuf>) -> RunView {
+        RunView {
+            session: None,
+            time_scale: 1.0,
+            start_at: String::new(),
+            working_dir: std::env::current_dir().unwrap_or_else(|_| PathBuf::from(".")),
+            module_path,
+            prefer_system: false,
+            log_filter: String::new(),
+            log_module: None,
+            log_min_level: Level::Info,
+            recording: None,
+            own_map: None,
+            grid_texture: None,
+            drive: (0.0, 0.0),
+            drive_sent: None,
+            last_frame: None,
+            messages: Vec::new(),
+        }
+    }
+
+    pub fn is_running(&self) -> bool {
+        self.session.as_ref().is_some_and(RunSession::is_running)
+    }
+
+    /// The last state the run reported.
+    pub fn status(&self) -> Option<Status> {
+        self.session
+            .as_ref()
+            .and_then(|s| s.shared().status.clone())
+    }
+
+    /// The live data shown (the run's, or the recording's).
+    pub fn live(&self) -> LiveData {
+        match (&self.session, &self.recording) {
+            (_, Some(recording)) => recording.live.clone(),
+            (Some(session), None) => session.shared().live.clone(),
+            (None, None) => LiveData::default(),
+        }
+    }
+
+    /// How the run ended, once it has.
+    pub fn ended(&self) -> Option<String> {
+        self.session.as_ref().and_then(|s| s.shared().ended.clone())
+    }
+
+    /// The target a Run would start now.
+    pub fn target(&self, surroundings: &Surroundings) -> Option<Target> {
+        let plan = surroundings
+            .mission
+            .as_ref()
+            .and_then(|mission| mission.path())
+            .map(|path| Target::Plan(path.to_path_buf()));
+        let system = surroundings
+            .system_file
+            .map(|path| Target::System(path.to_path_buf()));
+        if self.prefer_system {
+            system.or(plan)
+        } else {
+            plan.or(system)
+        }
+    }
+
+    /// Starts a run of `target`; the caller saved it first.
+    pub fn start(&mut self, target: Target, surroundings: &mut Surroundings, ctx: &egui::Context) {
+        self.stop();
+        self.recording = None;
+        let system = match &target {
+            Target::Plan(_) => surroundings
+                .mission
+                .as_ref()
+                .and_then(|mission| mission.surroundings.system.clone()),
+            Target::System(path) => {
+                let mission = self.own_map(path, surroundings.catalog, ctx);
+                mission.surroundings.system.clone()
+            }
+        };
+        let sources = system
+            .map(|system| Sources::of(&system, |t| surroundings.catalog.get(t).cloned()))
+            .unwrap_or_default();
+        let start_at = match self.start_at.trim() {
+            "" => match (&target, &surroundings.mission) {
+                (Target::Plan(_), Some(mission)) => mission
+                    .plan()
+                    .start_unix_secs
+                    .map(armor_model::net::format_rfc3339),
+                _ => None,
+            },
+            date => Some(date.to_owned()),
+        };
+        let options = RunOptions {
+            target: target.path().to_path_buf(),
+            time_scale: self.time_scale,
+            start_at: start_at.filter(|date| !date.is_empty()),
+            working_dir: self.working_dir.clone(),
+            module_path: self.module_path.clone(),
+            sources,
+        };
+        match RunSession::start(options, ctx) {
+            Ok(session) => {
+                self.messages
+                    .push((true, format!("running {}", target.path().display())));
+                self.session = Some(session);
+            }
+            Err(err) => self.messages.push((false, format!("{err:#}"))),
+        }
+    }
+
+    /// Asks the run to stop (its modules are stopped in order).
+    pub fn stop(&mut self) {
+        if let Some(session) = &mut self.session {
+            session.stop();
+        }
+    }
+
+    /// Sends an operator request to the run.
+    pub fn request(&mut self, request: Request) {
+        match &self.session {
+            Some(session) if session.is_running() => session.request(request),
+            _ => self.messages.push((false, "no run".to_owned())),
+        }
+    }
+
+    /// Opens a recording into the live map.
+    pub fn open_recording(&mut self, file: &Path) {
+        match Recording::open(file) {
+            Ok(recording) => {
+                self.messages.push((
+                    true,
+                    format!(
+                        "{}: {} messages over {:.1} s",
+                        file.display(),
+                        recording.message_count(),
+                        recording.duration_secs
+                    ),
+                ));
+                self.recording = Some(recording);
+            }
+            Err(err) => self.messages.push((false, format!("{err:#}"))),
+        }
+    }
+
+    fn own_map(
+        &mut self,
+        system: &Path,
+        catalog: &Catalog,
+        ctx: &egui::Context,
+    ) -> &mut MissionView {
+        if self.own_map.as_ref().is_none_or(|(path, _)| path != system) {
+            let mut mission = MissionView::new(ctx);
+            mission.set_catalog(catalog);
+            let _ = mission.new_plan(Some(system));
+            self.own_map = Some((system.to_path_buf(), mission));
+        }
+        let (_, mission) = self.own_map.as_mut().expect("made above");
+        mission
+    }
+
+    /// Notices a run's end and collects answers; called every frame, whatever the view.
+    pub fn poll(&mut self) {
+        if let Some(session) = &mut self.session {
+            if session.poll()
+                && let Some(ended) = session.shared().ended.clone()
+            {
+                self.messages
+                    .push((!ended.contains("fail"), format!("the run {ended}")));
+            }
+            let replies: Vec<_> = std::mem::take(&mut session.shared().replies);
+            self.messages.extend(replies);
+        }
+    }
+
+    /// The live state of each module, for the diagram's colours.
+    pub fn module_states(&self) -> BTreeMap<String, ModuleState> {
+        self.status()
+            .filter(|_| self.is_running())
+            .map(|status| {
+                status
+                    .modules
+                    .iter()
+                    .map(|module| (module.name.clone(), module.state))
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    // ----- The frame -----
+
+    pub fn ui(&mut self, ui: &mut Ui, surroundings: &mut Surroundings) -> Option<Target> {
+        let now = Instant::now();
+        let frame_secs = self
+            .last_frame
+            .map_or(0.0, |at| now.duration_since(at).as_secs_f64());
+        self.last_frame = Some(now);
+        if let Some(recording) = &mut self.recording {
+            recording.advance(frame_secs);
+            if recording.playing {
+                ui.ctx().request_repaint();
+            }
+        }
+        if self.is_running() {
+            ui.ctx().request_repaint_after(Duration::from_millis(200));
+        }
+        let status = self.status();
+        let mut start = None;
+        egui::Panel::top("run-tools").show(ui, |ui| {
+            start = self.toolbar_ui(ui, surroundings, status.as_ref());
+        });
+        egui::Panel::left("run-modules")
+            .resizable(true)
+            .default_size(380.0)
+            .min_size(300.0)
+            .show(ui, |ui| self.modules_ui(ui, status.as_ref()));
+        egui::Panel::right("run-mission")
+            .resizable(true)
+            .default_size(320.0)
+            .min_size(260.0)
+            .show(ui, |ui| {
+                self.mission_ui(ui, status.as_ref());
+                ui.separator();
+                self.teleop_ui(ui);
+            });
+        egui::Panel::bottom("run-logs")
+            .resizable(true)
+            .default_size(180.0)
+            .min_size(100.0)
+            .show(ui, |ui| self.logs_ui(ui));
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| {
+                self.map_and_net_ui(ui, surroundings, status.as_ref())
+            });
+        self.drive_keys(ui.ctx());
+        start
+    }
+
+    fn toolbar_ui(
+        &mut self,
+        ui: &mut Ui,
+        surroundings: &Surroundings,
+        status: Option<&Status>,
+    ) -> Option<Target> {
+        let mut start = None;
+        ui.horizontal_wrapped(|ui| {
+            let target = self.target(surroundings);
+            let running = self.is_running();
+            ui.add_enabled_ui(!running, |ui| {
+                match &target {
+                    Some(target) => {
+                        let run = ui
+                            .button("▶ Run")
+                            .on_hover_text(format!("armor run {} (F5)", target.path().display()));
+                        if run.clicked() {
+                            start = Some(target.clone());
+                        }
+                    }
+                    None => {
+                        ui.add_enabled(false, egui::Button::new("▶ Run"))
+                            .on_disabled_hover_text("open or save a system or a plan first");
+                    }
+                }
+                ui.label("×");
+                ui.add(
+                    egui::DragValue::new(&mut self.time_scale)
+                        .range(0.1..=200.0)
+                        .speed(0.1),
+                )
+                .on_hover_text("time scale: run time passes this many times faster");
+                ui.label("start at");
+                ui.add(
+                    egui::TextEdit::singleline(&mut self.start_at)
+                        .desired_width(170.0)
+                        .hint_text("the plan's start, or now"),
+                );
+                if surroundings
+                    .mission
+                    .as_ref()
+                    .is_some_and(|m| m.path().is_some())
+                    && surroundings.system_file.is_some()
+                {
+                    ui.checkbox(&mut self.prefer_system, "system only");
+                }
+            });
+            if ui
+                .add_enabled(running, egui::Button::new("■ Stop"))
+                .on_hover_text("stop every module in order (Shift+F5)")
+                .clicked()
+            {
+                self.stop();
+            }
+            ui.separator();
+            let text = match (&self.session, status) {
+                (Some(session), _) if session.is_stopping() => "stopping…".to_owned(),
+                (Some(session), Some(status)) if session.is_running() => format!(
+                    "{} — {:.1} s of run time (×{})",
+                    status.system, status.run_secs, status.time_scale
+                ),
+                (Some(session), None) if session.is_running() => "starting…".to_owned(),
+                _ => match (self.ended(), &target) {
+                    (Some(ended), _) => format!("the run {ended}"),
+                    (None, Some(target)) => format!("ready to run {}", target.path().display()),
+                    (None, None) => "nothing to run".to_owned(),
+                },
+            };
+            ui.label(text);
+        });
+        start
+    }
+
+    fn modules_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {
+        ui.heading("Modules");
+        let Some(status) = status else {
+            ui.label("Run the system or a plan to see its modules here.");
+            return;
+        };
+        let Some(session) = &self.session else {
+            return;
+        };
+        let running = session.is_running();
+        let history = session.shared().history.clone();
+        let mut requests = Vec::new();
+        egui::ScrollArea::vertical()
+            .id_salt("run-modules-scroll")
+            .show(ui, |ui| {
+                for module in &status.modules {
+                    let samples = history.get(&module.name);
+                    if let Some(request) = monitor::module_row(ui, module, samples, running) {
+                        requests.push(request);
+                    }
+                    ui.separator();
+                }
+            });
+        for request in requests {
+            self.request(request);
+        }
+    }
+
+    fn mission_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {
+        ui.heading("Mission");
+        let Some(mission) = status.and_then(|status| status.mission.as_ref()) else {
+            ui.label("A plan's run shows its marking, what it waits for and its firings here.");
+            return;
+        };
+        let running = self.is_running();
+        let mut requests = Vec::new();
+        ui.horizontal_wrapped(|ui| {
+            ui.add_enabled_ui(running && mission.outcome.is_none(), |ui| {
+                if mission.paused {
+                    if ui.button("⏵ Resume").clicked() {
+                        requests.push(Request::Resume);
+                    }
+                } else if ui
+                    .button("⏸ Pause")
+                    .on_hover_text("hold every controllable module; fire nothing")
+                    .clicked()
+                {
+                    requests.push(Request::Pause);
+                }
+                if ui
+                    .button("⏹ Abort")
+                    .on_hover_text("end the mission now")
+                    .clicked()
+                {
+                    requests.push(Request::Abort);
+                }
+            });
+        });
+        let marking: Vec<String> = mission
+            .marking
+            .iter()
+            .map(|(place, tokens)| match tokens {
+                1 => place.clone(),
+                _ => format!("{place}×{tokens}"),
+            })
+            .collect();
+        ui.label(format!(
+            "`{}`{}: marking {{{}}}",
+            mission.name,
+            match (&mission.outcome, mission.paused) {
+                (Some(outcome), _) => format!(" ({outcome})"),
+                (None, true) => " (paused)".to_owned(),
+                (None, false) => String::new(),
+            },
+            marking.join(", ")
+        ));
+        if !mission.enabled.is_empty() {
+            ui.label(RichText::new("Next").strong());
+        }
+        for enabled in &mission.enabled {
+            ui.horizontal_wrapped(|ui| {
+                if ui
+                    .add_enabled(
+                        running,
+                        egui::Button::new(format!("⏭ {}", enabled.transition)).small(),
+                    )
+                    .on_hover_text("fire it now, by hand, whatever it waits for")
+                    .clicked()
+                {
+                    requests.push(Request::Fire {
+                        transition: enabled.transition.clone(),
+                    });
+                }
+                if !enabled.waits_for.is_empty() {
+                    ui.label(format!("waits for {}", enabled.waits_for.join(", ")));
+                }
+            });
+        }
+        ui.label(RichText::new(format!("Firings ({})", mission.firings_total)).strong());
+        monitor::timeline_ui(ui, &mission.firings);
+        for request in requests {
+            self.request(request);
+        }
+    }
+
+    fn teleop_ui(&mut self, ui: &mut Ui) {
+        ui.label(RichText::new("Drive").strong());
+        let can_drive = self
+            .session
+            .as_ref()
+            .is_some_and(|s| s.is_running() && s.shared().teleop_addr.is_some());
+        if !can_drive {
+            ui.label("A running system with a teleop module can be driven from here.");
+            return;
+        }
+        let mut held = (0.0, 0.0);
+        let pad = |ui: &mut Ui, label: &str, hover: &str| {
+            ui.add_sized([34.0, 28.0], egui::Button::new(label))
+                .on_hover_text(hover)
+                .is_pointer_button_down_on()
+        };
+        egui::Grid::new("teleop-pad").show(ui, |ui| {
+            ui.label("");
+            if pad(ui, "▲", "forward") {
+                held.0 += DRIVE_MPS;
+            }
+            ui.end_row();
+            if pad(ui, "◀", "turn left") {
+                held.1 += TURN_RADPS;
+            }
+            if pad(ui, "▼", "back") {
+                held.0 -= DRIVE_MPS;
+            }
+            if pad(ui, "▶", "turn right") {
+                held.1 -= TURN_RADPS;
+            }
+            ui.end_row();
+        });
+        ui.label(
+            RichText::new(
+                "Hold a button or an arrow key (with the map under the mouse) to drive; let go \
+                 and the robot stops (the teleop module's dead-man time).",
+            )
+            .small()
+            .weak(),
+        );
+        if held != (0.0, 0.0) {
+            self.drive = held;
+        }
+    }
+
+    /// Arrow keys over the map drive; the pad's command is folded in. Sends the command again
+    /// while held, and `stop` when let go.
+    fn drive_keys(&mut self, ctx: &egui::Context) {
+        let typing = ctx.egui_wants_keyboard_input();
+        let mut command = std::mem::take(&mut self.drive);
+        if !typing {
+            ctx.input(|input| {
+                if input.key_down(egui::Key::ArrowUp) {
+                    command.0 += DRIVE_MPS;
+                }
+                if input.key_down(egui::Key::ArrowDown) {
+                    command.0 -= DRIVE_MPS;
+                }
+                if input.key_down(egui::Key::ArrowLeft) {
+                    command.1 += TURN_RADPS;
+                }
+                if input.key_down(egui::Key::ArrowRight) {
+                    command.1 -= TURN_RADPS;
+                }
+            });
+        }
+        let Some(session) = &self.session else {
+            return;
+        };
+        let now = Instant::now();
+        if command != (0.0, 0.0) {
+            if self
+                .drive_sent
+                .is_none_or(|at| now.duration_since(at) >= session::TELEOP_EVERY)
+            {
+                session.teleop(command.0, command.1);
+                self.drive_sent = Some(now);
+            }
+            ctx.request_repaint_after(session::TELEOP_EVERY);
+        } else if self.drive_sent.take().is_some() {
+            session.teleop(0.0, 0.0);
+        }
+    }
+
+    fn logs_ui(&mut self, ui: &mut Ui) {
+        let Some(session) = &self.session else {
+            ui.label("Each module's log shows here during a run.");
+            return;
+        };
+        let shared = session.shared();
+        let mut sources: Vec<&str> = shared.logs.iter().map(|l| l.source.as_str()).collect();
+        sources.sort_unstable();
+        sources.dedup();
+        let sources: Vec<String> = sources.into_iter().map(str::to_owned).collect();
+        drop(shared);
+        ui.horizontal(|ui| {
+            ui.label("Logs");
+            egui::ComboBox::from_id_salt("log-module")
+                .selected_text(self.log_module.as_deref().unwrap_or("all modules"))
+                .show_ui(ui, |ui| {
+                    ui.selectable_value(&mut self.log_module, None, "all modules");
+                    for source in &sources {
+                        ui.selectable_value(&mut self.log_module, Some(source.clone()), source);
+                    }
+                });
+            egui::ComboBox::from_id_salt("log-level")
+                .selected_text(match self.log_min_level {
+                    Level::Info => "everything",
+                    Level::Warn => "warnings and errors",
+                    Level::Error => "errors",
+                })
+                .show_ui(ui, |ui| {
+                    ui.selectable_value(&mut self.log_min_level, Level::Info, "everything");
+                    ui.selectable_value(
+                        &mut self.log_min_level,
+                        Level::Warn,
+                        "warnings and errors",
+                    );
+                    ui.selectable_value(&mut self.log_min_level, Level::Error, "errors");
+                });
+            ui.add(
+                egui::TextEdit::singleline(&mut self.log_filter)
+                    .hint_text("filter")
+                    .desired_width(200.0),
+            );
+        });
+        let filter = self.log_filter.to_lowercase();
+        let shared = session.shared();
+        let lines: Vec<&session::LogLine> = shared
+            .logs
+            .iter()
+            .filter(|line| self.log_module.as_ref().is_none_or(|m| &line.source == m))
+            .filter(|line| level_rank(line.level) >= level_rank(self.log_min_level))
+            .filter(|line| filter.is_empty() || line.text.to_lowercase().contains(&filter))
+            .collect();
+        let row_height = ui.text_style_height(&egui::TextStyle::Monospace);
+        egui::ScrollArea::both()
+            .id_salt("run-logs-scroll")
+            .stick_to_bottom(true)
+            .auto_shrink(false)
+            .show_rows(ui, row_height, lines.len(), |ui, range| {
+                for line in &lines[range] {
+                    let colour = match line.level {
+                        Level::Error => Color32::from_rgb(200, 40, 40),
+                        Level::Warn => Color32::from_rgb(190, 120, 0),
+                        Level::Info => ui.visuals().text_color(),
+                    };
+                    ui.label(
+                        RichText::new(format!(
+                            "{:>7.2} [{}] {}",
+                            line.at_secs, line.source, line.text
+                        ))
+                        .monospace()
+                        .color(colour),
+                    );
+                }
+            });
+    }
+
+    fn map_and_net_ui(
+        &mut self,
+        ui: &mut Ui,
+        surroundings: &mut Surroundings,
+        status: Option<&Status>,
+    ) {
+        let marking = status
+            .and_then(|status| status.mission.as_ref())
+            .map(|mission| mission.marking.clone());
+        let has_plan_run = marking.is_some() && surroundings.mission.is_some();
+        if has_plan_run
+            && let Some(mission) = surroundings.mission.as_deref_mut()
+            && let Some(marking) = &marking
+        {
+            egui::Panel::bottom("run-net")
+                .resizable(true)
+                .default_size(200.0)
+                .min_size(120.0)
+                .show(ui, |ui| mission.marking_ui(ui, marking));
+        }
+        if let Some(recording) = &mut self.recording {
+            egui::Panel::top("run-recording").show(ui, |ui| recording_ui(ui, recording));
+        }
+        let live = self.live();
+        let current_leg = marking.as_ref().and_then(|marking| {
+            let mission = surroundings.mission.as_deref()?;
+            let compiled = mission.checked().compiled.as_ref()?;
+            marking
+                .keys()
+                .find_map(|place| match compiled.trace.get(place) {
+                    Some(Origin::Leg(index)) => Some(*index),
+                    _ => None,
+                })
+        });
+        let grid_texture = self.grid_texture(ui.ctx(), &live);
+        let mission = match (
+            self.session.as_ref().map(|s| s.options.target.clone()),
+            surroundings.mission.as_deref_mut(),
+        ) {
+            (Some(target), Some(mission)) if mission.path() == Some(target.as_path()) => mission,
+            (Some(target), _) => self.own_map(&target, surroundings.catalog, ui.ctx()),
+            (None, Some(mission)) => mission,
+            (None, None) => match surroundings.system_file {
+                Some(system) => self.own_map(system, surroundings.catalog, ui.ctx()),
+                None => {
+                    ui.centered_and_justified(|ui| ui.label("Open a system or a plan to run it."));
+                    return;
+                }
+            },
+        };
+        let response = mission.watch_ui(ui, current_leg, |painter, project| {
+            monitor::paint_live(painter, project, &live, grid_texture.as_ref());
+        });
+        if !live.samples.eq(&0) {
+            let text = monitor::pose_text(&live);
+            response.clone().on_hover_text(text.clone());
+            ui.put(
+                egui::Rect::from_min_size(
+                    response.rect.left_top() + egui::vec2(8.0, 8.0),
+                    egui::vec2(420.0, 20.0),
+                ),
+                egui::Label::new(
+                    RichText::new(text).background_color(Color32::from_white_alpha(220)),
+                ),
+            );
+        }
+    }
+
+    /// The grid's picture, made again only when a new grid arrived.
+    fn grid_texture(
+        &mut self,
+        ctx: &egui::Context,
+        live: &LiveData,
+    ) -> Option<(egui::TextureHandle, armor_module_api::types::OccupancyGrid)> {
+        let grid = live.grid.as_ref()?;
+        if self
+            .grid_texture
+            .as_ref()
+            .is_none_or(|(revision, _)| *revision != live.grid_revision)
+        {
+            let image = monitor::grid_image(grid);
+            let texture = ctx.load_texture("run-grid", image, egui::TextureOptions::NEAREST);
+            self.grid_texture = Some((live.grid_revision, texture));
+        }
+        self.grid_texture
+            .as_ref()
+            .map(|(_, texture)| (texture.clone(), grid.clone()))
+    }
+}
+
+fn level_rank(level: Level) -> u8 {
+    match level {
+        Level::Info => 0,
+        Level::Warn => 1,
+        Level::Error => 2,
+    }
+}
+
+fn recording_ui(ui: &mut Ui, recording: &mut Recording) {
+    ui.horizontal(|ui| {
+        ui.label(format!(
+            "Recording {}",
+            recording
+                .file
+                .file_name()
+                .map(|name| name.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        ));
+        let label = if recording.playing { "⏸" } else { "⏵" };
+        if ui
+            .button(label)
+            .on_hover_text("play or pause the recording")
+            .clicked()
+        {
+            if !recording.playing && recording.at_secs >= recording.duration_secs {
+                recording.seek(0.0);
+            }
+            recording.playing = !recording.playing;
+        }
+        let mut at = recording.at_secs;
+        let slider = egui::Slider::new(&mut at, 0.0..=recording.duration_secs.max(0.001))
+            .suffix(" s")
+            .text("time");
+        if ui.add(slider).changed() {
+            recording.seek(at);
+        }
+    });
+}

@@ -1,0 +1,395 @@
+//! The run view's pieces: one module's row (state, switches, cycle time, rates with a plot),
+//! the firing timeline, and what is painted on the live map (the grid, the scan, the poses).
+
+use std::collections::VecDeque;
+
+use armor_model::world::Point;
+use armor_module_api::types::{OccupancyGrid, Pose2D};
+use armor_runtime::control::{FiringRecord, ModuleState, ModuleStatus, Request};
+use egui::{Color32, Pos2, RichText, Stroke, Ui};
+use egui_plot::{Line, Plot, Points};
+
+use super::live::LiveData;
+use super::session::Sample;
+
+const TRUTH: Color32 = Color32::from_rgb(20, 110, 220);
+const ESTIMATE: Color32 = Color32::from_rgb(230, 120, 0);
+const SCAN: Color32 = Color32::from_rgb(220, 30, 60);
+
+/// The colour of a module state, in the monitor and on the diagram.
+pub fn state_colour(state: ModuleState) -> Color32 {
+    match state {
+        ModuleState::Running => Color32::from_rgb(40, 160, 70),
+        ModuleState::Starting | ModuleState::Restarting => Color32::from_rgb(80, 140, 220),
+        ModuleState::Stopped | ModuleState::Exited => Color32::from_rgb(140, 140, 140),
+        ModuleState::Crashed => Color32::from_rgb(230, 140, 0),
+        ModuleState::Failed => Color32::from_rgb(210, 40, 40),
+    }
+}
+
+/// Rates and cycle time between the last two samples of a module's counters.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Rates {
+    /// Events per second taken by the module's loop.
+    pub cycles_per_sec: f64,
+    /// Real milliseconds of the module's own code per event.
+    pub cycle_ms: f64,
+    /// Samples per second, per output (data name) and per input (name, after the outputs).
+    pub sent: Vec<(String, f64)>,
+    pub received: Vec<(String, f64)>,
+}
+
+/// The rates between two samples (a process restarted in between counts from zero).
+pub fn rates(before: &Sample, after: &Sample) -> Rates {
+    let secs = (after.at_secs - before.at_secs).max(1e-6);
+    let delta = |a: u64, b: u64| if b >= a { b - a } else { b };
+    let per = |map_after: &std::collections::BTreeMap<String, u64>,
+               map_before: &std::collections::BTreeMap<String, u64>| {
+        map_after
+            .iter()
+            .map(|(name, count)| {
+                let before = map_before.get(name).copied().unwrap_or(0);
+                (name.clone(), delta(before, *count) as f64 / secs)
+            })
+            .collect()
+    };
+    let cycles = delta(before.stats.cycles, after.stats.cycles);
+    let busy_us = delta(before.stats.busy_us, after.stats.busy_us);
+    Rates {
+        cycles_per_sec: cycles as f64 / secs,
+        cycle_ms: if cycles == 0 {
+            0.0
+        } else {
+            busy_us as f64 / 1e3 / cycles as f64
+        },
+        sent: per(&after.stats.sent, &before.stats.sent),
+        received: per(&after.stats.received, &before.stats.received),
+    }
+}
+
+/// One module: its state, restarts, switches, cycle time and rates. Returns what the operator
+/// asked of it.
+pub fn module_row(
+    ui: &mut Ui,
+    module: &ModuleStatus,
+    history: Option<&VecDeque<Sample>>,
+    running: bool,
+) -> Option<Request> {
+    let mut request = None;
+    ui.horizontal_wrapped(|ui| {
+        let colour = state_colour(module.state);
+        ui.label(RichText::new("●").color(colour));
+        ui.label(RichText::new(&module.name).strong())
+            .on_hover_text(format!("type {}", module.module_type));
+        ui.label(RichText::new(module.state.as_str()).color(colour));
+        if module.restarts > 0 {
+            let restarts = format!(
+                "{} restart{}",
+                module.restarts,
+                if module.restarts == 1 { "" } else { "s" }
+            );
+            let label = ui.label(RichText::new(restarts).color(state_colour(ModuleState::Crashed)));
+            if let Some(exit) = &module.last_exit {
+                label.on_hover_text(format!("last crash: it {exit}"));
+            }
+        }
+        if module.controllable {
+            let mut on = !matches!(module.state, ModuleState::Stopped);
+            let switch = ui
+                .add_enabled(running, egui::Checkbox::new(&mut on, "on"))
+                .on_hover_text("start or stop it by hand, whatever the mission wants");
+            if switch.changed() {
+                request = Some(if on {
+                    Request::StartModule {
+                        module: module.name.clone(),
+                    }
+                } else {
+                    Request::StopModule {
+                        module: module.name.clone(),
+                    }
+                });
+            }
+            if module.manual.is_some()
+                && ui
+                    .add_enabled(running, egui::Button::new("auto").small())
+                    .on_hover_text("give it back to the mission")
+                    .clicked()
+            {
+                request = Some(Request::ReleaseModule {
+                    module: module.name.clone(),
+                });
+            }
+        } else {
+            ui.label(RichText::new("always on").weak())
+                .on_hover_text("not controllable: it runs whenever its process does");
+        }
+    });
+    if let Some(exit) = &module.last_exit {
+        ui.label(
+            RichText::new(format!("crashed: it {exit}"))
+                .small()
+                .color(state_colour(ModuleState::Crashed)),
+        );
+    }
+    let Some(history) = history.filter(|history| history.len() >= 2) else {
+        return request;
+    };
+    let samples: Vec<&Sample> = history.iter().collect();
+    let now = rates(samples[samples.len() - 2], samples[samples.len() - 1]);
+    let mut line = format!(
+        "cycle {:.3} ms · {:.0} events/s",
+        now.cycle_ms, now.cycles_per_sec
+    );
+    for (name, rate) in &now.sent {
+        line.push_str(&format!(" · {name} {rate:.1}/s"));
+    }
+    ui.label(RichText::new(line).small());
+    // The first output's rate over time, else the loop's.
+    let main = now.sent.first().map(|(name, _)| name.clone());
+    let points: Vec<[f64; 2]> = samples
+        .windows(2)
+        .map(|pair| {
+            let rates = rates(pair[0], pair[1]);
+            let value = match &main {
+                Some(name) => rates
+                    .sent
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .map_or(0.0, |(_, rate)| *rate),
+                None => rates.cycles_per_sec,
+            };
+            [pair[1].at_secs, value]
+        })
+        .collect();
+    Plot::new(("rate", &module.name))
+        .height(36.0)
+        .show_axes([false, true])
+        .show_grid(false)
+        .allow_drag(false)
+        .allow_zoom(false)
+        .allow_scroll(false)
+        .allow_boxed_zoom(false)
+        .allow_double_click_reset(false)
+        .include_y(0.0)
+        .show_x(false)
+        .show(ui, |plot| {
+            plot.line(
+                Line::new(main.as_deref().unwrap_or("events/s"), points)
+                    .stroke(Stroke::new(1.5, state_colour(module.state))),
+            );
+        });
+    request
+}
+
+/// The firings so far on a time line, with the latest listed.
+pub fn timeline_ui(ui: &mut Ui, firings: &[FiringRecord]) {
+    if firings.is_empty() {
+        ui.label(RichText::new("none yet").weak());
+        return;
+    }
+    let by_schedule: Vec<[f64; 2]> = firings
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| !f.by_hand)
+        .map(|(i, f)| [f.run_secs, i as f64])
+        .collect();
+    let by_hand: Vec<[f64; 2]> = firings
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.by_hand)
+        .map(|(i, f)| [f.run_secs, i as f64])
+        .collect();
+    Plot::new("firings")
+        .height(90.0)
+        .allow_scroll(false)
+        .allow_zoom(false)
+        .allow_drag(false)
+        .show_axes([true, false])
+        .show(ui, |plot| {
+            plot.points(Points::new("fired", by_schedule).radius(3.0));
+            plot.points(
+                Points::new("fired by hand", by_hand)
+                    .radius(4.0)
+                    .color(Color32::from_rgb(200, 60, 160)),
+            );
+        });
+    egui::ScrollArea::vertical()
+        .id_salt("firings-list")
+        .max_height(120.0)
+        .stick_to_bottom(true)
+        .show(ui, |ui| {
+            for firing in firings {
+                ui.label(
+                    RichText::new(format!(
+                        "{:>8.2} s  {}{}",
+                        firing.run_secs,
+                        firing.transition,
+                        if firing.by_hand { " (by hand)" } else { "" }
+                    ))
+                    .monospace()
+                    .small(),
+                );
+            }
+        });
+}
+
+/// The poses in words, for the map's corner.
+pub fn pose_text(live: &LiveData) -> String {
+    let pose = |pose: &Option<Pose2D>| {
+        pose.as_ref().map_or("—".to_owned(), |p| {
+            format!(
+                "({:.2}, {:.2}) {:.0}°",
+                p.x_m,
+                p.y_m,
+                p.theta_rad.to_degrees()
+            )
+        })
+    };
+    format!(
+        "estimated {} · true {}",
+        pose(&live.estimated),
+        pose(&live.truth)
+    )
+}
+
+/// The occupancy grid as a picture: unknown cells clear, free ones pale, occupied ones dark.
+/// Row 0 of the grid is its southern edge, so rows are flipped for the screen.
+pub fn grid_image(grid: &OccupancyGrid) -> egui::ColorImage {
+    let (width, height) = (grid.width as usize, grid.height as usize);
+    let mut pixels = Vec::with_capacity(width * height);
+    for row in (0..height).rev() {
+        for column in 0..width {
+            let cell = grid.cells.get(row * width + column).copied().unwrap_or(-1);
+            pixels.push(match cell {
+                value if value < 0 => Color32::TRANSPARENT,
+                value => {
+                    let occupied = f32::from(value.min(100)) / 100.0;
+                    let shade = (235.0 - 215.0 * occupied) as u8;
+                    Color32::from_rgba_unmultiplied(shade, shade, shade, 170)
+                }
+            });
+        }
+    }
+    egui::ColorImage::new([width, height], pixels)
+}
+
+/// Paints the grid, the true path, the scan and both poses.
+pub fn paint_live(
+    painter: &egui::Painter,
+    project: &dyn Fn(Point) -> Pos2,
+    live: &LiveData,
+    grid: Option<&(egui::TextureHandle, OccupancyGrid)>,
+) {
+    if let Some((texture, grid)) = grid {
+        let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
+        let max = project(Point::new(
+            grid.origin_x_m + grid.resolution_m * f64::from(grid.width),
+            grid.origin_y_m + grid.resolution_m * f64::from(grid.height),
+        ));
+        painter.image(
+            texture.id(),
+            egui::Rect::from_two_pos(min, max),
+            egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+            Color32::WHITE,
+        );
+    }
+    let trail: Vec<Pos2> = live
+        .trail
+        .iter()
+        .map(|(x, y)| project(Point::new(*x, *y)))
+        .collect();
+    if trail.len() >= 2 {
+        painter.add(egui::Shape::line(
+            trail,
+            Stroke::new(1.5, TRUTH.gamma_multiply(0.6)),
+        ));
+    }
+    if let (Some(scan), Some(pose)) = (&live.scan, live.scan_pose()) {
+        for (index, range) in scan.ranges_m.iter().enumerate() {
+            let range = f64::from(*range);
+            if !range.is_finite() || range >= scan.range_max_m {
+                continue;
+            }
+            let angle =
+                pose.theta_rad + scan.angle_min_rad + scan.angle_increment_rad * index as f64;
+            let hit = project(Point::new(
+                pose.x_m + range * angle.cos(),
+                pose.y_m + range * angle.sin(),
+            ));
+            painter.circle_filled(hit, 1.6, SCAN);
+        }
+    }
+    for (pose, colour) in [(&live.estimated, ESTIMATE), (&live.truth, TRUTH)] {
+        if let Some(pose) = pose {
+            robot(painter, project, pose, colour);
+        }
+    }
+}
+
+/// A robot as a triangle pointing where it heads, 0.6 m long.
+fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D, colour: Color32) {
+    let at = |forward: f64, left: f64| {
+        let (sin, cos) = pose.theta_rad.sin_cos();
+        project(Point::new(
+            pose.x_m + forward * cos - left * sin,
+            pose.y_m + forward * sin + left * cos,
+        ))
+    };
+    let points = vec![at(0.4, 0.0), at(-0.2, 0.22), at(-0.2, -0.22)];
+    painter.add(egui::Shape::convex_polygon(
+        points,
+        colour.gamma_multiply(0.8),
+        Stroke::new(1.5, Color32::WHITE),
+    ));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use armor_module_api::protocol::NodeStats;
+
+    fn sample(at_secs: f64, cycles: u64, busy_us: u64, sent: u64) -> Sample {
+        Sample {
+            at_secs,
+            stats: NodeStats {
+                cycles,
+                busy_us,
+                sent: [("sim.odometry".to_owned(), sent)].into(),
+                received: Default::default(),
+            },
+        }
+    }
+
+    #[test]
+    fn rates_are_differences_over_time() {
+        let rates = rates(&sample(1.0, 100, 1_000, 50), &sample(1.5, 200, 3_000, 75));
+        assert_eq!(rates.cycles_per_sec, 200.0);
+        assert_eq!(rates.cycle_ms, 0.02);
+        assert_eq!(rates.sent, vec![("sim.odometry".to_owned(), 50.0)]);
+    }
+
+    #[test]
+    fn a_restart_counts_from_zero() {
+        let rates = rates(&sample(1.0, 100, 1_000, 50), &sample(2.0, 10, 100, 5));
+        assert_eq!(rates.sent, vec![("sim.odometry".to_owned(), 5.0)]);
+    }
+
+    #[test]
+    fn the_grid_picture_has_its_south_row_at_the_bottom() {
+        let grid = OccupancyGrid {
+            resolution_m: 0.5,
+            width: 2,
+            height: 2,
+            origin_x_m: 0.0,
+            origin_y_m: 0.0,
+            cells: vec![100, 0, -1, -1],
+        };
+        let image = grid_image(&grid);
+        assert_eq!(image.size, [2, 2]);
+        assert_eq!(image.pixels[0], Color32::TRANSPARENT, "unknown, top row");
+        assert!(
+            image.pixels[2].r() < image.pixels[3].r(),
+            "occupied darker than free"
+        );
+    }
+}

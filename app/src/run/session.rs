@@ -1,0 +1,575 @@
+//! A run started from the studio: `armor run` as a child process (the same runtime as on the
+//! command line), its output split into per-module logs, its control interface polled for the
+//! state of every module and of the mission, operator requests sent to it, and the robot's data
+//! read by a node of our own (see [`super::live`]). Nothing here blocks the frame: each of these
+//! is a thread that writes into [`Shared`].
+
+use std::collections::{BTreeMap, VecDeque};
+use std::io::{BufRead as _, BufReader, Read, Write as _};
+use std::net::{SocketAddr, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use armor_runtime::control::{FiringRecord, MissionStatus, Request, Status};
+
+use super::live::{self, LiveData, Sources};
+
+/// How often the control interface is asked for the state.
+const POLL_EVERY: Duration = Duration::from_millis(200);
+/// Log lines kept (the oldest go first).
+const MAX_LOG_LINES: usize = 20_000;
+/// Samples of each module's counters kept for its plots.
+const MAX_HISTORY: usize = 240;
+/// How long a stopped run has to end before it is killed.
+const STOP_GRACE: Duration = Duration::from_secs(8);
+/// How often the operator's teleoperation command is sent while held.
+pub const TELEOP_EVERY: Duration = Duration::from_millis(100);
+
+/// What a run is started with.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// A system or plan file.
+    pub target: PathBuf,
+    /// Run time passes this many times faster than real time.
+    pub time_scale: f64,
+    /// The date run time 0 stands for (RFC 3339), for a plan's dates.
+    pub start_at: Option<String>,
+    /// The folder the run works in: the sim finds its world and the recorder writes its file
+    /// from there, as from the folder `armor run` is typed in.
+    pub working_dir: PathBuf,
+    /// Where the `armor` binary and the modules are.
+    pub module_path: Vec<PathBuf>,
+    /// What the live views subscribe to.
+    pub sources: Sources,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Level {
+    Info,
+    Warn,
+    Error,
+}
+
+#[derive(Clone, Debug)]
+pub struct LogLine {
+    /// Seconds since the run started (real time).
+    pub at_secs: f64,
+    /// The module that wrote it, or `armor` for the supervisor.
+    pub source: String,
+    pub level: Level,
+    pub text: String,
+}
+
+/// A module's counters at one moment, for rates and cycle times.
+#[derive(Clone, Debug)]
+pub struct Sample {
+    pub at_secs: f64,
+    pub stats: armor_module_api::protocol::NodeStats,
+}
+
+/// What the threads of a run write and the frame reads.
+#[derive(Default)]
+pub struct Shared {
+    pub logs: VecDeque<LogLine>,
+    /// Lines dropped from the front of `logs`.
+    pub logs_dropped: usize,
+    pub status: Option<Status>,
+    /// Each module's counters over time (oldest first).
+    pub history: BTreeMap<String, VecDeque<Sample>>,
+    pub control_addr: Option<SocketAddr>,
+    pub teleop_addr: Option<SocketAddr>,
+    /// The answers to the operator's requests, for the status line.
+    pub replies: Vec<(bool, String)>,
+    /// How the run ended, once it has.
+    pub ended: Option<String>,
+    pub live: LiveData,
+}
+
+impl Shared {
+    fn log(&mut self, line: LogLine) {
+        if self.logs.len() == MAX_LOG_LINES {
+            self.logs.pop_front();
+            self.logs_dropped += 1;
+        }
+        self.logs.push_back(line);
+    }
+}
+
+pub type SharedRef = Arc<Mutex<Shared>>;
+
+pub fn lock(shared: &SharedRef) -> MutexGuard<'_, Shared> {
+    shared.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+pub struct RunSession {
+    pub options: RunOptions,
+    child: Option<Child>,
+    pub shared: SharedRef,
+    requests: Sender<Request>,
+    teleop: Sender<(f64, f64)>,
+    /// Set when the run is asked to stop: every thread of the session ends.
+    stop: Arc<AtomicBool>,
+    stop_asked: Option<Instant>,
+    report: PathBuf,
+    started: Instant,
+}
+
+impl RunSession {
+    /// Starts `armor run` on the options' target.
+    pub fn start(options: RunOptions, ctx: &egui::Context) -> anyhow::Result<RunSession> {
+        let armor = armor_binary(&options.module_path)?;
+        let report = std::env::temp_dir().join(format!(
+            "armor-studio-{}-{}.json",
+            std::process::id(),
+            armor_module_api::clock::unix_now_ns()
+        ));
+        let mut command = Command::new(&armor);
+        command
+            .arg("run")
+            .arg(std::path::absolute(&options.target).unwrap_or_else(|_| options.target.clone()))
+            .arg("--time-scale")
+            .arg(options.time_scale.to_string())
+            .arg("--report")
+            .arg(&report)
+            .current_dir(&options.working_dir)
+            .env(
+                armor_runtime::probe::ENV_MODULE_PATH,
+                std::env::join_paths(&options.module_path).unwrap_or_default(),
+            )
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        if let Some(date) = &options.start_at {
+            command.arg("--start-at").arg(date);
+        }
+        // The run dies with the studio, and a terminal's Ctrl-C reaches only the studio.
+        armor_runtime::process::die_with_parent(&mut command);
+        let mut child = command
+            .spawn()
+            .with_context(|| format!("cannot start {}", armor.display()))?;
+        let shared: SharedRef = Arc::default();
+        let stop = Arc::new(AtomicBool::new(false));
+        let started = Instant::now();
+        let (control_tx, control_rx) = mpsc::channel();
+        read_output(
+            child.stdout.take(),
+            Source::Modules(control_tx),
+            &shared,
+            started,
+            ctx,
+        );
+        read_output(
+            child.stderr.take(),
+            Source::Supervisor,
+            &shared,
+            started,
+            ctx,
+        );
+        let (requests, requests_rx) = mpsc::channel();
+        {
+            let shared = Arc::clone(&shared);
+            let stop = Arc::clone(&stop);
+            let ctx = ctx.clone();
+            let sources = options.sources.clone();
+            std::thread::spawn(move || {
+                poll_control(
+                    &control_rx,
+                    &requests_rx,
+                    &shared,
+                    &stop,
+                    started,
+                    &ctx,
+                    sources,
+                )
+            });
+        }
+        let (teleop, teleop_rx) = mpsc::channel();
+        {
+            let shared = Arc::clone(&shared);
+            let stop = Arc::clone(&stop);
+            std::thread::spawn(move || drive(&teleop_rx, &shared, &stop));
+        }
+        Ok(RunSession {
+            options,
+            child: Some(child),
+            shared,
+            requests,
+            teleop,
+            stop,
+            stop_asked: None,
+            report,
+            started,
+        })
+    }
+
+    pub fn shared(&self) -> MutexGuard<'_, Shared> {
+        lock(&self.shared)
+    }
+
+    /// Real seconds since the run started.
+    pub fn elapsed_secs(&self) -> f64 {
+        self.started.elapsed().as_secs_f64()
+    }
+
+    /// The run's process id (the supervisor's).
+    pub fn pid(&self) -> Option<u32> {
+        self.child.as_ref().map(Child::id)
+    }
+
+    /// Sends an operator request; its answer shows in [`Shared::replies`].
+    pub fn request(&self, request: Request) {
+        let _ = self.requests.send(request);
+    }
+
+    /// Drives the robot through the teleop module: `linear` m/s, `angular` rad/s. The module
+    /// holds a command for its dead-man time, so a command must be sent again while held.
+    pub fn teleop(&self, linear: f64, angular: f64) {
+        let _ = self.teleop.send((linear, angular));
+    }
+
+    pub fn is_running(&self) -> bool {
+        self.child.is_some()
+    }
+
+    pub fn is_stopping(&self) -> bool {
+        self.stop_asked.is_some() && self.child.is_some()
+    }
+
+    /// Asks the run to stop as Ctrl-C would: it stops every module in order, then exits.
+    pub fn stop(&mut self) {
+        if let (Some(child), None) = (&self.child, self.stop_asked) {
+            armor_runtime::process::kill(child.id() as libc::pid_t, libc::SIGINT);
+            self.stop_asked = Some(Instant::now());
+        }
+    }
+
+    /// Notices the end of the run (called every frame): reads its report, and kills a run that
+    /// was asked to stop and has not within the grace time. Returns true when it just ended.
+    pub fn poll(&mut self) -> bool {
+        let Some(child) = &mut self.child else {
+            return false;
+        };
+        let status = match child.try_wait() {
+            Ok(Some(status)) => status,
+            Ok(None) => {
+                if self.stop_asked.is_some_and(|at| at.elapsed() > STOP_GRACE) {
+                    let _ = child.kill();
+                }
+                return false;
+            }
+            Err(err) => {
+                tracing::warn!("cannot watch the run: {err}");
+                return false;
+            }
+        };
+        self.child = None;
+        self.stop.store(true, Ordering::Relaxed);
+        let report = read_report(&self.report);
+        let _ = std::fs::remove_file(&self.report);
+        let mut shared = self.shared();
+        let ended = match (&report, status.code()) {
+            (Some(report), _) => format!("mission {}", report.outcome),
+            (None, Some(0)) => "ended".to_owned(),
+            (None, Some(code)) => format!("ended with status {code}"),
+            (None, None) => "was killed".to_owned(),
+        };
+        shared.ended = Some(ended);
+        if let (Some(report), Some(status)) = (report, shared.status.as_mut())
+            && let Some(mission) = &mut status.mission
+        {
+            report.apply(mission);
+        }
+        true
+    }
+}
+
+impl Drop for RunSession {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(mut child) = self.child.take() {
+            // The supervisor's children die with it (PR_SET_PDEATHSIG).
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+        let _ = std::fs::remove_file(&self.report);
+    }
+}
+
+/// The `armor` binary: next to the modules, else on the `PATH`.
+fn armor_binary(module_path: &[PathBuf]) -> anyhow::Result<PathBuf> {
+    let beside = module_path
+        .iter()
+        .map(|dir| dir.join("armor"))
+        .find(|file| file.is_file());
+    if let Some(file) = beside {
+        return Ok(file);
+    }
+    std::env::var_os("PATH")
+        .into_iter()
+        .flat_map(|path| std::env::split_paths(&path).collect::<Vec<_>>())
+        .map(|dir| dir.join("armor"))
+        .find(|file| file.is_file())
+        .context("no `armor` binary next to the modules or on the PATH")
+}
+
+enum Source {
+    /// `armor run`'s stdout: module lines (`[name] text`) and its control address.
+    Modules(Sender<SocketAddr>),
+    /// `armor run`'s own log, on stderr.
+    Supervisor,
+}
+
+fn read_output(
+    pipe: Option<impl Read + Send + 'static>,
+    source: Source,
+    shared: &SharedRef,
+    started: Instant,
+    ctx: &egui::Context,
+) {
+    let Some(pipe) = pipe else {
+        return;
+    };
+    let shared = Arc::clone(shared);
+    let ctx = ctx.clone();
+    std::thread::spawn(move || {
+        for line in BufReader::new(pipe).lines() {
+            let Ok(line) = line else {
+                return;
+            };
+            let at_secs = started.elapsed().as_secs_f64();
+            let (module, text) = match &source {
+                Source::Modules(control) => {
+                    if let Some(addr) = line
+                        .strip_prefix(armor_runtime::CONTROL_READY_PREFIX)
+                        .and_then(|addr| addr.trim().parse().ok())
+                    {
+                        lock(&shared).control_addr = Some(addr);
+                        let _ = control.send(addr);
+                        continue;
+                    }
+                    match line
+                        .strip_prefix('[')
+                        .and_then(|rest| rest.split_once("] "))
+                    {
+                        Some((module, text)) => (module.to_owned(), strip_timestamp(text)),
+                        None => ("armor".to_owned(), line.clone()),
+                    }
+                }
+                Source::Supervisor => ("armor".to_owned(), strip_timestamp(&line)),
+            };
+            let level = if text.contains("ERROR") {
+                Level::Error
+            } else if text.contains("WARN") {
+                Level::Warn
+            } else {
+                Level::Info
+            };
+            let mut shared = lock(&shared);
+            if let Some(addr) = text
+                .split("teleop listening on ")
+                .nth(1)
+                .and_then(|addr| addr.split_whitespace().next())
+                .and_then(|addr| addr.parse().ok())
+            {
+                shared.teleop_addr = Some(addr);
+            }
+            shared.log(LogLine {
+                at_secs,
+                source: module,
+                level,
+                text,
+            });
+            drop(shared);
+            ctx.request_repaint_after(Duration::from_millis(100));
+        }
+    });
+}
+
+/// A tracing line without its leading date (`2026-11-23T06:40:00.123456Z  INFO …`).
+fn strip_timestamp(text: &str) -> String {
+    let trimmed = text.trim_end();
+    match trimmed.split_once(' ') {
+        Some((first, rest)) if first.len() >= 20 && first.ends_with('Z') && first.contains('T') => {
+            rest.trim_start().to_owned()
+        }
+        _ => trimmed.to_owned(),
+    }
+}
+
+/// Asks the run for its state every [`POLL_EVERY`] and sends the operator's requests, once the
+/// control address is known; starts the live data node once the agent's is.
+fn poll_control(
+    control: &Receiver<SocketAddr>,
+    requests: &Receiver<Request>,
+    shared: &SharedRef,
+    stop: &Arc<AtomicBool>,
+    started: Instant,
+    ctx: &egui::Context,
+    sources: Sources,
+) {
+    let addr = loop {
+        if stop.load(Ordering::Relaxed) {
+            return;
+        }
+        match control.recv_timeout(POLL_EVERY) {
+            Ok(addr) => break addr,
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+            Err(mpsc::RecvTimeoutError::Disconnected) => return,
+        }
+    };
+    let secret = armor_module_api::auth::Secret::from_env().ok().flatten();
+    let mut live_started = false;
+    let mut next_poll = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        let request =
+            match requests.recv_timeout(next_poll.saturating_duration_since(Instant::now())) {
+                Ok(request) => request,
+                Err(mpsc::RecvTimeoutError::Timeout) => {
+                    next_poll = Instant::now() + POLL_EVERY;
+                    Request::Status
+                }
+                Err(mpsc::RecvTimeoutError::Disconnected) => return,
+            };
+        let is_status = request == Request::Status;
+        let reply = armor_runtime::control::request(addr, &request, secret.as_ref());
+        let at_secs = started.elapsed().as_secs_f64();
+        let mut shared_now = lock(shared);
+        match reply {
+            Ok(reply) => {
+                if !is_status {
+                    shared_now.replies.push((reply.ok, reply.message));
+                }
+                if let Some(status) = reply.status {
+                    for module in &status.modules {
+                        if let Some(stats) = &module.stats {
+                            let history =
+                                shared_now.history.entry(module.name.clone()).or_default();
+                            if history.back().is_none_or(|last| &last.stats != stats) {
+                                if history.len() == MAX_HISTORY {
+                                    history.pop_front();
+                                }
+                                history.push_back(Sample {
+                                    at_secs,
+                                    stats: stats.clone(),
+                                });
+                            }
+                        }
+                    }
+                    if !live_started && let Ok(agent) = status.agent.parse::<SocketAddr>() {
+                        live_started = true;
+                        live::start(agent, sources.clone(), shared, stop, ctx);
+                    }
+                    shared_now.status = Some(status);
+                }
+            }
+            Err(err) if !is_status => shared_now.replies.push((false, format!("{err:#}"))),
+            // The run is ending: its last state stays shown.
+            Err(_) => {}
+        }
+        drop(shared_now);
+        ctx.request_repaint();
+    }
+}
+
+/// Sends the operator's commands to the teleop module (`v LINEAR ANGULAR`, `stop`), reading its
+/// answers so that it never holds them for us.
+fn drive(commands: &Receiver<(f64, f64)>, shared: &SharedRef, stop: &AtomicBool) {
+    let mut stream: Option<(TcpStream, SocketAddr)> = None;
+    while !stop.load(Ordering::Relaxed) {
+        let (linear, angular) = match commands.recv_timeout(Duration::from_millis(200)) {
+            Ok(command) => command,
+            Err(mpsc::RecvTimeoutError::Timeout) => continue,
+            Err(mpsc::RecvTimeoutError::Disconnected) => return,
+        };
+        let Some(addr) = lock(shared).teleop_addr else {
+            continue;
+        };
+        if stream.as_ref().is_none_or(|(_, at)| *at != addr) {
+            stream = TcpStream::connect_timeout(&addr, Duration::from_secs(1))
+                .ok()
+                .inspect(|stream| {
+                    let _ = stream.set_nonblocking(true);
+                })
+                .map(|stream| (stream, addr));
+        }
+        let Some((socket, _)) = &mut stream else {
+            continue;
+        };
+        let line = if linear == 0.0 && angular == 0.0 {
+            "stop\n".to_owned()
+        } else {
+            format!("v {linear:.3} {angular:.3}\n")
+        };
+        let mut answers = [0_u8; 1024];
+        while matches!(socket.read(&mut answers), Ok(n) if n > 0) {}
+        if socket.write_all(line.as_bytes()).is_err() {
+            stream = None;
+        }
+    }
+}
+
+/// What `armor run --report` wrote when the mission ended.
+struct Report {
+    outcome: String,
+    marking: Option<armor_model::net::Marking>,
+    firings: Vec<FiringRecord>,
+}
+
+impl Report {
+    /// Brings the last status up to the end of the run.
+    fn apply(self, mission: &mut MissionStatus) {
+        if let Some(marking) = self.marking {
+            mission.marking = marking;
+        }
+        mission.firings_total = self.firings.len();
+        mission.firings = self.firings;
+        mission.enabled.clear();
+        mission.outcome = Some(self.outcome);
+    }
+}
+
+fn read_report(file: &Path) -> Option<Report> {
+    let text = std::fs::read_to_string(file).ok()?;
+    let report: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let timeline = report["timeline"].as_array()?;
+    let marking = timeline
+        .iter()
+        .rev()
+        .find_map(|entry| serde_json::from_value(entry["marking"].clone()).ok());
+    let firings = timeline
+        .iter()
+        .filter(|entry| entry["kind"] == "fired")
+        .map(|entry| FiringRecord {
+            run_secs: entry["at_secs"]
+                .as_f64()
+                .or_else(|| entry["run_secs"].as_f64())
+                .unwrap_or_default(),
+            transition: entry["transition"].as_str().unwrap_or_default().to_owned(),
+            by_hand: entry["by_hand"].as_bool().unwrap_or(false),
+        })
+        .collect();
+    Some(Report {
+        outcome: report["outcome"].as_str()?.to_owned(),
+        marking,
+        firings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn timestamps_are_taken_off_log_lines() {
+        assert_eq!(
+            strip_timestamp("2026-11-23T06:40:00.123456Z  INFO armor: fired `go`"),
+            "INFO armor: fired `go`"
+        );
+        assert_eq!(strip_timestamp("counted 10"), "counted 10");
+    }
+}

@@ -1,0 +1,352 @@
+//! The studio's Run view driven as an operator would, through egui_kittest: a plan run at
+//! accelerated time to its final place; a run paused (the robot holds), resumed, advanced by
+//! hand and aborted; a module killed from outside shown crashed, then running again; the robot
+//! driven with the arrow keys through the teleop module, and the recording of that drive opened
+//! into the same map.
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use armor_runtime::control::{ModuleState, Request, Status};
+use armor_studio::app::View;
+use armor_studio::files::Home;
+use armor_studio::palette::Palette;
+use armor_studio::{Options, StudioApp};
+use armor_tests::{bin_dir, workspace_root};
+use egui::Key;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable as _;
+
+const PATIENCE: Duration = Duration::from_secs(40);
+
+/// A studio whose palette describes the real module binaries and whose runs work in `dir`.
+fn harness(dir: &Path) -> Harness<'static, StudioApp> {
+    let mut options = Options::new(Home::new(dir.join("home")));
+    options.module_path = vec![bin_dir()];
+    let binaries = armor_runtime::probe::list_modules(&[bin_dir()]);
+    let descriptions: Vec<_> = armor_runtime::probe::probe_all(&binaries, Duration::from_secs(10))
+        .into_iter()
+        .filter_map(|(_, description)| description.ok())
+        .collect();
+    options.palette = Some(Palette::from_descriptions(descriptions));
+    let mut app = StudioApp::new(options);
+    app.run_mut().working_dir = dir.to_path_buf();
+    let mut harness = Harness::builder()
+        .with_size([1500.0, 950.0])
+        .with_step_dt(1.0 / 60.0)
+        .with_max_steps(8)
+        .build_ui_state(|ui, app: &mut StudioApp| app.ui(ui), app);
+    harness.run_ok();
+    harness
+}
+
+/// Steps frames until `done` holds, at most `patience`.
+fn step_until(
+    harness: &mut Harness<'_, StudioApp>,
+    what: &str,
+    patience: Duration,
+    mut done: impl FnMut(&StudioApp) -> bool,
+) {
+    let deadline = Instant::now() + patience;
+    loop {
+        harness.step();
+        if done(harness.state()) {
+            return;
+        }
+        let status = harness.state().run().status();
+        assert!(
+            Instant::now() < deadline,
+            "waited {patience:?} for {what}; last status: {status:#?}; run ended: {:?}",
+            harness.state().run().ended()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn status(app: &StudioApp) -> Status {
+    app.run().status().unwrap_or_default()
+}
+
+fn module_state(app: &StudioApp, name: &str) -> Option<ModuleState> {
+    status(app)
+        .modules
+        .iter()
+        .find(|module| module.name == name)
+        .map(|module| module.state)
+}
+
+/// The robot system of `missions/robot`, its world and recording given as absolute paths so
+/// that the run works from `dir`.
+fn robot_system(dir: &Path) -> PathBuf {
+    let world = workspace_root().join("assets/worlds/yard.world");
+    let text = std::fs::read_to_string(workspace_root().join("missions/robot/system.xml"))
+        .unwrap()
+        .replace(
+            r#"value="yard.world""#,
+            &format!(r#"value="{}""#, world.display()),
+        )
+        .replace(
+            r#"value="truth.mcap""#,
+            &format!(r#"value="{}""#, dir.join("truth.mcap").display()),
+        );
+    assert!(text.contains(&world.display().to_string()));
+    let file = dir.join("system.xml");
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
+/// A plan in the yard: from `home` east to the gate (12 m), then `legs` more.
+fn plan(dir: &Path, legs: &str) -> PathBuf {
+    robot_system(dir);
+    let file = dir.join("plan.xml");
+    std::fs::write(
+        &file,
+        format!(
+            r#"<plan name="short" system="system.xml">
+  <navigation module="follower" speed_mps="0.5"><module name="avoider"/></navigation>
+  <waypoint name="home" lat="43.5615360" lon="1.4690496"/>
+  <waypoint name="gate" lat="43.5615360" lon="1.4691986"/>
+  <leg name="advance" from="home" to="gate"/>
+  {legs}
+</plan>"#
+        ),
+    )
+    .unwrap();
+    file
+}
+
+fn open_and_run(harness: &mut Harness<'_, StudioApp>, file: &Path, time_scale: f64) {
+    if file.ends_with("plan.xml") {
+        harness.state_mut().set_view(View::Mission);
+        harness.run_ok();
+        harness.state_mut().open_plan(file);
+    } else {
+        harness.state_mut().open(file);
+    }
+    harness.run_ok();
+    harness.state_mut().set_view(View::Run);
+    harness.state_mut().run_mut().time_scale = time_scale;
+    harness.run_ok();
+    harness.get_by_label("▶ Run").click();
+    harness.run_ok();
+    assert!(
+        harness.state().run().is_running(),
+        "{:?}",
+        harness.state().status()
+    );
+}
+
+fn truth_x(app: &StudioApp) -> Option<f64> {
+    app.run().live().truth.map(|pose| pose.x_m)
+}
+
+#[test]
+fn a_plan_run_from_the_run_view_reaches_its_final_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = plan(dir.path(), "");
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &file, 10.0);
+    step_until(&mut harness, "the robot on the live map", PATIENCE, |app| {
+        truth_x(app).is_some()
+    });
+    step_until(&mut harness, "the run to end", PATIENCE, |app| {
+        app.run().ended().is_some()
+    });
+    let status = status(harness.state());
+    let mission = status.mission.unwrap();
+    assert_eq!(mission.outcome.as_deref(), Some("complete"));
+    assert_eq!(
+        mission.marking.keys().collect::<Vec<_>>(),
+        ["done"],
+        "the final place"
+    );
+    assert!(
+        mission
+            .firings
+            .iter()
+            .any(|firing| firing.transition.starts_with("advance")),
+        "{:?}",
+        mission.firings
+    );
+    harness.run_ok();
+    harness.get_by_label_contains("`short` (complete)");
+    let x = truth_x(harness.state()).unwrap();
+    assert!(x > 8.0, "the robot drove east to the gate, at x = {x}");
+}
+
+#[test]
+fn pause_holds_the_robot_and_the_operator_fires_and_aborts() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = plan(
+        dir.path(),
+        r#"<leg name="back" from="gate" to="home" wait_secs="600"/>"#,
+    );
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &file, 4.0);
+    step_until(
+        &mut harness,
+        "the robot to start driving",
+        PATIENCE,
+        |app| truth_x(app).is_some_and(|x| x > 1.5),
+    );
+    harness.get_by_label("⏸ Pause").click();
+    step_until(&mut harness, "the mission to pause", PATIENCE, |app| {
+        status(app).mission.is_some_and(|mission| mission.paused)
+    });
+    // The modules hold: after the robot has come to rest, it stays where it is.
+    let settle = Instant::now() + Duration::from_millis(600);
+    step_until(&mut harness, "a moment", PATIENCE, |_| {
+        Instant::now() > settle
+    });
+    let held_at = truth_x(harness.state()).unwrap();
+    let later = Instant::now() + Duration::from_millis(1200);
+    step_until(&mut harness, "a while paused", PATIENCE, |_| {
+        Instant::now() > later
+    });
+    let now_at = truth_x(harness.state()).unwrap();
+    assert!(
+        (now_at - held_at).abs() < 0.05,
+        "paused, the robot moved from {held_at} to {now_at}"
+    );
+    assert!(now_at < 11.0, "paused before the gate, at {now_at}");
+
+    harness.get_by_label("⏵ Resume").click();
+    step_until(&mut harness, "the robot to move again", PATIENCE, |app| {
+        truth_x(app).is_some_and(|x| x > now_at + 0.3)
+    });
+    // The leg's arrival waits for the follower; the operator declares it by hand.
+    let enabled = status(harness.state()).mission.unwrap().enabled;
+    let arrival = enabled
+        .iter()
+        .find(|enabled| enabled.transition.starts_with("advance"))
+        .unwrap_or_else(|| panic!("no transition of the first leg enabled: {enabled:?}"))
+        .transition
+        .clone();
+    harness.get_by_label(&format!("⏭ {arrival}")).click();
+    step_until(&mut harness, "the firing by hand", PATIENCE, |app| {
+        status(app).mission.is_some_and(|mission| {
+            mission
+                .firings
+                .iter()
+                .any(|firing| firing.by_hand && firing.transition == arrival)
+        })
+    });
+    harness.get_by_label("⏹ Abort").click();
+    step_until(&mut harness, "the run to end", PATIENCE, |app| {
+        app.run().ended().is_some()
+    });
+    assert_eq!(
+        status(harness.state()).mission.unwrap().outcome.as_deref(),
+        Some("aborted")
+    );
+}
+
+#[test]
+fn a_module_killed_from_outside_shows_crashed_then_running_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = dir.path().join("system.xml");
+    std::fs::copy(workspace_root().join("missions/demo/system.xml"), &system).unwrap();
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &system, 1.0);
+    step_until(&mut harness, "the counter running", PATIENCE, |app| {
+        module_state(app, "counter") == Some(ModuleState::Running)
+    });
+    // The diagram shows it too.
+    assert_eq!(
+        harness.state().run().module_states().get("counter"),
+        Some(&ModuleState::Running)
+    );
+    let pid = status(harness.state())
+        .modules
+        .iter()
+        .find(|module| module.name == "counter")
+        .and_then(|module| module.pid)
+        .unwrap();
+    let killed = std::process::Command::new("kill")
+        .args(["-9", &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    step_until(
+        &mut harness,
+        "the counter restarted and running",
+        PATIENCE,
+        |app| {
+            status(app).modules.iter().any(|module| {
+                module.name == "counter"
+                    && module.restarts == 1
+                    && module.state == ModuleState::Running
+                    && module.pid != Some(pid)
+            })
+        },
+    );
+    harness.run_ok();
+    harness.get_by_label("1 restart");
+    harness.get_by_label_contains("crashed: it was killed by signal 9");
+    // Its log says so too, and the filter finds it.
+    harness.state_mut().run_mut().log_filter = "restarting in".to_owned();
+    harness.run_ok();
+    harness.get_by_label_contains("restarting in");
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+}
+
+#[test]
+fn the_robot_is_driven_with_the_keys_and_its_recording_replays() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = robot_system(dir.path());
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &system, 1.0);
+    step_until(&mut harness, "every module running", PATIENCE, |app| {
+        app.run().live().truth.is_some()
+            && status(app)
+                .modules
+                .iter()
+                .all(|module| module.state == ModuleState::Running)
+    });
+    // In a plain system run the follower and the observer drive too: stop them by hand first.
+    for module in ["follower", "observer"] {
+        harness.state_mut().run_mut().request(Request::StopModule {
+            module: module.to_owned(),
+        });
+    }
+    step_until(
+        &mut harness,
+        "follower and observer stopped",
+        PATIENCE,
+        |app| {
+            module_state(app, "follower") == Some(ModuleState::Stopped)
+                && module_state(app, "observer") == Some(ModuleState::Stopped)
+        },
+    );
+    harness.run_ok();
+    harness.get_by_label("▲");
+    let rest = Instant::now() + Duration::from_millis(800);
+    step_until(&mut harness, "the robot at rest", PATIENCE, |_| {
+        Instant::now() > rest
+    });
+    let start = harness.state().run().live().truth.unwrap();
+    harness.key_down(Key::ArrowUp);
+    step_until(&mut harness, "the robot to move forward", PATIENCE, |app| {
+        app.run()
+            .live()
+            .truth
+            .is_some_and(|now| (now.x_m - start.x_m).hypot(now.y_m - start.y_m) > 0.3)
+    });
+    harness.key_up(Key::ArrowUp);
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+    let recording = dir.path().join("truth.mcap");
+    assert!(recording.is_file(), "the recorder wrote {recording:?}");
+    harness.state_mut().run_mut().open_recording(&recording);
+    harness.run_ok();
+    let live = harness.state().run().live();
+    assert!(live.truth.is_some(), "the recording's last pose is shown");
+    assert!(live.trail.len() >= 2, "with the path driven");
+    harness.get_by_label_contains("Recording truth.mcap");
+}
