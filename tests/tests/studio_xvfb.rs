@@ -1,7 +1,7 @@
 //! The studio in a real X window (Xvfb), driven with the mouse and keyboard through xdotool as a
 //! person would: it opens a system file given on its command line, duplicates the blocks,
 //! saves under a path typed into the path field, and the saved file passes the real
-//! `armor check`. Needs Debian's `xvfb` and `xdotool` (installed by `.ci/run`). Xvfb is started
+//! `armor check`; the Run view starts the system with F5 and stops it with Shift+F5. Needs Debian's `xvfb` and `xdotool` (installed by `.ci/run`). Xvfb is started
 //! directly rather than through `xvfb-run`, so that the guard kills the server itself.
 #![allow(clippy::unwrap_used)]
 
@@ -228,6 +228,44 @@ fn the_mission_view_adds_waypoints_with_the_mouse_and_saves_the_plan() {
     assert_eq!(after.legs.len(), before.legs.len() + 2);
     assert_eq!(after.legs.last().unwrap().to, "wp2");
     check(&saved);
+}
+
+#[test]
+fn the_run_view_starts_and_stops_a_run_from_the_keyboard() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("demo.xml");
+    std::fs::write(&file, SYSTEM).unwrap();
+    let session = start(dir.path(), &file);
+    let Session {
+        studio,
+        display,
+        window,
+        ..
+    } = &session;
+    // F5 runs the open system with `armor run`, a child of the studio, and its modules under it.
+    keys_until(studio, display, window, &["F5"], "running ");
+    let modules = || -> Vec<i32> {
+        armor_tests::children_of(studio.pid())
+            .into_iter()
+            .flat_map(armor_tests::children_of)
+            .filter(|pid| {
+                std::fs::read_to_string(format!("/proc/{pid}/comm"))
+                    .is_ok_and(|comm| comm.starts_with("armor-mod-"))
+            })
+            .collect()
+    };
+    wait_until("the run's two modules", PATIENCE, || modules().len() == 2);
+    let running = modules();
+    // Shift+F5 stops it: every module ends, then the run.
+    keys_until(studio, display, window, &["shift+F5"], "the run ended");
+    wait_until("the modules to end", PATIENCE, || {
+        running
+            .iter()
+            .all(|pid| !armor_tests::process_alive(*pid))
+    });
+    wait_until("the run to end", PATIENCE, || {
+        armor_tests::children_of(studio.pid()).is_empty()
+    });
 }
 
 /// The real `armor check` accepts the file.
