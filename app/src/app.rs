@@ -242,6 +242,24 @@ impl StudioApp {
         self.run.start(target, &mut surroundings, ctx);
     }
 
+    /// Watches a run of the open system started elsewhere, through its control interface.
+    pub fn attach_run(&mut self, control: std::net::SocketAddr, ctx: &egui::Context) {
+        let Some(system) = self.path.clone() else {
+            return;
+        };
+        let mut surroundings = RunSurroundings {
+            mission: None,
+            system_file: Some(&system),
+            catalog: &self.palette.catalog,
+        };
+        self.run.attach(
+            Target::System(system.clone()),
+            control,
+            &mut surroundings,
+            ctx,
+        );
+    }
+
     /// The Mission view, once a frame has shown it.
     pub fn mission(&self) -> Option<&MissionView> {
         self.mission.as_ref()

@@ -30,6 +30,11 @@ use crate::palette::Palette;
 pub const FRAME: &str = "studio_frame_ms_1000_blocks";
 pub const LOAD: &str = "studio_load_ms_1000_blocks";
 pub const MAP: &str = "map_frame_ms_500_waypoints";
+/// `armor-studio bench monitor CONTROL SYSTEM SECS`: the Run view watching a run for
+/// `armor-bench`'s `monitor_overhead` (no line printed).
+pub const MONITOR: &str = "monitor";
+/// The frame rate the monitor is drawn at, as a window would while the robot moves.
+const MONITOR_FPS: f64 = 30.0;
 const FRAME_BUDGET_MS: f64 = 16.0;
 
 /// The module type every block of the bench diagram has.
@@ -142,6 +147,9 @@ fn frame_time(ctx: &egui::Context, app: &mut StudioApp, frames: usize) -> f64 {
 }
 
 pub fn run(args: &[String]) -> anyhow::Result<()> {
+    if args.first().map(String::as_str) == Some(MONITOR) {
+        return monitor(&args[1..]);
+    }
     let quick = args.iter().any(|arg| arg == "--quick");
     let which: Vec<&str> = args
         .iter()
@@ -239,6 +247,43 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
+
+/// Watches the run whose control interface is at `args[0]` (a run of the system file
+/// `args[1]`) from the Run view for `args[2]` seconds: the status polled, the studio's node
+/// subscribed to the robot's data, every frame drawn (headless, tessellated) at 30 Hz.
+fn monitor(args: &[String]) -> anyhow::Result<()> {
+    let [control, system, secs] = args else {
+        anyhow::bail!("usage: armor-studio bench monitor CONTROL_ADDR SYSTEM_FILE SECONDS");
+    };
+    let control: std::net::SocketAddr = control.parse().context("the control address")?;
+    let secs: f64 = secs.parse().context("the seconds")?;
+    let system = Path::new(system);
+    let ctx = egui::Context::default();
+    let mut options = Options::new(Home::new(tempfile_dir()?.join("home")));
+    let binaries = armor_runtime::probe::list_modules(&options.module_path);
+    let descriptions = armor_runtime::probe::probe_all(&binaries, Duration::from_secs(10))
+        .into_iter()
+        .filter_map(|(_, description)| description.ok());
+    options.palette = Some(Palette::from_descriptions(descriptions));
+    options.file = Some(system.to_path_buf());
+    let mut app = StudioApp::new(options);
+    app.set_view(crate::app::View::Run);
+    frame_time(&ctx, &mut app, 1);
+    app.attach_run(control, &ctx);
+    let end = Instant::now() + Duration::from_secs_f64(secs);
+    let period = Duration::from_secs_f64(1.0 / MONITOR_FPS);
+    let mut next = Instant::now();
+    while Instant::now() < end {
+        frame_time(&ctx, &mut app, 1);
+        next += period;
+        std::thread::sleep(next.saturating_duration_since(Instant::now()));
+    }
+    anyhow::ensure!(
+        app.run().status().is_some(),
+        "the run view never had the run's status"
+    );
     Ok(())
 }
 

@@ -259,9 +259,7 @@ fn the_run_view_starts_and_stops_a_run_from_the_keyboard() {
     // Shift+F5 stops it: every module ends, then the run.
     keys_until(studio, display, window, &["shift+F5"], "the run ended");
     wait_until("the modules to end", PATIENCE, || {
-        running
-            .iter()
-            .all(|pid| !armor_tests::process_alive(*pid))
+        running.iter().all(|pid| !armor_tests::process_alive(*pid))
     });
     wait_until("the run to end", PATIENCE, || {
         armor_tests::children_of(studio.pid()).is_empty()

@@ -143,9 +143,41 @@ impl RunView {
 
     /// Starts a run of `target`; the caller saved it first.
     pub fn start(&mut self, target: Target, surroundings: &mut Surroundings, ctx: &egui::Context) {
+        let options = self.options(&target, surroundings, ctx);
+        match RunSession::start(options, ctx) {
+            Ok(session) => {
+                self.messages
+                    .push((true, format!("running {}", target.path().display())));
+                self.session = Some(session);
+            }
+            Err(err) => self.messages.push((false, format!("{err:#}"))),
+        }
+    }
+
+    /// Watches a run of `target` started elsewhere, through its control interface.
+    pub fn attach(
+        &mut self,
+        target: Target,
+        control: std::net::SocketAddr,
+        surroundings: &mut Surroundings,
+        ctx: &egui::Context,
+    ) {
+        let options = self.options(&target, surroundings, ctx);
+        self.session = Some(RunSession::attach(options, control, ctx));
+        self.messages
+            .push((true, format!("watching the run at {control}")));
+    }
+
+    /// What a run of `target` needs: the sources of the live views from its system.
+    fn options(
+        &mut self,
+        target: &Target,
+        surroundings: &mut Surroundings,
+        ctx: &egui::Context,
+    ) -> RunOptions {
         self.stop();
         self.recording = None;
-        let system = match &target {
+        let system = match target {
             Target::Plan(_) => surroundings
                 .mission
                 .as_ref()
@@ -168,21 +200,13 @@ impl RunView {
             },
             date => Some(date.to_owned()),
         };
-        let options = RunOptions {
+        RunOptions {
             target: target.path().to_path_buf(),
             time_scale: self.time_scale,
             start_at: start_at.filter(|date| !date.is_empty()),
             working_dir: self.working_dir.clone(),
             module_path: self.module_path.clone(),
             sources,
-        };
-        match RunSession::start(options, ctx) {
-            Ok(session) => {
-                self.messages
-                    .push((true, format!("running {}", target.path().display())));
-                self.session = Some(session);
-            }
-            Err(err) => self.messages.push((false, format!("{err:#}"))),
         }
     }
 

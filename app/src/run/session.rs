@@ -114,6 +114,8 @@ pub struct RunSession {
     teleop: Sender<(f64, f64)>,
     /// Set when the run is asked to stop: every thread of the session ends.
     stop: Arc<AtomicBool>,
+    /// Watching a run started elsewhere (no process of ours).
+    attached: bool,
     stop_asked: Option<Instant>,
     report: PathBuf,
     started: Instant,
@@ -152,24 +154,50 @@ impl RunSession {
         let mut child = command
             .spawn()
             .with_context(|| format!("cannot start {}", armor.display()))?;
-        let shared: SharedRef = Arc::default();
-        let stop = Arc::new(AtomicBool::new(false));
         let started = Instant::now();
         let (control_tx, control_rx) = mpsc::channel();
+        let mut session = RunSession::watch(options, control_rx, report, started, ctx);
+        let shared = &session.shared;
         read_output(
             child.stdout.take(),
             Source::Modules(control_tx),
-            &shared,
+            shared,
             started,
             ctx,
         );
         read_output(
             child.stderr.take(),
             Source::Supervisor,
-            &shared,
+            shared,
             started,
             ctx,
         );
+        session.child = Some(child);
+        Ok(session)
+    }
+
+    /// Watches a run started elsewhere (`armor run` in a terminal), through its control
+    /// interface at `control`: the same views, without its logs.
+    pub fn attach(options: RunOptions, control: SocketAddr, ctx: &egui::Context) -> RunSession {
+        let (control_tx, control_rx) = mpsc::channel();
+        let _ = control_tx.send(control);
+        let mut session =
+            RunSession::watch(options, control_rx, PathBuf::new(), Instant::now(), ctx);
+        session.attached = true;
+        lock(&session.shared).control_addr = Some(control);
+        session
+    }
+
+    /// The threads that poll the control interface and drive the teleop module.
+    fn watch(
+        options: RunOptions,
+        control_rx: Receiver<SocketAddr>,
+        report: PathBuf,
+        started: Instant,
+        ctx: &egui::Context,
+    ) -> RunSession {
+        let shared: SharedRef = Arc::default();
+        let stop = Arc::new(AtomicBool::new(false));
         let (requests, requests_rx) = mpsc::channel();
         {
             let shared = Arc::clone(&shared);
@@ -194,17 +222,18 @@ impl RunSession {
             let stop = Arc::clone(&stop);
             std::thread::spawn(move || drive(&teleop_rx, &shared, &stop));
         }
-        Ok(RunSession {
+        RunSession {
             options,
-            child: Some(child),
+            child: None,
             shared,
             requests,
             teleop,
             stop,
+            attached: false,
             stop_asked: None,
             report,
             started,
-        })
+        }
     }
 
     pub fn shared(&self) -> MutexGuard<'_, Shared> {
@@ -233,7 +262,7 @@ impl RunSession {
     }
 
     pub fn is_running(&self) -> bool {
-        self.child.is_some()
+        self.child.is_some() || (self.attached && !self.stop.load(Ordering::Relaxed))
     }
 
     pub fn is_stopping(&self) -> bool {
@@ -242,6 +271,11 @@ impl RunSession {
 
     /// Asks the run to stop as Ctrl-C would: it stops every module in order, then exits.
     pub fn stop(&mut self) {
+        if self.attached {
+            // Not ours to stop: stop watching.
+            self.stop.store(true, Ordering::Relaxed);
+            return;
+        }
         if let (Some(child), None) = (&self.child, self.stop_asked) {
             armor_runtime::process::kill(child.id() as libc::pid_t, libc::SIGINT);
             self.stop_asked = Some(Instant::now());

@@ -135,6 +135,12 @@ const BENCHES: &[Bench] = &[
         run: sim_realtime::run,
     },
     Bench {
+        name: sim_realtime::NAME_MONITOR,
+        about: "the robot demo system's simulated seconds per wall second with the studio's Run \
+                view watching it, on the same core, vs without (goal ratio >= 0.9)",
+        run: sim_realtime::run_monitor,
+    },
+    Bench {
         name: mapper_scan::NAME,
         about: "one 360-beam scan matched and integrated by the mapper vs the grid update alone \
                 (ms)",

@@ -37,6 +37,9 @@ use crate::procs::{ChildGuard, module_binary, sibling_binary};
 use crate::report::Report;
 
 pub const NAME: &str = "sim_realtime_factor";
+pub const NAME_MONITOR: &str = "monitor_overhead";
+/// The goal for the monitor: the robot keeps at least this share of its speed.
+pub const MONITOR_GOAL: f64 = 0.9;
 /// The goal: at least this many simulated seconds per wall second, on one core.
 pub const GOAL: f64 = 50.0;
 const SYSTEM_XML: &str = include_str!("../../../missions/robot/system.xml");
@@ -82,7 +85,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     let mut best = 0.0_f64;
     let mut scale = GOAL;
     loop {
-        let achieved = system_factor(&armor, dir.path(), scale, core, &timing)?;
+        let achieved = system_factor(&armor, dir.path(), scale, core, &timing, None)?;
         runs.push([scale, round2(achieved)]);
         best = best.max(achieved);
         if settings.quick || achieved < KEEPS_UP * scale || scale >= MAX_SCALE {
@@ -98,6 +101,63 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
             "the bare Simulator of the same world stepped in one thread (no processes, no messages)",
         )
         .with("runs", serde_json::json!(runs))
+        .with("one_core", core.is_some()))
+}
+
+/// `monitor_overhead`: the system's factor with the studio's Run view watching it (status
+/// polled, the studio's node subscribed to the poses and the scan, frames drawn at 30 Hz, on
+/// the same core) against without, at the scale where the system alone does best. Each is
+/// measured twice, alternately, and the better of each kept.
+pub fn run_monitor(settings: &Settings) -> anyhow::Result<Report> {
+    let timing = if settings.quick {
+        Timing {
+            warm_up: Duration::from_millis(500),
+            window: Duration::from_millis(1000),
+        }
+    } else {
+        Timing {
+            warm_up: Duration::from_secs(2),
+            window: Duration::from_secs(4),
+        }
+    };
+    let armor = sibling_binary("armor")?;
+    let studio = sibling_binary("armor-studio")?;
+    module_binary("sim")?;
+    let dir = tempfile::tempdir().context("cannot make a temporary folder")?;
+    std::fs::write(dir.path().join("system.xml"), without_recorder(SYSTEM_XML)?)
+        .context("cannot write the system file")?;
+    std::fs::write(dir.path().join(WORLD_FILE), YARD_WORLD)
+        .context("cannot write the world file")?;
+    let core = one_core();
+    // The scale the system alone does best at: doubled while it keeps up.
+    let mut scale = GOAL;
+    if !settings.quick {
+        loop {
+            let achieved = system_factor(&armor, dir.path(), scale, core, &timing, None)?;
+            if achieved < KEEPS_UP * scale || scale >= MAX_SCALE {
+                break;
+            }
+            scale *= 2.0;
+        }
+    }
+    let rounds = if settings.quick { 1 } else { 2 };
+    let (mut alone, mut watched) = (0.0_f64, 0.0_f64);
+    let mut runs = Vec::new();
+    for _ in 0..rounds {
+        let without = system_factor(&armor, dir.path(), scale, core, &timing, None)?;
+        let with = system_factor(&armor, dir.path(), scale, core, &timing, Some(&studio))?;
+        runs.push([round2(without), round2(with)]);
+        alone = alone.max(without);
+        watched = watched.max(with);
+    }
+    Ok(Report::single(NAME_MONITOR, "sim s/s", watched, alone)
+        .with("goal", MONITOR_GOAL)
+        .with("time_scale", scale)
+        .with(
+            "reference_is",
+            "the same system at the same time scale with no studio attached",
+        )
+        .with("runs_without_with", serde_json::json!(runs))
         .with("one_core", core.is_some()))
 }
 
@@ -163,15 +223,17 @@ fn system_factor(
     scale: f64,
     core: Option<usize>,
     timing: &Timing,
+    studio: Option<&Path>,
 ) -> anyhow::Result<f64> {
-    let mut command = match core {
+    let pinned = |program: &Path| match core {
         Some(core) => {
             let mut command = Command::new("taskset");
-            command.arg("-c").arg(core.to_string()).arg(armor);
+            command.arg("-c").arg(core.to_string()).arg(program);
             command
         }
-        None => Command::new(armor),
+        None => Command::new(program),
     };
+    let mut command = pinned(armor);
     command
         .arg("run")
         .arg("system.xml")
@@ -192,6 +254,27 @@ fn system_factor(
             .then(|| field(line, "addr")?.parse().ok())
             .flatten()
     })?;
+    let control = child.wait_line(&module_lines, "its control address", LINK_TIMEOUT, |line| {
+        line.strip_prefix(armor_runtime::CONTROL_READY_PREFIX)
+            .map(|addr| addr.trim().to_owned())
+    })?;
+    // The studio watches for longer than the measurement; it is killed after it.
+    let _studio = match studio {
+        Some(studio) => {
+            let mut command = pinned(studio);
+            command
+                .args(["bench", "monitor", &control, "system.xml"])
+                .arg((3.0 * (timing.warm_up + timing.window).as_secs_f64() + 10.0).to_string())
+                .current_dir(dir)
+                .env_remove(ENV_SUPERVISOR)
+                .env_remove(ENV_MODULE);
+            Some(ChildGuard::spawn_quiet(
+                "armor-studio bench monitor",
+                command,
+            )?)
+        }
+        None => None,
+    };
     let setup = child.wait_line(&module_lines, "the sim's start", LINK_TIMEOUT, |line| {
         line.starts_with("[sim]").then(|| sim_setup(line)).flatten()
     })?;
