@@ -1,7 +1,7 @@
 //! The robot's data as the run view shows it: poses (estimated and true), the laser scan and the
 //! occupancy grid. During a run, a node of the studio's own (named `studio`) subscribes to the
-//! outputs that carry them, as any module would, best-effort: it takes only the newest sample
-//! and never holds a provider back. A recording (an MCAP file of the recorder) feeds the same
+//! outputs that carry them, as any module would, best-effort and at most [`MAX_RATE_HZ`] samples
+//! a second (the providers skip the others): it never holds a provider back. A recording (an MCAP file of the recorder) feeds the same
 //! views from its messages instead.
 
 use std::collections::VecDeque;
@@ -21,6 +21,9 @@ use super::session::{SharedRef, lock};
 pub const NODE_NAME: &str = "studio";
 /// Points of the true path kept for the trail.
 const MAX_TRAIL: usize = 4000;
+/// Samples per second asked of each provider: a display needs no more, and a simulation run
+/// fast publishes thousands, each of which would cost its provider a send.
+pub const MAX_RATE_HZ: f64 = 30.0;
 
 /// The data names the live views read.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -178,7 +181,7 @@ fn watch(
     )?;
     let inputs: Vec<_> = sources
         .names()
-        .map(|name| Ok((node.subscribe_raw(name, false)?, name.clone())))
+        .map(|name| Ok((node.subscribe_raw_at_most(name, MAX_RATE_HZ)?, name.clone())))
         .collect::<anyhow::Result<_>>()?;
     while !stop.load(Ordering::Relaxed) {
         match node.next_event(Some(Duration::from_millis(100)))? {

@@ -45,6 +45,8 @@ enum Role {
     Subscriber {
         output: usize,
         reliable: bool,
+        /// The least time between two samples sent (a subscriber's `max_rate_hz`).
+        min_interval: Option<Duration>,
     },
 }
 
@@ -59,6 +61,8 @@ struct Conn {
     /// Messages queued before this side could send its proof (it needs the peer's challenge):
     /// they follow the proof, since the peer takes nothing before it.
     held: Option<OutBuffer>,
+    /// When a rate-limited subscriber was last sent a sample.
+    last_sent: Option<Instant>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -196,6 +200,7 @@ impl Net {
                 paused: false,
                 handshake_deadline: None,
                 held: handshake.map(|_| OutBuffer::default()),
+                last_sent: None,
             },
         );
         Ok(token)
@@ -307,11 +312,29 @@ impl Net {
         frame: &[u8],
     ) -> Result<(), ApiError> {
         let mut stalled = Vec::new();
+        let mut now = None;
         for &token in &self.subscribers[output] {
             let Some(conn) = self.conns.get_mut(&token) else {
                 continue;
             };
-            let reliable = matches!(conn.role, Role::Subscriber { reliable: true, .. });
+            let (reliable, min_interval) = match conn.role {
+                Role::Subscriber {
+                    reliable,
+                    min_interval,
+                    ..
+                } => (reliable, min_interval),
+                _ => (false, None),
+            };
+            if let Some(min_interval) = min_interval {
+                let now = *now.get_or_insert_with(Instant::now);
+                if conn
+                    .last_sent
+                    .is_some_and(|last| now.saturating_duration_since(last) < min_interval)
+                {
+                    continue;
+                }
+                conn.last_sent = Some(now);
+            }
             conn.out.push_frame(frame, !reliable);
             if conn.out.pending_bytes() >= BATCH_BYTES {
                 match conn.out.flush_to(&mut conn.stream) {
@@ -670,6 +693,7 @@ impl Net {
                     data_type: slot.data_type.clone(),
                     subscriber: format!("{}.{}", core.name, slot.name),
                     reliable: slot.reliable,
+                    max_rate_hz: slot.max_rate_hz,
                 };
                 self.queue_message(token, &subscribe);
                 self.inputs[index] = InputLink::Connecting(token);
@@ -752,7 +776,13 @@ impl Net {
             data_type,
             subscriber,
             reliable,
+            max_rate_hz,
         } = message;
+        // A reliable subscriber takes every sample; a rate that is not a positive number is
+        // no limit.
+        let min_interval = max_rate_hz
+            .filter(|rate| !reliable && rate.is_finite() && *rate > 0.0)
+            .and_then(|rate| Duration::try_from_secs_f64(1.0 / rate).ok());
         let found = core
             .outputs
             .iter()
@@ -778,7 +808,11 @@ impl Net {
         let _ = conn.out.flush_to(&mut conn.stream);
         match (refusal, found) {
             (None, Some(output)) => {
-                conn.role = Role::Subscriber { output, reliable };
+                conn.role = Role::Subscriber {
+                    output,
+                    reliable,
+                    min_interval,
+                };
                 conn.handshake_deadline = None;
                 self.subscribers[output].push(token);
                 tracing::info!(subscriber, data_name, "subscriber linked");

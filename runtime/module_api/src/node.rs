@@ -206,6 +206,8 @@ pub(crate) struct InputSlot {
     pub notified: bool,
     /// Samples received since the module started.
     pub received: u64,
+    /// At most this many samples per second, asked of the provider (best-effort only).
+    pub max_rate_hz: Option<f64>,
 }
 
 impl InputSlot {
@@ -265,6 +267,7 @@ impl Core {
                 link: 0,
                 notified: false,
                 received: 0,
+                max_rate_hz: None,
             })
             .collect();
         let outputs = description
@@ -634,6 +637,26 @@ impl Node {
     /// [`RawInput::id`]; read them with [`Node::take_raw`]. Each call adds one more input (and
     /// subscription), even for a data name already subscribed.
     pub fn subscribe_raw(&mut self, data_name: &str, reliable: bool) -> Result<RawInput, ApiError> {
+        self.subscribe_raw_with(data_name, reliable, None)
+    }
+
+    /// As [`Node::subscribe_raw`] best-effort, asking the provider for at most `max_rate_hz`
+    /// samples per second (it skips those that come sooner): for displays and monitors, which
+    /// need far fewer samples than a fast provider publishes.
+    pub fn subscribe_raw_at_most(
+        &mut self,
+        data_name: &str,
+        max_rate_hz: f64,
+    ) -> Result<RawInput, ApiError> {
+        self.subscribe_raw_with(data_name, false, Some(max_rate_hz))
+    }
+
+    fn subscribe_raw_with(
+        &mut self,
+        data_name: &str,
+        reliable: bool,
+        max_rate_hz: Option<f64>,
+    ) -> Result<RawInput, ApiError> {
         check_data_name(data_name)?;
         let index = self.core.inputs.len();
         self.core.inputs.push(InputSlot {
@@ -648,6 +671,7 @@ impl Node {
             link: 0,
             notified: false,
             received: 0,
+            max_rate_hz,
         });
         if let Transport::Net(net) = &mut self.transport {
             net.add_input(&self.core, index);

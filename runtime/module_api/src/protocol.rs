@@ -103,7 +103,7 @@ pub enum FromSupervisor {
     Error { message: String },
 }
 
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum ToProvider {
     Subscribe {
@@ -114,6 +114,12 @@ pub enum ToProvider {
         /// `false`: the subscriber wants only the newest sample and the provider may drop older
         /// ones it has not started to send. `true`: every sample, with back-pressure.
         reliable: bool,
+        /// A best-effort subscriber that wants at most this many samples per second (real
+        /// time): the provider skips a sample that comes sooner than `1 / max_rate_hz` after the
+        /// last one it sent this subscriber, as DDS's time-based filter does. A display needs a
+        /// few dozen poses a second, not the thousands a fast simulation publishes.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        max_rate_hz: Option<f64>,
     },
 }
 
