@@ -229,3 +229,70 @@ fn a_mission_cut_short_by_for_ends_with_a_failure() {
         run.lines()
     );
 }
+
+#[test]
+fn a_plain_system_run_is_watched_and_its_modules_started_and_stopped_by_hand() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = dir.path().join("system.xml");
+    std::fs::copy(workspace_root().join("missions/demo/system.xml"), &system).unwrap();
+    let run = armor_run(&system, &[]);
+    let line = run.wait_for("with the control address", PATIENCE, |line| {
+        line.contains("control interface listening")
+    });
+    let addr = field(&line, "addr").unwrap().to_owned();
+    let status = |addr: &str| -> serde_json::Value {
+        let (ok, text) = ctl(addr, &["status", "--json"]);
+        assert!(ok, "{text}");
+        serde_json::from_str(&text[text.find('{').unwrap()..]).unwrap()
+    };
+    let module = |status: &serde_json::Value, name: &str| -> serde_json::Value {
+        status["modules"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|module| module["name"] == name)
+            .cloned()
+            .unwrap()
+    };
+    let sent = |status: &serde_json::Value| {
+        module(status, "counter")["stats"]["sent"]["counter.count"]
+            .as_u64()
+            .unwrap_or(0)
+    };
+    // The counters come with the answers to pings (four per 2 s lease): they grow.
+    let mut first = 0;
+    armor_tests::wait_until("the counter's count to grow", PATIENCE, || {
+        let now = status(&addr);
+        if first == 0 {
+            first = sent(&now);
+        }
+        first > 0 && sent(&now) > first
+    });
+    let now = status(&addr);
+    assert!(now["mission"].is_null(), "no mission: {now}");
+    assert_eq!(module(&now, "counter")["state"], "running");
+    assert!(module(&now, "checker")["stats"]["received"]["input"].as_u64() > Some(0));
+
+    let (ok, text) = ctl(&addr, &["status"]);
+    assert!(ok);
+    assert!(text.contains("  counter (counter): running"), "{text}");
+
+    let skip = run.line_count();
+    let (ok, text) = ctl(&addr, &["stop", "counter"]);
+    assert!(ok, "{text}");
+    run.wait_for_from(skip, "the counter stopping", PATIENCE, |line| {
+        line.starts_with("[counter]") && line.contains("inactive")
+    });
+    let stopped = status(&addr);
+    assert_eq!(module(&stopped, "counter")["state"], "stopped");
+    assert_eq!(module(&stopped, "counter")["manual"], false);
+    let (ok, text) = ctl(&addr, &["stop", "nosuch"]);
+    assert!(!ok, "{text}");
+    assert!(text.contains("no module `nosuch`"), "{text}");
+
+    let (ok, text) = ctl(&addr, &["release", "counter"]);
+    assert!(ok, "{text}");
+    let released = status(&addr);
+    assert_eq!(module(&released, "counter")["state"], "running");
+    assert!(module(&released, "counter")["manual"].is_null());
+}

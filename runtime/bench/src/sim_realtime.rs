@@ -140,7 +140,7 @@ pub fn run_monitor(settings: &Settings) -> anyhow::Result<Report> {
             scale *= 2.0;
         }
     }
-    let rounds = if settings.quick { 1 } else { 2 };
+    let rounds = if settings.quick { 1 } else { 3 };
     let (mut alone, mut watched) = (0.0_f64, 0.0_f64);
     let mut runs = Vec::new();
     for _ in 0..rounds {
