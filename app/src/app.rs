@@ -696,6 +696,9 @@ impl StudioApp {
                 if pressed(command, Key::O) {
                     self.ask_path(PathPurpose::OpenRecording, String::new());
                 }
+                if pressed(Modifiers::NONE, Key::F1) {
+                    self.help_open = !self.help_open;
+                }
                 return;
             }
             View::System => {}
@@ -1721,6 +1724,12 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Drag from a pin", "link: legal targets turn green"),
     ("Right-click a pin or wire", "remove its links"),
     ("Shift+drag", "select with a rectangle"),
+    ("F5", "run the open plan, else the system (Run view)"),
+    ("Shift+F5", "stop the run"),
+    (
+        "Arrow keys (Run view)",
+        "drive the robot through teleop while held",
+    ),
 ];
 
 /// Whether a file is a plan (opened in the Mission view) rather than a system.

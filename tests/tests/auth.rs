@@ -161,7 +161,11 @@ fn the_control_interface_wants_the_secret_too() {
     };
     let with = ctl(Some(&secret));
     assert!(with.status.success(), "{with:?}");
-    assert!(String::from_utf8_lossy(&with.stdout).contains("\"marking\""));
+    let text = String::from_utf8_lossy(&with.stdout);
+    assert!(
+        text.contains("mission `"),
+        "the status with its mission: {text}"
+    );
     let without = ctl(None);
     assert!(!without.status.success());
     assert!(

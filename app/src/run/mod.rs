@@ -551,8 +551,8 @@ impl RunView {
         });
         ui.label(
             RichText::new(
-                "Hold a button or an arrow key (with the map under the mouse) to drive; let go \
-                 and the robot stops (the teleop module's dead-man time).",
+                "Hold a button or an arrow key to drive; let go and the robot stops (and if the \
+                 studio stops sending, the teleop module's dead-man time stops it).",
             )
             .small()
             .weak(),
@@ -729,9 +729,8 @@ impl RunView {
         let response = mission.watch_ui(ui, current_leg, |painter, project| {
             monitor::paint_live(painter, project, &live, grid_texture.as_ref());
         });
-        if !live.samples.eq(&0) {
+        if live.samples > 0 {
             let text = monitor::pose_text(&live);
-            response.clone().on_hover_text(text.clone());
             ui.put(
                 egui::Rect::from_min_size(
                     response.rect.left_top() + egui::vec2(8.0, 8.0),

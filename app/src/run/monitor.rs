@@ -141,7 +141,10 @@ pub fn module_row(
         now.cycle_ms, now.cycles_per_sec
     );
     for (name, rate) in &now.sent {
-        line.push_str(&format!(" · {name} {rate:.1}/s"));
+        line.push_str(&format!(" · out {name} {rate:.1}/s"));
+    }
+    for (name, rate) in &now.received {
+        line.push_str(&format!(" · in {name} {rate:.1}/s"));
     }
     ui.label(RichText::new(line).small());
     // The first output's rate over time, else the loop's.
