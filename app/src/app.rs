@@ -385,6 +385,11 @@ impl StudioApp {
     }
 
     /// The screen rectangle of the canvas.
+    /// The canvas's transform (graph to screen), as drawn last frame.
+    pub fn canvas_transform(&self) -> egui::emath::TSTransform {
+        self.canvas.to_global
+    }
+
     pub fn canvas_rect(&self) -> egui::Rect {
         self.canvas.rect
     }

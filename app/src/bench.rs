@@ -10,6 +10,10 @@
 //!   60 Hz frame budget.
 //! - `studio_load_ms_1000_blocks`: opening that file (read, parse into the diagram, check it as
 //!   the validation panel does); the reference is the bare parse by `SystemConfig::parse`.
+//! - `studio_vs_bare_snarl_1000`: our diagram's frame against a bare egui-snarl viewer (titles
+//!   and pin labels, nothing else) on the same graph, with the same view, at 100, 500 and 1,000
+//!   blocks (1.5 links a block), both with everything fitted in the window and at 1:1; `ours`
+//!   and `reference` are the fitted view at 1,000 blocks (issue 10: at most 0.5×).
 //! - `map_frame_ms_500_waypoints`: one frame of the Mission view (map tiles from the cache,
 //!   500 waypoints and their legs with labels, 40 unit symbols, phase lines and areas, the
 //!   inspector and the net beside the map) with the whole plan in view; the reference is the
@@ -30,6 +34,7 @@ use crate::palette::Palette;
 pub const FRAME: &str = "studio_frame_ms_1000_blocks";
 pub const LOAD: &str = "studio_load_ms_1000_blocks";
 pub const MAP: &str = "map_frame_ms_500_waypoints";
+pub const VS_SNARL: &str = "studio_vs_bare_snarl_1000";
 /// `armor-studio bench monitor CONTROL SYSTEM SECS`: the Run view watching a run for
 /// `armor-bench`'s `monitor_overhead` (no line printed).
 pub const MONITOR: &str = "monitor";
@@ -209,6 +214,58 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
             )
         );
     }
+    if wants(VS_SNARL) || wants("snarl") {
+        let mut sizes = serde_json::Map::new();
+        let mut headline = (f64::NAN, f64::NAN);
+        for blocks in [100, 500, 1000] {
+            let file = dir.join(format!("bench-{blocks}.xml"));
+            std::fs::write(&file, self::diagram(blocks, blocks * 3 / 2).to_xml())
+                .with_context(|| format!("cannot write {}", file.display()))?;
+            let mut options = Options::new(Home::new(dir.join("home")));
+            options.palette = Some(Palette::from_descriptions([relay()]));
+            options.file = Some(file);
+            let mut app = StudioApp::new(options);
+            let ctx = egui::Context::default();
+            let mut bare = Bare::of(&app.editor().diagram);
+            let bare_ctx = egui::Context::default();
+            let mut both = |app: &mut StudioApp| {
+                frame_time(&ctx, app, 5);
+                let ours = frame_time(&ctx, app, rounds);
+                bare.to_global = app.canvas_transform();
+                bare_frame_time(&bare_ctx, &mut bare, 3);
+                let reference = bare_frame_time(&bare_ctx, &mut bare, rounds);
+                (ours, reference)
+            };
+            let fitted = both(&mut app);
+            app.view_at_scale(1.0);
+            let one_to_one = both(&mut app);
+            if blocks == 1000 {
+                headline = fitted;
+            }
+            sizes.insert(
+                blocks.to_string(),
+                serde_json::json!({
+                    "fitted_ours_ms": round(fitted.0),
+                    "fitted_bare_ms": round(fitted.1),
+                    "one_to_one_ours_ms": round(one_to_one.0),
+                    "one_to_one_bare_ms": round(one_to_one.1),
+                }),
+            );
+        }
+        println!(
+            "{}",
+            line(
+                VS_SNARL,
+                headline.0,
+                headline.1,
+                serde_json::json!({
+                    "goal": "<= 0.5 (and < 16 ms at 500 blocks)",
+                    "reference_is": "a bare egui-snarl viewer (titles and pin labels) on the same graph and view",
+                    "sizes": sizes,
+                })
+            )
+        );
+    }
     if wants(MAP) || wants("map") {
         let plan_file = dir.join("plan-500.xml");
         std::fs::write(dir.join("system.xml"), BENCH_SYSTEM)
@@ -248,6 +305,113 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
     }
     let _ = std::fs::remove_dir_all(&dir);
     Ok(())
+}
+
+/// A bare egui-snarl viewer: the same graph as a bench diagram, each node its title and its
+/// pins' labels, nothing culled.
+struct Bare {
+    snarl: egui_snarl::Snarl<String>,
+    to_global: egui::emath::TSTransform,
+}
+
+impl Bare {
+    fn of(diagram: &Diagram) -> Bare {
+        let mut snarl = egui_snarl::Snarl::new();
+        let nodes: std::collections::HashMap<_, _> = diagram
+            .blocks()
+            .map(|(id, block)| {
+                let pos = egui::pos2(block.pos[0], block.pos[1]);
+                (id, snarl.insert_node(pos, block.name.clone()))
+            })
+            .collect();
+        let index = |port: &str| usize::from(port.ends_with('b'));
+        for link in diagram.links() {
+            snarl.connect(
+                egui_snarl::OutPinId {
+                    node: nodes[&link.from.block],
+                    output: index(&link.from.port),
+                },
+                egui_snarl::InPinId {
+                    node: nodes[&link.to.block],
+                    input: index(&link.to.port),
+                },
+            );
+        }
+        Bare {
+            snarl,
+            to_global: egui::emath::TSTransform::IDENTITY,
+        }
+    }
+}
+
+struct BareViewer(egui::emath::TSTransform);
+
+impl egui_snarl::ui::SnarlViewer<String> for BareViewer {
+    fn title(&mut self, node: &String) -> String {
+        node.clone()
+    }
+
+    fn inputs(&mut self, _: &String) -> usize {
+        2
+    }
+
+    fn outputs(&mut self, _: &String) -> usize {
+        2
+    }
+
+    fn show_input(
+        &mut self,
+        pin: &egui_snarl::InPin,
+        ui: &mut egui::Ui,
+        _: &mut egui_snarl::Snarl<String>,
+    ) -> impl egui_snarl::ui::SnarlPin + 'static {
+        ui.label(["in_a: Counter", "in_b: Twist"][pin.id.input.min(1)]);
+        egui_snarl::ui::PinInfo::circle()
+    }
+
+    fn show_output(
+        &mut self,
+        pin: &egui_snarl::OutPin,
+        ui: &mut egui::Ui,
+        _: &mut egui_snarl::Snarl<String>,
+    ) -> impl egui_snarl::ui::SnarlPin + 'static {
+        ui.label(["out_a: Counter", "out_b: Twist"][pin.id.output.min(1)]);
+        egui_snarl::ui::PinInfo::circle()
+    }
+
+    fn current_transform(
+        &mut self,
+        to_global: &mut egui::emath::TSTransform,
+        _: &mut egui_snarl::Snarl<String>,
+    ) {
+        *to_global = self.0;
+    }
+}
+
+/// Like [`frame_time`], for the bare viewer.
+fn bare_frame_time(ctx: &egui::Context, bare: &mut Bare, frames: usize) -> f64 {
+    let screen = egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(1600.0, 1000.0));
+    let mut samples = Vec::with_capacity(frames);
+    for _ in 0..frames {
+        let input = egui::RawInput {
+            screen_rect: Some(screen),
+            ..Default::default()
+        };
+        let mut viewer = BareViewer(bare.to_global);
+        let start = Instant::now();
+        let mut output = ctx.run_ui(input, |ui| {
+            egui_snarl::ui::SnarlWidget::new().id_salt("bare").show(
+                &mut bare.snarl,
+                &mut viewer,
+                ui,
+            );
+        });
+        let primitives = ctx.tessellate(output.shapes, output.pixels_per_point);
+        samples.push(start.elapsed());
+        output.textures_delta.clear();
+        std::hint::black_box(primitives);
+    }
+    median_ms(samples)
 }
 
 /// Watches the run whose control interface is at `args[0]` (a run of the system file

@@ -164,6 +164,12 @@ const BENCHES: &[Bench] = &[
         run: studio::run_map,
     },
     Bench {
+        name: studio::NAME_VS_SNARL,
+        about: "one frame of armor-studio's diagram vs a bare egui-snarl viewer on the same \
+                1,000-block graph and view (ms; goal ratio <= 0.5; also 100 and 500 blocks)",
+        run: studio::run_vs_snarl,
+    },
+    Bench {
         name: fuzz::NAME,
         about: "inputs run through each parser's fuzz target by fuzz/run.sh, with the crashes \
                 found (must be 0); needs cargo-fuzz",

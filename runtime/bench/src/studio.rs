@@ -1,7 +1,8 @@
 //! The studio's figures: `studio_frame_ms_1000_blocks` (CPU time of one UI frame on a
 //! 1,000-block, 1,500-link diagram; goal < 16 ms) and `studio_load_ms_1000_blocks` (opening
 //! that file), and `map_frame_ms_500_waypoints` (one frame of the Mission view with a
-//! 500-waypoint plan and its symbols; goal < 16 ms). The runtime must not depend on egui, so `armor-studio` measures them itself in
+//! 500-waypoint plan and its symbols; goal < 16 ms), and `studio_vs_bare_snarl_1000` (our
+//! diagram's frame against a bare egui-snarl viewer on the same graph; goal ≤ 0.5×). The runtime must not depend on egui, so `armor-studio` measures them itself in
 //! its hidden `bench` mode and prints them as report lines; this relays them.
 
 use std::process::Command;
@@ -15,6 +16,7 @@ use crate::report::Report;
 pub const NAME_FRAME: &str = "studio_frame_ms_1000_blocks";
 pub const NAME_LOAD: &str = "studio_load_ms_1000_blocks";
 pub const NAME_MAP: &str = "map_frame_ms_500_waypoints";
+pub const NAME_VS_SNARL: &str = "studio_vs_bare_snarl_1000";
 
 pub fn run_frame(settings: &Settings) -> anyhow::Result<Report> {
     relay(NAME_FRAME, settings)
@@ -26,6 +28,10 @@ pub fn run_load(settings: &Settings) -> anyhow::Result<Report> {
 
 pub fn run_map(settings: &Settings) -> anyhow::Result<Report> {
     relay(NAME_MAP, settings)
+}
+
+pub fn run_vs_snarl(settings: &Settings) -> anyhow::Result<Report> {
+    relay(NAME_VS_SNARL, settings)
 }
 
 fn relay(name: &'static str, settings: &Settings) -> anyhow::Result<Report> {
