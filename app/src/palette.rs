@@ -67,14 +67,20 @@ impl Palette {
         let mut palette = Palette::empty();
         palette.total = binaries.len();
         let (sender, receiver) = channel();
+        let cache = probe::ProbeCache::from_env();
         for binary in binaries {
             let sender = sender.clone();
+            let cache = cache.clone();
             // One thread per binary: each waits on a child process, and a slow one must not hold
             // the others up. There are a few dozen binaries at most.
             let spawned = std::thread::Builder::new()
                 .name("probe".into())
                 .spawn(move || {
-                    let entry = match probe::probe(&binary, timeout) {
+                    let described = match &cache {
+                        Some(cache) => cache.probe(&binary, timeout),
+                        None => probe::probe(&binary, timeout),
+                    };
+                    let entry = match described {
                         Ok(description) => Entry::Described(description),
                         Err(err) => Entry::Broken(BrokenType {
                             module_type: probe::type_from_file_name(&binary)

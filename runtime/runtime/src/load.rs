@@ -94,7 +94,7 @@ pub fn load_system(file: &Path, module_path: &[PathBuf]) -> Result<Loaded, Diagn
         // An unknown type is often a typo: describe everything on the path, so that the message
         // lists every type the user could have meant.
         let everything = probe::list_modules(module_path);
-        for (_, result) in probe::probe_all(&everything, probe::DEFAULT_TIMEOUT) {
+        for (_, result) in probe::probe_all_cached(&everything, probe::DEFAULT_TIMEOUT) {
             if let Ok(description) = result {
                 descriptions
                     .entry(description.module_type.clone())

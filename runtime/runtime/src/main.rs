@@ -123,6 +123,10 @@ enum Command {
         /// Seconds a binary may take to answer.
         #[arg(long, default_value_t = 5.0)]
         timeout_secs: f64,
+        /// Run every binary, even those described in the cache (kept in $ARMOR_PROBE_CACHE,
+        /// else ~/.cache/armor/probe, keyed on path, size and modification time).
+        #[arg(long)]
+        no_cache: bool,
     },
     /// Export a mission net or a plan to another format.
     #[command(group(clap::ArgGroup::new("format").required(true).args(["pnml", "gpx"])))]
@@ -278,10 +282,11 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             paths,
             xml,
             timeout_secs,
+            no_cache,
         } => {
             let timeout = Duration::try_from_secs_f64(timeout_secs)
                 .context("--timeout-secs must be positive")?;
-            Ok(probe_command(paths, xml, timeout))
+            Ok(probe_command(paths, xml, timeout, !no_cache))
         }
         Command::Compile { plan, output } => compile(&plan, &output),
         Command::Export {
@@ -484,7 +489,7 @@ fn read_text(file: &std::path::Path) -> anyhow::Result<String> {
     std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))
 }
 
-fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration) -> ExitCode {
+fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration, cached: bool) -> ExitCode {
     let paths = if paths.is_empty() {
         probe::module_path()
     } else {
@@ -499,7 +504,12 @@ fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration) -> ExitCode 
         return ExitCode::FAILURE;
     }
     let mut failed = false;
-    for (binary, result) in probe::probe_all(&binaries, timeout) {
+    let results = if cached {
+        probe::probe_all_cached(&binaries, timeout)
+    } else {
+        probe::probe_all(&binaries, timeout)
+    };
+    for (binary, result) in results {
         match result {
             Ok(description) if xml => print!("{}", description.to_xml()),
             Ok(description) => print!("{}", summary(&binary, &description)),

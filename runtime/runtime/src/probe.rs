@@ -213,6 +213,19 @@ pub fn probe_all(
     })
 }
 
+/// [`probe_all`] through the user's cache ([`ProbeCache::from_env`]) when there is one: what
+/// `armor run`, `armor check`, `armor probe` and the studio's palette use, so that a binary is run
+/// to describe itself only after it changed.
+pub fn probe_all_cached(
+    binaries: &[PathBuf],
+    timeout: Duration,
+) -> Vec<(PathBuf, Result<ModuleDescription, ProbeError>)> {
+    match ProbeCache::from_env() {
+        Some(cache) => cache.probe_all(binaries, timeout),
+        None => probe_all(binaries, timeout),
+    }
+}
+
 /// Module types that have a binary which failed to describe itself: type, binary, why.
 pub type ProbeFailures = Vec<(String, PathBuf, ProbeError)>;
 
@@ -231,8 +244,9 @@ pub fn describe_types<'a>(
     let files: Vec<PathBuf> = binaries.iter().map(|(_, file)| file.clone()).collect();
     let mut descriptions = BTreeMap::new();
     let mut failures = Vec::new();
-    for ((module_type, _), (file, result)) in
-        binaries.into_iter().zip(probe_all(&files, DEFAULT_TIMEOUT))
+    for ((module_type, _), (file, result)) in binaries
+        .into_iter()
+        .zip(probe_all_cached(&files, DEFAULT_TIMEOUT))
     {
         match result {
             Ok(description) => {

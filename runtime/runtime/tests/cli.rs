@@ -202,3 +202,66 @@ fn probe_prints_xml_that_reads_back() {
     assert_eq!(description.module_type, "nav");
     assert!(description.param("goal_x").unwrap().is_required());
 }
+
+#[test]
+fn probe_check_and_run_reuse_the_cached_description_until_the_binary_changes() {
+    let modules = tempfile::tempdir().unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let runs = modules.path().join("runs");
+    let describe = |doc: &str| {
+        script(
+            modules.path(),
+            "armor-mod-counter",
+            &format!(
+                "[ \"$1\" = --describe ] || exit 2\necho run >> '{}'\ncat <<'XML'\n{}\nXML",
+                runs.display(),
+                COUNTER_XML.replace("<doc>", &format!("<doc>{doc} "))
+            ),
+        );
+    };
+    describe("first");
+    let system = modules.path().join("system.xml");
+    std::fs::write(
+        &system,
+        r#"<system name="s"><module name="c" type="counter"/></system>"#,
+    )
+    .unwrap();
+    let armor_cached = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_armor"))
+            .args(args)
+            .env("ARMOR_MODULE_PATH", modules.path())
+            .env("ARMOR_PROBE_CACHE", cache.path())
+            .output()
+            .unwrap()
+    };
+    let run_count = || {
+        std::fs::read_to_string(&runs)
+            .unwrap_or_default()
+            .lines()
+            .count()
+    };
+    for args in [
+        &["probe"][..],
+        &["probe"],
+        &["check", system.to_str().unwrap()],
+    ] {
+        let output = armor_cached(args);
+        assert_eq!(output.status.code(), Some(0), "{}", text(&output.stderr));
+    }
+    assert_eq!(run_count(), 1, "described once, then from the cache");
+    // A changed binary (another size) is run again, and its new description is the one used.
+    describe("second, longer");
+    let output = armor_cached(&["probe"]);
+    assert!(
+        text(&output.stdout).contains("second, longer"),
+        "{}",
+        text(&output.stdout)
+    );
+    assert_eq!(run_count(), 2);
+    armor_cached(&["probe", "--no-cache"]);
+    assert_eq!(
+        run_count(),
+        3,
+        "--no-cache runs it whatever the cache holds"
+    );
+}
