@@ -296,3 +296,28 @@ fn an_unsaved_plan_is_offered_back_after_a_crash_and_its_net_exports_as_pnml() {
     assert_eq!(net.places.len(), compiled.places.len());
     assert_eq!(net.transitions.len(), compiled.transitions.len());
 }
+
+#[test]
+fn a_new_plan_drives_with_the_modules_its_commands_go_through() {
+    use armor_module_api::ModuleDescription;
+    let dir = tempfile::tempdir().unwrap();
+    let mut options = options(&dir.path().join("home"), None);
+    let described = |module_type: &str, controllable: bool| {
+        let mut description = ModuleDescription::new(module_type, "test");
+        description.controllable = controllable;
+        description
+    };
+    options.palette = Some(armor_studio::palette::Palette::from_descriptions([
+        described("sim", false),
+        described("follower", true),
+        described("avoider", true),
+        described("observer", true),
+        described("teleop", false),
+        described("mux", false),
+        described("recorder", true),
+    ]));
+    let harness = yard_with(options);
+    // The yard's system: follower → avoider → mux → sim; the observer feeds the mux directly.
+    let plan = harness.state().mission().unwrap().plan();
+    assert_eq!(plan.navigation.companions, ["avoider"]);
+}
