@@ -26,12 +26,18 @@ use armor_tests::mcap::{read_mcap, recorder_segments};
 use armor_tests::mission::{Finished, run_mission};
 use armor_tests::{bin, bin_dir, workspace_root};
 
-/// How close the robot must come to a waypoint. The legs' goals are given to the follower in
-/// its odometry frame, which drifts from the true one, and the follower stops within its own
-/// `tolerance_m` (0.3 m) of the goal in that frame. The drift is mostly heading error: the
-/// yard plan's full turn at the gate (the observer) leaves the robot 1.1 to 1.4 m from `north`
-/// and `rally` forty metres later; waypoints are 3 m apart and more.
+/// How close the robot must come to a waypoint, at least. The legs' goals are given to the
+/// follower in its odometry frame, which drifts from the true one, and the follower stops within
+/// its own `tolerance_m` (0.3 m) of the goal in that frame. The drift is mostly heading error:
+/// the yard plan's full turn at the gate (the observer) leaves the robot 1.1 to 1.4 m from
+/// `north` and `rally` forty metres later; waypoints are 3 m apart and more.
 const TOLERANCE_M: f64 = 1.5;
+
+/// ... and how the odometry's error may grow with the distance travelled: it is a random walk
+/// (the sim's defaults, 2 cm/√m in distance, 0.02 rad/√rad and 5 mrad/√m in heading), so a run
+/// can end anywhere in its spread. The field plan, 35 m of path with the avoider's turns, has
+/// ended 1.58 m from its last waypoint; 6 % of the path is about two standard deviations.
+const DRIFT_PER_M: f64 = 0.06;
 
 /// How far a robot told to stay put (waiting, or before an appointment) may move: it may still
 /// be slowing down when the transition fires, or turn on the spot to look around (it moves by
@@ -41,6 +47,12 @@ const STILL_M: f64 = 0.1;
 /// Slack on the run time of things the controller starts and stops (a module's first and last
 /// samples): a few tens of milliseconds of real time at the accelerated clock.
 const SLACK_SECS: f64 = 1.5;
+
+/// When the recorder's first sample may come at the latest: it starts with the other modules,
+/// and on a busy machine (the other tests of this file running beside) its process, its link to
+/// the sim and the sim's first physics step have taken more than the 150 ms of real time that
+/// [`SLACK_SECS`] leaves at the tests' time scale. Where the robot stood then is checked too.
+const STARTUP_SECS: f64 = 10.0;
 
 /// How long a plan's run may take in real time: the longest (plan-field, three minutes of run
 /// time with its appointment) takes about ten seconds at the time scale on an idle machine.
@@ -198,6 +210,8 @@ struct PlanRun {
     dir: tempfile::TempDir,
     /// The recorded ground truth, in time order.
     truth: Vec<Sample>,
+    /// The distance the robot had travelled at each sample of the truth (m).
+    travelled: Vec<f64>,
 }
 
 /// Runs an example plan to its end, headless at accelerated time, from a copy in a temporary
@@ -232,11 +246,18 @@ fn run_example(name: &str) -> PlanRun {
         dir.path(),
     );
     let truth = read_truth(&recording);
+    let travelled = std::iter::once(0.0)
+        .chain(truth.windows(2).scan(0.0, |sum, pair| {
+            *sum += geo::distance(pair[0].at, pair[1].at);
+            Some(*sum)
+        }))
+        .collect();
     PlanRun {
         example,
         run,
         dir,
         truth,
+        travelled,
     }
 }
 
@@ -293,6 +314,13 @@ impl PlanRun {
             .unwrap()
     }
 
+    /// How far from a waypoint the robot may be at `secs` (see [`TOLERANCE_M`]).
+    fn tolerance_at(&self, secs: f64) -> f64 {
+        let samples = self.truth.partition_point(|sample| sample.secs <= secs);
+        let travelled = self.travelled[samples.saturating_sub(1)];
+        TOLERANCE_M.max(DRIFT_PER_M * travelled)
+    }
+
     fn samples_between(&self, from: f64, to: f64) -> impl Iterator<Item = &Sample> {
         self.truth
             .iter()
@@ -313,7 +341,7 @@ impl PlanRun {
         let end = self.run.fired().last().unwrap().1;
         let first = self.truth[0].secs;
         let last = self.truth[self.truth.len() - 1].secs;
-        assert!(first <= 2.0 * SLACK_SECS, "the truth starts at {first} s");
+        assert!(first <= STARTUP_SECS, "the truth starts at {first} s");
         assert!(
             last >= end - SLACK_SECS,
             "the truth ends at {last} s, the mission at {end} s"
@@ -352,10 +380,11 @@ impl PlanRun {
             let goal = self.example.position(&leg.to);
             let sample = self.at(arrived);
             let d = geo::distance(sample.at, goal);
+            let tolerance = self.tolerance_at(arrived);
             assert!(
-                d <= TOLERANCE_M,
+                d <= tolerance,
                 "leg `{}` arrived at {arrived} s with the robot at {} m, {d:.2} m from `{}` at \
-                 {goal} m\n{}",
+                 {goal} m (more than {tolerance:.2} m)\n{}",
                 leg.name,
                 sample.at,
                 leg.to,
@@ -365,7 +394,8 @@ impl PlanRun {
         let mut next = 0;
         for sample in &self.truth {
             if let Some(leg) = plan.legs.get(next)
-                && geo::distance(sample.at, self.example.position(&leg.to)) <= TOLERANCE_M
+                && geo::distance(sample.at, self.example.position(&leg.to))
+                    <= self.tolerance_at(sample.secs)
             {
                 next += 1;
             }
@@ -410,7 +440,7 @@ impl PlanRun {
                     sample.at,
                     sample.secs
                 );
-                assert!(geo::distance(sample.at, goal) <= TOLERANCE_M);
+                assert!(geo::distance(sample.at, goal) <= self.tolerance_at(sample.secs));
             }
         }
         waits
@@ -452,7 +482,8 @@ impl PlanRun {
             for sample in self.samples_between(there, due) {
                 let d = geo::distance(sample.at, here);
                 assert!(
-                    d <= STILL_M && geo::distance(sample.at, origin) <= TOLERANCE_M,
+                    d <= STILL_M
+                        && geo::distance(sample.at, origin) <= self.tolerance_at(sample.secs),
                     "leg `{}`: the robot was at {} m at {} s, {d:.2} m from where it stood at \
                      `{}`, before its appointment at {due} s",
                     leg.name,
@@ -464,7 +495,7 @@ impl PlanRun {
             // It did leave afterwards.
             let left = self
                 .samples_between(due, f64::INFINITY)
-                .find(|sample| geo::distance(sample.at, origin) > TOLERANCE_M)
+                .find(|sample| geo::distance(sample.at, origin) > self.tolerance_at(due))
                 .unwrap_or_else(|| panic!("the robot never left `{}`", leg.from));
             assert!(left.secs >= fired);
         }
