@@ -182,7 +182,7 @@ impl Controller {
                 "fired `{}` at {:.2} s → {}{}{}",
                 firing.transition,
                 firing.at_secs,
-                marking_text(&firing.marking_after),
+                marking_text(&firing.marking_after.to_marking()),
                 listed("; started", &firing.started),
                 listed("; stopped", &firing.stopped),
             );
@@ -191,7 +191,7 @@ impl Controller {
                 json!({
                     "transition": firing.transition,
                     "at_secs": firing.at_secs,
-                    "marking": firing.marking_after,
+                    "marking": firing.marking_after.to_marking(),
                     "started": firing.started,
                     "stopped": firing.stopped,
                 }),
@@ -342,14 +342,14 @@ impl Controller {
                         tracing::info!(
                             "operator fired `{}` → {}",
                             firing.transition,
-                            marking_text(&firing.marking_after)
+                            marking_text(&firing.marking_after.to_marking())
                         );
                         self.record(
                             "fired",
                             json!({
                                 "transition": firing.transition,
                                 "by_hand": true,
-                                "marking": firing.marking_after,
+                                "marking": firing.marking_after.to_marking(),
                                 "started": firing.started,
                                 "stopped": firing.stopped,
                             }),

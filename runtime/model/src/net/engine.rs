@@ -14,7 +14,8 @@
 //! - a firing is atomic: a transition that stays enabled through another's firing keeps its time
 //!   and its latched event; the transition that fired starts afresh (its tokens were consumed).
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::sync::Arc as Shared;
 
 use super::{Condition, Marking, MissionNet, listing};
 
@@ -28,11 +29,45 @@ pub const MAX_FIRINGS_PER_STEP: usize = 10_000;
 pub struct Firing {
     pub transition: String,
     pub at_secs: f64,
-    pub marking_after: Marking,
+    pub marking_after: MarkedPlaces,
     /// Modules active after the firing that were not before, sorted.
     pub started: Vec<String>,
     /// Modules active before the firing that are not after, sorted.
     pub stopped: Vec<String>,
+}
+
+/// The places that hold tokens, in declaration order, with their tokens: what a [`Firing`]
+/// left. Cheap to take at every firing (the names are shared with the engine);
+/// [`MarkedPlaces::to_marking`] gives the map.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MarkedPlaces(Vec<(Shared<str>, u32)>);
+
+impl MarkedPlaces {
+    /// (place, tokens), in the net's declaration order.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, u32)> {
+        self.0.iter().map(|(place, tokens)| (&**place, *tokens))
+    }
+
+    pub fn to_marking(&self) -> Marking {
+        self.iter()
+            .map(|(place, tokens)| (place.to_owned(), tokens))
+            .collect()
+    }
+}
+
+impl From<&MarkedPlaces> for Marking {
+    fn from(marked: &MarkedPlaces) -> Marking {
+        marked.to_marking()
+    }
+}
+
+impl PartialEq<Marking> for MarkedPlaces {
+    fn eq(&self, marking: &Marking) -> bool {
+        self.0.len() == marking.len()
+            && self
+                .iter()
+                .all(|(place, tokens)| marking.get(place) == Some(&tokens))
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -43,16 +78,18 @@ pub enum EngineError {
     NotEnabled { name: String, why: String },
 }
 
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 struct EnginePlace {
-    name: String,
-    modules: Vec<String>,
+    name: Shared<str>,
+    tokens: u32,
+    /// Indices in [`CompiledNet::modules`], each once.
+    modules: Vec<usize>,
     /// (module, parameter, value)
     params: Vec<(String, String, String)>,
     is_final: bool,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 struct EngineTransition {
     name: String,
     condition: Condition,
@@ -60,18 +97,174 @@ struct EngineTransition {
     /// holds a token.
     inputs: Vec<(Option<usize>, u32)>,
     outputs: Vec<(Option<usize>, u32)>,
+    /// The transitions whose enabling its firing may change (those with an input place among
+    /// its places), itself included.
+    affected: Vec<usize>,
+    /// Its position in [`CompiledNet::order`].
+    rank: usize,
+}
+
+/// A mission net as the engine plays it: names resolved to indices once, shared by every
+/// [`Engine`] started from it (as a compiled program is by its runs).
+#[derive(Debug)]
+pub struct CompiledNet {
+    places: Vec<EnginePlace>,
+    transitions: Vec<EngineTransition>,
+    /// Transition indices by decreasing priority, then declaration order.
+    order: Vec<usize>,
+    /// The modules the places name, sorted: indices order like names.
+    modules: Vec<String>,
+    place_index: HashMap<Shared<str>, usize>,
+    transition_index: HashMap<String, usize>,
+}
+
+impl CompiledNet {
+    pub fn new(net: &MissionNet) -> CompiledNet {
+        let mut place_index = HashMap::with_capacity(net.places.len());
+        let modules: Vec<String> = net
+            .places
+            .iter()
+            .flat_map(|place| &place.modules)
+            .collect::<BTreeSet<_>>()
+            .into_iter()
+            .cloned()
+            .collect();
+        let module_index = |name: &String| modules.binary_search(name).ok();
+        let places: Vec<EnginePlace> = net
+            .places
+            .iter()
+            .enumerate()
+            .map(|(p, place)| {
+                let name: Shared<str> = Shared::from(place.name.as_str());
+                // The first place of a name wins, as in the other lookups.
+                place_index.entry(name.clone()).or_insert(p);
+                let mut own: Vec<usize> = place.modules.iter().filter_map(module_index).collect();
+                own.sort_unstable();
+                own.dedup();
+                EnginePlace {
+                    name,
+                    tokens: place.tokens,
+                    modules: own,
+                    params: place
+                        .params
+                        .iter()
+                        .map(|param| {
+                            (
+                                param.module.clone(),
+                                param.name.clone(),
+                                param.value.clone(),
+                            )
+                        })
+                        .collect(),
+                    is_final: place.is_final,
+                }
+            })
+            .collect();
+        let arcs = |arcs: &[super::Arc]| -> Vec<(Option<usize>, u32)> {
+            arcs.iter()
+                .map(|arc| (place_index.get(arc.place.as_str()).copied(), arc.weight))
+                .collect()
+        };
+        let mut transitions: Vec<EngineTransition> = net
+            .transitions
+            .iter()
+            .map(|transition| EngineTransition {
+                name: transition.name.clone(),
+                condition: transition.condition.clone(),
+                inputs: arcs(&transition.inputs),
+                outputs: arcs(&transition.outputs),
+                affected: Vec::new(),
+                rank: 0,
+            })
+            .collect();
+        let mut consumers: Vec<Vec<usize>> = vec![Vec::new(); places.len()];
+        for (t, transition) in transitions.iter().enumerate() {
+            for &(place, _) in &transition.inputs {
+                if let Some(p) = place {
+                    consumers[p].push(t);
+                }
+            }
+        }
+        for (t, transition) in transitions.iter_mut().enumerate() {
+            let mut affected = vec![t];
+            for &(place, _) in transition.inputs.iter().chain(&transition.outputs) {
+                if let Some(p) = place {
+                    affected.extend(&consumers[p]);
+                }
+            }
+            affected.sort_unstable();
+            affected.dedup();
+            transition.affected = affected;
+        }
+        let mut order: Vec<usize> = (0..transitions.len()).collect();
+        order.sort_by_key(|&t| std::cmp::Reverse(net.transitions[t].priority));
+        for (rank, &t) in order.iter().enumerate() {
+            transitions[t].rank = rank;
+        }
+        let mut transition_index = HashMap::with_capacity(transitions.len());
+        for (t, transition) in transitions.iter().enumerate() {
+            transition_index.entry(transition.name.clone()).or_insert(t);
+        }
+        CompiledNet {
+            places,
+            transitions,
+            order,
+            modules,
+            place_index,
+            transition_index,
+        }
+    }
+}
+
+/// A set of small indices, one bit each, walked in increasing order.
+#[derive(Clone, Debug)]
+struct Bits(Vec<u64>);
+
+impl Bits {
+    fn new(len: usize) -> Bits {
+        Bits(vec![0; len.div_ceil(64)])
+    }
+
+    fn set(&mut self, i: usize, on: bool) {
+        let (word, bit) = (i / 64, 1u64 << (i % 64));
+        if on {
+            self.0[word] |= bit;
+        } else {
+            self.0[word] &= !bit;
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.0.iter().map(|word| word.count_ones() as usize).sum()
+    }
+
+    fn iter(&self) -> impl Iterator<Item = usize> + '_ {
+        self.0.iter().enumerate().flat_map(|(w, &word)| {
+            let mut rest = word;
+            std::iter::from_fn(move || {
+                (rest != 0).then(|| {
+                    let bit = rest.trailing_zeros() as usize;
+                    rest &= rest - 1;
+                    w * 64 + bit
+                })
+            })
+        })
+    }
 }
 
 /// The state of a mission being played.
 #[derive(Clone, Debug)]
 pub struct Engine {
-    places: Vec<EnginePlace>,
-    transitions: Vec<EngineTransition>,
-    /// Transition indices by decreasing priority, then declaration order.
-    order: Vec<usize>,
+    net: Shared<CompiledNet>,
     marking: Vec<u32>,
+    /// The places that hold tokens.
+    marked: Bits,
     enabled_since: Vec<Option<f64>>,
+    /// The enabled transitions, by rank (their position in [`CompiledNet::order`]).
+    enabled: Bits,
     latched: Vec<bool>,
+    /// For each module, how many marked places name it: it is active when above 0.
+    module_places: Vec<u32>,
     /// The latest time given.
     now: f64,
     /// The Unix time of run-time 0.
@@ -88,59 +281,38 @@ impl Engine {
 
     /// The engine in the initial marking at run-time `now_secs`.
     pub fn start_at(net: &MissionNet, now_secs: f64) -> Engine {
-        let index = |name: &str| net.places.iter().position(|place| place.name == name);
-        let places = net
-            .places
-            .iter()
-            .map(|place| EnginePlace {
-                name: place.name.clone(),
-                modules: place.modules.clone(),
-                params: place
-                    .params
-                    .iter()
-                    .map(|param| {
-                        (
-                            param.module.clone(),
-                            param.name.clone(),
-                            param.value.clone(),
-                        )
-                    })
-                    .collect(),
-                is_final: place.is_final,
-            })
-            .collect();
-        let transitions: Vec<EngineTransition> = net
-            .transitions
-            .iter()
-            .map(|transition| EngineTransition {
-                name: transition.name.clone(),
-                condition: transition.condition.clone(),
-                inputs: transition
-                    .inputs
-                    .iter()
-                    .map(|arc| (index(&arc.place), arc.weight))
-                    .collect(),
-                outputs: transition
-                    .outputs
-                    .iter()
-                    .map(|arc| (index(&arc.place), arc.weight))
-                    .collect(),
-            })
-            .collect();
-        let mut order: Vec<usize> = (0..transitions.len()).collect();
-        order.sort_by_key(|&t| std::cmp::Reverse(net.transitions[t].priority));
+        Engine::start_compiled(&Shared::new(CompiledNet::new(net)), now_secs)
+    }
+
+    /// An engine on a net compiled beforehand, in its initial marking at run-time `now_secs`.
+    pub fn start_compiled(net: &Shared<CompiledNet>, now_secs: f64) -> Engine {
+        let marking: Vec<u32> = net.places.iter().map(|place| place.tokens).collect();
+        let mut marked = Bits::new(marking.len());
+        let mut module_places = vec![0; net.modules.len()];
+        for (p, place) in net.places.iter().enumerate() {
+            if marking[p] > 0 {
+                marked.set(p, true);
+                for &m in &place.modules {
+                    module_places[m] += 1;
+                }
+            }
+        }
+        let transitions = net.transitions.len();
         let now = if now_secs.is_finite() { now_secs } else { 0.0 };
         let mut engine = Engine {
-            places,
-            enabled_since: vec![None; transitions.len()],
-            latched: vec![false; transitions.len()],
-            transitions,
-            order,
-            marking: net.places.iter().map(|place| place.tokens).collect(),
+            net: net.clone(),
+            marking,
+            marked,
+            enabled_since: vec![None; transitions],
+            enabled: Bits::new(transitions),
+            latched: vec![false; transitions],
+            module_places,
             now,
             date_origin: 0.0,
         };
-        engine.refresh(None, now);
+        for t in 0..transitions {
+            engine.refresh(t, false, now);
+        }
         engine
     }
 
@@ -168,20 +340,20 @@ impl Engine {
     /// The places that hold tokens, with their tokens.
     pub fn marking(&self) -> Marking {
         let mut marking = Marking::new();
-        for (place, &tokens) in self.places.iter().zip(&self.marking) {
-            if tokens > 0 {
-                *marking.entry(place.name.clone()).or_default() += tokens;
-            }
+        for p in self.marked.iter() {
+            *marking
+                .entry(self.net.places[p].name.to_string())
+                .or_default() += self.marking[p];
         }
         marking
     }
 
     /// Tokens in the place `name` (0 for an unknown place).
     pub fn tokens(&self, place: &str) -> u32 {
-        self.places
-            .iter()
-            .position(|p| p.name == place)
-            .map_or(0, |p| self.marking[p])
+        self.net
+            .place_index
+            .get(place)
+            .map_or(0, |&p| self.marking[p])
     }
 
     /// When the transition `name` became enabled; `None` if it is not enabled (or unknown).
@@ -192,7 +364,8 @@ impl Engine {
 
     /// The enabled transitions, in declaration order.
     pub fn enabled(&self) -> Vec<String> {
-        self.transitions
+        self.net
+            .transitions
             .iter()
             .zip(&self.enabled_since)
             .filter(|(_, since)| since.is_some())
@@ -212,7 +385,7 @@ impl Engine {
     pub fn report_event(&mut self, name: &str, now_secs: f64) -> Vec<String> {
         self.advance(now_secs);
         let mut latched = Vec::new();
-        for (t, transition) in self.transitions.iter().enumerate() {
+        for (t, transition) in self.net.transitions.iter().enumerate() {
             if self.enabled_since[t].is_some()
                 && transition.condition.event.as_deref() == Some(name)
             {
@@ -229,7 +402,12 @@ impl Engine {
         let now = self.advance(now_secs);
         let mut firings = Vec::new();
         while firings.len() < MAX_FIRINGS_PER_STEP {
-            let Some(t) = self.order.iter().copied().find(|&t| self.can_fire(t, now)) else {
+            let next = self
+                .enabled
+                .iter()
+                .map(|rank| self.net.order[rank])
+                .find(|&t| self.can_fire(t, now));
+            let Some(t) = next else {
                 break;
             };
             firings.push(self.fire(t, now));
@@ -242,7 +420,7 @@ impl Engine {
     /// [`Engine::now`] means a transition can fire already: call [`Engine::step`].
     pub fn next_deadline(&self) -> Option<f64> {
         let mut earliest: Option<f64> = None;
-        for (t, transition) in self.transitions.iter().enumerate() {
+        for (t, transition) in self.net.transitions.iter().enumerate() {
             let Some(since) = self.enabled_since[t] else {
                 continue;
             };
@@ -278,7 +456,7 @@ impl Engine {
         let Some(t) = self.transition_index(name) else {
             return Err(EngineError::UnknownTransition {
                 name: name.to_owned(),
-                known: listing(self.transitions.iter().map(|t| t.name.as_str())),
+                known: listing(self.net.transitions.iter().map(|t| t.name.as_str())),
             });
         };
         if self.enabled_since[t].is_none() {
@@ -292,11 +470,12 @@ impl Engine {
 
     /// The modules named by the marked places.
     pub fn active_modules(&self) -> BTreeSet<String> {
-        self.places
+        self.net
+            .modules
             .iter()
-            .zip(&self.marking)
-            .filter(|(_, tokens)| **tokens > 0)
-            .flat_map(|(place, _)| place.modules.iter().cloned())
+            .zip(&self.module_places)
+            .filter(|(_, places)| **places > 0)
+            .map(|(module, _)| module.clone())
             .collect()
     }
 
@@ -304,11 +483,8 @@ impl Engine {
     /// same parameter, the place declared first wins.
     pub fn params(&self) -> BTreeMap<String, BTreeMap<String, String>> {
         let mut params: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
-        for (place, &tokens) in self.places.iter().zip(&self.marking) {
-            if tokens == 0 {
-                continue;
-            }
-            for (module, name, value) in &place.params {
+        for p in self.marked.iter() {
+            for (module, name, value) in &self.net.places[p].params {
                 params
                     .entry(module.clone())
                     .or_default()
@@ -321,19 +497,16 @@ impl Engine {
 
     /// A final place is marked: the mission is over, successfully.
     pub fn is_final(&self) -> bool {
-        self.places
-            .iter()
-            .zip(&self.marking)
-            .any(|(place, &tokens)| place.is_final && tokens > 0)
+        self.marked.iter().any(|p| self.net.places[p].is_final)
     }
 
     /// No transition is enabled and no final place is marked: the mission is stuck.
     pub fn is_dead(&self) -> bool {
-        self.enabled_since.iter().all(Option::is_none) && !self.is_final()
+        self.enabled.len() == 0 && !self.is_final()
     }
 
     fn transition_index(&self, name: &str) -> Option<usize> {
-        self.transitions.iter().position(|t| t.name == name)
+        self.net.transition_index.get(name).copied()
     }
 
     /// Moves the clock to `now_secs` unless it is earlier (or not a number); the clock.
@@ -345,7 +518,7 @@ impl Engine {
     }
 
     fn inputs_marked(&self, t: usize) -> bool {
-        self.transitions[t]
+        self.net.transitions[t]
             .inputs
             .iter()
             .all(|&(place, weight)| place.is_some_and(|p| self.marking[p] >= weight))
@@ -355,7 +528,7 @@ impl Engine {
         let Some(since) = self.enabled_since[t] else {
             return false;
         };
-        let condition = &self.transitions[t].condition;
+        let condition = &self.net.transitions[t].condition;
         condition
             .delay_secs
             .is_none_or(|delay| now >= since + delay)
@@ -367,14 +540,14 @@ impl Engine {
     }
 
     fn why_disabled(&self, t: usize) -> String {
-        let transition = &self.transitions[t];
+        let transition = &self.net.transitions[t];
         for (arc, &(place, weight)) in transition.inputs.iter().enumerate() {
             match place {
                 None => return format!("its input arc {} goes to no place", arc + 1),
                 Some(p) if self.marking[p] < weight => {
                     return format!(
                         "place `{}` holds {} of the {weight} token{} it needs",
-                        self.places[p].name,
+                        self.net.places[p].name,
                         self.marking[p],
                         if weight == 1 { "" } else { "s" }
                     );
@@ -385,41 +558,82 @@ impl Engine {
         "it is not enabled".to_owned()
     }
 
-    /// Updates the enabled transitions after the marking changed; `fired` starts afresh.
-    fn refresh(&mut self, fired: Option<usize>, now: f64) {
-        for t in 0..self.transitions.len() {
-            if !self.inputs_marked(t) {
-                self.enabled_since[t] = None;
-                self.latched[t] = false;
-            } else if self.enabled_since[t].is_none() || fired == Some(t) {
-                self.enabled_since[t] = Some(now);
-            }
-        }
-        if let Some(t) = fired {
+    /// Whether `t` is enabled after the marking changed; `fired` (it has just fired) starts
+    /// afresh.
+    fn refresh(&mut self, t: usize, fired: bool, now: f64) {
+        let enabled = self.inputs_marked(t);
+        if !enabled {
+            self.enabled_since[t] = None;
             self.latched[t] = false;
+        } else if self.enabled_since[t].is_none() || fired {
+            self.enabled_since[t] = Some(now);
+        }
+        if fired {
+            self.latched[t] = false;
+        }
+        self.enabled.set(self.net.transitions[t].rank, enabled);
+    }
+
+    /// Sets the tokens of place `p`; when it becomes marked or unmarked, its modules' counts
+    /// follow and each module whose activity may change is noted in `touched` with whether it
+    /// was active before the firing.
+    fn set_tokens(&mut self, p: usize, tokens: u32, touched: &mut Vec<(usize, bool)>) {
+        let was_marked = self.marking[p] > 0;
+        self.marking[p] = tokens;
+        if was_marked == (tokens > 0) {
+            return;
+        }
+        self.marked.set(p, tokens > 0);
+        for &m in &self.net.places[p].modules {
+            if !touched.iter().any(|&(seen, _)| seen == m) {
+                touched.push((m, self.module_places[m] > 0));
+            }
+            if tokens > 0 {
+                self.module_places[m] += 1;
+            } else {
+                self.module_places[m] -= 1;
+            }
         }
     }
 
     fn fire(&mut self, t: usize, now: f64) -> Firing {
-        let before = self.active_modules();
-        for &(place, weight) in &self.transitions[t].inputs {
+        let net = self.net.clone();
+        let transition = &net.transitions[t];
+        let mut touched = Vec::new();
+        for &(place, weight) in &transition.inputs {
             if let Some(p) = place {
-                self.marking[p] = self.marking[p].saturating_sub(weight);
+                self.set_tokens(p, self.marking[p].saturating_sub(weight), &mut touched);
             }
         }
-        for &(place, weight) in &self.transitions[t].outputs {
+        for &(place, weight) in &transition.outputs {
             if let Some(p) = place {
-                self.marking[p] = self.marking[p].saturating_add(weight);
+                self.set_tokens(p, self.marking[p].saturating_add(weight), &mut touched);
             }
         }
-        self.refresh(Some(t), now);
-        let after = self.active_modules();
+        for &other in &transition.affected {
+            self.refresh(other, other == t, now);
+        }
+        touched.sort_unstable();
+        let (mut started, mut stopped) = (Vec::new(), Vec::new());
+        for (m, was_active) in touched {
+            match (was_active, self.module_places[m] > 0) {
+                (false, true) => started.push(net.modules[m].clone()),
+                (true, false) => stopped.push(net.modules[m].clone()),
+                _ => {}
+            }
+        }
+        let mut marked = Vec::with_capacity(self.marked.len());
+        marked.extend(
+            self.marked
+                .iter()
+                .map(|p| (net.places[p].name.clone(), self.marking[p])),
+        );
         Firing {
-            transition: self.transitions[t].name.clone(),
+            transition: transition.name.clone(),
             at_secs: now,
-            marking_after: self.marking(),
-            started: after.difference(&before).cloned().collect(),
-            stopped: before.difference(&after).cloned().collect(),
+            marking_after: MarkedPlaces(marked),
+            started,
+            stopped,
         }
     }
 }
@@ -463,7 +677,7 @@ mod tests {
             [Firing {
                 transition: "t1".into(),
                 at_secs: 0.0,
-                marking_after: [("b".to_owned(), 1)].into(),
+                marking_after: MarkedPlaces(vec![("b".into(), 1)]),
                 started: vec!["arm".into()],
                 stopped: vec!["nav".into()],
             }]
@@ -769,5 +983,98 @@ mod tests {
         assert!(engine.fire_by_hand("ghost", 1.0).is_err());
         assert!(engine.fire_by_hand("source", 1.0).is_ok());
         assert_eq!(engine.tokens("p"), u32::MAX);
+    }
+
+    /// The engine keeps its enabled transitions, marked places and active modules up to date
+    /// from what each firing touched; on random nets (shared places, several tokens, weights,
+    /// modules in several places, self-loops) they must always equal their definitions,
+    /// recomputed from the marking.
+    #[test]
+    fn what_is_kept_up_to_date_matches_its_definition() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move |below: usize| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed % below as u64) as usize
+        };
+        for _ in 0..100 {
+            let (places, transitions) = (2 + next(8), 1 + next(10));
+            let mut net = MissionNet::default();
+            for p in 0..places {
+                net.places.push(super::super::Place {
+                    name: format!("p{p}"),
+                    tokens: next(3) as u32,
+                    modules: (0..next(3)).map(|_| format!("m{}", next(4))).collect(),
+                    ..Default::default()
+                });
+            }
+            let arcs = |next: &mut dyn FnMut(usize) -> usize| {
+                (0..next(3))
+                    .map(|_| super::super::Arc {
+                        place: format!("p{}", next(places)),
+                        weight: 1 + next(2) as u32,
+                        pos: Default::default(),
+                    })
+                    .collect()
+            };
+            for t in 0..transitions {
+                net.transitions.push(super::super::Transition {
+                    name: format!("t{t}"),
+                    priority: next(3) as i32,
+                    inputs: arcs(&mut next),
+                    outputs: arcs(&mut next),
+                    ..Default::default()
+                });
+            }
+            let mut engine = Engine::new(&net);
+            let mut active = engine.active_modules();
+            for round in 0..20 {
+                // `step` fires until nothing can: 10,000 firings on a net with a cycle.
+                let firings = if round % 10 == 0 {
+                    engine.step(round as f64)
+                } else {
+                    let enabled = engine.enabled();
+                    if enabled.is_empty() {
+                        break;
+                    }
+                    let pick = &enabled[next(enabled.len())];
+                    vec![
+                        engine
+                            .fire_by_hand(pick, round as f64)
+                            .expect("an enabled transition fires by hand"),
+                    ]
+                };
+                for firing in &firings {
+                    let after: BTreeSet<String> = active
+                        .iter()
+                        .filter(|module| !firing.stopped.contains(module))
+                        .chain(&firing.started)
+                        .cloned()
+                        .collect();
+                    active = after;
+                }
+                let tokens = |place: &str| engine.tokens(place);
+                let expected: Vec<String> = net
+                    .transitions
+                    .iter()
+                    .filter(|t| t.inputs.iter().all(|arc| tokens(&arc.place) >= arc.weight))
+                    .map(|t| t.name.clone())
+                    .collect();
+                assert_eq!(engine.enabled(), expected, "{net:?}");
+                assert_eq!(engine.is_dead(), expected.is_empty(), "{net:?}");
+                let modules: BTreeSet<String> = net
+                    .places
+                    .iter()
+                    .filter(|place| tokens(&place.name) > 0)
+                    .flat_map(|place| place.modules.iter().cloned())
+                    .collect();
+                assert_eq!(engine.active_modules(), modules, "{net:?}");
+                assert_eq!(active, modules, "started and stopped: {net:?}");
+                if let Some(last) = firings.last() {
+                    assert_eq!(last.marking_after, engine.marking(), "{net:?}");
+                }
+            }
+        }
     }
 }

@@ -44,7 +44,7 @@ pub(crate) mod xml;
 pub use analysis::{Analysis, analyse, dining_philosophers};
 pub use check::check_names;
 pub use date::{format_rfc3339, parse_rfc3339};
-pub use engine::{Engine, EngineError, Firing, MAX_FIRINGS_PER_STEP};
+pub use engine::{CompiledNet, Engine, EngineError, Firing, MAX_FIRINGS_PER_STEP, MarkedPlaces};
 pub use pnml::{PNML_NAMESPACE, PTNET_TYPE, from_pnml, to_pnml};
 
 /// Tokens per place, naming only the places that hold some.
