@@ -92,15 +92,51 @@ const BENCHES: &[Bench] = &[
     },
     #[cfg(feature = "zenoh")]
     Bench {
-        name: zenoh_bench::NAME_LATENCY,
+        name: zenoh_bench::LATENCY[0].0,
         about: "round trip of 64 bytes through armor-mod-echo vs zenoh peers (us)",
-        run: zenoh_bench::run_latency,
+        run: |settings| zenoh_bench::run_latency(0, settings),
     },
     #[cfg(feature = "zenoh")]
     Bench {
-        name: zenoh_bench::NAME_THROUGHPUT,
+        name: zenoh_bench::LATENCY[1].0,
+        about: "round trip of 1 KiB through armor-mod-echo vs zenoh peers (us)",
+        run: |settings| zenoh_bench::run_latency(1, settings),
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::LATENCY[2].0,
+        about: "round trip of 64 KiB through armor-mod-echo vs zenoh peers (us)",
+        run: |settings| zenoh_bench::run_latency(2, settings),
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::LATENCY[3].0,
+        about: "round trip of 1 MiB through armor-mod-echo vs zenoh peers (us)",
+        run: |settings| zenoh_bench::run_latency(3, settings),
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::THROUGHPUT[0].0,
         about: "64-byte messages per second into armor-mod-sink vs a zenoh subscriber (msg/s)",
-        run: zenoh_bench::run_throughput,
+        run: |settings| zenoh_bench::run_throughput(0, settings),
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::THROUGHPUT[1].0,
+        about: "1 KiB messages per second into armor-mod-sink vs a zenoh subscriber (msg/s)",
+        run: |settings| zenoh_bench::run_throughput(1, settings),
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::THROUGHPUT[2].0,
+        about: "64 KiB messages per second into armor-mod-sink vs a zenoh subscriber (msg/s)",
+        run: |settings| zenoh_bench::run_throughput(2, settings),
+    },
+    #[cfg(feature = "zenoh")]
+    Bench {
+        name: zenoh_bench::THROUGHPUT[3].0,
+        about: "1 MiB messages per second into armor-mod-sink vs a zenoh subscriber (msg/s)",
+        run: |settings| zenoh_bench::run_throughput(3, settings),
     },
     #[cfg(feature = "zenoh")]
     Bench {

@@ -6,12 +6,17 @@
 //! same run; zenoh is measured here, between this process and a child of it (this binary
 //! re-executed with `--zenoh-peer ROLE ...`), each with its own session:
 //!
-//! - `latency_64b_vs_zenoh`: round trip of 64 bytes, one in flight; zenoh: publisher `ping`
-//!   (express, blocking congestion control) to a peer whose subscriber callback puts the
-//!   payload back on `pong`; ours: `armor-bench latency_64b` (a node to `armor-mod-echo`).
-//! - `throughput_64b_vs_zenoh`: 64-byte messages per second into another process; zenoh: a
-//!   publisher (batching, blocking congestion control) to a counting subscriber; ours:
-//!   `armor-bench throughput_64b` (into `armor-mod-sink`).
+//! - `latency_64b_vs_zenoh` (and `_1kib_`, `_64kib_`, `_1mib_`): round trip of a message of that
+//!   size, one in flight; zenoh: publisher `ping` (express, blocking congestion control) to a
+//!   peer whose subscriber callback puts the payload back on `pong`; ours: `armor-bench
+//!   latency_64b` (a node to `armor-mod-echo`) and its sizes.
+//! - `throughput_64b_vs_zenoh` (and the same sizes): messages per second into another process;
+//!   zenoh: a publisher (batching, blocking congestion control) to a counting subscriber; ours:
+//!   `armor-bench throughput_64b` (into `armor-mod-sink`) and its sizes.
+//!
+//! Run the whole binary under `taskset -c 0` for the figures with both processes on one core:
+//! the children inherit the affinity, and every line says which CPUs it was allowed
+//! (`cpus_allowed`).
 //! - `pull_vs_raw_tcp`: a request for the latest value. ArMoR has no pull request in its API: a
 //!   module asks by sending on an output and gets the answer on an input, so ours is the
 //!   `latency_64b` round trip; the reference is raw TCP request/reply (1 byte asked, 64 answered,
@@ -36,11 +41,24 @@ use zenoh::qos::CongestionControl;
 use crate::Settings;
 use crate::report::{Report, median, percentile};
 
-pub const NAME_LATENCY: &str = "latency_64b_vs_zenoh";
-pub const NAME_THROUGHPUT: &str = "throughput_64b_vs_zenoh";
+/// The latency benches: (name, the `armor-bench` bench of our side, message bytes).
+pub const LATENCY: [(&str, &str, usize); 4] = [
+    ("latency_64b_vs_zenoh", "latency_64b", 64),
+    ("latency_1kib_vs_zenoh", "latency_1kib", 1024),
+    ("latency_64kib_vs_zenoh", "latency_64kib", 64 * 1024),
+    ("latency_1mib_vs_zenoh", "latency_1mib", 1024 * 1024),
+];
+/// The throughput benches, likewise.
+pub const THROUGHPUT: [(&str, &str, usize); 4] = [
+    ("throughput_64b_vs_zenoh", "throughput_64b", 64),
+    ("throughput_1kib_vs_zenoh", "throughput_1kib", 1024),
+    ("throughput_64kib_vs_zenoh", "throughput_64kib", 64 * 1024),
+    ("throughput_1mib_vs_zenoh", "throughput_1mib", 1024 * 1024),
+];
 pub const NAME_PULL: &str = "pull_vs_raw_tcp";
 pub const NAME_DISCOVERY: &str = "discovery_vs_zenoh";
 
+/// The size of the pull and discovery messages.
 const SIZE: usize = 64;
 const KEY_PING: &str = "armor/bench/ping";
 const KEY_PONG: &str = "armor/bench/pong";
@@ -138,6 +156,19 @@ fn ours(name: &str, settings: &Settings) -> anyhow::Result<serde_json::Value> {
     Ok(serde_json::from_str(line)?)
 }
 
+/// The CPUs this process may run on, as Linux lists them (`0-1`, `0`), from /proc/self/status.
+pub fn cpus_allowed() -> String {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            status.lines().find_map(|line| {
+                line.strip_prefix("Cpus_allowed_list:")
+                    .map(|list| list.trim().to_owned())
+            })
+        })
+        .unwrap_or_else(|| "unknown".to_owned())
+}
+
 fn field(value: &serde_json::Value, key: &str) -> anyhow::Result<f64> {
     value
         .get(key)
@@ -145,8 +176,8 @@ fn field(value: &serde_json::Value, key: &str) -> anyhow::Result<f64> {
         .with_context(|| format!("no `{key}` in armor-bench's line"))
 }
 
-/// Round trips of 64 bytes through a zenoh peer, in µs.
-fn zenoh_round_trips(count: usize) -> anyhow::Result<Vec<f64>> {
+/// Round trips of `size` bytes through a zenoh peer, in µs.
+fn zenoh_round_trips(size: usize, count: usize) -> anyhow::Result<Vec<f64>> {
     let endpoint = free_endpoint()?;
     let session = zenoh::open(config(Some(&endpoint), None)?)
         .wait()
@@ -159,7 +190,7 @@ fn zenoh_round_trips(count: usize) -> anyhow::Result<Vec<f64>> {
         .map_err(zerr)?;
     let subscriber = session.declare_subscriber(KEY_PONG).wait().map_err(zerr)?;
     let _peer = start_peer(&["pong", &endpoint])?;
-    let payload = vec![7u8; SIZE];
+    let payload = vec![7u8; size];
     // Until the routes are known both ways, pings are dropped: ping until a pong comes.
     let deadline = Instant::now() + TIMEOUT;
     loop {
@@ -187,25 +218,33 @@ fn zenoh_round_trips(count: usize) -> anyhow::Result<Vec<f64>> {
             .map_err(zerr)?
             .context("a pong never came")?;
         times.push(start.elapsed().as_secs_f64() * 1e6);
-        ensure!(sample.payload().len() == SIZE, "a pong of the wrong size");
+        ensure!(sample.payload().len() == size, "a pong of the wrong size");
     }
     Ok(times)
 }
 
-pub fn run_latency(settings: &Settings) -> anyhow::Result<Report> {
-    let count = if settings.quick { 200 } else { 20_000 };
-    let ours = ours("latency_64b", settings)?;
-    let mut zenoh = zenoh_round_trips(count)?;
+/// The latency bench `LATENCY[index]`.
+pub fn run_latency(index: usize, settings: &Settings) -> anyhow::Result<Report> {
+    let (name, ours_name, size) = LATENCY[index];
+    let count = if settings.quick {
+        200
+    } else {
+        (20_000 / (size / 1024).max(1)).max(1_000)
+    };
+    let ours = ours(ours_name, settings)?;
+    let mut zenoh = zenoh_round_trips(size, count)?;
     zenoh.sort_by(f64::total_cmp);
     let ours_p50 = field(&ours, "p50")?;
     let zenoh_p50 = percentile(&zenoh, 0.5);
-    let mut report = Report::single(NAME_LATENCY, "us", ours_p50, zenoh_p50);
+    let mut report = Report::single(name, "us", ours_p50, zenoh_p50);
     report.p50 = Some(ours_p50);
     report.p99 = Some(field(&ours, "p99")?);
     report.reference_p50 = Some(crate::round4(zenoh_p50));
     report.reference_p99 = Some(crate::round4(percentile(&zenoh, 0.99)));
     Ok(report
         .with("reference_p999", crate::round4(percentile(&zenoh, 0.999)))
+        .with("bytes", size)
+        .with("cpus_allowed", cpus_allowed())
         .with("raw_tcp_p50", field(&ours, "reference_p50")?)
         .with("ratio_vs_raw_tcp", field(&ours, "ratio")?)
         .with("goal", "<= 0.5x zenoh, <= 1.3x raw TCP")
@@ -215,8 +254,8 @@ pub fn run_latency(settings: &Settings) -> anyhow::Result<Report> {
         ))
 }
 
-/// 64-byte messages per second into a zenoh subscriber in another process.
-fn zenoh_throughput(count: u64, rounds: usize) -> anyhow::Result<Vec<f64>> {
+/// Messages of `size` bytes per second into a zenoh subscriber in another process.
+fn zenoh_throughput(size: usize, count: u64, rounds: usize) -> anyhow::Result<Vec<f64>> {
     let endpoint = free_endpoint()?;
     let session = zenoh::open(config(Some(&endpoint), None)?)
         .wait()
@@ -229,7 +268,7 @@ fn zenoh_throughput(count: u64, rounds: usize) -> anyhow::Result<Vec<f64>> {
     let done = session.declare_subscriber(KEY_DONE).wait().map_err(zerr)?;
     let _peer = start_peer(&["sink", &endpoint, &count.to_string()])?;
     // A hello (first byte 1) is answered at once and not counted: send them until one is.
-    let mut hello = vec![0u8; SIZE];
+    let mut hello = vec![0u8; size];
     hello[0] = 1;
     let deadline = Instant::now() + TIMEOUT;
     loop {
@@ -248,7 +287,7 @@ fn zenoh_throughput(count: u64, rounds: usize) -> anyhow::Result<Vec<f64>> {
         .map_err(zerr)?
         .is_some()
     {}
-    let payload = vec![0u8; SIZE];
+    let payload = vec![0u8; size];
     let mut rates = Vec::with_capacity(rounds);
     for _ in 0..rounds {
         let start = Instant::now();
@@ -263,18 +302,24 @@ fn zenoh_throughput(count: u64, rounds: usize) -> anyhow::Result<Vec<f64>> {
     Ok(rates)
 }
 
-pub fn run_throughput(settings: &Settings) -> anyhow::Result<Report> {
+/// The throughput bench `THROUGHPUT[index]`.
+pub fn run_throughput(index: usize, settings: &Settings) -> anyhow::Result<Report> {
+    let (name, ours_name, size) = THROUGHPUT[index];
+    // About 32 MB a round (500,000 messages of 64 bytes), at least 1,000 messages.
     let (count, rounds) = if settings.quick {
-        (10_000, 1)
+        (1_000, 1)
     } else {
-        (500_000, 5)
+        ((32_000_000 / size as u64).clamp(1_000, 500_000), 5)
     };
-    let ours = ours("throughput_64b", settings)?;
-    let zenoh = median(&zenoh_throughput(count, rounds)?);
+    let ours = ours(ours_name, settings)?;
+    let zenoh = median(&zenoh_throughput(size, count, rounds)?);
     Ok(
-        Report::single(NAME_THROUGHPUT, "msg/s", field(&ours, "ours")?, zenoh)
+        Report::single(name, "msg/s", field(&ours, "ours")?, zenoh)
+            .with("bytes", size)
+            .with("cpus_allowed", cpus_allowed())
             .with("raw_tcp", field(&ours, "reference")?)
-            .with("goal", ">= 1x zenoh")
+            .with("ratio_vs_raw_tcp", field(&ours, "ratio")?)
+            .with("goal", ">= 1x zenoh at 64 bytes, >= 0.8x raw TCP at 1 MiB")
             .with(
                 "reference_is",
                 "zenoh 1.10 peers over TCP, batching publisher (blocking congestion control) \

@@ -1,5 +1,6 @@
-//! `latency_64b`: round trips of a 64-byte message, one in flight, between a node in this
-//! process and an `armor-mod-echo` process, against TCP ping-pong (TCP_NODELAY) with a child.
+//! `latency_64b` (and `latency_1kib`, `latency_64kib`, `latency_1mib`): round trips of a message
+//! of that size, one in flight, between a node in this process and an `armor-mod-echo` process,
+//! against TCP ping-pong (TCP_NODELAY) with a child.
 
 use std::io::{Read as _, Write as _};
 use std::time::{Duration, Instant};
@@ -14,8 +15,13 @@ use crate::procs::{ChildGuard, module_command};
 use crate::raw;
 use crate::report::Report;
 
-pub const NAME: &str = "latency_64b";
-const SIZE: usize = 64;
+/// The benches, by message size.
+pub const SIZES: [(&str, usize); 4] = [
+    ("latency_64b", 64),
+    ("latency_1kib", 1024),
+    ("latency_64kib", 64 * 1024),
+    ("latency_1mib", 1024 * 1024),
+];
 /// How long a warm-up ping waits for its pong before another is sent.
 const LINK_PROBE: Duration = Duration::from_millis(20);
 /// After the first pong, how long stale pongs are drained.
@@ -29,7 +35,25 @@ struct Counts {
     blocks: usize,
 }
 
-pub fn run(settings: &Settings) -> anyhow::Result<Report> {
+pub fn run_64b(settings: &Settings) -> anyhow::Result<Report> {
+    run(SIZES[0], settings)
+}
+
+pub fn run_1kib(settings: &Settings) -> anyhow::Result<Report> {
+    run(SIZES[1], settings)
+}
+
+pub fn run_64kib(settings: &Settings) -> anyhow::Result<Report> {
+    run(SIZES[2], settings)
+}
+
+pub fn run_1mib(settings: &Settings) -> anyhow::Result<Report> {
+    run(SIZES[3], settings)
+}
+
+fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Result<Report> {
+    // Fewer round trips for large messages: a 1 MiB one takes about a millisecond.
+    let scale = (size / 1024).max(1);
     let counts = if settings.quick {
         Counts {
             warm_up: 20,
@@ -38,13 +62,13 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
         }
     } else {
         Counts {
-            warm_up: 2_000,
-            block: 2_000,
+            warm_up: (2_000 / scale).max(20),
+            block: (2_000 / scale).max(100),
             blocks: 10,
         }
     };
-    let mut armor = ArmorPingPong::start()?;
-    let mut raw = RawPingPong::start()?;
+    let mut armor = ArmorPingPong::start(size)?;
+    let mut raw = RawPingPong::start(size)?;
     armor.round_trips(counts.warm_up)?;
     raw.round_trips(counts.warm_up)?;
     let mut ours = Vec::with_capacity(counts.block * counts.blocks);
@@ -54,7 +78,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
         reference.extend(raw.round_trips(counts.block)?);
     }
     raw.finish()?;
-    Ok(Report::distribution(NAME, "us", 1e6, &ours, &reference))
+    Ok(Report::distribution(name, "us", 1e6, &ours, &reference).with("bytes", size))
 }
 
 /// The bench's node (output `ping`, reliable input `pong` bound to `echo.output`) and the echo
@@ -70,13 +94,10 @@ struct ArmorPingPong {
 
 impl ArmorPingPong {
     /// Connects both ways: keeps sending until a pong comes back.
-    fn start() -> anyhow::Result<Self> {
+    fn start(size: usize) -> anyhow::Result<Self> {
         let agent = harness::agent()?;
         let spec = ModuleSpec::new("bench", "armor-bench: the latency probe")
-            .output::<Blob>(
-                "ping",
-                "64-byte messages, each stamped with its sequence number",
-            )
+            .output::<Blob>("ping", "messages, each stamped with its sequence number")
             .input::<Blob>("pong", "the same messages, echoed");
         let mut node = harness::connect(spec, agent, &[("pong", "echo.output")])?;
         let ping = node.output::<Blob>("ping")?;
@@ -101,7 +122,7 @@ impl ArmorPingPong {
             ping,
             pong,
             echo,
-            message: Blob(vec![0xA5; SIZE]),
+            message: Blob(vec![0xA5; size]),
             seq: 0,
         };
         let give_up = Instant::now() + LINK_TIMEOUT;
@@ -184,17 +205,17 @@ impl ArmorPingPong {
 /// TCP ping-pong with this binary run as `--raw-echo`.
 struct RawPingPong {
     peer: raw::Peer,
-    message: [u8; SIZE],
-    echoed: [u8; SIZE],
+    message: Vec<u8>,
+    echoed: Vec<u8>,
     seq: u64,
 }
 
 impl RawPingPong {
-    fn start() -> anyhow::Result<Self> {
+    fn start(size: usize) -> anyhow::Result<Self> {
         Ok(Self {
-            peer: raw::start_peer("--raw-echo", &SIZE.to_string())?,
-            message: [0xA5; SIZE],
-            echoed: [0; SIZE],
+            peer: raw::start_peer("--raw-echo", &size.to_string())?,
+            message: vec![0xA5; size],
+            echoed: vec![0; size],
             seq: 0,
         })
     }

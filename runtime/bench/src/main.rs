@@ -79,9 +79,24 @@ struct Bench {
 
 const BENCHES: &[Bench] = &[
     Bench {
-        name: latency::NAME,
+        name: latency::SIZES[0].0,
         about: "round trip of 64 bytes through armor-mod-echo vs TCP ping-pong (us)",
-        run: latency::run,
+        run: latency::run_64b,
+    },
+    Bench {
+        name: latency::SIZES[1].0,
+        about: "the same with 1 KiB messages (us)",
+        run: latency::run_1kib,
+    },
+    Bench {
+        name: latency::SIZES[2].0,
+        about: "the same with 64 KiB messages (us)",
+        run: latency::run_64kib,
+    },
+    Bench {
+        name: latency::SIZES[3].0,
+        about: "the same with 1 MiB messages (us)",
+        run: latency::run_1mib,
     },
     Bench {
         name: throughput::NAME_1MIB,
@@ -92,6 +107,16 @@ const BENCHES: &[Bench] = &[
         name: throughput::NAME_64B,
         about: "64-byte messages into armor-mod-sink vs buffered TCP streaming (msg/s)",
         run: throughput::run_64b,
+    },
+    Bench {
+        name: throughput::NAME_1KIB,
+        about: "the same with 1 KiB messages (msg/s)",
+        run: throughput::run_1kib,
+    },
+    Bench {
+        name: throughput::NAME_64KIB,
+        about: "the same with 64 KiB messages (msg/s)",
+        run: throughput::run_64kib,
     },
     Bench {
         name: startup::NAME,

@@ -1,4 +1,4 @@
-//! `throughput_1mib` and `throughput_64b`: messages streamed from a node in this process to an
+//! `throughput_64b`, `throughput_1kib`, `throughput_64kib` and `throughput_1mib`: messages streamed from a node in this process to an
 //! `armor-mod-sink` process, timed from the first send until the sink's count reaches the total,
 //! against the same bytes streamed over raw TCP to a child that answers one byte at the end.
 //!
@@ -19,6 +19,8 @@ use crate::report::{Report, median};
 
 pub const NAME_1MIB: &str = "throughput_1mib";
 pub const NAME_64B: &str = "throughput_64b";
+pub const NAME_1KIB: &str = "throughput_1kib";
+pub const NAME_64KIB: &str = "throughput_64kib";
 /// The raw reference writes through a buffer of this size (what ArMoR batches before writing).
 const RAW_BUFFER: usize = 64 * 1024;
 /// How long a warm-up burst waits for the sink's count before another is sent.
@@ -51,6 +53,36 @@ pub fn run_1mib(settings: &Settings) -> anyhow::Result<Report> {
     })
 }
 
+pub fn run_1kib(settings: &Settings) -> anyhow::Result<Report> {
+    let (count, every, rounds) = if settings.quick {
+        (2_000, 200, 1)
+    } else {
+        (500_000, 5_000, 3)
+    };
+    run(&Plan {
+        name: NAME_1KIB,
+        size: 1024,
+        count,
+        every,
+        rounds,
+    })
+}
+
+pub fn run_64kib(settings: &Settings) -> anyhow::Result<Report> {
+    let (count, every, rounds) = if settings.quick {
+        (200, 20, 1)
+    } else {
+        (20_000, 100, 3)
+    };
+    run(&Plan {
+        name: NAME_64KIB,
+        size: 64 * 1024,
+        count,
+        every,
+        rounds,
+    })
+}
+
 pub fn run_64b(settings: &Settings) -> anyhow::Result<Report> {
     let (count, every, rounds) = if settings.quick {
         (10_000, 1_000, 1)
@@ -74,12 +106,10 @@ fn run(plan: &Plan) -> anyhow::Result<Report> {
         ours.push(armor.round(plan)?);
         reference.push(raw_round(plan)?);
     }
-    Ok(Report::single(
-        plan.name,
-        "msg/s",
-        median(&ours),
-        median(&reference),
-    ))
+    Ok(
+        Report::single(plan.name, "msg/s", median(&ours), median(&reference))
+            .with("bytes", plan.size),
+    )
 }
 
 /// The bench's node (output `data`, input `count` bound to `sink.count`) and the sink process.

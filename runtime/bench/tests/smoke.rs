@@ -47,6 +47,8 @@ fn quick_run_prints_one_json_line_per_benchmark() {
         ("reachability_states_per_s", "states/s", false),
         ("sim_realtime_factor", "sim s/s", false),
         ("mapper_scan_ms", "ms", true),
+        ("latency_64kib", "us", true),
+        ("throughput_1kib", "msg/s", false),
     ];
     let names: Vec<&str> = expected.iter().map(|(name, _, _)| *name).collect();
     let mut args = vec!["--quick"];
@@ -90,6 +92,11 @@ fn quick_run_prints_one_json_line_per_benchmark() {
     assert!(sim["reference_is"].is_string(), "{}", lines[4]);
     let mapper: serde_json::Value = serde_json::from_str(lines[5]).unwrap();
     assert!(mapper["reference_is"].is_string(), "{}", lines[5]);
+    // The messaging benches say their size.
+    for (line, bytes) in [(lines[0], 64), (lines[6], 64 * 1024), (lines[7], 1024)] {
+        let value: serde_json::Value = serde_json::from_str(line).unwrap();
+        assert_eq!(value["bytes"], bytes, "{line}");
+    }
 }
 
 #[test]
@@ -115,8 +122,13 @@ fn list_names_every_benchmark() {
     let stdout = text(&output.stdout);
     for name in [
         "latency_64b",
+        "latency_1kib",
+        "latency_64kib",
+        "latency_1mib",
         "throughput_1mib",
         "throughput_64b",
+        "throughput_1kib",
+        "throughput_64kib",
         "startup_10_modules",
         "event_to_start_ms",
         "reachability_states_per_s",
