@@ -22,6 +22,7 @@ mod kill;
 mod latency;
 mod mapper_scan;
 mod procs;
+mod pull;
 mod raw;
 mod reachability;
 mod report;
@@ -56,6 +57,9 @@ struct Cli {
     /// Hidden reference peer: connect to ADDR and echo SIZE-byte messages until closed.
     #[arg(long, hide = true, num_args = 2, value_names = ["ADDR", "SIZE"])]
     raw_echo: Option<Vec<String>>,
+    /// Hidden reference peer: connect to ADDR and answer each byte with SIZE bytes until closed.
+    #[arg(long, hide = true, num_args = 2, value_names = ["ADDR", "SIZE"])]
+    raw_reply: Option<Vec<String>>,
     /// Hidden reference peer: connect to ADDR, read BYTES bytes, answer one byte.
     #[arg(long, hide = true, num_args = 2, value_names = ["ADDR", "BYTES"])]
     raw_sink: Option<Vec<String>>,
@@ -97,6 +101,12 @@ const BENCHES: &[Bench] = &[
         name: latency::SIZES[3].0,
         about: "the same with 1 MiB messages (us)",
         run: latency::run_1mib,
+    },
+    Bench {
+        name: pull::NAME,
+        about: "request for the latest value of armor-mod-echo's output (pull mode), 64 bytes \
+                answered, vs raw TCP request/reply (us)",
+        run: pull::run,
     },
     Bench {
         name: throughput::NAME_1MIB,
@@ -219,6 +229,9 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     if let Some(args) = &cli.raw_echo {
         return raw::echo_main(&args[0], parse_number(&args[1], "--raw-echo SIZE")?);
+    }
+    if let Some(args) = &cli.raw_reply {
+        return raw::reply_main(&args[0], parse_number(&args[1], "--raw-reply SIZE")?);
     }
     if let Some(args) = &cli.raw_sink {
         return raw::sink_main(&args[0], parse_number(&args[1], "--raw-sink BYTES")?);

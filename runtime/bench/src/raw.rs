@@ -31,6 +31,22 @@ pub fn echo_main(addr: &str, size: usize) -> anyhow::Result<ExitCode> {
     }
 }
 
+/// Hidden mode `--raw-reply ADDR SIZE`: answers every byte received with SIZE bytes (a request
+/// for the latest value) until the bench closes the connection.
+pub fn reply_main(addr: &str, size: usize) -> anyhow::Result<ExitCode> {
+    let mut stream = TcpStream::connect(addr).with_context(|| format!("cannot reach {addr}"))?;
+    stream.set_nodelay(true)?;
+    let latest = vec![9; size];
+    let mut request = [0; 1];
+    loop {
+        match stream.read_exact(&mut request) {
+            Ok(()) => stream.write_all(&latest)?,
+            Err(err) if err.kind() == ErrorKind::UnexpectedEof => return Ok(ExitCode::SUCCESS),
+            Err(err) => return Err(err.into()),
+        }
+    }
+}
+
 /// Hidden mode `--raw-sink ADDR BYTES`: reads BYTES bytes, then answers one byte.
 pub fn sink_main(addr: &str, bytes: u64) -> anyhow::Result<ExitCode> {
     let mut stream = TcpStream::connect(addr).with_context(|| format!("cannot reach {addr}"))?;

@@ -49,6 +49,7 @@ fn quick_run_prints_one_json_line_per_benchmark() {
         ("mapper_scan_ms", "ms", true),
         ("latency_64kib", "us", true),
         ("throughput_1kib", "msg/s", false),
+        ("pull_latest", "us", true),
     ];
     let names: Vec<&str> = expected.iter().map(|(name, _, _)| *name).collect();
     let mut args = vec!["--quick"];
@@ -125,6 +126,7 @@ fn list_names_every_benchmark() {
         "latency_1kib",
         "latency_64kib",
         "latency_1mib",
+        "pull_latest",
         "throughput_1mib",
         "throughput_64b",
         "throughput_1kib",

@@ -47,6 +47,8 @@ enum Role {
         reliable: bool,
         /// The least time between two samples sent (a subscriber's `max_rate_hz`).
         min_interval: Option<Duration>,
+        /// Sent a sample only when it asks ([`ToProvider::Pull`]).
+        pull: bool,
     },
 }
 
@@ -63,6 +65,8 @@ struct Conn {
     held: Option<OutBuffer>,
     /// When a rate-limited subscriber was last sent a sample.
     last_sent: Option<Instant>,
+    /// A subscriber pulled before its output had a sample: it gets the next one.
+    pull_pending: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -94,6 +98,8 @@ pub(crate) struct Net {
     supervisor: Link,
     inputs: Vec<InputLink>,
     subscribers: Vec<Vec<Token>>,
+    /// Each output's latest frame, for pulls (empty before its first sample).
+    latest: Vec<Vec<u8>>,
     /// With a shared secret, every connection authenticates.
     secret: Option<Secret>,
 }
@@ -138,6 +144,7 @@ impl Net {
             supervisor: Link::Down { retry_at: now },
             inputs: Vec::new(),
             subscribers: vec![Vec::new(); core.outputs.len()],
+            latest: Vec::new(),
             secret,
         };
         if let Some((addr, stream)) = supervisor {
@@ -201,6 +208,7 @@ impl Net {
                 handshake_deadline: None,
                 held: handshake.map(|_| OutBuffer::default()),
                 last_sent: None,
+                pull_pending: false,
             },
         );
         Ok(token)
@@ -317,14 +325,25 @@ impl Net {
             let Some(conn) = self.conns.get_mut(&token) else {
                 continue;
             };
-            let (reliable, min_interval) = match conn.role {
+            let (reliable, min_interval, pull) = match conn.role {
                 Role::Subscriber {
                     reliable,
                     min_interval,
+                    pull,
                     ..
-                } => (reliable, min_interval),
-                _ => (false, None),
+                } => (reliable, min_interval, pull),
+                _ => (false, None, false),
             };
+            // A pull subscriber gets a sample only when it asked before there was one; a
+            // failed write shows as the connection's error at the next poll.
+            let pulled = std::mem::take(&mut conn.pull_pending);
+            if pull {
+                if pulled {
+                    conn.out.push_frame(frame, false);
+                    let _ = conn.out.flush_to(&mut conn.stream);
+                }
+                continue;
+            }
             if let Some(min_interval) = min_interval {
                 let now = *now.get_or_insert_with(Instant::now);
                 if conn
@@ -629,11 +648,14 @@ impl Net {
                 Role::Supervisor => self.on_supervisor(core, token, frame.message()?),
                 Role::Input(index) => self.on_input(core, token, index, frame)?,
                 Role::Incoming => self.on_subscribe(core, token, frame.message()?),
-                Role::Subscriber { .. } => {
-                    return Err(WireError::BadMessage(serde::de::Error::custom(
-                        "subscribers must not send after subscribing",
-                    )));
-                }
+                Role::Subscriber { output, .. } => match frame.message()? {
+                    ToProvider::Pull => self.on_pull(token, output),
+                    ToProvider::Subscribe { .. } => {
+                        return Err(WireError::BadMessage(serde::de::Error::custom(
+                            "a subscriber must not subscribe again",
+                        )));
+                    }
+                },
             }
         }
     }
@@ -694,6 +716,7 @@ impl Net {
                     subscriber: format!("{}.{}", core.name, slot.name),
                     reliable: slot.reliable,
                     max_rate_hz: slot.max_rate_hz,
+                    pull: slot.pull,
                 };
                 self.queue_message(token, &subscribe);
                 self.inputs[index] = InputLink::Connecting(token);
@@ -770,6 +793,41 @@ impl Net {
         Ok(())
     }
 
+    /// A subscriber asks for the latest sample of `output`: written now if there is one, else
+    /// the next one sent.
+    fn on_pull(&mut self, token: Token, output: usize) {
+        let Some(conn) = self.conns.get_mut(&token) else {
+            return;
+        };
+        match self.latest.get(output).filter(|frame| !frame.is_empty()) {
+            Some(frame) => {
+                conn.out.push_frame(frame, false);
+                // A failed write shows as the connection's error at the next poll.
+                let _ = conn.out.flush_to(&mut conn.stream);
+            }
+            None => conn.pull_pending = true,
+        }
+    }
+
+    /// Keeps `frame`, just published on `output`, as its latest (taking the buffer and giving
+    /// back the previous one, cleared).
+    pub fn keep_latest(&mut self, output: usize, frame: &mut Vec<u8>) {
+        if self.latest.len() <= output {
+            self.latest.resize_with(output + 1, Vec::new);
+        }
+        std::mem::swap(&mut self.latest[output], frame);
+        frame.clear();
+    }
+
+    /// Asks the provider of `input` for its latest sample; `false` if it is not linked.
+    pub fn pull(&mut self, input: usize) -> bool {
+        let Some(InputLink::Linked(token)) = self.inputs.get(input).copied() else {
+            return false;
+        };
+        self.queue_message(token, &ToProvider::Pull);
+        true
+    }
+
     fn on_subscribe(&mut self, core: &mut Core, token: Token, message: ToProvider) {
         let ToProvider::Subscribe {
             data_name,
@@ -777,7 +835,13 @@ impl Net {
             subscriber,
             reliable,
             max_rate_hz,
-        } = message;
+            pull,
+        } = message
+        else {
+            tracing::warn!("a pull before subscribing: closing the connection");
+            self.remove_conn(token);
+            return;
+        };
         // A reliable subscriber takes every sample; a rate that is not a positive number is
         // no limit.
         let min_interval = max_rate_hz
@@ -812,6 +876,7 @@ impl Net {
                     output,
                     reliable,
                     min_interval,
+                    pull,
                 };
                 conn.handshake_deadline = None;
                 self.subscribers[output].push(token);

@@ -208,6 +208,8 @@ pub(crate) struct InputSlot {
     pub received: u64,
     /// At most this many samples per second, asked of the provider (best-effort only).
     pub max_rate_hz: Option<f64>,
+    /// Pull mode: the provider sends a sample only when asked ([`Node::pull`]).
+    pub pull: bool,
 }
 
 impl InputSlot {
@@ -268,6 +270,7 @@ impl Core {
                 notified: false,
                 received: 0,
                 max_rate_hz: None,
+                pull: false,
             })
             .collect();
         let outputs = description
@@ -504,6 +507,66 @@ impl Node {
         Ok(input)
     }
 
+    /// Like [`Node::input`], in pull mode: the provider sends nothing of its own accord and
+    /// answers each [`Node::pull`] with its latest sample (a request for the latest value, as
+    /// zenoh's `get` on a publisher's cache). The answer comes like any sample:
+    /// [`Event::Input`], then [`Node::take`]; or use [`Node::pull_latest`].
+    pub fn pull_input<T: Datum>(&mut self, name: &str) -> Result<Input<T>, ApiError> {
+        let input = self.input::<T>(name)?;
+        let slot = &mut self.core.inputs[input.index];
+        if !slot.pull {
+            slot.pull = true;
+            if let Transport::Net(net) = &mut self.transport {
+                net.relink(&mut self.core, input.index);
+            }
+        }
+        Ok(input)
+    }
+
+    /// Asks the input's provider for its latest sample, or the next one if it has sent none
+    /// yet; the provider's node answers without waking its module, and the answer comes as
+    /// [`Event::Input`]. `false` when the input has no provider linked yet: nothing was asked.
+    pub fn pull<T>(&mut self, input: &Input<T>) -> Result<bool, ApiError> {
+        match &mut self.transport {
+            Transport::Net(net) => Ok(net.pull(input.index)),
+            Transport::Test(_) => Ok(false),
+        }
+    }
+
+    /// [`Node::pull`], then waits for the answer until `timeout`: the sample, or `None` when
+    /// the input is not linked or no answer came in time. Events that come meanwhile are kept,
+    /// in order, for the next [`Node::next_event`].
+    pub fn pull_latest<T: Datum>(
+        &mut self,
+        input: &Input<T>,
+        timeout: Duration,
+    ) -> Result<Option<Sample<T>>, ApiError> {
+        if !self.pull(input)? {
+            return Ok(None);
+        }
+        let deadline = Instant::now() + timeout;
+        let mut kept = Vec::new();
+        let answer = loop {
+            match self.next_queued_event(Some(deadline)) {
+                Ok(Event::Input(port)) if port == input.id() => {
+                    if let Some(sample) = self.take(input)? {
+                        break Ok(Some(sample));
+                    }
+                }
+                Ok(Event::Timeout) => break Ok(None),
+                Ok(other) => kept.push(other),
+                Err(err) => break Err(err),
+            }
+        };
+        for event in kept.into_iter().rev() {
+            if let Event::Input(PortId(index)) = event {
+                self.core.inputs[index].notified = true;
+            }
+            self.core.events.push_front(event);
+        }
+        answer
+    }
+
     fn port_index(
         &self,
         kind: &'static str,
@@ -563,7 +626,11 @@ impl Node {
         self.scratch.clear();
         wire::encode_data(&mut self.scratch, seq, stamp_ns, encode)?;
         match &mut self.transport {
-            Transport::Net(net) => net.publish(&mut self.core, index, &self.scratch)?,
+            Transport::Net(net) => {
+                net.publish(&mut self.core, index, &self.scratch)?;
+                // Kept for pulls: a swap, not a copy.
+                net.keep_latest(index, &mut self.scratch);
+            }
             Transport::Test(test) => test.publish(index, &self.scratch),
         }
         Ok(())
@@ -672,6 +739,7 @@ impl Node {
             notified: false,
             received: 0,
             max_rate_hz,
+            pull: false,
         });
         if let Transport::Net(net) = &mut self.transport {
             net.add_input(&self.core, index);

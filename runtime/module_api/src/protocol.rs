@@ -120,7 +120,14 @@ pub enum ToProvider {
         /// few dozen poses a second, not the thousands a fast simulation publishes.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         max_rate_hz: Option<f64>,
+        /// Pull mode: the provider sends nothing of its own accord, and answers each
+        /// [`ToProvider::Pull`] with its latest sample.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        pull: bool,
     },
+    /// From a subscriber (in pull mode or not): send me your latest sample now, or the next one
+    /// if you have sent none yet. Answered from the provider's node without waking its module.
+    Pull,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -128,4 +135,41 @@ pub enum ToProvider {
 pub enum FromProvider {
     Subscribed,
     Refused { reason: String },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_subscribe_without_pull_reads_and_writes_as_before() {
+        let text = r#"{"type":"subscribe","data_name":"a.b","data_type":"Counter","subscriber":"c.d","reliable":false}"#;
+        let message: ToProvider = serde_json::from_str(text).expect("an older subscribe");
+        assert!(matches!(
+            message,
+            ToProvider::Subscribe {
+                pull: false,
+                max_rate_hz: None,
+                ..
+            }
+        ));
+        assert_eq!(serde_json::to_string(&message).expect("encodes"), text);
+        let pulling = ToProvider::Subscribe {
+            data_name: "a.b".into(),
+            data_type: "Counter".into(),
+            subscriber: "c.d".into(),
+            reliable: false,
+            max_rate_hz: None,
+            pull: true,
+        };
+        assert!(
+            serde_json::to_string(&pulling)
+                .expect("encodes")
+                .ends_with(r#""reliable":false,"pull":true}"#)
+        );
+        assert_eq!(
+            serde_json::to_string(&ToProvider::Pull).expect("encodes"),
+            r#"{"type":"pull"}"#
+        );
+    }
 }

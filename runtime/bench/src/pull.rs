@@ -1,0 +1,145 @@
+//! `pull_latest`: a request for the latest value of another process's output (a pull-mode
+//! input, [`Node::pull_latest`]), 64 bytes answered by the provider's node (`armor-mod-echo`,
+//! whose module only waits), against raw TCP request/reply with a child (1 byte asked, 64
+//! answered, TCP_NODELAY).
+
+use std::io::{Read as _, Write as _};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use armor_module_api::types::Blob;
+use armor_module_api::{Input, ModuleSpec, Node, Output};
+
+use crate::Settings;
+use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
+use crate::procs::{ChildGuard, module_command};
+use crate::raw;
+use crate::report::Report;
+
+pub const NAME: &str = "pull_latest";
+const SIZE: usize = 64;
+/// How long a first pull waits for the echo's first value before another ping is sent.
+const LINK_PROBE: Duration = Duration::from_millis(20);
+
+pub fn run(settings: &Settings) -> anyhow::Result<Report> {
+    let (warm_up, block, blocks) = if settings.quick {
+        (20, 100, 2)
+    } else {
+        (2_000, 2_000, 10)
+    };
+    let mut armor = ArmorPull::start()?;
+    let mut raw = RawPull::start()?;
+    armor.requests(warm_up)?;
+    raw.requests(warm_up)?;
+    let mut ours = Vec::with_capacity(block * blocks);
+    let mut reference = Vec::with_capacity(block * blocks);
+    // Blocks alternate, so that a change in the machine's load weighs on both alike.
+    for _ in 0..blocks {
+        ours.extend(armor.requests(block)?);
+        reference.extend(raw.requests(block)?);
+    }
+    Ok(Report::distribution(NAME, "us", 1e6, &ours, &reference).with("bytes", SIZE))
+}
+
+/// The bench's node (output `ping`, pull input `latest` bound to `echo.output`) and the echo
+/// process, whose output holds the one 64-byte ping it echoed.
+struct ArmorPull {
+    node: Node,
+    latest: Input<Blob>,
+    echo: ChildGuard,
+}
+
+impl ArmorPull {
+    fn start() -> anyhow::Result<Self> {
+        let agent = harness::agent()?;
+        let spec = ModuleSpec::new("bench", "armor-bench: the pull probe")
+            .output::<Blob>("ping", "one message for the echo to hold")
+            .input::<Blob>("latest", "the echo's latest message, pulled");
+        let mut node = harness::connect(spec, agent, &[("latest", "echo.output")])?;
+        let ping: Output<Blob> = node.output::<Blob>("ping")?;
+        let latest = node.pull_input::<Blob>("latest")?;
+        let agent = agent.to_string();
+        let echo = ChildGuard::spawn(
+            "armor-mod-echo",
+            module_command(
+                "echo",
+                &[
+                    "--name",
+                    "echo",
+                    "--agent",
+                    &agent,
+                    "--bind",
+                    "input=bench.ping",
+                ],
+            )?,
+        )?;
+        let mut side = Self { node, latest, echo };
+        let message = Blob(vec![0xA5; SIZE]);
+        let give_up = Instant::now() + LINK_TIMEOUT;
+        // Ping until a pull is answered: the echo is linked both ways and holds a value.
+        loop {
+            if !side.node.is_linked(&side.latest) || side.node.subscriber_count(&ping) == 0 {
+                side.node.next_event(Some(LINK_PROBE))?;
+            } else {
+                side.node.send(&ping, &message)?;
+                if side.node.pull_latest(&side.latest, LINK_PROBE)?.is_some() {
+                    break;
+                }
+            }
+            side.echo.check_alive()?;
+            if Instant::now() >= give_up {
+                return Err(side
+                    .echo
+                    .failure(&format!("answered no pull within {LINK_TIMEOUT:?}")));
+            }
+        }
+        Ok(side)
+    }
+
+    fn requests(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+        let mut samples = Vec::with_capacity(count);
+        for _ in 0..count {
+            let start = Instant::now();
+            let answer = self.node.pull_latest(&self.latest, STALL_TIMEOUT)?;
+            samples.push(start.elapsed());
+            let Some(sample) = answer else {
+                self.echo.check_alive()?;
+                bail!("a pull unanswered within {STALL_TIMEOUT:?}");
+            };
+            if sample.value.0.len() != SIZE {
+                bail!("a pull answered {} bytes", sample.value.0.len());
+            }
+        }
+        Ok(samples)
+    }
+}
+
+/// Raw request/reply with this binary run as `--raw-reply`.
+struct RawPull {
+    peer: raw::Peer,
+    reply: Vec<u8>,
+}
+
+impl RawPull {
+    fn start() -> anyhow::Result<Self> {
+        Ok(Self {
+            peer: raw::start_peer("--raw-reply", &SIZE.to_string())?,
+            reply: vec![0; SIZE],
+        })
+    }
+
+    fn requests(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+        let mut samples = Vec::with_capacity(count);
+        for _ in 0..count {
+            let start = Instant::now();
+            self.peer.stream.write_all(&[1])?;
+            let read = self.peer.stream.read_exact(&mut self.reply);
+            samples.push(start.elapsed());
+            if read.is_err() {
+                self.peer.child.check_alive()?;
+                read.context("the raw reply peer stopped answering")?;
+            }
+        }
+        Ok(samples)
+    }
+}
