@@ -201,6 +201,20 @@ fn collect(pipe: impl Read + Send + 'static, output: Arc<(Mutex<Output>, Condvar
 }
 
 /// Sends a signal to a process (through the `kill` command: the workspace denies unsafe code).
+/// `armor agent` on a free loopback port, and its address (read from its first line).
+pub fn start_agent() -> (Proc, std::net::SocketAddr) {
+    const READY: &str = "armor agent listening on ";
+    let agent = Proc::start(Command::new(bin("armor")).args(["agent", "--listen", "127.0.0.1:0"]));
+    let line = agent.wait_for("with the agent's address", PATIENCE, |line| {
+        line.starts_with(READY)
+    });
+    let addr = line
+        .trim_start_matches(READY)
+        .parse()
+        .unwrap_or_else(|err| panic!("the agent's address in `{line}`: {err}"));
+    (agent, addr)
+}
+
 pub fn signal(pid: i32, signal: i32) {
     let status = Command::new("kill")
         .arg(format!("-{signal}"))

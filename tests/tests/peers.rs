@@ -12,14 +12,7 @@ use armor_module_api::wire::{HELLO, blocking};
 use armor_tests::{PATIENCE, Proc, bin};
 
 fn start_agent() -> (Proc, SocketAddr) {
-    let agent = Proc::start(Command::new(bin("armor")).args(["agent", "--listen", "127.0.0.1:0"]));
-    let line = agent.wait_for("with the agent's address", PATIENCE, |line| {
-        line.starts_with("armor agent listening on ")
-    });
-    let addr: SocketAddr = line
-        .trim_start_matches("armor agent listening on ")
-        .parse()
-        .unwrap();
+    let (agent, addr) = armor_tests::start_agent();
     assert!(
         addr.ip().is_loopback(),
         "listens on loopback by default: {addr}"

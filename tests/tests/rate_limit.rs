@@ -4,24 +4,11 @@
 #![allow(clippy::unwrap_used)]
 
 use std::net::SocketAddr;
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 use armor_module_api::types::Counter;
 use armor_module_api::{Datum as _, Event, ModuleSpec, Node, Standalone};
-use armor_tests::{PATIENCE, Proc, bin};
-
-fn start_agent() -> (Proc, SocketAddr) {
-    let agent = Proc::start(Command::new(bin("armor")).args(["agent", "--listen", "127.0.0.1:0"]));
-    let line = agent.wait_for("with the agent's address", PATIENCE, |line| {
-        line.starts_with("armor agent listening on ")
-    });
-    let addr = line
-        .trim_start_matches("armor agent listening on ")
-        .parse()
-        .unwrap();
-    (agent, addr)
-}
+use armor_tests::{PATIENCE, start_agent};
 
 fn node(name: &str, agent: SocketAddr) -> Node {
     Node::connect(

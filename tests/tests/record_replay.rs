@@ -11,14 +11,8 @@ use armor_tests::{PATIENCE, Proc, bin};
 const ENOUGH: u64 = 100;
 
 fn start_agent() -> (Proc, String) {
-    let agent = Proc::start(Command::new(bin("armor")).args(["agent", "--listen", "127.0.0.1:0"]));
-    let line = agent.wait_for("with the agent's address", PATIENCE, |line| {
-        line.starts_with("armor agent listening on ")
-    });
-    let addr = line
-        .trim_start_matches("armor agent listening on ")
-        .to_owned();
-    (agent, addr)
+    let (agent, addr) = armor_tests::start_agent();
+    (agent, addr.to_string())
 }
 
 /// The `N` of a recorder's `recorded N messages` line.

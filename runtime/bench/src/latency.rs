@@ -11,7 +11,7 @@ use armor_module_api::{Event, Input, ModuleSpec, Node, Output};
 
 use crate::Settings;
 use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
-use crate::procs::{ChildGuard, module_command};
+use crate::procs::{ChildGuard, spawn_echo};
 use crate::raw;
 use crate::report::Report;
 
@@ -103,20 +103,7 @@ impl ArmorPingPong {
         let ping = node.output::<Blob>("ping")?;
         let pong = node.reliable_input::<Blob>("pong")?;
         let agent = agent.to_string();
-        let echo = ChildGuard::spawn(
-            "armor-mod-echo",
-            module_command(
-                "echo",
-                &[
-                    "--name",
-                    "echo",
-                    "--agent",
-                    &agent,
-                    "--bind",
-                    "input=bench.ping",
-                ],
-            )?,
-        )?;
+        let echo = spawn_echo(&agent)?;
         let mut side = Self {
             node,
             ping,

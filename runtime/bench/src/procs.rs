@@ -44,6 +44,24 @@ pub fn module_command(module_type: &str, args: &[&str]) -> anyhow::Result<Comman
     Ok(command)
 }
 
+/// `armor-mod-echo` named `echo`, its input bound to the bench node's output `ping`.
+pub fn spawn_echo(agent: &str) -> anyhow::Result<ChildGuard> {
+    ChildGuard::spawn(
+        "armor-mod-echo",
+        module_command(
+            "echo",
+            &[
+                "--name",
+                "echo",
+                "--agent",
+                agent,
+                "--bind",
+                "input=bench.ping",
+            ],
+        )?,
+    )
+}
+
 /// A binary next to this executable (`armor` next to `armor-bench`).
 pub fn sibling_binary(name: &str) -> anyhow::Result<PathBuf> {
     let exe = std::env::current_exe().context("cannot locate this executable")?;

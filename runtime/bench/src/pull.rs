@@ -12,7 +12,7 @@ use armor_module_api::{Input, ModuleSpec, Node, Output};
 
 use crate::Settings;
 use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
-use crate::procs::{ChildGuard, module_command};
+use crate::procs::{ChildGuard, spawn_echo};
 use crate::raw;
 use crate::report::Report;
 
@@ -59,20 +59,7 @@ impl ArmorPull {
         let ping: Output<Blob> = node.output::<Blob>("ping")?;
         let latest = node.pull_input::<Blob>("latest")?;
         let agent = agent.to_string();
-        let echo = ChildGuard::spawn(
-            "armor-mod-echo",
-            module_command(
-                "echo",
-                &[
-                    "--name",
-                    "echo",
-                    "--agent",
-                    &agent,
-                    "--bind",
-                    "input=bench.ping",
-                ],
-            )?,
-        )?;
+        let echo = spawn_echo(&agent)?;
         let mut side = Self { node, latest, echo };
         let message = Blob(vec![0xA5; SIZE]);
         let give_up = Instant::now() + LINK_TIMEOUT;
