@@ -22,9 +22,9 @@
 //!   TCP request/reply (1 byte asked, 64 answered, TCP_NODELAY), measured by `armor-bench` in the
 //!   same run, and zenoh `get` on a queryable is given beside it.
 //! - `discovery_vs_zenoh`: a process started to its first message delivered; zenoh: a child
-//!   that opens a session, connects to ours (already subscribed) and publishes; ours: the
-//!   restart of a killed module under `armor run` to its subscriber's first value from the new
-//!   process, minus the supervisor's backoff (`kill_recover_ms`'s `beyond_backoff_ms_p50`).
+//!   that opens a session, connects to ours (already subscribed) and publishes; ours: `armor-bench
+//!   discovery_ms` (`armor-mod-counter` spawned with its agent, to the first value at a node
+//!   that was waiting for it).
 
 use std::io::{BufRead as _, BufReader, Read as _, Write as _};
 use std::net::{TcpListener, TcpStream};
@@ -313,19 +313,17 @@ pub fn run_throughput(index: usize, settings: &Settings) -> anyhow::Result<Repor
     };
     let ours = ours(ours_name, settings)?;
     let zenoh = median(&zenoh_throughput(size, count, rounds)?);
-    Ok(
-        Report::single(name, "msg/s", field(&ours, "ours")?, zenoh)
-            .with("bytes", size)
-            .with("cpus_allowed", cpus_allowed())
-            .with("raw_tcp", field(&ours, "reference")?)
-            .with("ratio_vs_raw_tcp", field(&ours, "ratio")?)
-            .with("goal", ">= 1x zenoh at 64 bytes, >= 0.8x raw TCP at 1 MiB")
-            .with(
-                "reference_is",
-                "zenoh 1.10 peers over TCP, batching publisher (blocking congestion control) \
+    Ok(Report::single(name, "msg/s", field(&ours, "ours")?, zenoh)
+        .with("bytes", size)
+        .with("cpus_allowed", cpus_allowed())
+        .with("raw_tcp", field(&ours, "reference")?)
+        .with("ratio_vs_raw_tcp", field(&ours, "ratio")?)
+        .with("goal", ">= 1x zenoh at 64 bytes, >= 0.8x raw TCP at 1 MiB")
+        .with(
+            "reference_is",
+            "zenoh 1.10 peers over TCP, batching publisher (blocking congestion control) \
                  to a counting subscriber in another process",
-            ),
-    )
+        ))
 }
 
 /// Raw TCP request/reply with a child: 1 byte asked, 64 answered; µs each.
@@ -404,7 +402,10 @@ pub fn run_pull(settings: &Settings) -> anyhow::Result<Report> {
         .with("raw_tcp_here_p50", crate::round4(percentile(&raw, 0.5)))
         .with("zenoh_get_p50", crate::round4(percentile(&zenoh, 0.5)))
         .with("zenoh_get_p99", crate::round4(percentile(&zenoh, 0.99)))
-        .with("ratio_vs_zenoh_get", crate::round4(ours_p50 / percentile(&zenoh, 0.5)))
+        .with(
+            "ratio_vs_zenoh_get",
+            crate::round4(ours_p50 / percentile(&zenoh, 0.5)),
+        )
         .with("goal", "<= 1.2x raw TCP")
         .with(
             "ours_is",
@@ -454,27 +455,24 @@ fn zenoh_discovery(rounds: usize) -> anyhow::Result<Vec<f64>> {
 
 pub fn run_discovery(settings: &Settings) -> anyhow::Result<Report> {
     let rounds = if settings.quick { 2 } else { 15 };
-    let ours = ours("kill_recover_ms", settings)?;
+    let ours = ours("discovery_ms", settings)?;
     let zenoh = median(&zenoh_discovery(rounds)?);
-    Ok(Report::single(
-        NAME_DISCOVERY,
-        "ms",
-        field(&ours, "beyond_backoff_ms_p50")?,
-        zenoh,
+    Ok(
+        Report::single(NAME_DISCOVERY, "ms", field(&ours, "ours")?, zenoh)
+            .with("cpus_allowed", cpus_allowed())
+            .with("process_spawn_ms", field(&ours, "reference")?)
+            .with("goal", "<= 0.5x zenoh")
+            .with(
+                "ours_is",
+                "armor-mod-counter spawned with its agent, to its first value at a subscriber \
+                 that asked the agent for it before (armor-bench discovery_ms)",
+            )
+            .with(
+                "reference_is",
+                "a process spawned that opens a zenoh peer session, connects to ours \
+                 (subscribed) and publishes, to the first sample here",
+            ),
     )
-    .with("ours_with_backoff", field(&ours, "ours")?)
-    .with("process_spawn_ms", field(&ours, "reference")?)
-    .with("goal", "<= 0.5x zenoh")
-    .with(
-        "ours_is",
-        "a killed module restarted under armor run to its subscriber's first value, minus the \
-         supervisor's backoff (armor-bench kill_recover_ms)",
-    )
-    .with(
-        "reference_is",
-        "a process spawned that opens a zenoh peer session, connects to ours (subscribed) and \
-         publishes, to the first sample here",
-    ))
 }
 
 /// The hidden child roles: `pong ENDPOINT`, `sink ENDPOINT COUNT`, `queryable ENDPOINT`,

@@ -194,7 +194,7 @@ fn scenario(settings: &Settings) -> anyhow::Result<Outcome> {
 }
 
 /// Milliseconds to spawn `armor-mod-counter --describe` and see it exit.
-fn describe_spawn(counter: &Path) -> anyhow::Result<f64> {
+pub fn describe_spawn(counter: &Path) -> anyhow::Result<f64> {
     let start = Instant::now();
     let mut command = Command::new(counter);
     command.arg("--describe");

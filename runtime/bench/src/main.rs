@@ -15,6 +15,7 @@
 
 mod benchprobe;
 mod compile_plan;
+mod discovery;
 mod event_start;
 mod fuzz;
 mod harness;
@@ -150,6 +151,12 @@ const BENCHES: &[Bench] = &[
         about: "compile and check a 10,000-waypoint plan vs load and check the net it compiles \
                 to (ms; goal < 100)",
         run: compile_plan::run,
+    },
+    Bench {
+        name: discovery::NAME,
+        about: "a counter process spawned to its first value at a subscriber waiting for it, vs \
+                spawning the binary (ms)",
+        run: discovery::run,
     },
     Bench {
         name: kill::NAME_RECOVER,

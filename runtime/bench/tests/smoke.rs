@@ -127,6 +127,7 @@ fn list_names_every_benchmark() {
         "latency_64kib",
         "latency_1mib",
         "pull_latest",
+        "discovery_ms",
         "throughput_1mib",
         "throughput_64b",
         "throughput_1kib",

@@ -126,20 +126,26 @@ fn spawn_describe(binary: &Path, timeout: Duration) -> Result<std::process::Chil
 fn probe_text(binary: &Path, timeout: Duration) -> Result<(String, ModuleDescription), ProbeError> {
     let mut child = spawn_describe(binary, timeout)?;
     let stdout = child.stdout.take();
-    // Read on a thread so that a child that fills the pipe does not block its own exit.
+    // Read on a thread so that a child that fills the pipe does not block its own exit; the
+    // thread says when the output ended, which is when the child exits (or closes it).
+    let (ended_tx, ended) = std::sync::mpsc::channel();
     let reader = std::thread::spawn(move || {
         let mut text = Vec::new();
         if let Some(stdout) = stdout {
             let _ = stdout.take(MAX_DESCRIBE_BYTES + 1).read_to_end(&mut text);
         }
+        let _ = ended_tx.send(());
         text
     });
     let deadline = Instant::now() + timeout;
+    let _ = ended.recv_timeout(timeout);
+    // Then the exit itself, a moment later (or never, for a child that closed its output and
+    // went on running: it is killed at the deadline).
     let status = loop {
         match child.try_wait() {
             Ok(Some(status)) => break Ok(status),
             Ok(None) if Instant::now() < deadline => {
-                std::thread::sleep(Duration::from_millis(5));
+                std::thread::sleep(Duration::from_micros(200));
             }
             Ok(None) => {
                 let _ = child.kill();
