@@ -354,7 +354,24 @@ impl Net {
                 }
                 conn.last_sent = Some(now);
             }
-            conn.out.push_frame(frame, !reliable);
+            if reliable && conn.out.is_empty() && frame.len() >= BATCH_BYTES {
+                // A large frame with nothing queued before it goes out from the caller's buffer;
+                // only what the socket does not take now is copied. (A best-effort subscriber's
+                // queue may drop frames not yet started, so its frames are always queued whole.)
+                match std::io::Write::write(&mut conn.stream, frame) {
+                    Ok(written) if written == frame.len() => continue,
+                    Ok(written) => conn.out.push_frame(&frame[written..], false),
+                    Err(err) if err.kind() == ErrorKind::WouldBlock => {
+                        conn.out.push_frame(frame, false);
+                    }
+                    Err(_) => {
+                        stalled.push(token);
+                        continue;
+                    }
+                }
+            } else {
+                conn.out.push_frame(frame, !reliable);
+            }
             if conn.out.pending_bytes() >= BATCH_BYTES {
                 match conn.out.flush_to(&mut conn.stream) {
                     Ok(_) if reliable && conn.out.pending_bytes() > RELIABLE_BACKLOG_BYTES => {

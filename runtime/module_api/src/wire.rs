@@ -190,12 +190,14 @@ struct AuthState {
     verified: bool,
 }
 
-/// A data frame whose payload is read directly where the receiver will keep it (no copy).
+/// A data frame whose payload is read directly where the receiver will keep it (no copy). The
+/// payload's capacity is its final length and its length what has arrived: reads fill the
+/// spare capacity, which is never zeroed first.
 struct LargeFrame {
     seq: u64,
     stamp_ns: u64,
     payload: Vec<u8>,
-    filled: usize,
+    len: usize,
 }
 
 /// The most a single read reserves room for, whatever length a peer announces.
@@ -245,11 +247,24 @@ impl FrameReader {
     /// Reads once from `source`. `Ok(0)` means the peer closed the connection.
     pub fn fill_from(&mut self, source: &mut impl Read) -> io::Result<usize> {
         if let Some(large) = &mut self.large {
-            let room = large.payload.len() - large.filled;
-            let got = source.read(&mut large.payload[large.filled..])?;
-            large.filled += got;
-            self.drained = got < room;
-            return Ok(got);
+            let room = large.len - large.payload.len();
+            let before = large.payload.len();
+            // `read_to_end` reads into the spare capacity without zeroing it, and keeps what it
+            // read when the socket runs dry (`WouldBlock`), which is then only "drained".
+            let result = source.take(room as u64).read_to_end(&mut large.payload);
+            let got = large.payload.len() - before;
+            return match result {
+                Ok(_) if got == 0 => Ok(0),
+                Ok(_) => {
+                    self.drained = false;
+                    Ok(got)
+                }
+                Err(err) if err.kind() == io::ErrorKind::WouldBlock && got > 0 => {
+                    self.drained = true;
+                    Ok(got)
+                }
+                Err(err) => Err(err),
+            };
         }
         if self.start == self.end {
             self.start = 0;
@@ -332,7 +347,7 @@ impl FrameReader {
 
     fn next_wire_frame(&mut self) -> Result<Option<Frame>, WireError> {
         if let Some(large) = &self.large {
-            if large.filled < large.payload.len() {
+            if large.payload.len() < large.len {
                 return Ok(None);
             }
             return Ok(self.large.take().map(|large| {
@@ -391,15 +406,16 @@ impl FrameReader {
         seq.copy_from_slice(&header[..8]);
         stamp.copy_from_slice(&header[8..]);
         let payload_start = self.start + 5 + DATA_HEADER_BYTES;
-        let mut payload = vec![0; total - 5 - DATA_HEADER_BYTES];
-        let already = (self.end - payload_start).min(payload.len());
-        payload[..already].copy_from_slice(&self.buf[payload_start..payload_start + already]);
+        let len = total - 5 - DATA_HEADER_BYTES;
+        let mut payload = Vec::with_capacity(len);
+        let already = (self.end - payload_start).min(len);
+        payload.extend_from_slice(&self.buf[payload_start..payload_start + already]);
         self.start = payload_start + already;
         self.large = Some(LargeFrame {
             seq: u64::from_le_bytes(seq),
             stamp_ns: u64::from_le_bytes(stamp),
             payload,
-            filled: already,
+            len,
         });
     }
 }
@@ -706,6 +722,79 @@ mod tests {
                 })
             );
             assert!(matches!(&frames[2], Frame::Data(d) if d.seq == 8 && d.payload == big));
+        }
+    }
+
+    /// A non-blocking socket: every other read has nothing (`WouldBlock`), the others a chunk.
+    struct Stuttering<'a> {
+        bytes: &'a [u8],
+        step: usize,
+        dry: bool,
+    }
+
+    impl Read for Stuttering<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            self.dry = !self.dry;
+            if self.dry && !self.bytes.is_empty() {
+                return Err(io::ErrorKind::WouldBlock.into());
+            }
+            let n = self.step.min(self.bytes.len()).min(buf.len());
+            buf[..n].copy_from_slice(&self.bytes[..n]);
+            self.bytes = &self.bytes[n..];
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn a_large_frame_read_between_dry_spells_arrives_whole() {
+        let mut bytes = HELLO.to_vec();
+        let big: Vec<u8> = (0..1024 * 1024 + 7).map(|i| (i % 251) as u8).collect();
+        for seq in [1, 2] {
+            encode_data(&mut bytes, seq, 0, |out| {
+                out.extend_from_slice(&big);
+                Ok(())
+            })
+            .expect("encode");
+        }
+        encode_data(&mut bytes, 3, 0, |out| {
+            out.push(9);
+            Ok(())
+        })
+        .expect("encode");
+        for step in [1000, 65536, 300_000] {
+            let mut reader = FrameReader::expecting_hello();
+            let mut source = Stuttering {
+                bytes: &bytes,
+                step,
+                dry: false,
+            };
+            let mut frames = Vec::new();
+            loop {
+                match reader.fill_from(&mut source) {
+                    Ok(0) => break,
+                    Ok(_) => {}
+                    Err(err) if err.kind() == io::ErrorKind::WouldBlock => {}
+                    Err(err) => panic!("{err}"),
+                }
+                while let Some(frame) = reader.next_frame().expect("decodes") {
+                    frames.push(frame);
+                }
+            }
+            let payloads: Vec<(u64, usize)> = frames
+                .iter()
+                .map(|frame| match frame {
+                    Frame::Data(data) => (data.seq, data.payload.len()),
+                    other => panic!("{other:?}"),
+                })
+                .collect();
+            assert_eq!(
+                payloads,
+                [(1, big.len()), (2, big.len()), (3, 1)],
+                "step {step}"
+            );
+            for frame in &frames[..2] {
+                assert!(matches!(frame, Frame::Data(data) if data.payload == big));
+            }
         }
     }
 
