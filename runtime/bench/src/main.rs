@@ -130,6 +130,12 @@ const BENCHES: &[Bench] = &[
         run: throughput::run_64kib,
     },
     Bench {
+        name: throughput::NAME_FANOUT,
+        about: "what one more subscriber adds to each 64-byte message published (1 vs 4 sinks) \
+                vs one more raw buffered TCP send (ns/msg; goal ratio <= 1)",
+        run: throughput::run_fanout,
+    },
+    Bench {
         name: startup::NAME,
         about: "`armor run` of ten counters until configured vs ten --describe spawns (ms)",
         run: startup::run,

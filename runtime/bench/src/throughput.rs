@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use armor_module_api::types::{Blob, Counter};
-use armor_module_api::{Event, Input, ModuleSpec, Node, Output};
+use armor_module_api::{Event, Input, ModuleSpec, Node, Output, PortId};
 
 use crate::Settings;
 use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
@@ -21,6 +21,7 @@ pub const NAME_1MIB: &str = "throughput_1mib";
 pub const NAME_64B: &str = "throughput_64b";
 pub const NAME_1KIB: &str = "throughput_1kib";
 pub const NAME_64KIB: &str = "throughput_64kib";
+pub const NAME_FANOUT: &str = "fanout_64b";
 /// The raw reference writes through a buffer of this size (what ArMoR batches before writing).
 const RAW_BUFFER: usize = 64 * 1024;
 /// How long a warm-up burst waits for the sink's count before another is sent.
@@ -98,13 +99,70 @@ pub fn run_64b(settings: &Settings) -> anyhow::Result<Report> {
     })
 }
 
+/// `fanout_64b`: what one more subscriber costs. 64-byte messages streamed to one
+/// `armor-mod-sink` and to four: the time per message grows by `(t4 - t1) / 3` for each extra
+/// subscriber (the publisher's work and the extra sink's, on the same two cores). Reference: one
+/// raw send, what a publisher that writes each message to each subscriber pays per extra
+/// subscriber: the time per message of the same bytes streamed over raw TCP with one `send` each
+/// (TCP_NODELAY). Goal: ratio <= 1. The same bytes through a 64 KiB buffer are given beside it.
+pub fn run_fanout(settings: &Settings) -> anyhow::Result<Report> {
+    const MORE: usize = 4;
+    let (count, every, rounds) = if settings.quick {
+        (10_000, 1_000, 1)
+    } else {
+        (500_000, 10_000, 3)
+    };
+    let plan = Plan {
+        name: NAME_FANOUT,
+        size: 64,
+        count,
+        every,
+        rounds,
+    };
+    let mut one = ArmorSide::start(&plan, 1)?;
+    let mut more = ArmorSide::start(&plan, MORE)?;
+    let (mut rate_one, mut rate_more) = (Vec::new(), Vec::new());
+    let (mut sends, mut buffered) = (Vec::new(), Vec::new());
+    for _ in 0..plan.rounds {
+        rate_one.push(one.round(&plan)?);
+        rate_more.push(more.round(&plan)?);
+        buffered.push(raw_round(&plan, RAW_BUFFER)?);
+        // One send a message is slow: a tenth of the messages is plenty.
+        let fewer = Plan {
+            count: plan.count / 10,
+            ..plan
+        };
+        sends.push(raw_round(&fewer, 0)?);
+    }
+    let (t_one, t_more) = (1e9 / median(&rate_one), 1e9 / median(&rate_more));
+    let extra_ns = ((t_more - t_one) / (MORE - 1) as f64).max(0.0);
+    Ok(
+        Report::single(plan.name, "ns/msg", extra_ns, 1e9 / median(&sends))
+            .with("bytes", plan.size)
+            .with(
+                "raw_buffered_ns",
+                (1e11 / median(&buffered)).round() / 100.0,
+            )
+            .with("msg_per_s_1_subscriber", median(&rate_one).round())
+            .with(
+                format!("msg_per_s_{MORE}_subscribers").as_str(),
+                median(&rate_more).round(),
+            )
+            .with("goal", "<= 1x one more raw send")
+            .with(
+                "reference_is",
+                "the time per 64-byte message streamed over raw TCP with one send each",
+            ),
+    )
+}
+
 fn run(plan: &Plan) -> anyhow::Result<Report> {
-    let mut armor = ArmorSide::start(plan)?;
+    let mut armor = ArmorSide::start(plan, 1)?;
     let mut ours = Vec::with_capacity(plan.rounds);
     let mut reference = Vec::with_capacity(plan.rounds);
     for _ in 0..plan.rounds {
         ours.push(armor.round(plan)?);
-        reference.push(raw_round(plan)?);
+        reference.push(raw_round(plan, RAW_BUFFER)?);
     }
     Ok(
         Report::single(plan.name, "msg/s", median(&ours), median(&reference))
@@ -112,129 +170,155 @@ fn run(plan: &Plan) -> anyhow::Result<Report> {
     )
 }
 
-/// The bench's node (output `data`, input `count` bound to `sink.count`) and the sink process.
+/// The bench's node (output `data`, inputs `count0`, `count1`, … bound to `sink0.count`, …) and
+/// the sink processes.
 struct ArmorSide {
     node: Node,
     data: Output<Blob>,
-    count: Input<Counter>,
-    sink: ChildGuard,
+    counts: Vec<Input<Counter>>,
+    sinks: Vec<ChildGuard>,
     payload: Blob,
-    /// The sink's count as last heard: exactly what it has received, once quiet.
-    received: u64,
+    /// Each sink's count as last heard: exactly what it has received, once quiet.
+    received: Vec<u64>,
 }
 
 impl ArmorSide {
-    /// Connects both ways and learns the sink's exact count.
-    fn start(plan: &Plan) -> anyhow::Result<Self> {
+    /// Connects both ways to `sinks` sinks and learns their exact counts.
+    fn start(plan: &Plan, sinks: usize) -> anyhow::Result<Self> {
         let agent = harness::agent()?;
-        let spec = ModuleSpec::new("bench", "armor-bench: the throughput source")
-            .output::<Blob>("data", "the messages to count")
-            .input::<Counter>("count", "how many the sink has received");
-        let mut node = harness::connect(spec, agent, &[("count", "sink.count")])?;
+        let names: Vec<(String, String)> = (0..sinks)
+            .map(|i| (format!("count{i}"), format!("sink{i}")))
+            .collect();
+        let mut spec = ModuleSpec::new("bench", "armor-bench: the throughput source")
+            .output::<Blob>("data", "the messages to count");
+        for (input, _) in &names {
+            spec = spec.input::<Counter>(input, "how many a sink has received");
+        }
+        let sources: Vec<(String, String)> = names
+            .iter()
+            .map(|(input, sink)| (input.clone(), format!("{sink}.count")))
+            .collect();
+        let binds: Vec<(&str, &str)> = sources
+            .iter()
+            .map(|(input, source)| (input.as_str(), source.as_str()))
+            .collect();
+        let mut node = harness::connect(spec, agent, &binds)?;
         let data = node.output::<Blob>("data")?;
-        let count = node.input::<Counter>("count")?;
+        let counts = names
+            .iter()
+            .map(|(input, _)| node.input::<Counter>(input))
+            .collect::<Result<Vec<_>, _>>()?;
         let agent = agent.to_string();
         let every = format!("every={}", plan.every);
-        let sink = ChildGuard::spawn(
-            "armor-mod-sink",
-            module_command(
-                "sink",
-                &[
-                    "--name",
-                    "sink",
-                    "--agent",
-                    &agent,
-                    "--param",
-                    &every,
-                    "--bind",
-                    "input=bench.data",
-                ],
-            )?,
-        )?;
+        let sinks = names
+            .iter()
+            .map(|(_, sink)| {
+                ChildGuard::spawn(
+                    "armor-mod-sink",
+                    module_command(
+                        "sink",
+                        &[
+                            "--name",
+                            sink,
+                            "--agent",
+                            &agent,
+                            "--param",
+                            &every,
+                            "--bind",
+                            "input=bench.data",
+                        ],
+                    )?,
+                )
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
         let mut side = Self {
             node,
             data,
-            count,
-            sink,
+            received: vec![0; counts.len()],
+            counts,
+            sinks,
             payload: Blob(vec![0xA5; plan.size]),
-            received: 0,
         };
         side.link(plan)?;
         Ok(side)
     }
 
-    /// Waits until the sink's count reaches this node, then sends bursts of `every` messages
-    /// until a count comes back. A burst reaches the sink whole or not at all: the node takes a
+    /// Waits until every sink's count reaches this node, then sends bursts of `every` messages
+    /// until each count has grown. A burst reaches a sink whole or not at all: the node takes a
     /// new subscriber only while it waits for events, never between the sends of a burst, as
-    /// long as it has no subscriber yet. So the sink's count is a whole number of bursts.
+    /// long as it has no subscriber yet. So each sink's count is a whole number of bursts.
     fn link(&mut self, plan: &Plan) -> anyhow::Result<()> {
         let give_up = Instant::now() + LINK_TIMEOUT;
-        while !self.node.is_linked(&self.count) {
+        while !self.counts.iter().all(|count| self.node.is_linked(count)) {
             self.node.next_event(Some(BURST_PROBE))?;
             self.check_progress(give_up, "did not serve its count")?;
         }
-        loop {
+        let before = self.received.clone();
+        while self
+            .received
+            .iter()
+            .zip(&before)
+            .any(|(now, then)| now <= then)
+        {
             for _ in 0..plan.every {
                 self.node.send(&self.data, &self.payload)?;
             }
-            if self.await_count(Instant::now() + BURST_PROBE, true)? {
-                break;
-            }
+            self.await_counts(Instant::now() + BURST_PROBE)?;
             self.check_progress(give_up, "counted nothing")?;
         }
-        self.await_count(Instant::now() + SETTLE, false)?;
+        self.await_counts(Instant::now() + SETTLE)?;
         Ok(())
     }
 
     fn check_progress(&mut self, give_up: Instant, what: &str) -> anyhow::Result<()> {
-        self.sink.check_alive()?;
+        for sink in &mut self.sinks {
+            sink.check_alive()?;
+        }
         if Instant::now() >= give_up {
-            return Err(self
-                .sink
-                .failure(&format!("{what} within {LINK_TIMEOUT:?}")));
+            return Err(self.sinks[0].failure(&format!("{what} within {LINK_TIMEOUT:?}")));
         }
         Ok(())
     }
 
-    /// Takes counts until `until` (or, with `first_only`, until the count grows). Returns
-    /// whether it grew.
-    fn await_count(&mut self, until: Instant, first_only: bool) -> anyhow::Result<bool> {
-        let before = self.received;
+    /// Takes counts until `until`.
+    fn await_counts(&mut self, until: Instant) -> anyhow::Result<()> {
         loop {
             match self.node.next_event_until(until)? {
-                Event::Input(port) if port == self.count.id() => {
-                    self.take_count()?;
-                    if first_only && self.received > before {
-                        return Ok(true);
-                    }
-                }
-                Event::Timeout => return Ok(self.received > before),
+                Event::Input(port) => self.take_count(port)?,
+                Event::Timeout => return Ok(()),
                 _ => {}
             }
         }
     }
 
-    fn take_count(&mut self) -> anyhow::Result<()> {
-        if let Some(sample) = self.node.take(&self.count)? {
-            self.received = self.received.max(sample.value.0);
+    fn take_count(&mut self, port: PortId) -> anyhow::Result<()> {
+        if let Some(i) = self.counts.iter().position(|count| count.id() == port)
+            && let Some(sample) = self.node.take(&self.counts[i])?
+        {
+            self.received[i] = self.received[i].max(sample.value.0);
         }
         Ok(())
     }
 
-    /// One timed round: messages per second from the first send to the sink's last count.
+    /// One timed round: messages per second from the first send to the last sink's last count.
     fn round(&mut self, plan: &Plan) -> anyhow::Result<f64> {
-        let target = self.received + plan.count;
+        let target: Vec<u64> = self.received.iter().map(|got| got + plan.count).collect();
         let start = Instant::now();
         for _ in 0..plan.count {
             self.node.send(&self.data, &self.payload)?;
         }
-        while self.received < target {
+        while self
+            .received
+            .iter()
+            .zip(&target)
+            .any(|(got, want)| got < want)
+        {
             match self.node.next_event(Some(STALL_TIMEOUT))? {
-                Event::Input(port) if port == self.count.id() => self.take_count()?,
+                Event::Input(port) => self.take_count(port)?,
                 Event::Timeout => {
-                    self.sink.check_alive()?;
+                    self.check_progress(Instant::now() + STALL_TIMEOUT, "")?;
                     bail!(
-                        "the sink's count stayed at {} of {target} for {STALL_TIMEOUT:?}",
+                        "the sinks' counts stayed at {:?} of {target:?} for {STALL_TIMEOUT:?}",
                         self.received
                     );
                 }
@@ -245,15 +329,16 @@ impl ArmorSide {
     }
 }
 
-/// One raw round: the same bytes through a buffered TCP stream to a fresh peer.
-fn raw_round(plan: &Plan) -> anyhow::Result<f64> {
+/// One raw round: the same bytes through a TCP stream to a fresh peer, written through a buffer
+/// of `buffer` bytes (0: one `send` a message).
+fn raw_round(plan: &Plan, buffer: usize) -> anyhow::Result<f64> {
     let total = plan.size as u64 * plan.count;
     let mut peer = raw::start_peer("--raw-sink", &total.to_string())?;
     let message = vec![0xA5; plan.size];
     let mut answer = [0; 1];
     let start = Instant::now();
     let streamed = (|| {
-        let mut writer = BufWriter::with_capacity(RAW_BUFFER, &peer.stream);
+        let mut writer = BufWriter::with_capacity(buffer, &peer.stream);
         for _ in 0..plan.count {
             writer.write_all(&message)?;
         }

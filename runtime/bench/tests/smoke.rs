@@ -132,6 +132,7 @@ fn list_names_every_benchmark() {
         "throughput_64b",
         "throughput_1kib",
         "throughput_64kib",
+        "fanout_64b",
         "startup_10_modules",
         "event_to_start_ms",
         "reachability_states_per_s",
