@@ -472,7 +472,7 @@ fn read_param(element: &Element, problems: &mut Vec<Located>) -> Option<ParamVal
     let value = value?;
     Some(ParamValue {
         name: name?,
-        value: value.value.clone(),
+        value: value.value.as_str().to_owned(),
         pos: element.pos,
         value_pos: value.pos,
     })
@@ -516,7 +516,11 @@ fn endpoint_attr(
     }
 }
 
-fn required<'a>(element: &'a Element, name: &str, problems: &mut Vec<Located>) -> Option<&'a Attr> {
+fn required<'a>(
+    element: &'a Element<'a>,
+    name: &str,
+    problems: &mut Vec<Located>,
+) -> Option<&'a Attr<'a>> {
     element
         .required_attr(name)
         .map_err(|err| problems.push(err))
@@ -531,7 +535,7 @@ fn identifier_attr(
 ) -> Option<String> {
     let attr = required(element, name, problems)?;
     if is_identifier(&attr.value) {
-        Some(attr.value.clone())
+        Some(attr.value.as_str().to_owned())
     } else {
         problems.push(Located::new(
             attr.pos,
@@ -546,7 +550,7 @@ fn identifier_attr(
 
 fn host_attr(element: &Element, problems: &mut Vec<Located>) -> Option<String> {
     element.attr("host")?;
-    required(element, "host", problems).map(|attr| attr.value.clone())
+    required(element, "host", problems).map(|attr| attr.value.as_str().to_owned())
 }
 
 fn no_children(element: &Element, problems: &mut Vec<Located>) {

@@ -236,7 +236,9 @@ impl ModuleDescription {
         problems.extend(root.unknown_children(&["doc", "input", "output", "param", "event"]));
         let mut description = ModuleDescription::new("", "");
         match root.required_attr("type") {
-            Ok(attr) if is_identifier(&attr.value) => description.module_type = attr.value.clone(),
+            Ok(attr) if is_identifier(&attr.value) => {
+                description.module_type = attr.value.as_str().to_owned()
+            }
             Ok(attr) => problems.push(Located::new(
                 attr.pos,
                 format!(
@@ -357,7 +359,7 @@ fn read_param(child: &Element, doc: String, problems: &mut Vec<Located>) -> Opti
         name,
         param_type,
         unit: child.attr_value("unit").unwrap_or_default().to_owned(),
-        default: default.map(|attr| attr.value.clone()),
+        default: default.map(|attr| attr.value.as_str().to_owned()),
         doc,
     })
 }
@@ -365,7 +367,7 @@ fn read_param(child: &Element, doc: String, problems: &mut Vec<Located>) -> Opti
 fn attr_or_problem(element: &Element, name: &str, problems: &mut Vec<Located>) -> Option<String> {
     element
         .required_attr(name)
-        .map(|attr| attr.value.clone())
+        .map(|attr| attr.value.as_str().to_owned())
         .map_err(|err| problems.push(err))
         .ok()
 }
@@ -376,7 +378,7 @@ fn named(element: &Element, problems: &mut Vec<Located>) -> Option<String> {
         .map_err(|err| problems.push(err))
         .ok()?;
     if is_identifier(&attr.value) {
-        Some(attr.value.clone())
+        Some(attr.value.as_str().to_owned())
     } else {
         problems.push(Located::new(
             attr.pos,

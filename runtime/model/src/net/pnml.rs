@@ -252,7 +252,7 @@ struct Reader<'a> {
     nodes: BTreeMap<String, Node>,
     /// Ids of nodes refused (already reported): arcs to them say nothing more.
     refused: std::collections::BTreeSet<String>,
-    arcs: Vec<&'a Element>,
+    arcs: Vec<&'a Element<'a>>,
 }
 
 /// Reads a PNML document holding one place/transition net, reporting every problem found,
@@ -377,7 +377,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn read_net(&mut self, element: &'a Element) {
+    fn read_net(&mut self, element: &'a Element<'a>) {
         self.problems.extend(element.unknown_attrs(&["id", "type"]));
         check_children(
             element,
@@ -432,7 +432,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn read_page(&mut self, element: &'a Element) {
+    fn read_page(&mut self, element: &'a Element<'a>) {
         self.problems.extend(element.unknown_attrs(&["id"]));
         check_children(
             element,
@@ -549,7 +549,9 @@ impl<'a> Reader<'a> {
                                 place.params.push(PlaceParam {
                                     module: module.unwrap_or_default(),
                                     name: name.unwrap_or_default(),
-                                    value: value.map(|attr| attr.value.clone()).unwrap_or_default(),
+                                    value: value
+                                        .map(|attr| attr.value.as_str().to_owned())
+                                        .unwrap_or_default(),
                                     pos: data.pos,
                                 });
                             }
@@ -625,7 +627,7 @@ impl<'a> Reader<'a> {
 
     /// Checks a label (`<name>`, `<initialMarking>`, `<inscription>`); with `needs_text`, its
     /// `<text>` is returned (a problem if missing).
-    fn read_label<'e>(&mut self, element: &'e Element, needs_text: bool) -> Option<Field<'e>> {
+    fn read_label<'e>(&mut self, element: &'e Element<'e>, needs_text: bool) -> Option<Field<'e>> {
         self.problems.extend(element.unknown_attrs(&[]));
         check_children(
             element,
@@ -659,7 +661,7 @@ impl<'a> Reader<'a> {
 
     /// The children of a `<toolspecific>` element if it is ArMoR's (checked against
     /// `allowed`); nothing for other tools' data, which is left alone.
-    fn ours<'e>(&mut self, element: &'e Element, allowed: &[&str]) -> Vec<&'e Element> {
+    fn ours<'e>(&mut self, element: &'e Element<'e>, allowed: &[&str]) -> Vec<&'e Element<'e>> {
         let Some(tool) = element.attr("tool") else {
             self.problems.push(Located::new(
                 element.pos,

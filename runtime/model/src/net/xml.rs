@@ -4,6 +4,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
+use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
 use super::{
@@ -176,7 +177,9 @@ fn read_place(element: &Element, problems: &mut Vec<Located>) -> Place {
                 place.params.push(PlaceParam {
                     module: module.unwrap_or_default(),
                     name: name.unwrap_or_default(),
-                    value: value.map(|attr| attr.value.clone()).unwrap_or_default(),
+                    value: value
+                        .map(|attr| attr.value.as_str().to_owned())
+                        .unwrap_or_default(),
                     pos: child.pos,
                 });
             }
@@ -247,6 +250,9 @@ pub(crate) fn identifier(
     problems: &mut Vec<Located>,
 ) -> Option<String> {
     let field = required(element, name, problems)?;
+    if is_identifier(field.value) {
+        return Some(field.value.to_owned());
+    }
     read_identifier(field, what, &format!("<{}>", element.name))
         .map_err(|err| problems.push(err))
         .ok()

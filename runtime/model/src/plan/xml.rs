@@ -1,7 +1,8 @@
 //! The plan XML format (see [`super`] and `assets/schema/plan.xsd`): [`Plan::parse`] and
 //! [`Plan::to_xml`].
 
-use std::collections::BTreeMap;
+use std::collections::hash_map::Entry;
+use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
 
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
@@ -54,6 +55,9 @@ impl Plan {
             pos: root.pos,
             ..Plan::default()
         };
+        let count = |name: &str| root.children_named(name).count();
+        plan.waypoints.reserve_exact(count("waypoint"));
+        plan.legs.reserve_exact(count("leg"));
         let mut navigation_seen: Option<Pos> = None;
         for child in &root.children {
             match child.name.as_str() {
@@ -99,6 +103,8 @@ impl Plan {
                 _ => {}
             }
         }
+        // The tree is no longer needed: its memory serves the checks.
+        drop(root);
         check_references(&plan, p);
         finish(plan, problems)
     }
@@ -753,7 +759,14 @@ fn read_unit(element: &Element, p: &mut Vec<Located>) -> Unit {
 /// Names used twice, legs that name missing waypoints or do not join up, contingencies that
 /// return to missing waypoints.
 fn check_references(plan: &Plan, p: &mut Vec<Located>) {
-    let mut names: BTreeMap<&str, (&str, Pos)> = BTreeMap::new();
+    // The first user of each name; waypoints come first, so a name is a defined waypoint when
+    // its first user is one.
+    // foldhash: several times faster than std's SipHash on short names, and seeded at random.
+    let mut names: HashMap<&str, (&str, Pos), foldhash::fast::RandomState> =
+        HashMap::with_capacity_and_hasher(
+            plan.waypoints.len() + plan.legs.len() + plan.graphics.len() + plan.units.len(),
+            foldhash::fast::RandomState::default(),
+        );
     let named = plan
         .waypoints
         .iter()
@@ -769,21 +782,23 @@ fn check_references(plan: &Plan, p: &mut Vec<Located>) {
         if name.is_empty() {
             continue;
         }
-        match names.get(name) {
-            Some((first_kind, first)) => p.push(Located::new(
-                pos,
-                format!(
-                    "{kind} `{name}`: the name is already used by the {first_kind} at line {}",
-                    first.line
-                ),
-            )),
-            None => {
-                names.insert(name, (kind, pos));
+        match names.entry(name) {
+            Entry::Occupied(first) => {
+                let (first_kind, first) = first.get();
+                p.push(Located::new(
+                    pos,
+                    format!(
+                        "{kind} `{name}`: the name is already used by the {first_kind} at line {}",
+                        first.line
+                    ),
+                ));
+            }
+            Entry::Vacant(slot) => {
+                slot.insert((kind, pos));
             }
         }
     }
-    let defined: std::collections::BTreeSet<&str> =
-        plan.waypoints.iter().map(|w| w.name.as_str()).collect();
+    let defined = |name: &str| names.get(name).is_some_and(|&(kind, _)| kind == "waypoint");
     let waypoint_names = || {
         let names: Vec<&str> = plan.waypoints.iter().map(|w| w.name.as_str()).collect();
         if names.is_empty() {
@@ -794,7 +809,7 @@ fn check_references(plan: &Plan, p: &mut Vec<Located>) {
     };
     for (index, leg) in plan.legs.iter().enumerate() {
         for (end, name) in [("from", &leg.from), ("to", &leg.to)] {
-            if !name.is_empty() && !defined.contains(name.as_str()) {
+            if !name.is_empty() && !defined(name) {
                 p.push(Located::new(
                     leg.pos,
                     format!(
@@ -850,7 +865,7 @@ fn check_references(plan: &Plan, p: &mut Vec<Located>) {
         .chain(plan.legs.iter().flat_map(|leg| &leg.contingencies));
     for contingency in contingencies {
         if let Response::Return { waypoint } = &contingency.response
-            && !defined.contains(waypoint.as_str())
+            && !defined(waypoint)
         {
             p.push(Located::new(
                 contingency.pos,
