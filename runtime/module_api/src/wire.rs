@@ -287,8 +287,10 @@ impl FrameReader {
         if self.buf.len() - self.end < want {
             self.buf.resize(self.end + want, 0);
         }
-        let room = self.buf.len() - self.end;
-        let got = source.read(&mut self.buf[self.end..])?;
+        // At most `want`: storage grown for an earlier frame must not pull a whole large frame
+        // in here, where it would be copied out, rather than into its own payload buffer.
+        let room = (self.buf.len() - self.end).min(want);
+        let got = source.read(&mut self.buf[self.end..self.end + room])?;
         self.end += got;
         self.drained = got < room;
         Ok(got)
