@@ -350,3 +350,53 @@ fn the_robot_is_driven_with_the_keys_and_its_recording_replays() {
     assert!(live.trail.len() >= 2, "with the path driven");
     harness.get_by_label_contains("Recording truth.mcap");
 }
+
+#[test]
+fn the_mappers_grid_and_corrected_pose_are_shown_on_the_live_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = robot_system(dir.path());
+    let text = std::fs::read_to_string(&system).unwrap().replace(
+        "</system>",
+        r#"  <module name="mapper" type="mapper"/>
+  <link from="sim.scan" to="mapper.scan"/>
+  <link from="sim.odometry" to="mapper.odometry"/>
+</system>"#,
+    );
+    std::fs::write(&system, text).unwrap();
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &system, 1.0);
+    let sources = harness.state().run().sources().unwrap();
+    assert_eq!(sources.grid.as_deref(), Some("mapper.map"));
+    assert_eq!(
+        sources.estimated.as_deref(),
+        Some("mapper.pose"),
+        "the estimated pose is the mapper's corrected one when there is a mapper"
+    );
+    step_until(
+        &mut harness,
+        "the grid drawn on the live map",
+        PATIENCE,
+        |app| app.run().grid_picture_size().is_some() && app.run().live().estimated.is_some(),
+    );
+    let live = harness.state().run().live();
+    let grid = live.grid.unwrap();
+    assert_eq!(
+        harness.state().run().grid_picture_size(),
+        Some([grid.width as usize, grid.height as usize]),
+        "one pixel a cell"
+    );
+    let occupied = grid.cells.iter().filter(|&&cell| cell > 50).count();
+    let free = grid
+        .cells
+        .iter()
+        .filter(|&&cell| (0..50).contains(&cell))
+        .count();
+    assert!(
+        occupied > 10 && free > 100,
+        "the yard's walls seen: {occupied} occupied and {free} free cells"
+    );
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+}

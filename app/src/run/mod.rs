@@ -119,6 +119,22 @@ impl RunView {
         }
     }
 
+    /// The outputs the live views show: the recording's channels, or the run's outputs.
+    pub fn sources(&self) -> Option<Sources> {
+        match (&self.session, &self.recording) {
+            (_, Some(recording)) => Some(recording.sources.clone()),
+            (Some(session), None) => Some(session.options.sources.clone()),
+            (None, None) => None,
+        }
+    }
+
+    /// The size in pixels of the occupancy grid's picture last drawn on the live map.
+    pub fn grid_picture_size(&self) -> Option<[usize; 2]> {
+        self.grid_texture
+            .as_ref()
+            .map(|(_, texture)| texture.size())
+    }
+
     /// How the run ended, once it has.
     pub fn ended(&self) -> Option<String> {
         self.session.as_ref().and_then(|s| s.shared().ended.clone())
