@@ -200,6 +200,29 @@ fn collect(pipe: impl Read + Send + 'static, output: Arc<(Mutex<Output>, Condvar
     });
 }
 
+/// A node in this test process, standalone with the agent at `agent`, named after its module
+/// type, its inputs bound as `binds` says (`input`, `module.output`).
+pub fn test_node(
+    spec: armor_module_api::ModuleSpec,
+    agent: std::net::SocketAddr,
+    binds: &[(&str, &str)],
+) -> armor_module_api::Node {
+    let name = spec.description().module_type.clone();
+    armor_module_api::Node::connect(
+        spec,
+        armor_module_api::Standalone {
+            name: Some(name),
+            agent: Some(agent.to_string()),
+            binds: binds
+                .iter()
+                .map(|(input, source)| ((*input).to_owned(), (*source).to_owned()))
+                .collect(),
+            ..armor_module_api::Standalone::default()
+        },
+    )
+    .unwrap()
+}
+
 /// Sends a signal to a process (through the `kill` command: the workspace denies unsafe code).
 /// `armor agent` on a free loopback port, and its address (read from its first line).
 pub fn start_agent() -> (Proc, std::net::SocketAddr) {

@@ -113,6 +113,7 @@ fn links_flow_with_the_secret_and_strangers_are_refused_before_any_data() {
         reliable: false,
         max_rate_hz: None,
         pull: false,
+        subscriber_addr: None,
     };
     refused_without_secret(provider, |stream| {
         blocking::write_message(stream, &subscribe).unwrap();

@@ -9,28 +9,11 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use armor_module_api::types::Counter;
-use armor_module_api::{Event, ModuleSpec, Node, Standalone};
-use armor_tests::{PATIENCE, start_agent};
-
-fn node(spec: ModuleSpec, agent: SocketAddr, binds: &[(&str, &str)]) -> Node {
-    let name = spec.description().module_type.clone();
-    Node::connect(
-        spec,
-        Standalone {
-            name: Some(name),
-            agent: Some(agent.to_string()),
-            binds: binds
-                .iter()
-                .map(|(input, source)| ((*input).to_owned(), (*source).to_owned()))
-                .collect(),
-            ..Standalone::default()
-        },
-    )
-    .unwrap()
-}
+use armor_module_api::{Event, ModuleSpec, Node};
+use armor_tests::{PATIENCE, start_agent, test_node};
 
 fn asker(name: &str, agent: SocketAddr) -> Node {
-    node(
+    test_node(
         ModuleSpec::new(name, "asks for the count")
             .input::<Counter>("count", "the provider's count"),
         agent,
@@ -41,7 +24,7 @@ fn asker(name: &str, agent: SocketAddr) -> Node {
 #[test]
 fn a_pull_gets_the_latest_value_and_nothing_is_pushed() {
     let (_agent, agent) = start_agent();
-    let mut provider = node(
+    let mut provider = test_node(
         ModuleSpec::new("provider", "counts when told").output::<Counter>("count", "the count"),
         agent,
         &[],

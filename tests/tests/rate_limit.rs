@@ -3,31 +3,18 @@
 //! filter of `max_rate_hz`, which the studio's Run view uses).
 #![allow(clippy::unwrap_used)]
 
-use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use armor_module_api::types::Counter;
-use armor_module_api::{Datum as _, Event, ModuleSpec, Node, Standalone};
-use armor_tests::{PATIENCE, start_agent};
-
-fn node(name: &str, agent: SocketAddr) -> Node {
-    Node::connect(
-        ModuleSpec::new(name, "a test node"),
-        Standalone {
-            name: Some(name.to_owned()),
-            agent: Some(agent.to_string()),
-            ..Standalone::default()
-        },
-    )
-    .unwrap()
-}
+use armor_module_api::{Datum as _, Event, ModuleSpec};
+use armor_tests::{PATIENCE, start_agent, test_node};
 
 #[test]
 fn a_rate_limited_subscriber_gets_at_most_its_rate() {
     let (_agent, agent) = start_agent();
-    let mut publisher = node("fast", agent);
+    let mut publisher = test_node(ModuleSpec::new("fast", "a test node"), agent, &[]);
     let output = publisher.publish_raw("fast.count", "Counter").unwrap();
-    let mut subscriber = node("watcher", agent);
+    let mut subscriber = test_node(ModuleSpec::new("watcher", "a test node"), agent, &[]);
     let all = subscriber.subscribe_raw("fast.count", true).unwrap();
     let limited = subscriber
         .subscribe_raw_at_most("fast.count", 20.0)

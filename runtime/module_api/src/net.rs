@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 
 use mio::net::{TcpListener, TcpStream};
 use mio::{Events, Interest, Poll, Token};
+use serde::Deserialize;
 
 use crate::auth::{Handshake, Secret};
 use crate::node::{ApiError, Core};
@@ -39,17 +40,42 @@ const RELIABLE_STALL: Duration = Duration::from_secs(5);
 enum Role {
     Agent,
     Supervisor,
-    Input(usize),
-    /// Accepted on the data listener, waiting for its `Subscribe`.
-    Incoming,
-    Subscriber {
-        output: usize,
-        reliable: bool,
-        /// The least time between two samples sent (a subscriber's `max_rate_hz`).
-        min_interval: Option<Duration>,
-        /// Sent a sample only when it asks ([`ToProvider::Pull`]).
-        pull: bool,
-    },
+    /// A data connection with another module, opened to subscribe or accepted on the data
+    /// listener (then waiting for the peer's `Subscribe`).
+    Peer(PeerLink),
+}
+
+/// What a data connection carries: at most one subscription each way, so that the data frames
+/// of a direction belong to one subscription. Two modules that subscribe to each other share
+/// one connection when they can: each message's ACK then rides on the answer, as over a raw
+/// TCP ping-pong, instead of taking a trip of its own (see docs/performance.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct PeerLink {
+    /// This module's input fed by the peer on this connection.
+    input: Option<usize>,
+    /// The peer's subscription to one of this module's outputs.
+    serving: Option<Serving>,
+    /// The peer's data listener: where this module connected, or the address the peer's
+    /// subscribe gave. A subscription to a provider at that address may use this connection.
+    peer_addr: Option<SocketAddr>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Serving {
+    output: usize,
+    reliable: bool,
+    /// The least time between two samples sent (a subscriber's `max_rate_hz`).
+    min_interval: Option<Duration>,
+    /// Sent a sample only when it asks ([`ToProvider::Pull`]).
+    pull: bool,
+}
+
+/// A control message on a data connection, which may carry subscriptions both ways.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum PeerMessage {
+    Request(ToProvider),
+    Answer(FromProvider),
 }
 
 struct Conn {
@@ -170,6 +196,14 @@ impl Net {
 
     pub fn subscriber_count(&self, output: usize) -> usize {
         self.subscribers.get(output).map_or(0, Vec::len)
+    }
+
+    /// How many data connections this module has with others, linked or not yet.
+    pub fn data_connections(&self) -> usize {
+        self.conns
+            .values()
+            .filter(|conn| matches!(conn.role, Role::Peer(_)))
+            .count()
     }
 
     pub fn is_linked(&self, input: usize) -> bool {
@@ -303,7 +337,9 @@ impl Net {
         if let Some(InputLink::Connecting(token) | InputLink::Linked(token)) =
             self.inputs.get(input).copied()
         {
-            self.remove_conn(token);
+            // A connection that also serves the peer goes too: the peer relinks.
+            self.inputs[input] = InputLink::Unbound;
+            self.close(core, token);
         }
         if let Some(link) = self.inputs.get_mut(input) {
             *link = match core.inputs[input].source {
@@ -325,14 +361,18 @@ impl Net {
             let Some(conn) = self.conns.get_mut(&token) else {
                 continue;
             };
-            let (reliable, min_interval, pull) = match conn.role {
-                Role::Subscriber {
-                    reliable,
-                    min_interval,
-                    pull,
-                    ..
-                } => (reliable, min_interval, pull),
-                _ => (false, None, false),
+            let Role::Peer(PeerLink {
+                serving:
+                    Some(Serving {
+                        reliable,
+                        min_interval,
+                        pull,
+                        ..
+                    }),
+                ..
+            }) = conn.role
+            else {
+                continue;
             };
             // A pull subscriber gets a sample only when it asked before there was one; a
             // failed write shows as the connection's error at the next poll.
@@ -464,7 +504,7 @@ impl Net {
             .collect();
         for (token, readable, writable) in ready {
             if token == LISTENER {
-                self.accept_all();
+                self.accept_all(core);
                 continue;
             }
             if writable && let Some(conn) = self.conns.get_mut(&token) {
@@ -564,24 +604,34 @@ impl Net {
         }
     }
 
-    fn accept_all(&mut self) {
+    /// Accepts every pending connection and reads what it brought at once: a peer's subscribe
+    /// is usually there already, and a connection choice may wait on it (see
+    /// `join_peer_connection`).
+    fn accept_all(&mut self, core: &mut Core) {
+        let mut accepted = Vec::new();
         loop {
             match self.listener.accept() {
-                Ok((stream, peer)) => match self.add_conn(stream, Role::Incoming, true) {
-                    Ok(token) => {
-                        tracing::debug!(%peer, "subscriber connecting");
-                        if let Some(conn) = self.conns.get_mut(&token) {
-                            conn.handshake_deadline = Some(Instant::now() + HANDSHAKE_TIMEOUT);
+                Ok((stream, peer)) => {
+                    match self.add_conn(stream, Role::Peer(PeerLink::default()), true) {
+                        Ok(token) => {
+                            tracing::debug!(%peer, "subscriber connecting");
+                            if let Some(conn) = self.conns.get_mut(&token) {
+                                conn.handshake_deadline = Some(Instant::now() + HANDSHAKE_TIMEOUT);
+                            }
+                            accepted.push(token);
                         }
+                        Err(err) => tracing::warn!(%peer, "cannot set up a subscriber: {err}"),
                     }
-                    Err(err) => tracing::warn!(%peer, "cannot set up a subscriber: {err}"),
-                },
-                Err(err) if err.kind() == ErrorKind::WouldBlock => return,
+                }
+                Err(err) if err.kind() == ErrorKind::WouldBlock => break,
                 Err(err) => {
                     tracing::warn!("accept failed: {err}");
-                    return;
+                    break;
                 }
             }
+        }
+        for token in accepted {
+            self.read_conn(core, token);
         }
     }
 
@@ -590,7 +640,8 @@ impl Net {
             .conns
             .iter()
             .filter(|(_, conn)| {
-                conn.paused && matches!(conn.role, Role::Input(i) if core.inputs[i].has_room())
+                conn.paused
+                    && matches!(conn.role, Role::Peer(PeerLink { input: Some(i), .. }) if core.inputs[i].has_room())
             })
             .map(|(&token, _)| token)
             .collect();
@@ -663,16 +714,7 @@ impl Net {
             match role {
                 Role::Agent => self.on_agent(core, frame.message()?),
                 Role::Supervisor => self.on_supervisor(core, token, frame.message()?),
-                Role::Input(index) => self.on_input(core, token, index, frame)?,
-                Role::Incoming => self.on_subscribe(core, token, frame.message()?),
-                Role::Subscriber { output, .. } => match frame.message()? {
-                    ToProvider::Pull => self.on_pull(token, output),
-                    ToProvider::Subscribe { .. } => {
-                        return Err(WireError::BadMessage(serde::de::Error::custom(
-                            "a subscriber must not subscribe again",
-                        )));
-                    }
-                },
+                Role::Peer(link) => self.on_peer(core, token, link, frame)?,
             }
         }
     }
@@ -711,6 +753,9 @@ impl Net {
         }
     }
 
+    /// Subscribes input `index` to the provider `advert` tells of: on a connection that
+    /// provider already has with this module (it subscribed here) if that carries no input yet,
+    /// else on a new one.
     fn connect_input(&mut self, core: &mut Core, index: usize, advert: &Advert) {
         let retry = InputLink::Resolve {
             at: Instant::now() + RELINK_DELAY,
@@ -720,29 +765,66 @@ impl Net {
             self.inputs[index] = retry;
             return;
         };
-        match self.open(addr, Role::Input(index)) {
-            Ok(token) => {
-                let slot = &mut core.inputs[index];
-                if slot.raw {
-                    // A raw input takes whatever its provider serves.
-                    slot.data_type.clone_from(&advert.data_type);
+        // A subscribe from that provider may be waiting on a connection not accepted yet.
+        self.accept_all(core);
+        let shared = self
+            .conns
+            .iter()
+            .find_map(|(&token, conn)| match conn.role {
+                Role::Peer(PeerLink {
+                    input: None,
+                    peer_addr: Some(peer),
+                    ..
+                }) if peer == addr => Some(token),
+                _ => None,
+            });
+        let token = match shared {
+            Some(token) => token,
+            None => match self.open(
+                addr,
+                Role::Peer(PeerLink {
+                    peer_addr: Some(addr),
+                    ..PeerLink::default()
+                }),
+            ) {
+                Ok(token) => token,
+                Err(err) => {
+                    tracing::debug!(%addr, "cannot connect to provider: {err}");
+                    self.inputs[index] = retry;
+                    return;
                 }
-                let subscribe = ToProvider::Subscribe {
-                    data_name: advert.data_name.clone(),
-                    data_type: slot.data_type.clone(),
-                    subscriber: format!("{}.{}", core.name, slot.name),
-                    reliable: slot.reliable,
-                    max_rate_hz: slot.max_rate_hz,
-                    pull: slot.pull,
-                };
-                self.queue_message(token, &subscribe);
-                self.inputs[index] = InputLink::Connecting(token);
-            }
-            Err(err) => {
-                tracing::debug!(%addr, "cannot connect to provider: {err}");
-                self.inputs[index] = retry;
-            }
+            },
+        };
+        let slot = &mut core.inputs[index];
+        if slot.raw {
+            // A raw input takes whatever its provider serves.
+            slot.data_type.clone_from(&advert.data_type);
         }
+        self.subscribe_on(core, token, index);
+    }
+
+    /// Sends the subscribe of input `index` on `token`, which then feeds it.
+    fn subscribe_on(&mut self, core: &Core, token: Token, index: usize) {
+        let slot = &core.inputs[index];
+        let subscribe = ToProvider::Subscribe {
+            data_name: slot.source.clone().unwrap_or_default(),
+            data_type: slot.data_type.clone(),
+            subscriber: format!("{}.{}", core.name, slot.name),
+            reliable: slot.reliable,
+            max_rate_hz: slot.max_rate_hz,
+            pull: slot.pull,
+            subscriber_addr: Some(self.listen_addr.to_string()),
+        };
+        self.queue_message(token, &subscribe);
+        if let Some(conn) = self.conns.get_mut(&token) {
+            if let Role::Peer(link) = &mut conn.role {
+                link.input = Some(index);
+            }
+            // Out at once: a peer subscribing here at the same moment sees this first (see
+            // `join_peer_connection`). A failed write shows at the next poll.
+            let _ = conn.out.flush_to(&mut conn.stream);
+        }
+        self.inputs[index] = InputLink::Connecting(token);
     }
 
     fn on_supervisor(&mut self, core: &mut Core, token: Token, message: FromSupervisor) {
@@ -766,48 +848,86 @@ impl Net {
         }
     }
 
-    fn on_input(
+    fn on_peer(
         &mut self,
         core: &mut Core,
         token: Token,
-        index: usize,
+        link: PeerLink,
         frame: Frame,
     ) -> Result<(), WireError> {
+        let refuse =
+            |what: &'static str| Err(WireError::BadMessage(serde::de::Error::custom(what)));
         match frame {
-            Frame::Message(_) => match frame.message::<FromProvider>()? {
-                FromProvider::Subscribed => {
-                    core.inputs[index].link += 1;
-                    tracing::info!(
-                        input = core.inputs[index].name,
-                        source = core.inputs[index].source.as_deref().unwrap_or_default(),
-                        "input linked"
-                    );
-                    self.inputs[index] = InputLink::Linked(token);
+            Frame::Message(_) => match frame.message::<PeerMessage>()? {
+                PeerMessage::Request(ToProvider::Subscribe { .. }) if link.serving.is_some() => {
+                    return refuse("a subscriber must not subscribe again");
                 }
-                FromProvider::Refused { reason } => {
-                    tracing::warn!(
-                        input = core.inputs[index].name,
-                        "provider refused: {reason}"
-                    );
-                    self.remove_conn(token);
-                    self.inputs[index] = InputLink::Resolve {
-                        at: Instant::now() + Duration::from_secs(1),
-                    };
+                PeerMessage::Request(subscribe @ ToProvider::Subscribe { .. }) => {
+                    self.on_subscribe(core, token, subscribe);
                 }
+                PeerMessage::Request(ToProvider::Pull) => match link.serving {
+                    Some(serving) => self.on_pull(token, serving.output),
+                    None => return refuse("a pull before subscribing"),
+                },
+                PeerMessage::Answer(answer) => match link.input {
+                    Some(index) => self.on_answer(core, token, index, answer),
+                    None => return refuse("an answer to no subscription"),
+                },
             },
             Frame::Data(data) => {
+                let Some(index) = link.input else {
+                    return Err(WireError::UnexpectedData);
+                };
                 if !core.deliver(index, data)
                     && let Some(conn) = self.conns.get_mut(&token)
                 {
                     conn.paused = true;
                 }
             }
-            // The reader handles authentication frames; none reaches a linked input.
+            // The reader handles authentication frames; none reaches a data link.
             Frame::Challenge(_) | Frame::Proof(_) | Frame::ProofDue(_) => {
                 return Err(WireError::Unauthenticated("an authentication frame"));
             }
         }
         Ok(())
+    }
+
+    /// The provider's answer to the subscribe of input `index`.
+    fn on_answer(&mut self, core: &mut Core, token: Token, index: usize, answer: FromProvider) {
+        match answer {
+            FromProvider::Subscribed => {
+                if self.joined_peer_connection(core, token, index) {
+                    return;
+                }
+                core.inputs[index].link += 1;
+                tracing::info!(
+                    input = core.inputs[index].name,
+                    source = core.inputs[index].source.as_deref().unwrap_or_default(),
+                    "input linked"
+                );
+                self.inputs[index] = InputLink::Linked(token);
+            }
+            FromProvider::Refused { reason } => {
+                tracing::warn!(
+                    input = core.inputs[index].name,
+                    "provider refused: {reason}"
+                );
+                self.drop_input_link(token);
+                self.inputs[index] = InputLink::Resolve {
+                    at: Instant::now() + Duration::from_secs(1),
+                };
+            }
+        }
+    }
+
+    /// The connection `token` no longer feeds an input: closed, unless it serves the peer.
+    fn drop_input_link(&mut self, token: Token) {
+        match self.conns.get_mut(&token).map(|conn| &mut conn.role) {
+            Some(Role::Peer(link)) if link.serving.is_some() => link.input = None,
+            _ => {
+                self.remove_conn(token);
+            }
+        }
     }
 
     /// A subscriber asks for the latest sample of `output`: written now if there is one, else
@@ -853,10 +973,9 @@ impl Net {
             reliable,
             max_rate_hz,
             pull,
+            subscriber_addr,
         } = message
         else {
-            tracing::warn!("a pull before subscribing: closing the connection");
-            self.remove_conn(token);
             return;
         };
         // A reliable subscriber takes every sample; a rate that is not a positive number is
@@ -887,29 +1006,96 @@ impl Net {
             return;
         };
         let _ = conn.out.flush_to(&mut conn.stream);
+        let Role::Peer(link) = &mut conn.role else {
+            return;
+        };
         match (refusal, found) {
             (None, Some(output)) => {
-                conn.role = Role::Subscriber {
+                link.serving = Some(Serving {
                     output,
                     reliable,
                     min_interval,
                     pull,
-                };
+                });
+                let peer_addr = subscriber_addr.and_then(|addr| addr.parse::<SocketAddr>().ok());
+                if link.peer_addr.is_none() {
+                    link.peer_addr = peer_addr;
+                }
                 conn.handshake_deadline = None;
                 self.subscribers[output].push(token);
                 tracing::info!(subscriber, data_name, "subscriber linked");
+                if let Some(peer_addr) = peer_addr {
+                    self.join_peer_connection(core, token, peer_addr);
+                }
             }
             (refusal, _) => {
                 tracing::warn!(subscriber, "refused: {}", refusal.unwrap_or_default());
-                self.remove_conn(token);
+                if link.input.is_none() {
+                    self.remove_conn(token);
+                }
             }
+        }
+    }
+
+    /// Input `index` is answered on `token`, a connection this module opened: if the peer
+    /// subscribed here on a connection of its own in the meantime (sent before this answer, so
+    /// already pending), the input moves to that one, and `true` is returned.
+    fn joined_peer_connection(&mut self, core: &mut Core, token: Token, index: usize) -> bool {
+        let peer_addr = match self.conns.get(&token).map(|conn| conn.role) {
+            Some(Role::Peer(PeerLink {
+                serving: None,
+                peer_addr: Some(addr),
+                ..
+            })) => addr,
+            _ => return false,
+        };
+        if self.listen_addr <= peer_addr {
+            return false;
+        }
+        self.accept_all(core);
+        self.inputs[index] != InputLink::Connecting(token)
+    }
+
+    /// Two modules that subscribe to each other at the same moment open a connection each.
+    /// Both see the peer's subscribe arrive on the peer's connection; the one with the higher
+    /// data address then gives its own connection up, if its subscription there is still
+    /// unanswered (so no sample of it has been taken), and subscribes again on the peer's.
+    /// The other keeps its own, so both choose the same connection.
+    fn join_peer_connection(&mut self, core: &Core, token: Token, peer_addr: SocketAddr) {
+        if self.listen_addr <= peer_addr {
+            return;
+        }
+        let free = matches!(
+            self.conns.get(&token).map(|conn| conn.role),
+            Some(Role::Peer(PeerLink { input: None, .. }))
+        );
+        let own = self
+            .conns
+            .iter()
+            .find_map(|(&other, conn)| match conn.role {
+                Role::Peer(PeerLink {
+                    input: Some(index),
+                    serving: None,
+                    peer_addr: Some(addr),
+                }) if free
+                    && other != token
+                    && addr == peer_addr
+                    && self.inputs[index] == InputLink::Connecting(other) =>
+                {
+                    Some((other, index))
+                }
+                _ => None,
+            });
+        if let Some((other, index)) = own {
+            self.remove_conn(other);
+            self.subscribe_on(core, token, index);
         }
     }
 
     fn fail(&mut self, core: &mut Core, token: Token, err: &WireError) {
         let role = self.conns.get(&token).map(|conn| conn.role);
         match role {
-            Some(Role::Incoming | Role::Subscriber { .. }) => {
+            Some(Role::Peer(PeerLink { input: None, .. })) => {
                 tracing::warn!("dropping a peer: {err}");
             }
             _ => tracing::debug!(?role, "connection failed: {err}"),
@@ -945,19 +1131,20 @@ impl Net {
                     retry_at: now + SUPERVISOR_RETRY,
                 };
             }
-            Role::Input(index) => {
-                if matches!(self.inputs[index], InputLink::Linked(_)) {
-                    tracing::info!(input = core.inputs[index].name, "provider gone; relinking");
+            Role::Peer(link) => {
+                if let Some(index) = link.input {
+                    if matches!(self.inputs[index], InputLink::Linked(_)) {
+                        tracing::info!(input = core.inputs[index].name, "provider gone; relinking");
+                    }
+                    self.inputs[index] = InputLink::Resolve {
+                        at: now + RELINK_DELAY,
+                    };
                 }
-                self.inputs[index] = InputLink::Resolve {
-                    at: now + RELINK_DELAY,
-                };
+                if let Some(Serving { output, .. }) = link.serving {
+                    self.subscribers[output].retain(|&other| other != token);
+                    tracing::info!(output = core.outputs[output].name, "subscriber left");
+                }
             }
-            Role::Subscriber { output, .. } => {
-                self.subscribers[output].retain(|&other| other != token);
-                tracing::info!(output = core.outputs[output].name, "subscriber left");
-            }
-            Role::Incoming => {}
         }
     }
 }

@@ -655,6 +655,15 @@ impl Node {
         }
     }
 
+    /// How many data connections this node has with other modules. Each carries at most one
+    /// subscription each way: two modules that subscribe to each other share one.
+    pub fn data_connections(&self) -> usize {
+        match &self.transport {
+            Transport::Net(net) => net.data_connections(),
+            Transport::Test(_) => 0,
+        }
+    }
+
     /// Writes everything sent so far without waiting for an event.
     pub fn flush(&mut self) -> Result<(), ApiError> {
         if let Transport::Net(net) = &mut self.transport {

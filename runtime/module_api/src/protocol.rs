@@ -5,7 +5,8 @@
 //! * to the **supervisor** (the config server of `armor run`): [`ToSupervisor`] /
 //!   [`FromSupervisor`], which carry configuration, control and event reports;
 //! * to a **provider** of one of its inputs: [`ToProvider`] / [`FromProvider`], after which the
-//!   provider sends data frames.
+//!   provider sends data frames. The provider may subscribe back on the same connection, which
+//!   then carries both enums and data both ways.
 
 use std::collections::BTreeMap;
 
@@ -124,6 +125,11 @@ pub enum ToProvider {
         /// [`ToProvider::Pull`] with its latest sample.
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
         pull: bool,
+        /// The subscriber's own data address (as it registered it at the agent): the provider
+        /// may subscribe to the subscriber's outputs on this connection rather than open
+        /// another, which it does when it has no subscription on it yet.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        subscriber_addr: Option<String>,
     },
     /// From a subscriber (in pull mode or not): send me your latest sample now, or the next one
     /// if you have sent none yet. Answered from the provider's node without waking its module.
@@ -161,6 +167,7 @@ mod tests {
             reliable: false,
             max_rate_hz: None,
             pull: true,
+            subscriber_addr: None,
         };
         assert!(
             serde_json::to_string(&pulling)
