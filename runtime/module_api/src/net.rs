@@ -8,10 +8,12 @@
 
 use std::collections::HashMap;
 use std::io::{self, ErrorKind};
-use std::net::SocketAddr;
+use std::net::{SocketAddr, TcpStream};
+use std::os::fd::AsRawFd as _;
 use std::time::{Duration, Instant};
 
-use mio::net::{TcpListener, TcpStream};
+use mio::net::TcpListener;
+use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token};
 use serde::Deserialize;
 
@@ -79,6 +81,9 @@ enum PeerMessage {
 }
 
 struct Conn {
+    /// A std stream (non-blocking, registered by its descriptor) rather than mio's: std's reads
+    /// fill a buffer's spare capacity without zeroing it first, which a large frame's payload
+    /// is read into.
     stream: TcpStream,
     reader: FrameReader,
     out: OutBuffer,
@@ -175,10 +180,9 @@ impl Net {
         };
         if let Some((addr, stream)) = supervisor {
             net.supervisor_addr = Some(addr);
-            stream.set_nonblocking(true)?;
             // The hello exchange (and authentication) and the first configuration happened
             // before, blocking.
-            let token = net.add_conn(TcpStream::from_std(stream), Role::Supervisor, false)?;
+            let token = net.add_conn(stream, Role::Supervisor, false)?;
             net.supervisor = Link::Up(token);
         }
         net.inputs = core
@@ -212,12 +216,13 @@ impl Net {
 
     /// Registers a connection; with `greet`, queues the hello (and the challenge, with a
     /// secret) and expects the peer's.
-    fn add_conn(&mut self, mut stream: TcpStream, role: Role, greet: bool) -> io::Result<Token> {
+    fn add_conn(&mut self, stream: TcpStream, role: Role, greet: bool) -> io::Result<Token> {
         let token = Token(self.next_token);
         self.next_token += 1;
         stream.set_nodelay(true)?;
+        stream.set_nonblocking(true)?;
         self.poll.registry().register(
-            &mut stream,
+            &mut SourceFd(&stream.as_raw_fd()),
             token,
             Interest::READABLE | Interest::WRITABLE,
         )?;
@@ -249,7 +254,7 @@ impl Net {
     }
 
     fn open(&mut self, addr: SocketAddr, role: Role) -> io::Result<Token> {
-        let stream = TcpStream::connect(addr)?;
+        let stream = mio::net::TcpStream::connect(addr)?.into();
         self.add_conn(stream, role, true)
     }
 
@@ -612,7 +617,7 @@ impl Net {
         loop {
             match self.listener.accept() {
                 Ok((stream, peer)) => {
-                    match self.add_conn(stream, Role::Peer(PeerLink::default()), true) {
+                    match self.add_conn(stream.into(), Role::Peer(PeerLink::default()), true) {
                         Ok(token) => {
                             tracing::debug!(%peer, "subscriber connecting");
                             if let Some(conn) = self.conns.get_mut(&token) {
@@ -1104,8 +1109,11 @@ impl Net {
     }
 
     fn remove_conn(&mut self, token: Token) -> Option<Conn> {
-        let mut conn = self.conns.remove(&token)?;
-        let _ = self.poll.registry().deregister(&mut conn.stream);
+        let conn = self.conns.remove(&token)?;
+        let _ = self
+            .poll
+            .registry()
+            .deregister(&mut SourceFd(&conn.stream.as_raw_fd()));
         Some(conn)
     }
 
