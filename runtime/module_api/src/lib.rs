@@ -14,6 +14,7 @@
 pub mod auth;
 pub mod clock;
 pub mod describe;
+mod memory;
 mod module;
 mod net;
 mod node;

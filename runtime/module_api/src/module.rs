@@ -128,6 +128,7 @@ pub fn run(spec: ModuleSpec, body: impl FnOnce(&mut Node) -> BodyResult) -> Exit
         }
     };
     init_logging();
+    crate::memory::keep_freed_heap();
     let mut node = match connect(spec, options) {
         Ok(node) => node,
         Err(err) => {
