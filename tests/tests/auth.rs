@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use armor_module_api::auth::Secret;
-use armor_module_api::protocol::{FromAgent, ToAgent, ToProvider};
+use armor_module_api::protocol::{Advert, FromAgent, ToAgent, ToProvider};
 use armor_module_api::wire::{WireError, blocking};
 use armor_tests::{PATIENCE, Proc, bin, field, workspace_root};
 
@@ -216,6 +216,23 @@ const LIMITED: &str = r#"<system name="limited">
 </system>
 "#;
 
+/// `armor run` on [`LIMITED`] (written to `dir`) with `args`, once the checker gets its
+/// values; with the agent's address.
+fn run_limited(dir: &Path, args: &[&str]) -> (Proc, SocketAddr) {
+    let system = dir.join("system.xml");
+    std::fs::write(&system, LIMITED).unwrap();
+    let run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(&system)
+            .args(args)
+            .env("ARMOR_MODULE_PATH", armor_tests::bin_dir()),
+    );
+    let agent = agent_addr(&run);
+    run.wait_for("the checker, within its lists", PATIENCE, checker_in_order);
+    (run, agent)
+}
+
 fn agent_reply(stream: &mut TcpStream, message: &ToAgent) -> FromAgent {
     blocking::write_message(stream, message).unwrap();
     blocking::read_message(stream).unwrap()
@@ -231,16 +248,7 @@ fn refusal(reply: FromAgent) -> String {
 #[test]
 fn access_lists_limit_what_each_module_may_publish_and_subscribe_to() {
     let dir = tempfile::tempdir().unwrap();
-    let system = dir.path().join("system.xml");
-    std::fs::write(&system, LIMITED).unwrap();
-    let run = Proc::start(
-        Command::new(bin("armor"))
-            .arg("run")
-            .arg(&system)
-            .env("ARMOR_MODULE_PATH", armor_tests::bin_dir()),
-    );
-    let agent = agent_addr(&run);
-    run.wait_for("the checker, within its lists", PATIENCE, checker_in_order);
+    let (_run, agent) = run_limited(dir.path(), &[]);
 
     let mut stream = connect(agent);
     blocking::handshake(&mut stream, None).unwrap();
@@ -275,6 +283,57 @@ fn access_lists_limit_what_each_module_may_publish_and_subscribe_to() {
         FromAgent::Registered
     );
     assert!(refusal(agent_reply(&mut counter, &lookup("counter.count"))).contains("may not"));
+}
+
+#[test]
+fn an_observer_may_subscribe_to_everything_and_publish_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    // `checker` is a module of the system: naming it an observer gives it nothing more.
+    let (_run, agent) = run_limited(
+        dir.path(),
+        &["--observer", "watcher", "--observer", "checker"],
+    );
+
+    let lookup = |data_name: &str| ToAgent::Lookup {
+        data_name: data_name.into(),
+    };
+    let mut watcher = connect(agent);
+    blocking::handshake(&mut watcher, None).unwrap();
+    let register = ToAgent::Register {
+        module: "watcher".into(),
+        outputs: Vec::new(),
+    };
+    assert_eq!(agent_reply(&mut watcher, &register), FromAgent::Registered);
+    for data_name in ["counter.count", "checker.received"] {
+        assert!(
+            matches!(
+                agent_reply(&mut watcher, &lookup(data_name)),
+                FromAgent::Provider(advert) if advert.data_name == data_name
+            ),
+            "the observer is served {data_name}"
+        );
+    }
+    let publishing = ToAgent::Register {
+        module: "watcher".into(),
+        outputs: vec![Advert {
+            data_name: "watcher.fake".into(),
+            data_type: "Counter".into(),
+            addr: "127.0.0.1:9".into(),
+        }],
+    };
+    assert!(refusal(agent_reply(&mut watcher, &publishing)).contains("may not publish"));
+
+    let mut checker = connect(agent);
+    blocking::handshake(&mut checker, None).unwrap();
+    let register = ToAgent::Register {
+        module: "checker".into(),
+        outputs: Vec::new(),
+    };
+    assert_eq!(agent_reply(&mut checker, &register), FromAgent::Registered);
+    assert!(
+        refusal(agent_reply(&mut checker, &lookup("checker.received")))
+            .contains("may not subscribe to `checker.received`")
+    );
 }
 
 #[test]

@@ -400,3 +400,29 @@ fn the_mappers_grid_and_corrected_pose_are_shown_on_the_live_map() {
         !app.run().is_running()
     });
 }
+
+#[test]
+fn a_system_with_access_lists_is_watched_all_the_same() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = robot_system(dir.path());
+    // One list is enough for the agent to serve the system's modules only; the studio's node
+    // is let in as an observer.
+    let text = std::fs::read_to_string(&system).unwrap().replace(
+        r#"<module name="sim" type="sim">"#,
+        r#"<module name="sim" type="sim" may_publish="sim.*">"#,
+    );
+    assert!(text.contains("may_publish"));
+    std::fs::write(&system, text).unwrap();
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &system, 1.0);
+    step_until(
+        &mut harness,
+        "the scan and the pose on the live map",
+        PATIENCE,
+        |app| app.run().live().scan.is_some() && app.run().live().estimated.is_some(),
+    );
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+}

@@ -138,6 +138,9 @@ impl RunSession {
             .arg(options.time_scale.to_string())
             .arg("--report")
             .arg(&report)
+            // With access lists in the system, the studio's node may still watch everything.
+            .arg("--observer")
+            .arg(super::live::NODE_NAME)
             .current_dir(&options.working_dir)
             .env(
                 armor_runtime::probe::ENV_MODULE_PATH,

@@ -35,7 +35,9 @@ pub struct Permissions {
 
 impl Acl {
     /// The system's lists, or `None` when no module has one (then the agent serves anyone).
-    pub fn of(system: &armor_model::SystemConfig) -> Option<Acl> {
+    /// Each of `observers` (a name outside the system, like the studio's node) may subscribe
+    /// to everything and publish nothing; a module of the system keeps its own lists.
+    pub fn of(system: &armor_model::SystemConfig, observers: &[String]) -> Option<Acl> {
         let limited = system
             .modules
             .iter()
@@ -53,6 +55,20 @@ impl Acl {
                         },
                     )
                 })
+                .chain(
+                    observers
+                        .iter()
+                        .filter(|name| system.module(name).is_none())
+                        .map(|name| {
+                            (
+                                name.clone(),
+                                Permissions {
+                                    publish: Some(Vec::new()),
+                                    subscribe: None,
+                                },
+                            )
+                        }),
+                )
                 .collect(),
         })
     }

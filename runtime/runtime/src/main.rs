@@ -85,6 +85,11 @@ enum Command {
         /// run — agent, config server, control, module to module — must prove it holds it.
         #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
         secret: Option<PathBuf>,
+        /// A name outside the system that may subscribe to every output (and publish nothing)
+        /// when the system has access lists: a monitor such as the studio's Run view, whose
+        /// node is called `studio`. Repeat for several.
+        #[arg(long = "observer", value_name = "NAME")]
+        observers: Vec<String>,
     },
     /// Compile a plan (waypoints, legs, actions, time constraints) into a mission net.
     Compile {
@@ -208,6 +213,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             start_at,
             lease_secs,
             secret,
+            observers,
         } => {
             let lease = match lease_secs {
                 0.0 => None,
@@ -242,6 +248,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 start_at_unix_secs,
                 lease,
                 secret_file: secret.filter(|file| !file.as_os_str().is_empty()),
+                observers,
             })
         }
         Command::Check { file } => Ok(check(&file)),

@@ -61,6 +61,8 @@ pub struct RunOptions {
     /// A file holding the shared secret every connection of the run must prove (see
     /// `armor_module_api::auth`); passed on to the agent and the modules.
     pub secret_file: Option<PathBuf>,
+    /// Names outside the system that the access lists let subscribe to everything.
+    pub observers: Vec<String>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -186,7 +188,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     let mut agent = AgentProc::start(
         options.agent_addr.map_or_else(|| local(0), Ok)?,
         secret_file.clone(),
-        Acl::of(&loaded.system),
+        Acl::of(&loaded.system, &options.observers),
     )?;
     let control = controller
         .as_ref()
@@ -336,7 +338,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 }
             }
             Ok(ServerEvent::Reloaded(loaded)) => {
-                agent.set_acl(Acl::of(&loaded.system));
+                agent.set_acl(Acl::of(&loaded.system, &options.observers));
                 apply_reload(&mut modules, &loaded, &env, &server);
             }
             Err(RecvTimeoutError::Timeout) => {}
