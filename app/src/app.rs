@@ -100,6 +100,25 @@ struct ExportRequest {
     crop: egui::Rect,
 }
 
+/// What replaces a document, or closes the window: held while the user is asked what to do
+/// with the unsaved changes it would lose.
+#[derive(Clone, Debug, PartialEq)]
+enum Replacing {
+    NewSystem,
+    OpenSystem(PathBuf),
+    NewPlan,
+    OpenPlan(PathBuf),
+    Quit,
+}
+
+/// The answer to "Save changes?".
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum UnsavedChoice {
+    Save,
+    Discard,
+    Cancel,
+}
+
 pub struct StudioApp {
     editor: Editor,
     palette: Palette,
@@ -138,6 +157,14 @@ pub struct StudioApp {
     /// A picture to take once this many more frames are drawn.
     export_after: Option<(PathBuf, View, u32)>,
     run: RunView,
+    /// Waiting for the user's answer about unsaved changes.
+    unsaved_prompt: Option<Replacing>,
+    /// Done once the "save as" asked for by that prompt has saved.
+    after_save_as: Option<Replacing>,
+    /// The window may close: its unsaved changes were saved or given up.
+    quitting: bool,
+    /// Given up on closing: no recovery copy is to be left.
+    discard_on_exit: bool,
 }
 
 impl StudioApp {
@@ -181,6 +208,10 @@ impl StudioApp {
             started: false,
             export_after: None,
             run,
+            unsaved_prompt: None,
+            after_save_as: None,
+            quitting: false,
+            discard_on_exit: false,
         };
         if let Some(file) = options.file {
             if is_plan(&file) {
@@ -476,10 +507,10 @@ impl StudioApp {
 
     /// Called when the window closes: a clean document needs no recovery copy.
     pub fn on_exit(&mut self) {
-        if !self.dirty {
+        if !self.dirty || self.discard_on_exit {
             self.home.clear_recovery(Document::System);
         }
-        if !self.mission.as_ref().is_some_and(MissionView::is_dirty) {
+        if !self.mission.as_ref().is_some_and(MissionView::is_dirty) || self.discard_on_exit {
             self.home.clear_recovery(Document::Plan);
         }
     }
@@ -515,6 +546,7 @@ impl StudioApp {
         self.search_ui(ui);
         self.help_ui(ui);
         self.recovery_ui(ui);
+        self.unsaved_ui(ui);
 
         self.apply_commands();
         self.after_frame(&ctx);
@@ -911,7 +943,7 @@ impl StudioApp {
         };
         ui.menu_button("File", |ui| {
             if ui.button("New plan").clicked() {
-                self.new_plan();
+                self.replace(Replacing::NewPlan, ui.ctx());
             }
             if ui.button("Open plan…").clicked() {
                 self.ask_path(PathPurpose::OpenPlan, self.plan_path_text());
@@ -963,7 +995,7 @@ impl StudioApp {
         {
             ui.menu_button("File", |ui| {
                 if ui.button("New").clicked() {
-                    self.new_document();
+                    self.replace(Replacing::NewSystem, ui.ctx());
                 }
                 if ui.button("Open…").clicked() {
                     self.ask_path(PathPurpose::Open, self.path_text());
@@ -975,7 +1007,7 @@ impl StudioApp {
                     }
                     for file in recent {
                         if ui.button(file.display().to_string()).clicked() {
-                            self.open(&file);
+                            self.replace(Replacing::OpenSystem(file), ui.ctx());
                         }
                     }
                 });
@@ -1494,6 +1526,7 @@ impl StudioApp {
             });
         if cancel {
             self.path_dialog = None;
+            self.after_save_as = None;
         } else if submit {
             let purpose = dialog.purpose;
             let path = PathBuf::from(dialog.text.trim());
@@ -1503,11 +1536,17 @@ impl StudioApp {
                 return;
             }
             match purpose {
-                PathPurpose::Open => self.open(&path),
-                PathPurpose::SaveAs => self.save(Some(&path)),
+                PathPurpose::Open => self.replace(Replacing::OpenSystem(path), ctx),
+                PathPurpose::SaveAs => {
+                    self.save(Some(&path));
+                    self.continue_after_save_as(ctx);
+                }
                 PathPurpose::ExportPng => self.export_png(ctx, path, View::System),
-                PathPurpose::OpenPlan => self.open_plan(&path),
-                PathPurpose::SavePlanAs => self.save_plan(Some(&path)),
+                PathPurpose::OpenPlan => self.replace(Replacing::OpenPlan(path), ctx),
+                PathPurpose::SavePlanAs => {
+                    self.save_plan(Some(&path));
+                    self.continue_after_save_as(ctx);
+                }
                 PathPurpose::ImportGpx => self.with_mission(|m| m.import_gpx(&path)),
                 PathPurpose::ExportMission => self.with_mission(|m| m.export_mission(&path)),
                 PathPurpose::ExportPnml => self.with_mission(|m| m.export_pnml(&path)),
@@ -1587,6 +1626,150 @@ impl StudioApp {
                     }
                 });
             });
+    }
+
+    // ----- Unsaved changes -----
+
+    /// The documents `action` would lose changes of.
+    fn unsaved_for(&self, action: &Replacing) -> Vec<Document> {
+        let system = self.editor.diagram != self.saved;
+        let plan = self.mission.as_ref().is_some_and(MissionView::is_dirty);
+        let (system_matters, plan_matters) = match action {
+            Replacing::NewSystem | Replacing::OpenSystem(_) => (true, false),
+            Replacing::NewPlan | Replacing::OpenPlan(_) => (false, true),
+            Replacing::Quit => (true, true),
+        };
+        [
+            (system && system_matters, Document::System),
+            (plan && plan_matters, Document::Plan),
+        ]
+        .into_iter()
+        .filter_map(|(unsaved, document)| unsaved.then_some(document))
+        .collect()
+    }
+
+    /// Does `action`, or first asks what to do with the changes it would lose.
+    fn replace(&mut self, action: Replacing, ctx: &egui::Context) {
+        if self.unsaved_for(&action).is_empty() {
+            self.perform(action, ctx);
+        } else {
+            self.unsaved_prompt = Some(action);
+        }
+    }
+
+    fn perform(&mut self, action: Replacing, ctx: &egui::Context) {
+        match action {
+            Replacing::NewSystem => self.new_document(),
+            Replacing::OpenSystem(file) => self.open(&file),
+            Replacing::NewPlan => self.new_plan(),
+            Replacing::OpenPlan(file) => self.open_plan(&file),
+            Replacing::Quit => {
+                self.quitting = true;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+        }
+    }
+
+    /// A "save as" asked for by the unsaved-changes prompt has run: on with what was asked.
+    fn continue_after_save_as(&mut self, ctx: &egui::Context) {
+        if let Some(action) = self.after_save_as.take() {
+            self.replace(action, ctx);
+        }
+    }
+
+    /// Saves the documents `action` would lose changes of, then does it; a document without a
+    /// file asks for one first. A failed save stops there (its error is in the status line).
+    fn save_then(&mut self, action: Replacing, ctx: &egui::Context) {
+        for document in self.unsaved_for(&action) {
+            let has_file = match document {
+                Document::System => self.path.is_some(),
+                Document::Plan => self.mission.as_ref().and_then(MissionView::path).is_some(),
+            };
+            if !has_file {
+                self.after_save_as = Some(action);
+                match document {
+                    Document::System => self.ask_path(PathPurpose::SaveAs, String::new()),
+                    Document::Plan => self.ask_path(PathPurpose::SavePlanAs, String::new()),
+                }
+                return;
+            }
+            match document {
+                Document::System => self.save(None),
+                Document::Plan => self.save_plan(None),
+            }
+            if self.status.is_error {
+                return;
+            }
+        }
+        self.replace(action, ctx);
+    }
+
+    fn document_name(&self, document: Document) -> String {
+        let path = match document {
+            Document::System => self.path.as_deref(),
+            Document::Plan => self.mission.as_ref().and_then(MissionView::path),
+        };
+        path.and_then(Path::file_name).map_or_else(
+            || format!("the new {}", document.noun()),
+            |name| format!("“{}”", name.to_string_lossy()),
+        )
+    }
+
+    /// "Save changes?" before a document is replaced or the window closes, as any editor asks.
+    fn unsaved_ui(&mut self, ui: &mut Ui) {
+        let ctx = ui.ctx().clone();
+        // Closing the window (its close button, or Quit) asks too.
+        if ctx.input(|input| input.viewport().close_requested())
+            && !self.quitting
+            && !self.unsaved_for(&Replacing::Quit).is_empty()
+        {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.unsaved_prompt = Some(Replacing::Quit);
+        }
+        let Some(action) = self.unsaved_prompt.clone() else {
+            return;
+        };
+        let documents = self.unsaved_for(&action);
+        let names: Vec<String> = documents
+            .iter()
+            .map(|&document| self.document_name(document))
+            .collect();
+        let mut choice = None;
+        egui::Modal::new(egui::Id::new("unsaved")).show(&ctx, |ui| {
+            ui.heading("Save changes?");
+            ui.label(format!(
+                "{} {} unsaved changes, lost if not saved.",
+                names.join(" and "),
+                if names.len() == 1 { "has" } else { "have" }
+            ));
+            ui.horizontal(|ui| {
+                for (label, answer) in [
+                    ("Save", UnsavedChoice::Save),
+                    ("Don't save", UnsavedChoice::Discard),
+                    ("Cancel", UnsavedChoice::Cancel),
+                ] {
+                    if ui.button(label).clicked() {
+                        choice = Some(answer);
+                    }
+                }
+            });
+        });
+        let Some(choice) = choice else {
+            return;
+        };
+        self.unsaved_prompt = None;
+        match choice {
+            UnsavedChoice::Save => self.save_then(action, &ctx),
+            UnsavedChoice::Discard => {
+                // Given up on purpose: no recovery copy is offered for them next time.
+                for document in documents {
+                    self.home.clear_recovery(document);
+                }
+                self.discard_on_exit = action == Replacing::Quit;
+                self.perform(action, &ctx);
+            }
+            UnsavedChoice::Cancel => self.set_status("kept the unsaved changes".to_owned(), false),
+        }
     }
 
     fn recovery_ui(&mut self, ui: &mut Ui) {

@@ -393,3 +393,101 @@ fn a_large_diagram_opens_as_an_overview_and_a_double_click_zooms_in() {
     harness.run_steps(3);
     assert!(harness.state().is_overview());
 }
+
+/// Clicks `item` in the File menu.
+fn file_menu(harness: &mut egui_kittest::Harness<'_, armor_studio::StudioApp>, item: &str) {
+    harness.get_by_label("File").click();
+    harness.run();
+    harness.get_by_label(item).click();
+    harness.run();
+}
+
+#[test]
+fn replacing_a_changed_system_asks_first_and_can_save_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("kept.xml");
+    let mut harness = harness(options(&dir.path().join("home"), None));
+    harness.get_by_label("add counter").click();
+    harness.run();
+    let blocks = |harness: &egui_kittest::Harness<'_, armor_studio::StudioApp>| {
+        harness.state().editor().diagram.blocks().count()
+    };
+    assert_eq!(blocks(&harness), 1);
+
+    // New, then Cancel: nothing changes.
+    file_menu(&mut harness, "New");
+    harness.get_by_label("the new system has unsaved changes, lost if not saved.");
+    harness.get_by_label("Cancel").click();
+    harness.run();
+    assert!(harness.query_by_label("Save changes?").is_none());
+    assert_eq!(blocks(&harness), 1);
+    assert!(harness.state().is_dirty());
+
+    // New, then Save: the document has no file yet, so the path is asked, the system saved
+    // there, and then the new document made.
+    file_menu(&mut harness, "New");
+    harness.get_by_label("Save").click();
+    harness.run();
+    type_into(&mut harness, "Path:", &file.display().to_string());
+    harness.key_press(Key::Enter);
+    harness.run();
+    let saved = std::fs::read_to_string(&file).unwrap();
+    assert!(saved.contains(r#"type="counter""#), "{saved}");
+    assert_eq!(blocks(&harness), 0, "then the new system");
+    assert!(!harness.state().is_dirty());
+
+    // Open the saved file over a changed document and give the changes up.
+    harness.get_by_label("add checker").click();
+    harness.run();
+    file_menu(&mut harness, "Open…");
+    type_into(&mut harness, "Path:", &file.display().to_string());
+    harness.key_press(Key::Enter);
+    harness.run();
+    harness.get_by_label("Save changes?");
+    harness.get_by_label("Don't save").click();
+    harness.run();
+    assert_eq!(
+        harness.state().editor().diagram,
+        Diagram::from_xml(&saved).unwrap(),
+        "the file as saved"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&file).unwrap(),
+        saved,
+        "and left alone"
+    );
+}
+
+#[test]
+fn closing_the_window_with_changes_asks_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(options(&dir.path().join("home"), None));
+    let close = |harness: &mut egui_kittest::Harness<'_, armor_studio::StudioApp>| {
+        let root = harness
+            .input_mut()
+            .viewports
+            .entry(egui::ViewportId::ROOT)
+            .or_default();
+        root.events.push(egui::ViewportEvent::Close);
+        harness.step();
+        let root = harness
+            .input_mut()
+            .viewports
+            .entry(egui::ViewportId::ROOT)
+            .or_default();
+        root.events.clear();
+        harness.run();
+    };
+    // Nothing changed: nothing asked.
+    close(&mut harness);
+    assert!(harness.query_by_label("Save changes?").is_none());
+
+    harness.get_by_label("add counter").click();
+    harness.run();
+    close(&mut harness);
+    harness.get_by_label("the new system has unsaved changes, lost if not saved.");
+    harness.get_by_label("Cancel").click();
+    harness.run();
+    assert!(harness.query_by_label("Save changes?").is_none());
+    assert_eq!(harness.state().editor().diagram.blocks().count(), 1);
+}

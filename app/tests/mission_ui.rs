@@ -321,3 +321,32 @@ fn a_new_plan_drives_with_the_modules_its_commands_go_through() {
     let plan = harness.state().mission().unwrap().plan();
     assert_eq!(plan.navigation.companions, ["avoider"]);
 }
+
+#[test]
+fn a_changed_plan_is_not_replaced_without_asking() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    harness.key_press(Key::W);
+    harness.run();
+    for (x, y) in [(4.0, 4.0), (12.0, 4.0)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    assert_eq!(route(&harness), ["wp1>wp2"]);
+    let new_plan = |harness: &mut Harness<'_, StudioApp>| {
+        harness.get_by_label("File").click();
+        harness.run();
+        harness.get_by_label("New plan").click();
+        harness.run();
+    };
+    new_plan(&mut harness);
+    harness.get_by_label("the new plan has unsaved changes, lost if not saved.");
+    harness.get_by_label("Cancel").click();
+    harness.run();
+    assert_eq!(route(&harness), ["wp1>wp2"], "kept");
+    new_plan(&mut harness);
+    harness.get_by_label("Don't save").click();
+    harness.run();
+    assert!(route(&harness).is_empty(), "replaced by a new plan");
+    assert!(!harness.state().mission().unwrap().is_dirty());
+}
