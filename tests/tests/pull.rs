@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use armor_module_api::types::Counter;
+use armor_module_api::types::{Blob, Counter};
 use armor_module_api::{Event, ModuleSpec, Node};
 use armor_tests::{PATIENCE, start_agent, test_node};
 
@@ -137,4 +137,65 @@ fn a_pull_gets_the_latest_value_and_nothing_is_pushed() {
         }
     }
     assert_eq!(got, (1..=total).collect::<Vec<_>>());
+}
+
+#[test]
+fn a_pull_of_a_large_output_gets_its_latest_sample_whole() {
+    let (_agent, agent) = start_agent();
+    let mut provider = test_node(
+        ModuleSpec::new("big", "sends large frames").output::<Blob>("frame", "a frame"),
+        agent,
+        &[],
+    );
+    let output = provider.output::<Blob>("frame").unwrap();
+    let frame = |n: usize| {
+        Blob(
+            (0..1024 * 1024 + n)
+                .map(|i| ((i + n) % 251) as u8)
+                .collect(),
+        )
+    };
+    let done = Arc::new(AtomicBool::new(false));
+    let serving = {
+        let done = done.clone();
+        std::thread::spawn(move || {
+            // Three large frames once the puller is linked, sent from the value's bytes; then
+            // only waits, its node answering the pulls.
+            let mut sent = false;
+            while !done.load(Ordering::Relaxed) {
+                provider
+                    .next_event(Some(Duration::from_millis(10)))
+                    .unwrap();
+                if !sent && provider.subscriber_count(&output) > 0 {
+                    for n in 1..=3 {
+                        provider.send(&output, &frame(n)).unwrap();
+                    }
+                    provider.flush().unwrap();
+                    sent = true;
+                }
+            }
+        })
+    };
+    let mut puller = test_node(
+        ModuleSpec::new("puller", "asks for the frame").input::<Blob>("frame", "big's frame"),
+        agent,
+        &[("frame", "big.frame")],
+    );
+    let input = puller.pull_input::<Blob>("frame").unwrap();
+    let deadline = Instant::now() + PATIENCE;
+    let latest = loop {
+        assert!(Instant::now() < deadline, "no third frame pulled");
+        if !puller.is_linked(&input) {
+            puller.next_event(Some(Duration::from_millis(10))).unwrap();
+            continue;
+        }
+        if let Some(sample) = puller.pull_latest(&input, Duration::from_secs(2)).unwrap()
+            && sample.seq == 3
+        {
+            break sample.value;
+        }
+    };
+    done.store(true, Ordering::Relaxed);
+    serving.join().unwrap();
+    assert!(latest == frame(3), "the third frame, whole");
 }

@@ -131,6 +131,8 @@ pub(crate) struct Net {
     subscribers: Vec<Vec<Token>>,
     /// Each output's latest frame, for pulls (empty before its first sample).
     latest: Vec<Vec<u8>>,
+    /// The outputs pulled at least once: their large frames are kept too.
+    pulled: Vec<bool>,
     /// With a shared secret, every connection authenticates.
     secret: Option<Secret>,
 }
@@ -176,6 +178,7 @@ impl Net {
             inputs: Vec::new(),
             subscribers: vec![Vec::new(); core.outputs.len()],
             latest: Vec::new(),
+            pulled: Vec::new(),
             secret,
         };
         if let Some((addr, stream)) = supervisor {
@@ -354,12 +357,15 @@ impl Net {
         }
     }
 
+    /// Sends a frame, given in `parts` (the whole frame, or a header and the caller's payload),
+    /// to every subscriber of `output`.
     pub fn publish(
         &mut self,
         core: &mut Core,
         output: usize,
-        frame: &[u8],
+        parts: &[&[u8]],
     ) -> Result<(), ApiError> {
+        let frame_len: usize = parts.iter().map(|part| part.len()).sum();
         let mut stalled = Vec::new();
         let mut now = None;
         for &token in &self.subscribers[output] {
@@ -384,7 +390,7 @@ impl Net {
             let pulled = std::mem::take(&mut conn.pull_pending);
             if pull {
                 if pulled {
-                    conn.out.push_frame(frame, false);
+                    conn.out.push_frame_parts(parts, false);
                     let _ = conn.out.flush_to(&mut conn.stream);
                 }
                 continue;
@@ -399,15 +405,20 @@ impl Net {
                 }
                 conn.last_sent = Some(now);
             }
-            if reliable && conn.out.is_empty() && frame.len() >= BATCH_BYTES {
-                // A large frame with nothing queued before it goes out from the caller's buffer;
-                // only what the socket does not take now is copied. (A best-effort subscriber's
-                // queue may drop frames not yet started, so its frames are always queued whole.)
-                match std::io::Write::write(&mut conn.stream, frame) {
-                    Ok(written) if written == frame.len() => continue,
-                    Ok(written) => conn.out.push_frame(&frame[written..], false),
+            if reliable && conn.out.is_empty() && frame_len >= BATCH_BYTES {
+                // A large frame with nothing queued before it goes out from the caller's
+                // buffers; only what the socket does not take now is copied. (A best-effort
+                // subscriber's queue may drop frames not yet started, so its frames are always
+                // queued whole.)
+                let slices: Vec<std::io::IoSlice<'_>> = parts
+                    .iter()
+                    .map(|part| std::io::IoSlice::new(part))
+                    .collect();
+                match std::io::Write::write_vectored(&mut conn.stream, &slices) {
+                    Ok(written) if written == frame_len => continue,
+                    Ok(written) => conn.out.push_frame_parts(&unwritten(parts, written), false),
                     Err(err) if err.kind() == ErrorKind::WouldBlock => {
-                        conn.out.push_frame(frame, false);
+                        conn.out.push_frame_parts(parts, false);
                     }
                     Err(_) => {
                         stalled.push(token);
@@ -415,11 +426,12 @@ impl Net {
                     }
                 }
             } else {
-                conn.out.push_frame(frame, !reliable);
+                conn.out.push_frame_parts(parts, !reliable);
             }
-            if conn.out.pending_bytes() >= BATCH_BYTES {
+            let large_left = reliable && frame_len >= BATCH_BYTES && !conn.out.is_empty();
+            if large_left || conn.out.pending_bytes() >= BATCH_BYTES {
                 match conn.out.flush_to(&mut conn.stream) {
-                    Ok(_) if reliable && conn.out.pending_bytes() > RELIABLE_BACKLOG_BYTES => {
+                    Ok(_) if reliable && conn.out.pending_bytes() > backlog_limit(frame_len) => {
                         stalled.push(token)
                     }
                     Ok(_) => {}
@@ -428,21 +440,26 @@ impl Net {
             }
         }
         for token in stalled {
-            self.wait_for_subscriber(core, token)?;
+            self.wait_for_subscriber(core, token, backlog_limit(frame_len))?;
         }
         Ok(())
     }
 
     /// Back-pressure for a reliable subscriber: keep the loop turning (other connections too)
     /// until its backlog drains, or drop it if it stays stuck.
-    fn wait_for_subscriber(&mut self, core: &mut Core, token: Token) -> Result<(), ApiError> {
+    fn wait_for_subscriber(
+        &mut self,
+        core: &mut Core,
+        token: Token,
+        limit: usize,
+    ) -> Result<(), ApiError> {
         let give_up = Instant::now() + RELIABLE_STALL;
         loop {
             let Some(conn) = self.conns.get_mut(&token) else {
                 return Ok(());
             };
             match conn.out.flush_to(&mut conn.stream) {
-                Ok(_) if conn.out.pending_bytes() <= RELIABLE_BACKLOG_BYTES => return Ok(()),
+                Ok(_) if conn.out.pending_bytes() <= limit => return Ok(()),
                 Ok(_) => {}
                 Err(err) => {
                     tracing::info!("subscriber went away: {err}");
@@ -938,6 +955,10 @@ impl Net {
     /// A subscriber asks for the latest sample of `output`: written now if there is one, else
     /// the next one sent.
     fn on_pull(&mut self, token: Token, output: usize) {
+        if self.pulled.len() <= output {
+            self.pulled.resize(output + 1, false);
+        }
+        self.pulled[output] = true;
         let Some(conn) = self.conns.get_mut(&token) else {
             return;
         };
@@ -948,6 +969,39 @@ impl Net {
                 let _ = conn.out.flush_to(&mut conn.stream);
             }
             None => conn.pull_pending = true,
+        }
+    }
+
+    /// Whether the latest frame of `output` is worth a copy: it has a pull-mode subscriber, or
+    /// was pulled before. (A frame encoded in the node's buffer is kept anyway, by a swap.)
+    pub fn wants_latest_copy(&self, output: usize) -> bool {
+        self.pulled.get(output).copied().unwrap_or(false)
+            || self.subscribers[output].iter().any(|token| {
+                self.conns.get(token).is_some_and(|conn| {
+                    matches!(
+                        conn.role,
+                        Role::Peer(PeerLink {
+                            serving: Some(Serving { pull: true, .. }),
+                            ..
+                        })
+                    )
+                })
+            })
+    }
+
+    /// Keeps the frame in `parts`, just published on `output`, as its latest: copied if
+    /// [`Net::wants_latest_copy`], else none is kept (a pull then gets the next one).
+    pub fn keep_latest_parts(&mut self, output: usize, parts: &[&[u8]]) {
+        let copy = self.wants_latest_copy(output);
+        if self.latest.len() <= output {
+            self.latest.resize_with(output + 1, Vec::new);
+        }
+        let latest = &mut self.latest[output];
+        latest.clear();
+        if copy {
+            for part in parts {
+                latest.extend_from_slice(part);
+            }
         }
     }
 
@@ -1154,5 +1208,31 @@ impl Net {
                 }
             }
         }
+    }
+}
+
+/// What is left of `parts` after its first `written` bytes.
+fn unwritten<'a>(parts: &[&'a [u8]], mut written: usize) -> Vec<&'a [u8]> {
+    let mut rest = Vec::with_capacity(parts.len());
+    for part in parts {
+        if written >= part.len() {
+            written -= part.len();
+        } else {
+            rest.push(&part[written..]);
+            written = 0;
+        }
+    }
+    rest
+}
+
+/// How much a reliable subscriber may have queued before the publisher waits for it. Small
+/// frames are batched up to [`RELIABLE_BACKLOG_BYTES`]; after a large one the publisher waits
+/// until the queue is written, so that the next large frame goes out from the sender's buffer
+/// instead of being copied behind it.
+fn backlog_limit(frame_len: usize) -> usize {
+    if frame_len >= BATCH_BYTES {
+        0
+    } else {
+        RELIABLE_BACKLOG_BYTES
     }
 }

@@ -599,6 +599,12 @@ impl Node {
     /// next waits for an event (or calls [`Node::flush`]), so a burst of sends shares system calls
     /// without delaying anything the module waits on.
     pub fn send<T: Datum>(&mut self, output: &Output<T>, value: &T) -> Result<(), ApiError> {
+        if let Some(bytes) = value.as_encoded()
+            && bytes.len() >= wire::LARGE_PAYLOAD_BYTES
+            && matches!(self.transport, Transport::Net(_))
+        {
+            return self.send_large(output.index, bytes);
+        }
         self.send_frame(output.index, |out| {
             value
                 .encode(out)
@@ -614,6 +620,23 @@ impl Node {
         })
     }
 
+    /// A large payload sent from the caller's bytes: the frame's header is encoded alone, and
+    /// the payload is written after it, not copied behind it.
+    fn send_large(&mut self, index: usize, payload: &[u8]) -> Result<(), ApiError> {
+        let slot = &mut self.core.outputs[index];
+        slot.seq += 1;
+        let seq = slot.seq;
+        let stamp_ns = self.core.clock.now_ns();
+        self.scratch.clear();
+        wire::encode_data_header(&mut self.scratch, seq, stamp_ns, payload.len())?;
+        if let Transport::Net(net) = &mut self.transport {
+            let parts = [self.scratch.as_slice(), payload];
+            net.publish(&mut self.core, index, &parts)?;
+            net.keep_latest_parts(index, &parts);
+        }
+        Ok(())
+    }
+
     fn send_frame(
         &mut self,
         index: usize,
@@ -627,7 +650,7 @@ impl Node {
         wire::encode_data(&mut self.scratch, seq, stamp_ns, encode)?;
         match &mut self.transport {
             Transport::Net(net) => {
-                net.publish(&mut self.core, index, &self.scratch)?;
+                net.publish(&mut self.core, index, &[self.scratch.as_slice()])?;
                 // Kept for pulls: a swap, not a copy.
                 net.keep_latest(index, &mut self.scratch);
             }

@@ -21,6 +21,11 @@ pub trait Datum: Sized {
     fn decode_owned(bytes: Vec<u8>) -> Result<Self, CodecError> {
         Self::decode(&bytes)
     }
+    /// The encoding as it is in memory, for a type whose encoding is its bytes: a large one
+    /// is then sent from them, not copied into a frame first.
+    fn as_encoded(&self) -> Option<&[u8]> {
+        None
+    }
 }
 
 /// Implements [`Datum`] with postcard for serde types.
@@ -94,6 +99,9 @@ impl Datum for Blob {
     }
     fn decode_owned(bytes: Vec<u8>) -> Result<Self, CodecError> {
         Ok(Blob(bytes))
+    }
+    fn as_encoded(&self) -> Option<&[u8]> {
+        Some(&self.0)
     }
 }
 

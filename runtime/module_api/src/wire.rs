@@ -147,6 +147,25 @@ pub fn encode_data(
     finish_frame(out, start)
 }
 
+/// Appends the header of a data frame whose `payload_len` bytes of payload follow separately
+/// (written from the caller's buffer, not copied behind the header).
+pub fn encode_data_header(
+    out: &mut Vec<u8>,
+    seq: u64,
+    stamp_ns: u64,
+    payload_len: usize,
+) -> Result<(), WireError> {
+    let len = 1 + DATA_HEADER_BYTES + payload_len;
+    if len > MAX_FRAME_BYTES {
+        return Err(WireError::FrameTooLarge(len));
+    }
+    out.extend_from_slice(&(len as u32).to_le_bytes());
+    out.push(KIND_DATA);
+    out.extend_from_slice(&seq.to_le_bytes());
+    out.extend_from_slice(&stamp_ns.to_le_bytes());
+    Ok(())
+}
+
 /// Appends a challenge or proof frame to `out`.
 pub fn encode_auth(out: &mut Vec<u8>, kind: u8, bytes: &[u8; NONCE_BYTES]) {
     out.extend_from_slice(&(1 + NONCE_BYTES as u32).to_le_bytes());
@@ -207,6 +226,8 @@ const MIN_READ_BYTES: usize = 64 * 1024;
 const IDLE_KEEP_BYTES: usize = 4 * 1024 * 1024;
 /// Data frames from this size on are read straight into their payload buffer.
 const LARGE_FRAME_BYTES: usize = 256 * 1024;
+/// Payloads from this size on are sent from the caller's bytes (see `Datum::as_encoded`).
+pub const LARGE_PAYLOAD_BYTES: usize = LARGE_FRAME_BYTES;
 
 impl FrameReader {
     /// For a new connection: the first six bytes must be a valid hello.
@@ -520,6 +541,11 @@ impl OutBuffer {
     /// Appends encoded frame bytes. With `latest_only`, frames queued behind the one being
     /// written are dropped first: the reader only ever wants the newest.
     pub fn push_frame(&mut self, frame: &[u8], latest_only: bool) {
+        self.push_frame_parts(&[frame], latest_only);
+    }
+
+    /// [`OutBuffer::push_frame`] for a frame in pieces (a header, then its payload).
+    pub fn push_frame_parts(&mut self, parts: &[&[u8]], latest_only: bool) {
         if latest_only {
             let unstarted = self
                 .frame_starts
@@ -530,7 +556,9 @@ impl OutBuffer {
             }
         }
         self.frame_starts.push_back(self.buf.len());
-        self.buf.extend_from_slice(frame);
+        for part in parts {
+            self.buf.extend_from_slice(part);
+        }
     }
 
     /// Writes as much as the socket takes. `Ok(true)` when everything went out.
