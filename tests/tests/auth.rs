@@ -289,10 +289,13 @@ fn access_lists_limit_what_each_module_may_publish_and_subscribe_to() {
 fn an_observer_may_subscribe_to_everything_and_publish_nothing() {
     let dir = tempfile::tempdir().unwrap();
     // `checker` is a module of the system: naming it an observer gives it nothing more.
-    let (_run, agent) = run_limited(
+    let (run, agent) = run_limited(
         dir.path(),
         &["--observer", "watcher", "--observer", "checker"],
     );
+    run.wait_for("the warning about `checker`", PATIENCE, |line| {
+        line.contains("--observer `checker` is a module of the system")
+    });
 
     let lookup = |data_name: &str| ToAgent::Lookup {
         data_name: data_name.into(),

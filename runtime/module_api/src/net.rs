@@ -974,7 +974,7 @@ impl Net {
 
     /// Whether the latest frame of `output` is worth a copy: it has a pull-mode subscriber, or
     /// was pulled before. (A frame encoded in the node's buffer is kept anyway, by a swap.)
-    pub fn wants_latest_copy(&self, output: usize) -> bool {
+    fn wants_latest_copy(&self, output: usize) -> bool {
         self.pulled.get(output).copied().unwrap_or(false)
             || self.subscribers[output].iter().any(|token| {
                 self.conns.get(token).is_some_and(|conn| {
@@ -1076,7 +1076,13 @@ impl Net {
                     min_interval,
                     pull,
                 });
-                let peer_addr = subscriber_addr.and_then(|addr| addr.parse::<SocketAddr>().ok());
+                let peer_addr = subscriber_addr.and_then(|addr| match addr.parse::<SocketAddr>() {
+                    Ok(addr) => Some(addr),
+                    Err(_) => {
+                        tracing::warn!(subscriber, addr, "unreadable subscriber_addr: not shared");
+                        None
+                    }
+                });
                 if link.peer_addr.is_none() {
                     link.peer_addr = peer_addr;
                 }
@@ -1121,13 +1127,13 @@ impl Net {
     /// unanswered (so no sample of it has been taken), and subscribes again on the peer's.
     /// The other keeps its own, so both choose the same connection.
     fn join_peer_connection(&mut self, core: &Core, token: Token, peer_addr: SocketAddr) {
-        if self.listen_addr <= peer_addr {
-            return;
-        }
         let free = matches!(
             self.conns.get(&token).map(|conn| conn.role),
             Some(Role::Peer(PeerLink { input: None, .. }))
         );
+        if self.listen_addr <= peer_addr || !free {
+            return;
+        }
         let own = self
             .conns
             .iter()
@@ -1136,8 +1142,7 @@ impl Net {
                     input: Some(index),
                     serving: None,
                     peer_addr: Some(addr),
-                }) if free
-                    && other != token
+                }) if other != token
                     && addr == peer_addr
                     && self.inputs[index] == InputLink::Connecting(other) =>
                 {

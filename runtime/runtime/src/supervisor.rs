@@ -185,6 +185,11 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             options.report.is_some(),
         )
     });
+    for name in &options.observers {
+        if loaded.system.module(name).is_some() {
+            tracing::warn!("--observer `{name}` is a module of the system: it keeps its own lists");
+        }
+    }
     let mut agent = AgentProc::start(
         options.agent_addr.map_or_else(|| local(0), Ok)?,
         secret_file.clone(),
