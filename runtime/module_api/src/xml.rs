@@ -480,12 +480,6 @@ impl<'t> Builder<'t> {
         let pos = self.pos_at(start);
         self.tag_cursor = self.cursor;
         let name = self.text_of(tag.local_name().as_ref());
-        let text = self.text;
-        let raw_tag = text.get(start..).unwrap_or_default();
-        // The offset of an attribute is where quick-xml found its name, unless the text before it
-        // in the tag holds a `>` or a space in a value: then `find_attr_offset` is asked, as it
-        // always was, since it may find the name earlier or not at all.
-        let mut plain = raw_tag.starts_with('<');
         self.attrs.clear();
         // Duplicates are looked for here, without the list quick-xml would allocate per tag.
         let mut attributes = tag.attributes();
@@ -523,24 +517,11 @@ impl<'t> Builder<'t> {
                     .into_owned()
                     .into(),
             };
-            let key_offset = self.offset_of(key).filter(|&offset| {
-                offset > start
-                    && matches!(
-                        text.as_bytes()[offset - 1],
-                        b' ' | b'\t' | b'\n' | b'\r' | 0x0b | 0x0c
-                    )
-            });
-            let attr_pos = match key_offset {
-                Some(offset) if plain => self.pos_at(offset),
-                // quick-xml does not give attribute offsets; find `name=` inside this tag's own
-                // text.
-                _ => {
-                    find_attr_offset(raw_tag, &attr_name).map_or(pos, |at| self.pos_at(start + at))
-                }
-            };
-            plain = plain
-                && raw_value
-                    .is_some_and(|raw| !raw.bytes().any(|b| b == b'>' || b <= b' ' || b >= 0x80));
+            // quick-xml borrows names from the text, so where the name lies is where the
+            // attribute is, whatever the values before it hold.
+            let attr_pos = self
+                .offset_of(key)
+                .map_or(pos, |offset| self.pos_at(offset));
             self.attrs.push(Attr {
                 name: attr_name,
                 value,
@@ -565,22 +546,6 @@ fn attr_error(tag: &BytesStart<'_>, pos: Pos, name: &str) -> Option<Located> {
     })
 }
 
-fn find_attr_offset(raw_tag: &str, name: &str) -> Option<usize> {
-    let tag_end = raw_tag.find('>').unwrap_or(raw_tag.len());
-    let tag = &raw_tag[..tag_end];
-    let mut from = 0;
-    while let Some(found) = tag[from..].find(name) {
-        let at = from + found;
-        let before_ok = tag[..at].ends_with(|c: char| c.is_whitespace());
-        let after = tag[at + name.len()..].trim_start();
-        if before_ok && after.starts_with('=') {
-            return Some(at);
-        }
-        from = at + name.len();
-    }
-    None
-}
-
 /// Escapes text for an attribute value or element content.
 pub fn escape(text: &str) -> std::borrow::Cow<'_, str> {
     quick_xml::escape::escape(text)
@@ -595,7 +560,7 @@ mod tests {
 
         use quick_xml::events::{BytesStart, Event};
 
-        use super::super::{Attr, Element, Located, MAX_DOCUMENT_BYTES, Pos, find_attr_offset};
+        use super::super::{Attr, Element, Located, MAX_DOCUMENT_BYTES, Pos};
 
         /// Turns byte offsets into line and column (columns count characters, not bytes).
         struct LineIndex<'a> {
@@ -754,8 +719,9 @@ mod tests {
             let pos = index.pos(start);
             let name = String::from_utf8_lossy(tag.local_name().as_ref()).into_owned();
             let raw_tag = text.get(start..).unwrap_or_default();
+            let offsets = attr_offsets(raw_tag);
             let mut attrs = Vec::new();
-            for attr in tag.attributes() {
+            for (k, attr) in tag.attributes().enumerate() {
                 let attr = attr.map_err(|err| {
                     Located::new(pos, format!("bad attribute in <{name}>: {err}"))
                 })?;
@@ -769,9 +735,10 @@ mod tests {
                         )
                     })?
                     .into_owned();
-                // quick-xml does not give attribute offsets; find `name=` inside this tag's own text.
-                let attr_pos =
-                    find_attr_offset(raw_tag, &attr_name).map_or(pos, |at| index.pos(start + at));
+                let attr_pos = match offsets.get(k) {
+                    Some(&(found, at)) if found == attr_name => index.pos(start + at),
+                    _ => pos,
+                };
                 attrs.push(Attr {
                     name: attr_name.into(),
                     value: value.into(),
@@ -785,6 +752,68 @@ mod tests {
                 text: String::new(),
                 pos,
             })
+        }
+
+        /// Where each attribute's name starts in the text of a tag (`<b x="1" y='2'/>`), read
+        /// byte by byte as quick-xml reads it: the tag ends at the first `>` outside quotes
+        /// (less a `/` before it), the element's name at a space, an attribute's name is its first
+        /// byte and what follows up to a space or `=`, and a value ends at its closing quote.
+        fn attr_offsets(raw_tag: &str) -> Vec<(&str, usize)> {
+            let mut quote = None;
+            let end = raw_tag
+                .bytes()
+                .position(|b| match quote {
+                    Some(q) if b == q => {
+                        quote = None;
+                        false
+                    }
+                    Some(_) => false,
+                    None if b == b'"' || b == b'\'' => {
+                        quote = Some(b);
+                        false
+                    }
+                    None => b == b'>',
+                })
+                .unwrap_or(raw_tag.len());
+            let tag = raw_tag[..end].strip_suffix('/').unwrap_or(&raw_tag[..end]);
+            let bytes = tag.as_bytes();
+            let space = |i: usize| bytes.get(i).is_some_and(|b| b" \t\r\n".contains(b));
+            let in_name = |i: usize| bytes.get(i).is_some_and(|b| !b" \t\r\n=".contains(b));
+            let skip_spaces = |mut i: usize| {
+                while space(i) {
+                    i += 1;
+                }
+                i
+            };
+            let mut found = Vec::new();
+            let mut i = 1;
+            while i < bytes.len() && !space(i) {
+                i += 1;
+            }
+            loop {
+                i = skip_spaces(i);
+                if i >= bytes.len() {
+                    return found;
+                }
+                let name_start = i;
+                i += 1;
+                while in_name(i) {
+                    i += 1;
+                }
+                found.push((&tag[name_start..i], name_start));
+                i = skip_spaces(i);
+                if bytes.get(i) != Some(&b'=') {
+                    return found;
+                }
+                i = skip_spaces(i + 1);
+                let Some(&quote) = bytes.get(i).filter(|b| matches!(b, b'"' | b'\'')) else {
+                    return found;
+                };
+                match bytes[i + 1..].iter().position(|&b| b == quote) {
+                    Some(len) => i += len + 2,
+                    None => return found,
+                }
+            }
         }
     }
 
@@ -800,7 +829,8 @@ mod tests {
             "<a é=\"ü\" b='→'>\n  <b x=\"🤖\" y=\"1\"/>été <c z=\"2\"/>\n\t<d\n\tw=\"3\"\n  v = 'x'\n  u\n=\n\"y\"/>\n</a>",
             // Attributes on several lines, CRLF line ends, tabs, comments, CDATA, entities.
             "<?xml version=\"1.0\"?>\r\n<!-- é\nà -->\r\n<root\r\n  name=\"r\"\r\n\tkind='k'>\r\n  <![CDATA[ x\ny ]]>\n  <e a=\"&lt;&#233;&gt;\"\n     b=\"2\"/>&amp;<f/>\n</root>\n",
-            // Values holding spaces, `>` or the name of a later attribute: the old search is kept.
+            // Values holding spaces, `>` or the name of a later attribute, and no space between
+            // attributes: each attribute is where its name is.
             "<a>\n<b x=\" y=1\" y=\"2\"/>\n<b x=\"a>b\" y=\"3\"/>\n<b x=\"é y=\" y=\"4\" z=\"5\"/>\n<b x=\"1\"y=\"2\"/>\n<b x=\"1\"\ty=\"2\"/>\n<b x=\"q\u{a0}y=\" y=\"2\"/>\n</a>",
             // Namespaced names.
             "<n:a xmlns:n=\"urn:x\" n:b=\"1\">\n  <n:c n:d='2' xml:lang=\"fr\"/>\n</n:a>",
@@ -889,6 +919,14 @@ mod tests {
             Some((Pos { line: 3, col: 6 }, "2"))
         );
         assert!(doc.text.contains("text & more"));
+        // A value that holds ` y=` or `>` does not move the attributes after it.
+        let doc =
+            parse("<a>\n<b x=\" y=1\" y=\"2\"/><c x=\"a>b\"\ty=\"3\"/>\n</a>").expect("valid");
+        let [b, c] = &doc.children[..] else {
+            panic!("two children: {doc:?}");
+        };
+        assert_eq!(b.attr("y").map(|a| a.pos), Some(Pos { line: 2, col: 13 }));
+        assert_eq!(c.attr("y").map(|a| a.pos), Some(Pos { line: 2, col: 31 }));
     }
 
     #[test]
