@@ -223,7 +223,6 @@ pub fn test_node(
     .unwrap()
 }
 
-/// Sends a signal to a process (through the `kill` command: the workspace denies unsafe code).
 /// `armor agent` on a free loopback port, and its address (read from its first line).
 pub fn start_agent() -> (Proc, std::net::SocketAddr) {
     const READY: &str = "armor agent listening on ";
@@ -238,6 +237,7 @@ pub fn start_agent() -> (Proc, std::net::SocketAddr) {
     (agent, addr)
 }
 
+/// Sends a signal to a process (through the `kill` command: the workspace denies unsafe code).
 pub fn signal(pid: i32, signal: i32) {
     let status = Command::new("kill")
         .arg(format!("-{signal}"))

@@ -1,15 +1,17 @@
 //! Two modules that subscribe to each other share one TCP connection, whichever starts first,
 //! and keep sharing after one of them is killed and comes back; messages of megabytes go both
-//! ways whole; a subscription refused on a shared connection leaves the other direction
-//! flowing.
+//! ways whole; a subscription refused on a shared connection, or given up when its input is
+//! rebound, leaves the other direction flowing.
 #![allow(clippy::unwrap_used)]
 
-use std::net::SocketAddr;
+use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+use armor_module_api::protocol::{FromSupervisor, ModuleConfig, ToSupervisor};
 use armor_module_api::types::{Blob, Counter};
-use armor_module_api::{Input, ModuleSpec, Node, Output};
+use armor_module_api::wire::blocking;
+use armor_module_api::{ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR, Input, ModuleSpec, Node, Output};
 use armor_tests::{PATIENCE, Proc, bin, process_alive, start_agent, test_node};
 
 fn start_echo(agent: SocketAddr) -> Proc {
@@ -230,4 +232,107 @@ fn a_refused_subscription_on_a_shared_connection_leaves_the_other_direction_flow
     assert_eq!(left.subscriber_count(&left_out), 0);
     assert!(left.is_linked(&theirs));
     assert_eq!(left.data_connections(), 1);
+}
+
+/// Plays `armor run`'s config server for one echo: configures it, then rebinds its input.
+struct Supervisor {
+    stream: TcpStream,
+}
+
+impl Supervisor {
+    /// Starts an echo under this supervisor, with its input bound to `source`.
+    fn start_echo(agent: SocketAddr, source: &str) -> (Supervisor, Proc) {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let echo = Proc::start(
+            Command::new(bin("armor-mod-echo"))
+                .env(ENV_SUPERVISOR, listener.local_addr().unwrap().to_string())
+                .env(ENV_AGENT, agent.to_string())
+                .env(ENV_MODULE, "echo"),
+        );
+        listener.set_nonblocking(true).unwrap();
+        let deadline = Instant::now() + PATIENCE;
+        let mut stream = loop {
+            match listener.accept() {
+                Ok((stream, _)) => break stream,
+                Err(err) if err.kind() == std::io::ErrorKind::WouldBlock => {
+                    assert!(Instant::now() < deadline, "the echo never connects");
+                    assert!(process_alive(echo.pid()), "{}", echo.lines().join("\n"));
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+                Err(err) => panic!("accept: {err}"),
+            }
+        };
+        stream.set_nonblocking(false).unwrap();
+        stream.set_read_timeout(Some(PATIENCE)).unwrap();
+        blocking::handshake(&mut stream, None).unwrap();
+        let hello: ToSupervisor = blocking::read_message(&mut stream).unwrap();
+        assert!(matches!(hello, ToSupervisor::Hello { .. }), "{hello:?}");
+        let mut supervisor = Supervisor { stream };
+        supervisor.bind(source);
+        (supervisor, echo)
+    }
+
+    /// Sends the echo a configuration with its input bound to `source`.
+    fn bind(&mut self, source: &str) {
+        let config = ModuleConfig {
+            module_type: "echo".to_owned(),
+            inputs: [("input".to_owned(), source.to_owned())].into(),
+            outputs: [("output".to_owned(), "echo.output".to_owned())].into(),
+            active: true,
+            host: "127.0.0.1".to_owned(),
+            ..ModuleConfig::default()
+        };
+        blocking::write_message(&mut self.stream, &FromSupervisor::Config(config)).unwrap();
+    }
+}
+
+#[test]
+fn rebinding_an_input_keeps_a_shared_connection_for_the_other_direction() {
+    let (_agent, agent) = start_agent();
+    let mut tester = Tester::start(agent);
+    let (mut supervisor, echo) = Supervisor::start_echo(agent, "tester.ping");
+    tester.link(&echo);
+    assert_eq!(tester.node.data_connections(), 1, "shared");
+    let mut other = test_node(
+        ModuleSpec::new("other", "pings too").output::<Blob>("ping", "numbered messages"),
+        agent,
+        &[],
+    );
+    let other_ping = other.output::<Blob>("ping").unwrap();
+
+    // The echo's input moves to `other`: its connection with the tester stays, and the tester's
+    // subscription to the echo goes on, on its first link, now echoing `other`.
+    supervisor.bind("other.ping");
+    const FROM_OTHER: u64 = 1 << 40;
+    let deadline = Instant::now() + PATIENCE;
+    let mut links = Vec::new();
+    let mut sent = FROM_OTHER;
+    while !links.iter().any(|&(_, value)| value > FROM_OTHER) {
+        assert!(Instant::now() < deadline, "nothing of `other` echoed");
+        sent += 1;
+        other
+            .send(&other_ping, &Blob(sent.to_le_bytes().to_vec()))
+            .unwrap();
+        other.next_event(Some(Duration::from_millis(1))).unwrap();
+        tester
+            .node
+            .next_event(Some(Duration::from_millis(1)))
+            .unwrap();
+        while let Some(sample) = tester.node.take(&tester.pong).unwrap() {
+            let value = u64::from_le_bytes(sample.value.0[..8].try_into().unwrap());
+            links.push((sample.link, value));
+        }
+    }
+    assert!(
+        links.iter().all(|&(link, _)| link == 1),
+        "the tester never relinked: {links:?}"
+    );
+    assert_eq!(tester.node.data_connections(), 1);
+
+    // Bound back to the tester, the echo subscribes on the same connection again.
+    supervisor.bind("tester.ping");
+    tester.link(&echo);
+    tester.ping_pong(50);
+    assert_eq!(tester.node.data_connections(), 1);
+    assert!(process_alive(echo.pid()));
 }

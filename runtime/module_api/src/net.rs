@@ -60,6 +60,9 @@ struct PeerLink {
     /// The peer's data listener: where this module connected, or the address the peer's
     /// subscribe gave. A subscription to a provider at that address may use this connection.
     peer_addr: Option<SocketAddr>,
+    /// `Unsubscribe`s sent and not yet answered: until then, the data frames and answers that
+    /// come belong to a subscription given up, and are dropped.
+    unsubscribing: u8,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -345,9 +348,8 @@ impl Net {
         if let Some(InputLink::Connecting(token) | InputLink::Linked(token)) =
             self.inputs.get(input).copied()
         {
-            // A connection that also serves the peer goes too: the peer relinks.
             self.inputs[input] = InputLink::Unbound;
-            self.close(core, token);
+            self.unsubscribe(core, token);
         }
         if let Some(link) = self.inputs.get_mut(input) {
             *link = match core.inputs[input].source {
@@ -891,11 +893,29 @@ impl Net {
                     Some(serving) => self.on_pull(token, serving.output),
                     None => return refuse("a pull before subscribing"),
                 },
+                PeerMessage::Request(ToProvider::Unsubscribe) => self.on_unsubscribe(core, token),
+                PeerMessage::Answer(FromProvider::Unsubscribed) => {
+                    if link.unsubscribing == 0 {
+                        return refuse("an answer to no unsubscribe");
+                    }
+                    if let Some(Conn {
+                        role: Role::Peer(link),
+                        ..
+                    }) = self.conns.get_mut(&token)
+                    {
+                        link.unsubscribing -= 1;
+                    }
+                    self.close_if_idle(token);
+                }
+                // The answer to a subscription given up since.
+                PeerMessage::Answer(_) if link.unsubscribing > 0 => {}
                 PeerMessage::Answer(answer) => match link.input {
                     Some(index) => self.on_answer(core, token, index, answer),
                     None => return refuse("an answer to no subscription"),
                 },
             },
+            // A sample of a subscription given up since.
+            Frame::Data(_) if link.unsubscribing > 0 => {}
             Frame::Data(data) => {
                 let Some(index) = link.input else {
                     return Err(WireError::UnexpectedData);
@@ -939,6 +959,59 @@ impl Net {
                     at: Instant::now() + Duration::from_secs(1),
                 };
             }
+            // Taken in `on_peer`, since it answers no subscription.
+            FromProvider::Unsubscribed => {}
+        }
+    }
+
+    /// The input fed on `token` is given up: a connection that also serves the peer stays up
+    /// (the peer is asked to stop sending, and what it sent meanwhile is dropped); any other
+    /// closes.
+    fn unsubscribe(&mut self, core: &mut Core, token: Token) {
+        match self.conns.get_mut(&token).map(|conn| &mut conn.role) {
+            Some(Role::Peer(link)) if link.serving.is_some() => {
+                link.input = None;
+                link.unsubscribing = link.unsubscribing.saturating_add(1);
+                self.queue_message(token, &ToProvider::Unsubscribe);
+            }
+            _ => self.close(core, token),
+        }
+    }
+
+    /// The subscriber on `token` gives its subscription up: the connection stays for the other
+    /// direction.
+    fn on_unsubscribe(&mut self, core: &Core, token: Token) {
+        let Some(conn) = self.conns.get_mut(&token) else {
+            return;
+        };
+        conn.pull_pending = false;
+        conn.last_sent = None;
+        if let Role::Peer(link) = &mut conn.role
+            && let Some(Serving { output, .. }) = link.serving.take()
+        {
+            self.subscribers[output].retain(|&other| other != token);
+            tracing::info!(output = core.outputs[output].name, "subscriber left");
+        }
+        self.queue_message(token, &FromProvider::Unsubscribed);
+        self.close_if_idle(token);
+    }
+
+    /// Closes `token` once it carries nothing either way (both sides gave their subscriptions
+    /// up), after writing what is queued.
+    fn close_if_idle(&mut self, token: Token) {
+        let idle = self.conns.get(&token).is_some_and(|conn| {
+            matches!(
+                conn.role,
+                Role::Peer(PeerLink {
+                    input: None,
+                    serving: None,
+                    unsubscribing: 0,
+                    ..
+                })
+            )
+        });
+        if idle && let Some(mut conn) = self.remove_conn(token) {
+            let _ = conn.out.flush_to(&mut conn.stream);
         }
     }
 
@@ -1142,6 +1215,7 @@ impl Net {
                     input: Some(index),
                     serving: None,
                     peer_addr: Some(addr),
+                    ..
                 }) if other != token
                     && addr == peer_addr
                     && self.inputs[index] == InputLink::Connecting(other) =>

@@ -134,13 +134,22 @@ pub enum ToProvider {
     /// From a subscriber (in pull mode or not): send me your latest sample now, or the next one
     /// if you have sent none yet. Answered from the provider's node without waking its module.
     Pull,
+    /// From a subscriber whose input is rebound, on a connection that also carries the
+    /// provider's own subscription the other way: send no more samples here. Answered with
+    /// [`FromProvider::Unsubscribed`] after the last frame of the subscription; the connection
+    /// stays up for the other direction.
+    Unsubscribe,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum FromProvider {
     Subscribed,
-    Refused { reason: String },
+    Refused {
+        reason: String,
+    },
+    /// The answer to [`ToProvider::Unsubscribe`]: no frame of the old subscription follows.
+    Unsubscribed,
 }
 
 #[cfg(test)]
