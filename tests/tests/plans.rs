@@ -261,29 +261,30 @@ fn run_example(name: &str) -> PlanRun {
     }
 }
 
-/// The `sim.pose_truth` samples of every file a recorder wrote for `file` (it is started afresh
-/// in each place of the mission, and starts a new file each time), in time order. The recorder
-/// stores a sample as JSON when JSON gives it back exactly, else as its postcard bytes on a
-/// second channel of the same topic: both are read.
+/// The `sim.pose_truth` samples a recorder wrote in `file`, in time order. The plan's
+/// `<throughout>` recorder runs in every place alike, so it records the whole mission in that one
+/// file (a restart would have started `NAME-2.mcap`). The recorder stores a sample as JSON when
+/// JSON gives it back exactly, else as its postcard bytes on a second channel of the same topic:
+/// both are read.
 fn read_truth(file: &Path) -> Vec<Sample> {
-    let segments = recorder_segments(file);
-    assert!(!segments.is_empty(), "{} was not written", file.display());
+    assert_eq!(
+        recorder_segments(file),
+        [file],
+        "one recording for the whole mission"
+    );
     let mut truth = Vec::new();
-    for segment in &segments {
-        let channels = read_mcap(segment);
-        for ((topic, encoding), messages) in channels {
-            assert_eq!(topic, "sim.pose_truth", "{}", segment.display());
-            for (log_time, data) in messages {
-                let pose = match encoding.as_str() {
-                    "json" => serde_json::from_slice::<Pose2D>(&data).unwrap(),
-                    "postcard" => Pose2D::decode(&data).unwrap(),
-                    other => panic!("{}: encoding {other}", segment.display()),
-                };
-                truth.push(Sample {
-                    secs: log_time as f64 / 1e9,
-                    at: Point::new(pose.x_m, pose.y_m),
-                });
-            }
+    for ((topic, encoding), messages) in read_mcap(file) {
+        assert_eq!(topic, "sim.pose_truth", "{}", file.display());
+        for (log_time, data) in messages {
+            let pose = match encoding.as_str() {
+                "json" => serde_json::from_slice::<Pose2D>(&data).unwrap(),
+                "postcard" => Pose2D::decode(&data).unwrap(),
+                other => panic!("{}: encoding {other}", file.display()),
+            };
+            truth.push(Sample {
+                secs: log_time as f64 / 1e9,
+                at: Point::new(pose.x_m, pose.y_m),
+            });
         }
     }
     truth.sort_by(|a, b| a.secs.total_cmp(&b.secs));

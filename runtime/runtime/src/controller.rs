@@ -7,7 +7,7 @@ use std::collections::{BTreeSet, VecDeque};
 use std::path::Path;
 use std::time::Instant;
 
-use armor_model::net::{Engine, Firing, MissionNet};
+use armor_model::net::{Engine, Firing, MissionNet, Place};
 use armor_module_api::Clock;
 use serde_json::json;
 
@@ -40,6 +40,8 @@ pub struct Controller {
     engine: Engine,
     clock: Clock,
     controllable: BTreeSet<String>,
+    /// The modules that every place runs with the same parameters: never restarted.
+    steady: BTreeSet<String>,
     paused: bool,
     outcome: Option<Outcome>,
     /// Kept only when a report was asked for, and then at most [`MAX_TIMELINE`] entries: a
@@ -49,6 +51,35 @@ pub struct Controller {
     /// The latest firings, for the status, and how many there were.
     recent: VecDeque<FiringRecord>,
     firings_total: usize,
+}
+
+/// The modules that every place of `net` runs, each with the same parameters in all: a plan's
+/// `<throughout>` (a recorder). Nothing tells one place's run of such a module from another's, so
+/// it runs the whole mission in one go (one recording, not one per place).
+fn steady_modules(net: &MissionNet) -> BTreeSet<String> {
+    let Some((first, rest)) = net.places.split_first() else {
+        return BTreeSet::new();
+    };
+    fn params_of<'a>(place: &'a Place, module: &str) -> Vec<(&'a str, &'a str)> {
+        let mut params: Vec<(&str, &str)> = place
+            .params
+            .iter()
+            .filter(|param| param.module == module)
+            .map(|param| (param.name.as_str(), param.value.as_str()))
+            .collect();
+        params.sort_unstable();
+        params
+    }
+    first
+        .modules
+        .iter()
+        .filter(|module| {
+            let params = params_of(first, module);
+            rest.iter()
+                .all(|place| place.modules.contains(module) && params_of(place, module) == params)
+        })
+        .cloned()
+        .collect()
 }
 
 /// The most firings a status carries (the latest).
@@ -70,6 +101,7 @@ impl Controller {
     ) -> Self {
         let engine = Engine::start_at(&net, clock.now_secs()).with_date_origin(epoch_unix_secs);
         let mut controller = Self {
+            steady: steady_modules(&net),
             net,
             engine,
             clock,
@@ -222,7 +254,8 @@ impl Controller {
     /// just left: two legs in a row drive the same follower, and each must report its own
     /// `goal_reached`. The config server sends a module only what changed for it, so a second
     /// leg with the same goal would otherwise reach the follower as nothing at all, and the
-    /// mission would wait for ever. Such modules are stopped, then started again.
+    /// mission would wait for ever. Such modules are stopped, then started again. A module that
+    /// every place runs alike (see [`steady_modules`]) goes on.
     fn apply_firings(&self, server: &ConfigServer, before: &BTreeSet<String>, firings: &[Firing]) {
         let after = self.engine.active_modules();
         let entered_again: BTreeSet<String> = firings
@@ -235,6 +268,7 @@ impl Controller {
                 self.controllable.contains(*module)
                     && before.contains(*module)
                     && after.contains(*module)
+                    && !self.steady.contains(*module)
             })
             .cloned()
             .collect();
@@ -396,5 +430,40 @@ fn listed(label: &str, names: &[String]) -> String {
         String::new()
     } else {
         format!("{label} {}", names.join(", "))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn steady(places: &str) -> BTreeSet<String> {
+        let text = format!(r#"<mission name="m" system="s.xml">{places}</mission>"#);
+        let net = MissionNet::parse(&text).expect("a valid net");
+        steady_modules(&net)
+    }
+
+    #[test]
+    fn a_module_every_place_runs_alike_is_steady() {
+        let recorder =
+            r#"<module name="recorder"/><param module="recorder" name="file" value="a.mcap"/>"#;
+        let places = format!(
+            r#"<place name="one" tokens="1"><module name="follower"/>{recorder}
+                 <param module="follower" name="goal_x_m" value="1"/></place>
+               <place name="two"><module name="follower"/>{recorder}
+                 <param module="follower" name="goal_x_m" value="1"/></place>
+               <place name="done" final="true">{recorder}</place>"#
+        );
+        // The follower is not in the final place: restarted at each leg, even with one goal.
+        assert_eq!(steady(&places), BTreeSet::from(["recorder".to_owned()]));
+        // Another file in one place: each place's recording is its own.
+        let other_file = places.replacen("a.mcap", "b.mcap", 1);
+        assert!(steady(&other_file).is_empty());
+        // A place without the recorder: it stops there, and starts afresh after.
+        let without = format!(
+            r#"<place name="one" tokens="1">{recorder}</place><place name="wait"/>
+               <place name="two">{recorder}</place>"#
+        );
+        assert!(steady(&without).is_empty());
     }
 }
