@@ -765,6 +765,33 @@ mod tests {
     }
 
     #[test]
+    fn every_finite_pose_is_stored_as_json() {
+        // Doubles of every magnitude: serde_json reads each back to the same bits (with its
+        // `float_roundtrip`, which the workspace turns on), so none falls back to postcard.
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            state
+        };
+        for _ in 0..5_000 {
+            let unit = (next() >> 11) as f64 / (1u64 << 53) as f64;
+            let pose = Pose2D {
+                x_m: unit * 100.0 - 50.0,
+                // Any finite positive double below 2.
+                y_m: f64::from_bits(next() >> 2),
+                theta_rad: (unit - 0.5) * std::f64::consts::TAU,
+            };
+            let payload = sample(1, 0, &pose).payload;
+            assert!(
+                to_json("Pose2D", &payload).expect("decodes").is_some(),
+                "{pose:?} is not stored as JSON"
+            );
+        }
+    }
+
+    #[test]
     fn a_value_json_cannot_carry_exactly_is_not_json() {
         let scan = LaserScan {
             angle_min_rad: -1.0,
