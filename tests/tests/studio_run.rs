@@ -426,3 +426,47 @@ fn a_system_with_access_lists_is_watched_all_the_same() {
         !app.run().is_running()
     });
 }
+
+#[test]
+fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let system = robot_system(dir.path());
+    let secret_file = dir.path().join("secret");
+    std::fs::write(&secret_file, "thirty-two bytes of shared secret").unwrap();
+    std::fs::set_permissions(&secret_file, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let mut harness = harness(dir.path());
+    harness.state_mut().run_mut().secret_file = secret_file.display().to_string();
+    open_and_run(&mut harness, &system, 1.0);
+    // The module monitor and the live map both come through connections that prove it.
+    step_until(
+        &mut harness,
+        "the modules running and the pose on the live map",
+        PATIENCE,
+        |app| {
+            module_state(app, "sim") == Some(ModuleState::Running)
+                && app.run().live().estimated.is_some()
+        },
+    );
+    // The run requires it: its control interface refuses a client without it.
+    let control = harness
+        .state()
+        .run()
+        .session
+        .as_ref()
+        .unwrap()
+        .shared()
+        .control_addr;
+    let control = control.unwrap();
+    let refused = armor_runtime::control::request(control, &Request::Status, None).unwrap();
+    assert!(
+        !refused.ok && refused.message.contains("requires the shared secret"),
+        "{refused:?}"
+    );
+    let secret = armor_module_api::auth::Secret::load(&secret_file).unwrap();
+    armor_runtime::control::request(control, &Request::Status, Some(&secret)).unwrap();
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+}

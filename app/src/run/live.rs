@@ -6,7 +6,7 @@
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
@@ -145,6 +145,7 @@ impl LiveData {
 /// `agent` and writes what arrives into the session's live data until `stop`.
 pub fn start(
     agent: SocketAddr,
+    secret: Option<PathBuf>,
     sources: Sources,
     shared: &SharedRef,
     stop: &Arc<AtomicBool>,
@@ -157,7 +158,7 @@ pub fn start(
     let stop = Arc::clone(stop);
     let ctx = ctx.clone();
     std::thread::spawn(move || {
-        if let Err(err) = watch(agent, &sources, &shared, &stop, &ctx) {
+        if let Err(err) = watch(agent, secret, &sources, &shared, &stop, &ctx) {
             tracing::warn!("the live views have no data: {err}");
         }
     });
@@ -165,6 +166,7 @@ pub fn start(
 
 fn watch(
     agent: SocketAddr,
+    secret: Option<PathBuf>,
     sources: &Sources,
     shared: &SharedRef,
     stop: &AtomicBool,
@@ -176,6 +178,7 @@ fn watch(
         Standalone {
             name: Some(NODE_NAME.to_owned()),
             agent: Some(agent.to_string()),
+            secret,
             ..Standalone::default()
         },
     )?;

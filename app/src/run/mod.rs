@@ -57,6 +57,9 @@ pub struct RunView {
     pub time_scale: f64,
     /// RFC 3339; empty for now (a plan's own start is offered).
     pub start_at: String,
+    /// The shared secret's file for runs (`armor run --secret`); empty for none. Starts as
+    /// `$ARMOR_SECRET_FILE`.
+    pub secret_file: String,
     pub working_dir: PathBuf,
     pub module_path: Vec<PathBuf>,
     /// Run the system even when a plan is open.
@@ -83,6 +86,7 @@ impl RunView {
             session: None,
             time_scale: 1.0,
             start_at: String::new(),
+            secret_file: std::env::var(armor_module_api::auth::ENV_SECRET_FILE).unwrap_or_default(),
             working_dir: std::env::current_dir().unwrap_or_else(|_| PathBuf::from(".")),
             module_path,
             prefer_system: false,
@@ -223,6 +227,8 @@ impl RunView {
             working_dir: self.working_dir.clone(),
             module_path: self.module_path.clone(),
             sources,
+            secret: Some(PathBuf::from(self.secret_file.trim()))
+                .filter(|file| !file.as_os_str().is_empty()),
         }
     }
 
@@ -391,6 +397,16 @@ impl RunView {
                     egui::TextEdit::singleline(&mut self.start_at)
                         .desired_width(170.0)
                         .hint_text("the plan's start, or now"),
+                );
+                ui.label("secret");
+                ui.add(
+                    egui::TextEdit::singleline(&mut self.secret_file)
+                        .desired_width(140.0)
+                        .hint_text("none"),
+                )
+                .on_hover_text(
+                    "a file with a shared secret (readable by its owner only): every \
+                     connection of the run must prove it (armor run --secret)",
                 );
                 if surroundings
                     .mission

@@ -46,6 +46,9 @@ pub struct RunOptions {
     pub module_path: Vec<PathBuf>,
     /// What the live views subscribe to.
     pub sources: Sources,
+    /// The shared secret's file (`armor run --secret`): the run requires it of every
+    /// connection, the studio's own included.
+    pub secret: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -152,6 +155,11 @@ impl RunSession {
         if let Some(date) = &options.start_at {
             command.arg("--start-at").arg(date);
         }
+        // The secret is the one the Run view shows, never one the environment adds unseen.
+        command.env_remove(armor_module_api::auth::ENV_SECRET_FILE);
+        if let Some(secret) = &options.secret {
+            command.arg("--secret").arg(secret);
+        }
         // The run dies with the studio, and a terminal's Ctrl-C reaches only the studio.
         armor_runtime::process::die_with_parent(&mut command);
         let mut child = command
@@ -206,7 +214,7 @@ impl RunSession {
             let shared = Arc::clone(&shared);
             let stop = Arc::clone(&stop);
             let ctx = ctx.clone();
-            let sources = options.sources.clone();
+            let options = options.clone();
             std::thread::spawn(move || {
                 poll_control(
                     &control_rx,
@@ -215,7 +223,7 @@ impl RunSession {
                     &stop,
                     started,
                     &ctx,
-                    sources,
+                    options,
                 )
             });
         }
@@ -439,7 +447,8 @@ fn strip_timestamp(text: &str) -> String {
 }
 
 /// Asks the run for its state every [`POLL_EVERY`] and sends the operator's requests, once the
-/// control address is known; starts the live data node once the agent's is.
+/// control address is known; starts the live data node once the agent's is. Both prove the
+/// options' secret when there is one.
 fn poll_control(
     control: &Receiver<SocketAddr>,
     requests: &Receiver<Request>,
@@ -447,8 +456,13 @@ fn poll_control(
     stop: &Arc<AtomicBool>,
     started: Instant,
     ctx: &egui::Context,
-    sources: Sources,
+    options: RunOptions,
 ) {
+    let RunOptions {
+        sources,
+        secret: secret_file,
+        ..
+    } = options;
     let addr = loop {
         if stop.load(Ordering::Relaxed) {
             return;
@@ -459,7 +473,17 @@ fn poll_control(
             Err(mpsc::RecvTimeoutError::Disconnected) => return,
         }
     };
-    let secret = armor_module_api::auth::Secret::from_env().ok().flatten();
+    let secret = match secret_file
+        .as_deref()
+        .map(armor_module_api::auth::Secret::load)
+    {
+        Some(Ok(secret)) => Some(secret),
+        Some(Err(err)) => {
+            lock(shared).replies.push((false, err.to_string()));
+            None
+        }
+        None => None,
+    };
     let mut live_started = false;
     let mut next_poll = Instant::now();
     while !stop.load(Ordering::Relaxed) {
@@ -499,7 +523,14 @@ fn poll_control(
                     }
                     if !live_started && let Ok(agent) = status.agent.parse::<SocketAddr>() {
                         live_started = true;
-                        live::start(agent, sources.clone(), shared, stop, ctx);
+                        live::start(
+                            agent,
+                            secret_file.clone(),
+                            sources.clone(),
+                            shared,
+                            stop,
+                            ctx,
+                        );
                     }
                     shared_now.status = Some(status);
                 }

@@ -32,11 +32,11 @@ pub fn connect(
         Standalone {
             name: Some(NODE_NAME.to_owned()),
             agent: Some(agent.to_string()),
-            params: Vec::new(),
             binds: binds
                 .iter()
                 .map(|&(input, source)| (input.to_owned(), source.to_owned()))
                 .collect(),
+            ..Standalone::default()
         },
     )
     .context("cannot connect the bench's node")

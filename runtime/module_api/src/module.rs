@@ -104,6 +104,9 @@ pub struct Standalone {
     pub params: Vec<(String, String)>,
     /// Input links (`input`, `module.output`).
     pub binds: Vec<(String, String)>,
+    /// The shared secret's file, for a run started with `armor run --secret`; else
+    /// `$ARMOR_SECRET_FILE`, else none.
+    pub secret: Option<std::path::PathBuf>,
 }
 
 /// Runs a module: answers `--describe`, sets up logging, connects, and runs `body`.
@@ -209,7 +212,10 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
         .unwrap_or_else(|| DEFAULT_AGENT.to_owned());
     let agent = resolve(&agent)?;
     let clock = Clock::from_env();
-    let secret = crate::auth::Secret::from_env()?;
+    let secret = match &options.secret {
+        Some(file) => Some(crate::auth::Secret::load(file)?),
+        None => crate::auth::Secret::from_env()?,
+    };
     let (config, supervisor) = match std::env::var(ENV_SUPERVISOR) {
         Ok(addr) => {
             let addr = resolve(&addr)?;
