@@ -121,6 +121,9 @@ enum UnsavedChoice {
 
 pub struct StudioApp {
     editor: Editor,
+    /// What this studio last put on the system clipboard: pasting it back pastes the editor's
+    /// own clip, which lands beside the last paste rather than on it.
+    copied_text: Option<String>,
     palette: Palette,
     home: Home,
     path: Option<PathBuf>,
@@ -179,6 +182,7 @@ impl StudioApp {
             .collect();
         let mut app = StudioApp {
             editor: Editor::default(),
+            copied_text: None,
             palette,
             home: options.home,
             path: None,
@@ -548,7 +552,7 @@ impl StudioApp {
         self.recovery_ui(ui);
         self.unsaved_ui(ui);
 
-        self.apply_commands();
+        self.apply_commands(&ctx);
         self.after_frame(&ctx);
         self.request_screenshot(&ctx);
         if !self.started {
@@ -615,11 +619,20 @@ impl StudioApp {
         }
     }
 
-    fn apply_commands(&mut self) {
+    fn apply_commands(&mut self, ctx: &egui::Context) {
         for command in std::mem::take(&mut self.commands) {
+            let copies = matches!(command, Command::Copy | Command::Cut);
             match self.editor.apply(command, &self.palette.catalog) {
                 Outcome::Nothing => {}
-                Outcome::Done(text) => self.set_status(text, false),
+                Outcome::Done(text) => {
+                    if copies {
+                        // On the system clipboard too, as a system file of the copied blocks.
+                        let xml = self.editor.clipboard.to_xml();
+                        ctx.copy_text(xml.clone());
+                        self.copied_text = Some(xml);
+                    }
+                    self.set_status(text, false);
+                }
                 Outcome::Refused(reason) => self.set_status(format!("refused: {reason}"), true),
             }
         }
@@ -781,25 +794,29 @@ impl StudioApp {
         if pressed(Modifiers::NONE, Key::Escape) {
             self.commands.push(Command::Select(BTreeSet::new()));
         }
-        // The platform turns Ctrl+C / Ctrl+V into copy and paste events (and a headless
-        // harness sends plain keys): take both.
-        let (copy, paste) = ctx.input(|input| {
-            let copy = input.events.iter().any(|event| {
-                matches!(event, egui::Event::Copy)
-                    || matches!(event, egui::Event::Key { key: Key::C, pressed: true, modifiers, .. } if modifiers.command)
-            });
-            let paste = input.events.iter().any(|event| {
-                matches!(event, egui::Event::Paste(_))
-                    || matches!(event, egui::Event::Key { key: Key::V, pressed: true, modifiers, .. } if modifiers.command)
-            });
-            (copy, paste)
+        // The platform turns Ctrl+C / Ctrl+X / Ctrl+V into copy, cut and paste events, the
+        // last with the system clipboard's text (and a headless harness sends plain keys):
+        // take both.
+        let shortcut = |event: &egui::Event, wanted: Key| matches!(event, egui::Event::Key { key, pressed: true, modifiers, .. } if *key == wanted && modifiers.command);
+        let commands = ctx.input(|input| {
+            let mut commands = Vec::new();
+            for event in &input.events {
+                match event {
+                    egui::Event::Copy => commands.push(Command::Copy),
+                    egui::Event::Cut => commands.push(Command::Cut),
+                    egui::Event::Paste(text) if self.copied_text.as_ref() == Some(text) => {
+                        commands.push(Command::Paste);
+                    }
+                    egui::Event::Paste(text) => commands.push(Command::PasteText(text.clone())),
+                    event if shortcut(event, Key::C) => commands.push(Command::Copy),
+                    event if shortcut(event, Key::X) => commands.push(Command::Cut),
+                    event if shortcut(event, Key::V) => commands.push(Command::Paste),
+                    _ => {}
+                }
+            }
+            commands
         });
-        if copy {
-            self.commands.push(Command::Copy);
-        }
-        if paste {
-            self.commands.push(Command::Paste);
-        }
+        self.commands.extend(commands);
     }
 
     /// The Mission view's keys: files, undo, delete, and the map's tools.
@@ -1033,6 +1050,7 @@ impl StudioApp {
                 let items = [
                     ("Undo", Command::Undo),
                     ("Redo", Command::Redo),
+                    ("Cut", Command::Cut),
                     ("Copy", Command::Copy),
                     ("Paste", Command::Paste),
                     ("Duplicate", Command::Duplicate),
@@ -1898,7 +1916,10 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Ctrl+O", "open a file (type its path)"),
     ("Ctrl+Z", "undo"),
     ("Ctrl+Y, Ctrl+Shift+Z", "redo"),
-    ("Ctrl+C / Ctrl+V", "copy / paste the selected blocks"),
+    (
+        "Ctrl+X / Ctrl+C / Ctrl+V",
+        "cut / copy / paste the selected blocks (as system XML on the clipboard)",
+    ),
     ("Ctrl+D", "duplicate the selected blocks"),
     ("Ctrl+A", "select all"),
     ("Delete", "delete the selected blocks"),

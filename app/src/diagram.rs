@@ -97,6 +97,22 @@ impl Clip {
     pub fn is_empty(&self) -> bool {
         self.blocks.is_empty()
     }
+
+    /// The clip as a system file of its own (what the studio puts on the system clipboard):
+    /// another studio pastes it, a text editor shows it, `armor check` reads it.
+    pub fn to_xml(&self) -> String {
+        let mut diagram = Diagram::new("copied");
+        diagram.paste(self, [0.0, 0.0]);
+        diagram.to_xml()
+    }
+
+    /// The blocks and links of a system file (as [`Clip::to_xml`] writes), `None` when the text
+    /// is no system or has no module.
+    pub fn from_xml(text: &str) -> Option<Clip> {
+        let diagram = Diagram::from_xml(text).ok()?;
+        let clip = diagram.copy(&diagram.blocks.keys().copied().collect());
+        (!clip.is_empty()).then_some(clip)
+    }
 }
 
 impl Diagram {

@@ -99,7 +99,11 @@ pub enum Command {
     },
     DeleteSelection,
     Copy,
+    /// Copy, then delete, in one undo step.
+    Cut,
     Paste,
+    /// Paste what the system clipboard holds: a system file's blocks and links.
+    PasteText(String),
     Duplicate,
     SelectAll,
     Select(BTreeSet<BlockId>),
@@ -238,6 +242,16 @@ impl Editor {
                 self.clipboard = self.diagram.copy(&self.selection);
                 Outcome::Done(format!("copied {}", plural(self.selection.len(), "block")))
             }
+            Command::Cut => {
+                if self.selection.is_empty() {
+                    return Outcome::Nothing;
+                }
+                let selection = std::mem::take(&mut self.selection);
+                self.clipboard = self.diagram.copy(&selection);
+                self.diagram.remove_blocks(&selection);
+                self.changed(before);
+                Outcome::Done(format!("cut {}", plural(selection.len(), "block")))
+            }
             Command::Paste => {
                 if self.clipboard.is_empty() {
                     return Outcome::Nothing;
@@ -245,6 +259,12 @@ impl Editor {
                 let clip = self.clipboard.clone();
                 self.paste(before, &clip)
             }
+            Command::PasteText(text) => match Clip::from_xml(&text) {
+                Some(clip) => self.paste(before, &clip),
+                None => Outcome::Refused(
+                    "the clipboard holds no blocks (a system file's modules)".to_owned(),
+                ),
+            },
             Command::Duplicate => {
                 if self.selection.is_empty() {
                     return Outcome::Nothing;

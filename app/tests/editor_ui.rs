@@ -491,3 +491,92 @@ fn closing_the_window_with_changes_asks_first() {
     assert!(harness.query_by_label("Save changes?").is_none());
     assert_eq!(harness.state().editor().diagram.blocks().count(), 1);
 }
+
+/// The text the last frame put on the system clipboard.
+fn copied_text(harness: &egui_kittest::Harness<'_, armor_studio::StudioApp>) -> Option<String> {
+    harness
+        .output()
+        .platform_output
+        .commands
+        .iter()
+        .find_map(|command| match command {
+            egui::OutputCommand::CopyText(text) => Some(text.clone()),
+            _ => None,
+        })
+}
+
+/// The blocks of the document: name, type and parameters, and its links.
+fn contents(harness: &egui_kittest::Harness<'_, armor_studio::StudioApp>) -> String {
+    let diagram = &harness.state().editor().diagram;
+    armor_studio::diagram::Diagram::to_system(diagram).to_xml()
+}
+
+#[test]
+fn blocks_cut_and_pasted_through_the_system_clipboard_as_system_xml() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("pair.xml");
+    std::fs::write(
+        &file,
+        r#"<system name="pair">
+  <module name="counter" type="counter"><param name="period_secs" value="0.5"/></module>
+  <module name="checker" type="checker"/>
+  <link from="counter.count" to="checker.input"/>
+</system>
+"#,
+    )
+    .unwrap();
+    let mut studio = harness(options(&dir.path().join("home"), Some(file)));
+    let original = contents(&studio);
+
+    // Copy (Ctrl+C, which a window turns into a copy event): the selection goes on the system
+    // clipboard as a system file of its own.
+    studio.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    studio.run();
+    studio.event(egui::Event::Copy);
+    studio.step();
+    let copied = copied_text(&studio).expect("the copy is on the system clipboard");
+    let system = armor_model::system::SystemConfig::parse(&copied).expect("a system file");
+    assert_eq!(system.modules.len(), 2, "{copied}");
+    assert_eq!(system.links.len(), 1, "{copied}");
+    assert!(copied.contains(r#"value="0.5""#), "{copied}");
+
+    // Another studio pastes it: the same blocks, link and parameters.
+    let mut other = harness(options(&dir.path().join("home2"), None));
+    other.event(egui::Event::Paste(copied.clone()));
+    other.run();
+    assert_eq!(
+        contents(&other),
+        original.replace(r#"name="pair""#, r#"name="system""#)
+    );
+    assert_eq!(other.state().status().text, "pasted 2 blocks");
+
+    // Text that is no system is refused, and changes nothing.
+    other.event(egui::Event::Paste("checker counter".to_owned()));
+    other.run();
+    assert!(other.state().status().is_error);
+    assert!(
+        other.state().status().text.contains("no blocks"),
+        "{}",
+        other.state().status().text
+    );
+    assert_eq!(other.state().editor().diagram.len(), 2);
+
+    // Cut: the blocks go, onto the clipboard; pasted back, they return under their names;
+    // undo takes the paste and the cut back one at a time.
+    studio.event(egui::Event::Cut);
+    studio.step();
+    let cut = copied_text(&studio).expect("the cut is on the system clipboard");
+    assert_eq!(cut, copied);
+    studio.run();
+    assert!(studio.state().editor().diagram.is_empty());
+    assert_eq!(studio.state().status().text, "cut 2 blocks");
+    studio.event(egui::Event::Paste(cut));
+    studio.run();
+    assert_eq!(contents(&studio), original);
+    studio.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    studio.run();
+    assert!(studio.state().editor().diagram.is_empty());
+    studio.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    studio.run();
+    assert_eq!(contents(&studio), original);
+}
