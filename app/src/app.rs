@@ -406,12 +406,23 @@ impl StudioApp {
 
     /// Where a block is on screen (its centre, as drawn last frame).
     pub fn block_pos(&self, block: &str) -> Option<Pos2> {
+        self.block_rect(block)
+            .map(|rect| self.canvas.to_global * rect.center())
+    }
+
+    /// Where a block's header is on screen (where a hand grabs it to move it).
+    pub fn block_header_pos(&self, block: &str) -> Option<Pos2> {
+        self.block_rect(block)
+            .map(|rect| self.canvas.to_global * Pos2::new(rect.center().x, rect.min.y + 10.0))
+    }
+
+    /// A block's rectangle on the canvas, if it has been laid out.
+    fn block_rect(&self, block: &str) -> Option<egui::Rect> {
         let id = self.editor.diagram.block_named(block)?;
         let rect = self
             .canvas
             .rect_of(&self.editor.diagram, &self.palette.catalog, id);
-        rect.is_finite()
-            .then(|| self.canvas.to_global * rect.center())
+        rect.is_finite().then_some(rect)
     }
 
     /// Whether the canvas shows the overview (zoomed out: boxes and lines, no widgets).
@@ -1307,7 +1318,24 @@ impl StudioApp {
         }
 
         // Moves: the snarl moved its nodes; copy them into the document, one undo step a drag.
-        let moved = self.canvas.moved_blocks(&self.editor.diagram);
+        let mut moved = self.canvas.moved_blocks(&self.editor.diagram);
+        // A block of a group selected in the editor (select all, find, a paste) carries the rest
+        // of the group along; egui-snarl moves only its own selection.
+        if let [(grabbed, to)] = moved[..]
+            && self.editor.selection.len() > 1
+            && self.editor.selection.contains(&grabbed)
+            && let Some(from) = self.editor.diagram.block(grabbed).map(|block| block.pos)
+        {
+            let delta = [to[0] - from[0], to[1] - from[1]];
+            for &id in &self.editor.selection {
+                if let Some(block) = self.editor.diagram.block(id)
+                    && id != grabbed
+                {
+                    moved.push((id, [block.pos[0] + delta[0], block.pos[1] + delta[1]]));
+                }
+            }
+            self.canvas.place_nodes(&moved);
+        }
         if !moved.is_empty() {
             if self.canvas.move_before.is_none() {
                 self.canvas.move_before = Some(self.editor.diagram.clone());

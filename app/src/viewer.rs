@@ -274,6 +274,18 @@ impl Canvas {
             .collect()
     }
 
+    /// Puts the snarl's nodes of `blocks` at the given positions (those on screen; the others
+    /// are drawn from the document when they come into view).
+    pub fn place_nodes(&mut self, blocks: &[(BlockId, [f32; 2])]) {
+        for (id, pos) in blocks {
+            if let Some(node) = self.node_of.get(id)
+                && let Some(info) = self.snarl.get_node_info_mut(*node)
+            {
+                info.pos = Pos2::new(pos[0], pos[1]);
+            }
+        }
+    }
+
     /// The blocks of the snarl's own selection, when it changed since last asked.
     pub fn snarl_selection_change(&mut self, selected: Vec<NodeId>) -> Option<BTreeSet<BlockId>> {
         if selected == self.snarl_selection {

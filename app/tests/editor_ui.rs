@@ -580,3 +580,44 @@ fn blocks_cut_and_pasted_through_the_system_clipboard_as_system_xml() {
     studio.run();
     assert_eq!(contents(&studio), original);
 }
+
+#[test]
+fn a_block_dragged_out_of_a_selected_group_moves_the_whole_group() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(options(dir.path(), None));
+    for module in ["counter", "checker", "follower"] {
+        harness.get_by_label(&format!("add {module}")).click();
+        harness.run();
+    }
+    let positions = |harness: &egui_kittest::Harness<'_, armor_studio::StudioApp>| {
+        let diagram = &harness.state().editor().diagram;
+        diagram
+            .blocks()
+            .map(|(_, block)| (block.name.clone(), block.pos))
+            .collect::<Vec<_>>()
+    };
+    let before = positions(&harness);
+    // Select all, then drag one block by its header.
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    harness.run();
+    let from = harness.state().block_header_pos("checker").unwrap();
+    drag(&mut harness, from, from + egui::vec2(120.0, 60.0));
+    let after = positions(&harness);
+    let moved: Vec<[f32; 2]> = before
+        .iter()
+        .zip(&after)
+        .map(|((_, a), (_, b))| [b[0] - a[0], b[1] - a[1]])
+        .collect();
+    assert!(
+        moved[1][0] > 10.0 && moved[1][1] > 5.0,
+        "{before:?} → {after:?}"
+    );
+    assert!(
+        moved.iter().all(|delta| delta == &moved[1]),
+        "every block moved alike: {moved:?}"
+    );
+    // The move is one step of the history; drawn where the document says.
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    harness.run();
+    assert_eq!(positions(&harness), before);
+}
