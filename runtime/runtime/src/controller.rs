@@ -118,13 +118,17 @@ impl Controller {
     }
 
     /// What the modules must be told: who idles, and the parameters of the marked places.
+    /// Paused, the mission's modules idle (the robot holds), but for those that run it through
+    /// (a recorder records the pause too).
     pub fn control(&self) -> Control {
         let active = self.engine.active_modules();
         Control {
             inactive: self
                 .controllable
                 .iter()
-                .filter(|module| self.paused || !active.contains(*module))
+                .filter(|module| {
+                    !active.contains(*module) || (self.paused && !self.steady.contains(*module))
+                })
                 .cloned()
                 .collect(),
             overlays: self.engine.params(),
@@ -441,6 +445,27 @@ mod tests {
         let text = format!(r#"<mission name="m" system="s.xml">{places}</mission>"#);
         let net = MissionNet::parse(&text).expect("a valid net");
         steady_modules(&net)
+    }
+
+    #[test]
+    fn a_pause_idles_every_module_of_the_mission_but_the_steady_ones() {
+        let recorder = r#"<module name="recorder"/>"#;
+        let text = format!(
+            r#"<mission name="m" system="s.xml">
+                 <place name="one" tokens="1"><module name="follower"/>{recorder}</place>
+                 <place name="done" final="true">{recorder}</place>
+               </mission>"#
+        );
+        let net = MissionNet::parse(&text).expect("a valid net");
+        let controllable = ["follower", "recorder", "sim"].map(str::to_owned).into();
+        let mut controller = Controller::new(net, controllable, Clock::real_time(), 0.0, false);
+        assert_eq!(
+            controller.control().inactive,
+            BTreeSet::from(["sim".to_owned()])
+        );
+        controller.paused = true;
+        let inactive = ["follower", "sim"].map(str::to_owned).into();
+        assert_eq!(controller.control().inactive, inactive);
     }
 
     #[test]
