@@ -1206,6 +1206,69 @@ impl StudioApp {
         }
     }
 
+    /// Where the blocks moving with `grabbed` go when it moves by `delta`: itself, and the rest
+    /// of the editor's selection if it is part of it.
+    fn group_moved(
+        &self,
+        grabbed: BlockId,
+        delta: [f32; 2],
+    ) -> impl Iterator<Item = (BlockId, [f32; 2])> + '_ {
+        let selection = &self.editor.selection;
+        let group: Vec<BlockId> = if selection.contains(&grabbed) {
+            selection.iter().copied().collect()
+        } else {
+            vec![grabbed]
+        };
+        group.into_iter().filter_map(move |id| {
+            let pos = self.editor.diagram.block(id)?.pos;
+            Some((id, [pos[0] + delta[0], pos[1] + delta[1]]))
+        })
+    }
+
+    /// In the overview, the block under the pointer (or the one being dragged) takes drags, on
+    /// top of the canvas's own panning: the blocks it moves this frame, with their new places.
+    fn overview_drag(&mut self, ui: &mut Ui) -> Vec<(BlockId, [f32; 2])> {
+        let diagram = &self.editor.diagram;
+        let catalog = &self.palette.catalog;
+        let under_pointer = || {
+            let pointer = ui.ctx().pointer_hover_pos()?;
+            self.canvas.block_at(diagram, catalog, pointer)
+        };
+        let Some(block) = self
+            .canvas
+            .overview_grab
+            .filter(|block| diagram.block(*block).is_some())
+            .or_else(under_pointer)
+        else {
+            return Vec::new();
+        };
+        let rect = self.canvas.to_global * self.canvas.rect_of(diagram, catalog, block);
+        // Over egui-snarl's layer (a sublayer of this one, which takes drags to pan).
+        let layer = egui::LayerId::new(ui.layer_id().order, egui::Id::new("overview drag"));
+        ui.ctx().set_sublayer(ui.layer_id(), layer);
+        let drag_ui = ui.new_child(
+            egui::UiBuilder::new()
+                .layer_id(layer)
+                .max_rect(self.canvas.rect),
+        );
+        let response = drag_ui.interact(
+            rect.intersect(self.canvas.rect),
+            egui::Id::new(("overview block", block)),
+            egui::Sense::drag(),
+        );
+        if response.drag_started() {
+            self.canvas.overview_grab = Some(block);
+        }
+        if response.drag_stopped() || !response.dragged() {
+            self.canvas.overview_grab = None;
+        }
+        let delta = response.drag_delta() / self.canvas.to_global.scaling;
+        if delta == egui::Vec2::ZERO {
+            return Vec::new();
+        }
+        self.group_moved(block, [delta.x, delta.y]).collect()
+    }
+
     fn canvas_ui(&mut self, ui: &mut Ui) {
         let ctx = ui.ctx().clone();
         self.canvas.sync(
@@ -1275,7 +1338,8 @@ impl StudioApp {
         self.canvas.to_global = to_global;
         self.canvas.pins = pins.take();
 
-        // In the overview, a double click zooms in on the block (blocks are edited zoomed in).
+        // In the overview, a double click zooms in on the block (its pins and parameters are
+        // there).
         if self.canvas.is_overview()
             && let Some(pos) = double_click.filter(|pos| self.canvas.rect.contains(*pos))
             && let Some(block) =
@@ -1322,19 +1386,18 @@ impl StudioApp {
         // A block of a group selected in the editor (select all, find, a paste) carries the rest
         // of the group along; egui-snarl moves only its own selection.
         if let [(grabbed, to)] = moved[..]
-            && self.editor.selection.len() > 1
-            && self.editor.selection.contains(&grabbed)
             && let Some(from) = self.editor.diagram.block(grabbed).map(|block| block.pos)
         {
             let delta = [to[0] - from[0], to[1] - from[1]];
-            for &id in &self.editor.selection {
-                if let Some(block) = self.editor.diagram.block(id)
-                    && id != grabbed
-                {
-                    moved.push((id, [block.pos[0] + delta[0], block.pos[1] + delta[1]]));
-                }
-            }
+            moved.extend(
+                self.group_moved(grabbed, delta)
+                    .filter(|(id, _)| *id != grabbed),
+            );
             self.canvas.place_nodes(&moved);
+        }
+        // In the overview egui-snarl holds no block: the block under the pointer is dragged here.
+        if self.canvas.is_overview() {
+            moved.extend(self.overview_drag(ui));
         }
         if !moved.is_empty() {
             if self.canvas.move_before.is_none() {

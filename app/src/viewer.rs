@@ -28,7 +28,7 @@ const SELECTED: Color32 = Color32::from_rgb(255, 200, 60);
 const WARNING: Color32 = Color32::from_rgb(230, 90, 70);
 
 /// Below this zoom, text is too small to read: the diagram is painted as an overview of boxes
-/// and wires instead of widgets (and blocks are edited once zoomed in).
+/// and wires instead of widgets: blocks are selected and moved there, and linked once zoomed in.
 pub const DETAIL_SCALE: f32 = 0.5;
 
 /// The canvas's state across frames.
@@ -52,6 +52,8 @@ pub struct Canvas {
     pub view_request: Option<Rect>,
     /// The snarl's own selection as last seen (shift-click and rectangle selection).
     snarl_selection: Vec<NodeId>,
+    /// The block dragged in the overview, where egui-snarl holds none.
+    pub overview_grab: Option<BlockId>,
 }
 
 impl Default for Canvas {
@@ -68,6 +70,7 @@ impl Default for Canvas {
             move_before: None,
             view_request: None,
             snarl_selection: Vec::new(),
+            overview_grab: None,
         }
     }
 }

@@ -370,16 +370,21 @@ fn write_script(path: &std::path::Path, text: &str) {
     std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o755)).unwrap();
 }
 
-#[test]
-fn a_large_diagram_opens_as_an_overview_and_a_double_click_zooms_in() {
-    let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("large.xml");
+/// A studio on a diagram of 400 blocks, which opens as the overview.
+fn large_diagram(dir: &std::path::Path) -> egui_kittest::Harness<'static, armor_studio::StudioApp> {
+    let file = dir.join("large.xml");
     std::fs::write(&file, armor_studio::bench::diagram(400, 600).to_xml()).unwrap();
-    let mut options = options(&dir.path().join("home"), Some(file));
+    let mut options = options(&dir.join("home"), Some(file));
     options.palette = Some(armor_studio::palette::Palette::from_descriptions([
         armor_studio::bench::relay(),
     ]));
-    let mut harness = harness(options);
+    harness(options)
+}
+
+#[test]
+fn a_large_diagram_opens_as_an_overview_and_a_double_click_zooms_in() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = large_diagram(dir.path());
     assert!(harness.state().is_overview());
     // No block is a widget in the overview: their names are not on screen as text.
     assert!(harness.query_by_label("relay_200").is_none());
@@ -620,4 +625,51 @@ fn a_block_dragged_out_of_a_selected_group_moves_the_whole_group() {
     harness.key_press_modifiers(Modifiers::COMMAND, Key::Z);
     harness.run();
     assert_eq!(positions(&harness), before);
+}
+
+#[test]
+fn blocks_are_dragged_in_the_overview_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = large_diagram(dir.path());
+    assert!(harness.state().is_overview());
+    let position = |harness: &egui_kittest::Harness<'_, armor_studio::StudioApp>, name: &str| {
+        let diagram = &harness.state().editor().diagram;
+        diagram
+            .block(diagram.block_named(name).unwrap())
+            .unwrap()
+            .pos
+    };
+    let before = harness.state().editor().diagram.clone();
+    let start = position(&harness, "relay_200");
+    let from = harness.state().block_pos("relay_200").unwrap();
+    drag(&mut harness, from, from + egui::vec2(40.0, 25.0));
+    let end = position(&harness, "relay_200");
+    // The block followed the pointer, at the overview's scale (far more than 40 units).
+    assert!(
+        end[0] - start[0] > 60.0 && end[1] - start[1] > 35.0,
+        "{start:?} → {end:?}"
+    );
+    assert_eq!(
+        position(&harness, "relay_201"),
+        before
+            .block(before.block_named("relay_201").unwrap())
+            .unwrap()
+            .pos
+    );
+    assert!(
+        harness.state().is_overview(),
+        "the view did not pan or zoom"
+    );
+    // One undo step.
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    harness.run();
+    assert!(harness.state().editor().diagram == before);
+    // A drag on empty canvas still pans the view, and moves no block.
+    let seen = harness.state().block_pos("relay_200").unwrap();
+    let empty = harness.state().canvas_rect().left_bottom() + egui::vec2(20.0, -20.0);
+    drag(&mut harness, empty, empty + egui::vec2(50.0, -30.0));
+    assert!(harness.state().editor().diagram == before);
+    let now = harness.state().block_pos("relay_200").unwrap();
+    let panned = now - seen;
+    assert!(panned.x > 25.0 && panned.y < -15.0, "{seen:?} → {now:?}");
 }
