@@ -968,13 +968,24 @@ impl Net {
     /// (the peer is asked to stop sending, and what it sent meanwhile is dropped); any other
     /// closes.
     fn unsubscribe(&mut self, core: &mut Core, token: Token) {
-        match self.conns.get_mut(&token).map(|conn| &mut conn.role) {
-            Some(Role::Peer(link)) if link.serving.is_some() => {
-                link.input = None;
-                link.unsubscribing = link.unsubscribing.saturating_add(1);
-                self.queue_message(token, &ToProvider::Unsubscribe);
-            }
-            _ => self.close(core, token),
+        let Some(conn) = self.conns.get_mut(&token) else {
+            return;
+        };
+        let Role::Peer(link) = &mut conn.role else {
+            return;
+        };
+        if link.serving.is_none() {
+            self.close(core, token);
+            return;
+        }
+        link.input = None;
+        link.unsubscribing = link.unsubscribing.saturating_add(1);
+        // A reliable input that stopped reading holds nothing back any more: what the peer
+        // sent is read now (and dropped), or the answer could wait behind it for ever.
+        let paused = std::mem::take(&mut conn.paused);
+        self.queue_message(token, &ToProvider::Unsubscribe);
+        if paused {
+            self.read_conn(core, token);
         }
     }
 
