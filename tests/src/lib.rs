@@ -225,8 +225,17 @@ pub fn test_node(
 
 /// `armor agent` on a free loopback port, and its address (read from its first line).
 pub fn start_agent() -> (Proc, std::net::SocketAddr) {
+    start_agent_with(&[])
+}
+
+/// [`start_agent`] with more arguments (`--secret FILE`).
+pub fn start_agent_with(args: &[&str]) -> (Proc, std::net::SocketAddr) {
     const READY: &str = "armor agent listening on ";
-    let agent = Proc::start(Command::new(bin("armor")).args(["agent", "--listen", "127.0.0.1:0"]));
+    let agent = Proc::start(
+        Command::new(bin("armor"))
+            .args(["agent", "--listen", "127.0.0.1:0"])
+            .args(args),
+    );
     let line = agent.wait_for("with the agent's address", PATIENCE, |line| {
         line.starts_with(READY)
     });

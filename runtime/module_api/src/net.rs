@@ -31,6 +31,12 @@ const RELINK_DELAY: Duration = Duration::from_millis(100);
 const UNKNOWN_RETRY: Duration = Duration::from_millis(200);
 const LOOKUP_TIMEOUT: Duration = Duration::from_secs(2);
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+/// With a shared secret, how long a module waits for a peer that connected moments ago to say
+/// who it is (its subscribe follows the handshake's round trips) before it opens a connection
+/// of its own to a provider: the peer may be that provider, and the two would share one.
+const IDENTIFY_WAIT: Duration = Duration::from_millis(50);
+/// How often it looks again meanwhile.
+const IDENTIFY_POLL: Duration = Duration::from_millis(2);
 /// Past this many buffered bytes a subscriber's data is written at once rather than batched.
 const BATCH_BYTES: usize = 64 * 1024;
 /// Past this many buffered bytes a reliable subscriber makes the publisher wait.
@@ -802,6 +808,12 @@ impl Net {
                 }) if peer == addr => Some(token),
                 _ => None,
             });
+        if shared.is_none() && self.awaits_identification() {
+            self.inputs[index] = InputLink::Resolve {
+                at: Instant::now() + IDENTIFY_POLL,
+            };
+            return;
+        }
         let token = match shared {
             Some(token) => token,
             None => match self.open(
@@ -825,6 +837,26 @@ impl Net {
             slot.data_type.clone_from(&advert.data_type);
         }
         self.subscribe_on(core, token, index);
+    }
+
+    /// Whether, with a shared secret, a peer connected less than [`IDENTIFY_WAIT`] ago and has
+    /// not subscribed yet (it may be in the middle of the handshake).
+    fn awaits_identification(&self) -> bool {
+        let now = Instant::now();
+        self.secret.is_some()
+            && self.conns.values().any(|conn| {
+                matches!(
+                    conn.role,
+                    Role::Peer(PeerLink {
+                        input: None,
+                        serving: None,
+                        peer_addr: None,
+                        ..
+                    })
+                ) && conn
+                    .handshake_deadline
+                    .is_some_and(|deadline| deadline > now + HANDSHAKE_TIMEOUT - IDENTIFY_WAIT)
+            })
     }
 
     /// Sends the subscribe of input `index` on `token`, which then feeds it.
