@@ -1259,7 +1259,7 @@ impl StudioApp {
         if response.drag_started() {
             self.canvas.overview_grab = Some(block);
         }
-        if response.drag_stopped() || !response.dragged() {
+        if !response.dragged() {
             self.canvas.overview_grab = None;
         }
         let delta = response.drag_delta() / self.canvas.to_global.scaling;

@@ -106,12 +106,18 @@ impl Clip {
         diagram.to_xml()
     }
 
-    /// The blocks and links of a system file (as [`Clip::to_xml`] writes), `None` when the text
-    /// is no system or has no module.
-    pub fn from_xml(text: &str) -> Option<Clip> {
-        let diagram = Diagram::from_xml(text).ok()?;
+    /// The blocks and links of a system file (as [`Clip::to_xml`] writes); what is wrong with it
+    /// (the parser's first problem, with its line) when it is none or has no module.
+    pub fn from_xml(text: &str) -> Result<Clip, String> {
+        let diagram = Diagram::from_xml(text).map_err(|problems| match problems.first() {
+            Some(problem) => format!("the clipboard holds no system file ({problem})"),
+            None => "the clipboard holds no system file".to_owned(),
+        })?;
         let clip = diagram.copy(&diagram.blocks.keys().copied().collect());
-        (!clip.is_empty()).then_some(clip)
+        if clip.is_empty() {
+            return Err("the clipboard's system has no module".to_owned());
+        }
+        Ok(clip)
     }
 }
 

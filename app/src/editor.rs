@@ -260,10 +260,8 @@ impl Editor {
                 self.paste(before, &clip)
             }
             Command::PasteText(text) => match Clip::from_xml(&text) {
-                Some(clip) => self.paste(before, &clip),
-                None => Outcome::Refused(
-                    "the clipboard holds no blocks (a system file's modules)".to_owned(),
-                ),
+                Ok(clip) => self.paste(before, &clip),
+                Err(reason) => Outcome::Refused(reason),
             },
             Command::Duplicate => {
                 if self.selection.is_empty() {

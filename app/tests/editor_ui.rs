@@ -560,7 +560,11 @@ fn blocks_cut_and_pasted_through_the_system_clipboard_as_system_xml() {
     other.run();
     assert!(other.state().status().is_error);
     assert!(
-        other.state().status().text.contains("no blocks"),
+        other
+            .state()
+            .status()
+            .text
+            .contains("the clipboard holds no system file (1:1: "),
         "{}",
         other.state().status().text
     );

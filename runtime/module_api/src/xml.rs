@@ -372,19 +372,8 @@ pub fn parse(text: &str) -> Result<Element<'_>, Located> {
                 }
             }
             Event::GeneralRef(reference) => {
-                let name = String::from_utf8_lossy(&reference).into_owned();
-                let resolved = match reference.resolve_char_ref() {
-                    Ok(Some(ch)) => ch.to_string(),
-                    _ => match quick_xml::escape::resolve_predefined_entity(&name) {
-                        Some(value) => value.to_owned(),
-                        None => {
-                            return Err(Located::new(
-                                builder.pos_at(start),
-                                format!("unknown entity `&{name};`"),
-                            ));
-                        }
-                    },
-                };
+                let resolved = resolve_reference(&reference)
+                    .map_err(|message| Located::new(builder.pos_at(start), message))?;
                 if let Some((parent, _)) = builder.open.last_mut() {
                     parent.text.push_str(&resolved);
                 }
@@ -538,6 +527,17 @@ impl<'t> Builder<'t> {
     }
 }
 
+/// The text an entity or character reference in element content stands for.
+fn resolve_reference(reference: &quick_xml::events::BytesRef<'_>) -> Result<String, String> {
+    if let Ok(Some(ch)) = reference.resolve_char_ref() {
+        return Ok(ch.to_string());
+    }
+    let name = String::from_utf8_lossy(reference);
+    quick_xml::escape::resolve_predefined_entity(&name)
+        .map(str::to_owned)
+        .ok_or_else(|| format!("unknown entity `&{name};`"))
+}
+
 /// The first problem quick-xml finds in the attributes of `tag` (checking for duplicates).
 fn attr_error(tag: &BytesStart<'_>, pos: Pos, name: &str) -> Option<Located> {
     tag.attributes().find_map(|attr| {
@@ -560,7 +560,7 @@ mod tests {
 
         use quick_xml::events::{BytesStart, Event};
 
-        use super::super::{Attr, Element, Located, MAX_DOCUMENT_BYTES, Pos};
+        use super::super::{Attr, Element, Located, MAX_DOCUMENT_BYTES, Pos, resolve_reference};
 
         /// Turns byte offsets into line and column (columns count characters, not bytes).
         struct LineIndex<'a> {
@@ -657,19 +657,8 @@ mod tests {
                         }
                     }
                     Event::GeneralRef(reference) => {
-                        let name = String::from_utf8_lossy(&reference).into_owned();
-                        let resolved = match reference.resolve_char_ref() {
-                            Ok(Some(ch)) => ch.to_string(),
-                            _ => match quick_xml::escape::resolve_predefined_entity(&name) {
-                                Some(value) => value.to_owned(),
-                                None => {
-                                    return Err(Located::new(
-                                        index.pos(start),
-                                        format!("unknown entity `&{name};`"),
-                                    ));
-                                }
-                            },
-                        };
+                        let resolved = resolve_reference(&reference)
+                            .map_err(|message| Located::new(index.pos(start), message))?;
                         if let Some(parent) = stack.last_mut() {
                             parent.text.push_str(&resolved);
                         }
