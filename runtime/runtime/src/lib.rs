@@ -9,6 +9,7 @@ pub mod config_server;
 pub mod control;
 pub mod controller;
 pub mod fs;
+pub mod gate;
 pub mod load;
 pub mod mission;
 pub mod probe;
