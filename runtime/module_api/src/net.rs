@@ -465,6 +465,20 @@ impl Net {
             if reliable
                 && conn.out.is_empty()
                 && frame_len >= BATCH_BYTES
+                && conn.link.is_sealing()
+                && conn.link.seal_frame(parts)
+            {
+                // An encrypted link: the frame is sealed from the caller's buffers into the
+                // records that wait for the socket.
+                if let Err(err) = conn.link.flush_pending()
+                    && err.kind() != ErrorKind::WouldBlock
+                {
+                    stalled.push(token);
+                    continue;
+                }
+            } else if reliable
+                && conn.out.is_empty()
+                && frame_len >= BATCH_BYTES
                 && !conn.link.is_sealing()
             {
                 // A large frame with nothing queued before it goes out from the caller's
@@ -489,7 +503,7 @@ impl Net {
             } else {
                 conn.out.push_frame_parts(parts, !reliable);
             }
-            let large_left = reliable && frame_len >= BATCH_BYTES && !conn.out.is_empty();
+            let large_left = reliable && frame_len >= BATCH_BYTES && conn.pending_bytes() > 0;
             if large_left || conn.out.pending_bytes() >= BATCH_BYTES {
                 match conn.flush() {
                     Ok(_) if reliable && conn.pending_bytes() > backlog_limit(frame_len) => {
