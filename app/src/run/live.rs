@@ -251,7 +251,8 @@ pub struct Recording {
 impl Recording {
     /// Reads a recording; its sources are picked by data type among its channels.
     pub fn open(file: &Path) -> anyhow::Result<Recording> {
-        let messages = armor_runtime::replay::read_recording(file)?;
+        let messages =
+            armor_runtime::replay::read_recording_within(file, untrusted::MAX_RECORDING_BYTES)?;
         Recording::of(file, messages)
     }
 

@@ -2,7 +2,8 @@
 //! grid, a scan or a pose comes from any node that publishes under the right name, or from any
 //! file opened as a recording, so none of its sizes or numbers is taken on its word.
 //!
-//! The bounds ([`MAX_GRID_CELLS`], [`MAX_SCAN_RANGES`], [`MAX_COORDINATE_M`]) are checked in
+//! The bounds ([`MAX_GRID_CELLS`], [`MAX_SCAN_RANGES`], [`MAX_COORDINATE_M`],
+//! [`MAX_RECORDING_BYTES`]) are checked in
 //! O(1) before anything the size of the data is allocated; what passes them is then drawn
 //! without a panic whatever the values (a cell of 127, a range of NaN). A recording's times are
 //! read through [`Timeline`], whose arithmetic saturates.
@@ -23,6 +24,10 @@ pub const MAX_SCAN_RANGES: usize = 65_536;
 /// How far from the world's origin anything drawn may be: 10,000 km, a quarter of the Earth's
 /// circumference. Beyond that, a position is a fault, and its screen coordinates would overflow.
 pub const MAX_COORDINATE_M: f64 = 1e7;
+
+/// Bytes a recording's messages may take once read (decompressed): a file of a few megabytes can
+/// hold gigabytes in compressed chunks.
+pub const MAX_RECORDING_BYTES: usize = 4 * 1024 * 1024 * 1024;
 
 /// Why a sample was not taken.
 #[derive(Clone, Debug, PartialEq)]

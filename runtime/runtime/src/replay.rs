@@ -163,19 +163,55 @@ pub struct Recorded {
     pub payload: Vec<u8>,
 }
 
-/// Every message of a recording, in order; an unfinished one is read as far as it goes.
+impl Recorded {
+    /// What it takes in memory, its own size included (as in a `Vec<Recorded>`).
+    pub fn size_in_memory(&self) -> usize {
+        std::mem::size_of::<Recorded>()
+            .saturating_add(self.payload.len())
+            .saturating_add(self.data_name.len())
+            .saturating_add(self.data_type.len())
+    }
+}
+
+/// Every message of a recording, in the order of the file; an unfinished one is read as far as
+/// it goes.
 pub fn read_recording(file: &Path) -> anyhow::Result<Vec<Recorded>> {
+    read_recording_within(file, usize::MAX)
+}
+
+/// [`read_recording`], refusing a recording whose messages would take more than `max_bytes` in
+/// memory (payloads, names and bookkeeping, see [`read_recording_bytes`]), or whose file is
+/// larger than that.
+pub fn read_recording_within(file: &Path, max_bytes: usize) -> anyhow::Result<Vec<Recorded>> {
     let name = file.display().to_string();
+    let size = std::fs::metadata(file)
+        .with_context(|| format!("cannot read {name}"))?
+        .len();
+    if usize::try_from(size).map_or(true, |size| size > max_bytes) {
+        bail!("{name} is {size} bytes, more than the {max_bytes} it may take");
+    }
     let bytes = std::fs::read(file).with_context(|| format!("cannot read {name}"))?;
-    let plans = read_plans(&name, &bytes)?;
+    read_recording_bytes(&name, &bytes, max_bytes)
+}
+
+/// The messages of the recording `bytes` (read from `name`), refused once they take more than
+/// `max_bytes` in memory: compressed chunks may hold far more than the file's size (each up to
+/// that size, which the reader checks), so a small file can otherwise fill the memory.
+pub fn read_recording_bytes(
+    name: &str,
+    bytes: &[u8],
+    max_bytes: usize,
+) -> anyhow::Result<Vec<Recorded>> {
+    let plans = read_plans(name, bytes)?;
     if plans.is_none() {
         tracing::warn!("{name} has no summary (an unfinished recording?): reading what it holds");
     }
     let mut plans = plans.unwrap_or_default();
     let options = mcap::read::Options::IgnoreEndMagic.into();
-    let stream = mcap::MessageStream::new_with_options(&bytes, options)
+    let stream = mcap::MessageStream::new_with_options(bytes, options)
         .with_context(|| format!("{name} is not a valid MCAP file"))?;
     let mut messages = Vec::new();
+    let mut used_bytes = 0_usize;
     for message in stream {
         let message = match message {
             Ok(message) => message,
@@ -197,12 +233,20 @@ pub fn read_recording(file: &Path) -> anyhow::Result<Vec<Recorded>> {
                 .with_context(|| format!("channel `{}`", plan.data_name))?,
             Conversion::AsIs => message.data.into_owned(),
         };
-        messages.push(Recorded {
+        let recorded = Recorded {
             log_time_ns: message.log_time,
             data_name: plan.data_name.clone(),
             data_type: plan.data_type.clone(),
             payload,
-        });
+        };
+        used_bytes = used_bytes.saturating_add(recorded.size_in_memory());
+        if used_bytes > max_bytes {
+            bail!(
+                "{name}: its messages take more than {max_bytes} bytes once read (at message {})",
+                messages.len() + 1
+            );
+        }
+        messages.push(recorded);
     }
     Ok(messages)
 }
@@ -499,5 +543,26 @@ mod tests {
                 .unwrap()
                 .is_none()
         );
+    }
+
+    #[test]
+    fn a_recording_larger_than_its_budget_is_refused() {
+        let bytes = mcap_with("postcard");
+        let one = read_recording_bytes("f", &bytes, usize::MAX).unwrap();
+        assert_eq!(one.len(), 1);
+        let needed = one[0].size_in_memory();
+        assert_eq!(read_recording_bytes("f", &bytes, needed).unwrap(), one);
+        let err = read_recording_bytes("f", &bytes, needed - 1).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains(&format!("more than {} bytes once read", needed - 1)),
+            "{err}"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("small.mcap");
+        std::fs::write(&file, &bytes).unwrap();
+        assert_eq!(read_recording_within(&file, bytes.len()).unwrap(), one);
+        let err = read_recording_within(&file, bytes.len() - 1).unwrap_err();
+        assert!(err.to_string().contains("more than the"), "{err}");
     }
 }
