@@ -8,13 +8,15 @@
 //! are; anything else is refused before anything is published. An unfinished recording (a
 //! `.partial` file left by a crash) is played as far as it goes.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use armor_module_api::types::{Counter, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist};
 use armor_module_api::{Datum, Event, ModuleSpec, Node, RawOutput, Standalone};
+
+use crate::mcap_read::{ChunkTooLarge, Record, Records};
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
@@ -55,20 +57,24 @@ struct Plan {
     conversion: Conversion,
 }
 
+/// A channel of a recording, as its record says it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Channel {
+    topic: String,
+    message_encoding: String,
+    metadata: BTreeMap<String, String>,
+    /// The name of the channel's schema, if it has one.
+    schema_name: Option<String>,
+}
+
 /// Reads a channel's data name, type and encoding, refusing what cannot be published.
-fn plan(channel: &mcap::Channel) -> anyhow::Result<Plan> {
+fn plan(channel: &Channel) -> anyhow::Result<Plan> {
     let topic = &channel.topic;
     let data_type = channel
         .metadata
         .get(DATA_TYPE_KEY)
         .filter(|data_type| !data_type.is_empty())
-        .or_else(|| {
-            channel
-                .schema
-                .as_ref()
-                .map(|schema| &schema.name)
-                .filter(|name| !name.is_empty())
-        })
+        .or(channel.schema_name.as_ref().filter(|name| !name.is_empty()))
         .with_context(|| {
             format!(
                 "channel `{topic}` names no data type (no `{DATA_TYPE_KEY}` metadata, no schema)"
@@ -133,25 +139,6 @@ fn from_json(data_type: &str, json: &[u8]) -> anyhow::Result<Vec<u8>> {
     bytes.with_context(|| format!("a JSON message is not a {data_type}"))
 }
 
-/// The channels of a finished recording, from its summary; `None` for an unfinished one.
-fn read_plans(file: &str, bytes: &[u8]) -> anyhow::Result<Option<HashMap<u16, Plan>>> {
-    if !bytes.starts_with(mcap::MAGIC) {
-        bail!("{file} is not an MCAP file");
-    }
-    let summary = match mcap::Summary::read(bytes) {
-        Ok(Some(summary)) => summary,
-        Ok(None) | Err(_) => return Ok(None),
-    };
-    let mut channels: Vec<_> = summary.channels.values().collect();
-    channels.sort_by_key(|channel| channel.id);
-    let mut plans = HashMap::new();
-    for channel in channels {
-        let plan = plan(channel).with_context(|| format!("cannot replay {file}"))?;
-        plans.insert(channel.id, plan);
-    }
-    Ok(Some(plans))
-}
-
 /// One message of a recording, as its node sent it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Recorded {
@@ -195,59 +182,96 @@ pub fn read_recording_within(file: &Path, max_bytes: usize) -> anyhow::Result<Ve
 }
 
 /// The messages of the recording `bytes` (read from `name`), refused once they take more than
-/// `max_bytes` in memory: compressed chunks may hold far more than the file's size (each up to
-/// that size, which the reader checks), so a small file can otherwise fill the memory.
+/// `max_bytes` in memory: compressed chunks may hold far more than the file's size, so a small
+/// file could otherwise fill the memory. Records are read by [`crate::mcap_read`], which checks
+/// every length before it allocates. Every channel is planned when its record is read: one that
+/// cannot be published is refused even if no message uses it.
 pub fn read_recording_bytes(
     name: &str,
     bytes: &[u8],
     max_bytes: usize,
 ) -> anyhow::Result<Vec<Recorded>> {
-    let plans = read_plans(name, bytes)?;
-    if plans.is_none() {
-        tracing::warn!("{name} has no summary (an unfinished recording?): reading what it holds");
+    if !bytes.starts_with(mcap::MAGIC) {
+        bail!("{name} is not an MCAP file");
     }
-    let mut plans = plans.unwrap_or_default();
-    let options = mcap::read::Options::IgnoreEndMagic.into();
-    let stream = mcap::MessageStream::new_with_options(bytes, options)
-        .with_context(|| format!("{name} is not a valid MCAP file"))?;
+    let records =
+        Records::new(bytes, max_bytes).with_context(|| format!("{name} is not an MCAP file"))?;
+    let mut schema_names: HashMap<u16, String> = HashMap::new();
+    let mut plans: HashMap<u16, Plan> = HashMap::new();
     let mut messages = Vec::new();
     let mut used_bytes = 0_usize;
-    for message in stream {
-        let message = match message {
-            Ok(message) => message,
+    for record in records {
+        let record = record.and_then(|record| match record {
+            Record::Message { channel_id, .. } if !plans.contains_key(&channel_id) => {
+                bail!("a message on channel {channel_id}, which no record defines")
+            }
+            record => Ok(record),
+        });
+        let record = match record {
+            Ok(record) => record,
+            // Too large is not damaged: nothing is shown rather than a part.
+            Err(err) if err.is::<ChunkTooLarge>() => {
+                return Err(err).context(format!("{name}: its messages take too much memory"));
+            }
             Err(err) if !messages.is_empty() => {
-                tracing::warn!("{name}: stopped at a damaged or unfinished part: {err}");
-                break;
+                tracing::warn!("{name}: stopped at a damaged or unfinished part: {err:#}");
+                return Ok(messages);
             }
-            Err(err) => {
-                return Err(err).with_context(|| format!("{name} is not a valid MCAP file"));
+            Err(err) => return Err(err).context(format!("{name} is not a valid MCAP file")),
+        };
+        match record {
+            Record::Schema { id, name } => {
+                schema_names.entry(id).or_insert(name);
             }
-        };
-        let plan = match plans.entry(message.channel.id) {
-            std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
-            std::collections::hash_map::Entry::Vacant(entry) => entry
-                .insert(plan(&message.channel).with_context(|| format!("cannot replay {name}"))?),
-        };
-        let payload = match plan.conversion {
-            Conversion::FromJson => from_json(&plan.data_type, &message.data)
-                .with_context(|| format!("channel `{}`", plan.data_name))?,
-            Conversion::AsIs => message.data.into_owned(),
-        };
-        let recorded = Recorded {
-            log_time_ns: message.log_time,
-            data_name: plan.data_name.clone(),
-            data_type: plan.data_type.clone(),
-            payload,
-        };
-        used_bytes = used_bytes.saturating_add(recorded.size_in_memory());
-        if used_bytes > max_bytes {
-            bail!(
-                "{name}: its messages take more than {max_bytes} bytes once read (at message {})",
-                messages.len() + 1
-            );
+            Record::Channel(channel) => {
+                if plans.contains_key(&channel.id) {
+                    continue;
+                }
+                let schema_name = schema_names.get(&channel.schema_id).cloned();
+                let id = channel.id;
+                let channel = Channel {
+                    topic: channel.topic,
+                    message_encoding: channel.message_encoding,
+                    metadata: channel.metadata,
+                    schema_name,
+                };
+                let plan = plan(&channel).with_context(|| format!("cannot replay {name}"))?;
+                plans.insert(id, plan);
+            }
+            Record::Message {
+                channel_id,
+                log_time_ns,
+                data,
+            } => {
+                let Some(plan) = plans.get(&channel_id) else {
+                    continue; // refused above
+                };
+                let payload = match plan.conversion {
+                    Conversion::FromJson => from_json(&plan.data_type, &data)
+                        .with_context(|| format!("channel `{}`", plan.data_name))?,
+                    Conversion::AsIs => data,
+                };
+                let recorded = Recorded {
+                    log_time_ns,
+                    data_name: plan.data_name.clone(),
+                    data_type: plan.data_type.clone(),
+                    payload,
+                };
+                used_bytes = used_bytes.saturating_add(recorded.size_in_memory());
+                if used_bytes > max_bytes {
+                    bail!(
+                        "{name}: its messages take more than {max_bytes} bytes once read (at message {})",
+                        messages.len() + 1
+                    );
+                }
+                messages.push(recorded);
+            }
+            // The summary that follows only repeats the schemas and channels.
+            Record::DataEnd => return Ok(messages),
+            Record::Other => {}
         }
-        messages.push(recorded);
     }
+    tracing::warn!("{name} has no end (an unfinished recording?): read what it holds");
     Ok(messages)
 }
 
@@ -431,15 +455,14 @@ mod tests {
         assert!(from_json("Imu", b"{}").is_err());
     }
 
-    fn channel(topic: &str, encoding: &str, data_type: Option<&str>) -> mcap::Channel<'static> {
-        mcap::Channel {
-            id: 1,
+    fn channel(topic: &str, encoding: &str, data_type: Option<&str>) -> Channel {
+        Channel {
             topic: topic.into(),
-            schema: None,
             message_encoding: encoding.into(),
             metadata: data_type
                 .map(|data_type| BTreeMap::from([(DATA_TYPE_KEY.into(), data_type.into())]))
                 .unwrap_or_default(),
+            schema_name: None,
         }
     }
 
@@ -532,36 +555,155 @@ mod tests {
     }
 
     #[test]
-    fn a_finished_file_plans_every_channel() {
+    fn every_channel_is_planned_and_a_cut_file_is_read_as_far_as_it_goes() {
         let bytes = mcap_with("postcard");
-        let plans = read_plans("f", &bytes).unwrap().unwrap();
-        assert_eq!(plans.len(), 1);
-        assert_eq!(plans.values().next().unwrap().data_name, "counter.count");
-        // Cut short, it has no summary: channels are then planned as they come.
-        assert!(
-            read_plans("f", &bytes[..bytes.len() / 2])
-                .unwrap()
-                .is_none()
+        let messages = read_recording_bytes("f", &bytes, usize::MAX).unwrap();
+        assert_eq!(messages.len(), 1);
+        assert_eq!(messages[0].data_name, "counter.count");
+        assert_eq!(messages[0].data_type, "Counter");
+        assert_eq!(messages[0].log_time_ns, 5);
+        // A channel no message uses is planned all the same.
+        let mut writer = mcap::Writer::new(Cursor::new(Vec::new())).unwrap();
+        writer
+            .add_channel(0, "camera.image", "cdr", &BTreeMap::new())
+            .unwrap();
+        writer.finish().unwrap();
+        let unused = writer.into_inner().into_inner();
+        let err = format!(
+            "{:#}",
+            read_recording_bytes("f", &unused, usize::MAX).unwrap_err()
         );
+        assert!(
+            err.contains("channel `camera.image` names no data type"),
+            "{err}"
+        );
+        // Cut after its message, it gives that message; cut in its header, a clear error.
+        let half = &bytes[..bytes.len() / 2];
+        assert_eq!(
+            read_recording_bytes("f", half, usize::MAX).unwrap(),
+            messages
+        );
+        let err = format!(
+            "{:#}",
+            read_recording_bytes("f", &bytes[..20], usize::MAX).unwrap_err()
+        );
+        assert!(err.contains("f is not a valid MCAP file"), "{err}");
+    }
+
+    /// A record as MCAP frames it: opcode, length (u64), body.
+    fn record(opcode: u8, body: &[u8]) -> Vec<u8> {
+        let mut out = vec![opcode];
+        out.extend((body.len() as u64).to_le_bytes());
+        out.extend(body);
+        out
+    }
+
+    fn string(text: &str) -> Vec<u8> {
+        let mut out = (text.len() as u32).to_le_bytes().to_vec();
+        out.extend(text.as_bytes());
+        out
+    }
+
+    /// A channel record: id 1, no schema, the data type in its metadata.
+    fn channel_record(topic: &[u8]) -> Vec<u8> {
+        let mut body = vec![1, 0, 0, 0];
+        body.extend(topic);
+        body.extend(string("postcard"));
+        let entry = [string(DATA_TYPE_KEY), string("Counter")].concat();
+        body.extend((entry.len() as u32).to_le_bytes());
+        body.extend(entry);
+        record(mcap::records::op::CHANNEL, &body)
+    }
+
+    fn message_record(log_time_ns: u64) -> Vec<u8> {
+        let mut body = vec![1, 0, 7, 0, 0, 0];
+        body.extend(log_time_ns.to_le_bytes());
+        body.extend(log_time_ns.to_le_bytes());
+        body.extend(encode(&Counter(3)));
+        record(mcap::records::op::MESSAGE, &body)
+    }
+
+    #[test]
+    fn a_string_longer_than_its_record_is_refused_before_it_is_allocated() {
+        // The mcap crate's parser reserved the 4 GiB this topic claims before finding three
+        // bytes; read_record checks the length against the record first.
+        let mut hostile_topic = u32::MAX.to_le_bytes().to_vec();
+        hostile_topic.extend(b"abc");
+        let header = record(
+            mcap::records::op::HEADER,
+            &[string(""), string("hand")].concat(),
+        );
+        let good = [
+            mcap::MAGIC.to_vec(),
+            header.clone(),
+            channel_record(&string("counter.count")),
+            message_record(5),
+        ]
+        .concat();
+        let messages = read_recording_bytes("f", &good, usize::MAX).unwrap();
+        assert_eq!(messages.len(), 1);
+        assert_eq!(messages[0].payload, encode(&Counter(3)));
+
+        let hostile = [mcap::MAGIC.to_vec(), header, channel_record(&hostile_topic)].concat();
+        let err = format!(
+            "{:#}",
+            read_recording_bytes("f", &hostile, usize::MAX).unwrap_err()
+        );
+        assert!(
+            err.contains("not a valid MCAP file: a damaged record (opcode 0x04"),
+            "{err}"
+        );
+        // After messages, a damaged record ends the reading; what was read is kept.
+        let late = [good.clone(), channel_record(&hostile_topic)].concat();
+        assert_eq!(
+            read_recording_bytes("f", &late, usize::MAX).unwrap(),
+            messages
+        );
+        // So does a message on a channel nothing defined.
+        let stray = [mcap::MAGIC.to_vec(), message_record(5)].concat();
+        let err = format!(
+            "{:#}",
+            read_recording_bytes("f", &stray, usize::MAX).unwrap_err()
+        );
+        assert!(err.contains("channel 1, which no record defines"), "{err}");
     }
 
     #[test]
     fn a_recording_larger_than_its_budget_is_refused() {
-        let bytes = mcap_with("postcard");
-        let one = read_recording_bytes("f", &bytes, usize::MAX).unwrap();
-        assert_eq!(one.len(), 1);
-        let needed = one[0].size_in_memory();
-        assert_eq!(read_recording_bytes("f", &bytes, needed).unwrap(), one);
+        // Two messages, not in a chunk.
+        let bytes = [
+            mcap::MAGIC.to_vec(),
+            channel_record(&string("counter.count")),
+            message_record(5),
+            message_record(6),
+        ]
+        .concat();
+        let two = read_recording_bytes("f", &bytes, usize::MAX).unwrap();
+        assert_eq!(two.len(), 2);
+        let needed = two[0].size_in_memory() + two[1].size_in_memory();
+        assert_eq!(read_recording_bytes("f", &bytes, needed).unwrap(), two);
         let err = read_recording_bytes("f", &bytes, needed - 1).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "f: its messages take more than {} bytes once read (at message 2)",
+                needed - 1
+            )
+        );
+        // A chunk that would decompress to more than the budget is not decompressed.
+        let chunked = mcap_with("postcard");
+        let err = read_recording_bytes("f", &chunked, 50).unwrap_err();
         assert!(
-            err.to_string()
-                .contains(&format!("more than {} bytes once read", needed - 1)),
-            "{err}"
+            format!("{err:#}").starts_with("f: its messages take too much memory: a chunk of"),
+            "{err:#}"
         );
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("small.mcap");
         std::fs::write(&file, &bytes).unwrap();
-        assert_eq!(read_recording_within(&file, bytes.len()).unwrap(), one);
+        assert_eq!(
+            read_recording_within(&file, bytes.len().max(needed)).unwrap(),
+            two
+        );
         let err = read_recording_within(&file, bytes.len() - 1).unwrap_err();
         assert!(err.to_string().contains("more than the"), "{err}");
     }
