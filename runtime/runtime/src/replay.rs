@@ -318,6 +318,14 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     player.linger()
 }
 
+/// When a message logged at `log_time_ns` is due, the first having been logged at `first_ns`
+/// and played at `started`; `None` beyond what a clock can say (a tiny time scale, or a
+/// recording spanning centuries). A message logged before the first is due at once.
+fn due_at(started: Instant, first_ns: u64, log_time_ns: u64, scale: f64) -> Option<Instant> {
+    let offset_secs = log_time_ns.saturating_sub(first_ns) as f64 / 1e9 / scale;
+    started.checked_add(Duration::try_from_secs_f64(offset_secs).ok()?)
+}
+
 struct Player<'a> {
     node: &'a mut Node,
     /// Data name → where its messages go.
@@ -379,8 +387,12 @@ impl Player<'_> {
             return Ok(());
         };
         for message in messages {
-            let offset = message.log_time_ns.saturating_sub(first_ns) as f64 / 1e9 / scale;
-            let due = started + Duration::from_secs_f64(offset);
+            let due = due_at(started, first_ns, message.log_time_ns, scale).with_context(|| {
+                format!(
+                    "a message logged {} ns after the first is due later than can be waited for at --time-scale {scale}",
+                    message.log_time_ns.saturating_sub(first_ns)
+                )
+            })?;
             if due > Instant::now() {
                 self.pause_until(due)?;
             }
@@ -706,5 +718,19 @@ mod tests {
         );
         let err = read_recording_within(&file, bytes.len() - 1).unwrap_err();
         assert!(err.to_string().contains("more than the"), "{err}");
+    }
+
+    #[test]
+    fn hostile_log_times_give_an_error_not_a_panic() {
+        let now = Instant::now();
+        assert_eq!(
+            due_at(now, 1_000, 1_500_000_000 + 1_000, 2.0),
+            Some(now + Duration::from_millis(750))
+        );
+        assert_eq!(due_at(now, 1_000, 0, 1.0), Some(now), "before the first");
+        // Duration::from_secs_f64 panicked on these.
+        assert_eq!(due_at(now, 0, u64::MAX, 1e-300), None);
+        assert_eq!(due_at(now, 0, u64::MAX, 1e-12), None);
+        assert!(due_at(now, 0, u64::MAX, 1.0).is_some(), "584 years");
     }
 }
