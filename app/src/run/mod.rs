@@ -10,12 +10,15 @@
 pub mod live;
 pub mod monitor;
 pub mod session;
+pub mod untrusted;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use armor_model::plan::Origin;
+use armor_module_api::types::OccupancyGrid;
 use armor_runtime::control::{ModuleState, Request, Status};
 use egui::{Color32, RichText, Ui};
 
@@ -773,27 +776,52 @@ impl RunView {
                 ),
             );
         }
+        if let Some(refused) = &live.refused {
+            ui.put(
+                egui::Rect::from_min_size(
+                    response.rect.left_top() + egui::vec2(8.0, 30.0),
+                    egui::vec2(640.0, 20.0),
+                ),
+                egui::Label::new(
+                    RichText::new(format!("not shown: {refused}"))
+                        .color(monitor::state_colour(ModuleState::Failed))
+                        .background_color(Color32::from_white_alpha(220)),
+                ),
+            );
+        }
     }
 
-    /// The grid's picture, made again only when a new grid arrived.
+    /// The grid's picture, made again only when a new grid arrived. Its size is the grid's,
+    /// shrunk to what the display takes as one texture.
     fn grid_texture(
         &mut self,
         ctx: &egui::Context,
         live: &LiveData,
-    ) -> Option<(egui::TextureHandle, armor_module_api::types::OccupancyGrid)> {
+    ) -> Option<(egui::TextureHandle, Arc<OccupancyGrid>)> {
         let grid = live.grid.as_ref()?;
         if self
             .grid_texture
             .as_ref()
             .is_none_or(|(revision, _)| *revision != live.grid_revision)
         {
-            let image = monitor::grid_image(grid);
-            let texture = ctx.load_texture("run-grid", image, egui::TextureOptions::NEAREST);
-            self.grid_texture = Some((live.grid_revision, texture));
+            let max_side = ctx.input(|input| input.max_texture_side);
+            match monitor::grid_image(grid, max_side) {
+                Ok(image) => {
+                    let texture =
+                        ctx.load_texture("run-grid", image, egui::TextureOptions::NEAREST);
+                    self.grid_texture = Some((live.grid_revision, texture));
+                }
+                // `LiveData::take` refuses such a grid before it is kept, and says why.
+                Err(refused) => {
+                    tracing::debug!("no picture of the grid: {refused}");
+                    self.grid_texture = None;
+                    return None;
+                }
+            }
         }
         self.grid_texture
             .as_ref()
-            .map(|(_, texture)| (texture.clone(), grid.clone()))
+            .map(|(_, texture)| (texture.clone(), Arc::clone(grid)))
     }
 }
 

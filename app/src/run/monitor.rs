@@ -2,6 +2,7 @@
 //! the firing timeline, and what is painted on the live map (the grid, the scan, the poses).
 
 use std::collections::VecDeque;
+use std::sync::Arc;
 
 use armor_model::world::Point;
 use armor_module_api::types::{OccupancyGrid, Pose2D};
@@ -11,6 +12,7 @@ use egui_plot::{Line, Plot, Points};
 
 use super::live::LiveData;
 use super::session::Sample;
+use super::untrusted::{self, Refused};
 
 const TRUTH: Color32 = Color32::from_rgb(20, 110, 220);
 const ESTIMATE: Color32 = Color32::from_rgb(230, 120, 0);
@@ -255,25 +257,16 @@ pub fn pose_text(live: &LiveData) -> String {
     )
 }
 
-/// The occupancy grid as a picture: unknown cells clear, free ones pale, occupied ones dark.
-/// Row 0 of the grid is its southern edge, so rows are flipped for the screen.
-pub fn grid_image(grid: &OccupancyGrid) -> egui::ColorImage {
-    let (width, height) = (grid.width as usize, grid.height as usize);
-    let mut pixels = Vec::with_capacity(width * height);
-    for row in (0..height).rev() {
-        for column in 0..width {
-            let cell = grid.cells.get(row * width + column).copied().unwrap_or(-1);
-            pixels.push(match cell {
-                value if value < 0 => Color32::TRANSPARENT,
-                value => {
-                    let occupied = f32::from(value.min(100)) / 100.0;
-                    let shade = (235.0 - 215.0 * occupied) as u8;
-                    Color32::from_rgba_unmultiplied(shade, shade, shade, 170)
-                }
-            });
-        }
-    }
-    egui::ColorImage::new([width, height], pixels)
+/// The occupancy grid as a picture at most `max_side` pixels a side (see
+/// [`untrusted::grid_picture`]): unknown cells clear, free ones pale, occupied ones dark, the
+/// grid's southern edge at the bottom. A grid that is too large or inconsistent is refused
+/// before anything its size is allocated.
+pub fn grid_image(grid: &OccupancyGrid, max_side: usize) -> Result<egui::ColorImage, Refused> {
+    let picture = untrusted::grid_picture(grid, max_side)?;
+    Ok(egui::ColorImage::from_rgba_unmultiplied(
+        picture.size,
+        &picture.rgba,
+    ))
 }
 
 /// Paints the grid, the true path, the scan and both poses.
@@ -281,7 +274,7 @@ pub fn paint_live(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     live: &LiveData,
-    grid: Option<&(egui::TextureHandle, OccupancyGrid)>,
+    grid: Option<&(egui::TextureHandle, Arc<OccupancyGrid>)>,
 ) {
     if let Some((texture, grid)) = grid {
         let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
@@ -308,18 +301,8 @@ pub fn paint_live(
         ));
     }
     if let (Some(scan), Some(pose)) = (&live.scan, live.scan_pose()) {
-        for (index, range) in scan.ranges_m.iter().enumerate() {
-            let range = f64::from(*range);
-            if !range.is_finite() || range >= scan.range_max_m {
-                continue;
-            }
-            let angle =
-                pose.theta_rad + scan.angle_min_rad + scan.angle_increment_rad * index as f64;
-            let hit = project(Point::new(
-                pose.x_m + range * angle.cos(),
-                pose.y_m + range * angle.sin(),
-            ));
-            painter.circle_filled(hit, 1.6, SCAN);
+        for (x_m, y_m) in untrusted::scan_hits(scan, pose) {
+            painter.circle_filled(project(Point::new(x_m, y_m)), 1.6, SCAN);
         }
     }
     for (pose, colour) in [(&live.estimated, ESTIMATE), (&live.truth, TRUTH)] {
@@ -387,12 +370,37 @@ mod tests {
             origin_y_m: 0.0,
             cells: vec![100, 0, -1, -1],
         };
-        let image = grid_image(&grid);
+        let image = grid_image(&grid, 2048).expect("a good grid");
         assert_eq!(image.size, [2, 2]);
         assert_eq!(image.pixels[0], Color32::TRANSPARENT, "unknown, top row");
         assert!(
             image.pixels[2].r() < image.pixels[3].r(),
             "occupied darker than free"
+        );
+    }
+
+    #[test]
+    fn a_huge_or_inconsistent_grid_has_no_picture() {
+        // The old code allocated `width × height` pixels on the grid's word: 2^64 − 2^33 + 1
+        // of them here, a capacity overflow.
+        let huge = OccupancyGrid {
+            resolution_m: 0.5,
+            width: u32::MAX,
+            height: u32::MAX,
+            cells: vec![0; 4],
+            ..OccupancyGrid::default()
+        };
+        let err = grid_image(&huge, 2048).expect_err("refused");
+        assert!(matches!(err, Refused::GridTooLarge { .. }), "{err}");
+        let inconsistent = OccupancyGrid {
+            width: 3,
+            height: 3,
+            ..huge
+        };
+        let err = grid_image(&inconsistent, 2048).expect_err("refused");
+        assert!(
+            matches!(err, Refused::GridInconsistent { cells: 4, .. }),
+            "{err}"
         );
     }
 }

@@ -11,6 +11,7 @@ pub mod controller;
 pub mod fs;
 pub mod gate;
 pub mod load;
+mod mcap_read;
 pub mod mission;
 pub mod probe;
 pub mod process;
