@@ -152,6 +152,25 @@ impl MissionView {
         self.commands.extend(out);
     }
 
+    /// Centres the map on `point` of the world frame (metres), keeping the zoom: to follow
+    /// the robot.
+    pub fn centre_on(&mut self, point: Point) {
+        let origin = self.surroundings.origin(&self.editor.plan);
+        let at = LatLon::from_local(point, origin);
+        if at.lat_deg.is_finite() && at.lon_deg.is_finite() {
+            self.map.memory.center_at(position(at));
+        }
+    }
+
+    /// Where `point` of the world frame (metres) was drawn at the last frame, and the map's
+    /// area then: for tests that look for the robot.
+    pub fn last_screen_of(&self, point: Point) -> Option<(Pos2, Rect)> {
+        let projector = self.map.projector.as_ref()?;
+        let origin = self.surroundings.origin(&self.editor.plan);
+        let at = projector.project(position(LatLon::from_local(point, origin)));
+        Some((at.to_pos2(), self.map.rect))
+    }
+
     /// The map for watching a run: the plan with `current` (a leg) highlighted and no editing;
     /// `overlay` paints over it, given where a point of the world frame (metres) is on screen.
     pub fn watch_ui(

@@ -23,7 +23,9 @@ pub fn state_colour(state: ModuleState) -> Color32 {
     match state {
         ModuleState::Running => Color32::from_rgb(40, 160, 70),
         ModuleState::Starting | ModuleState::Restarting => Color32::from_rgb(80, 140, 220),
-        ModuleState::Stopped | ModuleState::Exited => Color32::from_rgb(140, 140, 140),
+        ModuleState::Stopped | ModuleState::Exited | ModuleState::Ended => {
+            Color32::from_rgb(140, 140, 140)
+        }
         ModuleState::Crashed => Color32::from_rgb(230, 140, 0),
         ModuleState::Failed => Color32::from_rgb(210, 40, 40),
     }
@@ -294,11 +296,14 @@ pub fn paint_live(
         .iter()
         .map(|(x, y)| project(Point::new(*x, *y)))
         .collect();
-    if trail.len() >= 2 {
-        painter.add(egui::Shape::line(
-            trail,
-            Stroke::new(1.5, TRUTH.gamma_multiply(0.6)),
-        ));
+    // The trail fades out behind the robot: older segments are lighter.
+    let segments = trail.len().saturating_sub(1);
+    for (i, pair) in trail.windows(2).enumerate() {
+        let age = (i + 1) as f32 / segments.max(1) as f32;
+        painter.line_segment(
+            [pair[0], pair[1]],
+            Stroke::new(2.0, TRUTH.gamma_multiply(0.1 + 0.7 * age)),
+        );
     }
     if let (Some(scan), Some(pose)) = (&live.scan, live.scan_pose()) {
         for (x_m, y_m) in untrusted::scan_hits(scan, pose) {
@@ -312,19 +317,69 @@ pub fn paint_live(
     }
 }
 
-/// A robot as a triangle pointing where it heads, 0.6 m long.
+/// A button of the drive pad: an arrow pointing along `direction` (screen axes), drawn rather
+/// than taken from the font (which lacks ▲ and ▼), named `name` for screen readers and tests.
+/// True while the pointer holds it down.
+pub fn pad_button(ui: &mut Ui, direction: egui::Vec2, name: &str) -> bool {
+    let (rect, response) =
+        ui.allocate_exact_size(egui::vec2(40.0, 32.0), egui::Sense::click_and_drag());
+    response.widget_info(|| egui::WidgetInfo::labeled(egui::WidgetType::Button, true, name));
+    let visuals = ui.style().interact(&response);
+    ui.painter().rect(
+        rect,
+        visuals.corner_radius,
+        visuals.bg_fill,
+        visuals.bg_stroke,
+        egui::StrokeKind::Inside,
+    );
+    let centre = rect.center();
+    let side = egui::vec2(-direction.y, direction.x);
+    ui.painter().add(egui::Shape::convex_polygon(
+        vec![
+            centre + direction * 9.0,
+            centre - direction * 6.0 + side * 8.0,
+            centre - direction * 6.0 - side * 8.0,
+        ],
+        visuals.fg_stroke.color,
+        Stroke::NONE,
+    ));
+    response.on_hover_text(name).is_pointer_button_down_on()
+}
+
+/// The least a robot is drawn across, in points, whatever the zoom: a newcomer must find it.
+pub const ROBOT_MIN_POINTS: f32 = 26.0;
+
+/// A robot: a disc with an arrow pointing where it heads, its real size (0.6 m) or
+/// [`ROBOT_MIN_POINTS`] across, whichever is larger, rimmed so it shows on any tile.
 fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D, colour: Color32) {
-    let at = |forward: f64, left: f64| {
-        let (sin, cos) = pose.theta_rad.sin_cos();
-        project(Point::new(
-            pose.x_m + forward * cos - left * sin,
-            pose.y_m + forward * sin + left * cos,
-        ))
+    let centre = project(Point::new(pose.x_m, pose.y_m));
+    let (sin, cos) = pose.theta_rad.sin_cos();
+    let ahead = project(Point::new(pose.x_m + cos, pose.y_m + sin)) - centre;
+    let metre = ahead.length();
+    if !metre.is_finite() || !centre.is_finite() {
+        return;
+    }
+    let dir = if metre > 0.0 {
+        ahead / metre
+    } else {
+        egui::vec2(1.0, 0.0)
     };
-    let points = vec![at(0.4, 0.0), at(-0.2, 0.22), at(-0.2, -0.22)];
+    let radius = (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0);
+    painter.circle(
+        centre,
+        radius,
+        colour.gamma_multiply(0.35),
+        Stroke::new(2.0, colour),
+    );
+    let side = egui::vec2(-dir.y, dir.x);
+    let points = vec![
+        centre + dir * radius * 0.85,
+        centre - dir * radius * 0.55 + side * radius * 0.55,
+        centre - dir * radius * 0.55 - side * radius * 0.55,
+    ];
     painter.add(egui::Shape::convex_polygon(
         points,
-        colour.gamma_multiply(0.8),
+        colour,
         Stroke::new(1.5, Color32::WHITE),
     ));
 }

@@ -127,6 +127,9 @@ pub enum ModuleState {
     Failed,
     /// Ended on its own, successfully.
     Exited,
+    /// Stopped with the whole run (a monitor's word once the run is over: the run itself
+    /// never reports it).
+    Ended,
 }
 
 impl ModuleState {
@@ -139,6 +142,7 @@ impl ModuleState {
             ModuleState::Restarting => "restarting",
             ModuleState::Failed => "failed",
             ModuleState::Exited => "exited",
+            ModuleState::Ended => "ended with the run",
         }
     }
 }
