@@ -25,6 +25,7 @@ use crate::diagram::Catalog;
 use plan_edit::{Outcome, PlanCommand, PlanEditor, Selection};
 
 pub mod inspector;
+pub mod labels;
 pub mod map;
 pub mod net_view;
 pub mod plan_edit;
