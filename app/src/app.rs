@@ -17,10 +17,8 @@ use egui::{Pos2, RichText, Ui};
 pub use crate::command::View;
 use crate::command::{self, MenuItem, UiCommand};
 use crate::diagram::PinSide;
-use crate::dialogs::{
-    self, PathAnswer, PathDialog, PathPurpose, RecoveryChoice, Replacing, UnsavedChoice,
-};
-use crate::editor::{Command, Editor};
+use crate::dialogs::{PathDialog, PathPurpose, Replacing};
+use crate::editor::Editor;
 use crate::files::{Document, Home, Recovery};
 use crate::mission::MissionView;
 use crate::palette::Palette;
@@ -424,7 +422,8 @@ impl StudioApp {
     // ----- Commands: keys and menus -----
 
     /// The keys of the command table that work in the view shown, then the System view's
-    /// clipboard and the Mission view's tool keys.
+    /// clipboard and the Mission view's tool keys (`mission::TOOL_KEYS`, which its toolbar
+    /// shows).
     fn shortcuts(&mut self, ctx: &egui::Context) {
         // File shortcuts work while typing too; the others would steal the text field's keys.
         let typing = ctx.egui_wants_keyboard_input();
@@ -437,39 +436,19 @@ impl StudioApp {
         }
         match self.view {
             View::System => self.system.clipboard_input(ctx),
-            View::Mission => self.tool_keys(ctx),
+            View::Mission => {
+                let chosen = self.mission.as_mut().and_then(|m| m.tool_key_input(ctx));
+                if let Some(tool) = chosen {
+                    self.set_status(tool.help().to_owned(), false);
+                }
+            }
             View::Run => {}
         }
     }
 
-    /// The map's tools, chosen by the keys of `mission::TOOL_KEYS` (the table its toolbar
-    /// shows).
-    fn tool_keys(&mut self, ctx: &egui::Context) {
-        let Some(mission) = self.mission.as_mut() else {
-            return;
-        };
-        let mut chosen = None;
-        for (key, tool) in crate::mission::TOOL_KEYS {
-            let shortcut = egui::KeyboardShortcut::new(egui::Modifiers::NONE, *key);
-            if ctx.input_mut(|input| input.consume_shortcut(&shortcut)) {
-                mission.set_tool(*tool);
-                chosen = Some(*tool);
-            }
-        }
-        if let Some(tool) = chosen {
-            self.set_status(tool.help().to_owned(), false);
-        }
-    }
-
-    /// Does what `command` means in the view shown (from a menu if `from_menu`, else a key).
+    /// Does what `command` means in the view shown (from a menu if `from_menu`, else a key):
+    /// the run's, the sheet's and the files' here, the edits in the view.
     fn execute(&mut self, command: UiCommand, ctx: &egui::Context, from_menu: bool) {
-        use crate::mission::plan_edit::{PlanCommand, Selection};
-        let edit = match command {
-            UiCommand::Undo => Some((Command::Undo, PlanCommand::Undo)),
-            UiCommand::Redo => Some((Command::Redo, PlanCommand::Redo)),
-            UiCommand::Delete => Some((Command::DeleteSelection, PlanCommand::DeleteSelection)),
-            _ => None,
-        };
         match (self.view, command) {
             (_, UiCommand::Stop) => self.run.stop(),
             (_, UiCommand::Run) => {
@@ -489,28 +468,9 @@ impl StudioApp {
                 self.ask_path(PathPurpose::SaveAs, self.path_text());
             }
             (View::System, UiCommand::ExportPng) => {
-                let text = self
-                    .system
-                    .path
-                    .as_ref()
-                    .map(|path| path.with_extension("png").display().to_string())
-                    .unwrap_or_default();
-                self.ask_path(PathPurpose::ExportPng, text);
+                self.ask_path(PathPurpose::ExportPng, self.system_path_with("png"));
             }
-            (View::System, UiCommand::ZoomToFit) => self.system.zoom_to_fit(),
-            (View::System, UiCommand::Find) => self.system.search = Some(String::new()),
-            (View::System, _) => {
-                let edit = match command {
-                    UiCommand::Cut => Some(Command::Cut),
-                    UiCommand::Copy => Some(Command::Copy),
-                    UiCommand::Paste => Some(Command::Paste),
-                    UiCommand::Duplicate => Some(Command::Duplicate),
-                    UiCommand::SelectAll => Some(Command::SelectAll),
-                    UiCommand::ClearSelection => Some(Command::Select(Default::default())),
-                    _ => edit.map(|(command, _)| command),
-                };
-                self.system.commands.extend(edit);
-            }
+            (View::System, _) => self.system.execute(command),
             (View::Mission, UiCommand::New) => self.replace(Replacing::NewPlan, ctx),
             (View::Mission, UiCommand::Open) => {
                 self.ask_path(PathPurpose::OpenPlan, self.plan_path_text());
@@ -523,10 +483,8 @@ impl StudioApp {
                 self.ask_path(PathPurpose::ImportGpx, String::new());
             }
             (View::Mission, UiCommand::ExportMission) => {
-                self.ask_path(
-                    PathPurpose::ExportMission,
-                    self.plan_path_with("mission.xml"),
-                );
+                let text = self.plan_path_with("mission.xml");
+                self.ask_path(PathPurpose::ExportMission, text);
             }
             (View::Mission, UiCommand::ExportPnml) => {
                 self.ask_path(PathPurpose::ExportPnml, self.plan_path_with("pnml"));
@@ -535,16 +493,8 @@ impl StudioApp {
                 self.ask_path(PathPurpose::ExportMapPng, self.plan_path_with("png"));
             }
             (View::Mission, _) => {
-                let Some(mission) = self.mission.as_mut() else {
-                    return;
-                };
-                match command {
-                    UiCommand::ZoomToFit => mission.map.fit_requested = true,
-                    UiCommand::ClearSelection if mission.map.pending.is_empty() => {
-                        mission.set_tool(crate::mission::Tool::Select);
-                        mission.commands.push(PlanCommand::Select(Selection::None));
-                    }
-                    _ => mission.commands.extend(edit.map(|(_, command)| command)),
+                if let Some(mission) = self.mission.as_mut() {
+                    mission.execute(command);
                 }
             }
             (View::Run, UiCommand::Open) => {
@@ -595,20 +545,6 @@ impl StudioApp {
         });
     }
 
-    fn recent_menu_ui(&mut self, ui: &mut Ui) {
-        ui.menu_button("Open recent", |ui| {
-            let recent = self.home.recent();
-            if recent.is_empty() {
-                ui.label("(none)");
-            }
-            for file in recent {
-                if ui.button(file.display().to_string()).clicked() {
-                    self.replace(Replacing::OpenSystem(file), ui.ctx());
-                }
-            }
-        });
-    }
-
     fn status_ui(&mut self, ui: &mut Ui) {
         ui.horizontal(|ui| {
             let colour = if self.status.is_error {
@@ -618,111 +554,6 @@ impl StudioApp {
             };
             ui.colored_label(colour, &self.status.text);
         });
-    }
-
-    // ----- Dialogs: the window acts on the answers -----
-
-    fn path_ui(&mut self, ui: &mut Ui) {
-        let ctx = &ui.ctx().clone();
-        let Some(dialog) = &mut self.path_dialog else {
-            return;
-        };
-        let purpose = dialog.purpose;
-        match dialog.ui(ctx) {
-            None => {}
-            Some(PathAnswer::Cancel) => {
-                self.path_dialog = None;
-                self.after_save_as = None;
-            }
-            Some(PathAnswer::Submit(path)) => {
-                self.path_dialog = None;
-                if path.as_os_str().is_empty() {
-                    self.set_status("no path given".to_owned(), true);
-                    return;
-                }
-                match purpose {
-                    PathPurpose::Open => self.replace(Replacing::OpenSystem(path), ctx),
-                    PathPurpose::SaveAs => {
-                        self.save(Some(&path));
-                        self.continue_after_save_as(ctx);
-                    }
-                    PathPurpose::ExportPng => self.export_png(ctx, path, View::System),
-                    PathPurpose::OpenPlan => self.replace(Replacing::OpenPlan(path), ctx),
-                    PathPurpose::SavePlanAs => {
-                        self.save_plan(Some(&path));
-                        self.continue_after_save_as(ctx);
-                    }
-                    PathPurpose::ImportGpx => self.with_mission(|m| m.import_gpx(&path)),
-                    PathPurpose::ExportMission => self.with_mission(|m| m.export_mission(&path)),
-                    PathPurpose::ExportPnml => self.with_mission(|m| m.export_pnml(&path)),
-                    PathPurpose::ExportMapPng => self.export_png(ctx, path, View::Mission),
-                    PathPurpose::OpenRecording => self.run.open_recording(&path),
-                }
-            }
-        }
-    }
-
-    /// "Save changes?" before a document is replaced or the window closes, as any editor asks.
-    fn unsaved_ui(&mut self, ui: &mut Ui) {
-        let ctx = ui.ctx().clone();
-        // Closing the window (its close button, or Quit) asks too.
-        if ctx.input(|input| input.viewport().close_requested())
-            && !self.quitting
-            && !self.unsaved_for(&Replacing::Quit).is_empty()
-        {
-            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
-            self.unsaved_prompt = Some(Replacing::Quit);
-        }
-        let Some(action) = self.unsaved_prompt.clone() else {
-            return;
-        };
-        let documents = self.unsaved_for(&action);
-        let names: Vec<String> = documents
-            .iter()
-            .map(|&document| self.document_name(document))
-            .collect();
-        let Some(choice) = dialogs::unsaved_ui(&ctx, &names) else {
-            return;
-        };
-        self.unsaved_prompt = None;
-        match choice {
-            UnsavedChoice::Save => self.save_then(action, &ctx),
-            UnsavedChoice::Discard => {
-                // Given up on purpose: no recovery copy is offered for them next time.
-                for document in documents {
-                    self.home.clear_recovery(document);
-                }
-                self.discard_on_exit = action == Replacing::Quit;
-                self.perform(action, &ctx);
-            }
-            UnsavedChoice::Cancel => self.set_status("kept the unsaved changes".to_owned(), false),
-        }
-    }
-
-    fn recovery_ui(&mut self, ui: &mut Ui) {
-        let Some(recovery) = self.recovery.first().cloned() else {
-            return;
-        };
-        let Some(choice) = dialogs::recovery_ui(ui.ctx(), &recovery) else {
-            return;
-        };
-        self.recovery.remove(0);
-        match choice {
-            RecoveryChoice::Restore if recovery.document == Document::Plan => {
-                // The plan is restored into the Mission view, which exists from its first frame.
-                self.set_view(View::Mission);
-                let ctx = ui.ctx().clone();
-                let mission = self.mission.get_or_insert_with(|| MissionView::new(&ctx));
-                let report = mission.restore(recovery.original.as_deref(), &recovery.text);
-                self.report(report);
-            }
-            RecoveryChoice::Restore => {
-                self.system
-                    .restore(recovery.original.as_deref(), &recovery.text);
-                self.show_system_messages();
-            }
-            RecoveryChoice::Discard => self.home.clear_recovery(recovery.document),
-        }
     }
 }
 

@@ -460,6 +460,83 @@ mod tests {
         }
     }
 
+    /// The menus as they were written by hand before the table made them.
+    #[test]
+    fn menus_read_as_they_always_have() {
+        let labels = |view: View| -> Vec<(&str, Vec<&str>)> {
+            menus(view)
+                .iter()
+                .map(|menu| {
+                    let items = menu.items.iter().map(|item| match item {
+                        MenuItem::Command(command) => command.label(view),
+                        MenuItem::Separator => "---",
+                        MenuItem::Recent => "Open recent",
+                    });
+                    (menu.title, items.collect())
+                })
+                .collect()
+        };
+        let system_file = [
+            "New",
+            "Open…",
+            "Open recent",
+            "Save",
+            "Save as…",
+            "Export PNG…",
+            "Quit",
+        ];
+        let system_edit = [
+            "Undo",
+            "Redo",
+            "Cut",
+            "Copy",
+            "Paste",
+            "Duplicate",
+            "Delete",
+            "Select all",
+        ];
+        let mission_file = [
+            "New plan",
+            "Open plan…",
+            "Save plan",
+            "Save plan as…",
+            "---",
+            "Import GPX…",
+            "Export mission XML…",
+            "Export PNML…",
+            "Export map PNG…",
+            "---",
+            "Quit",
+        ];
+        assert_eq!(
+            labels(View::System),
+            [
+                ("File", system_file.to_vec()),
+                ("Edit", system_edit.to_vec()),
+                (
+                    "View",
+                    vec!["Zoom to fit", "Find block…", "Keyboard shortcuts"]
+                ),
+            ]
+        );
+        assert_eq!(
+            labels(View::Mission),
+            [
+                ("File", mission_file.to_vec()),
+                ("Edit", vec!["Undo", "Redo", "Delete"]),
+            ]
+        );
+        assert_eq!(
+            labels(View::Run),
+            [("Run", vec!["Run", "Stop", "---", "Open recording…"])]
+        );
+        let run_keys: Vec<String> = [UiCommand::Run, UiCommand::Stop, UiCommand::Open]
+            .into_iter()
+            .map(UiCommand::keys_text)
+            .collect();
+        assert_eq!(run_keys, ["F5", "Shift+F5", "Ctrl+O"]);
+    }
+
     #[test]
     fn every_command_is_in_the_table_once() {
         for command in UiCommand::ALL {

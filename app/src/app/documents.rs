@@ -1,13 +1,18 @@
 //! The window's documents (the system and the plan): opening, saving, starting anew, the
 //! recovery copies written while changes are unsaved, and "Save changes?" before either is
 //! replaced or the window closes. The System and Mission views hold the documents; this is
-//! where the window decides what to ask and when (the dialogs themselves are `crate::dialogs`).
+//! where the window decides what to ask and when, and acts on the answers of its dialogs (the
+//! dialogs themselves are `crate::dialogs`).
 
 use std::path::Path;
 use std::time::Instant;
 
-use super::StudioApp;
-use crate::dialogs::{PathDialog, PathPurpose, Replacing};
+use egui::Ui;
+
+use super::{StudioApp, View};
+use crate::dialogs::{
+    self, PathAnswer, PathDialog, PathPurpose, RecoveryChoice, Replacing, UnsavedChoice,
+};
 use crate::files::Document;
 use crate::mission::MissionView;
 
@@ -154,6 +159,15 @@ impl StudioApp {
             .unwrap_or_default()
     }
 
+    /// What `extension` would make of the system's file name (a default for its picture).
+    pub(super) fn system_path_with(&self, extension: &str) -> String {
+        self.system
+            .path
+            .as_ref()
+            .map(|path| path.with_extension(extension).display().to_string())
+            .unwrap_or_default()
+    }
+
     /// What `extension` would make of the plan's file name (a default for its exports).
     pub(super) fn plan_path_with(&self, extension: &str) -> String {
         self.mission
@@ -256,5 +270,125 @@ impl StudioApp {
             || format!("the new {}", document.noun()),
             |name| format!("“{}”", name.to_string_lossy()),
         )
+    }
+
+    /// File, Open recent: the system files opened last.
+    pub(super) fn recent_menu_ui(&mut self, ui: &mut Ui) {
+        ui.menu_button("Open recent", |ui| {
+            let recent = self.home.recent();
+            if recent.is_empty() {
+                ui.label("(none)");
+            }
+            for file in recent {
+                if ui.button(file.display().to_string()).clicked() {
+                    self.replace(Replacing::OpenSystem(file), ui.ctx());
+                }
+            }
+        });
+    }
+
+    // ----- Dialogs: the window acts on the answers -----
+
+    pub(super) fn path_ui(&mut self, ui: &mut Ui) {
+        let ctx = &ui.ctx().clone();
+        let Some(dialog) = &mut self.path_dialog else {
+            return;
+        };
+        let purpose = dialog.purpose;
+        match dialog.ui(ctx) {
+            None => {}
+            Some(PathAnswer::Cancel) => {
+                self.path_dialog = None;
+                self.after_save_as = None;
+            }
+            Some(PathAnswer::Submit(path)) => {
+                self.path_dialog = None;
+                if path.as_os_str().is_empty() {
+                    self.set_status("no path given".to_owned(), true);
+                    return;
+                }
+                match purpose {
+                    PathPurpose::Open => self.replace(Replacing::OpenSystem(path), ctx),
+                    PathPurpose::SaveAs => {
+                        self.save(Some(&path));
+                        self.continue_after_save_as(ctx);
+                    }
+                    PathPurpose::ExportPng => self.export_png(ctx, path, View::System),
+                    PathPurpose::OpenPlan => self.replace(Replacing::OpenPlan(path), ctx),
+                    PathPurpose::SavePlanAs => {
+                        self.save_plan(Some(&path));
+                        self.continue_after_save_as(ctx);
+                    }
+                    PathPurpose::ImportGpx => self.with_mission(|m| m.import_gpx(&path)),
+                    PathPurpose::ExportMission => self.with_mission(|m| m.export_mission(&path)),
+                    PathPurpose::ExportPnml => self.with_mission(|m| m.export_pnml(&path)),
+                    PathPurpose::ExportMapPng => self.export_png(ctx, path, View::Mission),
+                    PathPurpose::OpenRecording => self.run.open_recording(&path),
+                }
+            }
+        }
+    }
+
+    /// "Save changes?" before a document is replaced or the window closes, as any editor asks.
+    pub(super) fn unsaved_ui(&mut self, ui: &mut Ui) {
+        let ctx = ui.ctx().clone();
+        // Closing the window (its close button, or Quit) asks too.
+        if ctx.input(|input| input.viewport().close_requested())
+            && !self.quitting
+            && !self.unsaved_for(&Replacing::Quit).is_empty()
+        {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.unsaved_prompt = Some(Replacing::Quit);
+        }
+        let Some(action) = self.unsaved_prompt.clone() else {
+            return;
+        };
+        let documents = self.unsaved_for(&action);
+        let names: Vec<String> = documents
+            .iter()
+            .map(|&document| self.document_name(document))
+            .collect();
+        let Some(choice) = dialogs::unsaved_ui(&ctx, &names) else {
+            return;
+        };
+        self.unsaved_prompt = None;
+        match choice {
+            UnsavedChoice::Save => self.save_then(action, &ctx),
+            UnsavedChoice::Discard => {
+                // Given up on purpose: no recovery copy is offered for them next time.
+                for document in documents {
+                    self.home.clear_recovery(document);
+                }
+                self.discard_on_exit = action == Replacing::Quit;
+                self.perform(action, &ctx);
+            }
+            UnsavedChoice::Cancel => self.set_status("kept the unsaved changes".to_owned(), false),
+        }
+    }
+
+    pub(super) fn recovery_ui(&mut self, ui: &mut Ui) {
+        let Some(recovery) = self.recovery.first().cloned() else {
+            return;
+        };
+        let Some(choice) = dialogs::recovery_ui(ui.ctx(), &recovery) else {
+            return;
+        };
+        self.recovery.remove(0);
+        match choice {
+            RecoveryChoice::Restore if recovery.document == Document::Plan => {
+                // The plan is restored into the Mission view, which exists from its first frame.
+                self.set_view(View::Mission);
+                let ctx = ui.ctx().clone();
+                let mission = self.mission.get_or_insert_with(|| MissionView::new(&ctx));
+                let report = mission.restore(recovery.original.as_deref(), &recovery.text);
+                self.report(report);
+            }
+            RecoveryChoice::Restore => {
+                self.system
+                    .restore(recovery.original.as_deref(), &recovery.text);
+                self.show_system_messages();
+            }
+            RecoveryChoice::Discard => self.home.clear_recovery(recovery.document),
+        }
     }
 }

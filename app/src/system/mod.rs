@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 
 use egui::{Color32, Pos2, Ui};
 
+use crate::command::UiCommand;
 use crate::diagram::{BlockId, Catalog, Diagram, Pin, PinSide};
 use crate::editor::{Command, Editor, Outcome};
 use crate::files::{self, Document, Home};
@@ -46,9 +47,9 @@ pub struct SystemView {
     flagged: BTreeSet<BlockId>,
     pub(crate) canvas: Canvas,
     /// Edits queued by this frame's widgets, applied after it.
-    pub(crate) commands: Vec<Command>,
+    commands: Vec<Command>,
     params: Option<params::ParamsDialog>,
-    pub(crate) search: Option<String>,
+    search: Option<String>,
     last_autosave: Option<Instant>,
     autosaved_revision: Option<u64>,
     /// What the view has to say on the status line (text, is an error), taken by the window.
@@ -218,6 +219,32 @@ impl SystemView {
     }
 
     // ----- The view -----
+
+    /// Does a command of the table that edits or moves about the diagram (the window does the
+    /// files' and the run's).
+    pub fn execute(&mut self, command: UiCommand) {
+        let edit = match command {
+            UiCommand::Undo => Command::Undo,
+            UiCommand::Redo => Command::Redo,
+            UiCommand::Cut => Command::Cut,
+            UiCommand::Copy => Command::Copy,
+            UiCommand::Paste => Command::Paste,
+            UiCommand::Duplicate => Command::Duplicate,
+            UiCommand::Delete => Command::DeleteSelection,
+            UiCommand::SelectAll => Command::SelectAll,
+            UiCommand::ClearSelection => Command::Select(BTreeSet::new()),
+            UiCommand::ZoomToFit => {
+                self.zoom_to_fit();
+                return;
+            }
+            UiCommand::Find => {
+                self.search = Some(String::new());
+                return;
+            }
+            _ => return,
+        };
+        self.commands.push(edit);
+    }
 
     pub fn zoom_to_fit(&mut self) {
         self.canvas.view_request = self.canvas.bounds(&self.editor.diagram, None);
