@@ -1021,13 +1021,11 @@ fn draw_scale(
     if !(points_per_metre.is_finite() && points_per_metre > 0.0) {
         return None;
     }
-    let Some(metres) = [
+    let metres = [
         0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0,
     ]
     .into_iter()
-    .find(|m| m * points_per_metre >= 60.0) else {
-        return None;
-    };
+    .find(|m| m * points_per_metre >= 60.0)?;
     let length = metres * points_per_metre;
     let left = rect.left_bottom() + vec2(16.0, -18.0);
     let stroke = Stroke::new(2.0, TACTICAL);
