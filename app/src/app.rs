@@ -392,6 +392,36 @@ impl StudioApp {
         }
     }
 
+    /// The window's title: the document of the view shown, or in the Run view what runs (or
+    /// ran last).
+    fn window_title(&self) -> String {
+        let name = |path: Option<&Path>| {
+            path.and_then(Path::file_name).map_or_else(
+                || "untitled".to_owned(),
+                |name| name.to_string_lossy().into_owned(),
+            )
+        };
+        if self.view == View::Run
+            && let Some(target) = self.run.session_target()
+        {
+            let state = if self.run.is_running() {
+                "running"
+            } else {
+                "run ended"
+            };
+            return format!("{} ({state}) — ArMoR Studio", name(Some(target)));
+        }
+        let (path, dirty) = match (self.view, &self.mission) {
+            (View::Mission, Some(mission)) => (mission.path(), mission.is_dirty()),
+            _ => (self.system.path.as_deref(), self.system.dirty),
+        };
+        format!(
+            "{}{} — ArMoR Studio",
+            if dirty { "*" } else { "" },
+            name(path)
+        )
+    }
+
     fn after_frame(&mut self, ctx: &egui::Context) {
         // The title follows the document of the view shown.
         let revision = match (self.view, &self.mission) {
@@ -401,19 +431,11 @@ impl StudioApp {
         if self.seen_revision != Some(revision) {
             self.seen_revision = Some(revision);
             self.system.dirty = self.system.editor.diagram != self.system.saved;
-            let (path, dirty) = match (self.view, &self.mission) {
-                (View::Mission, Some(mission)) => (mission.path(), mission.is_dirty()),
-                _ => (self.system.path.as_deref(), self.system.dirty),
-            };
-            let file = path.and_then(Path::file_name).map_or_else(
-                || "untitled".to_owned(),
-                |name| name.to_string_lossy().into(),
-            );
-            let title = format!("{}{file} — ArMoR Studio", if dirty { "*" } else { "" });
-            if title != self.title {
-                ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
-                self.title = title;
-            }
+        }
+        let title = self.window_title();
+        if title != self.title {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
+            self.title = title;
         }
         self.system.update_problems(&self.palette);
         self.autosave(ctx);

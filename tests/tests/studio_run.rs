@@ -163,6 +163,7 @@ fn a_plan_run_from_the_run_view_reaches_its_final_place() {
         truth_x(app).is_some()
     });
     harness.run_ok();
+    assert_eq!(harness.state().title(), "plan.xml (running) — ArMoR Studio");
     let truth = harness.state().run().live().truth.unwrap();
     let (robot, map) = harness
         .state()
@@ -177,6 +178,11 @@ fn a_plan_run_from_the_run_view_reaches_its_final_place() {
     step_until(&mut harness, "the run to end", PATIENCE, |app| {
         app.run().ended().is_some()
     });
+    harness.run_ok();
+    assert_eq!(
+        harness.state().title(),
+        "plan.xml (run ended) — ArMoR Studio"
+    );
     let status = status(harness.state());
     // Once the run is over no module reads "running".
     for module in &status.modules {

@@ -137,6 +137,13 @@ impl RunView {
         Some(status)
     }
 
+    /// The file the current (or last) run runs.
+    pub fn session_target(&self) -> Option<&Path> {
+        self.session
+            .as_ref()
+            .map(|session| session.options.target.as_path())
+    }
+
     /// The live data shown (the run's, or the recording's).
     pub fn live(&self) -> LiveData {
         match (&self.session, &self.recording) {
