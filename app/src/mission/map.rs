@@ -47,6 +47,9 @@ pub struct MapState {
     pub fit_requested: bool,
     bounds: Option<(LatLon, LatLon)>,
     projector: Option<Projector>,
+    /// The labels' boxes drawn at the last frame, and how long placing them took.
+    pub label_boxes: Vec<Rect>,
+    pub label_time: std::time::Duration,
     /// A handle being dragged and the plan before the drag.
     drag: Option<(Handle, Box<Plan>)>,
     /// What a right-click picked, for its menu.
@@ -68,6 +71,8 @@ impl MapState {
             fit_requested: true,
             bounds: None,
             projector: None,
+            label_boxes: Vec::new(),
+            label_time: std::time::Duration::ZERO,
             drag: None,
             context: Selection::None,
         }
@@ -161,6 +166,11 @@ impl MissionView {
         if at.lat_deg.is_finite() && at.lon_deg.is_finite() {
             self.map.memory.center_at(position(at));
         }
+    }
+
+    /// The boxes of the labels drawn at the last frame (none overlaps another).
+    pub fn label_boxes(&self) -> &[Rect] {
+        &self.map.label_boxes
     }
 
     /// Where `point` of the world frame (metres) was drawn at the last frame, and the map's
@@ -292,11 +302,13 @@ impl MissionView {
             );
             let scale = draw_scale(&painter, response.rect, projector, origin);
             labels.obstacles.extend(scale);
-            labels.draw(&painter);
+            let drawn = labels.draw(&painter);
             overlay(&painter, &|p: Point| project(LatLon::from_local(p, origin)));
-            (scene, projector.clone())
+            (scene, projector.clone(), drawn)
         });
-        let (scene, projector) = response.inner;
+        let (scene, projector, (label_boxes, label_time)) = response.inner;
+        self.map.label_boxes = label_boxes;
+        self.map.label_time = label_time;
         let response = response.response;
         self.map.rect = response.rect;
         self.map.projector = Some(projector.clone());
@@ -662,7 +674,9 @@ impl Labels {
         });
     }
 
-    fn draw(self, painter: &egui::Painter) {
+    /// Places and draws the labels; returns their boxes and the time the placement took.
+    fn draw(self, painter: &egui::Painter) -> (Vec<Rect>, std::time::Duration) {
+        let started = std::time::Instant::now();
         let mut measure = |text: &str| {
             painter
                 .layout_no_wrap(text.to_owned(), LABEL_FONT, Color32::BLACK)
@@ -674,6 +688,8 @@ impl Labels {
             painter.clip_rect(),
             &mut measure,
         );
+        let took = started.elapsed();
+        let boxes = placed.iter().map(|label| label.rect).collect();
         for label in placed {
             if let Some(leader) = label.leader {
                 painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
@@ -682,6 +698,7 @@ impl Labels {
             painter.rect_filled(label.rect, 2.0, LABEL_BACK);
             painter.galley(label.rect.min + vec2(2.0, 2.0), galley, label.colour);
         }
+        (boxes, took)
     }
 }
 

@@ -243,6 +243,12 @@ const BENCHES: &[Bench] = &[
         run: studio::run_map,
     },
     Bench {
+        name: studio::NAME_LABELS,
+        about: "placing the Mission view's labels (no overlaps) of a 500-waypoint plan, in one \
+                frame (ms; goal < 5)",
+        run: studio::run_labels,
+    },
+    Bench {
         name: studio::NAME_VS_SNARL,
         about: "one frame of armor-studio's diagram vs a bare egui-snarl viewer on the same \
                 1,000-block graph and view (ms; goal ratio <= 0.5; also 100 and 500 blocks)",
