@@ -43,6 +43,10 @@ impl PathPurpose {
 pub struct PathDialog {
     pub purpose: PathPurpose,
     pub text: String,
+    /// The native dialog was offered (at the first frame), and the path field follows.
+    native_offered: bool,
+    /// The path field's text was selected, so that typing replaces it.
+    selected: bool,
 }
 
 /// What the user did with the path dialog.
@@ -51,7 +55,73 @@ pub enum PathAnswer {
     Cancel,
 }
 
+impl PathPurpose {
+    fn saves(self) -> bool {
+        !matches!(
+            self,
+            PathPurpose::Open
+                | PathPurpose::OpenPlan
+                | PathPurpose::ImportGpx
+                | PathPurpose::OpenRecording
+        )
+    }
+
+    /// The file types offered by the native dialog: (name, extensions).
+    fn filter(self) -> (&'static str, &'static [&'static str]) {
+        match self {
+            PathPurpose::Open | PathPurpose::SaveAs => ("System (XML)", &["xml"]),
+            PathPurpose::OpenPlan | PathPurpose::SavePlanAs => ("Plan (XML)", &["xml"]),
+            PathPurpose::ExportMission => ("Mission (XML)", &["xml"]),
+            PathPurpose::ExportPnml => ("PNML", &["pnml", "xml"]),
+            PathPurpose::ExportPng | PathPurpose::ExportMapPng => ("Picture (PNG)", &["png"]),
+            PathPurpose::ImportGpx => ("GPX", &["gpx"]),
+            PathPurpose::OpenRecording => ("Recording (MCAP)", &["mcap"]),
+        }
+    }
+}
+
+/// Whether the desktop can show a native file dialog: a session bus and a desktop that runs
+/// the file-chooser portal. Elsewhere (a bare X server, a test) the path is typed, and
+/// `ARMOR_STUDIO_TYPED_PATHS=1` asks for that everywhere.
+fn native_dialogs() -> bool {
+    let set = |name: &str| std::env::var_os(name).is_some_and(|value| !value.is_empty());
+    set("DBUS_SESSION_BUS_ADDRESS")
+        && set("XDG_CURRENT_DESKTOP")
+        && !std::env::var("ARMOR_STUDIO_TYPED_PATHS").is_ok_and(|value| value == "1")
+}
+
 impl PathDialog {
+    pub fn new(purpose: PathPurpose, text: String) -> PathDialog {
+        PathDialog {
+            purpose,
+            text,
+            native_offered: false,
+            selected: false,
+        }
+    }
+
+    /// The desktop's own dialog (the `rfd` crate, through the XDG portal), where there is one:
+    /// `Some` path chosen; `None` when there is none or the user closed it, and then the path
+    /// is typed.
+    fn native(&self, title: &str) -> Option<PathBuf> {
+        let typed = PathBuf::from(self.text.trim());
+        let (name, extensions) = self.purpose.filter();
+        let mut dialog = rfd::FileDialog::new()
+            .set_title(title)
+            .add_filter(name, extensions);
+        if let Some(folder) = typed.parent().filter(|folder| folder.is_dir()) {
+            dialog = dialog.set_directory(folder);
+        }
+        if let Some(file) = typed.file_name() {
+            dialog = dialog.set_file_name(file.to_string_lossy());
+        }
+        if self.purpose.saves() {
+            dialog.save_file()
+        } else {
+            dialog.pick_file()
+        }
+    }
+
     /// Shows the dialog; the answer once the user has given one.
     pub fn ui(&mut self, ctx: &egui::Context) -> Option<PathAnswer> {
         let dialog = self;
@@ -67,6 +137,14 @@ impl PathDialog {
             PathPurpose::ExportMapPng => ("Export the map (PNG)", "Export"),
             PathPurpose::OpenRecording => ("Open a recording (MCAP)", "Open"),
         };
+        if !dialog.native_offered {
+            dialog.native_offered = true;
+            if native_dialogs()
+                && let Some(path) = dialog.native(title)
+            {
+                return Some(PathAnswer::Submit(path));
+            }
+        }
         let mut submit = false;
         let mut cancel = false;
         egui::Window::new(title)
@@ -83,6 +161,20 @@ impl PathDialog {
                     .labelled_by(label.id);
                 if !edit.has_focus() && !edit.lost_focus() {
                     edit.request_focus();
+                }
+                // The path offered is selected: typing replaces it, an arrow key keeps it.
+                if !dialog.selected
+                    && let Some(mut state) = egui::text_edit::TextEditState::load(ui.ctx(), edit.id)
+                {
+                    let end = dialog.text.chars().count();
+                    state
+                        .cursor
+                        .set_char_range(Some(egui::text::CCursorRange::two(
+                            egui::text::CCursor::new(0),
+                            egui::text::CCursor::new(end),
+                        )));
+                    state.store(ui.ctx(), edit.id);
+                    dialog.selected = true;
                 }
                 if edit.lost_focus() && ui.input(|input| input.key_pressed(Key::Enter)) {
                     submit = true;

@@ -181,16 +181,13 @@ pub fn open(file: &Path) -> anyhow::Result<Diagram> {
 }
 
 /// Saves a diagram, refusing while a required parameter is unset, and naming each one.
-pub fn save(file: &Path, diagram: &Diagram, catalog: &Catalog) -> anyhow::Result<()> {
-    let missing = diagram.all_missing_required(catalog);
-    if !missing.is_empty() {
-        anyhow::bail!(
-            "not saved: required parameters are unset: {}",
-            missing.join(", ")
-        );
-    }
+/// Saves `diagram` to `file` (atomically: a failed save leaves the file as it was). A system
+/// with required parameters unset is saved all the same, as a draft that `armor check` and
+/// `armor run` refuse with the reasons: the parameters unset are returned for the warning.
+pub fn save(file: &Path, diagram: &Diagram, catalog: &Catalog) -> anyhow::Result<Vec<String>> {
     armor_runtime::fs::write_atomically(file, diagram.to_xml().as_bytes())
-        .with_context(|| format!("cannot save {}", file.display()))
+        .with_context(|| format!("cannot save {}", file.display()))?;
+    Ok(diagram.all_missing_required(catalog))
 }
 
 #[cfg(test)]
@@ -201,7 +198,7 @@ mod tests {
     use armor_module_api::describe::{ParamSpec, ParamType};
 
     #[test]
-    fn a_refused_or_failed_save_leaves_the_file_as_it_was() {
+    fn a_draft_is_saved_with_what_it_lacks_and_a_failed_save_changes_nothing() {
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("system.xml");
         std::fs::write(&file, "the good version").unwrap();
@@ -211,12 +208,13 @@ mod tests {
         let catalog: Catalog = [("nav".to_owned(), nav)].into_iter().collect();
         let mut diagram = Diagram::default();
         let id = diagram.add_block("nav", [0.0, 0.0]);
-        let err = save(&file, &diagram, &catalog).unwrap_err();
-        assert!(format!("{err:#}").contains("nav.goal_m"), "{err:#}");
-        assert_eq!(std::fs::read_to_string(&file).unwrap(), "the good version");
-        diagram.set_param(id, "goal_m", Some("3".into()));
         assert!(save(&dir.path().join("missing/system.xml"), &diagram, &catalog).is_err());
-        save(&file, &diagram, &catalog).unwrap();
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "the good version");
+        let missing = save(&file, &diagram, &catalog).unwrap();
+        assert_eq!(missing, ["nav.goal_m"]);
+        assert_eq!(open(&file).unwrap(), diagram);
+        diagram.set_param(id, "goal_m", Some("3".into()));
+        assert!(save(&file, &diagram, &catalog).unwrap().is_empty());
         assert_eq!(open(&file).unwrap(), diagram);
     }
 

@@ -65,7 +65,8 @@ fn build_link_set_parameters_save_and_reopen() {
     assert_eq!(harness.state().editor().diagram.links().count(), 1);
     harness.get_by_label_contains("cannot link two inputs");
 
-    // The follower has two required parameters unset; saving refuses and names them.
+    // The follower has two required parameters unset: saving writes a draft and names them,
+    // and `armor check` refuses the draft with the reasons.
     harness.get_by_label("2 required unset");
     let file = dir.path().join("robot.xml");
     harness.key_press_modifiers(Modifiers::COMMAND, Key::S);
@@ -74,9 +75,19 @@ fn build_link_set_parameters_save_and_reopen() {
     harness.key_press(Key::Enter);
     harness.run();
     harness.get_by_label_contains(
-        "required parameters are unset: follower.goal_x_m, follower.goal_y_m",
+        "as a draft: required parameters unset: follower.goal_x_m, follower.goal_y_m",
     );
-    assert!(!file.exists());
+    let draft = armor_model::SystemConfig::parse(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    let draft_problems = armor_model::check(
+        &draft,
+        &armor_studio::palette::Palette::from_descriptions(descriptions()).catalog,
+    );
+    assert!(
+        draft_problems
+            .iter()
+            .any(|problem| problem.message.contains("goal_x_m")),
+        "{draft_problems:?}"
+    );
 
     // Double-click the follower: its parameters, checked as they are typed.
     let at = harness.state().block_pos("follower").unwrap();
@@ -109,6 +120,12 @@ fn build_link_set_parameters_save_and_reopen() {
     harness.get_by_label("1 required unset");
     type_into(&mut harness, "goal_y_m", "-2");
     assert!(harness.query_by_label("1 required unset").is_none());
+    // The draft's warning is gone with its cause.
+    assert!(
+        !harness.state().status().text.contains("draft"),
+        "{}",
+        harness.state().status().text
+    );
     // And a new name, unique.
     let name = harness.get_by_label("Name");
     name.click();
@@ -123,13 +140,14 @@ fn build_link_set_parameters_save_and_reopen() {
     harness.get_by_label("Close").click();
     harness.run();
 
-    // Save through the typed path: the file is what `armor check` accepts.
+    // Save again, to the draft's file: now complete, what `armor check` accepts.
     harness.key_press_modifiers(Modifiers::COMMAND, Key::S);
     harness.run();
-    type_into(&mut harness, "Path:", &file.display().to_string());
-    harness.key_press(Key::Enter);
-    harness.run();
-    assert!(file.exists(), "{}", harness.state().status().text);
+    assert!(harness.query_by_label("Path:").is_none(), "the file is known");
+    assert_eq!(
+        harness.state().status().text,
+        format!("saved {}", file.display())
+    );
     assert_eq!(harness.state().title(), "robot.xml — ArMoR Studio");
     let text = std::fs::read_to_string(&file).unwrap();
     let system = armor_model::SystemConfig::parse(&text).unwrap();
@@ -676,4 +694,33 @@ fn blocks_are_dragged_in_the_overview_too() {
     let now = harness.state().block_pos("relay_200").unwrap();
     let panned = now - seen;
     assert!(panned.x > 25.0 && panned.y < -15.0, "{seen:?} → {now:?}");
+}
+
+#[test]
+fn a_path_offered_in_the_dialog_is_replaced_by_what_is_typed() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("first.xml");
+    std::fs::write(
+        &first,
+        r#"<system name="s"><module name="counter" type="counter"/></system>"#,
+    )
+    .unwrap();
+    let mut harness = harness(options(&dir.path().join("home"), Some(first.clone())));
+    harness.run();
+    // Save as: the dialog offers the current path, selected; typing replaces it whole.
+    harness.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, Key::S);
+    harness.run();
+    let second = dir.path().join("second.xml");
+    harness
+        .get_by_label("Path:")
+        .type_text(&second.display().to_string());
+    harness.run();
+    harness.key_press(Key::Enter);
+    harness.run();
+    assert!(
+        second.exists(),
+        "saved where typed: {}",
+        harness.state().status().text
+    );
+    assert_eq!(harness.state().title(), "second.xml — ArMoR Studio");
 }

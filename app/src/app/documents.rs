@@ -182,7 +182,7 @@ impl StudioApp {
             format!("{}: type a path, then Enter", purpose.what()),
             false,
         );
-        self.path_dialog = Some(PathDialog { purpose, text });
+        self.path_dialog = Some(PathDialog::new(purpose, text));
     }
 
     // ----- Unsaved changes -----

@@ -52,6 +52,8 @@ pub struct SystemView {
     search: Option<String>,
     last_autosave: Option<Instant>,
     autosaved_revision: Option<u64>,
+    /// The last save was a draft (required parameters unset), and the status line says so.
+    draft_saved: bool,
     /// What the view has to say on the status line (text, is an error), taken by the window.
     messages: Vec<(String, bool)>,
 }
@@ -121,6 +123,20 @@ impl SystemView {
             self.problems =
                 validation::validate(&self.editor.diagram, &palette.catalog, &palette.broken);
             self.flagged = self.problems.iter().filter_map(|p| p.block).collect();
+            // The draft's warning goes once its cause does.
+            if self.draft_saved
+                && self
+                    .editor
+                    .diagram
+                    .all_missing_required(&palette.catalog)
+                    .is_empty()
+            {
+                self.draft_saved = false;
+                self.set_status(
+                    "every required parameter is set (save to make the file complete)".to_owned(),
+                    false,
+                );
+            }
         }
     }
 
@@ -148,7 +164,7 @@ impl SystemView {
     /// Saves to `file`; whether it was saved.
     pub fn save(&mut self, file: PathBuf, home: &Home, catalog: &Catalog) -> bool {
         match files::save(&file, &self.editor.diagram, catalog) {
-            Ok(()) => {
+            Ok(missing) => {
                 self.saved = self.editor.diagram.clone();
                 self.path = Some(file.clone());
                 home.clear_recovery(Document::System);
@@ -156,7 +172,20 @@ impl SystemView {
                 if let Err(err) = home.add_recent(&file) {
                     tracing::warn!("{err:#}");
                 }
-                self.set_status(format!("saved {}", file.display()), false);
+                if missing.is_empty() {
+                    self.set_status(format!("saved {}", file.display()), false);
+                } else {
+                    self.set_status(
+                        format!(
+                            "saved {} as a draft: required parameters unset: {} (armor check and \
+                             armor run refuse it until they are set)",
+                            file.display(),
+                            missing.join(", ")
+                        ),
+                        true,
+                    );
+                }
+                self.draft_saved = !missing.is_empty();
                 true
             }
             Err(err) => {
