@@ -143,7 +143,10 @@ fn build_link_set_parameters_save_and_reopen() {
     // Save again, to the draft's file: now complete, what `armor check` accepts.
     harness.key_press_modifiers(Modifiers::COMMAND, Key::S);
     harness.run();
-    assert!(harness.query_by_label("Path:").is_none(), "the file is known");
+    assert!(
+        harness.query_by_label("Path:").is_none(),
+        "the file is known"
+    );
     assert_eq!(
         harness.state().status().text,
         format!("saved {}", file.display())

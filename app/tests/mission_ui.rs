@@ -381,3 +381,39 @@ fn the_bundled_plans_labels_never_overlap_at_the_first_frame() {
         }
     }
 }
+
+#[test]
+fn a_waypoint_is_placed_by_typing_metres_or_degrees_in_the_inspector() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    harness.key_press(Key::W);
+    harness.run();
+    let p = at(&harness, 4.0, 4.0);
+    tap(&mut harness, p);
+    harness.key_press(Key::V);
+    harness.run();
+    let p = at(&harness, 4.0, 4.0);
+    tap(&mut harness, p);
+    harness.get_by_label("Waypoint wp1");
+    // Metres east and north of the world's origin.
+    let east = harness.get_by_label("East (m)");
+    east.click();
+    harness.run();
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    harness.get_by_label("East (m)").type_text("10.5");
+    harness.run();
+    let (x, y) = local(&harness, "wp1");
+    assert!(
+        (x - 10.5).abs() < 1e-6 && (y - 4.0).abs() < 0.2,
+        "({x}, {y})"
+    );
+    // A number out of range is refused, and said so.
+    harness.get_by_label("Latitude (°)").click();
+    harness.run();
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    harness.get_by_label("Latitude (°)").type_text("123");
+    harness.run();
+    harness.get_by_label("latitude: a number from -90 to 90");
+    let (x2, _) = local(&harness, "wp1");
+    assert!((x2 - 10.5).abs() < 1e-6);
+}

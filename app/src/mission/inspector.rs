@@ -5,11 +5,13 @@
 
 use std::collections::BTreeMap;
 
+use armor_model::geo::LatLon;
 use armor_model::net::{format_rfc3339, parse_rfc3339};
 use armor_model::plan::{
     Action, ActionModule, ActionParam, AreaKind, Contingency, GraphicKind, Leg, Plan, Response,
     Trigger,
 };
+use armor_model::world::Point;
 use armor_module_api::describe::is_identifier;
 use egui::{Color32, RichText, Ui};
 
@@ -146,6 +148,7 @@ impl MissionView {
             self.inspector.drafts_for = selection.clone();
         }
         let modules = self.surroundings.module_names();
+        let origin = self.surroundings.origin(&self.editor.plan);
         let mut edits = Edits {
             plan: &self.editor.plan,
             commands: Vec::new(),
@@ -208,10 +211,8 @@ impl MissionView {
                     if let Some(Ok(symbol)) = waypoint.symbol.as_deref().map(symbols::parse) {
                         ui.label(RichText::new(symbol.describe()).weak());
                     }
-                    ui.label(format!(
-                        "{:.7}°, {:.7}° (drag it on the map)",
-                        waypoint.position.lat_deg, waypoint.position.lon_deg
-                    ));
+                    position_fields(ui, drafts, &mut edits, &name, waypoint.position, origin);
+                    ui.label(RichText::new("or drag it on the map").weak());
                 }
                 Selection::Leg(index) => {
                     let Some(leg) = edits.plan.legs.get(index).cloned() else {
@@ -435,6 +436,74 @@ impl MissionView {
                     );
                 }
             });
+    }
+}
+
+/// A waypoint's position, editable as latitude and longitude (degrees) and as metres east and
+/// north of the world's origin (the frame the sim and the planner use).
+fn position_fields(
+    ui: &mut Ui,
+    drafts: &mut BTreeMap<String, String>,
+    edits: &mut Edits,
+    name: &str,
+    at: LatLon,
+    origin: LatLon,
+) {
+    let local = at.to_local(origin);
+    let number = |range: std::ops::RangeInclusive<f64>, what: &'static str| {
+        move |text: &str| match text.parse::<f64>() {
+            Ok(value) if value.is_finite() && range.contains(&value) => Ok(value),
+            _ => Err(format!(
+                "{what}: a number from {} to {}",
+                range.start(),
+                range.end()
+            )),
+        }
+    };
+    let fields: [(&str, &str, f64, Box<dyn Fn(f64) -> LatLon>, _); 4] = [
+        (
+            "Latitude (°)",
+            "wp-lat",
+            at.lat_deg,
+            Box::new(move |lat| LatLon::new(lat, at.lon_deg)),
+            number(-90.0..=90.0, "latitude"),
+        ),
+        (
+            "Longitude (°)",
+            "wp-lon",
+            at.lon_deg,
+            Box::new(move |lon| LatLon::new(at.lat_deg, lon)),
+            number(-180.0..=180.0, "longitude"),
+        ),
+        (
+            "East (m)",
+            "wp-east",
+            local.x,
+            Box::new(move |x| LatLon::from_local(Point::new(x, local.y), origin)),
+            number(-1e6..=1e6, "metres east"),
+        ),
+        (
+            "North (m)",
+            "wp-north",
+            local.y,
+            Box::new(move |y| LatLon::from_local(Point::new(local.x, y), origin)),
+            number(-1e6..=1e6, "metres north"),
+        ),
+    ];
+    for (label, key, current, place, parse) in fields {
+        let shown = if key.ends_with("lat") || key.ends_with("lon") {
+            format!("{current:.7}")
+        } else {
+            format!("{current:.2}")
+        };
+        if let Some(value) = parsed_field(ui, drafts, label, key, shown, "", parse) {
+            let position = place(value);
+            edits.change(key, |plan| {
+                if let Some(w) = plan.waypoints.iter_mut().find(|w| w.name == name) {
+                    w.position = position;
+                }
+            });
+        }
     }
 }
 
