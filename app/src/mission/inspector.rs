@@ -439,6 +439,16 @@ impl MissionView {
     }
 }
 
+/// A field of a waypoint's position: label, key, value, where the waypoint goes for a new
+/// value, and how the text is read.
+type PositionField<P> = (
+    &'static str,
+    &'static str,
+    f64,
+    Box<dyn Fn(f64) -> LatLon>,
+    P,
+);
+
 /// A waypoint's position, editable as latitude and longitude (degrees) and as metres east and
 /// north of the world's origin (the frame the sim and the planner use).
 fn position_fields(
@@ -460,7 +470,7 @@ fn position_fields(
             )),
         }
     };
-    let fields: [(&str, &str, f64, Box<dyn Fn(f64) -> LatLon>, _); 4] = [
+    let fields: [PositionField<_>; 4] = [
         (
             "Latitude (°)",
             "wp-lat",
