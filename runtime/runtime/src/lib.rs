@@ -16,6 +16,7 @@ pub mod mission;
 pub mod probe;
 pub mod process;
 pub mod replay;
+pub mod restart;
 pub mod supervisor;
 
 /// The agent's first line on stdout, followed by the address it listens on.

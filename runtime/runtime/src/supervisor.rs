@@ -3,7 +3,7 @@
 //! Ctrl-C or SIGTERM. Children are in their own process group (Ctrl-C reaches only the
 //! supervisor, which stops them in order) and die with it if it is killed (`PR_SET_PDEATHSIG`).
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::io::{BufRead as _, BufReader, Read, Write as _};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -27,13 +27,9 @@ use crate::controller::{Controller, Outcome};
 use crate::load::{Diagnostics, Loaded, load_system};
 use crate::mission::{DocumentKind, LoadedMission, document_kind, load_mission};
 use crate::probe;
+use crate::restart::{AfterCrash, Backoff, CRASH_WINDOW, FIRST_BACKOFF, MAX_BACKOFF};
 
 const TICK: Duration = Duration::from_millis(20);
-const FIRST_BACKOFF: Duration = Duration::from_millis(100);
-const MAX_BACKOFF: Duration = Duration::from_secs(5);
-/// More crashes than this within [`CRASH_WINDOW`] and a module is given up as failed.
-const MAX_CRASHES: usize = 5;
-const CRASH_WINDOW: Duration = Duration::from_secs(10);
 /// After asking modules to shut down, how long before SIGTERM, and then before SIGKILL.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(2);
 const TERM_GRACE: Duration = Duration::from_secs(1);
@@ -86,8 +82,7 @@ struct ModuleProc {
     restart: RestartPolicy,
     child: Option<Child>,
     state: ProcState,
-    crashes: VecDeque<Instant>,
-    backoff: Duration,
+    crashes: Backoff,
     restarts: u32,
     /// The process has its configuration (said `ready`).
     configured: bool,
@@ -471,8 +466,7 @@ fn add_modules(modules: &mut BTreeMap<String, ModuleProc>, loaded: &Loaded, env:
             restart: instance.restart,
             child: None,
             state: ProcState::Restarting(Instant::now()),
-            crashes: VecDeque::new(),
-            backoff: FIRST_BACKOFF,
+            crashes: Backoff::default(),
             restarts: 0,
             configured: false,
             last_exit: None,
@@ -656,38 +650,23 @@ impl ModuleProc {
             self.state = ProcState::Failed;
             return;
         }
-        self.crashes.push_back(now);
-        while self
-            .crashes
-            .front()
-            .is_some_and(|&at| now - at > CRASH_WINDOW)
-        {
-            self.crashes.pop_front();
+        match self.crashes.crashed(now) {
+            AfterCrash::GiveUp { crashes } => {
+                tracing::error!(
+                    module = self.name,
+                    "module {how}; {crashes} crashes within {CRASH_WINDOW:?}, giving up: module.{}.failed",
+                    self.name
+                );
+                self.state = ProcState::Failed;
+            }
+            AfterCrash::RestartAt(at, backoff) => {
+                tracing::warn!(
+                    module = self.name,
+                    "module {how}; restarting in {backoff:?}"
+                );
+                self.state = ProcState::Restarting(at);
+            }
         }
-        if self.crashes.len() > MAX_CRASHES {
-            tracing::error!(
-                module = self.name,
-                "module {how}; {} crashes within {CRASH_WINDOW:?}, giving up: module.{}.failed",
-                self.crashes.len(),
-                self.name
-            );
-            self.state = ProcState::Failed;
-            return;
-        }
-        // The wait doubles with each crash still in the window, so a module that crashes now
-        // and then always comes back after the first backoff.
-        let doublings = u32::try_from(self.crashes.len() - 1)
-            .unwrap_or(u32::MAX)
-            .min(16);
-        self.backoff = FIRST_BACKOFF
-            .saturating_mul(1 << doublings)
-            .min(MAX_BACKOFF);
-        tracing::warn!(
-            module = self.name,
-            "module {how}; restarting in {:?}",
-            self.backoff
-        );
-        self.state = ProcState::Restarting(now + self.backoff);
     }
 
     /// Kills the module's process group at once (a module declared dead by the heartbeat);
