@@ -6,7 +6,7 @@ use std::fmt;
 use armor_module_api::types::OccupancyGrid;
 
 use super::{Blocker, CostmapSettings, Keepout, Robot};
-use crate::world::{Bounds, Point, World, segment_segment_distance};
+use crate::world::{Bounds, Point, World};
 
 /// The cost of a cell the robot's centre must not enter.
 pub const LETHAL: u8 = 255;
@@ -242,52 +242,10 @@ impl Costmap {
         if !p.is_finite() || self.cell_of(p).is_none() {
             return Some(Blocker::OutsideWorld);
         }
-        let keep = self.robot.keep_m();
-        match &self.world {
-            Some(world) => {
-                if !world.boundary().contains(p) {
-                    return Some(Blocker::OutsideWorld);
-                }
-                if let Some(shape) = world.obstacle_at(p) {
-                    return Some(Blocker::InObstacle { line: shape.line });
-                }
-                if let Some((distance_m, shape)) = world.nearest_shape(p, keep)
-                    && distance_m < keep
-                {
-                    return Some(Blocker::NearObstacle {
-                        kind: shape.kind.noun(),
-                        line: shape.line,
-                        distance_m,
-                        keep_m: keep,
-                    });
-                }
-            }
-            None => {
-                if !self.extent.contains(p) {
-                    return Some(Blocker::OutsideWorld);
-                }
-            }
+        if self.world.is_none() && !self.extent.contains(p) {
+            return Some(Blocker::OutsideWorld);
         }
-        for keepout in &self.keepouts {
-            let keep = keepout.keep_m(&self.robot);
-            if !keepout.polygon.near_box(p, p, keep) {
-                continue;
-            }
-            if keepout.polygon.contains(p) {
-                return Some(Blocker::InArea {
-                    name: keepout.name.clone(),
-                });
-            }
-            let distance_m = keepout.polygon.distance_to_outline(p);
-            if distance_m < keep {
-                return Some(Blocker::NearArea {
-                    name: keepout.name.clone(),
-                    distance_m,
-                    keep_m: keep,
-                });
-            }
-        }
-        None
+        super::blocker_at(self.world.as_ref(), &self.robot, &self.keepouts, p)
     }
 
     /// Whether the robot can drive straight from `a` to `b`, measured on the geometry: both
@@ -312,16 +270,7 @@ impl Costmap {
                 }
             }
         }
-        self.keepouts.iter().all(|keepout| {
-            let keep = keepout.keep_m(&self.robot);
-            let polygon = &keepout.polygon;
-            !polygon.near_box(a, b, keep)
-                || (!polygon.contains(a)
-                    && !polygon.contains(b)
-                    && polygon
-                        .edges()
-                        .all(|(c, d)| segment_segment_distance(a, b, c, d) >= keep))
-        })
+        super::clear_of_keepouts(&self.robot, &self.keepouts, a, b)
     }
 
     /// Visits the cells that segment `a`–`b` passes through, in order, with the length of the

@@ -251,14 +251,16 @@ pub struct Bottleneck {
 
 impl fmt::Display for Bottleneck {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // To the centimetre: the cells are 5 cm.
+        let cm = |value: f64| geo::round_mm((value * 100.0).round() / 100.0);
+        let at = format!("({}, {})", cm(self.at.x), cm(self.at.y));
         if self.width_m <= 0.0 {
-            write!(f, "the way is closed at {}", self.at)?;
+            write!(f, "the way is closed at {at}")?;
         } else {
             write!(
                 f,
-                "the narrowest passage is {} m wide at {}",
-                geo::round_mm((self.width_m * 100.0).round() / 100.0),
-                self.at
+                "the narrowest passage is {} m wide at {at}",
+                cm(self.width_m)
             )?;
         }
         if let Some(area) = &self.area {
@@ -358,4 +360,72 @@ pub fn open_extent(
         max_x: max_x + pad,
         max_y: max_y + pad,
     }
+}
+
+/// Why the robot (its centre at `p`) cannot be there, measured on the geometry: outside the
+/// world, in or too near an obstacle (`world`, when there is one), in or too near a keepout.
+pub fn blocker_at(
+    world: Option<&World>,
+    robot: &Robot,
+    keepouts: &[Keepout],
+    p: Point,
+) -> Option<Blocker> {
+    if !p.is_finite() {
+        return Some(Blocker::OutsideWorld);
+    }
+    if let Some(world) = world {
+        let keep = robot.keep_m();
+        if !world.boundary().contains(p) {
+            return Some(Blocker::OutsideWorld);
+        }
+        if let Some(shape) = world.obstacle_at(p) {
+            return Some(Blocker::InObstacle { line: shape.line });
+        }
+        if let Some((distance_m, shape)) = world.nearest_shape(p, keep)
+            && distance_m < keep
+        {
+            return Some(Blocker::NearObstacle {
+                kind: shape.kind.noun(),
+                line: shape.line,
+                distance_m,
+                keep_m: keep,
+            });
+        }
+    }
+    for keepout in keepouts {
+        let keep = keepout.keep_m(robot);
+        if keepout.polygon.corners.len() < 3 || !keepout.polygon.near_box(p, p, keep) {
+            continue;
+        }
+        if keepout.polygon.contains(p) {
+            return Some(Blocker::InArea {
+                name: keepout.name.clone(),
+            });
+        }
+        let distance_m = keepout.polygon.distance_to_outline(p);
+        if distance_m < keep {
+            return Some(Blocker::NearArea {
+                name: keepout.name.clone(),
+                distance_m,
+                keep_m: keep,
+            });
+        }
+    }
+    None
+}
+
+/// Whether the segment `a`–`b` keeps what the robot keeps from every keepout (with no world,
+/// the straight line is then the path).
+pub fn clear_of_keepouts(robot: &Robot, keepouts: &[Keepout], a: Point, b: Point) -> bool {
+    keepouts.iter().all(|keepout| {
+        let keep = keepout.keep_m(robot);
+        let polygon = &keepout.polygon;
+        polygon.corners.len() < 3
+            || !polygon.near_box(a, b, keep)
+            || (!polygon.contains(a)
+                && !polygon.contains(b)
+                && polygon
+                    .edges()
+                    .all(|(c, d)| crate::world::segment_segment_distance(a, b, c, d) >= keep))
+    })
 }

@@ -240,7 +240,7 @@ fn paths_and_refusals_on_small_worlds() {
             vec![],
             (2.0, 5.0),
             (15.0, 5.0),
-            Outcome::Error("no way through: the way is closed at (12.025, 1.975)".into()),
+            Outcome::Error("no way through: the way is closed at (12.03, 1.98)".into()),
         ),
         (
             "a goal outside the world",
@@ -284,7 +284,7 @@ fn paths_and_refusals_on_small_worlds() {
             (2.0, 5.0),
             (15.0, 5.0),
             Outcome::Error(
-                "no way through: the way is closed at (10.025, 4.975), by the no-go area `ditch`"
+                "no way through: the way is closed at (10.03, 4.98), by the no-go area `ditch`"
                     .into(),
             ),
         ),
@@ -295,7 +295,7 @@ fn paths_and_refusals_on_small_worlds() {
             (2.0, 5.0),
             (15.0, 5.0),
             Outcome::Error(
-                "no way through: the narrowest passage is 1.2 m wide at (10.025, 0.6), by the no-go area `ditch`"
+                "no way through: the narrowest passage is 1.2 m wide at (10.02, 0.6), by the no-go area `ditch`"
                     .into(),
             ),
         ),
