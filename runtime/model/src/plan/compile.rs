@@ -242,47 +242,52 @@ pub fn plan_legs(plan: &Plan, world: Option<&World>, robot: &Robot) -> LegPaths 
             }
         }
     }
-    // The costmap of the world, built once for all the legs (and only if one is planned).
-    let mut on_world: Option<Planner> = None;
-    let mut paths = Vec::with_capacity(plan.legs.len());
-    for leg in &plan.legs {
-        let (Some(&from), Some(&to)) = (positions.get(&leg.from), positions.get(&leg.to)) else {
-            paths.push(None);
-            continue;
-        };
-        let result = match world {
-            Some(world) => {
-                if on_world.is_none() {
-                    match Costmap::for_world(world, robot, &keepouts, &CostmapSettings::default()) {
-                        Ok(costmap) => on_world = Some(Planner::new(costmap)),
-                        Err(err) => {
-                            problems.push(Located::new(
-                                plan.pos,
-                                format!("the world cannot be mapped for planning: {err}"),
-                            ));
-                            paths.push(None);
-                            continue;
-                        }
-                    }
+    // The legs whose ends are both placed are planned; on a world, all on one costmap.
+    let ends: Vec<Option<(Point, Point)>> = plan
+        .legs
+        .iter()
+        .map(|leg| Some((*positions.get(&leg.from)?, *positions.get(&leg.to)?)))
+        .collect();
+    let pairs: Vec<(Point, Point)> = ends.iter().flatten().copied().collect();
+    let mut planned: Vec<Result<Path, PathError>> = match world {
+        Some(_) if pairs.is_empty() => Vec::new(),
+        Some(world) => {
+            match Costmap::for_world(world, robot, &keepouts, &CostmapSettings::default()) {
+                Ok(costmap) => Planner::new(costmap).plan_many(&pairs),
+                Err(err) => {
+                    problems.push(Located::new(
+                        plan.pos,
+                        format!("the world cannot be mapped for planning: {err}"),
+                    ));
+                    Vec::new()
                 }
-                let Some(planner) = on_world.as_mut() else {
-                    paths.push(None);
-                    continue;
-                };
-                planner.plan(from, to)
             }
-            None if planner::clear_of_keepouts(robot, &keepouts, from, to) => {
-                Ok(Path::new(vec![from, to]))
-            }
-            None => planner::plan_path(None, robot, &keepouts, from, to),
+        }
+        None => pairs
+            .iter()
+            .map(|&(from, to)| {
+                if planner::clear_of_keepouts(robot, &keepouts, from, to) {
+                    Ok(Path::new(vec![from, to]))
+                } else {
+                    planner::plan_path(None, robot, &keepouts, from, to)
+                }
+            })
+            .collect(),
+    };
+    planned.reverse();
+    let mut paths = Vec::with_capacity(plan.legs.len());
+    for (leg, ends) in plan.legs.iter().zip(&ends) {
+        let result = match ends {
+            Some(_) => planned.pop(),
+            None => None,
         };
-        if let Err(err) = &result {
+        if let Some(Err(err)) = &result {
             problems.push(Located::new(
                 leg.pos,
                 leg_problem(leg, err, world.is_some(), robot, &keepouts),
             ));
         }
-        paths.push(Some(result));
+        paths.push(result);
     }
     LegPaths {
         positions,

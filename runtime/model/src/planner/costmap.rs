@@ -14,6 +14,9 @@ pub const LETHAL: u8 = 255;
 /// there costs twice a step in the open.
 pub(crate) const MAX_EXTRA: u8 = 100;
 
+/// The most cells on a side of a costmap.
+const MAX_SIDE_CELLS: f64 = 65_536.0;
+
 /// Why a costmap cannot be built.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CostmapError(pub String);
@@ -110,11 +113,18 @@ impl Costmap {
             ((extent.width() / resolution).ceil() + 2.0)
                 * ((extent.height() / resolution).ceil() + 2.0)
         };
+        // The search packs a cell's column and row in 16 bits each.
+        let side = |resolution: f64| {
+            (extent.width() / resolution)
+                .ceil()
+                .max((extent.height() / resolution).ceil())
+                + 2.0
+        };
         if cells(resolution_m) > max_cells {
             resolution_m = (extent.width() * extent.height() / max_cells).sqrt();
-            while cells(resolution_m) > max_cells {
-                resolution_m *= 1.01;
-            }
+        }
+        while cells(resolution_m) > max_cells || side(resolution_m) > MAX_SIDE_CELLS {
+            resolution_m *= 1.01;
         }
         let width = (extent.width() / resolution_m).ceil() as usize + 2;
         let height = (extent.height() / resolution_m).ceil() as usize + 2;

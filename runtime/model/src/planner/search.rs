@@ -8,6 +8,8 @@
 //! `f` prefers deeper nodes, which keeps A* from widening over the many equal-cost grid paths.
 
 use std::collections::VecDeque;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::costmap::{Costmap, LETHAL, MAX_EXTRA};
 use super::{Blocker, Bottleneck, End, Path, PathError};
@@ -28,6 +30,9 @@ pub fn heuristic(dx: u32, dy: u32) -> u32 {
     let (lo, hi) = if dx < dy { (dx, dy) } else { (dy, dx) };
     100 * hi + 41 * lo
 }
+
+/// The most threads [`Planner::plan_many`] plans on.
+pub const MAX_THREADS: usize = 4;
 
 /// Ring size of the bucket queue: more than the largest rise of `f` in one step
 /// (`step_cost(MAX_EXTRA, true)` + 141).
@@ -52,42 +57,46 @@ const SNAP_CELLS: i64 = 3;
 const SLACK_STEP_M: f64 = 0.005;
 
 /// A costmap and the memory of its searches: plans any number of paths on the same map.
+/// Planners made with [`Planner::sharing`] search the same costmap (not copied) with memory
+/// of their own, so that paths can be planned on several threads.
 #[derive(Clone, Debug)]
 pub struct Planner {
-    costmap: Costmap,
+    costmap: Arc<Costmap>,
     search: Search,
 }
 
 #[derive(Clone, Debug, Default)]
 struct Search {
-    /// The cost of the cheapest way found to each cell, [`UNSEEN`] before one is, with
-    /// [`CLOSED`] set once it is final. One array, so that a neighbour costs one read.
+    /// The cost of the cheapest way found to each cell, [`UNSEEN`] before one is.
     g: Vec<u32>,
-    /// The step that reached the cell (index in `STEPS`).
+    /// One bit per cell: done with (its `g` is final).
+    closed: Vec<u64>,
+    /// The step that reached each cell (index in `STEPS`): only the bottleneck's flood keeps
+    /// it; A* walks back down `g` instead, which saves a write per cell reached.
     step: Vec<u8>,
     /// The cells whose `g` this search set, to reset for the next one.
     touched: Vec<u32>,
-    /// The bucket queue: cells as `x << 32 | y`, so that a popped cell needs no division.
+    /// The bucket queue: entries `g << 32 | x << 16 | y`, so that a popped cell needs neither
+    /// a division nor a read of `g`. (A costmap is at most 65 536 cells a side.)
     ring: Vec<Vec<u64>>,
 }
 
 /// `g` of a cell not reached yet.
-const UNSEEN: u32 = 0x7FFF_FFFF;
-/// The bit of `g` that says the cell is done with.
-const CLOSED: u32 = 0x8000_0000;
+const UNSEEN: u32 = u32::MAX;
 
 impl Search {
     /// A new search over `cells` cells: nothing reached yet.
     fn begin(&mut self, cells: usize) {
         if self.g.len() != cells {
             self.g = vec![UNSEEN; cells];
-            self.step = vec![0; cells];
+            self.closed = vec![0; cells.div_ceil(64)];
             self.touched.clear();
         }
         for &cell in &self.touched {
             self.g[cell as usize] = UNSEEN;
         }
         self.touched.clear();
+        self.closed.fill(0);
         if self.ring.len() != RING {
             self.ring = vec![Vec::new(); RING];
         }
@@ -96,26 +105,88 @@ impl Search {
         }
     }
 
-    /// Marks a cell reached by `step` at cost `g`.
-    fn reach(&mut self, cell: usize, g: u32, step: u8) {
+    /// Marks a cell reached at cost `g`.
+    fn reach(&mut self, cell: usize, g: u32) {
         if self.g[cell] == UNSEEN {
             self.touched.push(cell as u32);
         }
         self.g[cell] = g;
-        self.step[cell] = step;
+    }
+
+    /// Closes a cell; false if it already was.
+    fn close(&mut self, cell: usize) -> bool {
+        let (word, bit) = (cell / 64, 1_u64 << (cell % 64));
+        let open = self.closed[word] & bit == 0;
+        self.closed[word] |= bit;
+        open
     }
 }
 
 impl Planner {
     pub fn new(costmap: Costmap) -> Self {
         Self {
-            costmap,
+            costmap: Arc::new(costmap),
+            search: Search::default(),
+        }
+    }
+
+    /// Another planner on the same costmap, with its own search memory.
+    pub fn sharing(&self) -> Planner {
+        Self {
+            costmap: Arc::clone(&self.costmap),
             search: Search::default(),
         }
     }
 
     pub fn costmap(&self) -> &Costmap {
         &self.costmap
+    }
+
+    /// Plans every pair, on as many threads as there are cores (at most [`MAX_THREADS`]), each
+    /// with its own search memory on the shared costmap: the answers, in the order of `pairs`,
+    /// are the ones [`Planner::plan`] gives one after the other.
+    pub fn plan_many(&self, pairs: &[(Point, Point)]) -> Vec<Result<Path, PathError>> {
+        let workers = std::thread::available_parallelism()
+            .map_or(1, std::num::NonZeroUsize::get)
+            .min(MAX_THREADS)
+            .min(pairs.len());
+        if workers <= 1 {
+            let mut planner = self.sharing();
+            return pairs.iter().map(|&(a, b)| planner.plan(a, b)).collect();
+        }
+        // Pairs are handed out one at a time, so that a long search does not hold up a thread's
+        // share of the others.
+        let next = AtomicUsize::new(0);
+        let mut results: Vec<Option<Result<Path, PathError>>> = vec![None; pairs.len()];
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..workers)
+                .map(|_| {
+                    scope.spawn(|| {
+                        let mut planner = self.sharing();
+                        let mut done = Vec::new();
+                        loop {
+                            let index = next.fetch_add(1, Ordering::Relaxed);
+                            let Some(&(a, b)) = pairs.get(index) else {
+                                return done;
+                            };
+                            done.push((index, planner.plan(a, b)));
+                        }
+                    })
+                })
+                .collect();
+            for handle in handles {
+                // A thread that panicked leaves its pairs to be planned again below.
+                for (index, result) in handle.join().unwrap_or_default() {
+                    results[index] = Some(result);
+                }
+            }
+        });
+        let mut planner = self.sharing();
+        results
+            .into_iter()
+            .zip(pairs)
+            .map(|(result, &(a, b))| result.unwrap_or_else(|| planner.plan(a, b)))
+            .collect()
     }
 
     /// How many cells the last search reached (a measure of its work).
@@ -196,13 +267,25 @@ impl Planner {
     /// A* from cell `from` to cell `to` (both free): the cells of the cheapest path.
     fn grid_path(&mut self, from: usize, to: usize) -> Option<Vec<usize>> {
         self.grid_search(from, to)?;
+        let costs = self.costmap.costs();
         let width = self.costmap.width() as i64;
+        let g = &self.search.g;
+        // Back from the goal, each time to a neighbour whose cost plus the step is this cell's:
+        // such a neighbour is on a cheapest path (with a consistent heuristic its `g` is final).
         let mut cells = vec![to];
         let mut cell = to;
         while cell != from {
-            let (dx, dy) = STEPS[usize::from(self.search.step[cell])];
-            cell = (cell as i64 - dx - dy * width) as usize;
-            cells.push(cell);
+            let step_in = step_cost(costs[cell], false);
+            let diagonal_in = step_cost(costs[cell], true);
+            let previous = STEPS.iter().enumerate().find_map(|(index, &(dx, dy))| {
+                let before = (cell as i64 - dx - dy * width) as usize;
+                let step = if index >= 4 { diagonal_in } else { step_in };
+                (g[before] != UNSEEN
+                    && u64::from(g[before]) + u64::from(step) == u64::from(g[cell]))
+                .then_some(before)
+            })?;
+            cells.push(previous);
+            cell = previous;
         }
         cells.reverse();
         Some(cells)
@@ -224,10 +307,10 @@ impl Planner {
                 (y - goal_y).unsigned_abs() as u32,
             )
         };
-        search.reach(from, 0, 0);
+        search.reach(from, 0);
         let (from_x, from_y) = ((from % width) as u64, (from / width) as u64);
         let mut f = h(from_x as i64, from_y as i64);
-        search.ring[f as usize % RING].push(from_x << 32 | from_y);
+        search.ring[f as usize % RING].push(from_x << 16 | from_y);
         let mut queued = 1_usize;
         // Step costs by cell cost, straight then diagonal.
         let mut steps = [[0_u32; 2]; 256];
@@ -235,18 +318,19 @@ impl Planner {
             *pair = [step_cost(cost as u8, false), step_cost(cost as u8, true)];
         }
         while queued > 0 {
-            let Some(packed) = search.ring[f as usize % RING].pop() else {
+            let Some(entry) = search.ring[f as usize % RING].pop() else {
                 f += 1;
                 continue;
             };
             queued -= 1;
-            let (x, y) = ((packed >> 32) as i64, (packed & 0xFFFF_FFFF) as i64);
+            let (x, y) = (((entry >> 16) & 0xFFFF) as i64, (entry & 0xFFFF) as i64);
             let cell = y as usize * width + x as usize;
-            let g = search.g[cell];
-            if g & CLOSED != 0 {
+            // A cell is queued again when a cheaper way to it is found, and that entry comes
+            // out first (its `f` is lower): any later entry is for a closed cell.
+            if !search.close(cell) {
                 continue;
             }
-            search.g[cell] = g | CLOSED;
+            let g = (entry >> 32) as u32;
             if cell == to {
                 return Some(g);
             }
@@ -257,14 +341,16 @@ impl Planner {
                     continue;
                 }
                 let through = g + steps[usize::from(cost)][usize::from(step >= 4)];
-                // A closed cell's `g` has the top bit set: never more than `through`.
-                if search.g[next] <= through || search.g[next] & CLOSED != 0 {
+                // A closed cell's `g` is final (the heuristic is consistent): never more than
+                // `through`.
+                if search.g[next] <= through {
                     continue;
                 }
-                search.reach(next, through, step as u8);
+                search.reach(next, through);
                 let (nx, ny) = (x + dx, y + dy);
                 let next_f = through + h(nx, ny);
-                search.ring[next_f as usize % RING].push((nx as u64) << 32 | ny as u64);
+                search.ring[next_f as usize % RING]
+                    .push(u64::from(through) << 32 | (nx as u64) << 16 | ny as u64);
                 queued += 1;
             }
         }
@@ -369,7 +455,10 @@ impl Planner {
         // its way to the goal is a short one among the widest (and crosses a wall or an area
         // where the start is nearest to it, not anywhere along it).
         let mut buckets: Vec<VecDeque<u32>> = vec![VecDeque::new(); levels + 1];
-        search.reach(from, 0, 0);
+        if search.step.len() != width * height {
+            search.step = vec![0; width * height];
+        }
+        search.reach(from, 0);
         let mut highest = level(from);
         buckets[highest].push_back(from as u32);
         loop {
@@ -394,7 +483,8 @@ impl Planner {
                 if search.g[next] != UNSEEN {
                     continue;
                 }
-                search.reach(next, 0, step as u8);
+                search.reach(next, 0);
+                search.step[next] = step as u8;
                 let next_level = level(next);
                 highest = highest.max(next_level);
                 buckets[next_level].push_back(next as u32);

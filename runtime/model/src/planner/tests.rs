@@ -463,17 +463,26 @@ fn random_worlds_seed_2026() {
     for index in 0..WORLDS {
         let world = random_world(&mut rng);
         let mut planner = planner_on(&world, &[]);
-        for pair in 0..PAIRS {
+        let pairs: Vec<(Point, Point)> = (0..PAIRS)
+            .map(|_| {
+                (
+                    free_place(&mut rng, planner.costmap()),
+                    free_place(&mut rng, planner.costmap()),
+                )
+            })
+            .collect();
+        let mut answers = Vec::new();
+        for (pair, &(start, goal)) in pairs.iter().enumerate() {
             let context = format!("seed {SEED}, world {index}, pair {pair}");
-            let start = free_place(&mut rng, planner.costmap());
-            let goal = free_place(&mut rng, planner.costmap());
             let from = planner.snap_for_tests(start);
             let to = planner.snap_for_tests(goal);
             let flood = match (from, to) {
                 (Some(from), Some(to)) => reachable(planner.costmap(), from, to),
                 _ => false,
             };
-            match planner.plan(start, goal) {
+            let answer = planner.plan(start, goal);
+            answers.push(answer.clone());
+            match answer {
                 Ok(path) => {
                     // The straight line may be taken off the grid when the geometry allows.
                     assert!(
@@ -500,6 +509,12 @@ fn random_worlds_seed_2026() {
                 Err(other) => panic!("{context}: {other}"),
             }
         }
+        // On several threads, the same answers.
+        assert_eq!(
+            planner.plan_many(&pairs),
+            answers,
+            "seed {SEED}, world {index}"
+        );
     }
     // Both kinds happen, so that both checks prove something.
     assert!(
