@@ -523,3 +523,64 @@ fn random_worlds_seed_2026() {
     );
     eprintln!("random worlds (seed {SEED}): {connected} pairs connected, {cut} cut");
 }
+
+/// Our A* finds the cheapest grid path: the same cost as the `pathfinding` crate's Dijkstra
+/// (no heuristic, so ours is checked too) on random worlds at 20 cm.
+#[test]
+fn a_star_costs_match_an_independent_dijkstra_seed_7() {
+    let mut rng = Rng(7);
+    let settings = CostmapSettings {
+        resolution_m: 0.2,
+        ..CostmapSettings::default()
+    };
+    let mut compared = 0;
+    for index in 0..10 {
+        let world = random_world(&mut rng);
+        let costmap = Costmap::for_world(&world, &Robot::default(), &[], &settings)
+            .unwrap_or_else(|err| panic!("{err}"));
+        let mut planner = Planner::new(costmap);
+        for pair in 0..5 {
+            let map = planner.costmap();
+            let (start, goal) = (free_place(&mut rng, map), free_place(&mut rng, map));
+            let (Some(from), Some(to)) = (map.cell_of(start), map.cell_of(goal)) else {
+                continue;
+            };
+            if map.costs()[from] == LETHAL || map.costs()[to] == LETHAL {
+                continue;
+            }
+            let width = map.width() as i64;
+            let costs = map.costs();
+            let reference = pathfinding::directed::dijkstra::dijkstra(
+                &from,
+                |&cell| {
+                    let (x, y) = (cell as i64 % width, cell as i64 / width);
+                    [
+                        (1, 0),
+                        (-1, 0),
+                        (0, 1),
+                        (0, -1),
+                        (1, 1),
+                        (-1, 1),
+                        (1, -1),
+                        (-1, -1),
+                    ]
+                    .into_iter()
+                    .filter_map(move |(dx, dy): (i64, i64)| {
+                        let next = ((y + dy) * width + x + dx) as usize;
+                        let cost = costs[next];
+                        (cost != LETHAL).then(|| (next, step_cost(cost, dx != 0 && dy != 0)))
+                    })
+                },
+                |&cell| cell == to,
+            )
+            .map(|(_, cost)| cost);
+            assert_eq!(
+                planner.grid_search(from, to),
+                reference,
+                "seed 7, world {index}, pair {pair}: {start} to {goal}"
+            );
+            compared += 1;
+        }
+    }
+    assert!(compared > 40, "{compared}");
+}
