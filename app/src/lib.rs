@@ -9,13 +9,16 @@
 
 pub mod app;
 pub mod bench;
+pub mod command;
 pub mod diagram;
+pub mod dialogs;
 pub mod editor;
 pub mod export;
 pub mod files;
 pub mod mission;
 pub mod palette;
 pub mod run;
+pub mod system;
 pub mod validation;
 pub mod viewer;
 

@@ -1,5 +1,6 @@
-//! `armor-studio [FILE]`: the block-diagram editor. `armor-studio bench` (hidden) prints the
-//! studio's timings as JSON lines for `armor-bench`.
+//! `armor-studio [FILE]`: ArMoR Studio — the System view (a block-diagram editor), the Mission
+//! view (plans on a map) and the Run view. `armor-studio bench` (hidden) prints the studio's
+//! timings as JSON lines for `armor-bench`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -16,7 +17,7 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("--help" | "-h") => {
             println!(
-                "usage: armor-studio [FILE]\n\nOpens the ArMoR block-diagram editor, with FILE (a system XML file) if given."
+                "usage: armor-studio [FILE]\n\nOpens ArMoR Studio: the System view (the block diagram of a robot's modules), the\nMission view (a plan on a map, compiled to a Petri net) and the Run view (a run watched\nand driven live). FILE, if given, is a system file (System view) or a plan (Mission view)."
             );
             Ok(())
         }

@@ -2,7 +2,8 @@
 //! [`DiagramViewer`] is a thin adapter that reads the document to draw blocks and pins and turns
 //! what the user does into [`Command`]s, applied after the frame. egui-snarl 0.12 keeps its
 //! in-progress wire private and has no "may connect?" hook, so the wire's origin is tracked
-//! here from egui's pointer state and the pins it was drawn at last frame.
+//! from egui's pointer state (by `system/canvas.rs`) and the pins drawn last frame, which
+//! [`Canvas`] keeps.
 
 use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet, HashMap};

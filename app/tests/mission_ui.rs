@@ -350,3 +350,34 @@ fn a_changed_plan_is_not_replaced_without_asking() {
     assert!(route(&harness).is_empty(), "replaced by a new plan");
     assert!(!harness.state().mission().unwrap().is_dirty());
 }
+
+#[test]
+fn the_bundled_plans_labels_never_overlap_at_the_first_frame() {
+    for name in [
+        "plan-yard.xml",
+        "plan-yard-route.xml",
+        "plan-building.xml",
+        "plan-field.xml",
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut harness = studio(options(&dir.path().join("home"), Some(robot(name))));
+        harness.run();
+        let mission = harness.state().mission().unwrap();
+        let boxes = mission.label_boxes();
+        let plan = mission.plan();
+        assert!(
+            boxes.len() >= plan.waypoints.len(),
+            "{name}: {} labels for {} waypoints",
+            boxes.len(),
+            plan.waypoints.len()
+        );
+        for (i, a) in boxes.iter().enumerate() {
+            for b in &boxes[i + 1..] {
+                assert!(
+                    !a.intersects(*b),
+                    "{name}: labels at {a:?} and {b:?} overlap"
+                );
+            }
+        }
+    }
+}

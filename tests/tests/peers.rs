@@ -86,6 +86,7 @@ fn the_agent_drops_bad_peers_and_serves_the_others() {
         data_name: "sim.odometry".into(),
         data_type: "Odometry".into(),
         addr: "127.0.0.1:9".into(),
+        key: None,
     };
     blocking::write_message(
         &mut provider,
@@ -121,6 +122,7 @@ fn the_agent_drops_bad_peers_and_serves_the_others() {
                 data_name: "sim.odometry".into(),
                 data_type: "Odometry".into(),
                 addr: "127.0.0.1:1".into(),
+                key: None,
             }],
         },
     )

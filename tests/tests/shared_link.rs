@@ -4,7 +4,7 @@
 //! rebound, leaves the other direction flowing.
 #![allow(clippy::unwrap_used)]
 
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::net::{SocketAddr, TcpListener};
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -287,7 +287,7 @@ fn a_refused_subscription_on_a_shared_connection_leaves_the_other_direction_flow
 
 /// Plays `armor run`'s config server for one echo: configures it, then rebinds its input.
 struct Supervisor {
-    stream: TcpStream,
+    stream: blocking::SecureStream,
 }
 
 impl Supervisor {
@@ -302,7 +302,7 @@ impl Supervisor {
         );
         listener.set_nonblocking(true).unwrap();
         let deadline = Instant::now() + PATIENCE;
-        let mut stream = loop {
+        let stream = loop {
             match listener.accept() {
                 Ok((stream, _)) => break stream,
                 Err(err) if err.kind() == std::io::ErrorKind::WouldBlock => {
@@ -315,7 +315,7 @@ impl Supervisor {
         };
         stream.set_nonblocking(false).unwrap();
         stream.set_read_timeout(Some(PATIENCE)).unwrap();
-        blocking::handshake(&mut stream, None).unwrap();
+        let (mut stream, _) = blocking::accept(stream, None).unwrap();
         let hello: ToSupervisor = blocking::read_message(&mut stream).unwrap();
         assert!(matches!(hello, ToSupervisor::Hello { .. }), "{hello:?}");
         let mut supervisor = Supervisor { stream };

@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use armor_model::world::Point;
 use armor_runtime::control::{ModuleState, Request, Status};
 use armor_studio::app::View;
 use armor_studio::files::Home;
@@ -146,14 +147,52 @@ fn a_plan_run_from_the_run_view_reaches_its_final_place() {
     let dir = tempfile::tempdir().unwrap();
     let file = plan(dir.path(), "");
     let mut harness = harness(dir.path());
+    // The map left far from the yard in the Mission view: the run must bring the robot back.
+    harness.state_mut().set_view(View::Mission);
+    harness.run_ok();
+    harness.state_mut().open_plan(&file);
+    harness.run_ok();
+    harness
+        .state_mut()
+        .mission_mut()
+        .unwrap()
+        .centre_on(Point::new(5_000.0, 5_000.0));
+    harness.run_ok();
     open_and_run(&mut harness, &file, 10.0);
     step_until(&mut harness, "the robot on the live map", PATIENCE, |app| {
         truth_x(app).is_some()
     });
+    harness.run_ok();
+    assert_eq!(harness.state().title(), "plan.xml (running) — ArMoR Studio");
+    let truth = harness.state().run().live().truth.unwrap();
+    let (robot, map) = harness
+        .state()
+        .mission()
+        .unwrap()
+        .last_screen_of(Point::new(truth.x_m, truth.y_m))
+        .unwrap();
+    assert!(
+        map.shrink(12.0).contains(robot),
+        "the run frames the robot: it is drawn at {robot:?}, the map is {map:?}"
+    );
     step_until(&mut harness, "the run to end", PATIENCE, |app| {
         app.run().ended().is_some()
     });
+    harness.run_ok();
+    assert_eq!(
+        harness.state().title(),
+        "plan.xml (run ended) — ArMoR Studio"
+    );
     let status = status(harness.state());
+    // Once the run is over no module reads "running".
+    for module in &status.modules {
+        assert!(
+            matches!(module.state, ModuleState::Ended | ModuleState::Exited),
+            "{} reads {:?} after the run",
+            module.name,
+            module.state
+        );
+    }
     let mission = status.mission.unwrap();
     assert_eq!(mission.outcome.as_deref(), Some("complete"));
     assert_eq!(
@@ -323,7 +362,7 @@ fn the_robot_is_driven_with_the_keys_and_its_recording_replays() {
         },
     );
     harness.run_ok();
-    harness.get_by_label("▲");
+    harness.get_by_label("forward");
     let rest = Instant::now() + Duration::from_millis(800);
     step_until(&mut harness, "the robot at rest", PATIENCE, |_| {
         Instant::now() > rest

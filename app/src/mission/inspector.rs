@@ -411,7 +411,8 @@ impl MissionView {
                 if self.editor.plan.waypoints.is_empty() {
                     ui.label("Draw the route: choose the waypoint tool (W) and click the map.");
                 } else if checked.errors.is_empty() && self.surroundings.problems.is_empty() {
-                    ui.colored_label(Color32::from_rgb(90, 200, 110), "Ready to run: no problems");
+                    let (colour, headline) = check_headline(checked.warnings.len());
+                    ui.colored_label(colour, headline);
                 }
                 for line in checked.summary() {
                     ui.label(line);
@@ -428,8 +429,7 @@ impl MissionView {
                 for warning in &checked.warnings {
                     ui.add(
                         egui::Label::new(
-                            RichText::new(format!("warning: {}", warning.message))
-                                .color(Color32::from_rgb(220, 160, 40)),
+                            RichText::new(format!("warning: {}", warning.message)).color(WARNING),
                         )
                         .wrap(),
                     );
@@ -437,6 +437,21 @@ impl MissionView {
             });
     }
 }
+
+/// The check's headline for a plan without errors: green when nothing is to be said, amber
+/// with the count when warnings follow (a late leg is not "no problems").
+fn check_headline(warnings: usize) -> (Color32, String) {
+    match warnings {
+        0 => (
+            Color32::from_rgb(90, 200, 110),
+            "Ready to run: no problems".to_owned(),
+        ),
+        1 => (WARNING, "Ready to run, 1 warning".to_owned()),
+        n => (WARNING, format!("Ready to run, {n} warnings")),
+    }
+}
+
+const WARNING: Color32 = Color32::from_rgb(220, 160, 40);
 
 fn plan_settings_ui(
     ui: &mut Ui,
@@ -773,4 +788,19 @@ fn action_ui(
         return None;
     }
     Some((!edited.modules.is_empty()).then_some(edited))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_headline_counts_the_warnings() {
+        assert_eq!(check_headline(0).1, "Ready to run: no problems");
+        assert_eq!(
+            check_headline(1),
+            (WARNING, "Ready to run, 1 warning".to_owned())
+        );
+        assert_eq!(check_headline(3).1, "Ready to run, 3 warnings");
+    }
 }

@@ -3,6 +3,7 @@
 //! the waypoints and the unit symbols drawn over it; and the clicks and drags that edit the
 //! plan, queued as [`PlanCommand`]s.
 
+use crate::mission::labels::{Importance, Label};
 use armor_model::plan::{AreaKind, Graphic, GraphicKind, LatLon, Plan};
 use armor_model::world::{Point, World};
 use egui::{Color32, Pos2, Rect, RichText, Sense, Stroke, Ui, Vec2, pos2, vec2};
@@ -46,6 +47,9 @@ pub struct MapState {
     pub fit_requested: bool,
     bounds: Option<(LatLon, LatLon)>,
     projector: Option<Projector>,
+    /// The labels' boxes drawn at the last frame, and how long placing them took.
+    pub label_boxes: Vec<Rect>,
+    pub label_time: std::time::Duration,
     /// A handle being dragged and the plan before the drag.
     drag: Option<(Handle, Box<Plan>)>,
     /// What a right-click picked, for its menu.
@@ -67,6 +71,8 @@ impl MapState {
             fit_requested: true,
             bounds: None,
             projector: None,
+            label_boxes: Vec::new(),
+            label_time: std::time::Duration::ZERO,
             drag: None,
             context: Selection::None,
         }
@@ -150,6 +156,30 @@ impl MissionView {
         self.clicks_ui(ui, &response, &scene, &projector, &mut out);
         self.pending_ui(ui, &response, &projector);
         self.commands.extend(out);
+    }
+
+    /// Centres the map on `point` of the world frame (metres), keeping the zoom: to follow
+    /// the robot.
+    pub fn centre_on(&mut self, point: Point) {
+        let origin = self.surroundings.origin(&self.editor.plan);
+        let at = LatLon::from_local(point, origin);
+        if at.lat_deg.is_finite() && at.lon_deg.is_finite() {
+            self.map.memory.center_at(position(at));
+        }
+    }
+
+    /// The boxes of the labels drawn at the last frame (none overlaps another).
+    pub fn label_boxes(&self) -> &[Rect] {
+        &self.map.label_boxes
+    }
+
+    /// Where `point` of the world frame (metres) was drawn at the last frame, and the map's
+    /// area then: for tests that look for the robot.
+    pub fn last_screen_of(&self, point: Point) -> Option<(Pos2, Rect)> {
+        let projector = self.map.projector.as_ref()?;
+        let origin = self.surroundings.origin(&self.editor.plan);
+        let at = projector.project(position(LatLon::from_local(point, origin)));
+        Some((at.to_pos2(), self.map.rect))
     }
 
     /// The map for watching a run: the plan with `current` (a leg) highlighted and no editing;
@@ -248,16 +278,37 @@ impl MissionView {
                     .collect(),
             };
             let painter = ui.painter().with_clip_rect(response.rect);
-            draw_graphics(&painter, plan, selection, &project);
-            draw_legs(&painter, plan, selection, &scene);
-            draw_sync_lines(&painter, plan, &scene);
-            draw_waypoints(&painter, plan, selection, &scene, symbols, ui.ctx());
-            draw_units(&painter, plan, selection, symbols, ui.ctx(), &project);
-            draw_scale(&painter, response.rect, projector, origin);
+            let mut labels = Labels::default();
+            draw_graphics(&painter, plan, selection, &project, &mut labels);
+            draw_legs(&painter, plan, selection, &scene, &mut labels);
+            draw_sync_lines(&painter, plan, &scene, &mut labels);
+            draw_waypoints(
+                &painter,
+                plan,
+                selection,
+                &scene,
+                symbols,
+                ui.ctx(),
+                &mut labels,
+            );
+            draw_units(
+                &painter,
+                plan,
+                selection,
+                symbols,
+                ui.ctx(),
+                &project,
+                &mut labels,
+            );
+            let scale = draw_scale(&painter, response.rect, projector, origin);
+            labels.obstacles.extend(scale);
+            let drawn = labels.draw(&painter);
             overlay(&painter, &|p: Point| project(LatLon::from_local(p, origin)));
-            (scene, projector.clone())
+            (scene, projector.clone(), drawn)
         });
-        let (scene, projector) = response.inner;
+        let (scene, projector, (label_boxes, label_time)) = response.inner;
+        self.map.label_boxes = label_boxes;
+        self.map.label_time = label_time;
         let response = response.response;
         self.map.rect = response.rect;
         self.map.projector = Some(projector.clone());
@@ -578,12 +629,77 @@ fn inside(polygon: &[Pos2], p: Pos2) -> bool {
     armor_model::geo::inside(edges, Point::new(f64::from(p.x), f64::from(p.y)))
 }
 
-/// Text on a pale box, so that it reads over any map.
-fn tag(painter: &egui::Painter, at: Pos2, anchor: egui::Align2, text: &str, colour: Color32) {
-    let galley = painter.layout_no_wrap(text.to_owned(), egui::FontId::proportional(11.0), colour);
+/// Text on a pale box, so that it reads over any map; returns the box.
+fn tag(
+    painter: &egui::Painter,
+    at: Pos2,
+    anchor: egui::Align2,
+    text: &str,
+    colour: Color32,
+) -> Rect {
+    let galley = painter.layout_no_wrap(text.to_owned(), LABEL_FONT, colour);
     let rect = anchor.anchor_size(at, galley.size()).expand(2.0);
     painter.rect_filled(rect, 2.0, LABEL_BACK);
     painter.galley(rect.min + vec2(2.0, 2.0), galley, colour);
+    rect
+}
+
+const LABEL_FONT: egui::FontId = egui::FontId::proportional(11.0);
+
+/// The labels of a frame, placed together once every shape is drawn (see `labels.rs`), and
+/// the symbols they must not cover.
+#[derive(Default)]
+struct Labels {
+    labels: Vec<Label>,
+    obstacles: Vec<Rect>,
+}
+
+impl Labels {
+    fn add(
+        &mut self,
+        anchors: Vec<Pos2>,
+        gap: f32,
+        preferred: egui::Align2,
+        text: &str,
+        colour: Color32,
+        importance: Importance,
+    ) {
+        self.labels.push(Label {
+            anchors,
+            gap,
+            preferred,
+            text: text.to_owned(),
+            colour,
+            importance,
+        });
+    }
+
+    /// Places and draws the labels; returns their boxes and the time the placement took.
+    fn draw(self, painter: &egui::Painter) -> (Vec<Rect>, std::time::Duration) {
+        let started = std::time::Instant::now();
+        let mut measure = |text: &str| {
+            painter
+                .layout_no_wrap(text.to_owned(), LABEL_FONT, Color32::BLACK)
+                .size()
+        };
+        let placed = crate::mission::labels::place(
+            self.labels,
+            &self.obstacles,
+            painter.clip_rect(),
+            &mut measure,
+        );
+        let took = started.elapsed();
+        let boxes = placed.iter().map(|label| label.rect).collect();
+        for label in placed {
+            if let Some(leader) = label.leader {
+                painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
+            }
+            let galley = painter.layout_no_wrap(label.text, LABEL_FONT, label.colour);
+            painter.rect_filled(label.rect, 2.0, LABEL_BACK);
+            painter.galley(label.rect.min + vec2(2.0, 2.0), galley, label.colour);
+        }
+        (boxes, took)
+    }
 }
 
 fn draw_graphics(
@@ -591,6 +707,7 @@ fn draw_graphics(
     plan: &Plan,
     selection: &Selection,
     project: &dyn Fn(LatLon) -> Pos2,
+    labels: &mut Labels,
 ) {
     for (index, graphic) in plan.graphics.iter().enumerate() {
         let points: Vec<Pos2> = graphic.points.iter().map(|at| project(*at)).collect();
@@ -635,12 +752,13 @@ fn draw_graphics(
                 let centre = points.iter().fold(Vec2::ZERO, |sum, p| sum + p.to_vec2())
                     / points.len() as f32;
                 let text = format!("{prefix} {}", graphic.name).trim().to_owned();
-                tag(
-                    painter,
-                    centre.to_pos2(),
+                labels.add(
+                    vec![centre.to_pos2()],
+                    0.0,
                     egui::Align2::CENTER_CENTER,
                     &text,
                     line,
+                    Importance::Graphic,
                 );
             }
             GraphicKind::PhaseLine | GraphicKind::Boundary => {
@@ -662,21 +780,27 @@ fn draw_graphics(
                 if let Some(at) = graphic.at_unix_secs {
                     text += &format!("  {}", clock(at));
                 }
-                for end in [points[0], points[points.len() - 1]] {
-                    tag(
-                        painter,
-                        end - vec2(0.0, 4.0),
-                        egui::Align2::CENTER_BOTTOM,
-                        &text,
-                        colour,
-                    );
-                }
+                // Once, at whichever end has room.
+                labels.add(
+                    vec![points[0], points[points.len() - 1]],
+                    4.0,
+                    egui::Align2::CENTER_BOTTOM,
+                    &text,
+                    colour,
+                    Importance::Graphic,
+                );
             }
         }
     }
 }
 
-fn draw_legs(painter: &egui::Painter, plan: &Plan, selection: &Selection, scene: &Scene) {
+fn draw_legs(
+    painter: &egui::Painter,
+    plan: &Plan,
+    selection: &Selection,
+    scene: &Scene,
+    labels: &mut Labels,
+) {
     for (index, (leg, route)) in plan.legs.iter().zip(&scene.routes).enumerate() {
         if route.len() < 2 {
             continue;
@@ -709,12 +833,13 @@ fn draw_legs(painter: &egui::Painter, plan: &Plan, selection: &Selection, scene:
                 colour,
                 Stroke::NONE,
             ));
-            tag(
-                painter,
-                middle + direction.rot90() * 12.0,
-                egui::Align2::CENTER_CENTER,
+            labels.add(
+                vec![middle],
+                8.0,
+                egui::Align2::CENTER_BOTTOM,
                 &leg.name,
                 colour,
+                Importance::Detail,
             );
         }
     }
@@ -723,7 +848,7 @@ fn draw_legs(painter: &egui::Painter, plan: &Plan, selection: &Selection, scene:
 /// Appointments and deadlines the way a plan's synchronisation matrix puts them on the map:
 /// a line across the route where it applies, with "NET" (not earlier than) at the departure and
 /// "NLT" (not later than) at the arrival; a wait as a label at the waypoint.
-fn draw_sync_lines(painter: &egui::Painter, plan: &Plan, scene: &Scene) {
+fn draw_sync_lines(painter: &egui::Painter, plan: &Plan, scene: &Scene, labels: &mut Labels) {
     let stroke = Stroke::new(2.5, SYNC);
     for (leg, route) in plan.legs.iter().zip(&scene.routes) {
         if route.len() < 2 {
@@ -731,15 +856,16 @@ fn draw_sync_lines(painter: &egui::Painter, plan: &Plan, scene: &Scene) {
         }
         let start_dir = (route[1] - route[0]).normalized();
         let end_dir = (route[route.len() - 1] - route[route.len() - 2]).normalized();
-        let across = |at: Pos2, direction: Vec2, text: String| {
+        let mut across = |at: Pos2, direction: Vec2, text: String| {
             let side = direction.rot90() * 14.0;
             painter.line_segment([at - side, at + side], stroke);
-            tag(
-                painter,
-                at + side + direction.rot90() * 2.0,
+            labels.add(
+                vec![at + side],
+                2.0,
                 egui::Align2::CENTER_TOP,
                 &text,
                 SYNC,
+                Importance::Constraint,
             );
         };
         if let Some(at) = leg.not_before_unix_secs {
@@ -756,24 +882,26 @@ fn draw_sync_lines(painter: &egui::Painter, plan: &Plan, scene: &Scene) {
         if let Some(wait) = leg.wait_secs
             && let Some((_, p)) = scene.waypoints.iter().find(|(name, _)| name == &leg.to)
         {
-            tag(
-                painter,
-                *p + vec2(10.0, 8.0),
+            labels.add(
+                vec![*p],
+                10.0,
                 egui::Align2::LEFT_TOP,
                 &format!("wait {wait} s"),
                 SYNC,
+                Importance::Constraint,
             );
         }
         if let Some(action) = &leg.arrival
             && let Some((_, p)) = scene.waypoints.iter().find(|(name, _)| name == &leg.to)
         {
             let modules: Vec<&str> = action.modules.iter().map(|m| m.name.as_str()).collect();
-            tag(
-                painter,
-                *p + vec2(10.0, -8.0),
+            labels.add(
+                vec![*p],
+                10.0,
                 egui::Align2::LEFT_BOTTOM,
                 &modules.join(", "),
                 ROUTE,
+                Importance::Detail,
             );
         }
     }
@@ -786,6 +914,7 @@ fn draw_waypoints(
     scene: &Scene,
     symbols: &mut SymbolCache,
     ctx: &egui::Context,
+    labels: &mut Labels,
 ) {
     let start = plan.legs.first().map(|leg| leg.from.as_str());
     for (waypoint, (name, p)) in plan.waypoints.iter().zip(&scene.waypoints) {
@@ -797,6 +926,10 @@ fn draw_waypoints(
         if let Some(sidc) = &waypoint.symbol {
             draw_symbol(painter, symbols, ctx, sidc, *p);
         }
+        labels.obstacles.push(Rect::from_center_size(
+            *p,
+            Vec2::splat(2.0 * WAYPOINT_RADIUS + 4.0),
+        ));
         if Some(name.as_str()) == start {
             let r = WAYPOINT_RADIUS + 2.0;
             let triangle = vec![
@@ -813,12 +946,13 @@ fn draw_waypoints(
             painter.circle(*p, WAYPOINT_RADIUS, Color32::WHITE, Stroke::new(2.5, ring));
             painter.circle_filled(*p, 2.0, ring);
         }
-        tag(
-            painter,
-            *p + vec2(0.0, -WAYPOINT_RADIUS - 3.0),
+        labels.add(
+            vec![*p],
+            WAYPOINT_RADIUS + 3.0,
             egui::Align2::CENTER_BOTTOM,
             name,
             ring,
+            Importance::Waypoint,
         );
     }
 }
@@ -830,6 +964,7 @@ fn draw_units(
     symbols: &mut SymbolCache,
     ctx: &egui::Context,
     project: &dyn Fn(LatLon) -> Pos2,
+    labels: &mut Labels,
 ) {
     for (index, unit) in plan.units.iter().enumerate() {
         let p = project(unit.position);
@@ -842,12 +977,16 @@ fn draw_units(
         } else {
             TACTICAL
         };
-        tag(
-            painter,
-            p + vec2(0.0, SYMBOL_SIZE * 0.42),
+        labels
+            .obstacles
+            .push(Rect::from_center_size(p, Vec2::splat(SYMBOL_SIZE * 0.8)));
+        labels.add(
+            vec![p],
+            SYMBOL_SIZE * 0.42,
             egui::Align2::CENTER_TOP,
             &unit.name,
             colour,
+            Importance::Constraint,
         );
     }
 }
@@ -881,8 +1020,14 @@ fn draw_symbol(
     }
 }
 
-/// A scale bar in the lower left corner: a round length that takes 60 to 150 points.
-fn draw_scale(painter: &egui::Painter, rect: Rect, projector: &Projector, origin: LatLon) {
+/// A scale bar in the lower left corner: a round length that takes 60 to 150 points; returns
+/// the area it takes, which labels keep off.
+fn draw_scale(
+    painter: &egui::Painter,
+    rect: Rect,
+    projector: &Projector,
+    origin: LatLon,
+) -> Option<Rect> {
     let centre = lat_lon_of(projector.unproject(rect.center().to_vec2()));
     let east = LatLon::from_local(
         Point::new(centre.to_local(origin).x + 1.0, centre.to_local(origin).y),
@@ -891,15 +1036,13 @@ fn draw_scale(painter: &egui::Painter, rect: Rect, projector: &Projector, origin
     let points_per_metre =
         projector.project(position(east)).x - projector.project(position(centre)).x;
     if !(points_per_metre.is_finite() && points_per_metre > 0.0) {
-        return;
+        return None;
     }
-    let Some(metres) = [
+    let metres = [
         0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0,
     ]
     .into_iter()
-    .find(|m| m * points_per_metre >= 60.0) else {
-        return;
-    };
+    .find(|m| m * points_per_metre >= 60.0)?;
     let length = metres * points_per_metre;
     let left = rect.left_bottom() + vec2(16.0, -18.0);
     let stroke = Stroke::new(2.0, TACTICAL);
@@ -907,13 +1050,17 @@ fn draw_scale(painter: &egui::Painter, rect: Rect, projector: &Projector, origin
     for x in [0.0, length] {
         painter.line_segment([left + vec2(x, -5.0), left + vec2(x, 5.0)], stroke);
     }
-    tag(
+    let text = tag(
         painter,
         left + vec2(length / 2.0, -4.0),
         egui::Align2::CENTER_BOTTOM,
         &format!("{metres} m"),
         TACTICAL,
     );
+    Some(text.union(Rect::from_two_pos(
+        left - vec2(2.0, 6.0),
+        left + vec2(length + 2.0, 6.0),
+    )))
 }
 
 /// `HH:MM:SSZ` of a date, as the map shows times.

@@ -21,10 +21,12 @@ use armor_model::plan::{self, Compiled, LatLon, Origin, Plan};
 use armor_model::world::World;
 use armor_module_api::xml::Located;
 
+use crate::command::UiCommand;
 use crate::diagram::Catalog;
 use plan_edit::{Outcome, PlanCommand, PlanEditor, Selection};
 
 pub mod inspector;
+pub mod labels;
 pub mod map;
 pub mod net_view;
 pub mod plan_edit;
@@ -101,6 +103,37 @@ pub const TOOL_KEYS: &[(egui::Key, Tool)] = &[
     ),
     (egui::Key::U, Tool::Unit),
 ];
+
+impl MissionView {
+    /// Does a command of the table that edits the plan or moves about the map (the window does
+    /// the files').
+    pub fn execute(&mut self, command: UiCommand) {
+        match command {
+            UiCommand::Undo => self.commands.push(PlanCommand::Undo),
+            UiCommand::Redo => self.commands.push(PlanCommand::Redo),
+            UiCommand::Delete => self.commands.push(PlanCommand::DeleteSelection),
+            UiCommand::ClearSelection if self.map.pending.is_empty() => {
+                self.set_tool(Tool::Select);
+                self.commands.push(PlanCommand::Select(Selection::None));
+            }
+            UiCommand::ZoomToFit => self.map.fit_requested = true,
+            _ => {}
+        }
+    }
+
+    /// The tool whose key (in [`TOOL_KEYS`]) was pressed this frame, now chosen.
+    pub fn tool_key_input(&mut self, ctx: &egui::Context) -> Option<Tool> {
+        let mut chosen = None;
+        for (key, tool) in TOOL_KEYS {
+            let shortcut = egui::KeyboardShortcut::new(egui::Modifiers::NONE, *key);
+            if ctx.input_mut(|input| input.consume_shortcut(&shortcut)) {
+                self.set_tool(*tool);
+                chosen = Some(*tool);
+            }
+        }
+        chosen
+    }
+}
 
 /// The plan's surroundings: its system and its world, read from the files it names.
 #[derive(Clone, Debug, Default)]

@@ -16,6 +16,7 @@ use armor_module_api::types::{LaserScan, OccupancyGrid, Odometry, Pose2D};
 use armor_module_api::{Datum, Event, ModuleDescription, ModuleSpec, Node, Standalone};
 
 use super::session::{SharedRef, lock};
+use super::untrusted::{self, Refused, Timeline};
 
 /// The studio node's name, as the agent and the providers' logs show it.
 pub const NODE_NAME: &str = "studio";
@@ -86,38 +87,53 @@ pub struct LiveData {
     pub estimated: Option<Pose2D>,
     pub truth: Option<Pose2D>,
     pub scan: Option<LaserScan>,
-    pub grid: Option<OccupancyGrid>,
+    /// Shared, not copied, by each frame's snapshot: it may hold millions of cells.
+    pub grid: Option<Arc<OccupancyGrid>>,
     /// Bumped with each new grid, so that its picture is made again only then.
     pub grid_revision: u64,
     pub trail: VecDeque<(f64, f64)>,
     /// Samples received, all sources together.
     pub samples: u64,
+    /// The last sample that was not taken, and why (`mapper.grid: …`); the view keeps showing
+    /// the last good one of that source.
+    pub refused: Option<String>,
 }
 
 impl LiveData {
-    /// Takes one sample of `data_name` (encoded as on the wire); unknown names are ignored.
+    /// Takes one sample of `data_name` (encoded as on the wire); unknown names are ignored. A
+    /// sample that cannot be decoded, or whose sizes or numbers cannot be drawn
+    /// ([`untrusted`]), is not taken: the reason is kept in `refused` (and logged when it
+    /// changes), and nothing the size it claims is allocated.
     pub fn take(&mut self, sources: &Sources, data_name: &str, payload: &[u8]) {
         let is = |source: &Option<String>| source.as_deref() == Some(data_name);
         self.samples += 1;
-        if is(&sources.truth) {
-            if let Ok(pose) = Pose2D::decode(payload) {
+        let taken = if is(&sources.truth) {
+            checked(Pose2D::decode(payload), untrusted::check_pose).map(|pose| {
                 self.trail_to(&pose);
                 self.truth = Some(pose);
-            }
+            })
         } else if is(&sources.estimated) {
             let pose = Odometry::decode(payload)
                 .map(|odometry| odometry.pose_in_odom)
                 .or_else(|_| Pose2D::decode(payload));
-            if let Ok(pose) = pose {
-                self.estimated = Some(pose);
-            }
+            checked(pose, untrusted::check_pose).map(|pose| self.estimated = Some(pose))
         } else if is(&sources.scan) {
-            self.scan = LaserScan::decode(payload).ok();
-        } else if is(&sources.grid)
-            && let Ok(grid) = OccupancyGrid::decode(payload)
-        {
-            self.grid = Some(grid);
-            self.grid_revision += 1;
+            checked(LaserScan::decode(payload), untrusted::check_scan)
+                .map(|scan| self.scan = Some(scan))
+        } else if is(&sources.grid) {
+            checked(OccupancyGrid::decode(payload), untrusted::check_grid).map(|grid| {
+                self.grid = Some(Arc::new(grid));
+                self.grid_revision += 1;
+            })
+        } else {
+            Ok(())
+        };
+        if let Err(reason) = taken {
+            let refused = format!("`{data_name}`: {reason}");
+            if self.refused.as_ref() != Some(&refused) {
+                tracing::warn!("a sample was not shown: {refused}");
+            }
+            self.refused = Some(refused);
         }
     }
 
@@ -139,6 +155,16 @@ impl LiveData {
     pub fn scan_pose(&self) -> Option<&Pose2D> {
         self.truth.as_ref().or(self.estimated.as_ref())
     }
+}
+
+/// A decoded sample that passes `check`, else why not.
+fn checked<T>(
+    decoded: Result<T, armor_module_api::types::CodecError>,
+    check: impl FnOnce(&T) -> Result<(), Refused>,
+) -> Result<T, String> {
+    let value = decoded.map_err(|err| err.to_string())?;
+    check(&value).map_err(|refused| refused.to_string())?;
+    Ok(value)
 }
 
 /// Starts the studio's node on a thread: it subscribes to `sources` through the agent at
@@ -208,7 +234,9 @@ fn watch(
 /// time.
 pub struct Recording {
     pub file: std::path::PathBuf,
+    /// In the order of their log times (a file may hold them in any order).
     messages: Vec<armor_runtime::replay::Recorded>,
+    timeline: Timeline,
     pub sources: Sources,
     /// Seconds from the first message to the last.
     pub duration_secs: f64,
@@ -223,10 +251,22 @@ pub struct Recording {
 impl Recording {
     /// Reads a recording; its sources are picked by data type among its channels.
     pub fn open(file: &Path) -> anyhow::Result<Recording> {
-        let messages = armor_runtime::replay::read_recording(file)?;
-        if messages.is_empty() {
+        let messages =
+            armor_runtime::replay::read_recording_within(file, untrusted::MAX_RECORDING_BYTES)?;
+        Recording::of(file, messages)
+    }
+
+    /// A recording of `messages`, read from `file`, shown at its end.
+    fn of(
+        file: &Path,
+        mut messages: Vec<armor_runtime::replay::Recorded>,
+    ) -> anyhow::Result<Recording> {
+        // Stable: messages logged at the same time keep the order the file gives them.
+        messages.sort_by_key(|message| message.log_time_ns);
+        let Some(timeline) = Timeline::of(messages.iter().map(|message| message.log_time_ns))
+        else {
             anyhow::bail!("{} holds no message", file.display());
-        }
+        };
         let first_of = |wanted: &dyn Fn(&armor_runtime::replay::Recorded) -> bool| {
             messages
                 .iter()
@@ -241,12 +281,11 @@ impl Recording {
             scan: first_of(&|m| m.data_type == "LaserScan"),
             grid: first_of(&|m| m.data_type == "OccupancyGrid"),
         };
-        let first = messages[0].log_time_ns;
-        let last = messages.last().map_or(first, |m| m.log_time_ns);
         let mut recording = Recording {
             file: file.to_path_buf(),
-            duration_secs: last.saturating_sub(first) as f64 / 1e9,
+            duration_secs: timeline.duration_secs(),
             messages,
+            timeline,
             sources,
             at_secs: 0.0,
             playing: false,
@@ -261,16 +300,16 @@ impl Recording {
         self.messages.len()
     }
 
-    /// Shows the recording as it was `at_secs` after its first message.
+    /// Shows the recording as it was `at_secs` after its first message (clamped to the
+    /// recording; NaN is its start).
     pub fn seek(&mut self, at_secs: f64) {
-        let at_secs = at_secs.clamp(0.0, self.duration_secs);
+        let at_secs = self.timeline.clamp_secs(at_secs);
         if at_secs < self.at_secs || self.shown_up_to == 0 {
             self.live = LiveData::default();
             self.shown_up_to = 0;
         }
         self.at_secs = at_secs;
-        let first = self.messages[0].log_time_ns;
-        let until = first + (at_secs * 1e9) as u64;
+        let until = self.timeline.until_ns(at_secs);
         while let Some(message) = self.messages.get(self.shown_up_to)
             && message.log_time_ns <= until
         {
@@ -333,5 +372,152 @@ mod tests {
         assert_eq!(live.truth.map(|pose| pose.x_m), Some(1.0));
         live.take(&sources, "other.thing", &[1, 2, 3]);
         assert_eq!(live.samples, 5);
+    }
+
+    fn grid(width: u32, height: u32, cells: Vec<i8>) -> OccupancyGrid {
+        OccupancyGrid {
+            resolution_m: 0.5,
+            width,
+            height,
+            cells,
+            ..OccupancyGrid::default()
+        }
+    }
+
+    #[test]
+    fn hostile_samples_are_refused_and_the_last_good_ones_stay() {
+        let sources = Sources {
+            truth: Some("sim.pose_truth".into()),
+            scan: Some("sim.scan".into()),
+            grid: Some("mapper.grid".into()),
+            ..Sources::default()
+        };
+        let mut live = LiveData::default();
+        live.take(&sources, "mapper.grid", &encode(&grid(2, 1, vec![0, 100])));
+        assert_eq!(live.grid_revision, 1);
+        assert_eq!(live.refused, None);
+
+        // Width × height of 2^64 − 2^33 + 1 cells, four of them sent: refused on sight.
+        live.take(
+            &sources,
+            "mapper.grid",
+            &encode(&grid(u32::MAX, u32::MAX, vec![0; 4])),
+        );
+        let refused = live.refused.clone().unwrap_or_default();
+        assert!(
+            refused.starts_with("`mapper.grid`: a grid of 4294967295 × 4294967295 cells is larger"),
+            "{refused}"
+        );
+        live.take(&sources, "mapper.grid", &encode(&grid(3, 3, vec![0; 4])));
+        let refused = live.refused.clone().unwrap_or_default();
+        assert!(refused.contains("3 × 3 cells came with 4"), "{refused}");
+        assert_eq!(live.grid_revision, 1, "no new picture for a refused grid");
+        assert_eq!(live.grid.as_ref().map(|grid| grid.width), Some(2));
+
+        let good = Pose2D {
+            x_m: 1.0,
+            ..Pose2D::default()
+        };
+        live.take(&sources, "sim.pose_truth", &encode(&good));
+        for hostile in [f64::NAN, f64::INFINITY, 1e300] {
+            let pose = Pose2D {
+                x_m: hostile,
+                ..Pose2D::default()
+            };
+            live.take(&sources, "sim.pose_truth", &encode(&pose));
+        }
+        assert_eq!(live.truth, Some(good));
+        assert_eq!(live.trail.len(), 1);
+        assert!(
+            live.refused
+                .as_deref()
+                .is_some_and(|r| r.contains("pose's x"))
+        );
+
+        let long = LaserScan {
+            ranges_m: vec![1.0; untrusted::MAX_SCAN_RANGES + 1],
+            ..LaserScan::default()
+        };
+        live.take(&sources, "sim.scan", &encode(&long));
+        assert_eq!(live.scan, None);
+        live.take(&sources, "sim.scan", &[0xFF; 3]);
+        let refused = live.refused.clone().unwrap_or_default();
+        assert!(refused.contains("cannot decode LaserScan"), "{refused}");
+    }
+
+    /// A recording of truth poses whose x is the message's place in the file.
+    fn recording_at(times_ns: &[u64]) -> anyhow::Result<Recording> {
+        let messages = times_ns
+            .iter()
+            .enumerate()
+            .map(|(index, &log_time_ns)| armor_runtime::replay::Recorded {
+                log_time_ns,
+                data_name: "sim.pose_truth".into(),
+                data_type: "Pose2D".into(),
+                payload: encode(&Pose2D {
+                    x_m: index as f64,
+                    ..Pose2D::default()
+                }),
+            })
+            .collect();
+        Recording::of(Path::new("hostile.mcap"), messages)
+    }
+
+    fn shown_x(recording: &Recording) -> Option<f64> {
+        recording.live.truth.map(|pose| pose.x_m)
+    }
+
+    #[test]
+    fn messages_out_of_order_are_played_in_the_order_of_their_times() {
+        let mut recording = recording_at(&[30, 10, 20, 10]).expect("opens");
+        assert!((recording.duration_secs - 20e-9).abs() < 1e-18);
+        assert_eq!(shown_x(&recording), Some(0.0), "the latest, at the end");
+        recording.seek(0.0);
+        assert_eq!(shown_x(&recording), Some(3.0), "at 10 ns, in file order");
+        assert_eq!(recording.live.samples, 2);
+        recording.seek(15e-9);
+        assert_eq!(shown_x(&recording), Some(2.0));
+    }
+
+    #[test]
+    fn hostile_timestamps_neither_overflow_nor_panic() {
+        // The first at 1 ns, the last at u64::MAX: the old play head added the duration, rounded
+        // up to 2^64 ns, to the first.
+        let mut recording = recording_at(&[1, u64::MAX]).expect("opens");
+        assert_eq!(
+            shown_x(&recording),
+            Some(1.0),
+            "the last is shown at the end"
+        );
+        for at_secs in [f64::MAX, f64::INFINITY, 1e300, recording.duration_secs] {
+            recording.seek(at_secs);
+            assert_eq!(recording.at_secs, recording.duration_secs);
+            assert_eq!(shown_x(&recording), Some(1.0));
+        }
+        for at_secs in [f64::NAN, -1.0, f64::NEG_INFINITY, 0.0] {
+            recording.seek(at_secs);
+            assert_eq!(recording.at_secs, 0.0);
+            assert_eq!(shown_x(&recording), Some(0.0));
+        }
+        recording.playing = true;
+        assert!(recording.advance(f64::INFINITY), "played to the end");
+        assert_eq!(shown_x(&recording), Some(1.0));
+
+        // Last before first in the file, at both ends of the range.
+        let mut backwards = recording_at(&[u64::MAX, 0]).expect("opens");
+        assert_eq!(backwards.duration_secs, u64::MAX as f64 / 1e9);
+        assert_eq!(shown_x(&backwards), Some(0.0));
+        backwards.seek(0.0);
+        assert_eq!(shown_x(&backwards), Some(1.0));
+
+        let mut all_at_the_end = recording_at(&[u64::MAX; 3]).expect("opens");
+        assert_eq!(all_at_the_end.duration_secs, 0.0);
+        assert_eq!(all_at_the_end.live.samples, 3);
+        all_at_the_end.seek(5.0);
+        assert_eq!(all_at_the_end.at_secs, 0.0);
+        assert_eq!(all_at_the_end.live.samples, 3);
+
+        let err = recording_at(&[]).err().map(|err| err.to_string());
+        assert_eq!(err.as_deref(), Some("hostile.mcap holds no message"));
     }
 }

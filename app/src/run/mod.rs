@@ -10,12 +10,15 @@
 pub mod live;
 pub mod monitor;
 pub mod session;
+pub mod untrusted;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use armor_model::plan::Origin;
+use armor_module_api::types::OccupancyGrid;
 use armor_runtime::control::{ModuleState, Request, Status};
 use egui::{Color32, RichText, Ui};
 
@@ -76,6 +79,10 @@ pub struct RunView {
     drive: (f64, f64),
     drive_sent: Option<Instant>,
     last_frame: Option<Instant>,
+    /// Keep the map centred on the robot.
+    pub follow: bool,
+    /// Frame the plan's world (and so the robot) at the next frame: a run just started.
+    fit_pending: bool,
     /// Answers to the operator, newest last, shown in the status line by the app.
     pub messages: Vec<(bool, String)>,
 }
@@ -99,6 +106,8 @@ impl RunView {
             drive: (0.0, 0.0),
             drive_sent: None,
             last_frame: None,
+            follow: false,
+            fit_pending: false,
             messages: Vec::new(),
         }
     }
@@ -107,11 +116,32 @@ impl RunView {
         self.session.as_ref().is_some_and(RunSession::is_running)
     }
 
-    /// The last state the run reported.
+    /// The last state the run reported; once the run is over, the modules it left at work
+    /// read "ended with the run" (the run stopped them), and the crashed and failed stay so.
     pub fn status(&self) -> Option<Status> {
+        let session = self.session.as_ref()?;
+        let mut status = session.shared().status.clone()?;
+        if !session.is_running() && session.shared().ended.is_some() {
+            for module in &mut status.modules {
+                if matches!(
+                    module.state,
+                    ModuleState::Starting
+                        | ModuleState::Running
+                        | ModuleState::Stopped
+                        | ModuleState::Restarting
+                ) {
+                    module.state = ModuleState::Ended;
+                }
+            }
+        }
+        Some(status)
+    }
+
+    /// The file the current (or last) run runs.
+    pub fn session_target(&self) -> Option<&Path> {
         self.session
             .as_ref()
-            .and_then(|s| s.shared().status.clone())
+            .map(|session| session.options.target.as_path())
     }
 
     /// The live data shown (the run's, or the recording's).
@@ -169,6 +199,7 @@ impl RunView {
                 self.messages
                     .push((true, format!("running {}", target.path().display())));
                 self.session = Some(session);
+                self.fit_pending = true;
             }
             Err(err) => self.messages.push((false, format!("{err:#}"))),
         }
@@ -342,9 +373,13 @@ impl RunView {
             .default_size(320.0)
             .min_size(260.0)
             .show(ui, |ui| {
-                self.mission_ui(ui, status.as_ref());
-                ui.separator();
-                self.teleop_ui(ui);
+                // The pad stays in one place whatever the length of the mission's lists.
+                egui::Panel::bottom("run-drive")
+                    .resizable(false)
+                    .show(ui, |ui| self.teleop_ui(ui));
+                egui::ScrollArea::vertical()
+                    .id_salt("run-mission-scroll")
+                    .show(ui, |ui| self.mission_ui(ui, status.as_ref()));
             });
         egui::Panel::bottom("run-logs")
             .resizable(true)
@@ -423,6 +458,17 @@ impl RunView {
                 .clicked()
             {
                 self.stop();
+            }
+            ui.separator();
+            ui.checkbox(&mut self.follow, "Follow")
+                .on_hover_text("keep the map centred on the robot");
+            if ui
+                .button("Fit")
+                .on_hover_text("frame the world, the plan and the robot (Home)")
+                .clicked()
+                || ui.input(|input| input.key_pressed(egui::Key::Home))
+            {
+                self.fit_pending = true;
             }
             ui.separator();
             let text = match (&self.session, status) {
@@ -559,24 +605,19 @@ impl RunView {
             return;
         }
         let mut held = (0.0, 0.0);
-        let pad = |ui: &mut Ui, label: &str, hover: &str| {
-            ui.add_sized([34.0, 28.0], egui::Button::new(label))
-                .on_hover_text(hover)
-                .is_pointer_button_down_on()
-        };
         egui::Grid::new("teleop-pad").show(ui, |ui| {
             ui.label("");
-            if pad(ui, "▲", "forward") {
+            if monitor::pad_button(ui, egui::vec2(0.0, -1.0), "forward") {
                 held.0 += DRIVE_MPS;
             }
             ui.end_row();
-            if pad(ui, "◀", "turn left") {
+            if monitor::pad_button(ui, egui::vec2(-1.0, 0.0), "turn left") {
                 held.1 += TURN_RADPS;
             }
-            if pad(ui, "▼", "back") {
+            if monitor::pad_button(ui, egui::vec2(0.0, 1.0), "back") {
                 held.0 -= DRIVE_MPS;
             }
-            if pad(ui, "▶", "turn right") {
+            if monitor::pad_button(ui, egui::vec2(1.0, 0.0), "turn right") {
                 held.1 -= TURN_RADPS;
             }
             ui.end_row();
@@ -743,6 +784,8 @@ impl RunView {
                 })
         });
         let grid_texture = self.grid_texture(ui.ctx(), &live);
+        let fit = std::mem::take(&mut self.fit_pending);
+        let follow = self.follow;
         let mission = match (
             self.session.as_ref().map(|s| s.options.target.clone()),
             surroundings.mission.as_deref_mut(),
@@ -758,6 +801,12 @@ impl RunView {
                 }
             },
         };
+        if fit {
+            mission.map.fit_requested = true;
+        }
+        if follow && let Some(pose) = live.estimated.as_ref().or(live.truth.as_ref()) {
+            mission.centre_on(armor_model::world::Point::new(pose.x_m, pose.y_m));
+        }
         let response = mission.watch_ui(ui, current_leg, |painter, project| {
             monitor::paint_live(painter, project, &live, grid_texture.as_ref());
         });
@@ -773,27 +822,52 @@ impl RunView {
                 ),
             );
         }
+        if let Some(refused) = &live.refused {
+            ui.put(
+                egui::Rect::from_min_size(
+                    response.rect.left_top() + egui::vec2(8.0, 30.0),
+                    egui::vec2(640.0, 20.0),
+                ),
+                egui::Label::new(
+                    RichText::new(format!("not shown: {refused}"))
+                        .color(monitor::state_colour(ModuleState::Failed))
+                        .background_color(Color32::from_white_alpha(220)),
+                ),
+            );
+        }
     }
 
-    /// The grid's picture, made again only when a new grid arrived.
+    /// The grid's picture, made again only when a new grid arrived. Its size is the grid's,
+    /// shrunk to what the display takes as one texture.
     fn grid_texture(
         &mut self,
         ctx: &egui::Context,
         live: &LiveData,
-    ) -> Option<(egui::TextureHandle, armor_module_api::types::OccupancyGrid)> {
+    ) -> Option<(egui::TextureHandle, Arc<OccupancyGrid>)> {
         let grid = live.grid.as_ref()?;
         if self
             .grid_texture
             .as_ref()
             .is_none_or(|(revision, _)| *revision != live.grid_revision)
         {
-            let image = monitor::grid_image(grid);
-            let texture = ctx.load_texture("run-grid", image, egui::TextureOptions::NEAREST);
-            self.grid_texture = Some((live.grid_revision, texture));
+            let max_side = ctx.input(|input| input.max_texture_side);
+            match monitor::grid_image(grid, max_side) {
+                Ok(image) => {
+                    let texture =
+                        ctx.load_texture("run-grid", image, egui::TextureOptions::NEAREST);
+                    self.grid_texture = Some((live.grid_revision, texture));
+                }
+                // `LiveData::take` refuses such a grid before it is kept, and says why.
+                Err(refused) => {
+                    tracing::debug!("no picture of the grid: {refused}");
+                    self.grid_texture = None;
+                    return None;
+                }
+            }
         }
         self.grid_texture
             .as_ref()
-            .map(|(_, texture)| (texture.clone(), grid.clone()))
+            .map(|(_, texture)| (texture.clone(), Arc::clone(grid)))
     }
 }
 

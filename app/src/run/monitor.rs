@@ -2,6 +2,7 @@
 //! the firing timeline, and what is painted on the live map (the grid, the scan, the poses).
 
 use std::collections::VecDeque;
+use std::sync::Arc;
 
 use armor_model::world::Point;
 use armor_module_api::types::{OccupancyGrid, Pose2D};
@@ -11,6 +12,7 @@ use egui_plot::{Line, Plot, Points};
 
 use super::live::LiveData;
 use super::session::Sample;
+use super::untrusted::{self, Refused};
 
 const TRUTH: Color32 = Color32::from_rgb(20, 110, 220);
 const ESTIMATE: Color32 = Color32::from_rgb(230, 120, 0);
@@ -21,7 +23,9 @@ pub fn state_colour(state: ModuleState) -> Color32 {
     match state {
         ModuleState::Running => Color32::from_rgb(40, 160, 70),
         ModuleState::Starting | ModuleState::Restarting => Color32::from_rgb(80, 140, 220),
-        ModuleState::Stopped | ModuleState::Exited => Color32::from_rgb(140, 140, 140),
+        ModuleState::Stopped | ModuleState::Exited | ModuleState::Ended => {
+            Color32::from_rgb(140, 140, 140)
+        }
         ModuleState::Crashed => Color32::from_rgb(230, 140, 0),
         ModuleState::Failed => Color32::from_rgb(210, 40, 40),
     }
@@ -255,25 +259,16 @@ pub fn pose_text(live: &LiveData) -> String {
     )
 }
 
-/// The occupancy grid as a picture: unknown cells clear, free ones pale, occupied ones dark.
-/// Row 0 of the grid is its southern edge, so rows are flipped for the screen.
-pub fn grid_image(grid: &OccupancyGrid) -> egui::ColorImage {
-    let (width, height) = (grid.width as usize, grid.height as usize);
-    let mut pixels = Vec::with_capacity(width * height);
-    for row in (0..height).rev() {
-        for column in 0..width {
-            let cell = grid.cells.get(row * width + column).copied().unwrap_or(-1);
-            pixels.push(match cell {
-                value if value < 0 => Color32::TRANSPARENT,
-                value => {
-                    let occupied = f32::from(value.min(100)) / 100.0;
-                    let shade = (235.0 - 215.0 * occupied) as u8;
-                    Color32::from_rgba_unmultiplied(shade, shade, shade, 170)
-                }
-            });
-        }
-    }
-    egui::ColorImage::new([width, height], pixels)
+/// The occupancy grid as a picture at most `max_side` pixels a side (see
+/// [`untrusted::grid_picture`]): unknown cells clear, free ones pale, occupied ones dark, the
+/// grid's southern edge at the bottom. A grid that is too large or inconsistent is refused
+/// before anything its size is allocated.
+pub fn grid_image(grid: &OccupancyGrid, max_side: usize) -> Result<egui::ColorImage, Refused> {
+    let picture = untrusted::grid_picture(grid, max_side)?;
+    Ok(egui::ColorImage::from_rgba_unmultiplied(
+        picture.size,
+        &picture.rgba,
+    ))
 }
 
 /// Paints the grid, the true path, the scan and both poses.
@@ -281,7 +276,7 @@ pub fn paint_live(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     live: &LiveData,
-    grid: Option<&(egui::TextureHandle, OccupancyGrid)>,
+    grid: Option<&(egui::TextureHandle, Arc<OccupancyGrid>)>,
 ) {
     if let Some((texture, grid)) = grid {
         let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
@@ -301,25 +296,18 @@ pub fn paint_live(
         .iter()
         .map(|(x, y)| project(Point::new(*x, *y)))
         .collect();
-    if trail.len() >= 2 {
-        painter.add(egui::Shape::line(
-            trail,
-            Stroke::new(1.5, TRUTH.gamma_multiply(0.6)),
-        ));
+    // The trail fades out behind the robot: older segments are lighter.
+    let segments = trail.len().saturating_sub(1);
+    for (i, pair) in trail.windows(2).enumerate() {
+        let age = (i + 1) as f32 / segments.max(1) as f32;
+        painter.line_segment(
+            [pair[0], pair[1]],
+            Stroke::new(2.0, TRUTH.gamma_multiply(0.1 + 0.7 * age)),
+        );
     }
     if let (Some(scan), Some(pose)) = (&live.scan, live.scan_pose()) {
-        for (index, range) in scan.ranges_m.iter().enumerate() {
-            let range = f64::from(*range);
-            if !range.is_finite() || range >= scan.range_max_m {
-                continue;
-            }
-            let angle =
-                pose.theta_rad + scan.angle_min_rad + scan.angle_increment_rad * index as f64;
-            let hit = project(Point::new(
-                pose.x_m + range * angle.cos(),
-                pose.y_m + range * angle.sin(),
-            ));
-            painter.circle_filled(hit, 1.6, SCAN);
+        for (x_m, y_m) in untrusted::scan_hits(scan, pose) {
+            painter.circle_filled(project(Point::new(x_m, y_m)), 1.6, SCAN);
         }
     }
     for (pose, colour) in [(&live.estimated, ESTIMATE), (&live.truth, TRUTH)] {
@@ -329,19 +317,69 @@ pub fn paint_live(
     }
 }
 
-/// A robot as a triangle pointing where it heads, 0.6 m long.
+/// A button of the drive pad: an arrow pointing along `direction` (screen axes), drawn rather
+/// than taken from the font (which lacks ▲ and ▼), named `name` for screen readers and tests.
+/// True while the pointer holds it down.
+pub fn pad_button(ui: &mut Ui, direction: egui::Vec2, name: &str) -> bool {
+    let (rect, response) =
+        ui.allocate_exact_size(egui::vec2(40.0, 32.0), egui::Sense::click_and_drag());
+    response.widget_info(|| egui::WidgetInfo::labeled(egui::WidgetType::Button, true, name));
+    let visuals = ui.style().interact(&response);
+    ui.painter().rect(
+        rect,
+        visuals.corner_radius,
+        visuals.bg_fill,
+        visuals.bg_stroke,
+        egui::StrokeKind::Inside,
+    );
+    let centre = rect.center();
+    let side = egui::vec2(-direction.y, direction.x);
+    ui.painter().add(egui::Shape::convex_polygon(
+        vec![
+            centre + direction * 9.0,
+            centre - direction * 6.0 + side * 8.0,
+            centre - direction * 6.0 - side * 8.0,
+        ],
+        visuals.fg_stroke.color,
+        Stroke::NONE,
+    ));
+    response.on_hover_text(name).is_pointer_button_down_on()
+}
+
+/// The least a robot is drawn across, in points, whatever the zoom: a newcomer must find it.
+pub const ROBOT_MIN_POINTS: f32 = 26.0;
+
+/// A robot: a disc with an arrow pointing where it heads, its real size (0.6 m) or
+/// [`ROBOT_MIN_POINTS`] across, whichever is larger, rimmed so it shows on any tile.
 fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D, colour: Color32) {
-    let at = |forward: f64, left: f64| {
-        let (sin, cos) = pose.theta_rad.sin_cos();
-        project(Point::new(
-            pose.x_m + forward * cos - left * sin,
-            pose.y_m + forward * sin + left * cos,
-        ))
+    let centre = project(Point::new(pose.x_m, pose.y_m));
+    let (sin, cos) = pose.theta_rad.sin_cos();
+    let ahead = project(Point::new(pose.x_m + cos, pose.y_m + sin)) - centre;
+    let metre = ahead.length();
+    if !metre.is_finite() || !centre.is_finite() {
+        return;
+    }
+    let dir = if metre > 0.0 {
+        ahead / metre
+    } else {
+        egui::vec2(1.0, 0.0)
     };
-    let points = vec![at(0.4, 0.0), at(-0.2, 0.22), at(-0.2, -0.22)];
+    let radius = (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0);
+    painter.circle(
+        centre,
+        radius,
+        colour.gamma_multiply(0.35),
+        Stroke::new(2.0, colour),
+    );
+    let side = egui::vec2(-dir.y, dir.x);
+    let points = vec![
+        centre + dir * radius * 0.85,
+        centre - dir * radius * 0.55 + side * radius * 0.55,
+        centre - dir * radius * 0.55 - side * radius * 0.55,
+    ];
     painter.add(egui::Shape::convex_polygon(
         points,
-        colour.gamma_multiply(0.8),
+        colour,
         Stroke::new(1.5, Color32::WHITE),
     ));
 }
@@ -387,12 +425,37 @@ mod tests {
             origin_y_m: 0.0,
             cells: vec![100, 0, -1, -1],
         };
-        let image = grid_image(&grid);
+        let image = grid_image(&grid, 2048).expect("a good grid");
         assert_eq!(image.size, [2, 2]);
         assert_eq!(image.pixels[0], Color32::TRANSPARENT, "unknown, top row");
         assert!(
             image.pixels[2].r() < image.pixels[3].r(),
             "occupied darker than free"
+        );
+    }
+
+    #[test]
+    fn a_huge_or_inconsistent_grid_has_no_picture() {
+        // The old code allocated `width × height` pixels on the grid's word: 2^64 − 2^33 + 1
+        // of them here, a capacity overflow.
+        let huge = OccupancyGrid {
+            resolution_m: 0.5,
+            width: u32::MAX,
+            height: u32::MAX,
+            cells: vec![0; 4],
+            ..OccupancyGrid::default()
+        };
+        let err = grid_image(&huge, 2048).expect_err("refused");
+        assert!(matches!(err, Refused::GridTooLarge { .. }), "{err}");
+        let inconsistent = OccupancyGrid {
+            width: 3,
+            height: 3,
+            ..huge
+        };
+        let err = grid_image(&inconsistent, 2048).expect_err("refused");
+        assert!(
+            matches!(err, Refused::GridInconsistent { cells: 4, .. }),
+            "{err}"
         );
     }
 }

@@ -5,7 +5,7 @@
 //! is a thread that writes into [`Shared`].
 
 use std::collections::{BTreeMap, VecDeque};
-use std::io::{BufRead as _, BufReader, Read, Write as _};
+use std::io::{BufRead, BufReader, Read, Write as _};
 use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -23,6 +23,9 @@ use super::live::{self, LiveData, Sources};
 const POLL_EVERY: Duration = Duration::from_millis(200);
 /// Log lines kept (the oldest go first).
 const MAX_LOG_LINES: usize = 20_000;
+/// Bytes kept of one line of a module's output (the rest of a longer line is skipped), so that
+/// the log holds at most `MAX_LOG_LINES × MAX_LINE_BYTES` (320 MiB) whatever a module prints.
+const MAX_LINE_BYTES: usize = 16 * 1024;
 /// Samples of each module's counters kept for its plots.
 const MAX_HISTORY: usize = 240;
 /// How long a stopped run has to end before it is killed.
@@ -382,10 +385,13 @@ fn read_output(
     let shared = Arc::clone(shared);
     let ctx = ctx.clone();
     std::thread::spawn(move || {
-        for line in BufReader::new(pipe).lines() {
-            let Ok(line) = line else {
-                return;
-            };
+        let mut reader = BufReader::new(pipe);
+        let mut bytes = Vec::new();
+        // A read error is the end of the pipe: the process is gone.
+        while let Ok(true) = read_line_bounded(&mut reader, &mut bytes, MAX_LINE_BYTES) {
+            // Lossy: a module that prints bytes that are not UTF-8 must not stop its log (the
+            // pipe would then fill and block the run).
+            let line = String::from_utf8_lossy(&bytes).into_owned();
             let at_secs = started.elapsed().as_secs_f64();
             let (module, text) = match &source {
                 Source::Modules(control) => {
@@ -433,6 +439,42 @@ fn read_output(
             ctx.request_repaint_after(Duration::from_millis(100));
         }
     });
+}
+
+/// Reads one line into `line` without its end (`\n` or `\r\n`), keeping at most `max_bytes` of
+/// it and skipping the rest; false at the end of the stream.
+fn read_line_bounded(
+    reader: &mut impl BufRead,
+    line: &mut Vec<u8>,
+    max_bytes: usize,
+) -> std::io::Result<bool> {
+    line.clear();
+    let mut read_any = false;
+    loop {
+        let available = reader.fill_buf()?;
+        if available.is_empty() {
+            break;
+        }
+        read_any = true;
+        let end = available.iter().position(|&byte| byte == b'\n');
+        let part = &available[..end.unwrap_or(available.len())];
+        let room = max_bytes.saturating_sub(line.len());
+        line.extend_from_slice(&part[..part.len().min(room)]);
+        match end {
+            Some(end) => {
+                reader.consume(end + 1);
+                break;
+            }
+            None => {
+                let all = available.len();
+                reader.consume(all);
+            }
+        }
+    }
+    if line.last() == Some(&b'\r') {
+        line.pop();
+    }
+    Ok(read_any)
 }
 
 /// A tracing line without its leading date (`2026-11-23T06:40:00.123456Z  INFO …`).
@@ -639,5 +681,28 @@ mod tests {
             "INFO armor: fired `go`"
         );
         assert_eq!(strip_timestamp("counted 10"), "counted 10");
+    }
+
+    #[test]
+    fn a_long_line_is_cut_and_bytes_that_are_not_text_do_not_stop_the_log() {
+        let mut output = b"short\r\n".to_vec();
+        output.extend(std::iter::repeat_n(b'x', 100_000));
+        output.extend(b"\n\xFF\xFEbad\nlast without end");
+        // Read in pieces of 7 bytes, as a pipe may give them.
+        let mut reader = BufReader::with_capacity(7, output.as_slice());
+        let mut line = Vec::new();
+        let mut lines = Vec::new();
+        while read_line_bounded(&mut reader, &mut line, 16).expect("a slice reads") {
+            lines.push(String::from_utf8_lossy(&line).into_owned());
+        }
+        assert_eq!(
+            lines,
+            [
+                "short",
+                "xxxxxxxxxxxxxxxx",
+                "\u{FFFD}\u{FFFD}bad",
+                "last without end"
+            ]
+        );
     }
 }

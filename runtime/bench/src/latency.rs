@@ -10,7 +10,7 @@ use armor_module_api::types::Blob;
 use armor_module_api::{Event, Input, ModuleSpec, Node, Output};
 
 use crate::Settings;
-use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
+use crate::harness::{LINK_TIMEOUT, STALL_TIMEOUT, Security};
 use crate::procs::{ChildGuard, spawn_echo};
 use crate::raw;
 use crate::report::Report;
@@ -51,10 +51,24 @@ pub fn run_1mib(settings: &Settings) -> anyhow::Result<Report> {
     run(SIZES[3], settings)
 }
 
-fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Result<Report> {
+/// `latency_64b_secret`: round trips of 64 bytes on authenticated links, against the same
+/// without a secret, in the same run.
+pub const NAME_SECRET: &str = "latency_64b_secret";
+/// `latency_64b_encrypted`: the same on encrypted links.
+pub const NAME_ENCRYPTED: &str = "latency_64b_encrypted";
+
+pub fn run_secret(settings: &Settings) -> anyhow::Result<Report> {
+    run_secured(NAME_SECRET, &Security::with_secret(false)?, settings)
+}
+
+pub fn run_encrypted(settings: &Settings) -> anyhow::Result<Report> {
+    run_secured(NAME_ENCRYPTED, &Security::with_secret(true)?, settings)
+}
+
+fn counts(size: usize, settings: &Settings) -> Counts {
     // Fewer round trips for large messages: a 1 MiB one takes about a millisecond.
     let scale = (size / 1024).max(1);
-    let counts = if settings.quick {
+    if settings.quick {
         Counts {
             warm_up: 20,
             block: 100,
@@ -66,17 +80,54 @@ fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Resu
             block: (2_000 / scale).max(100),
             blocks: 10,
         }
-    };
-    let mut armor = ArmorPingPong::start(size)?;
-    let mut raw = RawPingPong::start(size)?;
-    armor.round_trips(counts.warm_up)?;
-    raw.round_trips(counts.warm_up)?;
-    let mut ours = Vec::with_capacity(counts.block * counts.blocks);
-    let mut reference = Vec::with_capacity(counts.block * counts.blocks);
-    for _ in 0..counts.blocks {
-        ours.extend(armor.round_trips(counts.block)?);
-        reference.extend(raw.round_trips(counts.block)?);
     }
+}
+
+/// Alternating blocks of round trips on `ours` and `reference`.
+fn alternate(
+    ours: &mut impl FnMut(usize) -> anyhow::Result<Vec<Duration>>,
+    reference: &mut impl FnMut(usize) -> anyhow::Result<Vec<Duration>>,
+    counts: &Counts,
+) -> anyhow::Result<(Vec<Duration>, Vec<Duration>)> {
+    ours(counts.warm_up)?;
+    reference(counts.warm_up)?;
+    let mut mine = Vec::with_capacity(counts.block * counts.blocks);
+    let mut theirs = Vec::with_capacity(counts.block * counts.blocks);
+    for _ in 0..counts.blocks {
+        mine.extend(ours(counts.block)?);
+        theirs.extend(reference(counts.block)?);
+    }
+    Ok((mine, theirs))
+}
+
+fn run_secured(
+    name: &'static str,
+    security: &Security,
+    settings: &Settings,
+) -> anyhow::Result<Report> {
+    let size = 64;
+    let counts = counts(size, settings);
+    let mut secured = ArmorPingPong::start(size, security)?;
+    let mut plain = ArmorPingPong::start(size, &Security::Plain)?;
+    let (ours, reference) = alternate(
+        &mut |n| secured.round_trips(n),
+        &mut |n| plain.round_trips(n),
+        &counts,
+    )?;
+    Ok(Report::distribution(name, "us", 1e6, &ours, &reference)
+        .with("bytes", size)
+        .with("reference_is", "the same round trip without a secret"))
+}
+
+fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Result<Report> {
+    let counts = counts(size, settings);
+    let mut armor = ArmorPingPong::start(size, &Security::Plain)?;
+    let mut raw = RawPingPong::start(size)?;
+    let (ours, reference) = alternate(
+        &mut |n| armor.round_trips(n),
+        &mut |n| raw.round_trips(n),
+        &counts,
+    )?;
     raw.finish()?;
     Ok(Report::distribution(name, "us", 1e6, &ours, &reference).with("bytes", size))
 }
@@ -94,16 +145,16 @@ struct ArmorPingPong {
 
 impl ArmorPingPong {
     /// Connects both ways: keeps sending until a pong comes back.
-    fn start(size: usize) -> anyhow::Result<Self> {
-        let agent = harness::agent()?;
+    fn start(size: usize, security: &Security) -> anyhow::Result<Self> {
+        let agent = security.agent()?;
         let spec = ModuleSpec::new("bench", "armor-bench: the latency probe")
             .output::<Blob>("ping", "messages, each stamped with its sequence number")
             .input::<Blob>("pong", "the same messages, echoed");
-        let mut node = harness::connect(spec, agent, &[("pong", "echo.output")])?;
+        let mut node = security.connect(spec, agent, &[("pong", "echo.output")])?;
         let ping = node.output::<Blob>("ping")?;
         let pong = node.reliable_input::<Blob>("pong")?;
         let agent = agent.to_string();
-        let echo = spawn_echo(&agent)?;
+        let echo = spawn_echo(&agent, security)?;
         let mut side = Self {
             node,
             ping,

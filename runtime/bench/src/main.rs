@@ -18,6 +18,7 @@ mod compile_plan;
 mod discovery;
 mod event_start;
 mod fuzz;
+mod handshake;
 mod harness;
 mod kill;
 mod latency;
@@ -105,6 +106,24 @@ const BENCHES: &[Bench] = &[
         run: latency::run_1mib,
     },
     Bench {
+        name: latency::NAME_SECRET,
+        about: "round trip of 64 bytes on authenticated links (--secret) vs the same without a \
+                secret (us; goal ratio <= 1.05)",
+        run: latency::run_secret,
+    },
+    Bench {
+        name: latency::NAME_ENCRYPTED,
+        about: "round trip of 64 bytes on encrypted links (--secret --encrypt) vs the same \
+                without a secret (us; goal ratio <= 1.3)",
+        run: latency::run_encrypted,
+    },
+    Bench {
+        name: handshake::NAME,
+        about: "a connection to the agent opened with the Noise handshake vs with the hello only \
+                (us, p50)",
+        run: handshake::run,
+    },
+    Bench {
         name: pull::NAME,
         about: "request for the latest value of armor-mod-echo's output (pull mode), 64 bytes \
                 answered, vs raw TCP request/reply (us)",
@@ -114,6 +133,18 @@ const BENCHES: &[Bench] = &[
         name: throughput::NAME_1MIB,
         about: "1 MiB messages into armor-mod-sink vs TCP streaming (msg/s)",
         run: throughput::run_1mib,
+    },
+    Bench {
+        name: throughput::NAME_1MIB_SECRET,
+        about: "1 MiB messages on an authenticated link vs the same without a secret (msg/s; \
+                goal ratio >= 0.95)",
+        run: throughput::run_1mib_secret,
+    },
+    Bench {
+        name: throughput::NAME_1MIB_ENCRYPTED,
+        about: "1 MiB messages on an encrypted link vs the same without a secret (msg/s; goal \
+                ratio >= 0.5)",
+        run: throughput::run_1mib_encrypted,
     },
     Bench {
         name: throughput::NAME_64B,
@@ -224,6 +255,12 @@ const BENCHES: &[Bench] = &[
         about: "one frame of armor-studio's Mission view (headless) with a 500-waypoint plan, \
                 40 unit symbols and tactical graphics vs a 60 Hz frame budget (ms; goal < 16)",
         run: studio::run_map,
+    },
+    Bench {
+        name: studio::NAME_LABELS,
+        about: "placing the Mission view's labels (no overlaps) of a 500-waypoint plan, in one \
+                frame (ms; goal < 5)",
+        run: studio::run_labels,
     },
     Bench {
         name: studio::NAME_VS_SNARL,

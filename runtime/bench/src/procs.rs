@@ -44,22 +44,22 @@ pub fn module_command(module_type: &str, args: &[&str]) -> anyhow::Result<Comman
     Ok(command)
 }
 
-/// `armor-mod-echo` named `echo`, its input bound to the bench node's output `ping`.
-pub fn spawn_echo(agent: &str) -> anyhow::Result<ChildGuard> {
-    ChildGuard::spawn(
-        "armor-mod-echo",
-        module_command(
+/// `armor-mod-echo` named `echo`, its input bound to the bench node's output `ping`, with the
+/// key `security` gives it.
+pub fn spawn_echo(agent: &str, security: &crate::harness::Security) -> anyhow::Result<ChildGuard> {
+    let mut command = module_command(
+        "echo",
+        &[
+            "--name",
             "echo",
-            &[
-                "--name",
-                "echo",
-                "--agent",
-                agent,
-                "--bind",
-                "input=bench.ping",
-            ],
-        )?,
-    )
+            "--agent",
+            agent,
+            "--bind",
+            "input=bench.ping",
+        ],
+    )?;
+    security.module_env(&mut command, "echo");
+    ChildGuard::spawn("armor-mod-echo", command)
 }
 
 /// A binary next to this executable (`armor` next to `armor-bench`).

@@ -59,7 +59,7 @@ impl ArmorPull {
         let ping: Output<Blob> = node.output::<Blob>("ping")?;
         let latest = node.pull_input::<Blob>("latest")?;
         let agent = agent.to_string();
-        let echo = spawn_echo(&agent)?;
+        let echo = spawn_echo(&agent, &harness::Security::Plain)?;
         let mut side = Self { node, latest, echo };
         let message = Blob(vec![0xA5; SIZE]);
         let give_up = Instant::now() + LINK_TIMEOUT;

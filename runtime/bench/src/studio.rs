@@ -16,6 +16,7 @@ use crate::report::Report;
 pub const NAME_FRAME: &str = "studio_frame_ms_1000_blocks";
 pub const NAME_LOAD: &str = "studio_load_ms_1000_blocks";
 pub const NAME_MAP: &str = "map_frame_ms_500_waypoints";
+pub const NAME_LABELS: &str = "label_place_ms_500_waypoints";
 pub const NAME_VS_SNARL: &str = "studio_vs_bare_snarl_1000";
 
 pub fn run_frame(settings: &Settings) -> anyhow::Result<Report> {
@@ -28,6 +29,10 @@ pub fn run_load(settings: &Settings) -> anyhow::Result<Report> {
 
 pub fn run_map(settings: &Settings) -> anyhow::Result<Report> {
     relay(NAME_MAP, settings)
+}
+
+pub fn run_labels(settings: &Settings) -> anyhow::Result<Report> {
+    relay(NAME_LABELS, settings)
 }
 
 pub fn run_vs_snarl(settings: &Settings) -> anyhow::Result<Report> {

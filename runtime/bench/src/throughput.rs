@@ -12,7 +12,7 @@ use armor_module_api::types::{Blob, Counter};
 use armor_module_api::{Event, Input, ModuleSpec, Node, Output, PortId};
 
 use crate::Settings;
-use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
+use crate::harness::{LINK_TIMEOUT, STALL_TIMEOUT, Security};
 use crate::procs::{ChildGuard, module_command};
 use crate::raw;
 use crate::report::{Report, median};
@@ -119,8 +119,8 @@ pub fn run_fanout(settings: &Settings) -> anyhow::Result<Report> {
         every,
         rounds,
     };
-    let mut one = ArmorSide::start(&plan, 1)?;
-    let mut more = ArmorSide::start(&plan, MORE)?;
+    let mut one = ArmorSide::start(&plan, 1, &Security::Plain)?;
+    let mut more = ArmorSide::start(&plan, MORE, &Security::Plain)?;
     let (mut rate_one, mut rate_more) = (Vec::new(), Vec::new());
     let (mut sends, mut buffered) = (Vec::new(), Vec::new());
     for _ in 0..plan.rounds {
@@ -156,8 +156,54 @@ pub fn run_fanout(settings: &Settings) -> anyhow::Result<Report> {
     )
 }
 
+/// `throughput_1mib_secret`: 1 MiB messages on an authenticated link, against the same without
+/// a secret, in the same run.
+pub const NAME_1MIB_SECRET: &str = "throughput_1mib_secret";
+/// `throughput_1mib_encrypted`: the same on an encrypted link.
+pub const NAME_1MIB_ENCRYPTED: &str = "throughput_1mib_encrypted";
+
+pub fn run_1mib_secret(settings: &Settings) -> anyhow::Result<Report> {
+    run_secured(NAME_1MIB_SECRET, &Security::with_secret(false)?, settings)
+}
+
+pub fn run_1mib_encrypted(settings: &Settings) -> anyhow::Result<Report> {
+    run_secured(NAME_1MIB_ENCRYPTED, &Security::with_secret(true)?, settings)
+}
+
+fn run_secured(
+    name: &'static str,
+    security: &Security,
+    settings: &Settings,
+) -> anyhow::Result<Report> {
+    let (count, every, rounds) = if settings.quick {
+        (20, 2, 1)
+    } else {
+        (2_000, 10, 3)
+    };
+    let plan = Plan {
+        name,
+        size: 1024 * 1024,
+        count,
+        every,
+        rounds,
+    };
+    let mut secured = ArmorSide::start(&plan, 1, security)?;
+    let mut plain = ArmorSide::start(&plan, 1, &Security::Plain)?;
+    let mut ours = Vec::with_capacity(plan.rounds);
+    let mut reference = Vec::with_capacity(plan.rounds);
+    for _ in 0..plan.rounds {
+        ours.push(secured.round(&plan)?);
+        reference.push(plain.round(&plan)?);
+    }
+    Ok(
+        Report::single(plan.name, "msg/s", median(&ours), median(&reference))
+            .with("bytes", plan.size)
+            .with("reference_is", "the same stream without a secret"),
+    )
+}
+
 fn run(plan: &Plan) -> anyhow::Result<Report> {
-    let mut armor = ArmorSide::start(plan, 1)?;
+    let mut armor = ArmorSide::start(plan, 1, &Security::Plain)?;
     let mut ours = Vec::with_capacity(plan.rounds);
     let mut reference = Vec::with_capacity(plan.rounds);
     for _ in 0..plan.rounds {
@@ -184,8 +230,8 @@ struct ArmorSide {
 
 impl ArmorSide {
     /// Connects both ways to `sinks` sinks and learns their exact counts.
-    fn start(plan: &Plan, sinks: usize) -> anyhow::Result<Self> {
-        let agent = harness::agent()?;
+    fn start(plan: &Plan, sinks: usize, security: &Security) -> anyhow::Result<Self> {
+        let agent = security.agent()?;
         let names: Vec<(String, String)> = (0..sinks)
             .map(|i| (format!("count{i}"), format!("sink{i}")))
             .collect();
@@ -202,7 +248,7 @@ impl ArmorSide {
             .iter()
             .map(|(input, source)| (input.as_str(), source.as_str()))
             .collect();
-        let mut node = harness::connect(spec, agent, &binds)?;
+        let mut node = security.connect(spec, agent, &binds)?;
         let data = node.output::<Blob>("data")?;
         let counts = names
             .iter()
@@ -213,22 +259,21 @@ impl ArmorSide {
         let sinks = names
             .iter()
             .map(|(_, sink)| {
-                ChildGuard::spawn(
-                    "armor-mod-sink",
-                    module_command(
-                        "sink",
-                        &[
-                            "--name",
-                            sink,
-                            "--agent",
-                            &agent,
-                            "--param",
-                            &every,
-                            "--bind",
-                            "input=bench.data",
-                        ],
-                    )?,
-                )
+                let mut command = module_command(
+                    "sink",
+                    &[
+                        "--name",
+                        sink,
+                        "--agent",
+                        &agent,
+                        "--param",
+                        &every,
+                        "--bind",
+                        "input=bench.data",
+                    ],
+                )?;
+                security.module_env(&mut command, sink);
+                ChildGuard::spawn("armor-mod-sink", command)
             })
             .collect::<anyhow::Result<Vec<_>>>()?;
         let mut side = Self {

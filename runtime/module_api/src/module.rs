@@ -104,9 +104,12 @@ pub struct Standalone {
     pub params: Vec<(String, String)>,
     /// Input links (`input`, `module.output`).
     pub binds: Vec<(String, String)>,
-    /// The shared secret's file, for a run started with `armor run --secret`; else
+    /// The shared secret's file, for a run started with `armor run --secret` (the node
+    /// proves the key of its name, derived from it); else `$ARMOR_KEY`, else
     /// `$ARMOR_SECRET_FILE`, else none.
     pub secret: Option<std::path::PathBuf>,
+    /// Encrypt every link (`armor run --encrypt`); also set by `ARMOR_ENCRYPT=1`.
+    pub encrypt: bool,
 }
 
 /// Runs a module: answers `--describe`, sets up logging, connects, and runs `body`.
@@ -212,14 +215,12 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
         .unwrap_or_else(|| DEFAULT_AGENT.to_owned());
     let agent = resolve(&agent)?;
     let clock = Clock::from_env();
-    let secret = match &options.secret {
-        Some(file) => Some(crate::auth::Secret::load(file)?),
-        None => crate::auth::Secret::from_env()?,
-    };
+    let credentials =
+        crate::auth::Credentials::for_module(&name, options.secret.as_deref(), options.encrypt)?;
     let (config, supervisor) = match std::env::var(ENV_SUPERVISOR) {
         Ok(addr) => {
             let addr = resolve(&addr)?;
-            let (config, stream) = configure(&name, addr, secret.as_ref())?;
+            let (config, stream) = configure(&name, addr, credentials.as_ref())?;
             (config, Some((addr, stream)))
         }
         Err(_) => (
@@ -228,7 +229,7 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
         ),
     };
     let mut core = Core::new(name, description, config, clock);
-    let net = Net::start(&mut core, agent, supervisor, secret)?;
+    let net = Net::start(&mut core, agent, supervisor, credentials)?;
     let mut node = Node::from_parts(core, Transport::Net(Box::new(net)));
     if let Transport::Net(net) = &mut node.transport {
         net.tell_supervisor(&ToSupervisor::Ready);
@@ -249,10 +250,10 @@ impl Node {
 fn configure(
     name: &str,
     addr: SocketAddr,
-    secret: Option<&crate::auth::Secret>,
-) -> Result<(ModuleConfig, TcpStream), ApiError> {
+    credentials: Option<&crate::auth::Credentials>,
+) -> Result<(ModuleConfig, blocking::SecureStream), ApiError> {
     let started = Instant::now();
-    let mut stream = loop {
+    let stream = loop {
         match TcpStream::connect_timeout(&addr, Duration::from_secs(1)) {
             Ok(stream) => break stream,
             Err(_) if started.elapsed() < SUPERVISOR_PATIENCE => {
@@ -268,7 +269,8 @@ fn configure(
     };
     stream.set_nodelay(true)?;
     stream.set_read_timeout(Some(SUPERVISOR_PATIENCE))?;
-    blocking::handshake(&mut stream, secret)?;
+    let dial = credentials.map(|credentials| credentials.dial(name));
+    let mut stream = blocking::dial(stream, dial.as_ref())?;
     blocking::write_message(
         &mut stream,
         &ToSupervisor::Hello {
@@ -279,7 +281,7 @@ fn configure(
     loop {
         match blocking::read_message::<FromSupervisor>(&mut stream)? {
             FromSupervisor::Config(config) => {
-                stream.set_read_timeout(None)?;
+                stream.get_ref().set_read_timeout(None)?;
                 return Ok((config, stream));
             }
             FromSupervisor::Error { message } => return Err(ApiError::Refused(message)),

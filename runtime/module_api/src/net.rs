@@ -17,7 +17,7 @@ use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token};
 use serde::Deserialize;
 
-use crate::auth::{Handshake, Secret};
+use crate::auth::{Credentials, Dial, Key, SealedWriter};
 use crate::node::{ApiError, Core};
 use crate::protocol::{
     Advert, FromAgent, FromProvider, FromSupervisor, ToAgent, ToProvider, ToSupervisor,
@@ -37,6 +37,10 @@ const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
 const IDENTIFY_WAIT: Duration = Duration::from_millis(50);
 /// How often it looks again meanwhile.
 const IDENTIFY_POLL: Duration = Duration::from_millis(2);
+/// The most connections a module keeps that have not authenticated (or, without a secret,
+/// subscribed) yet; the oldest is dropped for a new one. A stranger costs a socket and a
+/// kilobyte until its handshake deadline.
+const MAX_PENDING_PEERS: usize = 256;
 /// Past this many buffered bytes a subscriber's data is written at once rather than batched.
 const BATCH_BYTES: usize = 64 * 1024;
 /// Past this many buffered bytes a reliable subscriber makes the publisher wait.
@@ -90,19 +94,23 @@ enum PeerMessage {
 }
 
 struct Conn {
-    /// A std stream (non-blocking, registered by its descriptor) rather than mio's: std's reads
-    /// fill a buffer's spare capacity without zeroing it first, which a large frame's payload
-    /// is read into.
-    stream: TcpStream,
+    /// Writes go through it (sealed on an encrypted link); its `inner` is the socket, a std
+    /// stream (non-blocking, registered by its descriptor) rather than mio's: std's reads fill
+    /// a buffer's spare capacity without zeroing it first, which a large frame's payload is
+    /// read into.
+    link: SealedWriter<TcpStream>,
     reader: FrameReader,
     out: OutBuffer,
     role: Role,
     /// A reliable input stopped reading because its queue is full.
     paused: bool,
     handshake_deadline: Option<Instant>,
-    /// Messages queued before this side could send its proof (it needs the peer's challenge):
-    /// they follow the proof, since the peer takes nothing before it.
+    /// Messages queued before the handshake is over: they follow it, since the peer takes
+    /// nothing before.
     held: Option<OutBuffer>,
+    /// The peer's module: proven by the handshake for a dialer, the provider dialled for a
+    /// subscription; `None` without a secret.
+    peer: Option<String>,
     /// When a rate-limited subscriber was last sent a sample.
     last_sent: Option<Instant>,
     /// A subscriber pulled before its output had a sample: it gets the next one.
@@ -143,7 +151,27 @@ pub(crate) struct Net {
     /// The outputs pulled at least once: their large frames are kept too.
     pulled: Vec<bool>,
     /// With a shared secret, every connection authenticates.
-    secret: Option<Secret>,
+    credentials: Option<Credentials>,
+    /// The module's name, which it proves.
+    name: String,
+}
+
+impl Conn {
+    /// Writes what is queued, then what the sealer holds; `Ok(true)` when all went out.
+    fn flush(&mut self) -> io::Result<bool> {
+        Ok(self.link.flush_pending()?
+            && self.out.flush_to(&mut self.link)?
+            && self.link.flush_pending()?)
+    }
+
+    /// Bytes queued and not yet taken by the socket.
+    fn pending_bytes(&self) -> usize {
+        self.out.pending_bytes() + self.link.pending_bytes()
+    }
+
+    fn stream(&mut self) -> &mut TcpStream {
+        &mut self.link.inner
+    }
 }
 
 impl Net {
@@ -152,8 +180,8 @@ impl Net {
     pub fn start(
         core: &mut Core,
         agent_addr: SocketAddr,
-        supervisor: Option<(SocketAddr, std::net::TcpStream)>,
-        secret: Option<Secret>,
+        supervisor: Option<(SocketAddr, crate::wire::blocking::SecureStream)>,
+        credentials: Option<Credentials>,
     ) -> Result<Self, ApiError> {
         let poll = Poll::new()?;
         let bind_host = if core.config.host.is_empty() {
@@ -188,13 +216,20 @@ impl Net {
             subscribers: vec![Vec::new(); core.outputs.len()],
             latest: Vec::new(),
             pulled: Vec::new(),
-            secret,
+            credentials,
+            name: core.name.clone(),
         };
         if let Some((addr, stream)) = supervisor {
             net.supervisor_addr = Some(addr);
             // The hello exchange (and authentication) and the first configuration happened
             // before, blocking.
-            let token = net.add_conn(stream, Role::Supervisor, false)?;
+            let (stream, leftover, opener, link) = stream.into_parts();
+            drop(stream);
+            let token = net.register(
+                link,
+                FrameReader::resume(&leftover, opener),
+                Role::Supervisor,
+            )?;
             net.supervisor = Link::Up(token);
         }
         net.inputs = core
@@ -226,38 +261,33 @@ impl Net {
         matches!(self.inputs.get(input), Some(InputLink::Linked(_)))
     }
 
-    /// Registers a connection; with `greet`, queues the hello (and the challenge, with a
-    /// secret) and expects the peer's.
-    fn add_conn(&mut self, stream: TcpStream, role: Role, greet: bool) -> io::Result<Token> {
+    /// Registers a connection whose reader is set up.
+    fn register(
+        &mut self,
+        link: SealedWriter<TcpStream>,
+        reader: FrameReader,
+        role: Role,
+    ) -> io::Result<Token> {
         let token = Token(self.next_token);
         self.next_token += 1;
-        stream.set_nodelay(true)?;
-        stream.set_nonblocking(true)?;
+        link.inner.set_nodelay(true)?;
+        link.inner.set_nonblocking(true)?;
         self.poll.registry().register(
-            &mut SourceFd(&stream.as_raw_fd()),
+            &mut SourceFd(&link.inner.as_raw_fd()),
             token,
             Interest::READABLE | Interest::WRITABLE,
         )?;
-        let handshake = greet
-            .then(|| self.secret.as_ref().map(Handshake::new))
-            .flatten();
-        let mut out = OutBuffer::default();
-        let reader = if greet {
-            out.push_hello_auth(handshake.as_ref());
-            FrameReader::expecting_hello_auth(handshake.clone())
-        } else {
-            FrameReader::default()
-        };
         self.conns.insert(
             token,
             Conn {
-                stream,
+                link,
                 reader,
-                out,
+                out: OutBuffer::default(),
                 role,
                 paused: false,
                 handshake_deadline: None,
-                held: handshake.map(|_| OutBuffer::default()),
+                held: None,
+                peer: None,
                 last_sent: None,
                 pull_pending: false,
             },
@@ -265,9 +295,27 @@ impl Net {
         Ok(token)
     }
 
-    fn open(&mut self, addr: SocketAddr, role: Role) -> io::Result<Token> {
-        let stream = mio::net::TcpStream::connect(addr)?.into();
-        self.add_conn(stream, role, true)
+    /// Opens a connection to `addr`, proving this module's identity with `key` (its own for
+    /// the agent and the supervisor, the agent's link key for a provider).
+    fn open(&mut self, addr: SocketAddr, role: Role, key: Option<Key>) -> io::Result<Token> {
+        let stream: TcpStream = mio::net::TcpStream::connect(addr)?.into();
+        let dial = match (&self.credentials, key) {
+            (Some(credentials), Some(key)) => Some(Dial {
+                key,
+                ..credentials.dial(&self.name)
+            }),
+            (Some(credentials), None) => Some(credentials.dial(&self.name)),
+            (None, _) => None,
+        };
+        let (reader, greeting) = FrameReader::dialer(dial.as_ref()).map_err(io::Error::other)?;
+        let token = self.register(SealedWriter::new(stream), reader, role)?;
+        if let Some(conn) = self.conns.get_mut(&token) {
+            conn.out.push_encoded(&greeting);
+            if dial.is_some() {
+                conn.held = Some(OutBuffer::default());
+            }
+        }
+        Ok(token)
     }
 
     /// Everything this module serves, for the agent (a registration replaces the previous one).
@@ -281,6 +329,7 @@ impl Net {
                     data_name: slot.data_name.clone(),
                     data_type: slot.data_type.clone(),
                     addr: self.listen_addr.to_string(),
+                    key: None,
                 })
                 .collect(),
         }
@@ -306,7 +355,7 @@ impl Net {
     }
 
     fn connect_agent(&mut self, core: &mut Core) {
-        match self.open(self.agent_addr, Role::Agent) {
+        match self.open(self.agent_addr, Role::Agent, None) {
             Ok(token) => {
                 self.agent = Link::Up(token);
                 let register = self.registration(core);
@@ -399,7 +448,7 @@ impl Net {
             if pull {
                 if pulled {
                     conn.out.push_frame_parts(parts, false);
-                    let _ = conn.out.flush_to(&mut conn.stream);
+                    let _ = conn.flush();
                 }
                 continue;
             }
@@ -413,7 +462,25 @@ impl Net {
                 }
                 conn.last_sent = Some(now);
             }
-            if reliable && conn.out.is_empty() && frame_len >= BATCH_BYTES {
+            if reliable
+                && conn.out.is_empty()
+                && frame_len >= BATCH_BYTES
+                && conn.link.is_sealing()
+                && conn.link.seal_frame(parts)
+            {
+                // An encrypted link: the frame is sealed from the caller's buffers into the
+                // records that wait for the socket.
+                if let Err(err) = conn.link.flush_pending()
+                    && err.kind() != ErrorKind::WouldBlock
+                {
+                    stalled.push(token);
+                    continue;
+                }
+            } else if reliable
+                && conn.out.is_empty()
+                && frame_len >= BATCH_BYTES
+                && !conn.link.is_sealing()
+            {
                 // A large frame with nothing queued before it goes out from the caller's
                 // buffers; only what the socket does not take now is copied. (A best-effort
                 // subscriber's queue may drop frames not yet started, so its frames are always
@@ -422,7 +489,7 @@ impl Net {
                     .iter()
                     .map(|part| std::io::IoSlice::new(part))
                     .collect();
-                match std::io::Write::write_vectored(&mut conn.stream, &slices) {
+                match std::io::Write::write_vectored(conn.stream(), &slices) {
                     Ok(written) if written == frame_len => continue,
                     Ok(written) => conn.out.push_frame_parts(&unwritten(parts, written), false),
                     Err(err) if err.kind() == ErrorKind::WouldBlock => {
@@ -436,10 +503,10 @@ impl Net {
             } else {
                 conn.out.push_frame_parts(parts, !reliable);
             }
-            let large_left = reliable && frame_len >= BATCH_BYTES && !conn.out.is_empty();
+            let large_left = reliable && frame_len >= BATCH_BYTES && conn.pending_bytes() > 0;
             if large_left || conn.out.pending_bytes() >= BATCH_BYTES {
-                match conn.out.flush_to(&mut conn.stream) {
-                    Ok(_) if reliable && conn.out.pending_bytes() > backlog_limit(frame_len) => {
+                match conn.flush() {
+                    Ok(_) if reliable && conn.pending_bytes() > backlog_limit(frame_len) => {
                         stalled.push(token)
                     }
                     Ok(_) => {}
@@ -466,8 +533,8 @@ impl Net {
             let Some(conn) = self.conns.get_mut(&token) else {
                 return Ok(());
             };
-            match conn.out.flush_to(&mut conn.stream) {
-                Ok(_) if conn.out.pending_bytes() <= limit => return Ok(()),
+            match conn.flush() {
+                Ok(_) if conn.pending_bytes() <= limit => return Ok(()),
                 Ok(_) => {}
                 Err(err) => {
                     tracing::info!("subscriber went away: {err}");
@@ -489,8 +556,8 @@ impl Net {
     pub fn flush_all(&mut self, core: &mut Core) {
         let mut broken = Vec::new();
         for (&token, conn) in &mut self.conns {
-            if !conn.out.is_empty()
-                && let Err(err) = conn.out.flush_to(&mut conn.stream)
+            if (!conn.out.is_empty() || conn.link.pending_bytes() > 0)
+                && let Err(err) = conn.flush()
             {
                 tracing::debug!(?token, "write failed: {err}");
                 broken.push(token);
@@ -538,7 +605,7 @@ impl Net {
                 continue;
             }
             if writable && let Some(conn) = self.conns.get_mut(&token) {
-                match conn.out.flush_to(&mut conn.stream) {
+                match conn.flush() {
                     Ok(_) => {}
                     Err(err) => {
                         self.fail(core, token, &err.into());
@@ -591,7 +658,7 @@ impl Net {
         if let (Link::Down { retry_at }, Some(addr)) = (self.supervisor, self.supervisor_addr)
             && retry_at <= now
         {
-            match self.open(addr, Role::Supervisor) {
+            match self.open(addr, Role::Supervisor, None) {
                 Ok(token) => {
                     self.supervisor = Link::Up(token);
                     let hello = ToSupervisor::Hello {
@@ -642,11 +709,23 @@ impl Net {
         loop {
             match self.listener.accept() {
                 Ok((stream, peer)) => {
-                    match self.add_conn(stream.into(), Role::Peer(PeerLink::default()), true) {
+                    self.make_room_for_a_peer(core);
+                    let listen = self.credentials.as_ref().map(Credentials::listen);
+                    let reader = FrameReader::listener(listen);
+                    let stream: TcpStream = stream.into();
+                    match self.register(
+                        SealedWriter::new(stream),
+                        reader,
+                        Role::Peer(PeerLink::default()),
+                    ) {
                         Ok(token) => {
                             tracing::debug!(%peer, "subscriber connecting");
                             if let Some(conn) = self.conns.get_mut(&token) {
+                                conn.out.push_hello();
                                 conn.handshake_deadline = Some(Instant::now() + HANDSHAKE_TIMEOUT);
+                                if self.credentials.is_some() {
+                                    conn.held = Some(OutBuffer::default());
+                                }
                             }
                             accepted.push(token);
                         }
@@ -662,6 +741,23 @@ impl Net {
         }
         for token in accepted {
             self.read_conn(core, token);
+        }
+    }
+
+    /// Drops the oldest connection still in its handshake when [`MAX_PENDING_PEERS`] are.
+    fn make_room_for_a_peer(&mut self, core: &mut Core) {
+        let pending = self
+            .conns
+            .iter()
+            .filter_map(|(&token, conn)| conn.handshake_deadline.map(|at| (at, token)));
+        let (count, oldest) = pending.fold((0, None), |(count, oldest), item| {
+            (count + 1, oldest.min(Some(item)).or(Some(item)))
+        });
+        if count >= MAX_PENDING_PEERS
+            && let Some((_, token)) = oldest
+        {
+            tracing::debug!("too many peers in their handshake: dropped the oldest");
+            self.close(core, token);
         }
     }
 
@@ -698,7 +794,7 @@ impl Net {
             if conn.paused {
                 return;
             }
-            match conn.reader.fill_from(&mut conn.stream) {
+            match conn.reader.fill_from(&mut conn.link.inner) {
                 Ok(0) => {
                     self.close(core, token);
                     return;
@@ -716,6 +812,16 @@ impl Net {
             if conn.reader.drained() {
                 if let Err(err) = self.handle_frames(core, token) {
                     self.fail(core, token, &err);
+                    return;
+                }
+                // Records read with the handshake's last frame wait in the opener: the socket
+                // will not tell of them.
+                if self
+                    .conns
+                    .get(&token)
+                    .is_some_and(|conn| !conn.paused && conn.reader.has_buffered_records())
+                {
+                    continue;
                 }
                 return;
             }
@@ -733,10 +839,21 @@ impl Net {
             let Some(frame) = conn.reader.next_frame()? else {
                 return Ok(());
             };
-            if let Frame::ProofDue(proof) = frame {
-                conn.out.push_proof(&proof);
-                if let Some(held) = conn.held.take() {
-                    conn.out.append(held);
+            if let Frame::AuthStep = frame {
+                let step = conn.reader.take_auth_step();
+                conn.out.push_encoded(&step.reply);
+                if let Some(sealer) = step.sealer {
+                    // The handshake's frames go out as they are, everything after sealed.
+                    let raw = conn.out.pending_bytes();
+                    conn.link.start_sealing(sealer, raw);
+                }
+                if step.done {
+                    if step.peer.is_some() {
+                        conn.peer = step.peer;
+                    }
+                    if let Some(held) = conn.held.take() {
+                        conn.out.append(held);
+                    }
                 }
                 continue;
             }
@@ -814,6 +931,29 @@ impl Net {
             };
             return;
         }
+        let ticket = match (&self.credentials, &advert.key) {
+            (None, _) => None,
+            (Some(_), Some(key)) => match Key::from_hex(key) {
+                Some(key) => Some(key),
+                None => {
+                    tracing::warn!(
+                        data_name = advert.data_name,
+                        "agent gave an unreadable link key"
+                    );
+                    self.inputs[index] = retry;
+                    return;
+                }
+            },
+            (Some(_), None) if shared.is_none() => {
+                tracing::warn!(
+                    data_name = advert.data_name,
+                    "the agent gave no link key for this provider (does it run with the secret?)"
+                );
+                self.inputs[index] = retry;
+                return;
+            }
+            (Some(_), None) => None,
+        };
         let token = match shared {
             Some(token) => token,
             None => match self.open(
@@ -822,8 +962,18 @@ impl Net {
                     peer_addr: Some(addr),
                     ..PeerLink::default()
                 }),
+                ticket,
             ) {
-                Ok(token) => token,
+                Ok(token) => {
+                    if let Some(conn) = self.conns.get_mut(&token) {
+                        conn.peer = self
+                            .credentials
+                            .as_ref()
+                            .and(advert.data_name.split_once('.'))
+                            .map(|(module, _)| module.to_owned());
+                    }
+                    token
+                }
                 Err(err) => {
                     tracing::debug!(%addr, "cannot connect to provider: {err}");
                     self.inputs[index] = retry;
@@ -843,7 +993,7 @@ impl Net {
     /// not subscribed yet (it may be in the middle of the handshake).
     fn awaits_identification(&self) -> bool {
         let now = Instant::now();
-        self.secret.is_some()
+        self.credentials.is_some()
             && self.conns.values().any(|conn| {
                 matches!(
                     conn.role,
@@ -878,7 +1028,7 @@ impl Net {
             }
             // Out at once: a peer subscribing here at the same moment sees this first (see
             // `join_peer_connection`). A failed write shows at the next poll.
-            let _ = conn.out.flush_to(&mut conn.stream);
+            let _ = conn.flush();
         }
         self.inputs[index] = InputLink::Connecting(token);
     }
@@ -958,9 +1108,9 @@ impl Net {
                     conn.paused = true;
                 }
             }
-            // The reader handles authentication frames; none reaches a data link.
-            Frame::Challenge(_) | Frame::Proof(_) | Frame::ProofDue(_) => {
-                return Err(WireError::Unauthenticated("an authentication frame"));
+            // The reader handles handshake frames; none reaches a data link.
+            Frame::Handshake(..) | Frame::AuthStep => {
+                return Err(WireError::Unauthenticated("a handshake frame"));
             }
         }
         Ok(())
@@ -1054,7 +1204,7 @@ impl Net {
             )
         });
         if idle && let Some(mut conn) = self.remove_conn(token) {
-            let _ = conn.out.flush_to(&mut conn.stream);
+            let _ = conn.flush();
         }
     }
 
@@ -1082,7 +1232,7 @@ impl Net {
             Some(frame) => {
                 conn.out.push_frame(frame, false);
                 // A failed write shows as the connection's error at the next poll.
-                let _ = conn.out.flush_to(&mut conn.stream);
+                let _ = conn.flush();
             }
             None => conn.pull_pending = true,
         }
@@ -1162,7 +1312,18 @@ impl Net {
             .outputs
             .iter()
             .position(|slot| slot.data_name == data_name);
+        let proven = self.conns.get(&token).and_then(|conn| conn.peer.clone());
         let refusal = match found {
+            // With a secret, a subscriber's name is its proven module's.
+            _ if proven.as_ref().is_some_and(|module| {
+                subscriber.split_once('.').map(|(name, _)| name) != Some(module.as_str())
+            }) =>
+            {
+                Some(format!(
+                    "`{subscriber}` is not an input of `{}`, which this connection proved to be",
+                    proven.unwrap_or_default()
+                ))
+            }
             None => Some(format!("`{}` does not serve `{data_name}`", core.name)),
             Some(output) if core.outputs[output].data_type != data_type => Some(format!(
                 "`{data_name}` carries {}, not {data_type}",
@@ -1180,7 +1341,7 @@ impl Net {
         let Some(conn) = self.conns.get_mut(&token) else {
             return;
         };
-        let _ = conn.out.flush_to(&mut conn.stream);
+        let _ = conn.flush();
         let Role::Peer(link) = &mut conn.role else {
             return;
         };
@@ -1289,7 +1450,7 @@ impl Net {
         let _ = self
             .poll
             .registry()
-            .deregister(&mut SourceFd(&conn.stream.as_raw_fd()));
+            .deregister(&mut SourceFd(&conn.link.inner.as_raw_fd()));
         Some(conn)
     }
 

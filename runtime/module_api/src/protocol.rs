@@ -18,6 +18,10 @@ pub struct Advert {
     pub data_name: String,
     pub data_type: String,
     pub addr: String,
+    /// In the agent's answers of a run with a secret: the link key (hex) with which the asker
+    /// proves itself at the provider's data port (`docs/protocol.md`, section 2.5).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub key: Option<String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]

@@ -174,4 +174,26 @@ mod tests {
             "appends a varint after what was there"
         );
     }
+
+    #[test]
+    fn a_hostile_length_fails_without_allocating_what_it_claims() {
+        // A sequence of u64::MAX elements (varint), then nothing: serde preallocates at most
+        // what the bytes left can hold (postcard's size hint), so decoding fails at the end of
+        // the input instead of asking for 2^64 elements, which would abort with a capacity
+        // overflow.
+        let huge_len = [0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x01];
+        let mut grid = Vec::new();
+        grid.extend(0.5_f64.to_le_bytes()); // resolution
+        grid.extend([0xFF, 0xFF, 0xFF, 0xFF, 0x0F]); // width: u32::MAX
+        grid.extend([0xFF, 0xFF, 0xFF, 0xFF, 0x0F]); // height: u32::MAX
+        grid.extend([0; 16]); // origin
+        grid.extend(huge_len);
+        let err = OccupancyGrid::decode(&grid).expect_err("too short");
+        assert!(err.to_string().contains("OccupancyGrid"), "{err}");
+        let mut scan = vec![0; 24]; // angles and maximum range
+        scan.extend(huge_len);
+        scan.extend([0; 64]);
+        assert!(LaserScan::decode(&scan).is_err());
+        assert!(Text::decode(&huge_len).is_err());
+    }
 }

@@ -5,9 +5,10 @@
 //! follows it), one kind byte, then the payload. The length is checked against
 //! [`MAX_FRAME_BYTES`] before anything is allocated, so a peer announcing 4 GiB costs nothing.
 //!
-//! With a shared secret ([`crate::auth`]), each side sends a challenge frame right after its
-//! hello, answers the peer's challenge with a proof frame, and takes no other frame until the
-//! peer's proof checks out.
+//! With a shared secret ([`crate::auth`]), the dialer sends the first Noise handshake message
+//! right after its hello, the listener answers, and the dialer confirms; neither takes any other
+//! frame before. On an encrypted link each side's bytes after its last handshake frame are
+//! records ([`crate::auth::Sealer`]) that carry the frames.
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
@@ -15,7 +16,9 @@ use std::io::{self, Read, Write};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use crate::auth::{Handshake, NONCE_BYTES, Nonce, Proof};
+use crate::auth::{
+    AuthError, Dial, Dialer, Listen, Listener, MAX_HANDSHAKE_BYTES, OpenedReader, Opener, Sealer,
+};
 
 pub const MAGIC: [u8; 4] = *b"ARMR";
 pub const VERSION: u16 = 1;
@@ -35,10 +38,15 @@ pub const KIND_MESSAGE: u8 = 1;
 /// A data sample: `seq: u64 LE`, `stamp_ns: u64 LE`, then the encoded datum.
 pub const KIND_DATA: u8 = 2;
 const DATA_HEADER_BYTES: usize = 16;
-/// An authentication challenge: 32 random bytes.
-pub const KIND_CHALLENGE: u8 = 3;
-/// An authentication proof: the HMAC of both challenges (see [`crate::auth`]).
-pub const KIND_PROOF: u8 = 4;
+/// The dialer's first handshake message: its identity, then Noise's `psk, e`.
+pub const KIND_HANDSHAKE_FIRST: u8 = 3;
+/// The listener's answer: Noise's `e, ee`.
+pub const KIND_HANDSHAKE_ANSWER: u8 = 4;
+/// The dialer's confirmation: its first Noise transport message, empty.
+pub const KIND_HANDSHAKE_CONFIRM: u8 = 5;
+/// The most a reader takes from a peer before it has authenticated: a hello and a handshake
+/// frame fit many times over.
+const PREAUTH_READ_BYTES: usize = 1024;
 
 #[derive(Debug, thiserror::Error)]
 pub enum WireError {
@@ -66,9 +74,13 @@ pub enum WireError {
     AuthNotConfigured,
     #[error("the peer sent {0} before authenticating: this side requires the shared secret")]
     Unauthenticated(&'static str),
-    #[error("the peer's proof does not match: it does not hold the shared secret")]
-    AuthFailed,
-    #[error("authentication frame of {0} bytes (expected 32)")]
+    #[error("authentication failed: {0}")]
+    AuthFailed(#[from] AuthError),
+    #[error(
+        "the peer closed the connection during the handshake: it does not take the key offered for `{0}` (another secret, or a name that is not this module's own)"
+    )]
+    HandshakeRefused(String),
+    #[error("handshake frame of {0} bytes (at most {MAX_HANDSHAKE_BYTES})")]
     BadAuthFrame(usize),
     #[error(transparent)]
     Io(#[from] io::Error),
@@ -91,13 +103,24 @@ pub fn check_hello(hello: &[u8; 6]) -> Result<(), WireError> {
 pub enum Frame {
     Message(Vec<u8>),
     Data(DataFrame),
-    /// The peer's authentication challenge.
-    Challenge(Nonce),
-    /// The peer's answer to our challenge.
-    Proof(Proof),
-    /// Not from the wire: a [`FrameReader`] with a handshake received the peer's challenge, and
-    /// this proof must be sent back.
-    ProofDue(Proof),
+    /// A handshake frame (kind 3, 4 or 5), taken by the [`FrameReader`] itself.
+    Handshake(u8, Vec<u8>),
+    /// Not from the wire: the reader took a step of the handshake; get it with
+    /// [`FrameReader::take_auth_step`].
+    AuthStep,
+}
+
+/// What a step of the handshake asks of the connection.
+#[derive(Debug, Default)]
+pub struct AuthStep {
+    /// Frame bytes to send now, as they are, before anything else.
+    pub reply: Vec<u8>,
+    /// Seal what this side sends after `reply`.
+    pub sealer: Option<Sealer>,
+    /// The handshake is over: the peer is authenticated.
+    pub done: bool,
+    /// The identity the dialer proved (on the listener's side).
+    pub peer: Option<String>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -112,9 +135,7 @@ impl Frame {
         match self {
             Frame::Message(json) => Ok(serde_json::from_slice(json)?),
             Frame::Data(_) => Err(WireError::UnexpectedData),
-            Frame::Challenge(_) | Frame::Proof(_) | Frame::ProofDue(_) => {
-                Err(WireError::AuthNotConfigured)
-            }
+            Frame::Handshake(..) | Frame::AuthStep => Err(WireError::AuthNotConfigured),
         }
     }
 }
@@ -166,11 +187,11 @@ pub fn encode_data_header(
     Ok(())
 }
 
-/// Appends a challenge or proof frame to `out`.
-pub fn encode_auth(out: &mut Vec<u8>, kind: u8, bytes: &[u8; NONCE_BYTES]) {
-    out.extend_from_slice(&(1 + NONCE_BYTES as u32).to_le_bytes());
+/// Appends a handshake frame to `out`.
+pub fn encode_handshake(out: &mut Vec<u8>, kind: u8, body: &[u8]) {
+    out.extend_from_slice(&(1 + body.len() as u32).to_le_bytes());
     out.push(kind);
-    out.extend_from_slice(bytes);
+    out.extend_from_slice(body);
 }
 
 fn finish_frame(out: &mut Vec<u8>, start: usize) -> Result<(), WireError> {
@@ -199,14 +220,21 @@ pub struct FrameReader {
     drained: bool,
     /// This side's handshake, when the connection must authenticate.
     auth: Option<Box<AuthState>>,
+    /// The step of the handshake the last [`Frame::AuthStep`] stands for.
+    step: Option<AuthStep>,
+    /// On an encrypted link, what opens the peer's records.
+    opener: Option<Box<Opener>>,
 }
 
-struct AuthState {
-    handshake: Handshake,
-    /// The peer's challenge, once received.
-    peer: Option<Nonce>,
-    /// The peer's proof checked out: ordinary frames may pass.
-    verified: bool,
+enum AuthState {
+    /// The dialer, waiting for the answer (boxed: a Noise handshake state is large).
+    Dialer(Option<Box<Dialer>>),
+    /// The listener, waiting for the first message.
+    Listening(Listen),
+    /// The listener, waiting for the confirmation.
+    Answered(Option<Listener>),
+    /// The peer is authenticated: ordinary frames may pass.
+    Done,
 }
 
 /// A data frame whose payload is read directly where the receiver will keep it (no copy). The
@@ -238,25 +266,89 @@ impl FrameReader {
         }
     }
 
-    /// For a new connection that must authenticate with `handshake` (when given): after the
-    /// hello, the peer's challenge comes out as [`Frame::ProofDue`] (send that proof), its
-    /// proof is checked, and nothing else passes before.
-    pub fn expecting_hello_auth(handshake: Option<Handshake>) -> Self {
+    /// For a connection this side opened, authenticating as `dial` says (when given): returns
+    /// the reader and what to send first (the hello, and the first handshake frame). The
+    /// answer comes out as [`Frame::AuthStep`]; nothing else passes before.
+    pub fn dialer(dial: Option<&Dial>) -> Result<(Self, Vec<u8>), AuthError> {
+        let mut greeting = HELLO.to_vec();
+        let auth = match dial {
+            Some(dial) => {
+                let (dialer, first) = Dialer::start(dial)?;
+                encode_handshake(&mut greeting, KIND_HANDSHAKE_FIRST, &first);
+                Some(Box::new(AuthState::Dialer(Some(Box::new(dialer)))))
+            }
+            None => None,
+        };
+        let reader = Self {
+            hello_pending: true,
+            auth,
+            ..Self::default()
+        };
+        Ok((reader, greeting))
+    }
+
+    /// For a connection this side accepted, admitting peers as `listen` says (when given): the
+    /// dialer's first message and its confirmation come out as [`Frame::AuthStep`]s; nothing
+    /// else passes before. This side sends its hello first ([`HELLO`]).
+    pub fn listener(listen: Option<Listen>) -> Self {
         Self {
             hello_pending: true,
-            auth: handshake.map(|handshake| {
-                Box::new(AuthState {
-                    handshake,
-                    peer: None,
-                    verified: false,
-                })
-            }),
+            auth: listen.map(|listen| Box::new(AuthState::Listening(listen))),
             ..Self::default()
         }
     }
 
+    /// A reader that goes on where a blocking handshake left off: `leftover` are bytes read
+    /// and not yet decoded (plaintext), `opener` opens the peer's records on an encrypted link.
+    pub fn resume(leftover: &[u8], opener: Option<Opener>) -> Self {
+        Self {
+            buf: leftover.to_vec(),
+            end: leftover.len(),
+            opener: opener.map(Box::new),
+            ..Self::default()
+        }
+    }
+
+    /// The bytes read and not decoded, and the opener: for a blocking stream that takes the
+    /// connection over once the handshake is done.
+    pub fn into_parts(self) -> (Vec<u8>, Option<Opener>) {
+        (
+            self.buf[self.start..self.end].to_vec(),
+            self.opener.map(|opener| *opener),
+        )
+    }
+
+    /// The step of the handshake that the last [`Frame::AuthStep`] announced.
+    pub fn take_auth_step(&mut self) -> AuthStep {
+        self.step.take().unwrap_or_default()
+    }
+
+    /// Checks the peer's hello if it has arrived, and decodes nothing more; whether it has.
+    pub fn take_hello(&mut self) -> Result<bool, WireError> {
+        if self.hello_pending && self.end - self.start >= HELLO.len() {
+            let mut hello = [0; 6];
+            hello.copy_from_slice(&self.buf[self.start..self.start + HELLO.len()]);
+            check_hello(&hello)?;
+            self.start += HELLO.len();
+            self.hello_pending = false;
+        }
+        Ok(!self.hello_pending)
+    }
+
+    /// Whether the hello is in and the handshake under way.
+    pub fn hello_received_and_authenticating(&self) -> bool {
+        !self.hello_pending && self.auth_pending()
+    }
+
+    /// Whether the connection is authenticated (or needs no authentication) and the hello in.
+    pub fn is_open(&self) -> bool {
+        !self.hello_pending && !self.auth_pending()
+    }
+
     fn auth_pending(&self) -> bool {
-        self.auth.as_ref().is_some_and(|auth| !auth.verified)
+        self.auth
+            .as_ref()
+            .is_some_and(|auth| !matches!(**auth, AuthState::Done))
     }
 
     /// Whether the last read found the socket drained (it returned less than it had room for),
@@ -265,8 +357,42 @@ impl FrameReader {
         self.drained
     }
 
-    /// Reads once from `source`. `Ok(0)` means the peer closed the connection.
+    /// Whether the opener of an encrypted link holds a whole record or plaintext that no read
+    /// has taken yet (then the socket need not say anything for there to be frames).
+    pub fn has_buffered_records(&self) -> bool {
+        self.opener
+            .as_ref()
+            .is_some_and(|opener| opener.has_buffered())
+    }
+
+    /// Reads once from `source` (through the opener on an encrypted link). `Ok(0)` means the
+    /// peer closed the connection.
     pub fn fill_from(&mut self, source: &mut impl Read) -> io::Result<usize> {
+        self.fill(source, false)
+    }
+
+    /// [`FrameReader::fill_from`] for a blocking socket.
+    pub fn fill_from_blocking(&mut self, source: &mut impl Read) -> io::Result<usize> {
+        self.fill(source, true)
+    }
+
+    fn fill(&mut self, source: &mut impl Read, blocking: bool) -> io::Result<usize> {
+        match self.opener.take() {
+            Some(mut opener) => {
+                let result = self.fill_raw(&mut OpenedReader {
+                    opener: &mut opener,
+                    source,
+                    blocking,
+                });
+                opener.shrink_if_idle();
+                self.opener = Some(opener);
+                result
+            }
+            None => self.fill_raw(source),
+        }
+    }
+
+    fn fill_raw(&mut self, source: &mut impl Read) -> io::Result<usize> {
         if let Some(large) = &mut self.large {
             let room = large.len - large.payload.len();
             let before = large.payload.len();
@@ -299,9 +425,13 @@ impl FrameReader {
         // Room for the rest of the pending frame when it is large, so it comes in few reads,
         // but never more than a bounded chunk on a peer's word.
         let pending = self.pending_frame_len().unwrap_or(0);
-        let want = pending
+        let mut want = pending
             .saturating_sub(self.end - self.start)
             .clamp(MIN_READ_BYTES, MAX_READ_BYTES);
+        if self.hello_pending || self.auth_pending() {
+            // A stranger costs at most this much storage.
+            want = PREAUTH_READ_BYTES;
+        }
         if self.buf.len() - self.end < want && self.start > 0 {
             self.buf.copy_within(self.start..self.end, 0);
             self.end -= self.start;
@@ -327,7 +457,7 @@ impl FrameReader {
         Some(u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize + 4)
     }
 
-    /// The next complete frame, if any (authentication frames are handled here).
+    /// The next complete frame, if any (handshake frames are handled here).
     pub fn next_frame(&mut self) -> Result<Option<Frame>, WireError> {
         loop {
             let Some(frame) = self.next_wire_frame()? else {
@@ -339,34 +469,77 @@ impl FrameReader {
         }
     }
 
-    /// Lets a frame through, or takes part in the authentication (`None`: nothing for the
-    /// caller), or refuses the peer.
+    /// Lets a frame through, or takes part in the handshake (the step is kept for
+    /// [`FrameReader::take_auth_step`]), or refuses the peer.
     fn admit(&mut self, frame: Frame) -> Result<Option<Frame>, WireError> {
         let Some(auth) = &mut self.auth else {
             return match frame {
-                Frame::Challenge(_) | Frame::Proof(_) => Err(WireError::AuthNotConfigured),
+                Frame::Handshake(..) => Err(WireError::AuthNotConfigured),
                 frame => Ok(Some(frame)),
             };
         };
-        match frame {
-            Frame::Challenge(peer) if auth.peer.is_none() => {
-                auth.peer = Some(peer);
-                Ok(Some(Frame::ProofDue(auth.handshake.proof_for(&peer))))
-            }
-            Frame::Proof(proof) if !auth.verified => match auth.peer {
-                Some(peer) if auth.handshake.verify(&peer, &proof) => {
-                    auth.verified = true;
-                    Ok(None)
+        let (kind, body) = match frame {
+            Frame::Handshake(kind, body) => (kind, body),
+            frame if matches!(**auth, AuthState::Done) => return Ok(Some(frame)),
+            Frame::Data(_) => return Err(WireError::Unauthenticated("data")),
+            _ => return Err(WireError::Unauthenticated("a message")),
+        };
+        let step = match (&mut **auth, kind) {
+            (AuthState::Dialer(dialer), KIND_HANDSHAKE_ANSWER) => {
+                let dialer = dialer
+                    .take()
+                    .ok_or(WireError::Unauthenticated("a second answer"))?;
+                let (confirm, session) = dialer.finish(&body)?;
+                let mut reply = Vec::new();
+                encode_handshake(&mut reply, KIND_HANDSHAKE_CONFIRM, &confirm);
+                **auth = AuthState::Done;
+                self.start_opening(session.opener);
+                AuthStep {
+                    reply,
+                    sealer: session.sealer,
+                    done: true,
+                    peer: None,
                 }
-                Some(_) => Err(WireError::AuthFailed),
-                None => Err(WireError::Unauthenticated("a proof before its challenge")),
-            },
-            Frame::Challenge(_) | Frame::Proof(_) | Frame::ProofDue(_) => {
-                Err(WireError::Unauthenticated("a second authentication frame"))
             }
-            frame if auth.verified => Ok(Some(frame)),
-            Frame::Message(_) => Err(WireError::Unauthenticated("a message")),
-            Frame::Data(_) => Err(WireError::Unauthenticated("data")),
+            (AuthState::Listening(listen), KIND_HANDSHAKE_FIRST) => {
+                let (listener, answer, sealer) = Listener::accept(listen, &body)?;
+                let mut reply = Vec::new();
+                encode_handshake(&mut reply, KIND_HANDSHAKE_ANSWER, &answer);
+                **auth = AuthState::Answered(Some(listener));
+                AuthStep {
+                    reply,
+                    sealer,
+                    done: false,
+                    peer: None,
+                }
+            }
+            (AuthState::Answered(listener), KIND_HANDSHAKE_CONFIRM) => {
+                let listener = listener
+                    .take()
+                    .ok_or(WireError::Unauthenticated("a second confirmation"))?;
+                let session = listener.confirm(&body)?;
+                **auth = AuthState::Done;
+                self.start_opening(session.opener);
+                AuthStep {
+                    reply: Vec::new(),
+                    sealer: None,
+                    done: true,
+                    peer: session.peer,
+                }
+            }
+            _ => return Err(WireError::Unauthenticated("a handshake frame out of turn")),
+        };
+        self.step = Some(step);
+        Ok(Some(Frame::AuthStep))
+    }
+
+    /// From here on the peer's bytes are records: what was read past the handshake is
+    /// ciphertext, and moves to the opener.
+    fn start_opening(&mut self, opener: Option<Opener>) {
+        if let Some(mut opener) = opener {
+            opener.push_ciphertext(&self.buf[self.start..self.end]);
+            self.start = self.end;
+            self.opener = Some(Box::new(opener));
         }
     }
 
@@ -383,15 +556,8 @@ impl FrameReader {
                 })
             }));
         }
-        if self.hello_pending {
-            if self.end - self.start < HELLO.len() {
-                return Ok(None);
-            }
-            let mut hello = [0; 6];
-            hello.copy_from_slice(&self.buf[self.start..self.start + HELLO.len()]);
-            check_hello(&hello)?;
-            self.start += HELLO.len();
-            self.hello_pending = false;
+        if !self.take_hello()? {
+            return Ok(None);
         }
         let Some(total) = self.pending_frame_len() else {
             return Ok(None);
@@ -399,6 +565,12 @@ impl FrameReader {
         let len = total - 4;
         if len > MAX_FRAME_BYTES {
             return Err(WireError::FrameTooLarge(len));
+        }
+        if self.auth_pending() && len > 1 + MAX_HANDSHAKE_BYTES {
+            // Nothing a stranger may send is larger than a handshake frame.
+            return Err(WireError::Unauthenticated(
+                "a frame larger than a handshake's",
+            ));
         }
         let buffered = self.end - self.start;
         let prefix = 4 + 1 + DATA_HEADER_BYTES;
@@ -464,15 +636,11 @@ fn decode_body(body: &[u8]) -> Result<Frame, WireError> {
                 payload: payload.to_vec(),
             }))
         }
-        KIND_CHALLENGE | KIND_PROOF => {
-            let bytes: [u8; NONCE_BYTES] = rest
-                .try_into()
-                .map_err(|_| WireError::BadAuthFrame(rest.len()))?;
-            Ok(if kind == KIND_CHALLENGE {
-                Frame::Challenge(bytes)
-            } else {
-                Frame::Proof(bytes)
-            })
+        KIND_HANDSHAKE_FIRST | KIND_HANDSHAKE_ANSWER | KIND_HANDSHAKE_CONFIRM => {
+            if rest.len() > MAX_HANDSHAKE_BYTES {
+                return Err(WireError::BadAuthFrame(rest.len()));
+            }
+            Ok(Frame::Handshake(kind, rest.to_vec()))
         }
         other => Err(WireError::UnknownKind(other)),
     }
@@ -504,12 +672,11 @@ impl OutBuffer {
         self.buf.extend_from_slice(&HELLO);
     }
 
-    /// The hello, then the challenge of `handshake` when the connection authenticates.
-    pub fn push_hello_auth(&mut self, handshake: Option<&Handshake>) {
-        self.push_hello();
-        if let Some(handshake) = handshake {
+    /// Whole frames (or a hello) encoded elsewhere, such as a handshake's.
+    pub fn push_encoded(&mut self, bytes: &[u8]) {
+        if !bytes.is_empty() {
             self.frame_starts.push_back(self.buf.len());
-            encode_auth(&mut self.buf, KIND_CHALLENGE, handshake.challenge());
+            self.buf.extend_from_slice(bytes);
         }
     }
 
@@ -524,11 +691,6 @@ impl OutBuffer {
                 .map(|start| start - other.written + offset),
         );
         self.buf.extend_from_slice(&other.buf[other.written..]);
-    }
-
-    pub fn push_proof(&mut self, proof: &Proof) {
-        self.frame_starts.push_back(self.buf.len());
-        encode_auth(&mut self.buf, KIND_PROOF, proof);
     }
 
     pub fn push_message<T: Serialize>(&mut self, message: &T) -> Result<(), WireError> {
@@ -606,7 +768,10 @@ impl OutBuffer {
 
 /// Blocking helpers for simple peers (the agent, the config server, tools).
 pub mod blocking {
+    use std::net::TcpStream;
+
     use super::*;
+    use crate::auth::SealedWriter;
 
     pub fn write_hello(stream: &mut impl Write) -> io::Result<()> {
         stream.write_all(&HELLO)
@@ -618,39 +783,200 @@ pub mod blocking {
         check_hello(&hello)
     }
 
-    /// The whole start of a connection, for either end: hellos both ways, then, with a
-    /// secret, challenges and proofs both ways (see [`crate::auth`]).
-    pub fn handshake<S: Read + Write>(
-        stream: &mut S,
-        secret: Option<&crate::auth::Secret>,
-    ) -> Result<(), WireError> {
-        let handshake = secret.map(Handshake::new);
-        let mut out = HELLO.to_vec();
-        if let Some(handshake) = &handshake {
-            encode_auth(&mut out, KIND_CHALLENGE, handshake.challenge());
+    /// Opens a connection this side dialled: hellos both ways, then, with `dial`, the Noise
+    /// handshake as the initiator (see [`crate::auth`]). Reads no more than a handshake needs
+    /// before the peer is authenticated.
+    pub fn dial(mut stream: TcpStream, dial: Option<&Dial>) -> Result<SecureStream, WireError> {
+        let (mut reader, greeting) = FrameReader::dialer(dial)?;
+        stream.write_all(&greeting)?;
+        let mut writer = SealedWriter::new(stream.try_clone()?);
+        match run_handshake(&mut stream, &mut reader, &mut writer) {
+            Err(WireError::Closed) if let Some(dial) = dial => {
+                Err(WireError::HandshakeRefused(dial.identity.clone()))
+            }
+            Err(WireError::Io(err))
+                if err.kind() == io::ErrorKind::ConnectionReset
+                    && let Some(dial) = dial =>
+            {
+                Err(WireError::HandshakeRefused(dial.identity.clone()))
+            }
+            Err(err) => Err(err),
+            Ok(_) => Ok(SecureStream::new(stream, reader, writer)),
         }
-        stream.write_all(&out)?;
-        read_hello(stream)?;
-        let Some(handshake) = handshake else {
-            return Ok(());
-        };
-        let peer = match read_frame(stream)? {
-            Frame::Challenge(peer) => peer,
-            Frame::Proof(_) => {
-                return Err(WireError::Unauthenticated("a proof before its challenge"));
+    }
+
+    /// Opens a connection this side accepted: hellos both ways, then, with `listen`, the Noise
+    /// handshake as the responder. Returns the dialer's proven identity, if any. (The servers
+    /// accept without blocking, so that strangers cost no thread; this is for tools and tests.)
+    pub fn accept(
+        mut stream: TcpStream,
+        listen: Option<Listen>,
+    ) -> Result<(SecureStream, Option<String>), WireError> {
+        let mut reader = FrameReader::listener(listen);
+        stream.write_all(&HELLO)?;
+        let mut writer = SealedWriter::new(stream.try_clone()?);
+        let peer = run_handshake(&mut stream, &mut reader, &mut writer)?;
+        Ok((SecureStream::new(stream, reader, writer), peer))
+    }
+
+    /// Reads and answers handshake frames until the connection is open.
+    fn run_handshake(
+        stream: &mut TcpStream,
+        reader: &mut FrameReader,
+        writer: &mut SealedWriter<TcpStream>,
+    ) -> Result<Option<String>, WireError> {
+        let mut peer = None;
+        loop {
+            if reader.take_hello()? && reader.is_open() {
+                return Ok(peer);
             }
-            Frame::Message(_) | Frame::ProofDue(_) => {
-                return Err(WireError::Unauthenticated("a message"));
+            if reader.hello_received_and_authenticating()
+                && let Some(frame) = reader.next_frame()?
+            {
+                let Frame::AuthStep = frame else {
+                    return Err(WireError::Unauthenticated("a frame"));
+                };
+                let step = reader.take_auth_step();
+                writer.inner.write_all(&step.reply)?;
+                if let Some(sealer) = step.sealer {
+                    writer.start_sealing(sealer, 0);
+                }
+                peer = peer.or(step.peer);
+                continue;
             }
-            Frame::Data(_) => return Err(WireError::Unauthenticated("data")),
-        };
-        let mut proof = Vec::new();
-        encode_auth(&mut proof, KIND_PROOF, &handshake.proof_for(&peer));
-        stream.write_all(&proof)?;
-        match read_frame(stream)? {
-            Frame::Proof(proof) if handshake.verify(&peer, &proof) => Ok(()),
-            Frame::Proof(_) => Err(WireError::AuthFailed),
-            _ => Err(WireError::Unauthenticated("a frame other than its proof")),
+            match reader.fill_from_blocking(stream) {
+                Ok(0) => return Err(WireError::Closed),
+                Ok(_) => {}
+                Err(err) if err.kind() == io::ErrorKind::Interrupted => {}
+                Err(err) => return Err(err.into()),
+            }
+        }
+    }
+
+    /// A connection once its handshake is done: reads through the opener and writes through
+    /// the sealer of an encrypted link, or straight through otherwise.
+    #[derive(Debug)]
+    pub struct SecureStream {
+        pub reader: SecureReader,
+        pub writer: SecureWriter,
+    }
+
+    /// The reading half of a [`SecureStream`].
+    #[derive(Debug)]
+    pub struct SecureReader {
+        stream: TcpStream,
+        /// Bytes read during the handshake and not decoded yet.
+        leftover: Vec<u8>,
+        at: usize,
+        opener: Option<Opener>,
+    }
+
+    /// The writing half of a [`SecureStream`].
+    #[derive(Debug)]
+    pub struct SecureWriter(SealedWriter<TcpStream>);
+
+    impl SecureStream {
+        /// Wraps a stream that needs no handshake (the peer's hello already checked, no
+        /// secret): for tools that speak to a listener of their own.
+        pub fn plain(stream: TcpStream) -> io::Result<SecureStream> {
+            let writer = SealedWriter::new(stream.try_clone()?);
+            Ok(SecureStream::new(stream, FrameReader::default(), writer))
+        }
+
+        /// A stream that goes on where `reader` (after a handshake) left off.
+        pub fn new(
+            stream: TcpStream,
+            reader: FrameReader,
+            writer: SealedWriter<TcpStream>,
+        ) -> SecureStream {
+            let (leftover, opener) = reader.into_parts();
+            SecureStream {
+                reader: SecureReader {
+                    stream,
+                    leftover,
+                    at: 0,
+                    opener,
+                },
+                writer: SecureWriter(writer),
+            }
+        }
+
+        /// The socket, for timeouts and addresses.
+        pub fn get_ref(&self) -> &TcpStream {
+            &self.reader.stream
+        }
+
+        /// The two halves, for a reader thread and writers elsewhere.
+        pub fn split(self) -> (SecureReader, SecureWriter) {
+            (self.reader, self.writer)
+        }
+
+        /// What the non-blocking transport of a node takes over: the socket, the bytes read
+        /// and not decoded, the opener and the writer's sealer.
+        pub fn into_parts(self) -> (TcpStream, Vec<u8>, Option<Opener>, SealedWriter<TcpStream>) {
+            let SecureReader {
+                stream,
+                mut leftover,
+                at,
+                opener,
+            } = self.reader;
+            leftover.drain(..at);
+            (stream, leftover, opener, self.writer.0)
+        }
+    }
+
+    impl SecureReader {
+        pub fn get_ref(&self) -> &TcpStream {
+            &self.stream
+        }
+    }
+
+    impl SecureWriter {
+        pub fn get_ref(&self) -> &TcpStream {
+            &self.0.inner
+        }
+    }
+
+    impl Read for SecureReader {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            if self.at < self.leftover.len() {
+                let n = buf.len().min(self.leftover.len() - self.at);
+                buf[..n].copy_from_slice(&self.leftover[self.at..self.at + n]);
+                self.at += n;
+                if self.at == self.leftover.len() {
+                    self.leftover = Vec::new();
+                    self.at = 0;
+                }
+                return Ok(n);
+            }
+            match &mut self.opener {
+                Some(opener) => opener.read_via(&mut self.stream, buf, true),
+                None => self.stream.read(buf),
+            }
+        }
+    }
+
+    impl Write for SecureWriter {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            self.0.write(buf)
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            self.0.flush()
+        }
+    }
+
+    impl Read for SecureStream {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            self.reader.read(buf)
+        }
+    }
+
+    impl Write for SecureStream {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            self.writer.write(buf)
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            self.writer.flush()
         }
     }
 

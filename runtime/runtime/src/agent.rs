@@ -6,16 +6,19 @@
 //!
 //! With an [`Acl`] (the system's `may_publish` and `may_subscribe` lists), the agent serves only
 //! the system's modules: it refuses a registration of a data name the module may not publish,
-//! and a lookup of one it may not subscribe to. Names are the modules' own word: the lists
-//! guard against mistakes, and the shared secret against strangers.
+//! and a lookup of one it may not subscribe to. Without a secret, names are the modules' own
+//! word and the lists guard against mistakes only. With a secret, a connection proves the name
+//! it claims in the handshake (its module key), registers only as that name, and each
+//! `provider` answer carries the link key with which the asker, and it alone, gets into that
+//! provider's data port: a module can reach no data port the lists do not give it.
 
 use std::collections::{BTreeMap, HashMap};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::net::{SocketAddr, TcpListener};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::Duration;
 
-use armor_module_api::auth::Secret;
+use armor_module_api::auth::{Admit, Listen, Secret};
 use armor_module_api::protocol::{Advert, FromAgent, ToAgent};
+use armor_module_api::wire::blocking::{SecureStream, SecureWriter};
 use armor_module_api::wire::{WireError, blocking};
 
 /// The environment variable that carries the [`Acl`] (JSON) to `armor agent`.
@@ -109,9 +112,6 @@ impl Acl {
     }
 }
 
-/// How long a new connection has to send its hello.
-const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
-
 struct Entry {
     advert: Advert,
     module: String,
@@ -120,14 +120,22 @@ struct Entry {
 
 /// The writing half of a connection, shared by its own thread (replies) and by the threads of
 /// registering modules (providers pushed to those who asked in vain).
-type Writer = Arc<Mutex<TcpStream>>;
+type Writer = Arc<Mutex<SecureWriter>>;
+
+/// A connection that asked for a data name not served yet.
+struct Asker {
+    conn_id: u64,
+    writer: Writer,
+    /// Its proven name, with a secret.
+    identity: Option<String>,
+}
 
 #[derive(Default)]
 struct Registry {
     by_data_name: HashMap<String, Entry>,
     next_conn_id: u64,
     /// Data names asked for and not yet served, with the connections that asked.
-    waiting: HashMap<String, Vec<(u64, Writer)>>,
+    waiting: HashMap<String, Vec<Asker>>,
 }
 
 fn write(writer: &Writer, message: &FromAgent) -> Result<(), WireError> {
@@ -135,19 +143,18 @@ fn write(writer: &Writer, message: &FromAgent) -> Result<(), WireError> {
     blocking::write_message(&mut *stream, message)
 }
 
-/// Serves agent connections until the process ends, one thread each; with a `secret`, only
-/// peers that prove they hold it; with an `acl`, only within it.
+/// Serves agent connections until the process ends, one thread each once open; with a
+/// `secret`, only peers that prove a module key, on encrypted links; with an `acl`, only within
+/// it.
 pub fn serve(listener: TcpListener, secret: Option<Secret>, acl: Option<Acl>) {
     let registry = Arc::new(Mutex::new(Registry::default()));
     let acl = acl.map(Arc::new);
-    for stream in listener.incoming() {
-        let stream = match stream {
-            Ok(stream) => stream,
-            Err(err) => {
-                tracing::warn!("accept failed: {err}");
-                continue;
-            }
-        };
+    // The agent's answers carry link keys: its links are always encrypted.
+    let listen = secret.clone().map(|secret| Listen {
+        admit: Admit::Modules(secret),
+        encrypt: true,
+    });
+    crate::gate::serve(listener, listen, |stream, identity| {
         let registry = Arc::clone(&registry);
         let secret = secret.clone();
         let acl = acl.clone();
@@ -157,9 +164,14 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>, acl: Option<Acl>) {
             registry.next_conn_id
         };
         std::thread::spawn(move || {
-            let peer = stream.peer_addr().ok();
-            let acl = acl.as_deref();
-            if let Err(err) = serve_module(&registry, conn_id, stream, secret.as_ref(), acl) {
+            let peer = stream.get_ref().peer_addr().ok();
+            let conn = Conn {
+                registry: &registry,
+                conn_id,
+                secret: secret.as_ref(),
+                acl: acl.as_deref(),
+            };
+            if let Err(err) = conn.serve(stream, identity) {
                 match err {
                     WireError::Closed => {}
                     err => tracing::warn!(?peer, "dropped a connection: {err}"),
@@ -167,7 +179,7 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>, acl: Option<Acl>) {
             }
             forget(&registry, conn_id);
         });
-    }
+    });
 }
 
 /// Starts an agent on a thread of this process (for benchmarks and tests).
@@ -178,10 +190,18 @@ pub fn spawn(addr: SocketAddr) -> std::io::Result<SocketAddr> {
     Ok(local)
 }
 
+/// Starts an agent with a secret on a thread of this process (for benchmarks and tests).
+pub fn spawn_with(addr: SocketAddr, secret: Option<Secret>) -> std::io::Result<SocketAddr> {
+    let listener = TcpListener::bind(addr)?;
+    let local = listener.local_addr()?;
+    std::thread::spawn(move || serve(listener, secret, None));
+    Ok(local)
+}
+
 fn forget(registry: &Mutex<Registry>, conn_id: u64) {
     let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
     for askers in registry.waiting.values_mut() {
-        askers.retain(|(asker, _)| *asker != conn_id);
+        askers.retain(|asker| asker.conn_id != conn_id);
     }
     registry.waiting.retain(|_, askers| !askers.is_empty());
     registry.by_data_name.retain(|data_name, entry| {
@@ -193,67 +213,111 @@ fn forget(registry: &Mutex<Registry>, conn_id: u64) {
     });
 }
 
-fn serve_module(
-    registry: &Mutex<Registry>,
+/// One open connection's service.
+struct Conn<'a> {
+    registry: &'a Mutex<Registry>,
     conn_id: u64,
-    mut stream: TcpStream,
-    secret: Option<&Secret>,
-    acl: Option<&Acl>,
-) -> Result<(), WireError> {
-    stream.set_nodelay(true)?;
-    stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
-    blocking::handshake(&mut stream, secret)?;
-    stream.set_read_timeout(None)?;
-    let writer: Writer = Arc::new(Mutex::new(stream.try_clone()?));
-    // The module this connection registered as.
-    let mut identity: Option<String> = None;
-    loop {
-        let reply = match blocking::read_message::<ToAgent>(&mut stream)? {
-            ToAgent::Register { module, outputs } => {
-                let refused = acl.and_then(|acl| {
-                    outputs
-                        .iter()
-                        .find_map(|advert| acl.check_publish(&module, &advert.data_name).err())
-                        .or_else(|| acl.permissions(&module).err())
-                });
-                match refused {
-                    Some(message) => {
-                        tracing::warn!(module, "refused a registration: {message}");
-                        FromAgent::Error { message }
-                    }
-                    None => {
-                        identity = Some(module.clone());
-                        let (reply, pushes) = register(registry, conn_id, module, outputs);
-                        for (asker, advert) in pushes {
-                            // An asker that went away is forgotten by its own thread.
-                            let _ = write(&asker, &FromAgent::Provider(advert));
-                        }
-                        reply
-                    }
-                }
+    secret: Option<&'a Secret>,
+    acl: Option<&'a Acl>,
+}
+
+impl Conn<'_> {
+    /// `advert` as told to `asker`: with a secret, with the link key of the asker's proven name
+    /// for the provider's data port.
+    fn for_asker(&self, entry_module: &str, advert: &Advert, asker: Option<&str>) -> Advert {
+        let key = match (self.secret, asker) {
+            (Some(secret), Some(asker)) => {
+                Some(secret.module_key(entry_module).link_key(asker).to_hex())
             }
-            ToAgent::Lookup { data_name }
-                if let Some(Err(message)) =
-                    acl.map(|acl| acl.check_subscribe(identity.as_deref(), &data_name)) =>
-            {
-                tracing::warn!(module = identity.as_deref(), "refused a lookup: {message}");
-                FromAgent::Error { message }
-            }
-            ToAgent::Lookup { data_name } => {
-                let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
-                match registry.by_data_name.get(&data_name) {
-                    Some(entry) => FromAgent::Provider(entry.advert.clone()),
-                    None => {
-                        let askers = registry.waiting.entry(data_name.clone()).or_default();
-                        if !askers.iter().any(|(asker, _)| *asker == conn_id) {
-                            askers.push((conn_id, Arc::clone(&writer)));
-                        }
-                        FromAgent::Unknown { data_name }
-                    }
-                }
-            }
+            _ => None,
         };
-        write(&writer, &reply)?;
+        Advert {
+            key,
+            ..advert.clone()
+        }
+    }
+
+    fn serve(&self, stream: SecureStream, proven: Option<String>) -> Result<(), WireError> {
+        let Conn {
+            registry,
+            conn_id,
+            acl,
+            ..
+        } = *self;
+        stream.get_ref().set_nodelay(true)?;
+        let (mut stream, writer) = stream.split();
+        let writer: Writer = Arc::new(Mutex::new(writer));
+        // The module this connection registered as; with a secret, the name it proved.
+        let mut identity: Option<String> = proven.clone();
+        loop {
+            let reply = match blocking::read_message::<ToAgent>(&mut stream)? {
+                ToAgent::Register { module, .. }
+                    if proven.as_ref().is_some_and(|proven| *proven != module) =>
+                {
+                    let message = format!(
+                        "this connection proved to be `{}`: it may not register as `{module}`",
+                        proven.as_deref().unwrap_or_default()
+                    );
+                    tracing::warn!("refused a registration: {message}");
+                    FromAgent::Error { message }
+                }
+                ToAgent::Register { module, outputs } => {
+                    let refused = acl.and_then(|acl| {
+                        outputs
+                            .iter()
+                            .find_map(|advert| acl.check_publish(&module, &advert.data_name).err())
+                            .or_else(|| acl.permissions(&module).err())
+                    });
+                    match refused {
+                        Some(message) => {
+                            tracing::warn!(module, "refused a registration: {message}");
+                            FromAgent::Error { message }
+                        }
+                        None => {
+                            identity = Some(module.clone());
+                            let (reply, pushes) =
+                                register(registry, conn_id, module.clone(), outputs);
+                            for (asker, advert) in pushes {
+                                let advert =
+                                    self.for_asker(&module, &advert, asker.identity.as_deref());
+                                // An asker that went away is forgotten by its own thread.
+                                let _ = write(&asker.writer, &FromAgent::Provider(advert));
+                            }
+                            reply
+                        }
+                    }
+                }
+                ToAgent::Lookup { data_name }
+                    if let Some(Err(message)) =
+                        acl.map(|acl| acl.check_subscribe(identity.as_deref(), &data_name)) =>
+                {
+                    tracing::warn!(module = identity.as_deref(), "refused a lookup: {message}");
+                    FromAgent::Error { message }
+                }
+                ToAgent::Lookup { data_name } => {
+                    let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+                    match registry.by_data_name.get(&data_name) {
+                        Some(entry) => FromAgent::Provider(self.for_asker(
+                            &entry.module,
+                            &entry.advert,
+                            identity.as_deref(),
+                        )),
+                        None => {
+                            let askers = registry.waiting.entry(data_name.clone()).or_default();
+                            if !askers.iter().any(|asker| asker.conn_id == conn_id) {
+                                askers.push(Asker {
+                                    conn_id,
+                                    writer: Arc::clone(&writer),
+                                    identity: identity.clone(),
+                                });
+                            }
+                            FromAgent::Unknown { data_name }
+                        }
+                    }
+                }
+            };
+            write(&writer, &reply)?;
+        }
     }
 }
 
@@ -263,7 +327,7 @@ fn register(
     conn_id: u64,
     module: String,
     outputs: Vec<Advert>,
-) -> (FromAgent, Vec<(Writer, Advert)>) {
+) -> (FromAgent, Vec<(Asker, Advert)>) {
     let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
     // A data name belongs to one module. The same module registering again (it restarted before
     // its old connection was noticed closed) takes it over; another module may not.
@@ -290,7 +354,7 @@ fn register(
             module,
             "provider registered"
         );
-        for (_, asker) in registry
+        for asker in registry
             .waiting
             .remove(&advert.data_name)
             .unwrap_or_default()

@@ -13,14 +13,15 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::Write as _;
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use armor_module_api::auth::Secret;
+use armor_module_api::auth::{Admit, Listen, Secret};
 use armor_module_api::protocol::{FromSupervisor, ModuleConfig, NodeStats, ToSupervisor};
+use armor_module_api::wire::blocking::{SecureStream, SecureWriter};
 use armor_module_api::wire::{WireError, blocking};
 use notify::{RecursiveMode, Watcher as _};
 
@@ -64,7 +65,7 @@ pub enum ServerEvent {
 
 struct ModuleConn {
     conn_id: u64,
-    writer: TcpStream,
+    writer: SecureWriter,
     sent: ModuleConfig,
     /// When the module last sent anything.
     last_heard: Instant,
@@ -275,26 +276,26 @@ impl ConfigServer {
     }
 
     fn accept_loop(&self, listener: TcpListener) {
-        for stream in listener.incoming() {
-            match stream {
-                Ok(stream) => {
-                    let server = self.clone();
-                    std::thread::spawn(move || server.serve(stream));
-                }
-                Err(err) => tracing::warn!("config server: accept failed: {err}"),
-            }
-        }
+        // Parameters and control cross this link: with a secret it is always encrypted.
+        let listen = self.lock().secret.clone().map(|secret| Listen {
+            admit: Admit::Modules(secret),
+            encrypt: true,
+        });
+        crate::gate::serve(listener, listen, |stream, proven| {
+            let server = self.clone();
+            std::thread::spawn(move || server.serve(stream, proven));
+        });
     }
 
-    fn serve(&self, mut stream: TcpStream) {
-        let peer = stream.peer_addr().ok();
+    fn serve(&self, stream: SecureStream, proven: Option<String>) {
+        let peer = stream.get_ref().peer_addr().ok();
         let conn_id = {
             let mut state = self.lock();
             state.next_conn_id += 1;
             state.next_conn_id
         };
         let mut module = None;
-        if let Err(err) = self.serve_module(&mut stream, conn_id, &mut module) {
+        if let Err(err) = self.serve_module(stream, proven, conn_id, &mut module) {
             match err {
                 WireError::Closed => {}
                 err => tracing::warn!(?peer, ?module, "config server dropped a connection: {err}"),
@@ -317,36 +318,43 @@ impl ConfigServer {
 
     fn serve_module(
         &self,
-        stream: &mut TcpStream,
+        stream: SecureStream,
+        proven: Option<String>,
         conn_id: u64,
         module: &mut Option<String>,
     ) -> Result<(), WireError> {
-        stream.set_nodelay(true)?;
-        stream.set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
-        let secret = self.lock().secret.clone();
-        blocking::handshake(stream, secret.as_ref())?;
+        stream.get_ref().set_nodelay(true)?;
+        stream.get_ref().set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
+        let (mut reader, mut writer) = stream.split();
+        let stream = &mut reader;
         let ToSupervisor::Hello { module: name, pid } = blocking::read_message(stream)? else {
             let message = "the first message must be `hello`".to_owned();
-            blocking::write_message(stream, &FromSupervisor::Error { message })?;
+            blocking::write_message(&mut writer, &FromSupervisor::Error { message })?;
             return Ok(());
         };
-        stream.set_read_timeout(None)?;
+        if let Some(proven) = proven.filter(|proven| *proven != name) {
+            let message = format!("this connection proved to be `{proven}`, not `{name}`");
+            tracing::warn!("{message}");
+            blocking::write_message(&mut writer, &FromSupervisor::Error { message })?;
+            return Ok(());
+        }
+        stream.get_ref().set_read_timeout(None)?;
         {
             let mut state = self.lock();
             let Some(config) = state.config_of(&name) else {
                 drop(state);
                 let message = format!("no module `{name}` in this system");
                 tracing::warn!("{message}");
-                blocking::write_message(stream, &FromSupervisor::Error { message })?;
+                blocking::write_message(&mut writer, &FromSupervisor::Error { message })?;
                 return Ok(());
             };
-            blocking::write_message(stream, &FromSupervisor::Config(config.clone()))?;
-            stream.set_write_timeout(Some(WRITE_TIMEOUT))?;
+            blocking::write_message(&mut writer, &FromSupervisor::Config(config.clone()))?;
+            writer.get_ref().set_write_timeout(Some(WRITE_TIMEOUT))?;
             state.conns.insert(
                 name.clone(),
                 ModuleConn {
                     conn_id,
-                    writer: stream.try_clone()?,
+                    writer,
                     sent: config,
                     last_heard: Instant::now(),
                     reported: false,

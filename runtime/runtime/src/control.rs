@@ -23,7 +23,7 @@ use std::sync::mpsc::{self, Sender};
 use std::time::Duration;
 
 use armor_model::net::Marking;
-use armor_module_api::auth::{Handshake, NONCE_BYTES, Secret};
+use armor_module_api::auth::{Admit, Dial, Dialer, Key, Listen, Listener, Secret};
 use armor_module_api::protocol::NodeStats;
 use serde::{Deserialize, Serialize};
 
@@ -127,6 +127,9 @@ pub enum ModuleState {
     Failed,
     /// Ended on its own, successfully.
     Exited,
+    /// Stopped with the whole run (a monitor's word once the run is over: the run itself
+    /// never reports it).
+    Ended,
 }
 
 impl ModuleState {
@@ -139,6 +142,7 @@ impl ModuleState {
             ModuleState::Restarting => "restarting",
             ModuleState::Failed => "failed",
             ModuleState::Exited => "exited",
+            ModuleState::Ended => "ended with the run",
         }
     }
 }
@@ -170,30 +174,47 @@ pub struct Reply {
 /// A request from a client, with where to send the answer.
 pub type Incoming = (Request, Sender<Reply>);
 
-/// One line of the authentication exchange.
+/// One line of the authentication exchange: a Noise handshake message, in hex.
 #[derive(Debug, Default, Serialize, Deserialize)]
 struct AuthLine {
-    #[serde(default, skip_serializing_if = "String::is_empty")]
-    challenge: String,
-    #[serde(default, skip_serializing_if = "String::is_empty")]
-    proof: String,
+    #[serde(default)]
+    noise: String,
 }
 
+/// The identity a control client claims (its key is the operator key, whatever the name).
+const OPERATOR: &str = "operator";
+/// The most control connections that have not authenticated yet; more are closed at once.
+const MAX_PENDING_CLIENTS: usize = 32;
+/// A handshake line is short: a few hundred hex digits.
+const MAX_AUTH_LINE_BYTES: u64 = 2048;
+
 /// Serves the control interface on `addr`, handing each request to `requests`; with a
-/// `secret`, only to clients that prove they hold it.
+/// `secret`, only to clients that prove the operator key derived from it.
 pub fn serve(
     addr: SocketAddr,
     requests: Sender<Incoming>,
     secret: Option<Secret>,
 ) -> std::io::Result<SocketAddr> {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
     let listener = TcpListener::bind(addr)?;
     let local = listener.local_addr()?;
+    let operator = secret.map(|secret| secret.operator_key());
+    let pending = Arc::new(AtomicUsize::new(0));
     std::thread::spawn(move || {
         for stream in listener.incoming().flatten() {
+            if operator.is_some() && pending.load(Ordering::Relaxed) >= MAX_PENDING_CLIENTS {
+                tracing::warn!(
+                    "{MAX_PENDING_CLIENTS} control clients are authenticating: refused another"
+                );
+                continue;
+            }
             let requests = requests.clone();
-            let secret = secret.clone();
+            let operator = operator.clone();
+            let pending = Arc::clone(&pending);
+            pending.fetch_add(1, Ordering::Relaxed);
             std::thread::spawn(move || {
-                if let Err(err) = serve_client(stream, &requests, secret.as_ref()) {
+                if let Err(err) = serve_client(stream, &requests, operator.as_ref(), &pending) {
                     tracing::warn!("control client: {err}");
                 }
             });
@@ -202,9 +223,9 @@ pub fn serve(
     Ok(local)
 }
 
-fn read_line(reader: &mut BufReader<TcpStream>) -> std::io::Result<Option<String>> {
+fn read_line(reader: &mut BufReader<TcpStream>, limit: u64) -> std::io::Result<Option<String>> {
     let mut line = String::new();
-    if reader.take(MAX_LINE_BYTES).read_line(&mut line)? == 0 {
+    if reader.take(limit).read_line(&mut line)? == 0 {
         return Ok(None);
     }
     Ok(Some(line))
@@ -216,11 +237,35 @@ fn write_json(writer: &mut TcpStream, value: &impl Serialize) -> std::io::Result
     writer.write_all(text.as_bytes())
 }
 
-/// The server's side of the authentication; an error ends the connection.
+fn auth_line(bytes: &[u8]) -> AuthLine {
+    AuthLine {
+        noise: bytes.iter().map(|b| format!("{b:02x}")).collect(),
+    }
+}
+
+fn from_hex(text: &str) -> Option<Vec<u8>> {
+    let text = text.trim();
+    if !text.len().is_multiple_of(2) || !text.is_ascii() {
+        return None;
+    }
+    (0..text.len() / 2)
+        .map(|i| u8::from_str_radix(&text[i * 2..i * 2 + 2], 16).ok())
+        .collect()
+}
+
+fn noise_of(line: &str) -> Option<Vec<u8>> {
+    serde_json::from_str::<AuthLine>(line)
+        .ok()
+        .and_then(|auth| from_hex(&auth.noise))
+        .filter(|bytes| !bytes.is_empty())
+}
+
+/// The server's side of the authentication (Noise, as the responder, with the operator key);
+/// an error ends the connection.
 fn authenticate_client(
     reader: &mut BufReader<TcpStream>,
     writer: &mut TcpStream,
-    secret: &Secret,
+    operator: &Key,
 ) -> std::io::Result<()> {
     let refuse = |writer: &mut TcpStream, message: &str| {
         let _ = write_json(
@@ -233,66 +278,63 @@ fn authenticate_client(
         );
         Err(std::io::Error::other(message.to_owned()))
     };
-    let Some(line) = read_line(reader)? else {
+    let Some(line) = read_line(reader, MAX_AUTH_LINE_BYTES)? else {
         return Ok(());
     };
-    let client = serde_json::from_str::<AuthLine>(&line)
-        .ok()
-        .and_then(|auth| from_hex(&auth.challenge));
-    let Some(client) = client else {
+    let Some(first) = noise_of(&line) else {
         return refuse(
             writer,
             "this run requires the shared secret: give armor ctl --secret FILE (or ARMOR_SECRET_FILE)",
         );
     };
-    let handshake = Handshake::new(secret);
-    write_json(
-        writer,
-        &AuthLine {
-            challenge: to_hex(handshake.challenge()),
-            proof: to_hex(&handshake.proof_for(&client)),
-        },
-    )?;
-    let Some(line) = read_line(reader)? else {
+    let listen = Listen {
+        admit: Admit::Operator(operator.clone()),
+        encrypt: false,
+    };
+    let listener = match Listener::accept(&listen, &first) {
+        Ok((listener, answer, _)) => {
+            write_json(writer, &auth_line(&answer))?;
+            listener
+        }
+        Err(_) => {
+            return refuse(
+                writer,
+                "the handshake failed: another secret than this run's",
+            );
+        }
+    };
+    let Some(line) = read_line(reader, MAX_AUTH_LINE_BYTES)? else {
         return Err(std::io::Error::other("closed during authentication"));
     };
-    let proof = serde_json::from_str::<AuthLine>(&line)
-        .ok()
-        .and_then(|auth| from_hex(&auth.proof));
-    match proof {
-        Some(proof) if handshake.verify(&client, &proof) => Ok(()),
-        _ => refuse(writer, "the proof does not match: wrong shared secret"),
+    match noise_of(&line).map(|confirm| listener.confirm(&confirm)) {
+        Some(Ok(_)) => Ok(()),
+        _ => refuse(
+            writer,
+            "the handshake failed: another secret than this run's",
+        ),
     }
-}
-
-fn to_hex(bytes: &[u8; NONCE_BYTES]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-fn from_hex(text: &str) -> Option<[u8; NONCE_BYTES]> {
-    let text = text.trim();
-    if text.len() != NONCE_BYTES * 2 || !text.is_ascii() {
-        return None;
-    }
-    let mut bytes = [0; NONCE_BYTES];
-    for (i, byte) in bytes.iter_mut().enumerate() {
-        *byte = u8::from_str_radix(&text[i * 2..i * 2 + 2], 16).ok()?;
-    }
-    Some(bytes)
 }
 
 fn serve_client(
     stream: TcpStream,
     requests: &Sender<Incoming>,
-    secret: Option<&Secret>,
+    operator: Option<&Key>,
+    pending: &std::sync::atomic::AtomicUsize,
 ) -> std::io::Result<()> {
-    let mut writer = stream.try_clone()?;
-    let mut reader = BufReader::new(stream);
-    if let Some(secret) = secret {
-        reader.get_ref().set_read_timeout(Some(REPLY_TIMEOUT))?;
-        authenticate_client(&mut reader, &mut writer, secret)?;
-        reader.get_ref().set_read_timeout(None)?;
-    }
+    use std::sync::atomic::Ordering;
+    let started = (|| {
+        let writer = stream.try_clone()?;
+        let mut reader = BufReader::with_capacity(MAX_AUTH_LINE_BYTES as usize, stream);
+        let mut writer = writer;
+        if let Some(operator) = operator {
+            reader.get_ref().set_read_timeout(Some(REPLY_TIMEOUT))?;
+            authenticate_client(&mut reader, &mut writer, operator)?;
+            reader.get_ref().set_read_timeout(None)?;
+        }
+        Ok::<_, std::io::Error>((reader, writer))
+    })();
+    pending.fetch_sub(1, Ordering::Relaxed);
+    let (mut reader, mut writer) = started?;
     loop {
         let mut line = String::new();
         if (&mut reader).take(MAX_LINE_BYTES).read_line(&mut line)? == 0 {
@@ -338,35 +380,33 @@ pub fn request(
     let mut writer = stream.try_clone()?;
     let mut reader = BufReader::new(stream);
     if let Some(secret) = secret {
-        let handshake = Handshake::new(secret);
-        write_json(
-            &mut writer,
-            &AuthLine {
-                challenge: to_hex(handshake.challenge()),
-                proof: String::new(),
-            },
-        )?;
-        let line = read_line(&mut reader)?.context("the run closed the connection")?;
-        let answer: AuthLine = serde_json::from_str(&line).unwrap_or_default();
-        let (Some(run), Some(proof)) = (from_hex(&answer.challenge), from_hex(&answer.proof))
-        else {
+        let dial = Dial {
+            key: secret.operator_key(),
+            identity: OPERATOR.to_owned(),
+            encrypt: false,
+        };
+        let (dialer, first) = Dialer::start(&dial)?;
+        write_json(&mut writer, &auth_line(&first))?;
+        let line =
+            read_line(&mut reader, MAX_LINE_BYTES)?.context("the run closed the connection")?;
+        if let Ok(Reply {
+            ok: false, message, ..
+        }) = serde_json::from_str::<Reply>(&line)
+        {
+            anyhow::bail!("the run refused: {message}");
+        }
+        let Some(answer) = noise_of(&line) else {
             anyhow::bail!(
                 "the run does not authenticate (started without --secret?): it answered `{}`",
                 line.trim()
             );
         };
-        if !handshake.verify(&run, &proof) {
-            anyhow::bail!("the run's proof does not match: it holds another secret");
-        }
-        write_json(
-            &mut writer,
-            &AuthLine {
-                challenge: String::new(),
-                proof: to_hex(&handshake.proof_for(&run)),
-            },
-        )?;
+        let Ok((confirm, _)) = dialer.finish(&answer) else {
+            anyhow::bail!("the run's handshake does not match: it holds another secret");
+        };
+        write_json(&mut writer, &auth_line(&confirm))?;
     }
     write_json(&mut writer, request)?;
-    let line = read_line(&mut reader)?.context("no reply from the run")?;
+    let line = read_line(&mut reader, MAX_LINE_BYTES)?.context("no reply from the run")?;
     serde_json::from_str(&line).with_context(|| format!("unreadable reply `{}`", line.trim()))
 }

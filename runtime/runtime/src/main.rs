@@ -82,9 +82,14 @@ enum Command {
         #[arg(long, value_name = "SECS", default_value_t = 2.0)]
         lease_secs: f64,
         /// A file (readable by its owner only) with a shared secret: every connection of the
-        /// run — agent, config server, control, module to module — must prove it holds it.
+        /// run — agent, config server, control, module to module — must prove a key derived
+        /// from it (each module the key of its own name) in a Noise handshake.
         #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
         secret: Option<PathBuf>,
+        /// With --secret: encrypt every link between modules too (for links that cross a
+        /// radio); the agent's and the config server's links are always encrypted.
+        #[arg(long, requires = "secret")]
+        encrypt: bool,
         /// A name outside the system that may subscribe to every output (and publish nothing)
         /// when the system has access lists: a monitor such as the studio's Run view, whose
         /// node is called `studio`. Repeat for several.
@@ -213,6 +218,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             start_at,
             lease_secs,
             secret,
+            encrypt,
             observers,
         } => {
             let lease = match lease_secs {
@@ -248,6 +254,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 start_at_unix_secs,
                 lease,
                 secret_file: secret.filter(|file| !file.as_os_str().is_empty()),
+                encrypt,
                 observers,
             })
         }

@@ -8,13 +8,15 @@
 //! are; anything else is refused before anything is published. An unfinished recording (a
 //! `.partial` file left by a crash) is played as far as it goes.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use armor_module_api::types::{Counter, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist};
 use armor_module_api::{Datum, Event, ModuleSpec, Node, RawOutput, Standalone};
+
+use crate::mcap_read::{ChunkTooLarge, Record, Records};
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
@@ -55,20 +57,24 @@ struct Plan {
     conversion: Conversion,
 }
 
+/// A channel of a recording, as its record says it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct Channel {
+    topic: String,
+    message_encoding: String,
+    metadata: BTreeMap<String, String>,
+    /// The name of the channel's schema, if it has one.
+    schema_name: Option<String>,
+}
+
 /// Reads a channel's data name, type and encoding, refusing what cannot be published.
-fn plan(channel: &mcap::Channel) -> anyhow::Result<Plan> {
+fn plan(channel: &Channel) -> anyhow::Result<Plan> {
     let topic = &channel.topic;
     let data_type = channel
         .metadata
         .get(DATA_TYPE_KEY)
         .filter(|data_type| !data_type.is_empty())
-        .or_else(|| {
-            channel
-                .schema
-                .as_ref()
-                .map(|schema| &schema.name)
-                .filter(|name| !name.is_empty())
-        })
+        .or(channel.schema_name.as_ref().filter(|name| !name.is_empty()))
         .with_context(|| {
             format!(
                 "channel `{topic}` names no data type (no `{DATA_TYPE_KEY}` metadata, no schema)"
@@ -133,25 +139,6 @@ fn from_json(data_type: &str, json: &[u8]) -> anyhow::Result<Vec<u8>> {
     bytes.with_context(|| format!("a JSON message is not a {data_type}"))
 }
 
-/// The channels of a finished recording, from its summary; `None` for an unfinished one.
-fn read_plans(file: &str, bytes: &[u8]) -> anyhow::Result<Option<HashMap<u16, Plan>>> {
-    if !bytes.starts_with(mcap::MAGIC) {
-        bail!("{file} is not an MCAP file");
-    }
-    let summary = match mcap::Summary::read(bytes) {
-        Ok(Some(summary)) => summary,
-        Ok(None) | Err(_) => return Ok(None),
-    };
-    let mut channels: Vec<_> = summary.channels.values().collect();
-    channels.sort_by_key(|channel| channel.id);
-    let mut plans = HashMap::new();
-    for channel in channels {
-        let plan = plan(channel).with_context(|| format!("cannot replay {file}"))?;
-        plans.insert(channel.id, plan);
-    }
-    Ok(Some(plans))
-}
-
 /// One message of a recording, as its node sent it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Recorded {
@@ -163,47 +150,128 @@ pub struct Recorded {
     pub payload: Vec<u8>,
 }
 
-/// Every message of a recording, in order; an unfinished one is read as far as it goes.
+impl Recorded {
+    /// What it takes in memory, its own size included (as in a `Vec<Recorded>`).
+    pub fn size_in_memory(&self) -> usize {
+        std::mem::size_of::<Recorded>()
+            .saturating_add(self.payload.len())
+            .saturating_add(self.data_name.len())
+            .saturating_add(self.data_type.len())
+    }
+}
+
+/// Every message of a recording, in the order of the file; an unfinished one is read as far as
+/// it goes.
 pub fn read_recording(file: &Path) -> anyhow::Result<Vec<Recorded>> {
+    read_recording_within(file, usize::MAX)
+}
+
+/// [`read_recording`], refusing a recording whose messages would take more than `max_bytes` in
+/// memory (payloads, names and bookkeeping, see [`read_recording_bytes`]), or whose file is
+/// larger than that.
+pub fn read_recording_within(file: &Path, max_bytes: usize) -> anyhow::Result<Vec<Recorded>> {
     let name = file.display().to_string();
+    let size = std::fs::metadata(file)
+        .with_context(|| format!("cannot read {name}"))?
+        .len();
+    if usize::try_from(size).map_or(true, |size| size > max_bytes) {
+        bail!("{name} is {size} bytes, more than the {max_bytes} it may take");
+    }
     let bytes = std::fs::read(file).with_context(|| format!("cannot read {name}"))?;
-    let plans = read_plans(&name, &bytes)?;
-    if plans.is_none() {
-        tracing::warn!("{name} has no summary (an unfinished recording?): reading what it holds");
+    read_recording_bytes(&name, &bytes, max_bytes)
+}
+
+/// The messages of the recording `bytes` (read from `name`), refused once they take more than
+/// `max_bytes` in memory: compressed chunks may hold far more than the file's size, so a small
+/// file could otherwise fill the memory. Records are read by [`crate::mcap_read`], which checks
+/// every length before it allocates. Every channel is planned when its record is read: one that
+/// cannot be published is refused even if no message uses it.
+pub fn read_recording_bytes(
+    name: &str,
+    bytes: &[u8],
+    max_bytes: usize,
+) -> anyhow::Result<Vec<Recorded>> {
+    if !bytes.starts_with(mcap::MAGIC) {
+        bail!("{name} is not an MCAP file");
     }
-    let mut plans = plans.unwrap_or_default();
-    let options = mcap::read::Options::IgnoreEndMagic.into();
-    let stream = mcap::MessageStream::new_with_options(&bytes, options)
-        .with_context(|| format!("{name} is not a valid MCAP file"))?;
+    let records =
+        Records::new(bytes, max_bytes).with_context(|| format!("{name} is not an MCAP file"))?;
+    let mut schema_names: HashMap<u16, String> = HashMap::new();
+    let mut plans: HashMap<u16, Plan> = HashMap::new();
     let mut messages = Vec::new();
-    for message in stream {
-        let message = match message {
-            Ok(message) => message,
-            Err(err) if !messages.is_empty() => {
-                tracing::warn!("{name}: stopped at a damaged or unfinished part: {err}");
-                break;
+    let mut used_bytes = 0_usize;
+    for record in records {
+        let record = record.and_then(|record| match record {
+            Record::Message { channel_id, .. } if !plans.contains_key(&channel_id) => {
+                bail!("a message on channel {channel_id}, which no record defines")
             }
-            Err(err) => {
-                return Err(err).with_context(|| format!("{name} is not a valid MCAP file"));
-            }
-        };
-        let plan = match plans.entry(message.channel.id) {
-            std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
-            std::collections::hash_map::Entry::Vacant(entry) => entry
-                .insert(plan(&message.channel).with_context(|| format!("cannot replay {name}"))?),
-        };
-        let payload = match plan.conversion {
-            Conversion::FromJson => from_json(&plan.data_type, &message.data)
-                .with_context(|| format!("channel `{}`", plan.data_name))?,
-            Conversion::AsIs => message.data.into_owned(),
-        };
-        messages.push(Recorded {
-            log_time_ns: message.log_time,
-            data_name: plan.data_name.clone(),
-            data_type: plan.data_type.clone(),
-            payload,
+            record => Ok(record),
         });
+        let record = match record {
+            Ok(record) => record,
+            // Too large is not damaged: nothing is shown rather than a part.
+            Err(err) if err.is::<ChunkTooLarge>() => {
+                return Err(err).context(format!("{name}: its messages take too much memory"));
+            }
+            Err(err) if !messages.is_empty() => {
+                tracing::warn!("{name}: stopped at a damaged or unfinished part: {err:#}");
+                return Ok(messages);
+            }
+            Err(err) => return Err(err).context(format!("{name} is not a valid MCAP file")),
+        };
+        match record {
+            Record::Schema { id, name } => {
+                schema_names.entry(id).or_insert(name);
+            }
+            Record::Channel(channel) => {
+                if plans.contains_key(&channel.id) {
+                    continue;
+                }
+                let schema_name = schema_names.get(&channel.schema_id).cloned();
+                let id = channel.id;
+                let channel = Channel {
+                    topic: channel.topic,
+                    message_encoding: channel.message_encoding,
+                    metadata: channel.metadata,
+                    schema_name,
+                };
+                let plan = plan(&channel).with_context(|| format!("cannot replay {name}"))?;
+                plans.insert(id, plan);
+            }
+            Record::Message {
+                channel_id,
+                log_time_ns,
+                data,
+            } => {
+                let Some(plan) = plans.get(&channel_id) else {
+                    continue; // refused above
+                };
+                let payload = match plan.conversion {
+                    Conversion::FromJson => from_json(&plan.data_type, &data)
+                        .with_context(|| format!("channel `{}`", plan.data_name))?,
+                    Conversion::AsIs => data,
+                };
+                let recorded = Recorded {
+                    log_time_ns,
+                    data_name: plan.data_name.clone(),
+                    data_type: plan.data_type.clone(),
+                    payload,
+                };
+                used_bytes = used_bytes.saturating_add(recorded.size_in_memory());
+                if used_bytes > max_bytes {
+                    bail!(
+                        "{name}: its messages take more than {max_bytes} bytes once read (at message {})",
+                        messages.len() + 1
+                    );
+                }
+                messages.push(recorded);
+            }
+            // The summary that follows only repeats the schemas and channels.
+            Record::DataEnd => return Ok(messages),
+            Record::Other => {}
+        }
     }
+    tracing::warn!("{name} has no end (an unfinished recording?): read what it holds");
     Ok(messages)
 }
 
@@ -248,6 +316,14 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         }
     }
     player.linger()
+}
+
+/// When a message logged at `log_time_ns` is due, the first having been logged at `first_ns`
+/// and played at `started`; `None` beyond what a clock can say (a tiny time scale, or a
+/// recording spanning centuries). A message logged before the first is due at once.
+fn due_at(started: Instant, first_ns: u64, log_time_ns: u64, scale: f64) -> Option<Instant> {
+    let offset_secs = log_time_ns.saturating_sub(first_ns) as f64 / 1e9 / scale;
+    started.checked_add(Duration::try_from_secs_f64(offset_secs).ok()?)
 }
 
 struct Player<'a> {
@@ -311,8 +387,12 @@ impl Player<'_> {
             return Ok(());
         };
         for message in messages {
-            let offset = message.log_time_ns.saturating_sub(first_ns) as f64 / 1e9 / scale;
-            let due = started + Duration::from_secs_f64(offset);
+            let due = due_at(started, first_ns, message.log_time_ns, scale).with_context(|| {
+                format!(
+                    "a message logged {} ns after the first is due later than can be waited for at --time-scale {scale}",
+                    message.log_time_ns.saturating_sub(first_ns)
+                )
+            })?;
             if due > Instant::now() {
                 self.pause_until(due)?;
             }
@@ -387,15 +467,14 @@ mod tests {
         assert!(from_json("Imu", b"{}").is_err());
     }
 
-    fn channel(topic: &str, encoding: &str, data_type: Option<&str>) -> mcap::Channel<'static> {
-        mcap::Channel {
-            id: 1,
+    fn channel(topic: &str, encoding: &str, data_type: Option<&str>) -> Channel {
+        Channel {
             topic: topic.into(),
-            schema: None,
             message_encoding: encoding.into(),
             metadata: data_type
                 .map(|data_type| BTreeMap::from([(DATA_TYPE_KEY.into(), data_type.into())]))
                 .unwrap_or_default(),
+            schema_name: None,
         }
     }
 
@@ -488,16 +567,170 @@ mod tests {
     }
 
     #[test]
-    fn a_finished_file_plans_every_channel() {
+    fn every_channel_is_planned_and_a_cut_file_is_read_as_far_as_it_goes() {
         let bytes = mcap_with("postcard");
-        let plans = read_plans("f", &bytes).unwrap().unwrap();
-        assert_eq!(plans.len(), 1);
-        assert_eq!(plans.values().next().unwrap().data_name, "counter.count");
-        // Cut short, it has no summary: channels are then planned as they come.
-        assert!(
-            read_plans("f", &bytes[..bytes.len() / 2])
-                .unwrap()
-                .is_none()
+        let messages = read_recording_bytes("f", &bytes, usize::MAX).unwrap();
+        assert_eq!(messages.len(), 1);
+        assert_eq!(messages[0].data_name, "counter.count");
+        assert_eq!(messages[0].data_type, "Counter");
+        assert_eq!(messages[0].log_time_ns, 5);
+        // A channel no message uses is planned all the same.
+        let mut writer = mcap::Writer::new(Cursor::new(Vec::new())).unwrap();
+        writer
+            .add_channel(0, "camera.image", "cdr", &BTreeMap::new())
+            .unwrap();
+        writer.finish().unwrap();
+        let unused = writer.into_inner().into_inner();
+        let err = format!(
+            "{:#}",
+            read_recording_bytes("f", &unused, usize::MAX).unwrap_err()
         );
+        assert!(
+            err.contains("channel `camera.image` names no data type"),
+            "{err}"
+        );
+        // Cut after its message, it gives that message; cut in its header, a clear error.
+        let half = &bytes[..bytes.len() / 2];
+        assert_eq!(
+            read_recording_bytes("f", half, usize::MAX).unwrap(),
+            messages
+        );
+        let err = format!(
+            "{:#}",
+            read_recording_bytes("f", &bytes[..20], usize::MAX).unwrap_err()
+        );
+        assert!(err.contains("f is not a valid MCAP file"), "{err}");
+    }
+
+    /// A record as MCAP frames it: opcode, length (u64), body.
+    fn record(opcode: u8, body: &[u8]) -> Vec<u8> {
+        let mut out = vec![opcode];
+        out.extend((body.len() as u64).to_le_bytes());
+        out.extend(body);
+        out
+    }
+
+    fn string(text: &str) -> Vec<u8> {
+        let mut out = (text.len() as u32).to_le_bytes().to_vec();
+        out.extend(text.as_bytes());
+        out
+    }
+
+    /// A channel record: id 1, no schema, the data type in its metadata.
+    fn channel_record(topic: &[u8]) -> Vec<u8> {
+        let mut body = vec![1, 0, 0, 0];
+        body.extend(topic);
+        body.extend(string("postcard"));
+        let entry = [string(DATA_TYPE_KEY), string("Counter")].concat();
+        body.extend((entry.len() as u32).to_le_bytes());
+        body.extend(entry);
+        record(mcap::records::op::CHANNEL, &body)
+    }
+
+    fn message_record(log_time_ns: u64) -> Vec<u8> {
+        let mut body = vec![1, 0, 7, 0, 0, 0];
+        body.extend(log_time_ns.to_le_bytes());
+        body.extend(log_time_ns.to_le_bytes());
+        body.extend(encode(&Counter(3)));
+        record(mcap::records::op::MESSAGE, &body)
+    }
+
+    #[test]
+    fn a_string_longer_than_its_record_is_refused_before_it_is_allocated() {
+        // The mcap crate's parser reserved the 4 GiB this topic claims before finding three
+        // bytes; read_record checks the length against the record first.
+        let mut hostile_topic = u32::MAX.to_le_bytes().to_vec();
+        hostile_topic.extend(b"abc");
+        let header = record(
+            mcap::records::op::HEADER,
+            &[string(""), string("hand")].concat(),
+        );
+        let good = [
+            mcap::MAGIC.to_vec(),
+            header.clone(),
+            channel_record(&string("counter.count")),
+            message_record(5),
+        ]
+        .concat();
+        let messages = read_recording_bytes("f", &good, usize::MAX).unwrap();
+        assert_eq!(messages.len(), 1);
+        assert_eq!(messages[0].payload, encode(&Counter(3)));
+
+        let hostile = [mcap::MAGIC.to_vec(), header, channel_record(&hostile_topic)].concat();
+        let err = format!(
+            "{:#}",
+            read_recording_bytes("f", &hostile, usize::MAX).unwrap_err()
+        );
+        assert!(
+            err.contains("not a valid MCAP file: a damaged record (opcode 0x04"),
+            "{err}"
+        );
+        // After messages, a damaged record ends the reading; what was read is kept.
+        let late = [good.clone(), channel_record(&hostile_topic)].concat();
+        assert_eq!(
+            read_recording_bytes("f", &late, usize::MAX).unwrap(),
+            messages
+        );
+        // So does a message on a channel nothing defined.
+        let stray = [mcap::MAGIC.to_vec(), message_record(5)].concat();
+        let err = format!(
+            "{:#}",
+            read_recording_bytes("f", &stray, usize::MAX).unwrap_err()
+        );
+        assert!(err.contains("channel 1, which no record defines"), "{err}");
+    }
+
+    #[test]
+    fn a_recording_larger_than_its_budget_is_refused() {
+        // Two messages, not in a chunk.
+        let bytes = [
+            mcap::MAGIC.to_vec(),
+            channel_record(&string("counter.count")),
+            message_record(5),
+            message_record(6),
+        ]
+        .concat();
+        let two = read_recording_bytes("f", &bytes, usize::MAX).unwrap();
+        assert_eq!(two.len(), 2);
+        let needed = two[0].size_in_memory() + two[1].size_in_memory();
+        assert_eq!(read_recording_bytes("f", &bytes, needed).unwrap(), two);
+        let err = read_recording_bytes("f", &bytes, needed - 1).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "f: its messages take more than {} bytes once read (at message 2)",
+                needed - 1
+            )
+        );
+        // A chunk that would decompress to more than the budget is not decompressed.
+        let chunked = mcap_with("postcard");
+        let err = read_recording_bytes("f", &chunked, 50).unwrap_err();
+        assert!(
+            format!("{err:#}").starts_with("f: its messages take too much memory: a chunk of"),
+            "{err:#}"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("small.mcap");
+        std::fs::write(&file, &bytes).unwrap();
+        assert_eq!(
+            read_recording_within(&file, bytes.len().max(needed)).unwrap(),
+            two
+        );
+        let err = read_recording_within(&file, bytes.len() - 1).unwrap_err();
+        assert!(err.to_string().contains("more than the"), "{err}");
+    }
+
+    #[test]
+    fn hostile_log_times_give_an_error_not_a_panic() {
+        let now = Instant::now();
+        assert_eq!(
+            due_at(now, 1_000, 1_500_000_000 + 1_000, 2.0),
+            Some(now + Duration::from_millis(750))
+        );
+        assert_eq!(due_at(now, 1_000, 0, 1.0), Some(now), "before the first");
+        // Duration::from_secs_f64 panicked on these.
+        assert_eq!(due_at(now, 0, u64::MAX, 1e-300), None);
+        assert_eq!(due_at(now, 0, u64::MAX, 1e-12), None);
+        assert!(due_at(now, 0, u64::MAX, 1.0).is_some(), "584 years");
     }
 }

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use armor_model::RestartPolicy;
-use armor_module_api::auth::{ENV_SECRET_FILE, Secret};
+use armor_module_api::auth::{ENV_ENCRYPT, ENV_KEY, ENV_SECRET_FILE, Secret};
 use armor_module_api::clock::{ENV_EPOCH, ENV_TIME_SCALE, unix_now_ns};
 use armor_module_api::protocol::FromSupervisor;
 use armor_module_api::{Clock, ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR};
@@ -59,8 +59,12 @@ pub struct RunOptions {
     /// `None` turns the heartbeat off.
     pub lease: Option<Duration>,
     /// A file holding the shared secret every connection of the run must prove (see
-    /// `armor_module_api::auth`); passed on to the agent and the modules.
+    /// `armor_module_api::auth`); passed on to the agent; each module gets only the key of its
+    /// own name, derived from it.
     pub secret_file: Option<PathBuf>,
+    /// With a secret: every link between modules is encrypted too (the agent's and the config
+    /// server's always are).
+    pub encrypt: bool,
     /// Names outside the system that the access lists let subscribe to everything.
     pub observers: Vec<String>,
 }
@@ -98,7 +102,8 @@ struct RunEnv {
     epoch_ns: u64,
     time_scale: f64,
     module_path: Vec<PathBuf>,
-    secret_file: Option<PathBuf>,
+    secret: Option<Secret>,
+    encrypt: bool,
 }
 
 /// A file to run: a system, or a mission over a system.
@@ -225,7 +230,8 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         epoch_ns,
         time_scale: options.time_scale,
         module_path: options.module_path.clone(),
-        secret_file: secret_file.clone(),
+        secret: secret.clone(),
+        encrypt: options.encrypt,
     };
     let started = Instant::now();
     tracing::info!(
@@ -579,7 +585,15 @@ impl ModuleProc {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
-        pass_secret(&mut command, env.secret_file.as_deref());
+        // A module gets the key of its own name, never the secret: it can prove no other.
+        command.env_remove(ENV_SECRET_FILE).env_remove(ENV_ENCRYPT);
+        match &env.secret {
+            Some(secret) => command.env(ENV_KEY, secret.module_key(&self.name).to_hex()),
+            None => command.env_remove(ENV_KEY),
+        };
+        if env.secret.is_some() && env.encrypt {
+            command.env(ENV_ENCRYPT, "1");
+        }
         crate::process::die_with_parent(&mut command);
         match command.spawn() {
             Ok(mut child) => {

@@ -1,0 +1,185 @@
+//! The window's dialogs: the path field (open, save as, import, export), "Save changes?" and
+//! "Restore unsaved work?". Each shows itself and returns the user's answer; the window
+//! (`app.rs`) acts on it.
+
+use std::path::PathBuf;
+
+use egui::Key;
+
+use crate::files::Recovery;
+
+/// What a path dialog is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathPurpose {
+    Open,
+    SaveAs,
+    ExportPng,
+    OpenPlan,
+    SavePlanAs,
+    ImportGpx,
+    ExportMission,
+    ExportPnml,
+    ExportMapPng,
+    OpenRecording,
+}
+
+impl PathPurpose {
+    /// What the status line says it is asking for.
+    pub fn what(self) -> &'static str {
+        match self {
+            PathPurpose::Open => "open",
+            PathPurpose::SaveAs | PathPurpose::SavePlanAs => "save as",
+            PathPurpose::ExportPng | PathPurpose::ExportMapPng => "export a picture",
+            PathPurpose::OpenPlan => "open a plan",
+            PathPurpose::ImportGpx => "import GPX",
+            PathPurpose::ExportMission => "export the mission",
+            PathPurpose::ExportPnml => "export PNML",
+            PathPurpose::OpenRecording => "open a recording",
+        }
+    }
+}
+
+/// A path being typed, and what for.
+pub struct PathDialog {
+    pub purpose: PathPurpose,
+    pub text: String,
+}
+
+/// What the user did with the path dialog.
+pub enum PathAnswer {
+    Submit(PathBuf),
+    Cancel,
+}
+
+impl PathDialog {
+    /// Shows the dialog; the answer once the user has given one.
+    pub fn ui(&mut self, ctx: &egui::Context) -> Option<PathAnswer> {
+        let dialog = self;
+        let (title, action) = match dialog.purpose {
+            PathPurpose::Open => ("Open a system file", "Open"),
+            PathPurpose::SaveAs => ("Save the system as", "Save"),
+            PathPurpose::ExportPng => ("Export a picture (PNG)", "Export"),
+            PathPurpose::OpenPlan => ("Open a plan", "Open"),
+            PathPurpose::SavePlanAs => ("Save the plan as", "Save"),
+            PathPurpose::ImportGpx => ("Import waypoints and a route (GPX)", "Import"),
+            PathPurpose::ExportMission => ("Export the mission (XML for armor run)", "Export"),
+            PathPurpose::ExportPnml => ("Export the net (PNML)", "Export"),
+            PathPurpose::ExportMapPng => ("Export the map (PNG)", "Export"),
+            PathPurpose::OpenRecording => ("Open a recording (MCAP)", "Open"),
+        };
+        let mut submit = false;
+        let mut cancel = false;
+        egui::Window::new(title)
+            .id(egui::Id::new("path-dialog"))
+            .collapsible(false)
+            .show(ctx, |ui| {
+                let label = ui.label("Path:");
+                let edit = ui
+                    .add(
+                        egui::TextEdit::singleline(&mut dialog.text)
+                            .id_salt("path")
+                            .desired_width(420.0),
+                    )
+                    .labelled_by(label.id);
+                if !edit.has_focus() && !edit.lost_focus() {
+                    edit.request_focus();
+                }
+                if edit.lost_focus() && ui.input(|input| input.key_pressed(Key::Enter)) {
+                    submit = true;
+                }
+                ui.horizontal(|ui| {
+                    if ui.button(action).clicked() {
+                        submit = true;
+                    }
+                    if ui.button("Cancel").clicked() {
+                        cancel = true;
+                    }
+                });
+            });
+        if cancel {
+            Some(PathAnswer::Cancel)
+        } else if submit {
+            Some(PathAnswer::Submit(PathBuf::from(dialog.text.trim())))
+        } else {
+            None
+        }
+    }
+}
+
+/// What replaces a document, or closes the window: held while the user is asked what to do
+/// with the unsaved changes it would lose.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Replacing {
+    NewSystem,
+    OpenSystem(PathBuf),
+    NewPlan,
+    OpenPlan(PathBuf),
+    Quit,
+}
+
+/// The answer to "Save changes?".
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum UnsavedChoice {
+    Save,
+    Discard,
+    Cancel,
+}
+
+/// "Save changes?" for the documents `names` (as the user knows them).
+pub fn unsaved_ui(ctx: &egui::Context, names: &[String]) -> Option<UnsavedChoice> {
+    let mut choice = None;
+    egui::Modal::new(egui::Id::new("unsaved")).show(ctx, |ui| {
+        ui.heading("Save changes?");
+        ui.label(format!(
+            "{} {} unsaved changes, lost if not saved.",
+            names.join(" and "),
+            if names.len() == 1 { "has" } else { "have" }
+        ));
+        ui.horizontal(|ui| {
+            for (label, answer) in [
+                ("Save", UnsavedChoice::Save),
+                ("Don't save", UnsavedChoice::Discard),
+                ("Cancel", UnsavedChoice::Cancel),
+            ] {
+                if ui.button(label).clicked() {
+                    choice = Some(answer);
+                }
+            }
+        });
+    });
+    choice
+}
+
+/// The answer to "Restore unsaved work?".
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RecoveryChoice {
+    Restore,
+    Discard,
+}
+
+/// "Restore unsaved work?" for a recovery copy left by a session that did not end cleanly.
+pub fn recovery_ui(ctx: &egui::Context, recovery: &Recovery) -> Option<RecoveryChoice> {
+    let mut restore = false;
+    let mut discard = false;
+    egui::Modal::new(egui::Id::new("recovery")).show(ctx, |ui| {
+        ui.heading("Restore unsaved work?");
+        let of = recovery.original.as_ref().map_or_else(
+            || format!("an unsaved {}", recovery.document.noun()),
+            |path| path.display().to_string(),
+        );
+        ui.label(format!(
+            "The studio did not close cleanly last time; a recovery copy of {of} was kept."
+        ));
+        ui.horizontal(|ui| {
+            restore = ui.button("Restore").clicked();
+            discard = ui.button("Discard").clicked();
+        });
+    });
+    if restore {
+        Some(RecoveryChoice::Restore)
+    } else if discard {
+        Some(RecoveryChoice::Discard)
+    } else {
+        None
+    }
+}

@@ -1,0 +1,302 @@
+//! Map labels that never overlap: every label is placed after the shapes are drawn, most
+//! important first, at the first of several positions round its anchor (or anchors: a phase
+//! line's two ends) where it covers no label placed before and no symbol; a label that finds no
+//! room close by goes a step further out with a leader line to its anchor, then is shortened,
+//! and is dropped last (the inspector still names everything). Each label is drawn once.
+//!
+//! Placed rectangles are kept in a grid of cells, so that a plan of 500 waypoints (over a
+//! thousand labels) is placed in a few milliseconds (`armor-bench label_place_ms_500_waypoints`).
+
+use std::collections::HashMap;
+
+use egui::{Align2, Color32, Pos2, Rect, Vec2, vec2};
+
+/// How much a label matters: the lower, the sooner it is placed (and the less it is dropped).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Importance {
+    /// A waypoint's name.
+    Waypoint,
+    /// A unit's name, a time constraint (NET, NLT, wait).
+    Constraint,
+    /// An area's or a line's name.
+    Graphic,
+    /// A leg's name, the modules of an arrival action.
+    Detail,
+}
+
+/// A label to place: `text` near one of `anchors`, at `gap` points from it, first on the
+/// `preferred` side.
+#[derive(Clone, Debug)]
+pub struct Label {
+    pub anchors: Vec<Pos2>,
+    pub gap: f32,
+    pub preferred: Align2,
+    pub text: String,
+    pub colour: Color32,
+    pub importance: Importance,
+}
+
+/// A label's place: its box (text and margin), the text drawn (perhaps shortened), and the
+/// leader line from its anchor when it stands off.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Placed {
+    pub rect: Rect,
+    pub text: String,
+    pub colour: Color32,
+    pub leader: Option<[Pos2; 2]>,
+}
+
+/// The sides tried round an anchor, in order after the preferred one.
+const SIDES: [Align2; 8] = [
+    Align2::CENTER_BOTTOM,
+    Align2::LEFT_CENTER,
+    Align2::CENTER_TOP,
+    Align2::RIGHT_CENTER,
+    Align2::LEFT_BOTTOM,
+    Align2::RIGHT_BOTTOM,
+    Align2::LEFT_TOP,
+    Align2::RIGHT_TOP,
+];
+/// How much further out the rings of positions beyond the first are (with a leader line).
+const STAND_OFF: [f32; 4] = [0.0, 16.0, 34.0, 52.0];
+/// Margin round a label's text.
+const MARGIN: f32 = 2.0;
+const CELL: f32 = 64.0;
+
+/// The direction from the anchor towards a label on `side` (a label `CENTER_BOTTOM`-aligned
+/// sits above its anchor).
+fn outward(side: Align2) -> Vec2 {
+    let x = match side.x() {
+        egui::Align::Min => 1.0,
+        egui::Align::Center => 0.0,
+        egui::Align::Max => -1.0,
+    };
+    let y = match side.y() {
+        egui::Align::Min => 1.0,
+        egui::Align::Center => 0.0,
+        egui::Align::Max => -1.0,
+    };
+    vec2(x, y)
+}
+
+/// Rectangles placed so far, bucketed by grid cell.
+#[derive(Default)]
+struct Taken {
+    cells: HashMap<(i32, i32), Vec<usize>>,
+    rects: Vec<Rect>,
+}
+
+impl Taken {
+    fn cells_of(rect: Rect) -> impl Iterator<Item = (i32, i32)> {
+        let (x0, x1) = (
+            (rect.min.x / CELL).floor() as i32,
+            (rect.max.x / CELL).floor() as i32,
+        );
+        let (y0, y1) = (
+            (rect.min.y / CELL).floor() as i32,
+            (rect.max.y / CELL).floor() as i32,
+        );
+        (x0..=x1).flat_map(move |x| (y0..=y1).map(move |y| (x, y)))
+    }
+
+    fn is_free(&self, rect: Rect) -> bool {
+        Self::cells_of(rect).all(|cell| {
+            self.cells.get(&cell).is_none_or(|indices| {
+                indices
+                    .iter()
+                    .all(|&index| !self.rects[index].intersects(rect))
+            })
+        })
+    }
+
+    fn take(&mut self, rect: Rect) {
+        let index = self.rects.len();
+        self.rects.push(rect);
+        for cell in Self::cells_of(rect) {
+            self.cells.entry(cell).or_default().push(index);
+        }
+    }
+}
+
+/// Places `labels` (their text measured by `size_of`) round `obstacles` (symbols), inside
+/// `bounds`. No two placed boxes overlap, nor a box and an obstacle.
+pub fn place(
+    mut labels: Vec<Label>,
+    obstacles: &[Rect],
+    bounds: Rect,
+    size_of: &mut dyn FnMut(&str) -> Vec2,
+) -> Vec<Placed> {
+    // Most important first; among equals, in the order given (stable sort).
+    labels.sort_by_key(|label| label.importance);
+    let mut taken = Taken::default();
+    for &obstacle in obstacles {
+        taken.take(obstacle);
+    }
+    let mut seen: HashMap<(String, Color32), Vec<Pos2>> = HashMap::new();
+    let mut placed = Vec::with_capacity(labels.len());
+    for label in labels {
+        // The same text in the same colour at the same anchor is one label.
+        let twins = seen.entry((label.text.clone(), label.colour)).or_default();
+        if label
+            .anchors
+            .iter()
+            .all(|anchor| twins.iter().any(|seen| seen.distance(*anchor) < 1.0))
+        {
+            continue;
+        }
+        twins.extend(label.anchors.iter().copied());
+        let anchors: Vec<Pos2> = label
+            .anchors
+            .iter()
+            .copied()
+            .filter(|anchor| bounds.expand(CELL).contains(*anchor))
+            .collect();
+        if anchors.is_empty() {
+            continue;
+        }
+        let shortened = shorten(&label.text);
+        let texts = std::iter::once(label.text.clone()).chain(shortened);
+        'texts: for text in texts {
+            let size = size_of(&text) + Vec2::splat(2.0 * MARGIN);
+            for ring in STAND_OFF {
+                for &anchor in &anchors {
+                    let sides = std::iter::once(label.preferred)
+                        .chain(SIDES.into_iter().filter(|side| *side != label.preferred));
+                    for side in sides {
+                        let at = anchor + outward(side) * (label.gap + ring);
+                        let rect = side.anchor_size(at, size);
+                        if !bounds.contains_rect(rect) || !taken.is_free(rect) {
+                            continue;
+                        }
+                        taken.take(rect);
+                        let leader = (ring > 0.0).then(|| [anchor, nearest_point(rect, anchor)]);
+                        placed.push(Placed {
+                            rect,
+                            text,
+                            colour: label.colour,
+                            leader,
+                        });
+                        break 'texts;
+                    }
+                }
+            }
+        }
+    }
+    placed
+}
+
+/// A shorter form of a label that found no room: its first word, else its first characters.
+fn shorten(text: &str) -> Option<String> {
+    let first = text.split_whitespace().next().unwrap_or(text);
+    if first.len() < text.len() && first.chars().count() >= 2 {
+        return Some(first.to_owned());
+    }
+    let chars: Vec<char> = text.chars().collect();
+    (chars.len() > 6).then(|| chars[..5].iter().collect::<String>() + "…")
+}
+
+fn nearest_point(rect: Rect, p: Pos2) -> Pos2 {
+    pos2_clamped(p, rect)
+}
+
+fn pos2_clamped(p: Pos2, rect: Rect) -> Pos2 {
+    Pos2::new(
+        p.x.clamp(rect.min.x, rect.max.x),
+        p.y.clamp(rect.min.y, rect.max.y),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn measure(text: &str) -> Vec2 {
+        vec2(6.5 * text.chars().count() as f32, 13.0)
+    }
+
+    fn label(at: Pos2, text: &str, importance: Importance) -> Label {
+        Label {
+            anchors: vec![at],
+            gap: 8.0,
+            preferred: Align2::CENTER_BOTTOM,
+            text: text.to_owned(),
+            colour: Color32::BLACK,
+            importance,
+        }
+    }
+
+    fn overlaps(placed: &[Placed]) -> Vec<(usize, usize)> {
+        let mut pairs = Vec::new();
+        for i in 0..placed.len() {
+            for j in i + 1..placed.len() {
+                if placed[i].rect.intersects(placed[j].rect) {
+                    pairs.push((i, j));
+                }
+            }
+        }
+        pairs
+    }
+
+    #[test]
+    fn crowded_labels_never_overlap_and_the_important_ones_stay() {
+        let bounds = Rect::from_min_size(Pos2::ZERO, vec2(800.0, 600.0));
+        // Twenty labels on almost the same spot, as at a busy waypoint.
+        let mut labels = vec![label(pos2(400.0, 300.0), "gate", Importance::Waypoint)];
+        for i in 0..20 {
+            labels.push(label(
+                pos2(400.0 + i as f32, 300.0),
+                &format!("NLT 08:0{i}:30Z"),
+                Importance::Constraint,
+            ));
+        }
+        let placed = place(labels, &[], bounds, &mut measure);
+        assert!(overlaps(&placed).is_empty(), "{placed:#?}");
+        assert_eq!(
+            placed[0].text, "gate",
+            "the waypoint's name is placed first"
+        );
+        assert!(
+            placed.len() >= 8,
+            "most labels find a place: {}",
+            placed.len()
+        );
+        assert!(placed.iter().any(|p| p.leader.is_some()), "some stand off");
+    }
+
+    #[test]
+    fn a_label_keeps_off_symbols_and_inside_the_map() {
+        let bounds = Rect::from_min_size(Pos2::ZERO, vec2(300.0, 200.0));
+        let symbol = Rect::from_center_size(pos2(150.0, 100.0), Vec2::splat(44.0));
+        let placed = place(
+            vec![label(pos2(150.0, 100.0), "enemy_post", Importance::Graphic)],
+            &[symbol],
+            bounds,
+            &mut measure,
+        );
+        assert_eq!(placed.len(), 1);
+        assert!(!placed[0].rect.intersects(symbol));
+        assert!(bounds.contains_rect(placed[0].rect));
+    }
+
+    #[test]
+    fn the_same_label_is_drawn_once_and_a_line_label_at_one_of_its_ends() {
+        let bounds = Rect::from_min_size(Pos2::ZERO, vec2(800.0, 600.0));
+        let line = Label {
+            anchors: vec![pos2(100.0, 100.0), pos2(700.0, 100.0)],
+            ..label(pos2(0.0, 0.0), "PL AMBER", Importance::Graphic)
+        };
+        let placed = place(vec![line.clone(), line], &[], bounds, &mut measure);
+        assert_eq!(placed.len(), 1, "{placed:#?}");
+    }
+
+    #[test]
+    fn a_label_with_no_room_is_shortened_before_it_is_dropped() {
+        assert_eq!(shorten("NO-GO contaminated").as_deref(), Some("NO-GO"));
+        assert_eq!(shorten("northern_limit").as_deref(), Some("north…"));
+        assert_eq!(shorten("gate"), None);
+    }
+
+    fn pos2(x: f32, y: f32) -> Pos2 {
+        Pos2::new(x, y)
+    }
+}

@@ -1,0 +1,239 @@
+//! The canvas's input: egui-snarl drawn through [`DiagramViewer`], then what it does not do
+//! itself: the wire's origin and a refused wire's reason, drops from the palette, moves (with
+//! the selected group), clicks that select, double clicks in the overview, and the clipboard.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+
+use armor_runtime::control::ModuleState;
+use egui::{Key, Ui};
+use egui_snarl::ui::SnarlWidget;
+
+use super::SystemView;
+use crate::command::UiCommand;
+use crate::diagram::{BlockId, Catalog};
+use crate::editor::Command;
+use crate::viewer::{self, CanvasEvents, DiagramViewer};
+
+/// The canvas's id: tests and the selection lookup name it.
+const CANVAS_ID: &str = "diagram";
+
+/// What the palette hands the canvas during a drag.
+#[derive(Clone, Debug)]
+pub(super) struct PaletteDrag(pub String);
+
+impl SystemView {
+    /// Where the blocks moving with `grabbed` go when it moves by `delta`: itself, and the rest
+    /// of the editor's selection if it is part of it.
+    pub(super) fn group_moved(
+        &self,
+        grabbed: BlockId,
+        delta: [f32; 2],
+    ) -> impl Iterator<Item = (BlockId, [f32; 2])> + '_ {
+        let selection = &self.editor.selection;
+        let group: Vec<BlockId> = if selection.contains(&grabbed) {
+            selection.iter().copied().collect()
+        } else {
+            vec![grabbed]
+        };
+        group.into_iter().filter_map(move |id| {
+            let pos = self.editor.diagram.block(id)?.pos;
+            Some((id, [pos[0] + delta[0], pos[1] + delta[1]]))
+        })
+    }
+
+    pub(super) fn canvas_ui(
+        &mut self,
+        ui: &mut Ui,
+        catalog: &Catalog,
+        started: bool,
+        live: &BTreeMap<String, ModuleState>,
+    ) {
+        let ctx = ui.ctx().clone();
+        self.canvas
+            .sync(&self.editor.diagram, catalog, self.editor.revision());
+        self.canvas.rect = ui.available_rect_before_wrap();
+        if !started && self.canvas.view_request.is_none() {
+            self.zoom_to_fit();
+        }
+        let (pressed, released, press_origin, latest, double_click, modifiers) =
+            ctx.input(|input| {
+                (
+                    input.pointer.primary_pressed(),
+                    input.pointer.primary_released(),
+                    input.pointer.press_origin(),
+                    input.pointer.latest_pos(),
+                    input
+                        .pointer
+                        .button_double_clicked(egui::PointerButton::Primary)
+                        .then(|| input.pointer.interact_pos())
+                        .flatten(),
+                    input.modifiers,
+                )
+            });
+        // The wire's origin: the pin under the pointer when the button went down.
+        if pressed {
+            self.canvas.wire_from = press_origin
+                .filter(|pos| self.canvas.rect.contains(*pos))
+                .and_then(|pos| self.canvas.pin_at(pos).cloned());
+        }
+
+        let pins = std::rc::Rc::new(std::cell::RefCell::new(Vec::new()));
+        let mut events = CanvasEvents::default();
+        let mut node_rects = HashMap::new();
+        let mut to_global = self.canvas.to_global;
+        let view_request = self.canvas.view_request.take();
+        let wire_from = self.canvas.wire_from.clone();
+        // The viewer reads the canvas while egui-snarl edits the snarl: hold them apart.
+        let mut canvas = std::mem::take(&mut self.canvas);
+        let mut snarl = std::mem::take(&mut canvas.snarl);
+        let mut viewer = DiagramViewer {
+            diagram: &self.editor.diagram,
+            catalog,
+            selection: &self.editor.selection,
+            flagged: &self.flagged,
+            commands: &mut self.commands,
+            events: &mut events,
+            wire_from: wire_from.as_ref(),
+            pins: pins.clone(),
+            node_rects: &mut node_rects,
+            to_global: &mut to_global,
+            view_request,
+            screen_rect: canvas.rect,
+            double_click: double_click.filter(|pos| canvas.rect.contains(*pos)),
+            canvas: &canvas,
+            live,
+        };
+        let widget = SnarlWidget::new().id_salt(CANVAS_ID).style(viewer::style());
+        widget.show(&mut snarl, &mut viewer, ui);
+        drop(viewer);
+        self.canvas = canvas;
+        self.canvas.snarl = snarl;
+        self.canvas.node_rects.extend(node_rects);
+        self.canvas.to_global = to_global;
+        self.canvas.pins = pins.take();
+
+        // In the overview, a double click zooms in on the block (its pins and parameters are
+        // there).
+        if self.canvas.is_overview()
+            && let Some(pos) = double_click.filter(|pos| self.canvas.rect.contains(*pos))
+            && let Some(block) = self.canvas.block_at(&self.editor.diagram, catalog, pos)
+        {
+            self.show_block(block);
+        }
+        if let Some(block) = events.open_params {
+            self.open_params(block);
+        }
+
+        // A wire dropped on a pin of the same side: egui-snarl ignores it silently; say why.
+        if released {
+            if let (Some(from), Some(to)) = (
+                self.canvas.wire_from.take(),
+                latest.and_then(|pos| self.canvas.pin_at(pos).cloned()),
+            ) && from.side == to.side
+                && from != to
+                && let Err(reason) = self.editor.diagram.link_between(catalog, &from, &to)
+            {
+                self.set_status(format!("refused: {reason}"), true);
+            }
+            self.canvas.wire_from = None;
+        }
+
+        // A module type dropped from the palette.
+        if let Some(pos) = latest.filter(|pos| self.canvas.rect.contains(*pos))
+            && released
+            && let Some(payload) = egui::DragAndDrop::take_payload::<PaletteDrag>(&ctx)
+        {
+            let at = self.canvas.to_canvas(pos);
+            self.commands.push(Command::AddBlock {
+                module_type: payload.0.clone(),
+                pos: [at.x - 60.0, at.y - 20.0],
+            });
+        }
+
+        // Moves: the snarl moved its nodes; copy them into the document, one undo step a drag.
+        let mut moved = self.canvas.moved_blocks(&self.editor.diagram);
+        // A block of a group selected in the editor (select all, find, a paste) carries the rest
+        // of the group along; egui-snarl moves only its own selection.
+        if let [(grabbed, to)] = moved[..]
+            && let Some(from) = self.editor.diagram.block(grabbed).map(|block| block.pos)
+        {
+            let delta = [to[0] - from[0], to[1] - from[1]];
+            moved.extend(
+                self.group_moved(grabbed, delta)
+                    .filter(|(id, _)| *id != grabbed),
+            );
+            self.canvas.place_nodes(&moved);
+        }
+        // In the overview egui-snarl holds no block: the block under the pointer is dragged here.
+        if self.canvas.is_overview() {
+            moved.extend(self.overview_drag(ui, catalog));
+        }
+        if !moved.is_empty() {
+            if self.canvas.move_before.is_none() {
+                self.canvas.move_before = Some(self.editor.diagram.clone());
+            }
+            for (id, pos) in moved {
+                self.editor.diagram.move_block(id, pos);
+            }
+        }
+        let pointer_down = ctx.input(|input| input.pointer.any_down());
+        if !pointer_down && let Some(before) = self.canvas.move_before.take() {
+            self.commands.push(Command::Moved {
+                before: Box::new(before),
+            });
+        }
+
+        // Selection: a click on a block selects it (egui-snarl selects only with Shift), a click
+        // on empty canvas clears it; Shift-click and rectangle selection are egui-snarl's own.
+        let snarl_selected = widget.get_selected_nodes(ui);
+        if let Some(selected) = self.canvas.snarl_selection_change(snarl_selected) {
+            self.commands.push(Command::Select(selected));
+        } else if released
+            && !modifiers.shift
+            && !modifiers.command
+            && let Some(pos) = latest.filter(|pos| self.canvas.rect.contains(*pos))
+            && !ctx.input(|input| input.pointer.is_decidedly_dragging())
+            && ctx
+                .layer_id_at(pos)
+                .is_some_and(|layer| layer.order == egui::Order::Background)
+        {
+            match self.canvas.block_at(&self.editor.diagram, catalog, pos) {
+                Some(block) => self.commands.push(Command::Select([block].into())),
+                None => self.commands.push(Command::Select(BTreeSet::new())),
+            }
+        }
+    }
+
+    /// Cut, copy and paste. The platform turns Ctrl+C / Ctrl+X / Ctrl+V into copy, cut and
+    /// paste events, the last with the system clipboard's text (and a headless harness sends
+    /// plain keys): take both.
+    pub fn clipboard_input(&mut self, ctx: &egui::Context) {
+        let key_of = |command: UiCommand| command.shortcuts().first().map(|s| s.logical_key);
+        let shortcut = |event: &egui::Event, wanted: Option<Key>| matches!(event, egui::Event::Key { key, pressed: true, modifiers, .. } if Some(*key) == wanted && modifiers.command);
+        let commands = ctx.input(|input| {
+            let mut commands = Vec::new();
+            for event in &input.events {
+                match event {
+                    egui::Event::Copy => commands.push(Command::Copy),
+                    egui::Event::Cut => commands.push(Command::Cut),
+                    egui::Event::Paste(text) if self.copied_text.as_ref() == Some(text) => {
+                        commands.push(Command::Paste);
+                    }
+                    egui::Event::Paste(text) => commands.push(Command::PasteText(text.clone())),
+                    event if shortcut(event, key_of(UiCommand::Copy)) => {
+                        commands.push(Command::Copy);
+                    }
+                    event if shortcut(event, key_of(UiCommand::Cut)) => {
+                        commands.push(Command::Cut);
+                    }
+                    event if shortcut(event, key_of(UiCommand::Paste)) => {
+                        commands.push(Command::Paste);
+                    }
+                    _ => {}
+                }
+            }
+            commands
+        });
+        self.commands.extend(commands);
+    }
+}

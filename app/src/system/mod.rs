@@ -1,0 +1,311 @@
+//! The System view: the block diagram of a system file. Its state is [`SystemView`]: the
+//! document and its editor, the canvas, the file it came from, its problems. `canvas.rs` reads
+//! the canvas's input (wires, drops, moves, clicks, the clipboard), `overview.rs` drags blocks
+//! in the zoomed-out overview, `params.rs` is a block's parameters dialog, `palette.rs` the
+//! panel of module types, `problems.rs` the problem list, `search.rs` "Find block". The window
+//! (`app.rs`) routes frames, files and commands here and shows what the view reports on its
+//! status line.
+
+mod canvas;
+mod overview;
+mod palette;
+mod params;
+mod problems;
+mod search;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use egui::{Color32, Pos2, Ui};
+
+use crate::command::UiCommand;
+use crate::diagram::{BlockId, Catalog, Diagram, Pin, PinSide};
+use crate::editor::{Command, Editor, Outcome};
+use crate::files::{self, Document, Home};
+use crate::palette::Palette;
+use crate::validation::{self, Problem};
+use crate::viewer::Canvas;
+use armor_runtime::control::ModuleState;
+
+pub(crate) const ERROR: Color32 = Color32::from_rgb(230, 90, 70);
+pub(crate) const OK: Color32 = Color32::from_rgb(90, 200, 110);
+
+/// The System view's state.
+#[derive(Default)]
+pub struct SystemView {
+    pub(crate) editor: Editor,
+    /// What this studio last put on the system clipboard: pasting it back pastes the editor's
+    /// own clip, which lands beside the last paste rather than on it.
+    copied_text: Option<String>,
+    pub(crate) path: Option<PathBuf>,
+    /// The document as last opened or saved: unsaved changes are differences from it.
+    pub(crate) saved: Diagram,
+    pub(crate) dirty: bool,
+    problems: Vec<Problem>,
+    problems_revision: Option<u64>,
+    flagged: BTreeSet<BlockId>,
+    pub(crate) canvas: Canvas,
+    /// Edits queued by this frame's widgets, applied after it.
+    commands: Vec<Command>,
+    params: Option<params::ParamsDialog>,
+    search: Option<String>,
+    last_autosave: Option<Instant>,
+    autosaved_revision: Option<u64>,
+    /// What the view has to say on the status line (text, is an error), taken by the window.
+    messages: Vec<(String, bool)>,
+}
+
+impl SystemView {
+    /// What the view said on the status line since the last call, oldest first.
+    pub fn take_messages(&mut self) -> Vec<(String, bool)> {
+        std::mem::take(&mut self.messages)
+    }
+
+    fn set_status(&mut self, text: String, is_error: bool) {
+        self.messages.push((text, is_error));
+    }
+
+    pub fn problems(&self) -> &[Problem] {
+        &self.problems
+    }
+
+    /// The view: palette, problems, canvas. `started` is false at the window's first frame;
+    /// `live` is the state of each module of the run shown in the Run view.
+    pub fn ui(
+        &mut self,
+        ui: &mut Ui,
+        palette: &Palette,
+        started: bool,
+        live: &BTreeMap<String, ModuleState>,
+    ) {
+        egui::Panel::left("palette")
+            .resizable(true)
+            .default_size(220.0)
+            .show(ui, |ui| self.palette_ui(ui, palette));
+        egui::Panel::right("problems")
+            .resizable(true)
+            .default_size(300.0)
+            .min_size(240.0)
+            .show(ui, |ui| self.problems_ui(ui, palette));
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| self.canvas_ui(ui, &palette.catalog, started, live));
+    }
+
+    /// Applies the edits queued this frame.
+    pub fn apply_commands(&mut self, ctx: &egui::Context, catalog: &Catalog) {
+        for command in std::mem::take(&mut self.commands) {
+            let copies = matches!(command, Command::Copy | Command::Cut);
+            match self.editor.apply(command, catalog) {
+                Outcome::Nothing => {}
+                Outcome::Done(text) => {
+                    if copies {
+                        // On the system clipboard too, as a system file of the copied blocks.
+                        let xml = self.editor.clipboard.to_xml();
+                        ctx.copy_text(xml.clone());
+                        self.copied_text = Some(xml);
+                    }
+                    self.set_status(text, false);
+                }
+                Outcome::Refused(reason) => self.set_status(format!("refused: {reason}"), true),
+            }
+        }
+    }
+
+    /// Checks the document again if it changed, as `armor check` would.
+    pub fn update_problems(&mut self, palette: &Palette) {
+        let revision = self.editor.revision();
+        if self.problems_revision != Some(revision) {
+            self.problems_revision = Some(revision);
+            self.problems =
+                validation::validate(&self.editor.diagram, &palette.catalog, &palette.broken);
+            self.flagged = self.problems.iter().filter_map(|p| p.block).collect();
+        }
+    }
+
+    // ----- Files -----
+
+    /// Opens a system file, replacing the document (unsaved changes stay in the undo history of
+    /// nobody: the caller asks first).
+    pub fn open(&mut self, file: &Path, home: &Home) {
+        match files::open(file) {
+            Ok(diagram) => {
+                self.saved = diagram.clone();
+                self.editor.replace(diagram);
+                self.path = Some(file.to_path_buf());
+                self.canvas.view_request = None;
+                self.zoom_to_fit();
+                if let Err(err) = home.add_recent(file) {
+                    tracing::warn!("{err:#}");
+                }
+                self.set_status(format!("opened {}", file.display()), false);
+            }
+            Err(err) => self.set_status(format!("{err:#}"), true),
+        }
+    }
+
+    /// Saves to `file`; whether it was saved.
+    pub fn save(&mut self, file: PathBuf, home: &Home, catalog: &Catalog) -> bool {
+        match files::save(&file, &self.editor.diagram, catalog) {
+            Ok(()) => {
+                self.saved = self.editor.diagram.clone();
+                self.path = Some(file.clone());
+                home.clear_recovery(Document::System);
+                self.autosaved_revision = Some(self.editor.revision());
+                if let Err(err) = home.add_recent(&file) {
+                    tracing::warn!("{err:#}");
+                }
+                self.set_status(format!("saved {}", file.display()), false);
+                true
+            }
+            Err(err) => {
+                self.set_status(format!("{err:#}"), true);
+                false
+            }
+        }
+    }
+
+    pub fn new_document(&mut self) {
+        self.editor.replace(Diagram::default());
+        self.saved = Diagram::default();
+        self.path = None;
+        self.set_status("new system".to_owned(), false);
+    }
+
+    /// Restores a recovery copy of the system that was at `original` (if it had a file).
+    pub fn restore(&mut self, original: Option<&Path>, text: &str) {
+        match Diagram::from_xml(text) {
+            Ok(diagram) => {
+                self.path = original.map(Path::to_path_buf);
+                // What is on disk (if anything) is the saved state: the restored document
+                // shows as changed until it is saved.
+                self.saved = self
+                    .path
+                    .as_deref()
+                    .and_then(|path| files::open(path).ok())
+                    .unwrap_or_default();
+                self.editor.replace(diagram);
+                self.zoom_to_fit();
+                self.set_status("restored the recovery copy".to_owned(), false);
+            }
+            Err(_) => self.set_status("the recovery copy cannot be read".to_owned(), true),
+        }
+    }
+
+    /// Writes the recovery copy every `every` while there are unsaved changes, unless `held`
+    /// (recovery copies of an earlier session are still on offer).
+    pub fn autosave(&mut self, ctx: &egui::Context, home: &Home, every: Duration, held: bool) {
+        let revision = self.editor.revision();
+        if !self.dirty || self.autosaved_revision == Some(revision) || held {
+            return;
+        }
+        let due = self
+            .last_autosave
+            .is_none_or(|last| last.elapsed() >= every);
+        if !due {
+            ctx.request_repaint_after(every);
+            return;
+        }
+        self.last_autosave = Some(Instant::now());
+        self.autosaved_revision = Some(revision);
+        if let Err(err) = home.write_recovery(
+            Document::System,
+            self.path.as_deref(),
+            &self.editor.diagram.to_xml(),
+        ) {
+            tracing::warn!("autosave: {err:#}");
+        }
+    }
+
+    // ----- The view -----
+
+    /// Does a command of the table that edits or moves about the diagram (the window does the
+    /// files' and the run's).
+    pub fn execute(&mut self, command: UiCommand) {
+        let edit = match command {
+            UiCommand::Undo => Command::Undo,
+            UiCommand::Redo => Command::Redo,
+            UiCommand::Cut => Command::Cut,
+            UiCommand::Copy => Command::Copy,
+            UiCommand::Paste => Command::Paste,
+            UiCommand::Duplicate => Command::Duplicate,
+            UiCommand::Delete => Command::DeleteSelection,
+            UiCommand::SelectAll => Command::SelectAll,
+            UiCommand::ClearSelection => Command::Select(BTreeSet::new()),
+            UiCommand::ZoomToFit => {
+                self.zoom_to_fit();
+                return;
+            }
+            UiCommand::Find => {
+                self.search = Some(String::new());
+                return;
+            }
+            _ => return,
+        };
+        self.commands.push(edit);
+    }
+
+    pub fn zoom_to_fit(&mut self) {
+        self.canvas.view_request = self.canvas.bounds(&self.editor.diagram, None);
+    }
+
+    /// Selects a block and brings it into view.
+    fn show_block(&mut self, block: BlockId) {
+        self.commands.push(Command::Select([block].into()));
+        let only: BTreeSet<BlockId> = [block].into();
+        if let Some(rect) = self.canvas.bounds(&self.editor.diagram, Some(&only)) {
+            // Not closer than 1:1, and with some of the surroundings.
+            self.canvas.view_request = Some(rect.expand(200.0));
+        }
+    }
+
+    /// Shows the first blocks at about `scale` (the bench's other views).
+    pub fn view_at_scale(&mut self, scale: f32) {
+        if let Some((_, block)) = self.editor.diagram.blocks().next() {
+            let min = Pos2::new(block.pos[0], block.pos[1]);
+            // `viewer::fit` adds a margin of 40 around the view it is asked for.
+            let size = self.canvas.rect.size() / scale - egui::vec2(80.0, 80.0);
+            self.canvas.view_request = Some(egui::Rect::from_min_size(min, size));
+        }
+    }
+
+    /// Clears the selection and frames the whole document, for a picture of it.
+    pub fn frame_for_picture(&mut self) {
+        self.commands.push(Command::Select(BTreeSet::new()));
+        self.zoom_to_fit();
+    }
+
+    // ----- Where things are on screen (tests and the bench) -----
+
+    /// Where a block's pin is on screen (as drawn last frame): `side` is input or output.
+    pub fn pin_pos(&self, block: &str, port: &str, side: PinSide) -> Option<Pos2> {
+        let block = self.editor.diagram.block_named(block)?;
+        self.canvas.pin_screen_pos(&Pin {
+            side,
+            port: crate::diagram::PortRef {
+                block,
+                port: port.to_owned(),
+            },
+        })
+    }
+
+    /// Where a block is on screen (its centre, as drawn last frame).
+    pub fn block_pos(&self, catalog: &Catalog, block: &str) -> Option<Pos2> {
+        self.block_rect(catalog, block)
+            .map(|rect| self.canvas.to_global * rect.center())
+    }
+
+    /// Where a block's header is on screen (where a hand grabs it to move it).
+    pub fn block_header_pos(&self, catalog: &Catalog, block: &str) -> Option<Pos2> {
+        self.block_rect(catalog, block)
+            .map(|rect| self.canvas.to_global * Pos2::new(rect.center().x, rect.min.y + 10.0))
+    }
+
+    /// A block's rectangle on the canvas, if it has been laid out.
+    fn block_rect(&self, catalog: &Catalog, block: &str) -> Option<egui::Rect> {
+        let id = self.editor.diagram.block_named(block)?;
+        let rect = self.canvas.rect_of(&self.editor.diagram, catalog, id);
+        rect.is_finite().then_some(rect)
+    }
+}

@@ -1,0 +1,241 @@
+//! The door of every server of a run (agent, config server): connections are accepted on one
+//! thread, without blocking, and get a thread of their own only once they have said their hello
+//! and, with a secret, passed the handshake. Until then a peer costs a socket and at most a
+//! kilobyte of buffer; at most [`MAX_PENDING`] are kept, the oldest dropped for a new one, and
+//! none longer than [`HANDSHAKE_TIMEOUT`]. A thousand idle connections thus cost a few hundred
+//! kilobytes and never keep a module from getting in.
+
+use std::collections::HashMap;
+use std::io::{ErrorKind, Write as _};
+use std::net::TcpStream;
+use std::os::fd::AsRawFd as _;
+use std::time::{Duration, Instant};
+
+use armor_module_api::auth::{Listen, SealedWriter, Sealer};
+use armor_module_api::wire::blocking::SecureStream;
+use armor_module_api::wire::{Frame, FrameReader, HELLO, OutBuffer, WireError};
+use mio::unix::SourceFd;
+use mio::{Events, Interest, Poll, Token};
+
+/// The most connections kept before their handshake is over.
+pub const MAX_PENDING: usize = 256;
+/// How long a peer has to say its hello and finish the handshake.
+pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+
+const LISTENER: Token = Token(0);
+
+struct Pending {
+    stream: TcpStream,
+    reader: FrameReader,
+    out: OutBuffer,
+    sealer: Option<Sealer>,
+    peer: Option<String>,
+    deadline: Instant,
+}
+
+/// Accepts on `listener` until the process ends, and hands each connection that is open (hello
+/// received, handshake passed with `listen`) to `handle`, with the peer's proven identity.
+/// Refusals are logged at `warn` with what the peer did wrong.
+pub fn serve(
+    listener: std::net::TcpListener,
+    listen: Option<Listen>,
+    mut handle: impl FnMut(SecureStream, Option<String>),
+) {
+    if let Err(err) = run(listener, listen, &mut handle) {
+        tracing::error!("a server stopped accepting connections: {err}");
+    }
+}
+
+fn run(
+    listener: std::net::TcpListener,
+    listen: Option<Listen>,
+    handle: &mut impl FnMut(SecureStream, Option<String>),
+) -> std::io::Result<()> {
+    listener.set_nonblocking(true)?;
+    let mut listener = mio::net::TcpListener::from_std(listener);
+    let mut poll = Poll::new()?;
+    poll.registry()
+        .register(&mut listener, LISTENER, Interest::READABLE)?;
+    let mut events = Events::with_capacity(256);
+    let mut pending: HashMap<Token, Pending> = HashMap::new();
+    let mut next_token = 1;
+    loop {
+        let now = Instant::now();
+        let timeout = pending
+            .values()
+            .map(|conn| conn.deadline.saturating_duration_since(now))
+            .min();
+        if let Err(err) = poll.poll(&mut events, timeout)
+            && err.kind() != ErrorKind::Interrupted
+        {
+            return Err(err);
+        }
+        let ready: Vec<Token> = events.iter().map(|event| event.token()).collect();
+        for token in ready {
+            if token == LISTENER {
+                accept_all(&listener, &poll, &mut pending, &mut next_token, &listen);
+                continue;
+            }
+            let Some(conn) = pending.get_mut(&token) else {
+                continue;
+            };
+            match advance(conn) {
+                Ok(false) => {}
+                Ok(true) => {
+                    if let Some(conn) = remove(&poll, &mut pending, token)
+                        && let Some((stream, peer)) = open(conn)
+                    {
+                        handle(stream, peer);
+                    }
+                }
+                Err(err) => {
+                    let peer = conn.stream.peer_addr().ok();
+                    match err {
+                        WireError::Closed => tracing::debug!(?peer, "closed before its hello"),
+                        err => tracing::warn!(?peer, "refused a connection: {err}"),
+                    }
+                    remove(&poll, &mut pending, token);
+                }
+            }
+        }
+        let now = Instant::now();
+        let expired: Vec<Token> = pending
+            .iter()
+            .filter(|(_, conn)| conn.deadline <= now)
+            .map(|(&token, _)| token)
+            .collect();
+        for token in expired {
+            if let Some(conn) = remove(&poll, &mut pending, token) {
+                tracing::warn!(
+                    peer = ?conn.stream.peer_addr().ok(),
+                    "a peer did not finish its handshake within {HANDSHAKE_TIMEOUT:?}; dropped"
+                );
+            }
+        }
+    }
+}
+
+fn accept_all(
+    listener: &mio::net::TcpListener,
+    poll: &Poll,
+    pending: &mut HashMap<Token, Pending>,
+    next_token: &mut usize,
+    listen: &Option<Listen>,
+) {
+    loop {
+        let stream = match listener.accept() {
+            Ok((stream, _)) => TcpStream::from(stream),
+            Err(err) if err.kind() == ErrorKind::WouldBlock => return,
+            Err(err) => {
+                // Out of descriptors, say: the pending ones will free some.
+                tracing::warn!("accept failed: {err}");
+                return;
+            }
+        };
+        if pending.len() >= MAX_PENDING
+            && let Some(oldest) = pending
+                .iter()
+                .min_by_key(|(_, conn)| conn.deadline)
+                .map(|(&token, _)| token)
+        {
+            tracing::debug!("{MAX_PENDING} connections in their handshake: dropped the oldest");
+            remove(poll, pending, oldest);
+        }
+        let token = Token(*next_token);
+        *next_token += 1;
+        let registered = stream.set_nodelay(true).and_then(|()| {
+            poll.registry().register(
+                &mut SourceFd(&stream.as_raw_fd()),
+                token,
+                Interest::READABLE,
+            )
+        });
+        if let Err(err) = registered {
+            tracing::warn!("cannot watch a new connection: {err}");
+            continue;
+        }
+        let mut out = OutBuffer::default();
+        out.push_encoded(&HELLO);
+        let mut conn = Pending {
+            stream,
+            reader: FrameReader::listener(listen.clone()),
+            out,
+            sealer: None,
+            peer: None,
+            deadline: Instant::now() + HANDSHAKE_TIMEOUT,
+        };
+        // The hello is six bytes: a new socket takes them at once.
+        if let Err(err) = conn.out.flush_to(&mut conn.stream) {
+            tracing::debug!("cannot greet a new connection: {err}");
+            let _ = poll
+                .registry()
+                .deregister(&mut SourceFd(&conn.stream.as_raw_fd()));
+            continue;
+        }
+        pending.insert(token, conn);
+    }
+}
+
+/// Reads what the peer sent and answers the handshake; `Ok(true)` once the connection is open.
+/// Frames of the service that came with the handshake stay undecoded in the reader.
+fn advance(conn: &mut Pending) -> Result<bool, WireError> {
+    loop {
+        if conn.reader.take_hello()? {
+            if conn.reader.is_open() {
+                return Ok(true);
+            }
+            if let Some(frame) = conn.reader.next_frame()? {
+                // Before the connection is open only the handshake's steps come out.
+                let Frame::AuthStep = frame else {
+                    return Err(WireError::Unauthenticated("a frame"));
+                };
+                let step = conn.reader.take_auth_step();
+                conn.out.push_encoded(&step.reply);
+                conn.sealer = step.sealer.or(conn.sealer.take());
+                conn.peer = step.peer.or(conn.peer.take());
+                conn.out.flush_to(&mut conn.stream)?;
+                continue;
+            }
+        }
+        match conn.reader.fill_from(&mut conn.stream) {
+            Ok(0) => return Err(WireError::Closed),
+            Ok(_) => {}
+            Err(err) if err.kind() == ErrorKind::WouldBlock => return Ok(false),
+            Err(err) if err.kind() == ErrorKind::Interrupted => {}
+            Err(err) => return Err(err.into()),
+        }
+    }
+}
+
+fn remove(poll: &Poll, pending: &mut HashMap<Token, Pending>, token: Token) -> Option<Pending> {
+    let conn = pending.remove(&token)?;
+    let _ = poll
+        .registry()
+        .deregister(&mut SourceFd(&conn.stream.as_raw_fd()));
+    Some(conn)
+}
+
+/// The open connection as a blocking stream for its own thread.
+fn open(mut conn: Pending) -> Option<(SecureStream, Option<String>)> {
+    let setup = conn.stream.set_nonblocking(false).and_then(|()| {
+        // What the socket did not take of the answer goes now.
+        conn.out.flush_to(&mut conn.stream)?;
+        conn.stream.flush()?;
+        conn.stream.try_clone()
+    });
+    let clone = match setup {
+        Ok(clone) => clone,
+        Err(err) => {
+            tracing::debug!("lost a connection as it opened: {err}");
+            return None;
+        }
+    };
+    let mut writer = SealedWriter::new(clone);
+    if let Some(sealer) = conn.sealer {
+        writer.start_sealing(sealer, 0);
+    }
+    Some((
+        SecureStream::new(conn.stream, conn.reader, writer),
+        conn.peer,
+    ))
+}
