@@ -1103,3 +1103,196 @@ fn broken_gpx_is_refused_where_it_breaks_and_writes_no_plan() {
     assert_eq!(output.status.code(), Some(1), "{all}");
     assert!(!located(&output, &file).is_empty(), "{all}");
 }
+
+/// A world of our own for the planning tests: a doorway 1 m wide in a wall across it, and a
+/// room closed on every side.
+const ROOMS_WORLD: &str = "name Closed rooms
+origin 43.5615 1.469
+start 2 2 0
+boundary 0,0 30,0 30,20 0,20 0,0
+wall 10,0 10,8
+wall 10,9 10,20
+wall 20,5 28,5 28,15 20,15 20,5
+";
+
+/// A plan on [`ROOMS_WORLD`] (written next to it in `dir`) with waypoints at the given world
+/// points and `body` after them; the file and its text.
+fn rooms_plan(
+    dir: &Path,
+    name: &str,
+    waypoints: &[(&str, f64, f64)],
+    body: &str,
+) -> (PathBuf, String) {
+    std::fs::write(dir.join("rooms.world"), ROOMS_WORLD).unwrap();
+    let origin = LatLon::new(43.5615, 1.469);
+    let mut text = format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<plan name=\"{name}\" system=\"{}\" world=\"rooms.world\">\n",
+        robot_file("system.xml").display()
+    );
+    for (waypoint, x, y) in waypoints {
+        let at = LatLon::from_local(Point::new(*x, *y), origin);
+        text.push_str(&format!(
+            "  <waypoint name=\"{waypoint}\" lat=\"{:.8}\" lon=\"{:.8}\"/>\n",
+            at.lat_deg, at.lon_deg
+        ));
+    }
+    text.push_str(body);
+    text.push_str("\n</plan>\n");
+    let file = dir.join(format!("{name}.xml"));
+    std::fs::write(&file, &text).unwrap();
+    (file, text)
+}
+
+#[test]
+fn a_leg_into_a_closed_room_fails_armor_check_where_the_way_is_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, text) = rooms_plan(
+        dir.path(),
+        "shut",
+        &[
+            ("home", 2.0, 2.0),
+            ("hall", 15.0, 10.0),
+            ("vault", 24.0, 10.0),
+        ],
+        "  <leg name=\"through\" from=\"home\" to=\"hall\"/>\n  <leg name=\"in\" from=\"hall\" to=\"vault\"/>",
+    );
+    let line = line_of(&text, "name=\"in\"");
+    let output = armor(&["check".as_ref(), file.as_os_str()]);
+    assert_refused(
+        &output,
+        &file,
+        line,
+        &[
+            "leg `in`: no way from `hall` to `vault` keeps 0.35 m from obstacles",
+            "the way is closed at (",
+        ],
+    );
+    // Only that leg: the one through the doorway is fine.
+    assert_eq!(located(&output, &file).len(), 1, "{}", output_text(&output));
+    // The same plan for a wider robot: the doorway is now too narrow, and says so.
+    let (file, text) = rooms_plan(
+        dir.path(),
+        "wide",
+        &[("home", 2.0, 2.0), ("hall", 15.0, 10.0)],
+        "  <navigation robot_radius_m=\"0.45\"/>\n  <leg name=\"through\" from=\"home\" to=\"hall\"/>",
+    );
+    assert_refused(
+        &armor(&["check".as_ref(), file.as_os_str()]),
+        &file,
+        line_of(&text, "name=\"through\""),
+        &[
+            "leg `through`: no way from `home` to `hall` keeps 0.55 m from obstacles",
+            "the narrowest passage is 1 m wide at (10, 8.5)",
+        ],
+    );
+    // `armor compile` refuses the closed room the same way and writes nothing.
+    let (file, _) = rooms_plan(
+        dir.path(),
+        "shut",
+        &[
+            ("home", 2.0, 2.0),
+            ("hall", 15.0, 10.0),
+            ("vault", 24.0, 10.0),
+        ],
+        "  <leg name=\"through\" from=\"home\" to=\"hall\"/>\n  <leg name=\"in\" from=\"hall\" to=\"vault\"/>",
+    );
+    let mission = dir.path().join("m.xml");
+    let output = armor(&[
+        "compile".as_ref(),
+        file.as_os_str(),
+        "-o".as_ref(),
+        mission.as_os_str(),
+    ]);
+    assert_refused(&output, &file, line, &["leg `in`", "closed"]);
+    assert!(!mission.exists());
+}
+
+#[test]
+fn a_compiled_leg_carries_the_path_checked_round_the_wall() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, _) = rooms_plan(
+        dir.path(),
+        "round",
+        &[("home", 2.0, 2.0), ("hall", 15.0, 2.0)],
+        "  <leg from=\"home\" to=\"hall\"/>",
+    );
+    let mission = dir.path().join("m.xml");
+    let output = armor(&[
+        "compile".as_ref(),
+        file.as_os_str(),
+        "-o".as_ref(),
+        mission.as_os_str(),
+    ]);
+    assert!(output.status.success(), "{}", output_text(&output));
+    let net = MissionNet::parse(&std::fs::read_to_string(&mission).unwrap()).unwrap();
+    let drive = net.place("leg1_drive").unwrap();
+    let path = &drive
+        .params
+        .iter()
+        .find(|p| p.name == "path")
+        .unwrap()
+        .value;
+    let points: Vec<Point> = path
+        .split_whitespace()
+        .map(|pair| {
+            let (x, y) = pair.split_once(',').unwrap();
+            Point::new(x.parse().unwrap(), y.parse().unwrap())
+        })
+        .collect();
+    // Through the doorway at y 8 to 9: up the west side of the wall and down the east side.
+    assert!(points.len() > 2, "{path}");
+    assert!(
+        points
+            .iter()
+            .any(|p| (p.x - 10.0).abs() < 1.0 && p.y > 8.0 && p.y < 9.0),
+        "{path}"
+    );
+    let world = World::parse(ROOMS_WORLD, "rooms.world").unwrap();
+    for pair in points.windows(2) {
+        assert!(
+            world.segment_clearance(pair[0], pair[1], 0.35) >= 0.349,
+            "{path}: {} to {} is too near a wall",
+            pair[0],
+            pair[1]
+        );
+    }
+}
+
+#[test]
+fn bad_places_are_refused_at_check_time_with_their_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, text) = rooms_plan(
+        dir.path(),
+        "bad",
+        &[
+            ("home", 2.0, 2.0),
+            ("abroad", 35.0, 10.0),
+            ("wall", 10.0, 3.0),
+        ],
+        "  <leg from=\"home\" to=\"abroad\"/>\n  <leg from=\"abroad\" to=\"wall\"/>\n  \
+         <area name=\"pit\" kind=\"no-go\">\n    <point lat=\"43.5614\" lon=\"1.4689\"/>\n    \
+         <point lat=\"43.5614\" lon=\"1.4691\"/>\n    <point lat=\"43.5616\" lon=\"1.4691\"/>\n  </area>",
+    );
+    let output = armor(&["check".as_ref(), file.as_os_str()]);
+    assert_refused(
+        &output,
+        &file,
+        line_of(&text, "name=\"abroad\""),
+        &["waypoint `abroad`", "outside the world `Closed rooms`"],
+    );
+    assert_refused(
+        &output,
+        &file,
+        line_of(&text, "name=\"wall\""),
+        &[
+            "waypoint `wall` at (10, 3) m is 0 m from the wall on line 5 of the world `Closed rooms`",
+            "the robot keeps 0.35 m from obstacles",
+        ],
+    );
+    assert_refused(
+        &output,
+        &file,
+        line_of(&text, "name=\"home\""),
+        &["waypoint `home` at (2, 2) m is in the no-go area `pit`"],
+    );
+}

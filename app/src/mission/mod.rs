@@ -231,7 +231,9 @@ impl Checked {
         if plan.waypoints.is_empty() {
             return checked;
         }
-        match plan::compile(plan, surroundings.world.as_ref()) {
+        // The robot `armor check` plans for: the plan's, else its system's modules'.
+        let robot = plan::robot(plan, surroundings.system.as_ref(), catalog);
+        match plan::compile_for(plan, surroundings.world.as_ref(), &robot) {
             Err(problems) => checked.errors = problems,
             Ok(compiled) => {
                 if let Some(system) = &surroundings.system {

@@ -121,6 +121,16 @@ pub fn spec() -> ModuleSpec {
         )
         .default(""),
     )
+    .param(
+        ParamSpec::new(
+            "path",
+            ParamType::String,
+            "the path planned for this leg at plan time, in the frame of the odometry pose: \
+             points `X,Y X,Y ...` in metres from the leg's start to the goal (a compiled plan \
+             gives it); accepted but not yet driven: the follower heads for the goal as above",
+        )
+        .default(""),
+    )
     .event(
         "goal_reached",
         "the robot is within tolerance_m of the goal (once per goal or activation)",

@@ -35,16 +35,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     let text = plan_text(waypoints);
     let system = SystemConfig::parse(SYSTEM)
         .map_err(|problems| anyhow::anyhow!("the bench's system does not parse: {problems:?}"))?;
-    let descriptions: BTreeMap<String, ModuleDescription> = [
-        armor_module_catalog::nav::follower::spec(),
-        armor_module_catalog::nav::avoider::spec(),
-    ]
-    .into_iter()
-    .map(|spec| {
-        let description = spec.description().clone();
-        (description.module_type.clone(), description)
-    })
-    .collect();
+    let descriptions = descriptions();
     let compile_and_check = || -> anyhow::Result<(Plan, plan::Compiled)> {
         let plan = Plan::parse(&text).map_err(|p| anyhow::anyhow!("plan: {p:?}"))?;
         let compiled = plan::compile(&plan, None).map_err(|p| anyhow::anyhow!("compile: {p:?}"))?;
@@ -73,7 +64,22 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     )
 }
 
-fn check(
+/// The descriptions of the bench system's modules.
+pub(crate) fn descriptions() -> BTreeMap<String, ModuleDescription> {
+    [
+        armor_module_catalog::nav::follower::spec(),
+        armor_module_catalog::nav::avoider::spec(),
+    ]
+    .into_iter()
+    .map(|spec| {
+        let description = spec.description().clone();
+        (description.module_type.clone(), description)
+    })
+    .collect()
+}
+
+/// The checks of `armor check`: the names against the system, then the analysis.
+pub(crate) fn check(
     net: &MissionNet,
     system: &SystemConfig,
     descriptions: &BTreeMap<String, ModuleDescription>,
@@ -96,7 +102,7 @@ fn time_ms<T>(work: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<f64> {
     Ok(elapsed.as_secs_f64() * 1e3)
 }
 
-const SYSTEM: &str = r#"<system name="bench">
+pub(crate) const SYSTEM: &str = r#"<system name="bench">
   <module name="follower" type="follower">
     <param name="goal_x_m" value="0"/>
     <param name="goal_y_m" value="0"/>

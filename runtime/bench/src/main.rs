@@ -23,6 +23,7 @@ mod harness;
 mod kill;
 mod latency;
 mod mapper_scan;
+mod path_plan;
 mod procs;
 mod pull;
 mod raw;
@@ -188,6 +189,19 @@ const BENCHES: &[Bench] = &[
         about: "compile and check a 10,000-waypoint plan vs load and check the net it compiles \
                 to (ms; goal < 100)",
         run: compile_plan::run,
+    },
+    Bench {
+        name: path_plan::NAME,
+        about: "a path across a 100 m × 100 m world at 5 cm with 200 obstacles, 50 random \
+                pairs, vs the pathfinding crate's A* on the same grid and costs (ms; goal p99 < \
+                50, ratio <= 1)",
+        run: path_plan::run,
+    },
+    Bench {
+        name: path_plan::NAME_CHECK,
+        about: "compile and check a 100-leg plan on that world, every leg planned, vs the same \
+                plan with no world (ms; goal < 1000)",
+        run: path_plan::run_check,
     },
     Bench {
         name: discovery::NAME,

@@ -9,11 +9,13 @@
 //!
 //! Plans ([`plan`]) are what an operator draws on a map (waypoints, legs, actions, time
 //! constraints, contingencies, tactical graphics); they compile into mission nets, on a
-//! [`world`] (the simulated robot's plane, which [`geo`] routes through around no-go areas).
+//! [`world`] (the simulated robot's plane, which [`geo`] routes through around no-go areas);
+//! [`planner`] finds each leg's path on a costmap of that world.
 
 pub mod geo;
 pub mod net;
 pub mod plan;
+pub mod planner;
 pub mod system;
 pub mod world;
 

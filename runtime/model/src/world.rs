@@ -52,11 +52,11 @@ impl Point {
         Point::new(self.x - other.x, self.y - other.y)
     }
 
-    fn is_finite(self) -> bool {
+    pub fn is_finite(self) -> bool {
         self.x.is_finite() && self.y.is_finite()
     }
 
-    fn distance(self, other: Point) -> f64 {
+    pub fn distance(self, other: Point) -> f64 {
         (self.x - other.x).hypot(self.y - other.y)
     }
 }
@@ -358,6 +358,17 @@ fn point_segment_distance(p: Point, a: Point, b: Point) -> f64 {
     p.distance(Point::new(a.x + t * edge.x, a.y + t * edge.y))
 }
 
+/// The distance between segments `p1`–`p2` and `q1`–`q2` (0 when they meet).
+pub(crate) fn segment_segment_distance(p1: Point, p2: Point, q1: Point, q2: Point) -> f64 {
+    if segments_meet(p1, p2, q1, q2) {
+        return 0.0;
+    }
+    point_segment_distance(p1, q1, q2)
+        .min(point_segment_distance(p2, q1, q2))
+        .min(point_segment_distance(q1, p1, p2))
+        .min(point_segment_distance(q2, p1, p2))
+}
+
 /// The sign of the turn `a` → `b` → `c`: positive counter-clockwise, 0 when (nearly) collinear.
 fn orientation(a: Point, b: Point, c: Point) -> f64 {
     let turn = cross(b.sub(a), c.sub(a));
@@ -589,9 +600,60 @@ impl World {
             .map_or(max, |(distance, _)| distance)
     }
 
+    /// The shape nearest to `p` within `max` (inclusive) and its distance: the boundary, a wall
+    /// or an obstacle's outline (0 inside an obstacle only on its outline: see
+    /// [`World::obstacle_at`]).
+    pub fn nearest_shape(&self, p: Point, max: f64) -> Option<(f64, &Shape)> {
+        self.nearest_segment(p, max)
+            .map(|(distance, segment)| (distance, &self.shapes[self.segments[segment].shape]))
+    }
+
+    /// The obstacle whose inside holds `p`, if any.
+    pub fn obstacle_at(&self, p: Point) -> Option<&Shape> {
+        self.obstacle_index_at(p).map(|shape| &self.shapes[shape])
+    }
+
+    /// The distance from segment `a`–`b` to the nearest wall, obstacle edge or boundary edge,
+    /// or `max` if none is closer (0 where it crosses one). Whether the segment lies inside an
+    /// obstacle or outside the boundary is the caller's to check, at its ends
+    /// ([`World::is_free`]): a segment that crosses no edge stays on one side of all of them.
+    pub fn segment_clearance(&self, a: Point, b: Point, max: f64) -> f64 {
+        if !a.is_finite() || !b.is_finite() || max.is_nan() || max <= 0.0 {
+            return 0.0;
+        }
+        let grid = &self.grid;
+        let (c0, c1) = grid.col_range(a.x.min(b.x) - max, a.x.max(b.x) + max);
+        let (r0, r1) = grid.row_range(a.y.min(b.y) - max, a.y.max(b.y) + max);
+        let mut best = max;
+        for row in r0..=r1 {
+            for col in c0..=c1 {
+                // Only cells near the segment: the box of the cell widened by `best`.
+                let lo = Point::new(
+                    grid.min.x + col as f64 * grid.cell - best,
+                    grid.min.y + row as f64 * grid.cell - best,
+                );
+                let hi = Point::new(lo.x + grid.cell + 2.0 * best, lo.y + grid.cell + 2.0 * best);
+                if !segment_meets_box(a, b, lo, hi) {
+                    continue;
+                }
+                for &index in grid.cell_items(col, row) {
+                    let segment = &self.segments[index as usize];
+                    let distance = segment_segment_distance(a, b, segment.a, segment.b);
+                    if distance < best {
+                        best = distance;
+                        if best == 0.0 {
+                            return 0.0;
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+
     /// Whether `p` is inside the boundary and outside every obstacle.
     pub fn is_free(&self, p: Point) -> bool {
-        p.is_finite() && self.boundary().contains(p) && self.obstacle_at(p).is_none()
+        p.is_finite() && self.boundary().contains(p) && self.obstacle_index_at(p).is_none()
     }
 
     /// The shape a disc of `radius` at `p` runs into, if any.
@@ -599,14 +661,14 @@ impl World {
         if !p.is_finite() || !self.boundary().contains(p) {
             return Some(0);
         }
-        if let Some(shape) = self.obstacle_at(p) {
+        if let Some(shape) = self.obstacle_index_at(p) {
             return Some(shape);
         }
         self.nearest_segment(p, radius)
             .map(|(_, segment)| self.segments[segment].shape)
     }
 
-    fn obstacle_at(&self, p: Point) -> Option<usize> {
+    fn obstacle_index_at(&self, p: Point) -> Option<usize> {
         self.obstacles
             .iter()
             .find(|(bounds, shape)| bounds.contains(p) && self.shapes[*shape].contains(p))

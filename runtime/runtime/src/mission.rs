@@ -1,7 +1,8 @@
 //! Mission files: a Petri net over a system file, or a plan that compiles into one. Loading one
-//! loads and checks its system, compiles a plan on its world, then checks every name the net
-//! uses against the system and analyses the net (deadlocks, dead transitions, places never
-//! marked, unboundedness) before anything runs.
+//! loads and checks its system, compiles a plan on its world (every leg planned for the robot
+//! the plan and the system describe), then checks every name the net uses against the system
+//! and analyses the net (deadlocks, dead transitions, places never marked, unboundedness)
+//! before anything runs.
 
 use std::path::{Path, PathBuf};
 
@@ -112,7 +113,9 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
             let system_dir = system_file.parent().unwrap_or(base);
             let world = plan_world(&plan, &system.system, &[base, system_dir])
                 .map_err(|message| fail(vec![Located::new(plan.pos, message)]))?;
-            let compiled = plan::compile(&plan, world.as_ref()).map_err(fail)?;
+            // The robot's size comes from the plan, else from the system's modules.
+            let robot = plan::robot(&plan, Some(&system.system), &system.descriptions);
+            let compiled = plan::compile_for(&plan, world.as_ref(), &robot).map_err(fail)?;
             (compiled.net.clone(), Some(compiled))
         }
     };

@@ -20,19 +20,22 @@
 
 use std::collections::BTreeMap;
 
+use armor_module_api::ModuleDescription;
 use armor_module_api::xml::{Located, Pos};
 
 use super::{Action, Leg, Plan, Response, Trigger};
+use crate::SystemConfig;
 use crate::geo::{self, LatLon, Polygon};
 use crate::net::{Arc, Condition, MissionNet, Place, PlaceParam, Transition, format_date};
-use crate::world::{Point, ShapeKind, World};
+use crate::planner::{
+    self, Blocker, Costmap, CostmapSettings, End, Keepout, Path, PathError, Planner, Robot,
+};
+use crate::world::{Point, World};
 
-/// How far routes keep from no-go areas, in metres.
+/// How far the follower's own detours round no-go areas keep its centre from them, in metres
+/// (it routes round them itself until it drives the planned path): the default area margin
+/// plus the default robot radius.
 pub const CLEARANCE_M: f64 = 1.0;
-
-/// How far a detour around a no-go area keeps from the world's walls, in metres: the robot's
-/// radius and some.
-const WALL_CLEARANCE_M: f64 = 0.6;
 
 /// Origins of the world frame closer than this are the same.
 const ORIGIN_TOLERANCE_M: f64 = 1.0;
@@ -43,10 +46,12 @@ pub struct Compiled {
     pub net: MissionNet,
     /// The plan element each place and transition comes from.
     pub trace: BTreeMap<String, Origin>,
-    /// Each leg's route in the world frame: its start, the corners around no-go areas, its end.
+    /// Each leg's planned path in the world frame, from its start to its end.
     pub routes: Vec<Vec<Point>>,
     /// Each waypoint in the world frame.
     pub positions: BTreeMap<String, Point>,
+    /// The robot the paths were planned for.
+    pub robot: Robot,
     /// What may keep the plan from going as drawn without stopping it: time constraints that
     /// cannot all be met, with the numbers.
     pub warnings: Vec<Located>,
@@ -63,51 +68,66 @@ pub enum Origin {
     Plan,
 }
 
+/// The robot a plan's legs are planned for: the radius its `<navigation>` gives, else the
+/// largest `robot_radius_m` of the system's modules (the value the system file gives, else the
+/// module's default from `descriptions`: the simulator's and the avoider's), else
+/// [`planner::DEFAULT_ROBOT_RADIUS_M`]; the clearance its `<navigation>` gives, else
+/// [`planner::DEFAULT_CLEARANCE_M`].
+pub fn robot(
+    plan: &Plan,
+    system: Option<&SystemConfig>,
+    descriptions: &BTreeMap<String, ModuleDescription>,
+) -> Robot {
+    let navigation = &plan.navigation;
+    let from_system = || {
+        system?
+            .modules
+            .iter()
+            .filter_map(|module| {
+                let value = match module.param("robot_radius_m") {
+                    Some(param) => param.value.clone(),
+                    None => descriptions
+                        .get(&module.module_type)?
+                        .params
+                        .iter()
+                        .find(|param| param.name == "robot_radius_m")?
+                        .default
+                        .clone()?,
+                };
+                value
+                    .trim()
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|radius| radius.is_finite() && *radius >= 0.0)
+            })
+            .reduce(f64::max)
+    };
+    Robot {
+        radius_m: navigation
+            .robot_radius_m
+            .or_else(from_system)
+            .unwrap_or(planner::DEFAULT_ROBOT_RADIUS_M),
+        clearance_m: navigation
+            .clearance_m
+            .unwrap_or(planner::DEFAULT_CLEARANCE_M),
+    }
+}
+
 /// Compiles `plan` drawn on `world` (when the robot runs in one; without, the plan's origin
-/// defines the frame). Every problem is reported, at the plan element it concerns.
+/// defines the frame), for the robot the plan describes ([`robot`] with no system). Every
+/// problem is reported, at the plan element it concerns.
 pub fn compile(plan: &Plan, world: Option<&World>) -> Result<Compiled, Vec<Located>> {
-    let mut problems = Vec::new();
-    let origin = frame_origin(plan, world, &mut problems);
-    let no_go = no_go_polygons(plan, origin, &mut problems);
-    let mut positions = BTreeMap::new();
-    if let Some(origin) = origin {
-        for waypoint in &plan.waypoints {
-            let point = waypoint.position.to_local(origin);
-            let before = problems.len();
-            check_position(
-                &waypoint.name,
-                point,
-                waypoint.pos,
-                world,
-                &no_go,
-                &mut problems,
-            );
-            // A waypoint the robot cannot be at has no route either: one message is enough.
-            if problems.len() == before {
-                positions.insert(waypoint.name.clone(), point);
-            }
-        }
-    }
-    let world_corners = world.map(corners_around_obstacles).unwrap_or_default();
-    let mut routes = Vec::new();
-    for leg in &plan.legs {
-        let (Some(&from), Some(&to)) = (positions.get(&leg.from), positions.get(&leg.to)) else {
-            continue;
-        };
-        let polygons: Vec<Polygon> = no_go.iter().map(|(_, polygon)| polygon.clone()).collect();
-        let detour_ok = |a: Point, b: Point| world.is_none_or(|world| clear_of_walls(world, a, b));
-        match geo::route(from, to, &polygons, CLEARANCE_M, &world_corners, &detour_ok) {
-            Some(via) => routes.push(std::iter::once(from).chain(via).collect()),
-            None => problems.push(Located::new(
-                leg.pos,
-                format!(
-                    "leg `{}`: no way from `{}` to `{}` keeps {CLEARANCE_M} m from the no-go \
-                     areas",
-                    leg.name, leg.from, leg.to
-                ),
-            )),
-        }
-    }
+    compile_for(plan, world, &robot(plan, None, &BTreeMap::new()))
+}
+
+/// [`compile`] for a given robot: every leg planned on the world for it.
+pub fn compile_for(
+    plan: &Plan,
+    world: Option<&World>,
+    robot: &Robot,
+) -> Result<Compiled, Vec<Located>> {
+    let legs = plan_legs(plan, world, robot);
+    let mut problems = legs.problems;
     for contingency in plan
         .contingencies
         .iter()
@@ -162,20 +182,243 @@ pub fn compile(plan: &Plan, world: Option<&World>) -> Result<Compiled, Vec<Locat
             }
         }
     }
-    if !problems.is_empty() {
+    let paths: Vec<Path> = legs
+        .paths
+        .into_iter()
+        .filter_map(|path| path.and_then(Result::ok))
+        .collect();
+    if !problems.is_empty() || paths.len() != plan.legs.len() {
         problems.sort_by_key(|problem| problem.pos);
         return Err(problems);
     }
+    let routes: Vec<Vec<Point>> = paths.iter().map(|path| path.points.clone()).collect();
     let warnings = time_warnings(plan, &routes);
-    let mut builder = Builder::new(plan, &positions, &no_go);
+    let mut builder = Builder::new(plan, &legs.positions, &legs.keepouts, &paths);
     builder.build();
     Ok(Compiled {
         net: builder.net,
         trace: builder.trace,
         routes,
-        positions,
+        positions: legs.positions,
+        robot: *robot,
         warnings,
     })
+}
+
+/// What the planner makes of a plan's legs on its world.
+#[derive(Clone, Debug, Default)]
+pub struct LegPaths {
+    /// The waypoints the robot can be at, in the world frame.
+    pub positions: BTreeMap<String, Point>,
+    /// Each leg's path, or why there is none; `None` when one of its ends is not placed (a
+    /// waypoint that is missing, outside the world, or where the robot cannot be: reported on
+    /// its own).
+    pub paths: Vec<Option<Result<Path, PathError>>>,
+    /// What is wrong, at the plan elements it concerns: the frame, areas that cross
+    /// themselves, waypoints where the robot cannot be, legs with no way through.
+    pub problems: Vec<Located>,
+    /// The no-go areas in the world frame, as the robot keeps out of them.
+    pub keepouts: Vec<Keepout>,
+}
+
+/// Places the waypoints and plans every leg of `plan` on `world` (with no world, round the
+/// no-go areas only) for `robot`, as [`compile`] does: the studio draws these paths.
+pub fn plan_legs(plan: &Plan, world: Option<&World>, robot: &Robot) -> LegPaths {
+    let mut problems = Vec::new();
+    let origin = frame_origin(plan, world, &mut problems);
+    let keepouts = keepouts(plan, origin, &mut problems);
+    let mut positions = BTreeMap::new();
+    if let Some(origin) = origin {
+        for waypoint in &plan.waypoints {
+            let point = waypoint.position.to_local(origin);
+            match planner::blocker_at(world, robot, &keepouts, point) {
+                None => {
+                    positions.insert(waypoint.name.clone(), point);
+                }
+                Some(why) => problems.push(Located::new(
+                    waypoint.pos,
+                    waypoint_problem(&waypoint.name, point, &why, world, robot, &keepouts),
+                )),
+            }
+        }
+    }
+    // The legs whose ends are both placed are planned; on a world, all on one costmap.
+    let ends: Vec<Option<(Point, Point)>> = plan
+        .legs
+        .iter()
+        .map(|leg| Some((*positions.get(&leg.from)?, *positions.get(&leg.to)?)))
+        .collect();
+    let pairs: Vec<(Point, Point)> = ends.iter().flatten().copied().collect();
+    let mut planned: Vec<Result<Path, PathError>> = match world {
+        Some(_) if pairs.is_empty() => Vec::new(),
+        Some(world) => {
+            match Costmap::for_world(world, robot, &keepouts, &CostmapSettings::default()) {
+                Ok(costmap) => Planner::new(costmap).plan_many(&pairs),
+                Err(err) => {
+                    problems.push(Located::new(
+                        plan.pos,
+                        format!("the world cannot be mapped for planning: {err}"),
+                    ));
+                    Vec::new()
+                }
+            }
+        }
+        None => pairs
+            .iter()
+            .map(|&(from, to)| {
+                if planner::clear_of_keepouts(robot, &keepouts, from, to) {
+                    Ok(Path::new(vec![from, to]))
+                } else {
+                    planner::plan_path(None, robot, &keepouts, from, to)
+                }
+            })
+            .collect(),
+    };
+    planned.reverse();
+    let mut paths = Vec::with_capacity(plan.legs.len());
+    for (leg, ends) in plan.legs.iter().zip(&ends) {
+        let result = match ends {
+            Some(_) => planned.pop(),
+            None => None,
+        };
+        if let Some(Err(err)) = &result {
+            problems.push(Located::new(
+                leg.pos,
+                leg_problem(leg, err, world.is_some(), robot, &keepouts),
+            ));
+        }
+        paths.push(result);
+    }
+    LegPaths {
+        positions,
+        paths,
+        problems,
+        keepouts,
+    }
+}
+
+/// What the robot keeps from things, in words: `0.35 m from obstacles and 1 m from the no-go
+/// areas`.
+fn keeps(with_world: bool, robot: &Robot, keepouts: &[Keepout]) -> String {
+    let mut parts = Vec::new();
+    if with_world {
+        parts.push(format!(
+            "{} m from obstacles",
+            geo::round_mm(robot.keep_m())
+        ));
+    }
+    if let Some(first) = keepouts.first() {
+        let keep = first.keep_m(robot);
+        if keepouts.iter().all(|keepout| keepout.keep_m(robot) == keep) {
+            parts.push(format!("{} m from the no-go areas", geo::round_mm(keep)));
+        } else {
+            parts.push("each no-go area's margin from it".to_owned());
+        }
+    }
+    if parts.is_empty() {
+        parts.push(format!(
+            "{} m from obstacles",
+            geo::round_mm(robot.keep_m())
+        ));
+    }
+    parts.join(" and ")
+}
+
+fn leg_problem(
+    leg: &Leg,
+    err: &PathError,
+    with_world: bool,
+    robot: &Robot,
+    keepouts: &[Keepout],
+) -> String {
+    match err {
+        PathError::Cut(bottleneck) => format!(
+            "leg `{}`: no way from `{}` to `{}` keeps {}; {bottleneck}",
+            leg.name,
+            leg.from,
+            leg.to,
+            keeps(with_world, robot, keepouts)
+        ),
+        PathError::Blocked { end, why, .. } => {
+            let waypoint = match end {
+                End::Start => &leg.from,
+                End::Goal => &leg.to,
+            };
+            format!("leg `{}`: waypoint `{waypoint}` {why}", leg.name)
+        }
+    }
+}
+
+/// Why the robot cannot be at a waypoint, in the words of a plan's check.
+fn waypoint_problem(
+    name: &str,
+    point: Point,
+    why: &Blocker,
+    world: Option<&World>,
+    robot: &Robot,
+    keepouts: &[Keepout],
+) -> String {
+    let world_name = world.map_or("", World::name);
+    let mm = geo::round_mm;
+    let robot_is = |keep: f64, extra: &str, extra_m: f64| {
+        format!(
+            "the robot keeps {} m from {} (radius {} m and {extra} {} m)",
+            mm(keep),
+            if extra == "clearance" {
+                "obstacles".to_owned()
+            } else {
+                "it".to_owned()
+            },
+            mm(robot.radius_m),
+            mm(extra_m)
+        )
+    };
+    match why {
+        Blocker::OutsideWorld => {
+            let (min_x, max_x, min_y, max_y) = world.map_or((0.0, 0.0, 0.0, 0.0), |world| {
+                let bounds = world.bounds();
+                (bounds.min_x, bounds.max_x, bounds.min_y, bounds.max_y)
+            });
+            format!(
+                "waypoint `{name}` is outside the world `{world_name}`: it is at {point} m, the \
+                 world spans {min_x} to {max_x} m east and {min_y} to {max_y} m north"
+            )
+        }
+        Blocker::InObstacle { line } => format!(
+            "waypoint `{name}` at {point} m is inside the obstacle on line {line} of the world \
+             `{world_name}`"
+        ),
+        Blocker::NearObstacle {
+            kind,
+            line,
+            distance_m,
+            keep_m,
+        } => format!(
+            "waypoint `{name}` at {point} m is {} m from the {kind} on line {line} of the world \
+             `{world_name}`; {}",
+            mm(*distance_m),
+            robot_is(*keep_m, "clearance", robot.clearance_m)
+        ),
+        Blocker::InArea { name: area } => {
+            format!("waypoint `{name}` at {point} m is in the no-go area `{area}`")
+        }
+        Blocker::NearArea {
+            name: area,
+            distance_m,
+            keep_m,
+        } => {
+            let margin = keepouts
+                .iter()
+                .find(|keepout| &keepout.name == area)
+                .map_or(0.0, |keepout| keepout.margin_m);
+            format!(
+                "waypoint `{name}` at {point} m is {} m from the no-go area `{area}`; {}",
+                mm(*distance_m),
+                robot_is(*keep_m, "margin", margin)
+            )
+        }
+        Blocker::NoRoom => format!("waypoint `{name}` at {point} m {why}"),
+    }
 }
 
 /// The geographic origin of the world frame: the world's, which the plan's must match.
@@ -213,15 +456,12 @@ fn frame_origin(plan: &Plan, world: Option<&World>, problems: &mut Vec<Located>)
     }
 }
 
-fn no_go_polygons(
-    plan: &Plan,
-    origin: Option<LatLon>,
-    problems: &mut Vec<Located>,
-) -> Vec<(String, Polygon)> {
+/// The no-go areas in the world frame, each with its margin.
+fn keepouts(plan: &Plan, origin: Option<LatLon>, problems: &mut Vec<Located>) -> Vec<Keepout> {
     let Some(origin) = origin else {
         return Vec::new();
     };
-    let mut polygons = Vec::new();
+    let mut keepouts = Vec::new();
     for area in plan.no_go_areas() {
         let polygon = Polygon::new(area.points.iter().map(|p| p.to_local(origin)).collect());
         if polygon.corners.len() < 3 {
@@ -237,107 +477,13 @@ fn no_go_polygons(
             ));
             continue;
         }
-        polygons.push((area.name.clone(), polygon));
+        keepouts.push(Keepout::new(
+            area.name.clone(),
+            polygon,
+            area.margin_m.unwrap_or(planner::DEFAULT_AREA_MARGIN_M),
+        ));
     }
-    polygons
-}
-
-fn check_position(
-    name: &str,
-    point: Point,
-    pos: Pos,
-    world: Option<&World>,
-    no_go: &[(String, Polygon)],
-    problems: &mut Vec<Located>,
-) {
-    if let Some(world) = world {
-        let bounds = world.bounds();
-        if !world.boundary().contains(point) {
-            problems.push(Located::new(
-                pos,
-                format!(
-                    "waypoint `{name}` is outside the world `{}`: it is at {point} m, the world \
-                     spans {} to {} m east and {} to {} m north",
-                    world.name(),
-                    bounds.min_x,
-                    bounds.max_x,
-                    bounds.min_y,
-                    bounds.max_y
-                ),
-            ));
-            return;
-        }
-        if !world.is_free(point) {
-            problems.push(Located::new(
-                pos,
-                format!(
-                    "waypoint `{name}` at {point} m is inside an obstacle of the world `{}`",
-                    world.name()
-                ),
-            ));
-            return;
-        }
-    }
-    for (area, polygon) in no_go {
-        if polygon.near_box(point, point, CLEARANCE_M)
-            && (polygon.contains(point) || polygon.distance_to_outline(point) < CLEARANCE_M)
-        {
-            problems.push(Located::new(
-                pos,
-                format!(
-                    "waypoint `{name}` is in the no-go area `{area}` or closer than \
-                     {CLEARANCE_M} m to it"
-                ),
-            ));
-        }
-    }
-}
-
-/// Where a detour may turn around the world's obstacles and walls: their corners pushed out by
-/// a little more than [`WALL_CLEARANCE_M`] (the ends of a thin wall on four sides), where free.
-fn corners_around_obstacles(world: &World) -> Vec<Point> {
-    let margin = WALL_CLEARANCE_M * 1.3;
-    let mut corners = Vec::new();
-    for shape in world.shapes() {
-        match shape.kind {
-            ShapeKind::Boundary => {}
-            ShapeKind::Obstacle => {
-                corners.extend(Polygon::new(shape.points.clone()).inflated_corners(margin));
-            }
-            ShapeKind::Wall => {
-                for p in &shape.points {
-                    for (dx, dy) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
-                        corners.push(Point::new(p.x + dx * margin, p.y + dy * margin));
-                    }
-                }
-            }
-        }
-    }
-    corners.retain(|p| {
-        world.is_free(*p) && world.wall_distance(*p, WALL_CLEARANCE_M) >= WALL_CLEARANCE_M
-    });
-    corners
-}
-
-/// Whether the robot can drive straight from `a` to `b` in `world`: both inside and free, the
-/// segment crossing no wall and keeping [`WALL_CLEARANCE_M`] from every one.
-fn clear_of_walls(world: &World, a: Point, b: Point) -> bool {
-    if !world.is_free(a) || !world.is_free(b) {
-        return false;
-    }
-    if world
-        .segments()
-        .any(|(c, d)| geo::segments_cross(a, b, c, d))
-    {
-        return false;
-    }
-    let length = geo::distance(a, b);
-    let steps = (length / 0.2).ceil().max(1.0) as usize;
-    (0..=steps).all(|i| {
-        let t = i as f64 / steps as f64;
-        let p = Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
-        world.wall_distance(p, WALL_CLEARANCE_M) >= WALL_CLEARANCE_M
-    })
+    keepouts
 }
 
 fn action_modules(plan: &Plan) -> Vec<(String, Pos)> {
@@ -418,6 +564,8 @@ fn time_warnings(plan: &Plan, routes: &[Vec<Point>]) -> Vec<Located> {
 struct Builder<'a> {
     plan: &'a Plan,
     positions: &'a BTreeMap<String, Point>,
+    /// Each leg's planned path.
+    paths: &'a [Path],
     no_go: String,
     net: MissionNet,
     /// Also the names made so far (the net's own lookup is a linear search).
@@ -430,12 +578,17 @@ impl<'a> Builder<'a> {
     fn new(
         plan: &'a Plan,
         positions: &'a BTreeMap<String, Point>,
-        no_go: &[(String, Polygon)],
+        keepouts: &[Keepout],
+        paths: &'a [Path],
     ) -> Self {
-        let polygons: Vec<Polygon> = no_go.iter().map(|(_, polygon)| polygon.clone()).collect();
+        let polygons: Vec<Polygon> = keepouts
+            .iter()
+            .map(|keepout| keepout.polygon.clone())
+            .collect();
         Self {
             plan,
             positions,
+            paths,
             no_go: geo::format_polygons(&polygons),
             net: MissionNet {
                 name: plan.name.clone(),
@@ -506,7 +659,8 @@ impl<'a> Builder<'a> {
             );
             leg_places.push(depart);
         }
-        let (modules, params) = self.drive_action(&leg.to, leg.during.as_ref(), leg.pos);
+        let path = self.paths.get(index);
+        let (modules, params) = self.drive_action(&leg.to, leg.during.as_ref(), leg.pos, path);
         self.place(&drive, origin(), leg.pos, modules.clone(), params.clone());
         leg_places.push(drive.clone());
         self.drive_exits(index, leg, &drive, "", &after_drive);
@@ -685,7 +839,8 @@ impl<'a> Builder<'a> {
             Response::Return { waypoint } => {
                 let drive = format!("{name}_return");
                 if !self.trace.contains_key(&drive) {
-                    let (modules, params) = self.drive_action(waypoint, None, leg.pos);
+                    // Where the robot will be when it turns back is not known: no path.
+                    let (modules, params) = self.drive_action(waypoint, None, leg.pos, None);
                     self.place(&drive, origin(), leg.pos, modules, params);
                     let end = format!("returned_{waypoint}");
                     if !self.trace.contains_key(&end) {
@@ -744,12 +899,14 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// The modules and parameters of a drive to `waypoint`, with an action beside it.
+    /// The modules and parameters of a drive to `waypoint` (along `path`, when it is known),
+    /// with an action beside it.
     fn drive_action(
         &self,
         waypoint: &str,
         during: Option<&Action>,
         pos: Pos,
+        path: Option<&Path>,
     ) -> (Vec<String>, Vec<PlaceParam>) {
         let nav = &self.plan.navigation;
         let mut modules = vec![nav.module.clone()];
@@ -767,6 +924,11 @@ impl<'a> Builder<'a> {
         ];
         if !self.no_go.is_empty() {
             params.push(param(&nav.no_go_param, self.no_go.clone()));
+        }
+        if let Some(path) = path
+            && !nav.path_param.is_empty()
+        {
+            params.push(param(&nav.path_param, path.format()));
         }
         if let Some(action) = during {
             let (more_modules, more_params) = action_parts(action);

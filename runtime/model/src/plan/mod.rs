@@ -3,7 +3,7 @@
 //!
 //! ```xml
 //! <plan name="recon" system="system.xml" world="yard.world" start="2026-11-23T08:00:00Z">
-//!   <navigation module="follower" speed_mps="0.5">
+//!   <navigation module="follower" speed_mps="0.5" clearance_m="0.1">
 //!     <module name="avoider"/>
 //!   </navigation>
 //!   <waypoint name="home" lat="43.561536" lon="1.469049"/>
@@ -15,7 +15,7 @@
 //!   </leg>
 //!   <leg from="gate" to="home" not_before="2026-11-23T08:10:00Z"/>
 //!   <contingency on="blocked" do="hold"/>
-//!   <area name="minefield" kind="no-go">
+//!   <area name="minefield" kind="no-go" margin_m="1">
 //!     <point lat="43.56156" lon="1.46912"/> …
 //!   </area>
 //! </plan>
@@ -29,8 +29,15 @@
 //! `wait_secs` (stay at the destination). Contingencies say what to do when the robot is
 //! `blocked`, a module `failed`, or the robot is `late`: `skip` the rest of the leg, `hold` for
 //! the operator (who may retry or skip), `return` to a waypoint and end there, or (`late` only)
-//! `continue`. An action `throughout` runs from start to end (a recorder). The schema is `assets/schema/plan.xsd`; [`compile`] makes the net and [`gpx`]
-//! exchanges waypoints and routes with GIS tools.
+//! `continue`. An action `throughout` runs from start to end (a recorder). The schema is
+//! `assets/schema/plan.xsd`; [`compile`] makes the net and [`gpx`] exchanges waypoints and
+//! routes with GIS tools.
+//!
+//! Every leg is planned on the world ([`crate::planner`]): the robot, a disc of
+//! `robot_radius_m` (the system's simulator's or avoider's `robot_radius_m` unless the plan
+//! says), keeps `clearance_m` from obstacles and each no-go area's `margin_m` from it. A leg
+//! with no way through is an error that says where the way is cut; the navigation module gets
+//! the path in its `path` parameter, and the time constraints are checked along it.
 
 use armor_module_api::xml::Pos;
 
@@ -39,7 +46,9 @@ pub mod gpx;
 mod xml;
 
 pub use crate::geo::LatLon;
-pub use compile::{CLEARANCE_M, Compiled, Origin, compile};
+pub use compile::{
+    CLEARANCE_M, Compiled, LegPaths, Origin, compile, compile_for, plan_legs, robot,
+};
 
 /// A whole plan.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -79,8 +88,15 @@ pub struct Navigation {
     pub no_go_param: String,
     pub reached_event: String,
     pub blocked_event: String,
+    /// The parameter that gets each leg's planned path (`X,Y X,Y …` in the world frame); empty:
+    /// the path is not passed on (a navigation module that has no such parameter).
+    pub path_param: String,
     /// The speed assumed for the earliest arrival times the time constraints are checked against.
     pub speed_mps: f64,
+    /// The robot's radius for the paths planned; `None`: the system's (see [`robot`]).
+    pub robot_radius_m: Option<f64>,
+    /// How far the robot's body keeps from obstacles; `None`: the planner's default.
+    pub clearance_m: Option<f64>,
     pub pos: Pos,
 }
 
@@ -126,7 +142,10 @@ impl Default for Navigation {
             no_go_param: "no_go".into(),
             reached_event: "goal_reached".into(),
             blocked_event: "blocked".into(),
+            path_param: "path".into(),
             speed_mps: 0.5,
+            robot_radius_m: None,
+            clearance_m: None,
             pos: Pos::default(),
         }
     }
@@ -234,6 +253,9 @@ pub struct Graphic {
     /// For a phase line: when units are to cross it (shown on the map like a plan's
     /// synchronisation line).
     pub at_unix_secs: Option<f64>,
+    /// For a no-go area: how far the robot's body keeps from it; `None`:
+    /// [`crate::planner::DEFAULT_AREA_MARGIN_M`].
+    pub margin_m: Option<f64>,
     pub pos: Pos,
 }
 

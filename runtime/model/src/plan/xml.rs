@@ -139,6 +139,7 @@ impl Plan {
                 ("no_go", &nav.no_go_param, &defaults.no_go_param),
                 ("reached", &nav.reached_event, &defaults.reached_event),
                 ("blocked", &nav.blocked_event, &defaults.blocked_event),
+                ("path", &nav.path_param, &defaults.path_param),
             ] {
                 if value != default {
                     let _ = write!(out, " {name}=\"{}\"", escape(value));
@@ -146,6 +147,12 @@ impl Plan {
             }
             if nav.speed_mps != defaults.speed_mps {
                 let _ = write!(out, " speed_mps=\"{}\"", nav.speed_mps);
+            }
+            if let Some(radius) = nav.robot_radius_m {
+                let _ = write!(out, " robot_radius_m=\"{radius}\"");
+            }
+            if let Some(clearance) = nav.clearance_m {
+                let _ = write!(out, " clearance_m=\"{clearance}\"");
             }
             if nav.companions.is_empty() {
                 out.push_str("/>\n");
@@ -218,6 +225,9 @@ impl Plan {
             }
             if let Some(at) = graphic.at_unix_secs {
                 let _ = write!(out, " at=\"{}\"", format_date(at));
+            }
+            if let Some(margin) = graphic.margin_m {
+                let _ = write!(out, " margin_m=\"{margin}\"");
             }
             out.push_str(">\n");
             for point in &graphic.points {
@@ -361,6 +371,27 @@ fn speed(field: Field<'_>) -> Result<f64, Located> {
     }
 }
 
+/// A distance in metres, 0 or more, named `name` in the message.
+fn metres(name: &'static str) -> fn(Field<'_>) -> Result<f64, Located> {
+    fn read(field: Field<'_>, name: &str) -> Result<f64, Located> {
+        match field.value.trim().parse::<f64>() {
+            Ok(value) if value.is_finite() && value >= 0.0 && is_decimal(field.value) => Ok(value),
+            _ => Err(Located::new(
+                field.pos,
+                format!(
+                    "`{name}` must be a distance in metres, 0 or more (like 0.25), not `{}`",
+                    field.value
+                ),
+            )),
+        }
+    }
+    match name {
+        "robot_radius_m" => |field| read(field, "robot_radius_m"),
+        "clearance_m" => |field| read(field, "clearance_m"),
+        _ => |field| read(field, "margin_m"),
+    }
+}
+
 fn lat_lon(element: &Element, problems: &mut Vec<Located>) -> Option<LatLon> {
     let mut read = |name: &str, limit: f64, what: &str| -> Option<f64> {
         let field = required(element, name, problems)?;
@@ -394,7 +425,10 @@ fn read_navigation(element: &Element, p: &mut Vec<Located>) -> Navigation {
         "no_go",
         "reached",
         "blocked",
+        "path",
         "speed_mps",
+        "robot_radius_m",
+        "clearance_m",
     ]));
     p.extend(element.unknown_children(&["module"]));
     no_text(element, p);
@@ -409,8 +443,14 @@ fn read_navigation(element: &Element, p: &mut Vec<Located>) -> Navigation {
         ("no_go", &mut navigation.no_go_param),
         ("reached", &mut navigation.reached_event),
         ("blocked", &mut navigation.blocked_event),
+        ("path", &mut navigation.path_param),
     ] {
         if let Some(value) = element.attr(attr) {
+            // An empty `path` passes no path on.
+            if attr == "path" && value.value.trim().is_empty() {
+                *slot = String::new();
+                continue;
+            }
             match read_identifier(Field::new(&value.value, value.pos), attr, "<navigation>") {
                 Ok(name) => *slot = name,
                 Err(err) => p.push(err),
@@ -420,6 +460,8 @@ fn read_navigation(element: &Element, p: &mut Vec<Located>) -> Navigation {
     if let Some(speed) = optional(element, "speed_mps", speed, p) {
         navigation.speed_mps = speed;
     }
+    navigation.robot_radius_m = optional(element, "robot_radius_m", metres("robot_radius_m"), p);
+    navigation.clearance_m = optional(element, "clearance_m", metres("clearance_m"), p);
     for child in element.children_named("module") {
         p.extend(child.unknown_attrs(&["name"]));
         no_children(child, p);
@@ -674,7 +716,7 @@ fn read_graphic(element: &Element, p: &mut Vec<Located>) -> Graphic {
     let area = element.name == "area";
     let mut allowed = vec!["name"];
     if area {
-        allowed.push("kind");
+        allowed.extend(["kind", "margin_m"]);
     }
     if element.name == "phase_line" {
         allowed.push("at");
@@ -734,6 +776,7 @@ fn read_graphic(element: &Element, p: &mut Vec<Located>) -> Graphic {
         name: identifier(element, "name", "name", p).unwrap_or_default(),
         points,
         at_unix_secs: optional(element, "at", date("at"), p),
+        margin_m: optional(element, "margin_m", metres("margin_m"), p),
         pos: element.pos,
     }
 }
@@ -913,7 +956,7 @@ mod tests {
 
     pub(crate) const RECON: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
 <plan name="recon" system="system.xml" world="yard.world" start="2026-11-23T08:00:00Z">
-  <navigation speed_mps="0.4">
+  <navigation speed_mps="0.4" robot_radius_m="0.3" clearance_m="0.15">
     <module name="avoider"/>
   </navigation>
   <throughout>
@@ -939,7 +982,7 @@ mod tests {
     <point lat="43.5615" lon="1.4691"/>
     <point lat="43.5617" lon="1.4691"/>
   </phase_line>
-  <area name="minefield" kind="no-go">
+  <area name="minefield" kind="no-go" margin_m="1.5">
     <point lat="43.56156" lon="1.46912"/>
     <point lat="43.56156" lon="1.46916"/>
     <point lat="43.56160" lon="1.46916"/>
@@ -963,6 +1006,10 @@ mod tests {
         assert_eq!(plan.legs[1].name, "back");
         assert_eq!(plan.navigation.companions, ["avoider"]);
         assert_eq!(plan.navigation.speed_mps, 0.4);
+        assert_eq!(plan.navigation.robot_radius_m, Some(0.3));
+        assert_eq!(plan.navigation.clearance_m, Some(0.15));
+        assert_eq!(plan.navigation.path_param, "path");
+        assert_eq!(plan.graphics[1].margin_m, Some(1.5));
         assert_eq!(plan.legs[0].wait_secs, Some(10.0));
         let arrival = plan.legs[0].arrival.as_ref().expect("arrival");
         assert_eq!(arrival.until.as_deref(), Some("observer.observation_done"));
@@ -1044,7 +1091,7 @@ mod tests {
     #[test]
     fn bad_values_are_named() {
         let text = r#"<plan name="p" system="s.xml" start="soon">
-  <navigation speed_mps="-1" module="9x"/>
+  <navigation speed_mps="-1" module="9x" robot_radius_m="-0.2" path=""/>
   <waypoint name="a" lat="95" lon="east"/>
   <waypoint name="b" lat="1" lon="2" symbol="XX"/>
   <leg from="a" to="b" wait_secs="NaN">
@@ -1052,7 +1099,7 @@ mod tests {
     <during/>
     <contingency on="lost" do="panic"/>
   </leg>
-  <area name="z" kind="swamp"><point lat="1" lon="2"/></area>
+  <area name="z" kind="swamp" margin_m="wide"><point lat="1" lon="2"/></area>
   <bogus/>
 </plan>"#;
         let found = problems(text);
@@ -1060,6 +1107,7 @@ mod tests {
             "1:31: `start` must be a date like",
             "2:30: module `9x` of <navigation> is not valid",
             "2:15: `speed_mps` must be a speed in m/s above 0",
+            "2:42: `robot_radius_m` must be a distance in metres, 0 or more (like 0.25), not `-0.2`",
             "3:22: `lat` must be a latitude in degrees between -90 and 90",
             "3:31: `lon` must be a longitude",
             "4:38: `symbol` `XX` is not a symbol code: a SIDC has 15 characters",
@@ -1069,6 +1117,7 @@ mod tests {
             "8:18: `on` must be `blocked`, `failed` or `late`, not `lost`",
             "8:28: `do` must be `skip`, `hold`, `return` or `continue`, not `panic`",
             "10:18: `kind` must be one of no-go, objective, assembly, named, not `swamp`",
+            "10:31: `margin_m` must be a distance in metres",
             "10:3: <area> needs 3 <point>s or more, it has 1",
             "11:3: unknown element <bogus>",
         ];

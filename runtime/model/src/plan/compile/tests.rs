@@ -1,5 +1,6 @@
 use super::*;
 use crate::net::analyse;
+use crate::planner::Robot;
 
 /// A 40 m × 30 m world with a block in the middle, anchored at (43.5615, 1.469).
 const WORLD: &str = "name Test yard
@@ -144,14 +145,21 @@ leg2_blocked: leg2_drive -> leg2_return follower.blocked
 leg2_depart_mapper_failed: leg2_depart -> done module.mapper.failed
 leg2_drive_mapper_failed: leg2_drive -> done module.mapper.failed"
     );
-    // Goals are the destinations in the world frame, to the millimetre.
+    // Goals are the destinations in the world frame, to the millimetre, and the path is the
+    // planned one (straight here: nothing is in the way).
     let drive = compiled.net.place("leg1_drive").expect("drive");
     let goal: Vec<(&str, &str)> = drive
         .params
         .iter()
         .map(|p| (p.name.as_str(), p.value.as_str()))
         .collect();
-    assert_eq!(goal, [("goal_x_m", "34"), ("goal_y_m", "4")]);
+    assert_eq!(
+        goal,
+        [("goal_x_m", "34"), ("goal_y_m", "4"), ("path", "4,4 34,4")]
+    );
+    // A return drive has no path: where the robot turns back is not known.
+    let back = compiled.net.place("leg2_return").expect("return");
+    assert!(back.params.iter().all(|p| p.name != "path"), "{back:?}");
     let observer = &compiled.net.place("leg1_arrival").expect("arrival").params[0];
     assert_eq!(
         (observer.name.as_str(), observer.value.as_str()),
@@ -242,7 +250,7 @@ fn places_the_robot_cannot_reach_are_refused() {
         found,
         [
             "waypoint `a` is outside the world `Test yard`: it is at (-5, 4) m, the world spans 0 to 40 m east and 0 to 30 m north",
-            "waypoint `b` at (20, 10) m is inside an obstacle of the world `Test yard`",
+            "waypoint `b` at (20, 10) m is inside the obstacle on line 5 of the world `Test yard`",
         ]
     );
 }
@@ -300,7 +308,7 @@ fn areas_that_cross_themselves_or_close_the_way_are_refused() {
     assert_eq!(
         found,
         [
-            "leg `leg1`: no way from `home` to `gate` keeps 1 m from the no-go areas",
+            "leg `leg1`: no way from `home` to `gate` keeps 0.35 m from obstacles and 1 m from the no-go areas; the way is closed at (30.53, 7.48), by the no-go area `w`",
             "area `knot`: its outline crosses itself, so it has no clear inside",
         ]
     );
@@ -312,7 +320,7 @@ fn areas_that_cross_themselves_or_close_the_way_are_refused() {
     ));
     assert_eq!(
         found,
-        ["waypoint `gate` is in the no-go area `on_gate` or closer than 1 m to it"]
+        ["waypoint `gate` at (34, 4) m is in the no-go area `on_gate`"]
     );
 }
 
@@ -368,4 +376,222 @@ fn without_a_world_the_origin_places_the_plan() {
         problems[0].message.contains("111.2 m from the origin"),
         "{problems:?}"
     );
+}
+
+#[test]
+fn legs_are_planned_round_the_world_s_obstacles_and_their_length_counts() {
+    // From west of the block to east of it at its height: round it, longer than 20 m.
+    let text = format!(
+        "<plan name=\"p\" system=\"s.xml\" start=\"2026-11-23T08:00:00Z\">{}{}\
+         <leg from=\"w\" to=\"e\" arrive_by=\"2026-11-23T08:00:30Z\"/></plan>",
+        waypoint("w", 10.0, 10.0),
+        waypoint("e", 30.0, 10.0),
+    );
+    let plan = Plan::parse(&text).expect("reads");
+    let compiled = compile(&plan, Some(&world())).unwrap_or_else(|p| panic!("{p:?}"));
+    let route = &compiled.routes[0];
+    let length = geo::path_length(route);
+    assert!(
+        route.len() > 2 && length > 20.5 && length < 24.0,
+        "{route:?}"
+    );
+    let world = world();
+    for pair in route.windows(2) {
+        assert!(
+            world.segment_clearance(pair[0], pair[1], 0.35) >= 0.35 - 1e-9,
+            "{route:?}"
+        );
+    }
+    // The deadline is checked along the path, not the straight line.
+    let metres = geo::round_mm((length * 10.0).round() / 10.0);
+    assert!(
+        compiled.warnings[0]
+            .message
+            .contains(&format!("{metres} m at 0.5 m/s")),
+        "{:?}",
+        compiled.warnings
+    );
+    // The follower is given the path.
+    let drive = compiled.net.place("leg1_drive").expect("drive");
+    let path = drive
+        .params
+        .iter()
+        .find(|p| p.name == "path")
+        .expect("path");
+    assert_eq!(
+        crate::planner::Path::parse(&path.value)
+            .expect("a path")
+            .points
+            .len(),
+        route.len()
+    );
+}
+
+/// A world with a wall across it at x = 20, and a doorway 1 m wide at y 14 to 15.
+const WALLED: &str = "name Walled yard
+origin 43.5615 1.469
+start 4 4 0
+boundary 0,0 40,0 40,30 0,30 0,0
+wall 20,0 20,14
+wall 20,15 20,30
+rect 30,20 36,26
+wall 29,19 37,19 37,27 29,27 29,19
+";
+
+fn walled_errors(navigation: &str, legs: &str, more: &str) -> Vec<String> {
+    let world = World::parse(WALLED, "walled.world").expect("world");
+    let text = format!(
+        "<plan name=\"p\" system=\"s.xml\">{navigation}{}{}{more}{legs}</plan>",
+        waypoint("west", 10.0, 14.5),
+        waypoint("east", 30.0, 14.5),
+    );
+    let plan = Plan::parse(&text).unwrap_or_else(|p| panic!("{p:?}"));
+    match compile(&plan, Some(&world)) {
+        Ok(_) => Vec::new(),
+        Err(problems) => problems.iter().map(|p| p.message.clone()).collect(),
+    }
+}
+
+#[test]
+fn a_leg_with_no_way_through_says_where_it_is_cut() {
+    let leg = "<leg name=\"through\" from=\"west\" to=\"east\"/>";
+    // A 1 m doorway lets a robot of 0.25 m + 0.1 m through...
+    assert_eq!(walled_errors("", leg, ""), Vec::<String>::new());
+    // ...but not one of 0.4 m + 0.2 m.
+    assert_eq!(
+        walled_errors(
+            "<navigation robot_radius_m=\"0.4\" clearance_m=\"0.2\"/>",
+            leg,
+            ""
+        ),
+        [
+            "leg `through`: no way from `west` to `east` keeps 0.6 m from obstacles; the narrowest passage is 1 m wide at (20, 14.5)"
+        ]
+    );
+    // A waypoint that the robot cannot get to: the ring of walls round the block is closed.
+    let inside = World::parse(WALLED, "walled.world").expect("world");
+    assert!(inside.is_free(Point::new(30.0, 19.5)));
+    let text_leg = "<leg name=\"in\" from=\"east\" to=\"inner\"/>";
+    let found = walled_errors("", text_leg, &waypoint("inner", 29.5, 23.0));
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(
+        found[0].starts_with(
+            "leg `in`: no way from `east` to `inner` keeps 0.35 m from obstacles; the way is closed at ("
+        ),
+        "{found:?}"
+    );
+    // Too near a wall, and the start of a leg in an area.
+    let found = walled_errors(
+        "",
+        "<leg from=\"near\" to=\"west\"/><leg from=\"west\" to=\"east\"/>",
+        &format!(
+            "{}<area name=\"pond\" kind=\"no-go\" margin_m=\"0.5\">{}{}{}</area>",
+            waypoint("near", 10.0, 0.2),
+            point(9.0, 13.0),
+            point(11.0, 13.0),
+            point(10.0, 16.0)
+        ),
+    );
+    assert_eq!(
+        found,
+        [
+            "waypoint `west` at (10, 14.5) m is in the no-go area `pond`",
+            "waypoint `near` at (10, 0.2) m is 0.2 m from the boundary on line 4 of the world `Walled yard`; the robot keeps 0.35 m from obstacles (radius 0.25 m and clearance 0.1 m)",
+        ]
+    );
+}
+
+fn point(x: f64, y: f64) -> String {
+    let at = LatLon::from_local(Point::new(x, y), origin());
+    format!(
+        "<point lat=\"{:.8}\" lon=\"{:.8}\"/>",
+        at.lat_deg, at.lon_deg
+    )
+}
+
+#[test]
+fn the_robot_comes_from_the_plan_then_the_system() {
+    use armor_module_api::{ModuleSpec, ParamSpec, ParamType};
+    let plan_with = |navigation: &str| {
+        Plan::parse(&format!(
+            "<plan name=\"p\" system=\"s.xml\"><origin lat=\"1\" lon=\"2\"/>{navigation}\
+             <waypoint name=\"a\" lat=\"1\" lon=\"2\"/><waypoint name=\"b\" lat=\"1\" lon=\"2.001\"/>\
+             <leg from=\"a\" to=\"b\"/></plan>"
+        ))
+        .expect("reads")
+    };
+    let system = crate::SystemConfig::parse(
+        r#"<system name="s">
+  <module name="sim" type="sim"><param name="robot_radius_m" value="0.3"/></module>
+  <module name="avoider" type="avoider"/>
+  <module name="follower" type="follower"/>
+</system>"#,
+    )
+    .expect("parses");
+    let describe = |module_type: &str, radius: &str| {
+        let spec = ModuleSpec::new(module_type, "test").param(
+            ParamSpec::new("robot_radius_m", ParamType::Float, "radius")
+                .unit("m")
+                .default(radius),
+        );
+        (module_type.to_owned(), spec.description().clone())
+    };
+    let descriptions: BTreeMap<_, _> =
+        [describe("sim", "0.25"), describe("avoider", "0.35")].into();
+    let cases = [
+        // (navigation, with the system, radius, clearance)
+        ("", false, 0.25, 0.1),
+        ("", true, 0.35, 0.1),
+        ("<navigation clearance_m=\"0.3\"/>", true, 0.35, 0.3),
+        ("<navigation robot_radius_m=\"0.5\"/>", true, 0.5, 0.1),
+    ];
+    for (navigation, with_system, radius_m, clearance_m) in cases {
+        let plan = plan_with(navigation);
+        let found = if with_system {
+            robot(&plan, Some(&system), &descriptions)
+        } else {
+            robot(&plan, None, &BTreeMap::new())
+        };
+        assert_eq!(
+            found,
+            Robot {
+                radius_m,
+                clearance_m
+            },
+            "{navigation} {with_system}"
+        );
+    }
+    // The system's own value beats the module's default: the sim says 0.3 over its 0.25.
+    let only_sim: BTreeMap<_, _> = [describe("sim", "0.25")].into();
+    assert_eq!(
+        robot(&plan_with(""), Some(&system), &only_sim).radius_m,
+        0.3
+    );
+}
+
+#[test]
+fn without_a_world_legs_go_round_the_areas_only() {
+    let text = format!(
+        "<plan name=\"p\" system=\"s.xml\"><origin lat=\"43.5615\" lon=\"1.469\"/>{}{}\
+         <leg from=\"a\" to=\"b\"/><area name=\"lake\" kind=\"no-go\">{}{}{}{}</area></plan>",
+        waypoint("a", 0.0, 0.0),
+        waypoint("b", 100.0, 0.0),
+        point(40.0, -10.0),
+        point(60.0, -10.0),
+        point(60.0, 10.0),
+        point(40.0, 10.0),
+    );
+    let plan = Plan::parse(&text).expect("reads");
+    let compiled = compile(&plan, None).unwrap_or_else(|p| panic!("{p:?}"));
+    let route = &compiled.routes[0];
+    assert!(route.len() > 2, "{route:?}");
+    let lake = Polygon::new(vec![
+        Point::new(40.0, -10.0),
+        Point::new(60.0, -10.0),
+        Point::new(60.0, 10.0),
+        Point::new(40.0, 10.0),
+    ]);
+    for pair in route.windows(2) {
+        assert!(!lake.blocks(pair[0], pair[1], 0.99), "{route:?}");
+    }
 }
