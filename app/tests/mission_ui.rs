@@ -417,3 +417,64 @@ fn a_waypoint_is_placed_by_typing_metres_or_degrees_in_the_inspector() {
     let (x2, _) = local(&harness, "wp1");
     assert!((x2 - 10.5).abs() < 1e-6);
 }
+
+#[test]
+fn each_leg_shows_its_path_and_a_leg_with_no_way_through_is_drawn_and_said_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    harness.key_press(Key::W);
+    harness.run();
+    for (x, y) in [(4.0, 4.0), (16.0, 4.0)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    // A no-go area across the yard from its west boundary to its east one, between the two
+    // waypoints... once moved north of it: the leg cannot get through.
+    harness.key_press(Key::N);
+    harness.run();
+    for (x, y) in [(0.2, 8.0), (39.8, 8.0), (39.8, 9.0), (0.2, 9.0)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    harness.key_press(Key::Enter);
+    harness.run();
+    let mission = harness.state().mission().unwrap();
+    assert!(
+        matches!(&mission.checked().legs[0], armor_studio::mission::LegRoute::Path { length_m, .. } if (length_m - 12.0).abs() < 0.5),
+        "{:?}",
+        mission.checked().legs
+    );
+    // The leg selected: its path's length and time in the inspector.
+    harness.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
+    harness.run();
+    harness.get_by_label_contains("path: 12.0 m, about 24 s");
+    // The second waypoint moved north of the area (typed in the inspector).
+    harness.state_mut().mission_mut().unwrap().editor.selection = Selection::Waypoint("wp2".into());
+    harness.run();
+    harness.get_by_label("North (m)").click();
+    harness.run();
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    harness.get_by_label("North (m)").type_text("14");
+    harness.run();
+    let mission = harness.state().mission().unwrap();
+    assert!(
+        matches!(
+            &mission.checked().legs[0],
+            armor_studio::mission::LegRoute::Cut { .. }
+        ),
+        "{:?}",
+        mission.checked().legs
+    );
+    assert!(
+        mission
+            .checked()
+            .errors
+            .iter()
+            .any(|e| e.message.contains("no way from `wp1` to `wp2`")),
+        "{:?}",
+        mission.checked().errors
+    );
+    harness.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
+    harness.run();
+    harness.get_by_label_contains("no way through: the narrowest passage");
+}

@@ -15,9 +15,9 @@ use armor_model::world::Point;
 use armor_module_api::describe::is_identifier;
 use egui::{Color32, RichText, Ui};
 
-use super::MissionView;
 use super::plan_edit::{PlanCommand, Selection};
 use super::symbols;
+use super::{LegRoute, MissionView};
 use crate::diagram::Catalog;
 
 const ERROR: Color32 = Color32::from_rgb(230, 90, 70);
@@ -149,6 +149,7 @@ impl MissionView {
         }
         let modules = self.surroundings.module_names();
         let origin = self.surroundings.origin(&self.editor.plan);
+        let legs = &self.checked.legs;
         let mut edits = Edits {
             plan: &self.editor.plan,
             commands: Vec::new(),
@@ -220,6 +221,7 @@ impl MissionView {
                     };
                     ui.heading(format!("Leg {}", leg.name));
                     ui.label(format!("from {} to {}", leg.from, leg.to));
+                    leg_route_ui(ui, legs.get(index), edits.plan.navigation.speed_mps);
                     if let Some(new) =
                         parsed_field(ui, drafts, "Name", "leg-name", leg.name.clone(), "", |t| {
                             check_name(edits.plan, &leg.name, t)
@@ -436,6 +438,25 @@ impl MissionView {
                     );
                 }
             });
+    }
+}
+
+/// What the robot will drive on a leg: the planned path's length and the time it takes at the
+/// plan's speed, or why there is no way through.
+fn leg_route_ui(ui: &mut Ui, route: Option<&LegRoute>, speed_mps: f64) {
+    match route {
+        Some(LegRoute::Path { length_m, .. }) => {
+            let time = if speed_mps > 0.0 {
+                format!(", about {:.0} s at {speed_mps} m/s", length_m / speed_mps)
+            } else {
+                String::new()
+            };
+            ui.label(format!("path: {length_m:.1} m{time}"));
+        }
+        Some(LegRoute::Cut { why, .. }) => {
+            ui.add(egui::Label::new(RichText::new(why).color(ERROR)).wrap());
+        }
+        Some(LegRoute::Unplaced) | None => {}
     }
 }
 

@@ -3,6 +3,7 @@
 //! the waypoints and the unit symbols drawn over it; and the clicks and drags that edit the
 //! plan, queued as [`PlanCommand`]s.
 
+use crate::mission::LegRoute;
 use crate::mission::labels::{Importance, Label};
 use armor_model::plan::{AreaKind, Graphic, GraphicKind, LatLon, Plan};
 use armor_model::world::{Point, World};
@@ -144,6 +145,8 @@ struct Scene {
     waypoints: Vec<(String, Pos2)>,
     /// Each leg's route as drawn.
     routes: Vec<Vec<Pos2>>,
+    /// Per leg: `Some` when the robot has no way through, with where it is cut (if known).
+    cut: Vec<Option<Option<Pos2>>>,
 }
 
 impl MissionView {
@@ -246,7 +249,7 @@ impl MissionView {
         .zoom_with_ctrl(false)
         .double_click_to_zoom(false);
         let plan = &self.editor.plan;
-        let routes = self.checked.compiled.as_ref().map(|c| &c.routes);
+        let legs = &self.checked.legs;
         let response = map.show(ui, |ui, response, projector, _| {
             let project = |at: LatLon| projector.project(position(at)).to_pos2();
             let scene = Scene {
@@ -259,21 +262,27 @@ impl MissionView {
                     .legs
                     .iter()
                     .enumerate()
-                    .map(|(index, leg)| {
-                        let compiled = routes
-                            .and_then(|routes| routes.get(index))
-                            .filter(|r| r.len() >= 2);
-                        match compiled {
-                            Some(route) => route
-                                .iter()
-                                .map(|p| project(LatLon::from_local(*p, origin)))
-                                .collect(),
-                            None => [&leg.from, &leg.to]
-                                .iter()
-                                .filter_map(|name| plan.waypoint(name))
-                                .map(|w| project(w.position))
-                                .collect(),
+                    .map(|(index, leg)| match legs.get(index) {
+                        Some(LegRoute::Path { points, .. }) if points.len() >= 2 => points
+                            .iter()
+                            .map(|p| project(LatLon::from_local(*p, origin)))
+                            .collect(),
+                        _ => [&leg.from, &leg.to]
+                            .iter()
+                            .filter_map(|name| plan.waypoint(name))
+                            .map(|w| project(w.position))
+                            .collect(),
+                    })
+                    .collect(),
+                cut: plan
+                    .legs
+                    .iter()
+                    .enumerate()
+                    .map(|(index, _)| match legs.get(index) {
+                        Some(LegRoute::Cut { at, .. }) => {
+                            Some(at.map(|p| project(LatLon::from_local(p, origin))))
                         }
+                        _ => None,
                     })
                     .collect(),
             };
@@ -811,6 +820,36 @@ fn draw_legs(
         } else {
             (ROUTE, 3.0)
         };
+        if let Some(Some(cut)) = scene.cut.get(index) {
+            // No way through: the leg dashed in red, a cross where the way is cut.
+            painter.extend(egui::Shape::dashed_line(
+                route,
+                Stroke::new(width, NO_GO),
+                10.0,
+                6.0,
+            ));
+            if let Some(at) = cut {
+                let stroke = Stroke::new(3.0, NO_GO);
+                for (a, b) in [
+                    (vec2(-7.0, -7.0), vec2(7.0, 7.0)),
+                    (vec2(-7.0, 7.0), vec2(7.0, -7.0)),
+                ] {
+                    painter.line_segment([*at + a, *at + b], stroke);
+                }
+                labels
+                    .obstacles
+                    .push(Rect::from_center_size(*at, Vec2::splat(16.0)));
+            }
+            labels.add(
+                vec![route[0] + (route[route.len() - 1] - route[0]) * 0.5],
+                8.0,
+                egui::Align2::CENTER_BOTTOM,
+                &format!("{}: no way through", leg.name),
+                NO_GO,
+                Importance::Constraint,
+            );
+            continue;
+        }
         painter.add(egui::Shape::line(route.clone(), Stroke::new(width, colour)));
         // An arrowhead halfway along the longest piece shows the direction.
         let Some(piece) = route

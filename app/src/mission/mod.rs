@@ -223,6 +223,25 @@ pub struct Checked {
     pub errors: Vec<Located>,
     /// What may keep it from going as drawn (time constraints).
     pub warnings: Vec<Located>,
+    /// Each leg as the robot will drive it (the planned path), or why it cannot.
+    pub legs: Vec<LegRoute>,
+}
+
+/// A leg on the map.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LegRoute {
+    /// The path planned round obstacles and no-go areas, in the world frame.
+    Path {
+        points: Vec<armor_model::world::Point>,
+        length_m: f64,
+    },
+    /// No way through for the robot: why, and where the way is narrowest.
+    Cut {
+        why: String,
+        at: Option<armor_model::world::Point>,
+    },
+    /// One of its ends is not placed (reported on its own).
+    Unplaced,
 }
 
 impl Checked {
@@ -234,8 +253,40 @@ impl Checked {
         // The robot `armor check` plans for: the plan's, else its system's modules'.
         let robot = plan::robot(plan, surroundings.system.as_ref(), catalog);
         match plan::compile_for(plan, surroundings.world.as_ref(), &robot) {
-            Err(problems) => checked.errors = problems,
+            Err(problems) => {
+                checked.errors = problems;
+                // The legs that have a path are still drawn along it, the others as cut.
+                let legs = plan::plan_legs(plan, surroundings.world.as_ref(), &robot);
+                checked.legs = legs
+                    .paths
+                    .into_iter()
+                    .map(|path| match path {
+                        Some(Ok(path)) => LegRoute::Path {
+                            length_m: path.length_m,
+                            points: path.points,
+                        },
+                        Some(Err(why)) => LegRoute::Cut {
+                            at: match &why {
+                                armor_model::planner::PathError::Cut(bottleneck) => {
+                                    Some(bottleneck.at)
+                                }
+                                armor_model::planner::PathError::Blocked { at, .. } => Some(*at),
+                            },
+                            why: why.to_string(),
+                        },
+                        None => LegRoute::Unplaced,
+                    })
+                    .collect();
+            }
             Ok(compiled) => {
+                checked.legs = compiled
+                    .routes
+                    .iter()
+                    .map(|points| LegRoute::Path {
+                        length_m: armor_model::geo::path_length(points),
+                        points: points.clone(),
+                    })
+                    .collect();
                 if let Some(system) = &surroundings.system {
                     // Only the module types the palette knows can be checked; the others are
                     // the diagram's to report.
