@@ -235,6 +235,8 @@ pub struct NetViewState {
     /// The user has not moved the view since the last fit: it fits again when the canvas
     /// changes size (enlarged, or the panel dragged).
     fitted: bool,
+    /// The pointer was over the canvas at the last frame (Home then fits the net, not the map).
+    pub pointer_over: bool,
     /// The net's panel takes most of the window.
     pub enlarged: bool,
     /// The canvas of the last frame, on the screen.
@@ -250,6 +252,7 @@ impl Default for NetViewState {
             offset: Vec2::ZERO,
             fit_pending: true,
             fitted: true,
+            pointer_over: false,
             enlarged: false,
             canvas: Rect::NOTHING,
             label_boxes: Vec::new(),
@@ -391,7 +394,10 @@ pub fn net_ui(
         }
     }
     let pointer_in = ui.rect_contains_pointer(canvas);
+    state.pointer_over = pointer_in;
     if pointer_in {
+        // In the Mission view the window takes Home (as Zoom to fit) and hands it here when
+        // the pointer is over the net; in the Run view it comes through.
         let (notches, home) = ui.input(|input| {
             let notches: f32 = input
                 .events
