@@ -10,7 +10,9 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2, pos2, vec2};
 /// The least distance between layers and the distance between rows, in points of the layout
 /// (at zoom 1); layers are pushed further apart until no label touches another.
 const LAYER_STEP: f32 = 48.0;
-const ROW_STEP: f32 = 50.0;
+/// Rows only just clear a place's name below it and a transition's above the next (a layer
+/// holds only places or only transitions).
+const ROW_STEP: f32 = 43.0;
 const MARGIN: f32 = 12.0;
 /// The least room between two labels (or a label and a node) of different layers.
 const LABEL_GAP: f32 = 10.0;
@@ -47,6 +49,34 @@ pub struct Node {
     /// and of the transitions beside it (in the next layers, on the rows next to its own) lie
     /// in different bands.
     pub label: Rect,
+    /// The name as drawn: shortened (the full name in the tooltip) when it shares its first
+    /// word with other nodes, as the elements of one leg do (`advance_arrived`,
+    /// `advance_blocked`): only the first of them in reading order is drawn in full.
+    pub text: String,
+}
+
+/// A node's name and its (layer, row).
+type Cell<'a> = (&'a str, (usize, usize));
+
+/// The names as drawn (see [`Node::text`]).
+fn short_names<'a>(members: impl Iterator<Item = Cell<'a>>) -> BTreeMap<&'a str, String> {
+    let mut groups: BTreeMap<&str, Vec<Cell<'a>>> = BTreeMap::new();
+    for (name, at) in members {
+        let prefix = name.split_once('_').map_or(name, |(prefix, _)| prefix);
+        groups.entry(prefix).or_default().push((name, at));
+    }
+    let mut shown = BTreeMap::new();
+    for (prefix, mut members) in groups {
+        members.sort_by_key(|(_, (layer, row))| (*layer, *row));
+        for (index, (name, _)) in members.iter().enumerate() {
+            let text = match name.strip_prefix(prefix).and_then(|s| s.strip_prefix('_')) {
+                Some(rest) if index > 0 && !rest.is_empty() => rest.to_owned(),
+                _ => (*name).to_owned(),
+            };
+            shown.insert(*name, text);
+        }
+    }
+    shown
 }
 
 /// The label's rectangle of a node at `pos` whose name measures `text`.
@@ -155,6 +185,11 @@ pub fn layout(net: &MissionNet, measure: &dyn Fn(&str) -> Vec2) -> Layout {
         });
         layers.entry(layer).or_default().push((name, is_place, row));
     }
+    let shown = short_names(layers.iter().flat_map(|(layer, members)| {
+        members
+            .iter()
+            .map(move |&(name, _, row)| (name, (*layer, row)))
+    }));
     let mut nodes: BTreeMap<String, Node> = BTreeMap::new();
     let mut placed: Vec<Rect> = Vec::new();
     let mut previous_x: Option<f32> = None;
@@ -164,7 +199,7 @@ pub fn layout(net: &MissionNet, measure: &dyn Fn(&str) -> Vec2) -> Layout {
             .map(|&(name, is_place, row)| {
                 let y = row as f32 * ROW_STEP;
                 let at = pos2(0.0, y);
-                let label = label_rect(at, is_place, measure(name));
+                let label = label_rect(at, is_place, measure(&shown[name]));
                 (name, is_place, y, label, shape_rect(at, is_place))
             })
             .collect();
@@ -189,6 +224,7 @@ pub fn layout(net: &MissionNet, measure: &dyn Fn(&str) -> Vec2) -> Layout {
                     pos: pos2(x, y),
                     is_place,
                     label: label.translate(shift),
+                    text: shown[name].clone(),
                 },
             );
         }
@@ -357,6 +393,8 @@ enum Glyph {
 
 impl Glyph {
     fn paint(&self, painter: &egui::Painter, at: Pos2) {
+        // On the net's paper, so that the ink reads as it does in the net in a dark theme.
+        painter.rect_filled(Rect::from_center_size(at, Vec2::splat(16.0)), 3.0, PAPER);
         match self {
             Glyph::Bar(colour) => {
                 painter.rect_filled(Rect::from_center_size(at, vec2(5.0, 14.0)), 1.0, *colour);
@@ -481,6 +519,12 @@ pub fn net_ui(
         .marking
         .cloned()
         .unwrap_or_else(|| net.initial_marking());
+    let shown = |name: &str| {
+        layout
+            .nodes
+            .get(name)
+            .map_or_else(|| name.to_owned(), |node| node.text.clone())
+    };
     let font = egui::FontId::proportional(LABEL_FONT_SIZE * zoom);
     let mut label_boxes = Vec::new();
     let mut clicked = None;
@@ -522,7 +566,7 @@ pub fn net_ui(
         label_boxes.push(painter.text(
             p + vec2(0.0, radius + 2.0 * zoom),
             egui::Align2::CENTER_TOP,
-            &place.name,
+            shown(&place.name),
             font.clone(),
             INK,
         ));
@@ -553,7 +597,7 @@ pub fn net_ui(
         label_boxes.push(painter.text(
             t - vec2(0.0, (TRANSITION_SIZE.y / 2.0 + 2.0) * zoom),
             egui::Align2::CENTER_BOTTOM,
-            &transition.name,
+            shown(&transition.name),
             font.clone(),
             INK,
         ));
@@ -689,5 +733,26 @@ mod tests {
                 .values()
                 .all(|n| n.pos.x < layout.size.x && n.pos.y < layout.size.y)
         );
+    }
+
+    #[test]
+    fn the_elements_of_a_leg_show_their_leg_once() {
+        let shown = short_names(
+            [
+                ("advance_drive", (0, 0)),
+                ("advance_blocked", (1, 1)),
+                ("advance_arrived", (1, 0)),
+                ("home", (2, 0)),
+                ("cross_", (3, 0)),
+                ("cross_hold", (4, 0)),
+            ]
+            .into_iter(),
+        );
+        assert_eq!(shown["advance_drive"], "advance_drive");
+        assert_eq!(shown["advance_arrived"], "arrived");
+        assert_eq!(shown["advance_blocked"], "blocked");
+        assert_eq!(shown["home"], "home");
+        assert_eq!(shown["cross_"], "cross_");
+        assert_eq!(shown["cross_hold"], "hold");
     }
 }
