@@ -10,9 +10,10 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2, pos2, vec2};
 /// The least distance between layers and the distance between rows, in points of the layout
 /// (at zoom 1); layers are pushed further apart until no label touches another.
 const LAYER_STEP: f32 = 48.0;
-/// Rows only just clear a place's name below it and a transition's above the next (a layer
+/// Rows clear a place's name below it and a transition's above the next by more than a name
+/// stands off its own node, so that a name in a stack of bars reads as the one below it (a layer
 /// holds only places or only transitions).
-const ROW_STEP: f32 = 43.0;
+const ROW_STEP: f32 = 48.0;
 const MARGIN: f32 = 12.0;
 /// The least room between two labels (or a label and a node) of different layers.
 const LABEL_GAP: f32 = 10.0;
@@ -230,7 +231,13 @@ pub fn layout(net: &MissionNet, measure: &dyn Fn(&str) -> Vec2) -> Layout {
         }
         previous_x = Some(x);
     }
-    let bounds = placed.iter().fold(Rect::NOTHING, |a, b| a.union(*b));
+    let mut bounds = placed.iter().fold(Rect::NOTHING, |a, b| a.union(*b));
+    // Room for the arcs going back, which loop below the lower of their ends.
+    let lowest = nodes
+        .values()
+        .map(|node| node.pos.y)
+        .fold(f32::MIN, f32::max);
+    bounds.max.y = bounds.max.y.max(lowest + ROW_STEP * 0.45 + 2.0);
     if !bounds.is_positive() {
         return Layout::default();
     }
@@ -621,7 +628,8 @@ pub fn net_ui(
 }
 
 /// An arc from `a` to `b` with its head at the target's edge; arcs going back (to the left)
-/// bend below the line so they do not run over the nodes between.
+/// go down, across below the lower of their ends and up, so they do not run over the nodes
+/// between.
 fn arrow(painter: &egui::Painter, a: Pos2, b: Pos2, colour: Color32, visible: Rect, zoom: f32) {
     if !visible.intersects(Rect::from_two_pos(a, b)) {
         return;
@@ -634,8 +642,10 @@ fn arrow(painter: &egui::Painter, a: Pos2, b: Pos2, colour: Color32, visible: Re
         head_at = b - direction * (PLACE_RADIUS + 1.0) * zoom;
         painter.line_segment([a, head_at], stroke);
     } else {
-        let dip = vec2(0.0, ROW_STEP * 0.45 * zoom);
-        let points = [a, a + dip, b + dip, b];
+        // Level below the lower end, so that the way back reads as a loop and not as one
+        // more diagonal through the layers between.
+        let bottom = a.y.max(b.y) + ROW_STEP * 0.45 * zoom;
+        let points = [a, pos2(a.x, bottom), pos2(b.x, bottom), b];
         for pair in points.windows(2) {
             painter.line_segment([pair[0], pair[1]], stroke);
         }
