@@ -359,7 +359,10 @@ fn header_ui(ui: &mut Ui, state: &mut NetViewState) {
     ui.horizontal(|ui| {
         if ui
             .button("Fit")
-            .on_hover_text("Show the whole net (Home, with the pointer over the net)")
+            .on_hover_text(
+                "Show the whole net (Home, with the pointer over the net).\n\
+                 The wheel zooms, a drag pans, a click selects.",
+            )
             .clicked()
         {
             state.fit_pending = true;
@@ -372,7 +375,10 @@ fn header_ui(ui: &mut Ui, state: &mut NetViewState) {
         {
             state.enlarged = !state.enlarged;
         }
-        ui.weak("wheel: zoom · drag: pan · click: select");
+        // Only where it leaves the legend its room (not in the Run view's narrower column).
+        if ui.available_width() > 800.0 {
+            ui.weak("wheel: zoom · drag: pan · click: select");
+        }
         ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
             // Right to left: the last item is drawn first, so the list is reversed.
             let items: [(&str, Glyph); 6] = [
