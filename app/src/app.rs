@@ -367,11 +367,7 @@ impl StudioApp {
             .default_size(330.0)
             .min_size(260.0)
             .show(ui, |ui| mission.inspector_ui(ui));
-        egui::Panel::bottom("mission-net")
-            .resizable(true)
-            .default_size(230.0)
-            .min_size(150.0)
-            .show(ui, |ui| mission.net_ui(ui));
+        mission.net_panel_ui(ui, "mission-net", 230.0, MissionView::net_ui);
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| mission.map_ui(ui));

@@ -478,3 +478,112 @@ fn each_leg_shows_its_path_and_a_leg_with_no_way_through_is_drawn_and_said_so() 
     harness.run();
     harness.get_by_label_contains("no way through: the narrowest passage");
 }
+
+/// The studio on a bundled plan, in the Mission view, its net fitted.
+fn bundled(dir: &std::path::Path, name: &str) -> Harness<'static, StudioApp> {
+    let mut harness = studio(options(&dir.join("home"), Some(robot(name))));
+    harness.run();
+    harness
+}
+
+#[test]
+fn the_wheel_zooms_the_net_about_the_pointer_and_home_fits_it_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = bundled(dir.path(), "plan-yard.xml");
+    let before = harness.state().mission().unwrap().net_view().clone();
+    assert!(before.canvas.is_positive());
+    // Off the centre, so that a zoom about the centre would be told apart.
+    let pointer = before.canvas.lerp_inside(egui::vec2(0.3, 0.6));
+    let under = before.layout_from_screen(pointer);
+    harness.hover_at(pointer);
+    harness.run();
+    harness.event(egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Line,
+        delta: egui::vec2(0.0, 2.0),
+        phase: egui::TouchPhase::Move,
+        modifiers: Modifiers::NONE,
+    });
+    harness.run();
+    let after = harness.state().mission().unwrap().net_view().clone();
+    let ratio = after.zoom / before.zoom;
+    assert!((ratio - 1.21).abs() < 1e-3, "two notches zoom by {ratio}");
+    let still = after.layout_from_screen(pointer);
+    assert!(
+        (still - under).length() < 0.5,
+        "{under:?} moved to {still:?}"
+    );
+    harness.key_press(Key::Home);
+    harness.run();
+    let fitted = harness.state().mission().unwrap().net_view().clone();
+    assert!((fitted.zoom - before.zoom).abs() < 1e-4);
+}
+
+#[test]
+fn the_net_names_never_overlap_nor_leave_the_view_at_fit_for_the_bundled_plans() {
+    for name in [
+        "plan-yard.xml",
+        "plan-yard-route.xml",
+        "plan-building.xml",
+        "plan-field.xml",
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let harness = bundled(dir.path(), name);
+        let mission = harness.state().mission().unwrap();
+        let net = mission.checked().net().unwrap();
+        let view = mission.net_view();
+        let boxes = &view.label_boxes;
+        assert_eq!(
+            boxes.len(),
+            net.places.len() + net.transitions.len(),
+            "{name}: every name drawn"
+        );
+        for (i, a) in boxes.iter().enumerate() {
+            assert!(view.canvas.contains_rect(*a), "{name}: {a:?} clipped");
+            for b in &boxes[i + 1..] {
+                assert!(
+                    !a.intersects(*b),
+                    "{name}: names at {a:?} and {b:?} overlap"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_net_has_a_legend_and_enlarges_to_most_of_the_window() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = bundled(dir.path(), "plan-yard.xml");
+    for kind in [
+        "operator-fired",
+        "timed",
+        "event",
+        "immediate",
+        "marked place",
+        "final place",
+    ] {
+        harness.get_by_label(kind);
+    }
+    let small = harness.state().mission().unwrap().net_view().canvas;
+    harness.get_by_label("Enlarge").click();
+    harness.run();
+    let large = harness.state().mission().unwrap().net_view().canvas;
+    assert!(large.height() > 0.55 * SIZE[1], "{small:?} → {large:?}");
+    // Still fitted: the whole net shows, larger.
+    assert!(
+        harness
+            .state()
+            .mission()
+            .unwrap()
+            .net_view()
+            .label_boxes
+            .iter()
+            .all(|b| large.contains_rect(*b))
+    );
+    harness.get_by_label("Shrink").click();
+    harness.run();
+    let back = harness.state().mission().unwrap().net_view().canvas;
+    assert!(
+        (back.height() - small.height()).abs() < 1.0,
+        "{small:?} → {back:?}"
+    );
+}

@@ -116,6 +116,8 @@ impl MissionView {
                 self.set_tool(Tool::Select);
                 self.commands.push(PlanCommand::Select(Selection::None));
             }
+            // Home fits what the pointer is over: the net or the map.
+            UiCommand::ZoomToFit if self.net_view.pointer_over => self.net_view.fit_pending = true,
             UiCommand::ZoomToFit => self.map.fit_requested = true,
             _ => {}
         }
@@ -361,7 +363,10 @@ pub struct MissionView {
     pub(crate) commands: Vec<PlanCommand>,
     pub(crate) map: map::MapState,
     pub(crate) inspector: inspector::InspectorState,
-    net_layout: net_view::Layout,
+    /// The net laid out, made again (names measured) at the next frame after the net changed.
+    net_layout: Option<net_view::Layout>,
+    /// How the net view is zoomed, panned and sized.
+    pub(crate) net_view: net_view::NetViewState,
     /// The run's marking the net was last scrolled to.
     net_scrolled_for_marking: Option<armor_model::net::Marking>,
     /// The selection the net view last scrolled to.
@@ -380,7 +385,8 @@ impl MissionView {
             commands: Vec::new(),
             map: map::MapState::new(ctx),
             inspector: inspector::InspectorState::default(),
-            net_layout: net_view::Layout::default(),
+            net_layout: None,
+            net_view: net_view::NetViewState::default(),
             net_scrolled_for_marking: None,
             net_scrolled_for: None,
         };
@@ -650,7 +656,8 @@ impl MissionView {
             &self.surroundings,
             &self.inspector.catalog,
         );
-        self.net_layout = self.checked.net().map(net_view::layout).unwrap_or_default();
+        self.net_layout = None;
+        self.net_view.fit_pending = true;
     }
 
     /// The net elements that come from the selection (a leg, or a waypoint's legs).
@@ -712,7 +719,43 @@ impl MissionView {
             scroll_to_highlight: self.net_scrolled_for_marking.as_ref() != Some(marking),
         };
         self.net_scrolled_for_marking = Some(marking.clone());
-        net_view::net_ui(ui, net, &self.net_layout, &style);
+        let layout = self
+            .net_layout
+            .get_or_insert_with(|| net_view::layout(net, &net_view::measure_ui(ui)));
+        net_view::net_ui(ui, net, layout, &style, &mut self.net_view);
+    }
+
+    /// The net's panel at the bottom of `ui`: its default size (resizable), or most of the
+    /// window's height when enlarged. `contents` draws the net in it.
+    pub fn net_panel_ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        id: &str,
+        default_size: f32,
+        contents: impl FnOnce(&mut MissionView, &mut egui::Ui),
+    ) {
+        let panel = if self.net_view.enlarged {
+            // Another id, so that the size the user dragged the small panel to is kept.
+            egui::Panel::bottom(format!("{id}-enlarged"))
+                .resizable(false)
+                .exact_size(ui.available_height() * 0.7)
+        } else {
+            egui::Panel::bottom(id.to_owned())
+                .resizable(true)
+                .default_size(default_size)
+                .min_size(150.0)
+        };
+        panel.show(ui, |ui| contents(self, ui));
+    }
+
+    /// The net view's zoom, pan and last frame's names, for the tests.
+    pub fn net_view(&self) -> &net_view::NetViewState {
+        &self.net_view
+    }
+
+    /// The net as laid out at the last frame.
+    pub fn net_layout(&self) -> Option<&net_view::Layout> {
+        self.net_layout.as_ref()
     }
 
     /// The net panel: verification in words, then the net.
@@ -729,7 +772,10 @@ impl MissionView {
             marking: None,
             scroll_to_highlight: scroll && !highlighted.is_empty(),
         };
-        if let Some(element) = net_view::net_ui(ui, net, &self.net_layout, &style) {
+        let layout = self
+            .net_layout
+            .get_or_insert_with(|| net_view::layout(net, &net_view::measure_ui(ui)));
+        if let Some(element) = net_view::net_ui(ui, net, layout, &style, &mut self.net_view) {
             let selection = match self
                 .checked
                 .compiled

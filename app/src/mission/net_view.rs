@@ -7,20 +7,35 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use armor_model::net::{Marking, MissionNet};
 use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2, pos2, vec2};
 
-/// Distance between layers and between rows, in points.
-const LAYER_STEP: f32 = 84.0;
-const ROW_STEP: f32 = 56.0;
-const MARGIN: f32 = 28.0;
+/// The least distance between layers and the distance between rows, in points of the layout
+/// (at zoom 1); layers are pushed further apart until no label touches another.
+const LAYER_STEP: f32 = 48.0;
+/// Rows clear a place's name below it and a transition's above the next by more than a name
+/// stands off its own node, so that a name in a stack of bars reads as the one below it (a layer
+/// holds only places or only transitions).
+const ROW_STEP: f32 = 48.0;
+const MARGIN: f32 = 12.0;
+/// The least room between two labels (or a label and a node) of different layers.
+const LABEL_GAP: f32 = 10.0;
 const PLACE_RADIUS: f32 = 11.0;
 const TRANSITION_SIZE: Vec2 = vec2(7.0, 24.0);
+/// The labels' size at zoom 1.
+pub const LABEL_FONT_SIZE: f32 = 11.0;
+/// One notch of the wheel zooms by this factor.
+const ZOOM_STEP: f32 = 1.1;
+/// Fit never enlarges a small net past this.
+const MAX_FIT_ZOOM: f32 = 1.5;
+const ZOOM_RANGE: std::ops::RangeInclusive<f32> = 0.05..=6.0;
 
 const INK: Color32 = Color32::from_rgb(40, 40, 40);
 const PAPER: Color32 = Color32::from_rgb(248, 246, 238);
 const HIGHLIGHT: Color32 = Color32::from_rgb(230, 150, 20);
 const FINAL: Color32 = Color32::from_rgb(60, 150, 80);
 const OPERATOR: Color32 = Color32::from_rgb(40, 110, 200);
+const TIMED: Color32 = Color32::from_rgb(150, 70, 170);
+const EVENT: Color32 = Color32::from_rgb(20, 140, 130);
 
-/// Where each place and transition goes, in points from the top left of the drawing.
+/// Where each place and transition goes, in points from the top left of the drawing at zoom 1.
 #[derive(Clone, Debug, Default)]
 pub struct Layout {
     pub nodes: BTreeMap<String, Node>,
@@ -31,13 +46,70 @@ pub struct Layout {
 pub struct Node {
     pub pos: Pos2,
     pub is_place: bool,
+    /// Where the name goes: below a place, above a transition, so that the names of a place
+    /// and of the transitions beside it (in the next layers, on the rows next to its own) lie
+    /// in different bands.
+    pub label: Rect,
+    /// The name as drawn: shortened (the full name in the tooltip) when it shares its first
+    /// word with other nodes, as the elements of one leg do (`advance_arrived`,
+    /// `advance_blocked`): only the first of them in reading order is drawn in full.
+    pub text: String,
+}
+
+/// A node's name and its (layer, row).
+type Cell<'a> = (&'a str, (usize, usize));
+
+/// The names as drawn (see [`Node::text`]).
+fn short_names<'a>(members: impl Iterator<Item = Cell<'a>>) -> BTreeMap<&'a str, String> {
+    let mut groups: BTreeMap<&str, Vec<Cell<'a>>> = BTreeMap::new();
+    for (name, at) in members {
+        let prefix = name.split_once('_').map_or(name, |(prefix, _)| prefix);
+        groups.entry(prefix).or_default().push((name, at));
+    }
+    let mut shown = BTreeMap::new();
+    for (prefix, mut members) in groups {
+        members.sort_by_key(|(_, (layer, row))| (*layer, *row));
+        for (index, (name, _)) in members.iter().enumerate() {
+            let text = match name.strip_prefix(prefix).and_then(|s| s.strip_prefix('_')) {
+                Some(rest) if index > 0 && !rest.is_empty() => rest.to_owned(),
+                _ => (*name).to_owned(),
+            };
+            shown.insert(*name, text);
+        }
+    }
+    shown
+}
+
+/// The label's rectangle of a node at `pos` whose name measures `text`.
+fn label_rect(pos: Pos2, is_place: bool, text: Vec2) -> Rect {
+    if is_place {
+        Rect::from_min_size(pos2(pos.x - text.x / 2.0, pos.y + PLACE_RADIUS + 2.0), text)
+    } else {
+        Rect::from_min_size(
+            pos2(
+                pos.x - text.x / 2.0,
+                pos.y - TRANSITION_SIZE.y / 2.0 - 2.0 - text.y,
+            ),
+            text,
+        )
+    }
+}
+
+fn shape_rect(pos: Pos2, is_place: bool) -> Rect {
+    if is_place {
+        Rect::from_center_size(pos, Vec2::splat(PLACE_RADIUS * 2.0))
+    } else {
+        Rect::from_center_size(pos, TRANSITION_SIZE)
+    }
 }
 
 /// Lays `net` out in layers by breadth-first distance from the initially marked places (or,
 /// without any, from the places no transition feeds), each node in the row of the first
 /// node that reached it where it is free, so that a chain of legs reads as one line and a
-/// contingency branches off below it. What the search never reaches goes in a last layer.
-pub fn layout(net: &MissionNet) -> Layout {
+/// contingency branches off below it. What the search never reaches goes in two last layers
+/// (places, then transitions). `measure` gives the size of a name at zoom 1: each layer stands
+/// as far from the ones before as its names need, so that no two names touch.
+pub fn layout(net: &MissionNet, measure: &dyn Fn(&str) -> Vec2) -> Layout {
     let mut successors: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
     let mut fed: BTreeSet<&str> = BTreeSet::new();
     for transition in &net.transitions {
@@ -97,8 +169,10 @@ pub fn layout(net: &MissionNet) -> Layout {
         .map(|(layer, _)| layer + 1)
         .max()
         .unwrap_or(0);
-    let mut row = 0;
-    let mut nodes = BTreeMap::new();
+    // Layers hold places or transitions only (the net is bipartite), so that one kind of
+    // label band per layer suffices; the unreached keep that too.
+    let mut unreached_rows = [0, 0];
+    let mut layers: BTreeMap<usize, Vec<(&str, bool, usize)>> = BTreeMap::new();
     let all = net
         .places
         .iter()
@@ -106,19 +180,155 @@ pub fn layout(net: &MissionNet) -> Layout {
         .chain(net.transitions.iter().map(|t| (t.name.as_str(), false)));
     for (name, is_place) in all {
         let (layer, row) = layer_of.get(name).copied().unwrap_or_else(|| {
-            row += 1;
-            (last, row - 1)
+            let kind = usize::from(!is_place);
+            unreached_rows[kind] += 1;
+            (last + kind, unreached_rows[kind] - 1)
         });
-        let pos = pos2(
-            MARGIN + layer as f32 * LAYER_STEP,
-            MARGIN + row as f32 * ROW_STEP,
-        );
-        nodes.insert(name.to_owned(), Node { pos, is_place });
+        layers.entry(layer).or_default().push((name, is_place, row));
     }
-    let size = nodes.values().fold(Vec2::ZERO, |size, node| {
-        size.max(node.pos.to_vec2() + Vec2::splat(MARGIN + 40.0))
-    });
-    Layout { nodes, size }
+    let shown = short_names(layers.iter().flat_map(|(layer, members)| {
+        members
+            .iter()
+            .map(move |&(name, _, row)| (name, (*layer, row)))
+    }));
+    let mut nodes: BTreeMap<String, Node> = BTreeMap::new();
+    let mut placed: Vec<Rect> = Vec::new();
+    let mut previous_x: Option<f32> = None;
+    for members in layers.values() {
+        let measured: Vec<(&str, bool, f32, Rect, Rect)> = members
+            .iter()
+            .map(|&(name, is_place, row)| {
+                let y = row as f32 * ROW_STEP;
+                let at = pos2(0.0, y);
+                let label = label_rect(at, is_place, measure(&shown[name]));
+                (name, is_place, y, label, shape_rect(at, is_place))
+            })
+            .collect();
+        let mut x = previous_x.map_or(0.0, |x| x + LAYER_STEP);
+        for (_, _, _, label, shape) in &measured {
+            let footprint = label.union(*shape);
+            for other in &placed {
+                if other
+                    .y_range()
+                    .intersects(footprint.expand2(vec2(0.0, 2.0)).y_range())
+                {
+                    x = x.max(other.max.x + LABEL_GAP - footprint.min.x);
+                }
+            }
+        }
+        for (name, is_place, y, label, shape) in measured {
+            let shift = vec2(x, 0.0);
+            placed.push(label.union(shape).translate(shift));
+            nodes.insert(
+                name.to_owned(),
+                Node {
+                    pos: pos2(x, y),
+                    is_place,
+                    label: label.translate(shift),
+                    text: shown[name].clone(),
+                },
+            );
+        }
+        previous_x = Some(x);
+    }
+    let mut bounds = placed.iter().fold(Rect::NOTHING, |a, b| a.union(*b));
+    // Room for the arcs going back, which loop below the lower of their ends.
+    let lowest = nodes
+        .values()
+        .map(|node| node.pos.y)
+        .fold(f32::MIN, f32::max);
+    bounds.max.y = bounds.max.y.max(lowest + ROW_STEP * 0.45 + 2.0);
+    if !bounds.is_positive() {
+        return Layout::default();
+    }
+    let shift = Vec2::splat(MARGIN) - bounds.min.to_vec2();
+    for node in nodes.values_mut() {
+        node.pos += shift;
+        node.label = node.label.translate(shift);
+    }
+    Layout {
+        nodes,
+        size: bounds.size() + Vec2::splat(2.0 * MARGIN),
+    }
+}
+
+/// The size of a name at zoom 1, as the net view draws it.
+pub fn measure_ui(ui: &Ui) -> impl Fn(&str) -> Vec2 + '_ {
+    move |text: &str| {
+        ui.painter()
+            .layout_no_wrap(
+                text.to_owned(),
+                egui::FontId::proportional(LABEL_FONT_SIZE),
+                INK,
+            )
+            .size()
+    }
+}
+
+/// What the net view keeps between frames: how it is zoomed and panned, and whether it is
+/// enlarged.
+#[derive(Clone, Debug)]
+pub struct NetViewState {
+    /// Screen points per point of the layout.
+    pub zoom: f32,
+    /// Where the layout's origin is, from the top left of the canvas.
+    pub offset: Vec2,
+    /// Fit at the next frame (the net changed, or Fit was asked).
+    pub fit_pending: bool,
+    /// The user has not moved the view since the last fit: it fits again when the canvas
+    /// changes size (enlarged, or the panel dragged).
+    fitted: bool,
+    /// The pointer was over the canvas at the last frame (Home then fits the net, not the map).
+    pub pointer_over: bool,
+    /// The net's panel takes most of the window.
+    pub enlarged: bool,
+    /// The canvas of the last frame, on the screen.
+    pub canvas: Rect,
+    /// The names' rectangles of the last frame, on the screen.
+    pub label_boxes: Vec<Rect>,
+}
+
+impl Default for NetViewState {
+    fn default() -> Self {
+        NetViewState {
+            zoom: 1.0,
+            offset: Vec2::ZERO,
+            fit_pending: true,
+            fitted: true,
+            pointer_over: false,
+            enlarged: false,
+            canvas: Rect::NOTHING,
+            label_boxes: Vec::new(),
+        }
+    }
+}
+
+impl NetViewState {
+    pub fn screen_from_layout(&self, p: Pos2) -> Pos2 {
+        self.canvas.min + self.offset + p.to_vec2() * self.zoom
+    }
+
+    pub fn layout_from_screen(&self, p: Pos2) -> Pos2 {
+        ((p - self.canvas.min - self.offset) / self.zoom).to_pos2()
+    }
+
+    fn fit(&mut self, size: Vec2) {
+        let room = self.canvas.size();
+        if size.x <= 0.0 || size.y <= 0.0 || room.x <= 0.0 || room.y <= 0.0 {
+            return;
+        }
+        self.zoom = (room.x / size.x).min(room.y / size.y).min(MAX_FIT_ZOOM);
+        self.offset = (room - size * self.zoom) / 2.0;
+        self.fitted = true;
+    }
+
+    /// Zooms by `factor` keeping the point under `about` (on the screen) where it is.
+    fn zoom_about(&mut self, factor: f32, about: Pos2) {
+        let fixed = self.layout_from_screen(about);
+        self.zoom = (self.zoom * factor).clamp(*ZOOM_RANGE.start(), *ZOOM_RANGE.end());
+        self.offset = about - self.canvas.min - fixed.to_vec2() * self.zoom;
+        self.fitted = false;
+    }
 }
 
 /// What the net drawing shows besides the net.
@@ -127,151 +337,306 @@ pub struct NetStyle<'a> {
     pub highlighted: &'a BTreeSet<String>,
     /// A marking to draw as tokens; without one, the initial marking.
     pub marking: Option<&'a Marking>,
-    /// Scroll so that the highlighted elements are in view (once, after the selection changed).
+    /// Bring the highlighted elements into view (once, after the selection changed).
     pub scroll_to_highlight: bool,
 }
 
-/// Draws the net; returns the element clicked, if any.
-pub fn net_ui(ui: &mut Ui, net: &MissionNet, layout: &Layout, style: &NetStyle) -> Option<String> {
-    let mut clicked = None;
-    egui::ScrollArea::both()
-        .id_salt("net-scroll")
-        .auto_shrink([false, false])
-        .show_viewport(ui, |ui, viewport| {
-            let (rect, _) =
-                ui.allocate_exact_size(layout.size.max(ui.available_size()), Sense::hover());
-            // Paper, as the map: the net's ink reads the same in a dark or a light theme.
-            ui.painter().rect_filled(ui.clip_rect(), 0.0, PAPER);
-            let origin = rect.min.to_vec2();
-            let visible = viewport.translate(origin).expand(LAYER_STEP);
-            let painter = ui.painter();
-            let at = |name: &str| layout.nodes.get(name).map(|node| node.pos + origin);
-            for transition in &net.transitions {
-                let Some(t) = at(&transition.name) else {
-                    continue;
-                };
-                let lit = style.highlighted.contains(&transition.name);
-                let colour = if lit { HIGHLIGHT } else { Color32::GRAY };
-                for arc in &transition.inputs {
-                    if let Some(p) = at(&arc.place) {
-                        arrow(painter, p, t, colour, visible);
-                    }
-                }
-                for arc in &transition.outputs {
-                    if let Some(p) = at(&arc.place) {
-                        arrow(painter, t, p, colour, visible);
-                    }
-                }
-            }
-            let marking = style
-                .marking
-                .cloned()
-                .unwrap_or_else(|| net.initial_marking());
-            let font = egui::FontId::proportional(10.0);
-            for place in &net.places {
-                let Some(p) = at(&place.name).filter(|p| visible.contains(*p)) else {
-                    continue;
-                };
-                let lit = style.highlighted.contains(&place.name);
-                let outline = match (lit, place.is_final) {
-                    (true, _) => HIGHLIGHT,
-                    (false, true) => FINAL,
-                    (false, false) => INK,
-                };
-                painter.circle(p, PLACE_RADIUS, Color32::WHITE, Stroke::new(2.0, outline));
-                if place.is_final {
-                    painter.circle_stroke(p, PLACE_RADIUS - 3.0, Stroke::new(1.0, FINAL));
-                }
-                match marking.get(&place.name).copied().unwrap_or(0) {
-                    0 => {}
-                    1 => {
-                        painter.circle_filled(p, 4.0, INK);
-                    }
-                    n => {
-                        painter.text(
-                            p,
-                            egui::Align2::CENTER_CENTER,
-                            n.to_string(),
-                            font.clone(),
-                            INK,
-                        );
-                    }
-                }
-                label(
-                    painter,
-                    p + vec2(0.0, PLACE_RADIUS + 2.0),
-                    &place.name,
-                    &font,
-                );
-                let response = ui.interact(
-                    Rect::from_center_size(p, Vec2::splat(PLACE_RADIUS * 2.0)),
-                    ui.id().with(("place", &place.name)),
-                    Sense::click(),
-                );
-                // Named for screen readers (and the UI tests), as the text is painted.
-                response.widget_info(|| {
-                    egui::WidgetInfo::labeled(egui::WidgetType::Button, true, &place.name)
-                });
-                if response.on_hover_text(place_tooltip(place)).clicked() {
-                    clicked = Some(place.name.clone());
-                }
-            }
-            for transition in &net.transitions {
-                let Some(t) = at(&transition.name).filter(|t| visible.contains(*t)) else {
-                    continue;
-                };
-                let lit = style.highlighted.contains(&transition.name);
-                let fill = match (lit, transition.condition.operator) {
-                    (true, _) => HIGHLIGHT,
-                    (false, true) => OPERATOR,
-                    (false, false) => INK,
-                };
-                let bar = Rect::from_center_size(t, TRANSITION_SIZE);
-                painter.rect_filled(bar, 1.0, fill);
-                label(
-                    painter,
-                    t + vec2(0.0, TRANSITION_SIZE.y / 2.0 + 2.0),
-                    &transition.name,
-                    &font,
-                );
-                let response = ui.interact(
-                    bar.expand(4.0),
-                    ui.id().with(("transition", &transition.name)),
-                    Sense::click(),
-                );
-                response.widget_info(|| {
-                    egui::WidgetInfo::labeled(egui::WidgetType::Button, true, &transition.name)
-                });
-                if response
-                    .on_hover_text(transition_tooltip(transition))
-                    .clicked()
-                {
-                    clicked = Some(transition.name.clone());
-                }
-            }
-            if style.scroll_to_highlight {
-                let lit = style
-                    .highlighted
-                    .iter()
-                    .filter_map(|name| at(name))
-                    .fold(Rect::NOTHING, |rect, p| {
-                        rect.union(Rect::from_center_size(p, Vec2::splat(40.0)))
-                    });
-                if lit.is_positive() {
-                    ui.scroll_to_rect(lit, Some(egui::Align::Center));
-                }
+/// The kinds of transition, each drawn in its colour (as the legend says).
+fn transition_colour(condition: &armor_model::net::Condition) -> Color32 {
+    if condition.operator {
+        OPERATOR
+    } else if condition.event.is_some() {
+        EVENT
+    } else if condition.delay_secs.is_some() || condition.at_unix_secs.is_some() {
+        TIMED
+    } else {
+        INK
+    }
+}
+
+/// The Fit and Enlarge buttons and the legend, on one line above the net.
+fn header_ui(ui: &mut Ui, state: &mut NetViewState) {
+    ui.horizontal(|ui| {
+        if ui
+            .button("Fit")
+            .on_hover_text(
+                "Show the whole net (Home, with the pointer over the net).\n\
+                 The wheel zooms, a drag pans, a click selects.",
+            )
+            .clicked()
+        {
+            state.fit_pending = true;
+        }
+        let text = if state.enlarged { "Shrink" } else { "Enlarge" };
+        if ui
+            .selectable_label(state.enlarged, text)
+            .on_hover_text("Give the net most of the window's height, or back")
+            .clicked()
+        {
+            state.enlarged = !state.enlarged;
+        }
+        // Only where it leaves the legend its room (not in the Run view's narrower column).
+        if ui.available_width() > 800.0 {
+            ui.weak("wheel: zoom · drag: pan · click: select");
+        }
+        ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+            // Right to left: the last item is drawn first, so the list is reversed.
+            let items: [(&str, Glyph); 6] = [
+                ("operator-fired", Glyph::Bar(OPERATOR)),
+                ("timed", Glyph::Bar(TIMED)),
+                ("event", Glyph::Bar(EVENT)),
+                ("immediate", Glyph::Bar(INK)),
+                ("marked place", Glyph::Marked),
+                ("final place", Glyph::Final),
+            ];
+            for (text, glyph) in items.iter().rev() {
+                ui.label(*text);
+                let (rect, _) = ui.allocate_exact_size(vec2(16.0, 16.0), Sense::hover());
+                glyph.paint(ui.painter(), rect.center());
             }
         });
+    });
+}
+
+enum Glyph {
+    Bar(Color32),
+    Marked,
+    Final,
+}
+
+impl Glyph {
+    fn paint(&self, painter: &egui::Painter, at: Pos2) {
+        // On the net's paper, so that the ink reads as it does in the net in a dark theme.
+        painter.rect_filled(Rect::from_center_size(at, Vec2::splat(16.0)), 3.0, PAPER);
+        match self {
+            Glyph::Bar(colour) => {
+                painter.rect_filled(Rect::from_center_size(at, vec2(5.0, 14.0)), 1.0, *colour);
+            }
+            Glyph::Marked => {
+                painter.circle(at, 6.5, Color32::WHITE, Stroke::new(1.5, INK));
+                painter.circle_filled(at, 2.5, INK);
+            }
+            Glyph::Final => {
+                painter.circle(at, 6.5, Color32::WHITE, Stroke::new(1.5, FINAL));
+                painter.circle_stroke(at, 4.0, Stroke::new(1.0, FINAL));
+            }
+        }
+    }
+}
+
+/// Draws the net with its header; returns the element clicked, if any. The wheel zooms about
+/// the pointer, a drag on empty space pans, Fit and Home show the whole net.
+pub fn net_ui(
+    ui: &mut Ui,
+    net: &MissionNet,
+    layout: &Layout,
+    style: &NetStyle,
+    state: &mut NetViewState,
+) -> Option<String> {
+    header_ui(ui, state);
+    let (canvas, response) = ui.allocate_exact_size(
+        ui.available_size().max(vec2(40.0, 40.0)),
+        Sense::click_and_drag(),
+    );
+    if canvas != state.canvas {
+        state.canvas = canvas;
+        if state.fitted {
+            state.fit_pending = true;
+        }
+    }
+    let pointer_in = ui.rect_contains_pointer(canvas);
+    state.pointer_over = pointer_in;
+    if pointer_in {
+        // In the Mission view the window takes Home (as Zoom to fit) and hands it here when
+        // the pointer is over the net; in the Run view it comes through.
+        let (notches, home) = ui.input(|input| {
+            let notches: f32 = input
+                .events
+                .iter()
+                .map(|event| match event {
+                    egui::Event::MouseWheel { unit, delta, .. } => match unit {
+                        egui::MouseWheelUnit::Line => delta.y,
+                        egui::MouseWheelUnit::Point => delta.y / 50.0,
+                        egui::MouseWheelUnit::Page => delta.y * 10.0,
+                    },
+                    _ => 0.0,
+                })
+                .sum();
+            (notches, input.key_pressed(egui::Key::Home))
+        });
+        if notches != 0.0
+            && let Some(pointer) = ui.input(|input| input.pointer.hover_pos())
+        {
+            state.zoom_about(ZOOM_STEP.powf(notches), pointer);
+        }
+        if home {
+            state.fit_pending = true;
+        }
+    }
+    if response.dragged() {
+        state.offset += response.drag_delta();
+        state.fitted = false;
+    }
+    if std::mem::take(&mut state.fit_pending) {
+        state.fit(layout.size);
+    }
+    if style.scroll_to_highlight {
+        let lit = style
+            .highlighted
+            .iter()
+            .filter_map(|name| layout.nodes.get(name))
+            .fold(Rect::NOTHING, |rect, node| {
+                rect.union(node.label.union(shape_rect(node.pos, node.is_place)))
+            });
+        if lit.is_positive() {
+            let on_screen = Rect::from_two_pos(
+                state.screen_from_layout(lit.min),
+                state.screen_from_layout(lit.max),
+            );
+            if !canvas.contains_rect(on_screen) {
+                state.offset += canvas.center() - on_screen.center();
+                state.fitted = false;
+            }
+        }
+    }
+
+    let painter = ui.painter_at(canvas);
+    // Paper, as the map: the net's ink reads the same in a dark or a light theme.
+    painter.rect_filled(canvas, 0.0, PAPER);
+    let zoom = state.zoom;
+    let visible = canvas.expand(LAYER_STEP * zoom);
+    let at = |name: &str| {
+        layout
+            .nodes
+            .get(name)
+            .map(|node| state.screen_from_layout(node.pos))
+    };
+    for transition in &net.transitions {
+        let Some(t) = at(&transition.name) else {
+            continue;
+        };
+        let lit = style.highlighted.contains(&transition.name);
+        let colour = if lit { HIGHLIGHT } else { Color32::GRAY };
+        for arc in &transition.inputs {
+            if let Some(p) = at(&arc.place) {
+                arrow(&painter, p, t, colour, visible, zoom);
+            }
+        }
+        for arc in &transition.outputs {
+            if let Some(p) = at(&arc.place) {
+                arrow(&painter, t, p, colour, visible, zoom);
+            }
+        }
+    }
+    let marking = style
+        .marking
+        .cloned()
+        .unwrap_or_else(|| net.initial_marking());
+    let shown = |name: &str| {
+        layout
+            .nodes
+            .get(name)
+            .map_or_else(|| name.to_owned(), |node| node.text.clone())
+    };
+    let font = egui::FontId::proportional(LABEL_FONT_SIZE * zoom);
+    let mut label_boxes = Vec::new();
+    let mut clicked = None;
+    for place in &net.places {
+        let Some(p) = at(&place.name).filter(|p| visible.contains(*p)) else {
+            continue;
+        };
+        let lit = style.highlighted.contains(&place.name);
+        let outline = match (lit, place.is_final) {
+            (true, _) => HIGHLIGHT,
+            (false, true) => FINAL,
+            (false, false) => INK,
+        };
+        let radius = PLACE_RADIUS * zoom;
+        painter.circle(
+            p,
+            radius,
+            Color32::WHITE,
+            Stroke::new(2.0 * zoom.min(1.0), outline),
+        );
+        if place.is_final {
+            painter.circle_stroke(p, radius * 0.72, Stroke::new(1.0, FINAL));
+        }
+        match marking.get(&place.name).copied().unwrap_or(0) {
+            0 => {}
+            1 => {
+                painter.circle_filled(p, 4.0 * zoom, INK);
+            }
+            n => {
+                painter.text(
+                    p,
+                    egui::Align2::CENTER_CENTER,
+                    n.to_string(),
+                    font.clone(),
+                    INK,
+                );
+            }
+        }
+        label_boxes.push(painter.text(
+            p + vec2(0.0, radius + 2.0 * zoom),
+            egui::Align2::CENTER_TOP,
+            shown(&place.name),
+            font.clone(),
+            INK,
+        ));
+        let response = ui.interact(
+            Rect::from_center_size(p, Vec2::splat(radius * 2.0).max(Vec2::splat(8.0))),
+            ui.id().with(("place", &place.name)),
+            Sense::click(),
+        );
+        // Named for screen readers (and the UI tests), as the text is painted.
+        response
+            .widget_info(|| egui::WidgetInfo::labeled(egui::WidgetType::Button, true, &place.name));
+        if response.on_hover_text(place_tooltip(place)).clicked() {
+            clicked = Some(place.name.clone());
+        }
+    }
+    for transition in &net.transitions {
+        let Some(t) = at(&transition.name).filter(|t| visible.contains(*t)) else {
+            continue;
+        };
+        let lit = style.highlighted.contains(&transition.name);
+        let fill = if lit {
+            HIGHLIGHT
+        } else {
+            transition_colour(&transition.condition)
+        };
+        let bar = Rect::from_center_size(t, TRANSITION_SIZE * zoom);
+        painter.rect_filled(bar, 1.0, fill);
+        label_boxes.push(painter.text(
+            t - vec2(0.0, (TRANSITION_SIZE.y / 2.0 + 2.0) * zoom),
+            egui::Align2::CENTER_BOTTOM,
+            shown(&transition.name),
+            font.clone(),
+            INK,
+        ));
+        let response = ui.interact(
+            bar.expand(4.0),
+            ui.id().with(("transition", &transition.name)),
+            Sense::click(),
+        );
+        response.widget_info(|| {
+            egui::WidgetInfo::labeled(egui::WidgetType::Button, true, &transition.name)
+        });
+        if response
+            .on_hover_text(transition_tooltip(transition))
+            .clicked()
+        {
+            clicked = Some(transition.name.clone());
+        }
+    }
+    state.label_boxes = label_boxes;
     clicked
 }
 
-fn label(painter: &egui::Painter, top: Pos2, text: &str, font: &egui::FontId) {
-    painter.text(top, egui::Align2::CENTER_TOP, text, font.clone(), INK);
-}
-
 /// An arc from `a` to `b` with its head at the target's edge; arcs going back (to the left)
-/// bend below the line so they do not run over the nodes between.
-fn arrow(painter: &egui::Painter, a: Pos2, b: Pos2, colour: Color32, visible: Rect) {
+/// go down, across below the lower of their ends and up, so they do not run over the nodes
+/// between.
+fn arrow(painter: &egui::Painter, a: Pos2, b: Pos2, colour: Color32, visible: Rect, zoom: f32) {
     if !visible.intersects(Rect::from_two_pos(a, b)) {
         return;
     }
@@ -280,19 +645,22 @@ fn arrow(painter: &egui::Painter, a: Pos2, b: Pos2, colour: Color32, visible: Re
     let direction;
     if b.x >= a.x {
         direction = (b - a).normalized();
-        head_at = b - direction * (PLACE_RADIUS + 1.0);
+        head_at = b - direction * (PLACE_RADIUS + 1.0) * zoom;
         painter.line_segment([a, head_at], stroke);
     } else {
-        let dip = vec2(0.0, ROW_STEP * 0.45);
-        let points = [a, a + dip, b + dip, b];
+        // Level below the lower end, so that the way back reads as a loop and not as one
+        // more diagonal through the layers between.
+        let bottom = a.y.max(b.y) + ROW_STEP * 0.45 * zoom;
+        let points = [a, pos2(a.x, bottom), pos2(b.x, bottom), b];
         for pair in points.windows(2) {
             painter.line_segment([pair[0], pair[1]], stroke);
         }
         direction = vec2(0.0, -1.0);
-        head_at = b + vec2(0.0, PLACE_RADIUS + 1.0);
+        head_at = b + vec2(0.0, (PLACE_RADIUS + 1.0) * zoom);
     }
-    let side = direction.rot90() * 3.5;
-    let back = head_at - direction * 7.0;
+    let head = zoom.clamp(0.5, 1.5);
+    let side = direction.rot90() * 3.5 * head;
+    let back = head_at - direction * 7.0 * head;
     painter.add(egui::Shape::convex_polygon(
         vec![head_at, back + side, back - side],
         colour,
@@ -353,7 +721,7 @@ mod tests {
                </mission>"#,
         )
         .unwrap();
-        let layout = layout(&net);
+        let layout = layout(&net, &|text| vec2(text.len() as f32 * 6.0, 13.0));
         let pos = |name: &str| layout.nodes[name].pos;
         let xs: Vec<f32> = ["a", "t1", "b", "t2", "c"]
             .iter()
@@ -381,5 +749,26 @@ mod tests {
                 .values()
                 .all(|n| n.pos.x < layout.size.x && n.pos.y < layout.size.y)
         );
+    }
+
+    #[test]
+    fn the_elements_of_a_leg_show_their_leg_once() {
+        let shown = short_names(
+            [
+                ("advance_drive", (0, 0)),
+                ("advance_blocked", (1, 1)),
+                ("advance_arrived", (1, 0)),
+                ("home", (2, 0)),
+                ("cross_", (3, 0)),
+                ("cross_hold", (4, 0)),
+            ]
+            .into_iter(),
+        );
+        assert_eq!(shown["advance_drive"], "advance_drive");
+        assert_eq!(shown["advance_arrived"], "arrived");
+        assert_eq!(shown["advance_blocked"], "blocked");
+        assert_eq!(shown["home"], "home");
+        assert_eq!(shown["cross_"], "cross_");
+        assert_eq!(shown["cross_hold"], "hold");
     }
 }

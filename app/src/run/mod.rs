@@ -763,11 +763,9 @@ impl RunView {
             && let Some(mission) = surroundings.mission.as_deref_mut()
             && let Some(marking) = &marking
         {
-            egui::Panel::bottom("run-net")
-                .resizable(true)
-                .default_size(200.0)
-                .min_size(120.0)
-                .show(ui, |ui| mission.marking_ui(ui, marking));
+            mission.net_panel_ui(ui, "run-net", 200.0, |mission, ui| {
+                mission.marking_ui(ui, marking);
+            });
         }
         if let Some(recording) = &mut self.recording {
             egui::Panel::top("run-recording").show(ui, |ui| recording_ui(ui, recording));
