@@ -117,7 +117,10 @@ impl MissionView {
                 self.commands.push(PlanCommand::Select(Selection::None));
             }
             // Home fits what the pointer is over: the net or the map.
-            UiCommand::ZoomToFit if self.net_view.pointer_over => self.net_view.fit_pending = true,
+            UiCommand::ZoomToFit if self.net_view.pointer_over => {
+                self.net_view.fit_pending = true;
+                self.net_view.fit_whole = true;
+            }
             UiCommand::ZoomToFit => self.map.fit_requested = true,
             _ => {}
         }

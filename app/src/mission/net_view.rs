@@ -25,6 +25,8 @@ pub const LABEL_FONT_SIZE: f32 = 11.0;
 const ZOOM_STEP: f32 = 1.1;
 /// Fit never enlarges a small net past this.
 const MAX_FIT_ZOOM: f32 = 1.5;
+/// The least zoom the view opens at: names at 9 points or more.
+pub const READABLE_ZOOM: f32 = 9.0 / LABEL_FONT_SIZE;
 const ZOOM_RANGE: std::ops::RangeInclusive<f32> = 0.05..=6.0;
 
 const INK: Color32 = Color32::from_rgb(40, 40, 40);
@@ -275,6 +277,8 @@ pub struct NetViewState {
     pub offset: Vec2,
     /// Fit at the next frame (the net changed, or Fit was asked).
     pub fit_pending: bool,
+    /// The next fit shows the whole net (asked for with Fit or Home), readable or not.
+    pub fit_whole: bool,
     /// The user has not moved the view since the last fit: it fits again when the canvas
     /// changes size (enlarged, or the panel dragged).
     fitted: bool,
@@ -294,6 +298,7 @@ impl Default for NetViewState {
             zoom: 1.0,
             offset: Vec2::ZERO,
             fit_pending: true,
+            fit_whole: false,
             fitted: true,
             pointer_over: false,
             enlarged: false,
@@ -312,13 +317,21 @@ impl NetViewState {
         ((p - self.canvas.min - self.offset) / self.zoom).to_pos2()
     }
 
+    /// Fits the net in view: the whole of it when asked (Fit, Home), else never below the
+    /// zoom at which names can be read, its start (the left) in view.
     fn fit(&mut self, size: Vec2) {
+        let whole = std::mem::take(&mut self.fit_whole);
         let room = self.canvas.size();
         if size.x <= 0.0 || size.y <= 0.0 || room.x <= 0.0 || room.y <= 0.0 {
             return;
         }
-        self.zoom = (room.x / size.x).min(room.y / size.y).min(MAX_FIT_ZOOM);
-        self.offset = (room - size * self.zoom) / 2.0;
+        let zoom = (room.x / size.x).min(room.y / size.y).min(MAX_FIT_ZOOM);
+        self.zoom = if whole { zoom } else { zoom.max(READABLE_ZOOM) };
+        let spare = room - size * self.zoom;
+        self.offset = vec2(
+            if spare.x >= 0.0 { spare.x / 2.0 } else { 8.0 },
+            if spare.y >= 0.0 { spare.y / 2.0 } else { 8.0 },
+        );
         self.fitted = true;
     }
 
@@ -366,6 +379,7 @@ fn header_ui(ui: &mut Ui, state: &mut NetViewState) {
             .clicked()
         {
             state.fit_pending = true;
+            state.fit_whole = true;
         }
         let text = if state.enlarged { "Shrink" } else { "Enlarge" };
         if ui
@@ -471,6 +485,7 @@ pub fn net_ui(
         }
         if home {
             state.fit_pending = true;
+            state.fit_whole = true;
         }
     }
     if response.dragged() {
