@@ -136,11 +136,11 @@ fn reduce_crossings(count: usize, edges: &[(usize, usize)], layers: &[usize]) ->
     let mut best = order.clone();
     let mut best_crossings = crossings(&order, &down, &rank);
     for _ in 0..SWEEPS {
-        for layer in 1..depth {
-            sort_by_barycentre(&mut order[layer], &up, &mut rank);
+        for layer in order.iter_mut().skip(1) {
+            sort_by_barycentre(layer, &up, &mut rank);
         }
-        for layer in (0..depth.saturating_sub(1)).rev() {
-            sort_by_barycentre(&mut order[layer], &down, &mut rank);
+        for layer in order.iter_mut().rev().skip(1) {
+            sort_by_barycentre(layer, &down, &mut rank);
         }
         let now = crossings(&order, &down, &rank);
         if now < best_crossings {
