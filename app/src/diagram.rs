@@ -530,23 +530,26 @@ impl Diagram {
     }
 
     /// About the size the canvas draws a block at: a header, a row per port, as wide as the
-    /// longest input and output names side by side (or the header's name and type).
+    /// longest input and output labels (`name: Type`) side by side, or the header's name and
+    /// type. Without the type's description, the ports the links name stand for its ports and
+    /// each type is guessed six letters long (`Twist`, `Pose2D`).
     fn estimated_size(&self, id: BlockId, catalog: Option<&Catalog>) -> [f32; 2] {
         let Some(block) = self.blocks.get(&id) else {
             return [200.0, 100.0];
         };
-        let (inputs, outputs): (Vec<String>, Vec<String>) =
+        let label = |name: &str, data_type: &str| name.len() + data_type.len() + 2;
+        let (inputs, outputs): (Vec<usize>, Vec<usize>) =
             match catalog.and_then(|catalog| catalog.get(&block.module_type)) {
                 Some(description) => (
                     description
                         .inputs
                         .iter()
-                        .map(|port| port.name.clone())
+                        .map(|port| label(&port.name, &port.data_type))
                         .collect(),
                     description
                         .outputs
                         .iter()
-                        .map(|port| port.name.clone())
+                        .map(|port| label(&port.name, &port.data_type))
                         .collect(),
                 ),
                 None => {
@@ -555,19 +558,20 @@ impl Diagram {
                             .iter()
                             .map(side)
                             .filter(|port| port.block == id)
-                            .map(|port| port.port.clone())
+                            .map(|port| port.port.as_str())
                             .collect::<BTreeSet<_>>()
                             .into_iter()
+                            .map(|name| label(name, "Type__"))
                             .collect::<Vec<_>>()
                     };
                     (named(|link| &link.to), named(|link| &link.from))
                 }
             };
-        let longest = |names: &[String]| names.iter().map(|name| name.len()).max().unwrap_or(0);
-        let header = block.name.len() + block.module_type.len() + 2;
-        let chars = (longest(&inputs) + longest(&outputs) + 4).max(header) as f32;
+        let longest = |labels: &[usize]| labels.iter().copied().max().unwrap_or(0);
+        let header = block.name.len() + block.module_type.len() + 4;
+        let chars = (longest(&inputs) + longest(&outputs)).max(header) as f32;
         let rows = inputs.len().max(outputs.len()).max(1) as f32;
-        [(chars * 8.0 + 40.0).max(180.0), 56.0 + rows * 26.0]
+        [chars * 6.5 + 60.0, 56.0 + rows * 26.0]
     }
 
     /// Reads a system file; a file without saved positions is laid out in layers by data flow
