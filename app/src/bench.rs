@@ -36,6 +36,8 @@ pub const LOAD: &str = "studio_load_ms_1000_blocks";
 pub const MAP: &str = "map_frame_ms_500_waypoints";
 pub const LABELS: &str = "label_place_ms_500_waypoints";
 pub const VS_SNARL: &str = "studio_vs_bare_snarl_1000";
+pub const LAYOUT: &str = "layout_ms_200_blocks";
+const LAYOUT_GOAL_MS: f64 = 100.0;
 /// `armor-studio bench monitor CONTROL SYSTEM SECS`: the Run view watching a run for
 /// `armor-bench`'s `monitor_overhead` (no line printed).
 pub const MONITOR: &str = "monitor";
@@ -103,6 +105,55 @@ pub fn diagram(blocks: usize, links: usize) -> Diagram {
             if diagram.connect(&catalog, &from, &to).is_ok() {
                 count += 1;
             }
+        }
+    }
+    diagram
+}
+
+/// `blocks` relays and `links` links between them at random (a fixed seed): nine in ten from a
+/// block to one of the next twenty, one in ten backwards, each into a free input.
+pub fn random_diagram(blocks: usize, links: usize) -> Diagram {
+    let relay = relay();
+    let catalog = [(relay.module_type.clone(), relay)].into_iter().collect();
+    let mut diagram = Diagram::new("bench");
+    let ids: Vec<_> = (0..blocks)
+        .map(|_| diagram.add_block("relay", [0.0, 0.0]))
+        .collect();
+    let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+    let mut next = move |below: usize| {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed % below.max(1) as u64) as usize
+    };
+    let pin = |side, block, port: String| Pin {
+        side,
+        port: PortRef { block, port },
+    };
+    let mut count = 0;
+    // Enough tries to find free inputs; the bench checks the count it got.
+    for _ in 0..links * 20 {
+        if count >= links || blocks < 2 {
+            break;
+        }
+        let from = next(blocks);
+        let to = if next(10) == 0 {
+            next(from.max(1))
+        } else {
+            (from + 1 + next(20)).min(blocks - 1)
+        };
+        let port = if next(2) == 0 { "a" } else { "b" };
+        let input = PortRef {
+            block: ids[to],
+            port: format!("in_{port}"),
+        };
+        if from == to || diagram.source_of(&input).is_some() {
+            continue;
+        }
+        let from_pin = pin(PinSide::Output, ids[from], format!("out_{port}"));
+        let to_pin = pin(PinSide::Input, ids[to], input.port.clone());
+        if diagram.connect(&catalog, &from_pin, &to_pin).is_ok() {
+            count += 1;
         }
     }
     diagram
@@ -264,6 +315,34 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
                     "goal": "<= 0.5 (and < 16 ms at 500 blocks)",
                     "reference_is": "a bare egui-snarl viewer (titles and pin labels) on the same graph and view",
                     "sizes": sizes,
+                })
+            )
+        );
+    }
+    if wants(LAYOUT) || wants("layout") {
+        let relay = relay();
+        let catalog: crate::diagram::Catalog =
+            [(relay.module_type.clone(), relay)].into_iter().collect();
+        let diagram = random_diagram(200, 300);
+        let mut samples = Vec::with_capacity(rounds);
+        for _ in 0..rounds {
+            let mut arranged = diagram.clone();
+            let start = Instant::now();
+            arranged.arrange(Some(&catalog));
+            samples.push(start.elapsed());
+            std::hint::black_box(arranged);
+        }
+        println!(
+            "{}",
+            line(
+                LAYOUT,
+                median_ms(samples),
+                LAYOUT_GOAL_MS,
+                serde_json::json!({
+                    "goal": "< 100",
+                    "reference_is": "the goal",
+                    "blocks": diagram.len(),
+                    "links": diagram.links().count(),
                 })
             )
         );

@@ -36,6 +36,7 @@ pub enum UiCommand {
     Stop,
     New,
     ExportPng,
+    Arrange,
     ImportGpx,
     ExportMission,
     ExportPnml,
@@ -50,7 +51,7 @@ const fn key(modifiers: Modifiers, key: Key) -> KeyboardShortcut {
 }
 
 impl UiCommand {
-    pub const ALL: [UiCommand; 23] = [
+    pub const ALL: [UiCommand; 24] = [
         UiCommand::Save,
         UiCommand::SaveAs,
         UiCommand::Open,
@@ -70,6 +71,7 @@ impl UiCommand {
         UiCommand::Stop,
         UiCommand::New,
         UiCommand::ExportPng,
+        UiCommand::Arrange,
         UiCommand::ImportGpx,
         UiCommand::ExportMission,
         UiCommand::ExportPnml,
@@ -91,6 +93,7 @@ impl UiCommand {
             UiCommand::New => "New",
             UiCommand::ExportPng if mission => "Export map PNG…",
             UiCommand::ExportPng => "Export PNG…",
+            UiCommand::Arrange => "Arrange",
             UiCommand::ImportGpx => "Import GPX…",
             UiCommand::ExportMission => "Export mission XML…",
             UiCommand::ExportPnml => "Export PNML…",
@@ -143,6 +146,7 @@ impl UiCommand {
             UiCommand::Stop => const { &[key(Modifiers::SHIFT, Key::F5)] },
             UiCommand::New
             | UiCommand::ExportPng
+            | UiCommand::Arrange
             | UiCommand::ImportGpx
             | UiCommand::ExportMission
             | UiCommand::ExportPnml
@@ -182,6 +186,7 @@ impl UiCommand {
             UiCommand::Stop => "stop the run",
             UiCommand::New => "a new document",
             UiCommand::ExportPng => "export a picture",
+            UiCommand::Arrange => "lay the blocks out by data flow, sources left",
             UiCommand::ImportGpx => "import waypoints and a route (GPX)",
             UiCommand::ExportMission => "export the mission (XML for armor run)",
             UiCommand::ExportPnml => "export the net (PNML)",
@@ -208,6 +213,7 @@ impl UiCommand {
             | UiCommand::Find => view == View::System,
             UiCommand::New
             | UiCommand::ExportPng
+            | UiCommand::Arrange
             | UiCommand::ImportGpx
             | UiCommand::ExportMission
             | UiCommand::ExportPnml
@@ -309,6 +315,7 @@ const SYSTEM_MENUS: &[Menu] = &[
             Item(UiCommand::Save),
             Item(UiCommand::SaveAs),
             Item(UiCommand::ExportPng),
+            Item(UiCommand::Arrange),
             Item(UiCommand::Quit),
         ],
         shows_keys: false,
@@ -483,6 +490,7 @@ mod tests {
             "Save",
             "Save as…",
             "Export PNG…",
+            "Arrange",
             "Quit",
         ];
         let system_edit = [

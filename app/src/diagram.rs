@@ -505,10 +505,81 @@ impl Diagram {
         xml
     }
 
-    /// Reads a system file; blocks without a saved position are laid out in a grid.
+    /// Lays the blocks out left to right by data flow, in layers (sources left, sinks right),
+    /// with crossings reduced (see [`crate::layout`]). Block sizes come from their ports: from
+    /// `catalog` where it describes the block's type, else from the ports the links name.
+    pub fn arrange(&mut self, catalog: Option<&Catalog>) {
+        let ids: Vec<BlockId> = self.blocks.keys().copied().collect();
+        let index: BTreeMap<BlockId, usize> =
+            ids.iter().enumerate().map(|(i, id)| (*id, i)).collect();
+        let sizes: Vec<[f32; 2]> = ids
+            .iter()
+            .map(|id| self.estimated_size(*id, catalog))
+            .collect();
+        let edges: Vec<(usize, usize)> = self
+            .links
+            .iter()
+            .filter_map(|link| Some((*index.get(&link.from.block)?, *index.get(&link.to.block)?)))
+            .collect();
+        let positions = crate::layout::layered(&sizes, &edges, [40.0, 40.0]);
+        for (id, pos) in ids.into_iter().zip(positions) {
+            if let Some(block) = self.blocks.get_mut(&id) {
+                block.pos = [pos[0].round(), pos[1].round()];
+            }
+        }
+    }
+
+    /// About the size the canvas draws a block at: a header, a row per port, as wide as the
+    /// longest input and output labels (`name: Type`) side by side, or the header's name and
+    /// type. Without the type's description, the ports the links name stand for its ports and
+    /// each type is guessed six letters long (`Twist`, `Pose2D`).
+    fn estimated_size(&self, id: BlockId, catalog: Option<&Catalog>) -> [f32; 2] {
+        let Some(block) = self.blocks.get(&id) else {
+            return [200.0, 100.0];
+        };
+        let label = |name: &str, data_type: &str| name.len() + data_type.len() + 2;
+        let (inputs, outputs): (Vec<usize>, Vec<usize>) =
+            match catalog.and_then(|catalog| catalog.get(&block.module_type)) {
+                Some(description) => (
+                    description
+                        .inputs
+                        .iter()
+                        .map(|port| label(&port.name, &port.data_type))
+                        .collect(),
+                    description
+                        .outputs
+                        .iter()
+                        .map(|port| label(&port.name, &port.data_type))
+                        .collect(),
+                ),
+                None => {
+                    let named = |side: fn(&Link) -> &PortRef| {
+                        self.links
+                            .iter()
+                            .map(side)
+                            .filter(|port| port.block == id)
+                            .map(|port| port.port.as_str())
+                            .collect::<BTreeSet<_>>()
+                            .into_iter()
+                            .map(|name| label(name, "Type__"))
+                            .collect::<Vec<_>>()
+                    };
+                    (named(|link| &link.to), named(|link| &link.from))
+                }
+            };
+        let longest = |labels: &[usize]| labels.iter().copied().max().unwrap_or(0);
+        let header = block.name.len() + block.module_type.len() + 4;
+        let chars = (longest(&inputs) + longest(&outputs)).max(header) as f32;
+        let rows = inputs.len().max(outputs.len()).max(1) as f32;
+        [chars * 6.5 + 60.0, 56.0 + rows * 26.0]
+    }
+
+    /// Reads a system file; a file without saved positions is laid out in layers by data flow
+    /// ([`Diagram::arrange`]), and a block missing from saved positions goes in a grid.
     pub fn from_xml(text: &str) -> Result<Diagram, Vec<Located>> {
         let system = SystemConfig::parse(text)?;
         let layout = read_layout(text);
+        let unlaid = layout.is_empty();
         let mut diagram = Diagram::new(&system.name);
         diagram.host.clone_from(&system.host);
         let mut by_name = BTreeMap::new();
@@ -547,6 +618,9 @@ impl Diagram {
                     },
                 });
             }
+        }
+        if unlaid {
+            diagram.arrange(None);
         }
         Ok(diagram)
     }

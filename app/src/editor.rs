@@ -98,6 +98,8 @@ pub enum Command {
         name: String,
     },
     DeleteSelection,
+    /// Lays every block out in layers by data flow (File → Arrange).
+    Arrange,
     Copy,
     /// Copy, then delete, in one undo step.
     Cut,
@@ -234,6 +236,14 @@ impl Editor {
                 self.diagram.remove_blocks(&selection);
                 self.changed(before);
                 Outcome::Done(format!("deleted {}", plural(count, "block")))
+            }
+            Command::Arrange => {
+                self.diagram.arrange(Some(catalog));
+                if self.diagram == before {
+                    return Outcome::Nothing;
+                }
+                self.changed(before);
+                Outcome::Done("arranged by data flow".to_owned())
             }
             Command::Copy => {
                 if self.selection.is_empty() {

@@ -15,6 +15,7 @@ pub mod dialogs;
 pub mod editor;
 pub mod export;
 pub mod files;
+pub mod layout;
 pub mod mission;
 pub mod palette;
 pub mod run;

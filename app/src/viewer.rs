@@ -256,12 +256,13 @@ impl Canvas {
             if only.is_some_and(|only| !only.contains(&id)) {
                 continue;
             }
-            let rect = self.node_rects.get(&id).copied().unwrap_or_else(|| {
-                Rect::from_min_size(
-                    Pos2::new(block.pos[0], block.pos[1]),
-                    Vec2::new(200.0, 100.0),
-                )
-            });
+            // Where the document puts the block (it may have just moved: Arrange, undo), as
+            // large as it was last drawn.
+            let size = self
+                .node_rects
+                .get(&id)
+                .map_or(Vec2::new(200.0, 100.0), |rect| rect.size());
+            let rect = Rect::from_min_size(Pos2::new(block.pos[0], block.pos[1]), size);
             bounds = bounds.union(rect);
         }
         bounds.is_finite().then_some(bounds)
@@ -748,12 +749,15 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
     }
 }
 
-/// The transform that shows `view` (canvas) whole and centred in `screen`, at most at 1:1.
+/// The transform that shows `view` (canvas) centred in `screen`, whole if it can be at a zoom
+/// between [`DETAIL_SCALE`] and 1:1. Never below the zoom at which names are drawn: a first
+/// sight of nameless boxes tells a newcomer nothing, so a large diagram shows its middle, named,
+/// and the rest is a zoom or pan away.
 pub fn fit(view: Rect, screen: Rect) -> TSTransform {
     let view = view.expand(40.0);
     let scale = (screen.width() / view.width())
         .min(screen.height() / view.height())
-        .clamp(0.05, 1.0);
+        .clamp(DETAIL_SCALE, 1.0);
     let scale = if scale.is_finite() { scale } else { 1.0 };
     TSTransform::new(
         screen.center().to_vec2() - view.center().to_vec2() * scale,

@@ -99,9 +99,13 @@ impl SystemView {
     pub fn apply_commands(&mut self, ctx: &egui::Context, catalog: &Catalog) {
         for command in std::mem::take(&mut self.commands) {
             let copies = matches!(command, Command::Copy | Command::Cut);
+            let arranges = matches!(command, Command::Arrange);
             match self.editor.apply(command, catalog) {
                 Outcome::Nothing => {}
                 Outcome::Done(text) => {
+                    if arranges {
+                        self.zoom_to_fit();
+                    }
                     if copies {
                         // On the system clipboard too, as a system file of the copied blocks.
                         let xml = self.editor.clipboard.to_xml();
@@ -261,6 +265,7 @@ impl SystemView {
             UiCommand::Duplicate => Command::Duplicate,
             UiCommand::Delete => Command::DeleteSelection,
             UiCommand::SelectAll => Command::SelectAll,
+            UiCommand::Arrange => Command::Arrange,
             UiCommand::ClearSelection => Command::Select(BTreeSet::new()),
             UiCommand::ZoomToFit => {
                 self.zoom_to_fit();

@@ -269,6 +269,12 @@ const BENCHES: &[Bench] = &[
         run: studio::run_vs_snarl,
     },
     Bench {
+        name: studio::NAME_LAYOUT,
+        about: "armor-studio's File → Arrange (layered layout) on 200 blocks and 300 links wired \
+                at random, some backwards (ms; goal < 100)",
+        run: studio::run_layout,
+    },
+    Bench {
         name: fuzz::NAME,
         about: "inputs run through each parser's fuzz target by fuzz/run.sh, with the crashes \
                 found (must be 0); needs cargo-fuzz",

@@ -2,7 +2,8 @@
 //! 1,000-block, 1,500-link diagram; goal < 16 ms) and `studio_load_ms_1000_blocks` (opening
 //! that file), and `map_frame_ms_500_waypoints` (one frame of the Mission view with a
 //! 500-waypoint plan and its symbols; goal < 16 ms), and `studio_vs_bare_snarl_1000` (our
-//! diagram's frame against a bare egui-snarl viewer on the same graph; goal ≤ 0.5×). The runtime must not depend on egui, so `armor-studio` measures them itself in
+//! diagram's frame against a bare egui-snarl viewer on the same graph; goal ≤ 0.5×), and
+//! `layout_ms_200_blocks` (File → Arrange on 200 blocks and 300 links; goal < 100 ms). The runtime must not depend on egui, so `armor-studio` measures them itself in
 //! its hidden `bench` mode and prints them as report lines; this relays them.
 
 use std::process::Command;
@@ -18,6 +19,7 @@ pub const NAME_LOAD: &str = "studio_load_ms_1000_blocks";
 pub const NAME_MAP: &str = "map_frame_ms_500_waypoints";
 pub const NAME_LABELS: &str = "label_place_ms_500_waypoints";
 pub const NAME_VS_SNARL: &str = "studio_vs_bare_snarl_1000";
+pub const NAME_LAYOUT: &str = "layout_ms_200_blocks";
 
 pub fn run_frame(settings: &Settings) -> anyhow::Result<Report> {
     relay(NAME_FRAME, settings)
@@ -33,6 +35,10 @@ pub fn run_map(settings: &Settings) -> anyhow::Result<Report> {
 
 pub fn run_labels(settings: &Settings) -> anyhow::Result<Report> {
     relay(NAME_LABELS, settings)
+}
+
+pub fn run_layout(settings: &Settings) -> anyhow::Result<Report> {
+    relay(NAME_LAYOUT, settings)
 }
 
 pub fn run_vs_snarl(settings: &Settings) -> anyhow::Result<Report> {

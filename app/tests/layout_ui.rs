@@ -1,0 +1,89 @@
+//! First sight of a system: a file without saved positions is laid out in layers by data flow,
+//! fitted at a zoom where every block's name is drawn, and File → Arrange is one undo step.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::PathBuf;
+
+use armor_studio::diagram::Diagram;
+use armor_studio::viewer::DETAIL_SCALE;
+use common::*;
+use egui::{Key, Modifiers};
+use egui_kittest::kittest::Queryable as _;
+
+fn robot_system() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../missions/robot/system.xml")
+}
+
+#[test]
+fn robot_system_opens_in_layers_with_every_name_drawn() {
+    let dir = tempfile::tempdir().unwrap();
+    let harness = harness(options(&dir.path().join("home"), Some(robot_system())));
+    let diagram = &harness.state().editor().diagram;
+    assert_eq!(diagram.len(), 7);
+
+    // Sources left of their sinks, for every link but the one that closes the loop through
+    // the robot (mux → sim), which the layout turns round.
+    let x = |id| diagram.block(id).unwrap().pos[0];
+    let backwards: Vec<String> = diagram
+        .links()
+        .filter(|link| x(link.from.block) >= x(link.to.block))
+        .map(|link| {
+            format!(
+                "{} -> {}",
+                diagram.port_label(&link.from),
+                diagram.port_label(&link.to)
+            )
+        })
+        .collect();
+    assert_eq!(backwards, ["`mux.cmd_vel` -> `sim.cmd_vel`"]);
+
+    // Fitted no smaller than the zoom at which names are drawn, and every name is drawn.
+    let scale = harness.state().canvas_transform().scaling;
+    assert!(scale >= DETAIL_SCALE, "fitted at {scale}");
+    for (_, block) in diagram.blocks() {
+        assert!(
+            harness.query_all_by_label(&block.name).next().is_some(),
+            "`{}` is not drawn",
+            block.name
+        );
+    }
+}
+
+#[test]
+fn arrange_is_one_undo_step() {
+    let dir = tempfile::tempdir().unwrap();
+    // The robot system with positions saved, scattered as a user dragging blocks might leave it.
+    let mut scattered =
+        Diagram::from_xml(&std::fs::read_to_string(robot_system()).unwrap()).unwrap();
+    let ids: Vec<_> = scattered.blocks().map(|(id, _)| id).collect();
+    for (index, id) in ids.into_iter().enumerate() {
+        scattered.move_block(id, [index as f32 * 37.0, 600.0 - index as f32 * 80.0]);
+    }
+    let file = dir.path().join("scattered.xml");
+    std::fs::write(&file, scattered.to_xml()).unwrap();
+    let mut harness = harness(options(&dir.path().join("home"), Some(file)));
+    let opened = harness.state().editor().diagram.clone();
+    let positions = |diagram: &Diagram| diagram.blocks().map(|(_, b)| b.pos).collect::<Vec<_>>();
+    assert_eq!(
+        positions(&opened),
+        positions(&scattered),
+        "saved positions are kept"
+    );
+
+    harness.get_by_label("File").click();
+    harness.run();
+    harness.get_by_label("Arrange").click();
+    harness.run();
+    let arranged = harness.state().editor().diagram.clone();
+    assert_ne!(positions(&arranged), positions(&opened));
+    harness.get_by_label("arranged by data flow");
+
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::Z);
+    harness.run();
+    assert_eq!(harness.state().editor().diagram, opened);
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::Y);
+    harness.run();
+    assert_eq!(harness.state().editor().diagram, arranged);
+}
