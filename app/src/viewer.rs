@@ -31,6 +31,9 @@ const WARNING: Color32 = Color32::from_rgb(230, 90, 70);
 /// Below this zoom, text is too small to read: the diagram is painted as an overview of boxes
 /// and wires instead of widgets: blocks are selected and moved there, and linked once zoomed in.
 pub const DETAIL_SCALE: f32 = 0.5;
+/// The least zoom fit chooses: names and port labels about 8 points high or more, read at
+/// first sight (below, they are drawn, but small).
+pub const FIT_FLOOR: f32 = 0.75;
 
 /// The canvas's state across frames.
 pub struct Canvas {
@@ -533,13 +536,21 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
             ui.set_min_width(chars as f32 * 5.5 + 30.0);
         }
         ui.label(RichText::new(&block.name).strong());
-        match self.live.get(&block.name) {
-            Some(state) => ui.label(
-                RichText::new(format!("{} · {}", block.module_type, state.as_str()))
+        // The type only where the name does not say it already.
+        let module_type = (block.module_type != block.name).then_some(block.module_type.as_str());
+        match (self.live.get(&block.name), module_type) {
+            (Some(state), Some(module_type)) => ui.label(
+                RichText::new(format!("{module_type} · {}", state.as_str()))
                     .color(state_colour(*state))
                     .small(),
             ),
-            None => ui.label(RichText::new(&block.module_type).weak().small()),
+            (Some(state), None) => ui.label(
+                RichText::new(state.as_str())
+                    .color(state_colour(*state))
+                    .small(),
+            ),
+            (None, Some(module_type)) => ui.label(RichText::new(module_type).weak().small()),
+            (None, None) => return,
         };
     }
 
@@ -750,14 +761,14 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
 }
 
 /// The transform that shows `view` (canvas) centred in `screen`, whole if it can be at a zoom
-/// between [`DETAIL_SCALE`] and 1:1. Never below the zoom at which names are drawn: a first
-/// sight of nameless boxes tells a newcomer nothing, so a large diagram shows its middle, named,
-/// and the rest is a zoom or pan away.
+/// between [`FIT_FLOOR`] and 1:1. Never below the zoom at which names read: a first sight of
+/// nameless boxes, or of names too small to read, tells a newcomer nothing, so a large diagram
+/// shows its middle, named, and the rest is a zoom or pan away.
 pub fn fit(view: Rect, screen: Rect) -> TSTransform {
     let view = view.expand(40.0);
     let scale = (screen.width() / view.width())
         .min(screen.height() / view.height())
-        .clamp(DETAIL_SCALE, 1.0);
+        .clamp(FIT_FLOOR, 1.0);
     let scale = if scale.is_finite() { scale } else { 1.0 };
     TSTransform::new(
         screen.center().to_vec2() - view.center().to_vec2() * scale,

@@ -85,11 +85,19 @@ impl SystemView {
             .resizable(true)
             .default_size(220.0)
             .show(ui, |ui| self.palette_ui(ui, palette));
-        egui::Panel::right("problems")
-            .resizable(true)
-            .default_size(300.0)
-            .min_size(240.0)
-            .show(ui, |ui| self.problems_ui(ui, palette));
+        // The problem list takes room only when there are problems: otherwise a line above
+        // the canvas says so, and the diagram has the width. (Checked before the panels are
+        // laid out, so that a document fitted at its first frame is fitted in the right room.)
+        self.update_problems(palette);
+        if self.problems.is_empty() {
+            egui::Panel::top("no-problems").show(ui, |ui| self.problems_ui(ui, palette));
+        } else {
+            egui::Panel::right("problems")
+                .resizable(true)
+                .default_size(300.0)
+                .min_size(240.0)
+                .show(ui, |ui| self.problems_ui(ui, palette));
+        }
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| self.canvas_ui(ui, &palette.catalog, started, live));

@@ -9,10 +9,12 @@ use crate::palette::Palette;
 impl SystemView {
     pub(super) fn problems_ui(&mut self, ui: &mut Ui, palette: &Palette) {
         if self.problems.is_empty() {
-            ui.colored_label(OK, "No problems");
-            if palette.is_probing() {
-                ui.label(RichText::new("(modules are still being described)").weak());
-            }
+            ui.horizontal(|ui| {
+                ui.colored_label(OK, "No problems");
+                if palette.is_probing() {
+                    ui.label(RichText::new("(modules are still being described)").weak());
+                }
+            });
             return;
         }
         ui.heading(crate::editor::plural(self.problems.len(), "problem"));
