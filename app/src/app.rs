@@ -533,10 +533,9 @@ impl StudioApp {
                             }
                             MenuItem::Recent => self.recent_menu_ui(ui),
                             MenuItem::Command(command) => {
-                                let mut button = egui::Button::new(command.label(self.view));
-                                if menu.shows_keys {
-                                    button = button.shortcut_text(command.keys_text());
-                                }
+                                // Every entry shows its keys, as the command table has them.
+                                let button = egui::Button::new(command.label(self.view))
+                                    .shortcut_text(command.keys_text());
                                 let enabled = match command {
                                     UiCommand::Run => !self.run.is_running(),
                                     UiCommand::Stop => self.run.is_running(),

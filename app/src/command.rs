@@ -298,9 +298,6 @@ pub enum MenuItem {
 pub struct Menu {
     pub title: &'static str,
     pub items: &'static [MenuItem],
-    /// Whether its entries show their keys (the Run menu's do; the System and Mission menus
-    /// never have, their keys are on the sheet).
-    pub shows_keys: bool,
 }
 
 use MenuItem::{Command as Item, Recent, Separator};
@@ -318,7 +315,6 @@ const SYSTEM_MENUS: &[Menu] = &[
             Item(UiCommand::Arrange),
             Item(UiCommand::Quit),
         ],
-        shows_keys: false,
     },
     Menu {
         title: "Edit",
@@ -332,7 +328,6 @@ const SYSTEM_MENUS: &[Menu] = &[
             Item(UiCommand::Delete),
             Item(UiCommand::SelectAll),
         ],
-        shows_keys: false,
     },
     Menu {
         title: "View",
@@ -341,7 +336,6 @@ const SYSTEM_MENUS: &[Menu] = &[
             Item(UiCommand::Find),
             Item(UiCommand::Help),
         ],
-        shows_keys: false,
     },
 ];
 
@@ -361,7 +355,6 @@ const MISSION_MENUS: &[Menu] = &[
             Separator,
             Item(UiCommand::Quit),
         ],
-        shows_keys: false,
     },
     Menu {
         title: "Edit",
@@ -370,7 +363,6 @@ const MISSION_MENUS: &[Menu] = &[
             Item(UiCommand::Redo),
             Item(UiCommand::Delete),
         ],
-        shows_keys: false,
     },
 ];
 
@@ -382,7 +374,6 @@ const RUN_MENUS: &[Menu] = &[Menu {
         Separator,
         Item(UiCommand::Open),
     ],
-    shows_keys: true,
 }];
 
 /// The menus of `view`, left to right.
