@@ -518,6 +518,7 @@ impl StudioApp {
             (View::Run, UiCommand::Open) => {
                 self.ask_path(PathPurpose::OpenRecording, String::new());
             }
+            (View::Run, UiCommand::ZoomToFit) => self.run.request_fit(),
             (View::Run, _) => {}
         }
     }

@@ -203,8 +203,8 @@ impl UiCommand {
             | UiCommand::Undo
             | UiCommand::Redo
             | UiCommand::Delete
-            | UiCommand::ClearSelection
-            | UiCommand::ZoomToFit => view != View::Run,
+            | UiCommand::ClearSelection => view != View::Run,
+            UiCommand::ZoomToFit => true,
             UiCommand::Cut
             | UiCommand::Copy
             | UiCommand::Paste
@@ -364,17 +364,27 @@ const MISSION_MENUS: &[Menu] = &[
             Item(UiCommand::Delete),
         ],
     },
+    Menu {
+        title: "View",
+        items: &[Item(UiCommand::ZoomToFit), Item(UiCommand::Help)],
+    },
 ];
 
-const RUN_MENUS: &[Menu] = &[Menu {
-    title: "Run",
-    items: &[
-        Item(UiCommand::Run),
-        Item(UiCommand::Stop),
-        Separator,
-        Item(UiCommand::Open),
-    ],
-}];
+const RUN_MENUS: &[Menu] = &[
+    Menu {
+        title: "Run",
+        items: &[
+            Item(UiCommand::Run),
+            Item(UiCommand::Stop),
+            Separator,
+            Item(UiCommand::Open),
+        ],
+    },
+    Menu {
+        title: "View",
+        items: &[Item(UiCommand::ZoomToFit), Item(UiCommand::Help)],
+    },
+];
 
 /// The menus of `view`, left to right.
 pub fn menus(view: View) -> &'static [Menu] {
@@ -523,12 +533,20 @@ mod tests {
             [
                 ("File", mission_file.to_vec()),
                 ("Edit", vec!["Undo", "Redo", "Delete"]),
+                ("View", vec!["Zoom to fit", "Keyboard shortcuts"]),
             ]
         );
         assert_eq!(
             labels(View::Run),
-            [("Run", vec!["Run", "Stop", "---", "Open recording…"])]
+            [
+                ("Run", vec!["Run", "Stop", "---", "Open recording…"]),
+                ("View", vec!["Zoom to fit", "Keyboard shortcuts"]),
+            ]
         );
+        // The View menu is in every view, so that the menu bar does not move.
+        for view in [View::System, View::Mission, View::Run] {
+            assert!(menus(view).iter().any(|menu| menu.title == "View"));
+        }
         let run_keys: Vec<String> = [UiCommand::Run, UiCommand::Stop, UiCommand::Open]
             .into_iter()
             .map(UiCommand::keys_text)

@@ -137,6 +137,11 @@ impl RunView {
         Some(status)
     }
 
+    /// Frames the world, the plan and the robot at the next frame (Fit, Home).
+    pub fn request_fit(&mut self) {
+        self.fit_pending = true;
+    }
+
     /// The file the current (or last) run runs.
     pub fn session_target(&self) -> Option<&Path> {
         self.session
@@ -466,7 +471,6 @@ impl RunView {
                 .button("Fit")
                 .on_hover_text("frame the world, the plan and the robot (Home)")
                 .clicked()
-                || ui.input(|input| input.key_pressed(egui::Key::Home))
             {
                 self.fit_pending = true;
             }
