@@ -9,6 +9,7 @@
 mod documents;
 mod picture;
 
+use crate::start::StartChoice;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -37,6 +38,9 @@ pub struct Options {
     pub file: Option<PathBuf>,
     /// How often the recovery copy is written while there are unsaved changes.
     pub autosave_every: Duration,
+    /// Show the start page while the studio holds no document (the window does; tests that
+    /// drive the canvas from the first frame do not ask for it).
+    pub start_page: bool,
 }
 
 impl Options {
@@ -47,6 +51,7 @@ impl Options {
             palette: None,
             file: None,
             autosave_every: Duration::from_secs(5),
+            start_page: false,
         }
     }
 }
@@ -65,6 +70,8 @@ pub struct StudioApp {
     status: Status,
     path_dialog: Option<PathDialog>,
     help_open: bool,
+    /// The start page is on offer (no document yet), with the examples found.
+    start: Option<Vec<PathBuf>>,
     /// Recovery copies left by a session that did not end cleanly, offered one at a time.
     recovery: Vec<Recovery>,
     autosave_every: Duration,
@@ -110,6 +117,7 @@ impl StudioApp {
             status: Status::default(),
             path_dialog: None,
             help_open: false,
+            start: (options.start_page && options.file.is_none()).then(crate::start::examples),
             recovery,
             autosave_every: options.autosave_every,
             view: View::System,
@@ -329,6 +337,7 @@ impl StudioApp {
                 let live = self.run.module_states();
                 self.system.ui(ui, &self.palette, self.started, &live);
                 self.show_system_messages();
+                self.start_ui(ui);
             }
             View::Run => self.run_ui(ui),
         }
@@ -520,6 +529,50 @@ impl StudioApp {
             }
             (View::Run, UiCommand::ZoomToFit) => self.run.request_fit(),
             (View::Run, _) => {}
+        }
+    }
+
+    /// The start page, over the empty canvas, until a document is made or opened.
+    fn start_ui(&mut self, ui: &mut Ui) {
+        let Some(examples) = &self.start else {
+            return;
+        };
+        if !self.system.editor.diagram.is_empty() || self.system.path.is_some() {
+            self.start = None;
+            return;
+        }
+        let recent = self.home.recent();
+        let mut choice = None;
+        egui::Window::new("Start")
+            .title_bar(false)
+            .collapsible(false)
+            .resizable(false)
+            .anchor(egui::Align2::CENTER_CENTER, [0.0, 0.0])
+            .fixed_size([560.0, 380.0])
+            .show(ui.ctx(), |ui| {
+                choice = crate::start::start_ui(ui, &recent, examples);
+            });
+        let Some(choice) = choice else {
+            return;
+        };
+        self.start = None;
+        let ctx = ui.ctx().clone();
+        match choice {
+            StartChoice::NewSystem => self.set_status(
+                "new system: drag modules from the palette onto the canvas".to_owned(),
+                false,
+            ),
+            StartChoice::NewPlan => {
+                self.set_view(View::Mission);
+                self.replace(Replacing::NewPlan, &ctx);
+            }
+            StartChoice::Open => self.execute(UiCommand::Open, &ctx, true),
+            StartChoice::File(file) if is_plan(&file) => {
+                // As a plan given on the command line: opened once the Mission view is up.
+                self.set_view(View::Mission);
+                self.plan_to_open = Some(file);
+            }
+            StartChoice::File(file) => self.replace(Replacing::OpenSystem(file), &ctx),
         }
     }
 

@@ -19,6 +19,7 @@ pub mod layout;
 pub mod mission;
 pub mod palette;
 pub mod run;
+pub mod start;
 pub mod system;
 pub mod validation;
 pub mod viewer;
@@ -43,6 +44,7 @@ impl eframe::App for Window {
 pub fn run(file: Option<PathBuf>) -> anyhow::Result<()> {
     let mut options = Options::new(files::Home::new(files::default_home()));
     options.file = file;
+    options.start_page = true;
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("ArMoR Studio")

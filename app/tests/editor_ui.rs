@@ -745,3 +745,26 @@ fn a_path_offered_in_the_dialog_is_replaced_by_what_is_typed() {
     );
     assert_eq!(harness.state().title(), "second.xml — ArMoR Studio");
 }
+
+#[test]
+fn an_empty_studio_offers_a_start_page_with_the_examples() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut options = options(&dir.path().join("home"), None);
+    options.start_page = true;
+    let mut harness = harness(options);
+    harness.run();
+    harness.get_by_label("New system");
+    harness.get_by_label("New plan");
+    harness.get_by_label("Recent files");
+    // The bundled examples, from the checkout's missions/ folder; one opens in its view.
+    harness.get_by_label("robot/plan-yard.xml").click();
+    harness.run();
+    harness.run();
+    assert_eq!(harness.state().view(), armor_studio::app::View::Mission);
+    let mission = harness.state().mission().unwrap();
+    assert_eq!(mission.plan().name, "yard-recon");
+    assert!(
+        harness.query_by_label("New plan").is_none(),
+        "the page is gone"
+    );
+}
