@@ -14,12 +14,18 @@
 //! every pose the follower takes the shortest way round them to the goal
 //! ([`armor_model::geo::route`], [`CLEARANCE_M`] away from them) and heads for its first corner.
 //! With no way round it stops, and `blocked` follows.
+//!
+//! When a `path` is given (as a compiled plan gives each leg the path planned at plan time, which
+//! already keeps out of the no-go areas), the follower drives along it instead, with regulated
+//! pure pursuit ([`super::pursuit`]), and progress is the length of path left to the goal.
 
 use armor_model::geo::{self, Polygon};
+use armor_model::planner::Path;
 use armor_model::world::Point;
 use armor_module_api::types::{Odometry, Pose2D, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
+use super::pursuit::{Limits, Pursuit};
 use super::wrap_angle;
 use crate::BodyError;
 use crate::params::{FloatRange, float_in};
@@ -127,7 +133,8 @@ pub fn spec() -> ModuleSpec {
             ParamType::String,
             "the path planned for this leg at plan time, in the frame of the odometry pose: \
              points `X,Y X,Y ...` in metres from the leg's start to the goal (a compiled plan \
-             gives it); accepted but not yet driven: the follower heads for the goal as above",
+             gives it); when given, the follower drives along it (regulated pure pursuit) \
+             instead of heading for the goal, and no_go is left to the path (tunable live)",
         )
         .default(""),
     )
@@ -209,6 +216,8 @@ pub struct Settings {
     pub max_turn_radps: f64,
     pub blocked_after_secs: f64,
     pub no_go: Vec<Polygon>,
+    /// The path planned for the leg (empty: none, head for the goal).
+    pub path: Path,
 }
 
 impl Settings {
@@ -226,11 +235,43 @@ impl Settings {
             )?,
             no_go: geo::parse_polygons(&node.param::<String>("no_go")?)
                 .map_err(|why| format!("parameter `no_go`: {why}"))?,
+            path: Path::parse(&node.param::<String>("path")?)
+                .map_err(|why| format!("parameter `path`: {why}"))?,
         })
     }
 
     fn same_goal(&self, other: &Settings) -> bool {
-        self.goal_x_m == other.goal_x_m && self.goal_y_m == other.goal_y_m
+        self.goal_x_m == other.goal_x_m
+            && self.goal_y_m == other.goal_y_m
+            && self.path == other.path
+    }
+
+    fn goal(&self) -> Point {
+        Point::new(self.goal_x_m, self.goal_y_m)
+    }
+
+    fn limits(&self) -> Limits {
+        Limits {
+            max_speed_mps: self.max_speed_mps,
+            max_turn_radps: self.max_turn_radps,
+        }
+    }
+
+    /// The path to pursue, when one is given: the planned points, ending at the goal (added
+    /// when the path does not end there, as after a live change of the goal alone).
+    fn pursuit(&self) -> Option<Pursuit> {
+        if self.path.points.is_empty() {
+            return None;
+        }
+        let mut points = self.path.points.clone();
+        let goal = self.goal();
+        if points
+            .last()
+            .is_some_and(|last| geo::distance(*last, goal) > 1e-3)
+        {
+            points.push(goal);
+        }
+        Some(Pursuit::new(points))
     }
 }
 
@@ -245,11 +286,14 @@ struct Control {
 #[derive(Clone, Debug)]
 struct Follower {
     settings: Settings,
-    /// The corner of the way round the no-go areas headed for.
+    /// The path being followed, when there is one.
+    pursuit: Option<Pursuit>,
+    /// The corner of the way round the no-go areas headed for (without a path).
     via: Option<Point>,
     reached: bool,
     blocked: bool,
-    /// The shortest distance to the goal so far, and when it was last shortened.
+    /// The shortest way left to the goal so far (along the path when there is one), and when
+    /// it was last shortened.
     best_distance_m: f64,
     last_progress: f64,
 }
@@ -258,6 +302,7 @@ impl Follower {
     fn new(settings: Settings, now: f64) -> Self {
         let mut follower = Self {
             settings,
+            pursuit: None,
             via: None,
             reached: false,
             blocked: false,
@@ -271,6 +316,14 @@ impl Follower {
     /// A new goal or a new activation: `goal_reached` and `blocked` are re-armed, and progress
     /// is counted from the next pose.
     fn restart(&mut self, now: f64) {
+        self.pursuit = self.settings.pursuit();
+        if let Some(pursuit) = &self.pursuit {
+            tracing::info!(
+                "following the planned path: {} points, {} m",
+                pursuit.points().len(),
+                geo::round_mm(geo::path_length(pursuit.points()))
+            );
+        }
         self.via = None;
         self.reached = false;
         self.blocked = false;
@@ -288,8 +341,23 @@ impl Follower {
         }
     }
 
+    /// The command from `pose`, the straight distance to the goal and the way left to it
+    /// (along the path when there is one).
+    fn steer(&mut self, pose: Pose2D) -> Option<(Twist, f64, f64)> {
+        match &mut self.pursuit {
+            Some(pursuit) => {
+                let steer = pursuit.steer(pose, self.settings.limits())?;
+                let distance_m =
+                    geo::distance(Point::new(pose.x_m, pose.y_m), self.settings.goal());
+                Some((steer.twist, distance_m, steer.remaining_m))
+            }
+            None => steer_round(&self.settings, pose, &mut self.via)
+                .map(|(twist, distance_m)| (twist, distance_m, distance_m)),
+        }
+    }
+
     fn on_pose(&mut self, pose: Pose2D, now: f64) -> Control {
-        let Some((twist, distance_m)) = steer_round(&self.settings, pose, &mut self.via) else {
+        let Some((twist, distance_m, remaining_m)) = self.steer(pose) else {
             tracing::warn!("ignoring a non-finite pose {pose:?}");
             return Control {
                 twist: Twist::default(),
@@ -309,8 +377,8 @@ impl Follower {
                 report: Some("goal_reached"),
             };
         }
-        let report = if distance_m < self.best_distance_m - PROGRESS_M {
-            self.best_distance_m = distance_m;
+        let report = if remaining_m < self.best_distance_m - PROGRESS_M {
+            self.best_distance_m = remaining_m;
             self.last_progress = now;
             self.blocked = false;
             None
@@ -449,6 +517,37 @@ mod tests {
     }
 
     #[test]
+    fn a_path_is_driven_instead_of_the_way_round_the_no_go_areas() {
+        // The straight way round the box is south (see above); the planned path goes north,
+        // so the follower turns left, and the areas are left to the path.
+        let mut bench = bench(&[
+            ("goal_x_m", "10"),
+            ("no_go", "4,-2 6,-2 6,3 4,3"),
+            ("path", "0,0 2,4 8,4 10,0"),
+        ]);
+        bench.script([at(0.0, 0.0, 1.1), at(5.0, 4.0, 0.0), at(9.9, 0.1, -1.1)]);
+        body(bench.node()).expect("body");
+        let sent = sent(&bench);
+        assert!(
+            sent[0].linear_mps > 0.3,
+            "along the first stretch: {sent:?}"
+        );
+        assert!(
+            sent[1].angular_radps.abs() < 1e-6,
+            "north of the box: {sent:?}"
+        );
+        assert!(sent[1].linear_mps > 0.5, "{sent:?}");
+        assert_eq!(sent[2], Twist::default());
+        assert_eq!(bench.reported(), ["goal_reached"]);
+        let err = body(bench_with(&[("path", "0,0 x")]).node()).expect_err("refused");
+        assert!(err.to_string().contains("parameter `path`"), "{err}");
+    }
+
+    fn bench_with(params: &[(&str, &str)]) -> TestBench {
+        bench(params)
+    }
+
+    #[test]
     fn bad_no_go_text_is_refused_in_words() {
         let mut bench = TestBench::new(
             &spec(),
@@ -498,6 +597,7 @@ mod tests {
             max_turn_radps: 1.2,
             blocked_after_secs: 10.0,
             no_go: Vec::new(),
+            path: Path::default(),
         }
     }
 

@@ -18,6 +18,7 @@
 
 pub mod avoider;
 pub mod follower;
+pub(crate) mod pursuit;
 
 use armor_module_api::types::Twist;
 
