@@ -20,15 +20,16 @@
 //! pure pursuit ([`super::pursuit`]), and progress is the length of path left to the goal.
 
 use armor_model::geo::{self, Polygon};
-use armor_model::planner::Path;
+use armor_model::planner::{self, Keepout, Path, Robot};
 use armor_model::world::Point;
-use armor_module_api::types::{Odometry, Pose2D, Twist};
+use armor_module_api::types::{LaserScan, Odometry, Pose2D, Text, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use super::pursuit::{Limits, Pursuit};
+use super::replan::{self, WorldMap};
 use super::wrap_angle;
 use crate::BodyError;
-use crate::params::{FloatRange, float_in};
+use crate::params::{FloatRange, float_in, int_in};
 
 pub const TYPE: &str = "follower";
 
@@ -57,6 +58,16 @@ pub fn spec() -> ModuleSpec {
     .input::<Odometry>(
         "odometry",
         "the robot's pose (the odometry pose, or a corrected pose in the same frame as the goal)",
+    )
+    .input::<LaserScan>(
+        "scan",
+        "the laser scan (optional): with a path, what it sees on the way is gone round when \
+         replanning",
+    )
+    .output::<Text>(
+        "path",
+        "the path being followed, `X,Y X,Y ...` in metres: the planned one at each activation, \
+         and each new one after a replan",
     )
     .output::<Twist>(
         "cmd_desired",
@@ -138,6 +149,44 @@ pub fn spec() -> ModuleSpec {
         )
         .default(""),
     )
+    .param(
+        ParamSpec::new(
+            "world",
+            ParamType::String,
+            "the world file replanning starts from (found as the sim finds its own: as given, \
+             then under assets/worlds/; empty: replan on what the laser sees alone)",
+        )
+        .default(""),
+    )
+    .param(
+        ParamSpec::new(
+            "robot_radius_m",
+            ParamType::Float,
+            "the robot's radius, for replanning (greater than 0)",
+        )
+        .unit("m")
+        .default("0.25"),
+    )
+    .param(
+        ParamSpec::new(
+            "replan_after_secs",
+            ParamType::Float,
+            "with a path: plan again from where the robot is when it has made no progress along \
+             the path for this long, or at once when the laser sees the path blocked ahead \
+             (greater than 0)",
+        )
+        .unit("s")
+        .default("3"),
+    )
+    .param(
+        ParamSpec::new(
+            "max_replans",
+            ParamType::Int,
+            "with a path: the most replans per leg (0 to 100); beyond them, no progress for \
+             blocked_after_secs reports `blocked`, and so does a replan that finds no way",
+        )
+        .default("3"),
+    )
     .event(
         "goal_reached",
         "the robot is within tolerance_m of the goal (once per goal or activation)",
@@ -150,8 +199,11 @@ pub fn spec() -> ModuleSpec {
 
 pub fn body(node: &mut Node) -> BodyResult {
     let odometry = node.input::<Odometry>("odometry")?;
+    let scan = node.input::<LaserScan>("scan")?;
+    let path_output = node.output::<Text>("path")?;
     let output = node.output::<Twist>("cmd_desired")?;
     let settings = Settings::read(node)?;
+    let world = load_world(&settings.world)?;
     tracing::info!(
         "goal ({}, {}), {} no-go area(s)",
         settings.goal_x_m,
@@ -159,6 +211,7 @@ pub fn body(node: &mut Node) -> BodyResult {
         settings.no_go.len()
     );
     let mut follower = Follower::new(settings, node.timestamp());
+    follower.world = world;
     let mut next_tick = node.timestamp() + TICK_SECS;
     loop {
         let event = if node.is_active() {
@@ -174,10 +227,18 @@ pub fn body(node: &mut Node) -> BodyResult {
                 };
                 if node.is_active() {
                     let control = follower.on_pose(sample.value.pose_in_odom, node.timestamp());
+                    if control.new_path {
+                        send_path(node, &path_output, &follower)?;
+                    }
                     node.send(&output, &control.twist)?;
                     if let Some(event) = control.report {
                         node.report(event)?;
                     }
+                }
+            }
+            Event::Input(port) if port == scan.id() => {
+                if let Some(sample) = node.take(&scan)? {
+                    follower.on_scan(&sample.value);
                 }
             }
             Event::Timeout if node.is_active() => {
@@ -191,19 +252,56 @@ pub fn body(node: &mut Node) -> BodyResult {
                 tracing::info!("active: heading for the goal");
                 follower.restart(node.timestamp());
                 next_tick = node.timestamp() + TICK_SECS;
+                send_path(node, &path_output, &follower)?;
             }
             Event::Stop => {
                 tracing::info!("inactive: stopping");
                 node.send(&output, &Twist::default())?;
             }
             Event::ParamsChanged(_) => match Settings::read(node) {
-                Ok(settings) => follower.retune(settings, node.timestamp()),
+                Ok(settings) => {
+                    if settings.world != follower.settings.world {
+                        match load_world(&settings.world) {
+                            Ok(world) => follower.world = world,
+                            Err(err) => tracing::error!("{err}; keeping the previous world"),
+                        }
+                    }
+                    follower.retune(settings, node.timestamp());
+                }
                 Err(err) => tracing::error!("{err}; keeping the previous settings"),
             },
             Event::Shutdown => return Ok(()),
             _ => {}
         }
     }
+}
+
+/// The path being followed, on the `path` output (nothing without one).
+fn send_path(
+    node: &mut Node,
+    output: &armor_module_api::Output<Text>,
+    follower: &Follower,
+) -> Result<(), BodyError> {
+    if let Some(pursuit) = &follower.pursuit {
+        node.send(output, &Text(Path::new(pursuit.points().to_vec()).format()))?;
+    }
+    Ok(())
+}
+
+/// The world named by the `world` parameter, found as the sim finds its own.
+fn load_world(name: &str) -> Result<Option<WorldMap>, BodyError> {
+    let name = name.trim();
+    if name.is_empty() {
+        return Ok(None);
+    }
+    let path = crate::sim::find_world(name).map_err(|err| format!("parameter `world`: {err}"))?;
+    let file_name = path.display().to_string();
+    let text = std::fs::read_to_string(&path)
+        .map_err(|err| format!("parameter `world`: cannot read `{file_name}`: {err}"))?;
+    let world =
+        WorldMap::parse(text, file_name).map_err(|err| format!("parameter `world`: {err}"))?;
+    tracing::info!("replanning on the world `{}`", world.file_name);
+    Ok(Some(world))
 }
 
 /// The follower's parameters.
@@ -218,6 +316,10 @@ pub struct Settings {
     pub no_go: Vec<Polygon>,
     /// The path planned for the leg (empty: none, head for the goal).
     pub path: Path,
+    pub world: String,
+    pub robot_radius_m: f64,
+    pub replan_after_secs: f64,
+    pub max_replans: u32,
 }
 
 impl Settings {
@@ -237,6 +339,10 @@ impl Settings {
                 .map_err(|why| format!("parameter `no_go`: {why}"))?,
             path: Path::parse(&node.param::<String>("path")?)
                 .map_err(|why| format!("parameter `path`: {why}"))?,
+            world: node.param::<String>("world")?,
+            robot_radius_m: float_in(node, "robot_radius_m", FloatRange::above(0.0, "m"))?,
+            replan_after_secs: float_in(node, "replan_after_secs", FloatRange::above(0.0, "s"))?,
+            max_replans: int_in(node, "max_replans", 0..=100)? as u32,
         })
     }
 
@@ -280,6 +386,8 @@ impl Settings {
 struct Control {
     twist: Twist,
     report: Option<&'static str>,
+    /// A new path is being followed (to publish).
+    new_path: bool,
 }
 
 /// The go-to-goal controller and its once-only events, on run time.
@@ -290,6 +398,14 @@ struct Follower {
     pursuit: Option<Pursuit>,
     /// The corner of the way round the no-go areas headed for (without a path).
     via: Option<Point>,
+    /// The world replanning starts from.
+    world: Option<WorldMap>,
+    /// The latest pose, and the laser's hits the world does not explain, seen from it.
+    pose: Option<Pose2D>,
+    seen: Vec<Point>,
+    /// Replans since the last (re)start, and when the last one was.
+    replans: u32,
+    last_replan: f64,
     reached: bool,
     blocked: bool,
     /// The shortest way left to the goal so far (along the path when there is one), and when
@@ -304,6 +420,11 @@ impl Follower {
             settings,
             pursuit: None,
             via: None,
+            world: None,
+            pose: None,
+            seen: Vec::new(),
+            replans: 0,
+            last_replan: f64::NEG_INFINITY,
             reached: false,
             blocked: false,
             best_distance_m: f64::INFINITY,
@@ -325,6 +446,9 @@ impl Follower {
             );
         }
         self.via = None;
+        self.seen.clear();
+        self.replans = 0;
+        self.last_replan = f64::NEG_INFINITY;
         self.reached = false;
         self.blocked = false;
         self.best_distance_m = f64::INFINITY;
@@ -362,12 +486,14 @@ impl Follower {
             return Control {
                 twist: Twist::default(),
                 report: self.on_tick(now),
+                new_path: false,
             };
         };
         if self.reached {
             return Control {
                 twist: Twist::default(),
                 report: None,
+                new_path: false,
             };
         }
         if distance_m <= self.settings.tolerance_m {
@@ -375,9 +501,15 @@ impl Follower {
             return Control {
                 twist: Twist::default(),
                 report: Some("goal_reached"),
+                new_path: false,
             };
         }
-        let report = if remaining_m < self.best_distance_m - PROGRESS_M {
+        self.pose = Some(pose);
+        let progress = remaining_m < self.best_distance_m - PROGRESS_M;
+        if let Some(control) = self.replan_if_stuck(pose, progress, now) {
+            return control;
+        }
+        let report = if progress {
             self.best_distance_m = remaining_m;
             self.last_progress = now;
             self.blocked = false;
@@ -385,7 +517,129 @@ impl Follower {
         } else {
             self.on_tick(now)
         };
-        Control { twist, report }
+        Control {
+            twist,
+            report,
+            new_path: false,
+        }
+    }
+
+    /// The laser's hits that the world does not explain, placed from the latest pose.
+    fn on_scan(&mut self, scan: &LaserScan) {
+        if self.pursuit.is_none() {
+            return;
+        }
+        if let Some(pose) = self.pose {
+            let world = self.world.as_ref().map(|world| &world.world);
+            self.seen = replan::unexplained(world, &replan::scan_hits(pose, scan));
+        }
+    }
+
+    /// With a path: plans again when the robot has made no progress for `replan_after_secs`
+    /// or the laser sees the path blocked ahead, at most `max_replans` times per leg. `None`
+    /// when nothing was done; a replan that finds no way reports `blocked` and stops.
+    fn replan_if_stuck(&mut self, pose: Pose2D, progress: bool, now: f64) -> Option<Control> {
+        let settings = &self.settings;
+        let pursuit = self.pursuit.as_ref()?;
+        if self.replans >= settings.max_replans || self.blocked {
+            return None;
+        }
+        let here = Point::new(pose.x_m, pose.y_m);
+        let stuck = !progress
+            && self.best_distance_m.is_finite()
+            && now - self.last_progress >= settings.replan_after_secs;
+        let seen_in_the_way = !self.seen.is_empty()
+            && now - self.last_replan >= settings.replan_after_secs
+            && replan::blocked_ahead(
+                &pursuit.ahead(here),
+                &self.seen,
+                settings.robot_radius_m + planner::DEFAULT_CLEARANCE_M * 0.5,
+            );
+        if !stuck && !seen_in_the_way {
+            return None;
+        }
+        let robot = Robot {
+            radius_m: settings.robot_radius_m,
+            clearance_m: planner::DEFAULT_CLEARANCE_M,
+        };
+        let keepouts: Vec<Keepout> = settings
+            .no_go
+            .iter()
+            .enumerate()
+            .map(|(i, polygon)| {
+                Keepout::new(
+                    format!("no-go area {}", i + 1),
+                    polygon.clone(),
+                    planner::DEFAULT_AREA_MARGIN_M,
+                )
+            })
+            .collect();
+        let why = if stuck {
+            "no progress"
+        } else {
+            "the laser sees something in the way"
+        };
+        self.replans += 1;
+        self.last_replan = now;
+        match replan::replan(
+            self.world.as_ref(),
+            &robot,
+            &keepouts,
+            &self.seen,
+            here,
+            settings.goal(),
+        ) {
+            Ok(path) => {
+                tracing::info!(
+                    "replanned: {} points, {} m ({why}; replan {} of {})",
+                    path.points.len(),
+                    geo::round_mm(path.length_m),
+                    self.replans,
+                    settings.max_replans
+                );
+                self.pursuit = Some(Pursuit::new(path.points));
+                self.best_distance_m = f64::INFINITY;
+                self.last_progress = now;
+                // The new path's first command comes with the next pose.
+                Some(Control {
+                    twist: Twist::default(),
+                    report: None,
+                    new_path: true,
+                })
+            }
+            // What the laser sees is placed with the odometry, which drifts: a door's jambs seen
+            // a little off close the door. The map alone decides whether there is no way.
+            Err(err)
+                if !self.seen.is_empty()
+                    && replan::replan(
+                        self.world.as_ref(),
+                        &robot,
+                        &keepouts,
+                        &[],
+                        here,
+                        settings.goal(),
+                    )
+                    .is_ok() =>
+            {
+                tracing::warn!(
+                    "replanning ({why}) found no way round what the laser sees ({err}); \
+                     keeping the path (replan {} of {})",
+                    self.replans,
+                    settings.max_replans
+                );
+                None
+            }
+            Err(err) => {
+                tracing::warn!("replanning ({why}) found no way to the goal: {err}");
+                self.replans = settings.max_replans;
+                self.blocked = true;
+                Some(Control {
+                    twist: Twist::default(),
+                    report: Some("blocked"),
+                    new_path: false,
+                })
+            }
+        }
     }
 
     /// Reports `blocked` (once) when there was no progress for long enough. Progress is timed
@@ -543,6 +797,85 @@ mod tests {
         assert!(err.to_string().contains("parameter `path`"), "{err}");
     }
 
+    fn follower_on(path: &str, goal_x_m: f64) -> Follower {
+        Follower::new(
+            Settings {
+                goal_x_m,
+                goal_y_m: 5.0,
+                path: Path::parse(path).expect("path"),
+                ..settings()
+            },
+            0.0,
+        )
+    }
+
+    #[test]
+    fn a_path_seen_blocked_ahead_is_planned_again_round_what_is_seen() {
+        let mut follower = follower_on("0,5 15,5", 15.0);
+        let at = |x_m| Pose2D {
+            x_m,
+            y_m: 5.0,
+            theta_rad: 0.0,
+        };
+        assert!(!follower.on_pose(at(1.0), 1.0).new_path);
+        // A wall across the way 2 m ahead, from y 0 to 7 (no world: the laser alone).
+        follower.seen = (0..=70)
+            .map(|i| Point::new(3.0, f64::from(i) * 0.1))
+            .collect();
+        let control = follower.on_pose(at(1.0), 1.1);
+        assert!(control.new_path, "{control:?}");
+        let points = follower.pursuit.as_ref().expect("path").points().to_vec();
+        assert!(
+            points.iter().any(|p| p.y > 7.0),
+            "round the north end: {points:?}"
+        );
+        assert_eq!(follower.replans, 1);
+        // Walled in all round: no way, `blocked` at once.
+        follower.seen = (0..200)
+            .map(|i| {
+                let angle = std::f64::consts::TAU * f64::from(i) / 200.0;
+                Point::new(1.0 + 1.5 * angle.cos(), 5.0 + 1.5 * angle.sin())
+            })
+            .collect();
+        follower.last_replan = f64::NEG_INFINITY;
+        follower.pursuit = follower.settings.pursuit();
+        // Walled in by what the laser sees, but not on the map: the laser may be placed off
+        // (odometry drifts), so the path is kept and the avoider keeps the robot safe.
+        let control = follower.on_pose(at(1.0), 5.0);
+        assert_eq!(control.report, None);
+        assert!(!control.new_path);
+        assert_eq!(follower.replans, 2);
+        // The goal in a no-go area: the map alone has no way, `blocked` at once.
+        follower.settings.no_go = geo::parse_polygons("14,4 16,4 16,6 14,6").expect("polygon");
+        follower.last_replan = f64::NEG_INFINITY;
+        let control = follower.on_pose(at(1.0), 9.0);
+        assert_eq!(control.report, Some("blocked"));
+        assert_eq!(control.twist, Twist::default());
+    }
+
+    #[test]
+    fn no_progress_replans_a_bounded_number_of_times_then_blocked() {
+        let mut follower = follower_on("0,5 5,5", 5.0);
+        let still = Pose2D {
+            x_m: 1.0,
+            y_m: 5.0,
+            theta_rad: 0.0,
+        };
+        let mut replans = 0;
+        let mut reports = Vec::new();
+        for step in 0..400 {
+            let control = follower.on_pose(still, f64::from(step) * 0.25);
+            replans += usize::from(control.new_path);
+            reports.extend(control.report);
+        }
+        assert_eq!(replans, 3, "max_replans");
+        assert_eq!(
+            reports,
+            ["blocked"],
+            "after the replans, blocked_after_secs"
+        );
+    }
+
     fn bench_with(params: &[(&str, &str)]) -> TestBench {
         bench(params)
     }
@@ -598,6 +931,10 @@ mod tests {
             blocked_after_secs: 10.0,
             no_go: Vec::new(),
             path: Path::default(),
+            world: String::new(),
+            robot_radius_m: 0.25,
+            replan_after_secs: 3.0,
+            max_replans: 3,
         }
     }
 

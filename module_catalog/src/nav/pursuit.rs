@@ -103,6 +103,19 @@ impl Pursuit {
         (best.1, best.2)
     }
 
+    /// The path ahead of `here`: its projection on the segment it was last on, and the points
+    /// after it.
+    pub fn ahead(&self, here: Point) -> Vec<Point> {
+        if self.points.len() < 2 {
+            return self.points.clone();
+        }
+        let (a, b) = (self.points[self.segment], self.points[self.segment + 1]);
+        let (t, _) = project_on_segment(here, a, b);
+        let mut ahead = vec![lerp(a, b, t)];
+        ahead.extend_from_slice(&self.points[self.segment + 1..]);
+        ahead
+    }
+
     /// The command from `pose`, or `None` when the pose is not finite or the path empty.
     pub fn steer(&mut self, pose: Pose2D, limits: Limits) -> Option<Steer> {
         let here = Point::new(pose.x_m, pose.y_m);
@@ -178,7 +191,7 @@ fn lerp(a: Point, b: Point, t: f64) -> Point {
 }
 
 /// Where `p` projects on `a`–`b` (as a fraction, clamped to the segment), and its distance.
-fn project_on_segment(p: Point, a: Point, b: Point) -> (f64, f64) {
+pub(crate) fn project_on_segment(p: Point, a: Point, b: Point) -> (f64, f64) {
     let (abx, aby) = (b.x - a.x, b.y - a.y);
     let length2 = abx * abx + aby * aby;
     let t = if length2 <= 0.0 {
