@@ -14,15 +14,22 @@
 //! every pose the follower takes the shortest way round them to the goal
 //! ([`armor_model::geo::route`], [`CLEARANCE_M`] away from them) and heads for its first corner.
 //! With no way round it stops, and `blocked` follows.
+//!
+//! When a `path` is given (as a compiled plan gives each leg the path planned at plan time, which
+//! already keeps out of the no-go areas), the follower drives along it instead, with regulated
+//! pure pursuit ([`super::pursuit`]), and progress is the length of path left to the goal.
 
 use armor_model::geo::{self, Polygon};
+use armor_model::planner::{self, Keepout, Path, Robot};
 use armor_model::world::Point;
-use armor_module_api::types::{Odometry, Pose2D, Twist};
+use armor_module_api::types::{LaserScan, Odometry, Pose2D, Text, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
+use super::pursuit::{Limits, Pursuit};
+use super::replan::{self, WorldMap};
 use super::wrap_angle;
 use crate::BodyError;
-use crate::params::{FloatRange, float_in};
+use crate::params::{FloatRange, float_in, int_in};
 
 pub const TYPE: &str = "follower";
 
@@ -51,6 +58,16 @@ pub fn spec() -> ModuleSpec {
     .input::<Odometry>(
         "odometry",
         "the robot's pose (the odometry pose, or a corrected pose in the same frame as the goal)",
+    )
+    .input::<LaserScan>(
+        "scan",
+        "the laser scan (optional): with a path, what it sees on the way is gone round when \
+         replanning",
+    )
+    .output::<Text>(
+        "path",
+        "the path being followed, `X,Y X,Y ...` in metres: the planned one at each activation, \
+         and each new one after a replan",
     )
     .output::<Twist>(
         "cmd_desired",
@@ -127,9 +144,48 @@ pub fn spec() -> ModuleSpec {
             ParamType::String,
             "the path planned for this leg at plan time, in the frame of the odometry pose: \
              points `X,Y X,Y ...` in metres from the leg's start to the goal (a compiled plan \
-             gives it); accepted but not yet driven: the follower heads for the goal as above",
+             gives it); when given, the follower drives along it (regulated pure pursuit) \
+             instead of heading for the goal, and no_go is left to the path (tunable live)",
         )
         .default(""),
+    )
+    .param(
+        ParamSpec::new(
+            "world",
+            ParamType::String,
+            "the world file replanning starts from (found as the sim finds its own: as given, \
+             then under assets/worlds/; empty: replan on what the laser sees alone)",
+        )
+        .default(""),
+    )
+    .param(
+        ParamSpec::new(
+            "robot_radius_m",
+            ParamType::Float,
+            "the robot's radius, for replanning (greater than 0)",
+        )
+        .unit("m")
+        .default("0.25"),
+    )
+    .param(
+        ParamSpec::new(
+            "replan_after_secs",
+            ParamType::Float,
+            "with a path: plan again from where the robot is when it has made no progress along \
+             the path for this long, or at once when the laser sees the path blocked ahead \
+             (greater than 0)",
+        )
+        .unit("s")
+        .default("3"),
+    )
+    .param(
+        ParamSpec::new(
+            "max_replans",
+            ParamType::Int,
+            "with a path: the most replans per leg (0 to 100); beyond them, no progress for \
+             blocked_after_secs reports `blocked`, and so does a replan that finds no way",
+        )
+        .default("3"),
     )
     .event(
         "goal_reached",
@@ -143,8 +199,11 @@ pub fn spec() -> ModuleSpec {
 
 pub fn body(node: &mut Node) -> BodyResult {
     let odometry = node.input::<Odometry>("odometry")?;
+    let scan = node.input::<LaserScan>("scan")?;
+    let path_output = node.output::<Text>("path")?;
     let output = node.output::<Twist>("cmd_desired")?;
     let settings = Settings::read(node)?;
+    let world = load_world(&settings.world)?;
     tracing::info!(
         "goal ({}, {}), {} no-go area(s)",
         settings.goal_x_m,
@@ -152,6 +211,7 @@ pub fn body(node: &mut Node) -> BodyResult {
         settings.no_go.len()
     );
     let mut follower = Follower::new(settings, node.timestamp());
+    follower.world = world;
     let mut next_tick = node.timestamp() + TICK_SECS;
     loop {
         let event = if node.is_active() {
@@ -167,10 +227,18 @@ pub fn body(node: &mut Node) -> BodyResult {
                 };
                 if node.is_active() {
                     let control = follower.on_pose(sample.value.pose_in_odom, node.timestamp());
+                    if control.new_path {
+                        send_path(node, &path_output, &follower)?;
+                    }
                     node.send(&output, &control.twist)?;
                     if let Some(event) = control.report {
                         node.report(event)?;
                     }
+                }
+            }
+            Event::Input(port) if port == scan.id() => {
+                if let Some(sample) = node.take(&scan)? {
+                    follower.on_scan(&sample.value);
                 }
             }
             Event::Timeout if node.is_active() => {
@@ -184,19 +252,56 @@ pub fn body(node: &mut Node) -> BodyResult {
                 tracing::info!("active: heading for the goal");
                 follower.restart(node.timestamp());
                 next_tick = node.timestamp() + TICK_SECS;
+                send_path(node, &path_output, &follower)?;
             }
             Event::Stop => {
                 tracing::info!("inactive: stopping");
                 node.send(&output, &Twist::default())?;
             }
             Event::ParamsChanged(_) => match Settings::read(node) {
-                Ok(settings) => follower.retune(settings, node.timestamp()),
+                Ok(settings) => {
+                    if settings.world != follower.settings.world {
+                        match load_world(&settings.world) {
+                            Ok(world) => follower.world = world,
+                            Err(err) => tracing::error!("{err}; keeping the previous world"),
+                        }
+                    }
+                    follower.retune(settings, node.timestamp());
+                }
                 Err(err) => tracing::error!("{err}; keeping the previous settings"),
             },
             Event::Shutdown => return Ok(()),
             _ => {}
         }
     }
+}
+
+/// The path being followed, on the `path` output (nothing without one).
+fn send_path(
+    node: &mut Node,
+    output: &armor_module_api::Output<Text>,
+    follower: &Follower,
+) -> Result<(), BodyError> {
+    if let Some(pursuit) = &follower.pursuit {
+        node.send(output, &Text(Path::new(pursuit.points().to_vec()).format()))?;
+    }
+    Ok(())
+}
+
+/// The world named by the `world` parameter, found as the sim finds its own.
+fn load_world(name: &str) -> Result<Option<WorldMap>, BodyError> {
+    let name = name.trim();
+    if name.is_empty() {
+        return Ok(None);
+    }
+    let path = crate::sim::find_world(name).map_err(|err| format!("parameter `world`: {err}"))?;
+    let file_name = path.display().to_string();
+    let text = std::fs::read_to_string(&path)
+        .map_err(|err| format!("parameter `world`: cannot read `{file_name}`: {err}"))?;
+    let world =
+        WorldMap::parse(text, file_name).map_err(|err| format!("parameter `world`: {err}"))?;
+    tracing::info!("replanning on the world `{}`", world.file_name);
+    Ok(Some(world))
 }
 
 /// The follower's parameters.
@@ -209,6 +314,12 @@ pub struct Settings {
     pub max_turn_radps: f64,
     pub blocked_after_secs: f64,
     pub no_go: Vec<Polygon>,
+    /// The path planned for the leg (empty: none, head for the goal).
+    pub path: Path,
+    pub world: String,
+    pub robot_radius_m: f64,
+    pub replan_after_secs: f64,
+    pub max_replans: u32,
 }
 
 impl Settings {
@@ -226,11 +337,47 @@ impl Settings {
             )?,
             no_go: geo::parse_polygons(&node.param::<String>("no_go")?)
                 .map_err(|why| format!("parameter `no_go`: {why}"))?,
+            path: Path::parse(&node.param::<String>("path")?)
+                .map_err(|why| format!("parameter `path`: {why}"))?,
+            world: node.param::<String>("world")?,
+            robot_radius_m: float_in(node, "robot_radius_m", FloatRange::above(0.0, "m"))?,
+            replan_after_secs: float_in(node, "replan_after_secs", FloatRange::above(0.0, "s"))?,
+            max_replans: int_in(node, "max_replans", 0..=100)? as u32,
         })
     }
 
     fn same_goal(&self, other: &Settings) -> bool {
-        self.goal_x_m == other.goal_x_m && self.goal_y_m == other.goal_y_m
+        self.goal_x_m == other.goal_x_m
+            && self.goal_y_m == other.goal_y_m
+            && self.path == other.path
+    }
+
+    fn goal(&self) -> Point {
+        Point::new(self.goal_x_m, self.goal_y_m)
+    }
+
+    fn limits(&self) -> Limits {
+        Limits {
+            max_speed_mps: self.max_speed_mps,
+            max_turn_radps: self.max_turn_radps,
+        }
+    }
+
+    /// The path to pursue, when one is given: the planned points, ending at the goal (added
+    /// when the path does not end there, as after a live change of the goal alone).
+    fn pursuit(&self) -> Option<Pursuit> {
+        if self.path.points.is_empty() {
+            return None;
+        }
+        let mut points = self.path.points.clone();
+        let goal = self.goal();
+        if points
+            .last()
+            .is_some_and(|last| geo::distance(*last, goal) > 1e-3)
+        {
+            points.push(goal);
+        }
+        Some(Pursuit::new(points))
     }
 }
 
@@ -239,17 +386,30 @@ impl Settings {
 struct Control {
     twist: Twist,
     report: Option<&'static str>,
+    /// A new path is being followed (to publish).
+    new_path: bool,
 }
 
 /// The go-to-goal controller and its once-only events, on run time.
 #[derive(Clone, Debug)]
 struct Follower {
     settings: Settings,
-    /// The corner of the way round the no-go areas headed for.
+    /// The path being followed, when there is one.
+    pursuit: Option<Pursuit>,
+    /// The corner of the way round the no-go areas headed for (without a path).
     via: Option<Point>,
+    /// The world replanning starts from.
+    world: Option<WorldMap>,
+    /// The latest pose, and the laser's hits the world does not explain, seen from it.
+    pose: Option<Pose2D>,
+    seen: Vec<Point>,
+    /// Replans since the last (re)start, and when the last one was.
+    replans: u32,
+    last_replan: f64,
     reached: bool,
     blocked: bool,
-    /// The shortest distance to the goal so far, and when it was last shortened.
+    /// The shortest way left to the goal so far (along the path when there is one), and when
+    /// it was last shortened.
     best_distance_m: f64,
     last_progress: f64,
 }
@@ -258,7 +418,13 @@ impl Follower {
     fn new(settings: Settings, now: f64) -> Self {
         let mut follower = Self {
             settings,
+            pursuit: None,
             via: None,
+            world: None,
+            pose: None,
+            seen: Vec::new(),
+            replans: 0,
+            last_replan: f64::NEG_INFINITY,
             reached: false,
             blocked: false,
             best_distance_m: f64::INFINITY,
@@ -271,7 +437,18 @@ impl Follower {
     /// A new goal or a new activation: `goal_reached` and `blocked` are re-armed, and progress
     /// is counted from the next pose.
     fn restart(&mut self, now: f64) {
+        self.pursuit = self.settings.pursuit();
+        if let Some(pursuit) = &self.pursuit {
+            tracing::info!(
+                "following the planned path: {} points, {} m",
+                pursuit.points().len(),
+                geo::round_mm(geo::path_length(pursuit.points()))
+            );
+        }
         self.via = None;
+        self.seen.clear();
+        self.replans = 0;
+        self.last_replan = f64::NEG_INFINITY;
         self.reached = false;
         self.blocked = false;
         self.best_distance_m = f64::INFINITY;
@@ -288,18 +465,35 @@ impl Follower {
         }
     }
 
+    /// The command from `pose`, the straight distance to the goal and the way left to it
+    /// (along the path when there is one).
+    fn steer(&mut self, pose: Pose2D) -> Option<(Twist, f64, f64)> {
+        match &mut self.pursuit {
+            Some(pursuit) => {
+                let steer = pursuit.steer(pose, self.settings.limits())?;
+                let distance_m =
+                    geo::distance(Point::new(pose.x_m, pose.y_m), self.settings.goal());
+                Some((steer.twist, distance_m, steer.remaining_m))
+            }
+            None => steer_round(&self.settings, pose, &mut self.via)
+                .map(|(twist, distance_m)| (twist, distance_m, distance_m)),
+        }
+    }
+
     fn on_pose(&mut self, pose: Pose2D, now: f64) -> Control {
-        let Some((twist, distance_m)) = steer_round(&self.settings, pose, &mut self.via) else {
+        let Some((twist, distance_m, remaining_m)) = self.steer(pose) else {
             tracing::warn!("ignoring a non-finite pose {pose:?}");
             return Control {
                 twist: Twist::default(),
                 report: self.on_tick(now),
+                new_path: false,
             };
         };
         if self.reached {
             return Control {
                 twist: Twist::default(),
                 report: None,
+                new_path: false,
             };
         }
         if distance_m <= self.settings.tolerance_m {
@@ -307,17 +501,145 @@ impl Follower {
             return Control {
                 twist: Twist::default(),
                 report: Some("goal_reached"),
+                new_path: false,
             };
         }
-        let report = if distance_m < self.best_distance_m - PROGRESS_M {
-            self.best_distance_m = distance_m;
+        self.pose = Some(pose);
+        let progress = remaining_m < self.best_distance_m - PROGRESS_M;
+        if let Some(control) = self.replan_if_stuck(pose, progress, now) {
+            return control;
+        }
+        let report = if progress {
+            self.best_distance_m = remaining_m;
             self.last_progress = now;
             self.blocked = false;
             None
         } else {
             self.on_tick(now)
         };
-        Control { twist, report }
+        Control {
+            twist,
+            report,
+            new_path: false,
+        }
+    }
+
+    /// The laser's hits that the world does not explain, placed from the latest pose.
+    fn on_scan(&mut self, scan: &LaserScan) {
+        if self.pursuit.is_none() {
+            return;
+        }
+        if let Some(pose) = self.pose {
+            let world = self.world.as_ref().map(|world| &world.world);
+            self.seen = replan::unexplained(world, &replan::scan_hits(pose, scan));
+        }
+    }
+
+    /// With a path: plans again when the robot has made no progress for `replan_after_secs`
+    /// or the laser sees the path blocked ahead, at most `max_replans` times per leg. `None`
+    /// when nothing was done; a replan that finds no way reports `blocked` and stops.
+    fn replan_if_stuck(&mut self, pose: Pose2D, progress: bool, now: f64) -> Option<Control> {
+        let settings = &self.settings;
+        let pursuit = self.pursuit.as_ref()?;
+        if self.replans >= settings.max_replans || self.blocked {
+            return None;
+        }
+        let here = Point::new(pose.x_m, pose.y_m);
+        let stuck = !progress
+            && self.best_distance_m.is_finite()
+            && now - self.last_progress >= settings.replan_after_secs;
+        let seen_in_the_way = !self.seen.is_empty()
+            && now - self.last_replan >= settings.replan_after_secs
+            && replan::blocked_ahead(
+                &pursuit.ahead(here),
+                &self.seen,
+                settings.robot_radius_m + planner::DEFAULT_CLEARANCE_M * 0.5,
+            );
+        if !stuck && !seen_in_the_way {
+            return None;
+        }
+        let robot = Robot {
+            radius_m: settings.robot_radius_m,
+            clearance_m: planner::DEFAULT_CLEARANCE_M,
+        };
+        let keepouts: Vec<Keepout> = settings
+            .no_go
+            .iter()
+            .enumerate()
+            .map(|(i, polygon)| {
+                Keepout::new(
+                    format!("no-go area {}", i + 1),
+                    polygon.clone(),
+                    planner::DEFAULT_AREA_MARGIN_M,
+                )
+            })
+            .collect();
+        let why = if stuck {
+            "no progress"
+        } else {
+            "the laser sees something in the way"
+        };
+        self.replans += 1;
+        self.last_replan = now;
+        match replan::replan(
+            self.world.as_ref(),
+            &robot,
+            &keepouts,
+            &self.seen,
+            here,
+            settings.goal(),
+        ) {
+            Ok(path) => {
+                tracing::info!(
+                    "replanned: {} points, {} m ({why}; replan {} of {})",
+                    path.points.len(),
+                    geo::round_mm(path.length_m),
+                    self.replans,
+                    settings.max_replans
+                );
+                self.pursuit = Some(Pursuit::new(path.points));
+                self.best_distance_m = f64::INFINITY;
+                self.last_progress = now;
+                // The new path's first command comes with the next pose.
+                Some(Control {
+                    twist: Twist::default(),
+                    report: None,
+                    new_path: true,
+                })
+            }
+            // What the laser sees is placed with the odometry, which drifts: a door's jambs seen
+            // a little off close the door. The map alone decides whether there is no way.
+            Err(err)
+                if !self.seen.is_empty()
+                    && replan::replan(
+                        self.world.as_ref(),
+                        &robot,
+                        &keepouts,
+                        &[],
+                        here,
+                        settings.goal(),
+                    )
+                    .is_ok() =>
+            {
+                tracing::warn!(
+                    "replanning ({why}) found no way round what the laser sees ({err}); \
+                     keeping the path (replan {} of {})",
+                    self.replans,
+                    settings.max_replans
+                );
+                None
+            }
+            Err(err) => {
+                tracing::warn!("replanning ({why}) found no way to the goal: {err}");
+                self.replans = settings.max_replans;
+                self.blocked = true;
+                Some(Control {
+                    twist: Twist::default(),
+                    report: Some("blocked"),
+                    new_path: false,
+                })
+            }
+        }
     }
 
     /// Reports `blocked` (once) when there was no progress for long enough. Progress is timed
@@ -449,6 +771,116 @@ mod tests {
     }
 
     #[test]
+    fn a_path_is_driven_instead_of_the_way_round_the_no_go_areas() {
+        // The straight way round the box is south (see above); the planned path goes north,
+        // so the follower turns left, and the areas are left to the path.
+        let mut bench = bench(&[
+            ("goal_x_m", "10"),
+            ("no_go", "4,-2 6,-2 6,3 4,3"),
+            ("path", "0,0 2,4 8,4 10,0"),
+        ]);
+        bench.script([at(0.0, 0.0, 1.1), at(5.0, 4.0, 0.0), at(9.9, 0.1, -1.1)]);
+        body(bench.node()).expect("body");
+        let sent = sent(&bench);
+        assert!(
+            sent[0].linear_mps > 0.3,
+            "along the first stretch: {sent:?}"
+        );
+        assert!(
+            sent[1].angular_radps.abs() < 1e-6,
+            "north of the box: {sent:?}"
+        );
+        assert!(sent[1].linear_mps > 0.5, "{sent:?}");
+        assert_eq!(sent[2], Twist::default());
+        assert_eq!(bench.reported(), ["goal_reached"]);
+        let err = body(bench_with(&[("path", "0,0 x")]).node()).expect_err("refused");
+        assert!(err.to_string().contains("parameter `path`"), "{err}");
+    }
+
+    fn follower_on(path: &str, goal_x_m: f64) -> Follower {
+        Follower::new(
+            Settings {
+                goal_x_m,
+                goal_y_m: 5.0,
+                path: Path::parse(path).expect("path"),
+                ..settings()
+            },
+            0.0,
+        )
+    }
+
+    #[test]
+    fn a_path_seen_blocked_ahead_is_planned_again_round_what_is_seen() {
+        let mut follower = follower_on("0,5 15,5", 15.0);
+        let at = |x_m| Pose2D {
+            x_m,
+            y_m: 5.0,
+            theta_rad: 0.0,
+        };
+        assert!(!follower.on_pose(at(1.0), 1.0).new_path);
+        // A wall across the way 2 m ahead, from y 0 to 7 (no world: the laser alone).
+        follower.seen = (0..=70)
+            .map(|i| Point::new(3.0, f64::from(i) * 0.1))
+            .collect();
+        let control = follower.on_pose(at(1.0), 1.1);
+        assert!(control.new_path, "{control:?}");
+        let points = follower.pursuit.as_ref().expect("path").points().to_vec();
+        assert!(
+            points.iter().any(|p| p.y > 7.0),
+            "round the north end: {points:?}"
+        );
+        assert_eq!(follower.replans, 1);
+        // Walled in all round: no way, `blocked` at once.
+        follower.seen = (0..200)
+            .map(|i| {
+                let angle = std::f64::consts::TAU * f64::from(i) / 200.0;
+                Point::new(1.0 + 1.5 * angle.cos(), 5.0 + 1.5 * angle.sin())
+            })
+            .collect();
+        follower.last_replan = f64::NEG_INFINITY;
+        follower.pursuit = follower.settings.pursuit();
+        // Walled in by what the laser sees, but not on the map: the laser may be placed off
+        // (odometry drifts), so the path is kept and the avoider keeps the robot safe.
+        let control = follower.on_pose(at(1.0), 5.0);
+        assert_eq!(control.report, None);
+        assert!(!control.new_path);
+        assert_eq!(follower.replans, 2);
+        // The goal in a no-go area: the map alone has no way, `blocked` at once.
+        follower.settings.no_go = geo::parse_polygons("14,4 16,4 16,6 14,6").expect("polygon");
+        follower.last_replan = f64::NEG_INFINITY;
+        let control = follower.on_pose(at(1.0), 9.0);
+        assert_eq!(control.report, Some("blocked"));
+        assert_eq!(control.twist, Twist::default());
+    }
+
+    #[test]
+    fn no_progress_replans_a_bounded_number_of_times_then_blocked() {
+        let mut follower = follower_on("0,5 5,5", 5.0);
+        let still = Pose2D {
+            x_m: 1.0,
+            y_m: 5.0,
+            theta_rad: 0.0,
+        };
+        let mut replans = 0;
+        let mut reports = Vec::new();
+        for step in 0..400 {
+            let control = follower.on_pose(still, f64::from(step) * 0.25);
+            replans += usize::from(control.new_path);
+            reports.extend(control.report);
+        }
+        assert_eq!(replans, 3, "max_replans");
+        assert_eq!(
+            reports,
+            ["blocked"],
+            "after the replans, blocked_after_secs"
+        );
+    }
+
+    fn bench_with(params: &[(&str, &str)]) -> TestBench {
+        bench(params)
+    }
+
+    #[test]
     fn bad_no_go_text_is_refused_in_words() {
         let mut bench = TestBench::new(
             &spec(),
@@ -498,6 +930,11 @@ mod tests {
             max_turn_radps: 1.2,
             blocked_after_secs: 10.0,
             no_go: Vec::new(),
+            path: Path::default(),
+            world: String::new(),
+            robot_radius_m: 0.25,
+            replan_after_secs: 3.0,
+            max_replans: 3,
         }
     }
 

@@ -18,6 +18,8 @@
 
 pub mod avoider;
 pub mod follower;
+pub(crate) mod pursuit;
+pub(crate) mod replan;
 
 use armor_module_api::types::Twist;
 

@@ -195,6 +195,16 @@ pub fn spec() -> ModuleSpec {
         .unit("m")
         .default("0.25"),
     )
+    .param(
+        ParamSpec::new(
+            "obstacles",
+            ParamType::String,
+            "obstacles in the simulated world that are not in the world file (what no map \
+             shows: a pallet left in an aisle), in the world file's syntax, lines separated by \
+             `;`: for example `rect 10,4 11,6; circle 5,5 0.5`",
+        )
+        .default(""),
+    )
     .event(
         "collision",
         "the robot ran into a wall, an obstacle or the boundary and stopped at the contact \
@@ -471,7 +481,25 @@ fn load_world(node: &Node) -> Result<World, BodyError> {
          assets/worlds/yard.world)"
     })?;
     let path = find_world(name.trim())?;
-    Ok(load_world_file(&path)?)
+    let obstacles: String = node.param("obstacles")?;
+    if obstacles.trim().is_empty() {
+        return Ok(load_world_file(&path)?);
+    }
+    // The extra shapes are read as lines after the file's own, so that the world's parser
+    // checks them as it checks the file.
+    let file_name = path.display().to_string();
+    let mut text = std::fs::read_to_string(&path)
+        .map_err(|err| format!("cannot read the world file `{file_name}`: {err}"))?;
+    text.push_str("\n# The `obstacles` parameter:\n");
+    for line in obstacles.split(';') {
+        text.push_str(line.trim());
+        text.push('\n');
+    }
+    World::parse(
+        &text,
+        &format!("{file_name} with the `obstacles` parameter"),
+    )
+    .map_err(|err| format!("{err}").into())
 }
 
 /// Reads and checks a world file.
@@ -864,6 +892,15 @@ boundary 0,0 10,0 10,10 0,10 0,0
             refusal(&[("odom_noise_rot", "-0.1")]),
             "parameter `odom_noise_rot` must be 0 rad or more, not -0.1"
         );
+        // The `obstacles` parameter's shapes are in the world: one on the start pose is refused
+        // as the file's own would be, and a broken one is refused in the world's words.
+        let extra = refusal(&[("obstacles", "rect 8,8 9,9; circle 5,5.5 0.2")]);
+        assert!(
+            extra.contains("with the `obstacles` parameter") && extra.contains("overlaps"),
+            "{extra}"
+        );
+        let broken = refusal(&[("obstacles", "circle 5")]);
+        assert!(broken.contains("circle"), "{broken}");
         assert_eq!(
             refusal(&[("robot_radius_m", "6")]),
             format!(
