@@ -894,7 +894,7 @@ boundary 0,0 10,0 10,10 0,10 0,0
         );
         // The `obstacles` parameter's shapes are in the world: one on the start pose is refused
         // as the file's own would be, and a broken one is refused in the world's words.
-        let extra = refusal(&[("obstacles", "rect 8,8 9,9; circle 5,5.5 0.2")]);
+        let extra = refusal(&[("obstacles", "rect 8,8 9,9; circle 5,5.3 0.2")]);
         assert!(
             extra.contains("with the `obstacles` parameter") && extra.contains("overlaps"),
             "{extra}"
