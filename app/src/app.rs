@@ -587,9 +587,13 @@ impl StudioApp {
                             }
                             MenuItem::Recent => self.recent_menu_ui(ui),
                             MenuItem::Command(command) => {
-                                // Every entry shows its keys, as the command table has them.
-                                let button = egui::Button::new(command.label(self.view))
-                                    .shortcut_text(command.keys_text());
+                                // The Run view's entries show their keys, as the command
+                                // table has them; the other views' keys are on the sheet (F1).
+                                let mut button = egui::Button::new(command.label(self.view));
+                                let keys = command.keys_text();
+                                if self.view == View::Run && !keys.is_empty() {
+                                    button = button.shortcut_text(keys);
+                                }
                                 let enabled = match command {
                                     UiCommand::Run => !self.run.is_running(),
                                     UiCommand::Stop => self.run.is_running(),

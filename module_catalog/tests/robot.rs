@@ -50,8 +50,8 @@ const MODULES: &[Expected] = &[
         binary: FOLLOWER,
         module_type: "follower",
         controllable: true,
-        inputs: &[("odometry", "Odometry")],
-        outputs: &[("cmd_desired", "Twist")],
+        inputs: &[("odometry", "Odometry"), ("scan", "LaserScan")],
+        outputs: &[("path", "Text"), ("cmd_desired", "Twist")],
         events: &["goal_reached", "blocked"],
     },
     Expected {

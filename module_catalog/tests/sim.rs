@@ -83,7 +83,10 @@ fn describes_ports_params_units_and_event() {
         assert_eq!(param.default.as_deref(), Some(default), "{name}");
         assert!(!param.doc.is_empty(), "{name}");
     }
-    assert_eq!(description.params.len(), expected.len() + 1);
+    // Besides these: `world`, and `obstacles` (shapes the world file does not have).
+    let obstacles = description.param("obstacles").expect("obstacles");
+    assert!(!obstacles.is_required());
+    assert_eq!(description.params.len(), expected.len() + 2);
     assert!(description.event("collision").is_some());
 }
 
