@@ -1,5 +1,6 @@
-//! Plane geometry for plans: routes around no-go areas, polygon tests and the no-go list a
-//! mission passes to the navigation modules.
+//! Plane geometry: the world frame's [`Point`], latitude and longitude ([`LatLon`]), polygon and
+//! segment tests, routes around no-go areas and the no-go list a mission passes to the
+//! navigation modules. `world` and the planner build on it; it depends on nothing of theirs.
 //!
 //! A route is the shortest path through a visibility graph: its corners are the corners of the
 //! no-go polygons, pushed out by a clearance, and two corners are joined when the segment
@@ -7,11 +8,41 @@
 //! corners), so the quadratic construction costs microseconds.
 
 use std::collections::BinaryHeap;
-
-use crate::world::Point;
+use std::fmt;
 
 /// Mean Earth radius, for the local latitude/longitude conversion (the world files' too).
 const EARTH_RADIUS_M: f64 = 6_371_008.8;
+
+/// A point of the world frame, in metres.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Point {
+    pub x: f64,
+    pub y: f64,
+}
+
+impl Point {
+    pub const fn new(x: f64, y: f64) -> Self {
+        Self { x, y }
+    }
+
+    pub(crate) fn sub(self, other: Point) -> Point {
+        Point::new(self.x - other.x, self.y - other.y)
+    }
+
+    pub fn is_finite(self) -> bool {
+        self.x.is_finite() && self.y.is_finite()
+    }
+
+    pub fn distance(self, other: Point) -> f64 {
+        (self.x - other.x).hypot(self.y - other.y)
+    }
+}
+
+impl fmt::Display for Point {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "({}, {})", round_mm(self.x), round_mm(self.y))
+    }
+}
 
 /// A latitude and longitude in degrees (WGS 84).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

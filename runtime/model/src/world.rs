@@ -27,50 +27,15 @@ use std::fmt;
 
 use armor_module_api::types::{OccupancyGrid, Pose2D};
 
-/// Mean Earth radius, for the local latitude/longitude conversion.
-const EARTH_RADIUS_M: f64 = 6_371_008.8;
+use crate::geo::LatLon;
+pub use crate::geo::Point;
+
 /// Sides of the polygon that stands for a `circle`.
 const CIRCLE_SIDES: usize = 16;
 /// Collinearity tolerance of the polygon checks (cross products, in square metres).
 const GEOMETRY_EPS: f64 = 1e-9;
 /// Occupancy grids larger than this many cells are refused.
 const MAX_GRID_CELLS: usize = 50_000_000;
-
-/// A point of the world frame, in metres.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Point {
-    pub x: f64,
-    pub y: f64,
-}
-
-impl Point {
-    pub const fn new(x: f64, y: f64) -> Self {
-        Self { x, y }
-    }
-
-    fn sub(self, other: Point) -> Point {
-        Point::new(self.x - other.x, self.y - other.y)
-    }
-
-    pub fn is_finite(self) -> bool {
-        self.x.is_finite() && self.y.is_finite()
-    }
-
-    pub fn distance(self, other: Point) -> f64 {
-        (self.x - other.x).hypot(self.y - other.y)
-    }
-}
-
-impl fmt::Display for Point {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "({}, {})",
-            crate::geo::round_mm(self.x),
-            crate::geo::round_mm(self.y)
-        )
-    }
-}
 
 fn cross(a: Point, b: Point) -> f64 {
     a.x * b.y - a.y * b.x
@@ -346,27 +311,15 @@ fn ray_meets_segment(origin: Point, dir: Point, a: Point, b: Point) -> Option<f6
     (t >= 0.0 && (0.0..=1.0).contains(&u)).then_some(t)
 }
 
-fn point_segment_distance(p: Point, a: Point, b: Point) -> f64 {
-    let edge = b.sub(a);
-    let length_sq = edge.x * edge.x + edge.y * edge.y;
-    let t = if length_sq > 0.0 {
-        ((p.x - a.x) * edge.x + (p.y - a.y) * edge.y) / length_sq
-    } else {
-        0.0
-    }
-    .clamp(0.0, 1.0);
-    p.distance(Point::new(a.x + t * edge.x, a.y + t * edge.y))
-}
-
 /// The distance between segments `p1`–`p2` and `q1`–`q2` (0 when they meet).
 pub(crate) fn segment_segment_distance(p1: Point, p2: Point, q1: Point, q2: Point) -> f64 {
     if segments_meet(p1, p2, q1, q2) {
         return 0.0;
     }
-    point_segment_distance(p1, q1, q2)
-        .min(point_segment_distance(p2, q1, q2))
-        .min(point_segment_distance(q1, p1, p2))
-        .min(point_segment_distance(q2, p1, p2))
+    crate::geo::segment_distance(p1, q1, q2)
+        .min(crate::geo::segment_distance(p2, q1, q2))
+        .min(crate::geo::segment_distance(q1, p1, p2))
+        .min(crate::geo::segment_distance(q2, p1, p2))
 }
 
 /// The sign of the turn `a` → `b` → `c`: positive counter-clockwise, 0 when (nearly) collinear.
@@ -457,19 +410,17 @@ impl World {
     /// Latitude and longitude in degrees of a world point (x east, y north; a local
     /// equirectangular projection, accurate to centimetres over a few kilometres).
     pub fn to_lat_lon(&self, p: Point) -> (f64, f64) {
-        let (lat0, lon0) = self.origin_lat_lon;
-        let lat = lat0 + (p.y / EARTH_RADIUS_M).to_degrees();
-        let lon = lon0 + (p.x / (EARTH_RADIUS_M * lat0.to_radians().cos())).to_degrees();
-        (lat, lon)
+        let at = LatLon::from_local(p, self.origin());
+        (at.lat_deg, at.lon_deg)
     }
 
     /// The world point at a latitude and longitude in degrees (inverse of [`World::to_lat_lon`]).
     pub fn from_lat_lon(&self, lat: f64, lon: f64) -> Point {
-        let (lat0, lon0) = self.origin_lat_lon;
-        Point::new(
-            (lon - lon0).to_radians() * EARTH_RADIUS_M * lat0.to_radians().cos(),
-            (lat - lat0).to_radians() * EARTH_RADIUS_M,
-        )
+        LatLon::new(lat, lon).to_local(self.origin())
+    }
+
+    fn origin(&self) -> LatLon {
+        LatLon::new(self.origin_lat_lon.0, self.origin_lat_lon.1)
     }
 
     /// The start pose in the world frame.
@@ -688,7 +639,7 @@ impl World {
             for col in c0..=c1 {
                 for &index in grid.cell_items(col, row) {
                     let segment = &self.segments[index as usize];
-                    let distance = point_segment_distance(p, segment.a, segment.b);
+                    let distance = crate::geo::segment_distance(p, segment.a, segment.b);
                     if distance <= max && best.is_none_or(|(d, _)| distance < d) {
                         best = Some((distance, index as usize));
                     }

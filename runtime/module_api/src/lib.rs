@@ -13,12 +13,14 @@
 
 pub mod auth;
 pub mod clock;
+mod core;
 pub mod describe;
 mod memory;
 mod module;
 mod net;
 mod node;
 pub mod protocol;
+mod test_transport;
 pub mod testing;
 pub mod types;
 pub mod wire;

@@ -7,9 +7,10 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use crate::clock::Clock;
+use crate::core::{ApiError, Core};
 use crate::describe::{EventSpec, ModuleDescription, ParamSpec, PortSpec};
 use crate::net::Net;
-use crate::node::{ApiError, Core, Node, Transport};
+use crate::node::{Node, Transport};
 use crate::protocol::{FromSupervisor, ModuleConfig, ToSupervisor};
 use crate::types::Datum;
 use crate::wire::blocking;

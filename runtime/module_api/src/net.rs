@@ -18,7 +18,7 @@ use mio::{Events, Interest, Poll, Token};
 use serde::Deserialize;
 
 use crate::auth::{Credentials, Dial, Key, SealedWriter};
-use crate::node::{ApiError, Core};
+use crate::core::{ApiError, Core};
 use crate::protocol::{
     Advert, FromAgent, FromProvider, FromSupervisor, ToAgent, ToProvider, ToSupervisor,
 };
