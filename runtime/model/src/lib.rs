@@ -12,6 +12,7 @@
 //! [`world`] (the simulated robot's plane, which [`geo`] routes through around no-go areas);
 //! [`planner`] finds each leg's path on a costmap of that world.
 
+mod fields;
 pub mod geo;
 pub mod net;
 pub mod plan;

@@ -5,7 +5,8 @@ use std::collections::BTreeMap;
 use armor_module_api::describe::ModuleDescription;
 use armor_module_api::xml::{Located, Pos};
 
-use super::{EventRef, MissionNet, listing};
+use super::{EventRef, MissionNet};
+use crate::fields::listing;
 use crate::system::{ModuleInstance, SystemConfig};
 
 /// Every problem of the names a mission uses, sorted by position: the modules its places run

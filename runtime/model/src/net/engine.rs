@@ -17,7 +17,8 @@
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::sync::Arc as Shared;
 
-use super::{Condition, Marking, MissionNet, listing};
+use super::{Condition, Marking, MissionNet};
+use crate::fields::listing;
 
 /// At most this many firings per [`Engine::step`]: a cycle of transitions without condition
 /// would otherwise fire forever. When it is reached, [`Engine::next_deadline`] is the current

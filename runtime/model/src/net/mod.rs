@@ -34,6 +34,8 @@ use std::collections::{BTreeMap, BTreeSet};
 use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{Located, Pos};
 
+use crate::fields::{Field, is_decimal, listing};
+
 pub mod analysis;
 mod check;
 mod date;
@@ -201,36 +203,6 @@ impl MissionNet {
     }
 }
 
-const NAME_RULE: &str = "use letters, digits, `_` or `-`, starting with a letter or `_`";
-
-/// An attribute or a text: its value and where it is.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Field<'a> {
-    pub value: &'a str,
-    pub pos: Pos,
-}
-
-impl<'a> Field<'a> {
-    pub(crate) fn new(value: &'a str, pos: Pos) -> Self {
-        Self { value, pos }
-    }
-}
-
-/// A name, which must be an identifier; the message says "`what` `value` of `of`".
-pub(crate) fn read_identifier(field: Field<'_>, what: &str, of: &str) -> Result<String, Located> {
-    if is_identifier(field.value) {
-        Ok(field.value.to_owned())
-    } else {
-        Err(Located::new(
-            field.pos,
-            format!(
-                "{what} `{}` of {of} is not valid ({NAME_RULE})",
-                field.value
-            ),
-        ))
-    }
-}
-
 /// A whole number of tokens as XSD's `xs:unsignedInt` writes it (and xmllint reads it): digits
 /// only, no sign, no surrounding space.
 fn whole_number(text: &str) -> Option<u32> {
@@ -282,17 +254,6 @@ pub(crate) fn read_priority(field: Field<'_>) -> Result<i32, Located> {
                 ),
             )
         })
-}
-
-/// A decimal number as XSD's `xs:decimal` writes it: no exponent, no `inf` or `NaN`.
-pub(crate) fn is_decimal(text: &str) -> bool {
-    let digits = text.strip_prefix(['+', '-']).unwrap_or(text);
-    let (whole, fraction) = digits.split_once('.').unwrap_or((digits, ""));
-    let all_digits = |s: &str| s.bytes().all(|b| b.is_ascii_digit());
-    (!whole.is_empty() || !fraction.is_empty())
-        && digits != "."
-        && all_digits(whole)
-        && all_digits(fraction)
 }
 
 pub(crate) fn read_delay(field: Field<'_>) -> Result<f64, Located> {
@@ -356,25 +317,6 @@ fn read_bool(field: Field<'_>, what: &str) -> Result<bool, Located> {
 /// Writes a date in the form [`read_date`] reads, in UTC.
 pub(crate) fn format_date(unix_secs: f64) -> String {
     date::format_rfc3339(unix_secs)
-}
-
-/// Escapes an attribute value or a text so that any XML reader gives it back unchanged
-/// (whitespace characters other than the space would otherwise be normalized to spaces).
-pub(crate) fn escape(value: &str) -> String {
-    armor_module_api::xml::escape(value)
-        .replace('\t', "&#9;")
-        .replace('\n', "&#10;")
-        .replace('\r', "&#13;")
-}
-
-/// `a, b, c`, or `none`.
-pub(crate) fn listing<'a>(names: impl IntoIterator<Item = &'a str>) -> String {
-    let names: Vec<&str> = names.into_iter().collect();
-    if names.is_empty() {
-        "none".to_owned()
-    } else {
-        names.join(", ")
-    }
 }
 
 /// The problems of a net read from any format that its fields alone do not show: names used
@@ -484,16 +426,6 @@ pub(crate) fn check_structure(net: &MissionNet, problems: &mut Vec<Located>) {
                 }
             }
         }
-    }
-}
-
-/// Sorted problems, or the value when there are none.
-pub(crate) fn finish<T>(value: T, mut problems: Vec<Located>) -> Result<T, Vec<Located>> {
-    if problems.is_empty() {
-        Ok(value)
-    } else {
-        problems.sort_by_key(|problem| problem.pos);
-        Err(problems)
     }
 }
 

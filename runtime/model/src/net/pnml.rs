@@ -37,11 +37,12 @@ use std::fmt::Write as _;
 
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
-use super::xml::{identifier, no_children, no_text, optional, required};
 use super::{
-    Arc, Condition, Field, MissionNet, Place, PlaceParam, Transition, check_structure, escape,
-    finish, format_date, read_date, read_delay, read_event, read_identifier, read_operator,
-    read_priority, read_tokens, read_weight,
+    Arc, Condition, MissionNet, Place, PlaceParam, Transition, check_structure, format_date,
+    read_date, read_delay, read_event, read_operator, read_priority, read_tokens, read_weight,
+};
+use crate::fields::{
+    Field, escape, finish, identifier, no_children, no_text, optional, read_identifier, required,
 };
 
 /// The namespace of PNML 2009 documents.

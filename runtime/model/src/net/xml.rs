@@ -4,14 +4,14 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
 use super::{
-    Arc, Condition, Field, MissionNet, Place, PlaceParam, Transition, check_structure, escape,
-    finish, format_date, read_date, read_delay, read_event, read_final, read_identifier,
-    read_operator, read_priority, read_tokens, read_weight,
+    Arc, Condition, MissionNet, Place, PlaceParam, Transition, check_structure, format_date,
+    read_date, read_delay, read_event, read_final, read_operator, read_priority, read_tokens,
+    read_weight,
 };
+use crate::fields::{escape, finish, identifier, no_children, no_text, optional, required};
 
 impl MissionNet {
     /// Reads a mission, reporting every problem found (malformed XML, unknown elements or
@@ -228,74 +228,6 @@ fn read_transition(element: &Element, problems: &mut Vec<Located>) -> Transition
         });
     }
     transition
-}
-
-/// The attribute, which must be present and not blank.
-pub(crate) fn required<'a>(
-    element: &'a Element,
-    name: &str,
-    problems: &mut Vec<Located>,
-) -> Option<Field<'a>> {
-    element
-        .required_attr(name)
-        .map(|attr| Field::new(&attr.value, attr.pos))
-        .map_err(|err| problems.push(err))
-        .ok()
-}
-
-pub(crate) fn identifier(
-    element: &Element,
-    name: &str,
-    what: &str,
-    problems: &mut Vec<Located>,
-) -> Option<String> {
-    let field = required(element, name, problems)?;
-    if is_identifier(field.value) {
-        return Some(field.value.to_owned());
-    }
-    read_identifier(field, what, &format!("<{}>", element.name))
-        .map_err(|err| problems.push(err))
-        .ok()
-}
-
-/// The attribute read by `read` when present; `None` when absent or wrong (reported).
-pub(crate) fn optional<T>(
-    element: &Element,
-    name: &str,
-    read: fn(Field<'_>) -> Result<T, Located>,
-    problems: &mut Vec<Located>,
-) -> Option<T> {
-    let attr = element.attr(name)?;
-    read(Field::new(&attr.value, attr.pos))
-        .map_err(|err| problems.push(err))
-        .ok()
-}
-
-pub(crate) fn no_children(element: &Element, problems: &mut Vec<Located>) {
-    for child in &element.children {
-        problems.push(Located::new(
-            child.pos,
-            format!(
-                "unknown element <{}> inside <{}> (it has no elements)",
-                child.name, element.name
-            ),
-        ));
-    }
-}
-
-pub(crate) fn no_text(element: &Element, problems: &mut Vec<Located>) {
-    let text = element.text.trim();
-    if !text.is_empty() {
-        let shown: String = text.chars().take(40).collect();
-        let more = if shown.len() < text.len() { "..." } else { "" };
-        problems.push(Located::new(
-            element.pos,
-            format!(
-                "<{}> must not contain text (found `{shown}{more}`)",
-                element.name
-            ),
-        ));
-    }
 }
 
 #[cfg(test)]

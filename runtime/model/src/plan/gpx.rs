@@ -16,7 +16,7 @@ use std::fmt::Write as _;
 use armor_module_api::xml::{self as tree, Element, Located};
 
 use super::{LatLon, Leg, Plan, Waypoint, check_sidc};
-use crate::net::escape;
+use crate::fields::escape;
 use crate::world::Point;
 use crate::{geo, plan::xml::default_leg_name};
 

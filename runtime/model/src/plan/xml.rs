@@ -11,10 +11,11 @@ use super::{
     Action, ActionModule, ActionParam, AreaKind, Contingency, Graphic, GraphicKind, LatLon, Leg,
     Navigation, Plan, Response, Trigger, Unit, Waypoint, check_sidc,
 };
-use crate::net::xml::{identifier, no_children, no_text, optional, required};
-use crate::net::{
-    Field, escape, finish, format_date, is_decimal, read_date, read_event, read_identifier,
+use crate::fields::{
+    Field, escape, finish, identifier, is_decimal, no_children, no_text, optional, read_identifier,
+    required,
 };
+use crate::net::{format_date, read_date, read_event};
 
 impl Plan {
     /// Reads a plan, reporting every problem of its form (malformed XML, unknown elements or

@@ -1,0 +1,282 @@
+//! The system configuration: which module instances run, with which parameters, and the links
+//! between their ports.
+//!
+//! ```xml
+//! <system name="demo" host="127.0.0.1">
+//!   <module name="counter" type="counter" restart="on-failure">
+//!     <param name="period_secs" value="0.05"/>
+//!   </module>
+//!   <module name="checker" type="checker"/>
+//!   <link from="counter.count" to="checker.input"/>
+//! </system>
+//! ```
+//!
+//! A module may be limited to what it publishes and subscribes to: `may_publish` and
+//! `may_subscribe` list data names (`module.output`, `module.*` or `*`), separated by spaces or
+//! commas. The agent refuses registrations and lookups outside the lists; without a list, a
+//! module may publish its outputs and subscribe to anything.
+//!
+//! [`SystemConfig::parse`] reports structural problems (the XML alone), [`check`] reports the
+//! problems found against the module descriptions, both with line and column. The schema is
+//! `assets/schema/system.xsd`.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::str::FromStr;
+
+use armor_module_api::describe::{ModuleDescription, is_identifier};
+use armor_module_api::xml::Pos;
+
+/// The address the agent and the config server listen on when the system names none.
+pub const DEFAULT_HOST: &str = "127.0.0.1";
+
+/// What the agent does when a module process ends.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum RestartPolicy {
+    /// Leave it stopped.
+    Never,
+    /// Start it again when it ended with an error or a signal.
+    #[default]
+    OnFailure,
+    /// Start it again whatever the way it ended.
+    Always,
+}
+
+impl RestartPolicy {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RestartPolicy::Never => "never",
+            RestartPolicy::OnFailure => "on-failure",
+            RestartPolicy::Always => "always",
+        }
+    }
+}
+
+impl fmt::Display for RestartPolicy {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for RestartPolicy {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "never" => Ok(RestartPolicy::Never),
+            "on-failure" => Ok(RestartPolicy::OnFailure),
+            "always" => Ok(RestartPolicy::Always),
+            other => Err(format!(
+                "unknown restart policy `{other}` (expected never, on-failure or always)"
+            )),
+        }
+    }
+}
+
+/// One end of a link: a port of a module instance, written `module.port`.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Endpoint {
+    pub module: String,
+    pub port: String,
+}
+
+impl Endpoint {
+    pub fn new(module: &str, port: &str) -> Self {
+        Self {
+            module: module.to_owned(),
+            port: port.to_owned(),
+        }
+    }
+}
+
+impl fmt::Display for Endpoint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}.{}", self.module, self.port)
+    }
+}
+
+impl FromStr for Endpoint {
+    type Err = ();
+    /// `module.port`, both parts identifiers.
+    fn from_str(s: &str) -> Result<Self, ()> {
+        match s.split_once('.') {
+            Some((module, port)) if is_identifier(module) && is_identifier(port) => {
+                Ok(Endpoint::new(module, port))
+            }
+            _ => Err(()),
+        }
+    }
+}
+
+/// A parameter value given to a module instance.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParamValue {
+    pub name: String,
+    pub value: String,
+    /// The `<param>` element.
+    pub pos: Pos,
+    /// The `value` attribute.
+    pub value_pos: Pos,
+}
+
+/// One module process of the system.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ModuleInstance {
+    pub name: String,
+    pub module_type: String,
+    /// Where the module runs; `None` for the system's host.
+    pub host: Option<String>,
+    pub restart: RestartPolicy,
+    pub params: Vec<ParamValue>,
+    /// Data name patterns the module may publish (all of its outputs when `None`).
+    pub may_publish: Option<Vec<String>>,
+    /// Data name patterns the module may subscribe to (any when `None`).
+    pub may_subscribe: Option<Vec<String>>,
+    /// The `<module>` element.
+    pub pos: Pos,
+    /// The `type` attribute.
+    pub type_pos: Pos,
+}
+
+impl ModuleInstance {
+    /// The first value given for the parameter `name`.
+    pub fn param(&self, name: &str) -> Option<&ParamValue> {
+        self.params.iter().find(|param| param.name == name)
+    }
+
+    /// Whether the module may publish `data_name`.
+    pub fn may_publish(&self, data_name: &str) -> bool {
+        allowed(self.may_publish.as_deref(), data_name)
+    }
+
+    /// Whether the module may subscribe to `data_name`.
+    pub fn may_subscribe(&self, data_name: &str) -> bool {
+        allowed(self.may_subscribe.as_deref(), data_name)
+    }
+}
+
+/// Whether `data_name` matches one of `patterns` (`None`: no limit).
+pub fn allowed(patterns: Option<&[String]>, data_name: &str) -> bool {
+    patterns.is_none_or(|patterns| {
+        patterns
+            .iter()
+            .any(|pattern| match pattern.strip_suffix('*') {
+                Some(prefix) => data_name.starts_with(prefix),
+                None => pattern == data_name,
+            })
+    })
+}
+
+/// Data flowing from an output of a module to an input of a module.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Link {
+    pub from: Endpoint,
+    pub to: Endpoint,
+    /// The `<link>` element.
+    pub pos: Pos,
+    /// The `from` attribute.
+    pub from_pos: Pos,
+    /// The `to` attribute.
+    pub to_pos: Pos,
+}
+
+/// A whole system configuration.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SystemConfig {
+    pub name: String,
+    /// The address the agent and the config server listen on; `None` for [`DEFAULT_HOST`].
+    pub host: Option<String>,
+    pub modules: Vec<ModuleInstance>,
+    pub links: Vec<Link>,
+}
+
+/// What one module instance is told at start: where its data comes from and goes to, and its
+/// parameter values.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ModuleBindings {
+    pub module_type: String,
+    /// Input name -> unique data name (`provider.output`) of the output feeding it.
+    pub inputs: BTreeMap<String, String>,
+    /// Output name -> unique data name (`module.output`).
+    pub outputs: BTreeMap<String, String>,
+    /// Parameter name -> value: the configured ones, plus the defaults of the others.
+    pub params: BTreeMap<String, String>,
+}
+
+impl SystemConfig {
+    /// The module instance called `name` (the first one, if it is defined twice).
+    pub fn module(&self, name: &str) -> Option<&ModuleInstance> {
+        self.modules.iter().find(|module| module.name == name)
+    }
+
+    /// The host the agent and config server listen on: the configured one or [`DEFAULT_HOST`].
+    pub fn host_or_default(&self) -> &str {
+        self.host.as_deref().unwrap_or(DEFAULT_HOST)
+    }
+
+    /// What the module instance `module` is told at start, or `None` if there is no such
+    /// instance. Inputs come from the links into it; outputs are those of `description`, or
+    /// without a description those that links use; parameters are the configured values plus
+    /// the defaults of `description` for the others. A value given twice keeps the first.
+    pub fn bindings(
+        &self,
+        module: &str,
+        description: Option<&ModuleDescription>,
+    ) -> Option<ModuleBindings> {
+        let instance = self.module(module)?;
+        let mut bindings = ModuleBindings {
+            module_type: instance.module_type.clone(),
+            ..ModuleBindings::default()
+        };
+        for link in &self.links {
+            if link.to.module == module {
+                bindings
+                    .inputs
+                    .entry(link.to.port.clone())
+                    .or_insert_with(|| link.from.to_string());
+            }
+        }
+        match description {
+            Some(description) => {
+                for output in &description.outputs {
+                    bindings
+                        .outputs
+                        .insert(output.name.clone(), format!("{module}.{}", output.name));
+                }
+            }
+            None => {
+                for link in &self.links {
+                    if link.from.module == module {
+                        bindings
+                            .outputs
+                            .insert(link.from.port.clone(), link.from.to_string());
+                    }
+                }
+            }
+        }
+        for param in &instance.params {
+            bindings
+                .params
+                .entry(param.name.clone())
+                .or_insert_with(|| param.value.clone());
+        }
+        if let Some(description) = description {
+            for spec in &description.params {
+                if let Some(default) = &spec.default {
+                    bindings
+                        .params
+                        .entry(spec.name.clone())
+                        .or_insert_with(|| default.clone());
+                }
+            }
+        }
+        Some(bindings)
+    }
+}
+
+mod check;
+mod xml;
+
+pub use check::check;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,247 @@
+//! The system XML format (see [`super`] and `assets/schema/system.xsd`): [`SystemConfig::parse`]
+//! and [`SystemConfig::to_xml`].
+
+use armor_module_api::describe::is_identifier;
+use armor_module_api::xml::{self, Attr, Element, Located, Pos};
+
+use super::{Endpoint, Link, ModuleInstance, ParamValue, RestartPolicy, SystemConfig};
+use crate::fields::{escape, identifier, no_children, no_text, required};
+
+impl SystemConfig {
+    /// Reads a system configuration, reporting every structural problem, sorted by position.
+    pub fn parse(text: &str) -> Result<SystemConfig, Vec<Located>> {
+        let root = xml::parse(text).map_err(|err| vec![err])?;
+        if root.name != "system" {
+            return Err(vec![Located::new(
+                root.pos,
+                format!("expected <system> at the top, found <{}>", root.name),
+            )]);
+        }
+        let mut problems = Vec::new();
+        problems.extend(root.unknown_attrs(&["name", "host"]));
+        problems.extend(root.unknown_children(&["module", "link"]));
+        no_text(&root, &mut problems);
+        let name = identifier(&root, "name", "name", &mut problems).unwrap_or_default();
+        let host = host_attr(&root, &mut problems);
+        let mut system = SystemConfig {
+            name,
+            host,
+            modules: Vec::new(),
+            links: Vec::new(),
+        };
+        for child in &root.children {
+            match child.name.as_str() {
+                "module" => {
+                    if let Some(module) = read_module(child, &mut problems) {
+                        system.modules.push(module);
+                    }
+                }
+                "link" => {
+                    if let Some(link) = read_link(child, &mut problems) {
+                        system.links.push(link);
+                    }
+                }
+                _ => {}
+            }
+        }
+        if problems.is_empty() {
+            Ok(system)
+        } else {
+            problems.sort_by_key(|problem| problem.pos);
+            Err(problems)
+        }
+    }
+
+    /// Writes the configuration in the format [`SystemConfig::parse`] reads.
+    pub fn to_xml(&self) -> String {
+        use std::fmt::Write as _;
+        let mut out = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+        let _ = write!(out, "<system name=\"{}\"", escape(&self.name));
+        if let Some(host) = &self.host {
+            let _ = write!(out, " host=\"{}\"", escape(host));
+        }
+        out.push_str(">\n");
+        for module in &self.modules {
+            let _ = write!(
+                out,
+                "  <module name=\"{}\" type=\"{}\" restart=\"{}\"",
+                escape(&module.name),
+                escape(&module.module_type),
+                module.restart
+            );
+            if let Some(host) = &module.host {
+                let _ = write!(out, " host=\"{}\"", escape(host));
+            }
+            for (attr, list) in [
+                ("may_publish", &module.may_publish),
+                ("may_subscribe", &module.may_subscribe),
+            ] {
+                if let Some(list) = list {
+                    let _ = write!(out, " {attr}=\"{}\"", escape(&list.join(" ")));
+                }
+            }
+            if module.params.is_empty() {
+                out.push_str("/>\n");
+                continue;
+            }
+            out.push_str(">\n");
+            for param in &module.params {
+                let _ = writeln!(
+                    out,
+                    "    <param name=\"{}\" value=\"{}\"/>",
+                    escape(&param.name),
+                    escape(&param.value)
+                );
+            }
+            out.push_str("  </module>\n");
+        }
+        for link in &self.links {
+            let _ = writeln!(
+                out,
+                "  <link from=\"{}\" to=\"{}\"/>",
+                escape(&link.from.to_string()),
+                escape(&link.to.to_string())
+            );
+        }
+        out.push_str("</system>\n");
+        out
+    }
+}
+
+fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleInstance> {
+    problems.extend(element.unknown_attrs(&[
+        "name",
+        "type",
+        "restart",
+        "host",
+        "may_publish",
+        "may_subscribe",
+    ]));
+    problems.extend(element.unknown_children(&["param"]));
+    no_text(element, problems);
+    let name = identifier(element, "name", "name", problems);
+    let type_attr = element.attr("type");
+    let module_type = identifier(element, "type", "module type", problems);
+    let host = host_attr(element, problems);
+    let restart = match element.attr("restart") {
+        None => Some(RestartPolicy::default()),
+        Some(attr) => attr
+            .value
+            .parse()
+            .map_err(|err| problems.push(Located::new(attr.pos, err)))
+            .ok(),
+    };
+    let params: Vec<ParamValue> = element
+        .children_named("param")
+        .filter_map(|child| read_param(child, problems))
+        .collect();
+    Some(ModuleInstance {
+        name: name?,
+        module_type: module_type?,
+        host,
+        restart: restart?,
+        params,
+        may_publish: element
+            .attr("may_publish")
+            .map(|attr| read_patterns(attr, problems)),
+        may_subscribe: element
+            .attr("may_subscribe")
+            .map(|attr| read_patterns(attr, problems)),
+        pos: element.pos,
+        type_pos: type_attr.map_or(element.pos, |attr| attr.pos),
+    })
+}
+
+fn read_param(element: &Element, problems: &mut Vec<Located>) -> Option<ParamValue> {
+    problems.extend(element.unknown_attrs(&["name", "value"]));
+    no_children(element, problems);
+    no_text(element, problems);
+    let name = identifier(element, "name", "name", problems);
+    // An empty value is allowed: it is a valid `string` parameter.
+    let value = element.attr("value");
+    if value.is_none() {
+        problems.push(Located::new(
+            element.pos,
+            "<param> needs the attribute `value`",
+        ));
+    }
+    let value = value?;
+    Some(ParamValue {
+        name: name?,
+        value: value.value.as_str().to_owned(),
+        pos: element.pos,
+        value_pos: value.pos,
+    })
+}
+
+fn read_link(element: &Element, problems: &mut Vec<Located>) -> Option<Link> {
+    problems.extend(element.unknown_attrs(&["from", "to"]));
+    no_children(element, problems);
+    no_text(element, problems);
+    let from = endpoint_attr(element, "from", "MODULE.OUTPUT", problems);
+    let to = endpoint_attr(element, "to", "MODULE.INPUT", problems);
+    let ((from, from_pos), (to, to_pos)) = (from?, to?);
+    Some(Link {
+        from,
+        to,
+        pos: element.pos,
+        from_pos,
+        to_pos,
+    })
+}
+
+fn endpoint_attr(
+    element: &Element,
+    name: &str,
+    form: &str,
+    problems: &mut Vec<Located>,
+) -> Option<(Endpoint, Pos)> {
+    let attr = required(element, name, problems)?;
+    match attr.value.parse() {
+        Ok(endpoint) => Some((endpoint, attr.pos)),
+        Err(()) => {
+            problems.push(Located::new(
+                attr.pos,
+                format!(
+                    "`{name}` must be {form} (two names joined by a dot), not `{}`",
+                    attr.value
+                ),
+            ));
+            None
+        }
+    }
+}
+
+fn host_attr(element: &Element, problems: &mut Vec<Located>) -> Option<String> {
+    element.attr("host")?;
+    required(element, "host", problems).map(|field| field.value.to_owned())
+}
+
+/// A list of data name patterns: `module.output`, `module.*` or `*`.
+fn read_patterns(attr: &Attr, problems: &mut Vec<Located>) -> Vec<String> {
+    let mut patterns = Vec::new();
+    for item in attr
+        .value
+        .split([' ', ',', '\t', '\n'])
+        .filter(|s| !s.is_empty())
+    {
+        let valid = item == "*"
+            || match item.split_once('.') {
+                Some((module, "*")) => is_identifier(module),
+                Some((module, port)) => is_identifier(module) && is_identifier(port),
+                None => false,
+            };
+        if valid {
+            patterns.push(item.to_owned());
+        } else {
+            problems.push(Located::new(
+                attr.pos,
+                format!(
+                    "`{}`: `{item}` is not a data name pattern (expected module.output, module.* or *)",
+                    attr.name
+                ),
+            ));
+        }
+    }
+    patterns
+}
