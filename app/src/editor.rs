@@ -4,6 +4,8 @@
 
 use std::collections::BTreeSet;
 
+use armor_model::plural;
+
 use crate::diagram::{BlockId, Catalog, Clip, Diagram, Link, Pin, PortRef};
 
 /// How many steps Ctrl+Z can go back.
@@ -342,14 +344,6 @@ impl Editor {
             .block(id)
             .map(|block| block.name.clone())
             .unwrap_or_default()
-    }
-}
-
-pub fn plural(count: usize, noun: &str) -> String {
-    if count == 1 {
-        format!("1 {noun}")
-    } else {
-        format!("{count} {noun}s")
     }
 }
 

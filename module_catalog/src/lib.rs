@@ -42,5 +42,12 @@ pub mod sim;
 pub mod sink;
 pub mod teleop;
 
+/// An angle brought into (-π, π].
+pub fn wrap_angle(angle_rad: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let wrapped = (angle_rad + PI).rem_euclid(TAU) - PI;
+    if wrapped == -PI { PI } else { wrapped }
+}
+
 /// The error a module body returns when it refuses its configuration.
 pub type BodyError = Box<dyn std::error::Error + Send + Sync>;

@@ -551,23 +551,15 @@ impl RunView {
                 }
             });
         });
-        let marking: Vec<String> = mission
-            .marking
-            .iter()
-            .map(|(place, tokens)| match tokens {
-                1 => place.clone(),
-                _ => format!("{place}×{tokens}"),
-            })
-            .collect();
         ui.label(format!(
-            "`{}`{}: marking {{{}}}",
+            "`{}`{}: marking {}",
             mission.name,
             match (&mission.outcome, mission.paused) {
                 (Some(outcome), _) => format!(" ({outcome})"),
                 (None, true) => " (paused)".to_owned(),
                 (None, false) => String::new(),
             },
-            marking.join(", ")
+            armor_model::net::marking_text(&mission.marking)
         ));
         if !mission.enabled.is_empty() {
             ui.label(RichText::new("Next").strong());

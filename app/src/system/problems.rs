@@ -17,7 +17,7 @@ impl SystemView {
             });
             return;
         }
-        ui.heading(crate::editor::plural(self.problems.len(), "problem"));
+        ui.heading(armor_model::plural(self.problems.len(), "problem"));
         ui.label(
             RichText::new("As `armor check` reports them; click one to select its block.")
                 .weak()

@@ -23,11 +23,7 @@ pub(crate) mod replan;
 
 use armor_module_api::types::Twist;
 
-/// An angle brought into [-π, π).
-pub(crate) fn wrap_angle(angle_rad: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    (angle_rad + PI).rem_euclid(TAU) - PI
-}
+pub(crate) use crate::wrap_angle;
 
 /// A finite number, or 0 for NaN and infinities.
 pub(crate) fn finite_or_zero(value: f64) -> f64 {

@@ -1,7 +1,5 @@
 //! The simulated robot: a differential-drive disc that stops at walls, and its odometry.
 
-use std::f64::consts::{PI, TAU};
-
 use armor_module_api::types::{Pose2D, Twist};
 
 use super::rng::Rng;
@@ -13,11 +11,7 @@ pub const CONTACT_RELEASE_M: f64 = 0.05;
 /// Bisection steps when looking for the point of contact (far below a micrometre).
 const CONTACT_SEARCH_STEPS: usize = 40;
 
-/// An angle in (-π, π].
-pub fn wrap_angle(angle: f64) -> f64 {
-    let wrapped = (angle + PI).rem_euclid(TAU) - PI;
-    if wrapped == -PI { PI } else { wrapped }
-}
+pub use crate::wrap_angle;
 
 /// The pose reached after `t` seconds at linear speed `v` and turn rate `w` (exact
 /// differential-drive kinematics: a straight line or an arc of a circle).
@@ -208,6 +202,8 @@ impl Robot {
 
 #[cfg(test)]
 mod tests {
+    use std::f64::consts::PI;
+
     use super::*;
 
     fn room() -> World {

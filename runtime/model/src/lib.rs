@@ -24,6 +24,11 @@ pub use net::{
     Analysis, Condition, Engine, EngineError, EventRef, Firing, Marking, MissionNet, Place,
     PlaceParam, Transition, analyse, check_names, dining_philosophers, from_pnml, to_pnml,
 };
+/// `1 noun` or `N nouns`, for messages.
+pub fn plural(count: usize, noun: &str) -> String {
+    format!("{count} {noun}{}", if count == 1 { "" } else { "s" })
+}
+
 pub use system::{
     DEFAULT_HOST, Endpoint, Link, ModuleBindings, ModuleInstance, ParamValue, RestartPolicy,
     SystemConfig, check,

@@ -218,7 +218,7 @@ impl Controller {
                 "fired `{}` at {:.2} s → {}{}{}",
                 firing.transition,
                 firing.at_secs,
-                marking_text(&firing.marking_after.to_marking()),
+                armor_model::net::marking_text(&firing.marking_after.to_marking()),
                 listed("; started", &firing.started),
                 listed("; stopped", &firing.stopped),
             );
@@ -240,12 +240,12 @@ impl Controller {
             tracing::info!(
                 "mission `{}` complete: {}",
                 self.net.name,
-                marking_text(&self.engine.marking())
+                armor_model::net::marking_text(&self.engine.marking())
             );
             self.record("complete", json!({ "marking": self.engine.marking() }));
             self.outcome = Some(Outcome::Complete);
         } else if self.engine.is_dead() {
-            let marking = marking_text(&self.engine.marking());
+            let marking = armor_model::net::marking_text(&self.engine.marking());
             tracing::error!("mission `{}` is deadlocked in {marking}", self.net.name);
             self.record("deadlock", json!({ "marking": self.engine.marking() }));
             self.outcome = Some(Outcome::Deadlock { marking });
@@ -380,7 +380,7 @@ impl Controller {
                         tracing::info!(
                             "operator fired `{}` → {}",
                             firing.transition,
-                            marking_text(&firing.marking_after.to_marking())
+                            armor_model::net::marking_text(&firing.marking_after.to_marking())
                         );
                         self.record(
                             "fired",
@@ -413,20 +413,6 @@ impl Controller {
         let text = serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?;
         crate::fs::write_atomically(file, text.as_bytes())
     }
-}
-
-fn marking_text(marking: &armor_model::net::Marking) -> String {
-    let places: Vec<String> = marking
-        .iter()
-        .map(|(place, tokens)| {
-            if *tokens == 1 {
-                place.clone()
-            } else {
-                format!("{place}×{tokens}")
-            }
-        })
-        .collect();
-    format!("{{{}}}", places.join(", "))
 }
 
 fn listed(label: &str, names: &[String]) -> String {

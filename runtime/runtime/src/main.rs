@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context as _;
+use armor_model::plural;
 use armor_runtime::{agent, control, load, mission, probe, replay, supervisor};
 use clap::{Parser, Subcommand};
 
@@ -571,20 +572,12 @@ fn status_text(status: &control::Status) -> String {
         out.push('\n');
     }
     if let Some(mission) = &status.mission {
-        let marking: Vec<String> = mission
-            .marking
-            .iter()
-            .map(|(place, tokens)| match tokens {
-                1 => place.clone(),
-                _ => format!("{place}×{tokens}"),
-            })
-            .collect();
         let _ = writeln!(
             out,
-            "mission `{}`{}: {{{}}}, {}",
+            "mission `{}`{}: {}, {}",
             mission.name,
             if mission.paused { " (paused)" } else { "" },
-            marking.join(", "),
+            armor_model::net::marking_text(&mission.marking),
             plural(mission.firings_total, "firing")
         );
         for enabled in &mission.enabled {
@@ -592,10 +585,6 @@ fn status_text(status: &control::Status) -> String {
         }
     }
     out
-}
-
-fn plural(count: usize, noun: &str) -> String {
-    format!("{count} {noun}{}", if count == 1 { "" } else { "s" })
 }
 
 fn join_paths(paths: &[PathBuf]) -> String {

@@ -547,10 +547,10 @@ impl Engine {
                 None => return format!("its input arc {} goes to no place", arc + 1),
                 Some(p) if self.marking[p] < weight => {
                     return format!(
-                        "place `{}` holds {} of the {weight} token{} it needs",
+                        "place `{}` holds {} of the {} it needs",
                         self.net.places[p].name,
                         self.marking[p],
-                        if weight == 1 { "" } else { "s" }
+                        crate::plural(weight as usize, "token")
                     );
                 }
                 Some(_) => {}

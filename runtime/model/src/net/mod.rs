@@ -52,6 +52,19 @@ pub use pnml::{PNML_NAMESPACE, PTNET_TYPE, from_pnml, to_pnml};
 /// Tokens per place, naming only the places that hold some.
 pub type Marking = BTreeMap<String, u32>;
 
+/// A marking as the command line and the studio show it: `{a, b×2}` (a place with one token
+/// by its name alone).
+pub fn marking_text(marking: &Marking) -> String {
+    let places: Vec<String> = marking
+        .iter()
+        .map(|(place, tokens)| match tokens {
+            1 => place.clone(),
+            _ => format!("{place}×{tokens}"),
+        })
+        .collect();
+    format!("{{{}}}", places.join(", "))
+}
+
 /// A whole mission: a Petri net whose places run modules.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MissionNet {

@@ -10,7 +10,7 @@ use armor_module_api::wire::blocking;
 
 use crate::Settings;
 use crate::harness::Security;
-use crate::report::Report;
+use armor_bench_report::Report;
 
 pub const NAME: &str = "handshake_secret";
 

@@ -17,7 +17,7 @@ use anyhow::{Context as _, bail, ensure};
 use armor_runtime::probe::{self, DEFAULT_TIMEOUT, ProbeCache};
 
 use crate::Settings;
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "probe_50_cold_ms";
 

@@ -14,7 +14,7 @@ use crate::Settings;
 use crate::harness::{self, LINK_TIMEOUT};
 use crate::kill::describe_spawn;
 use crate::procs::{ChildGuard, module_binary, module_command};
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "discovery_ms";
 /// After a round's publisher is killed, how long the subscriber is given to see it gone.

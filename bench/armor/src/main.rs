@@ -28,7 +28,6 @@ mod procs;
 mod pull;
 mod raw;
 mod reachability;
-mod report;
 mod sim_realtime;
 mod startup;
 mod studio;
@@ -40,7 +39,7 @@ use std::process::ExitCode;
 use anyhow::Context as _;
 use clap::Parser;
 
-use crate::report::Report;
+use armor_bench_report::Report;
 
 #[derive(Parser)]
 #[command(

@@ -22,7 +22,7 @@ use armor_module_catalog::sim::world::World;
 use armor_module_catalog::sim::{SimParams, Simulator};
 
 use crate::Settings;
-use crate::report::Report;
+use armor_bench_report::Report;
 
 pub const NAME: &str = "mapper_scan_ms";
 const BUILDING_WORLD: &str = include_str!("../../../assets/worlds/building.world");

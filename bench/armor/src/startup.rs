@@ -13,7 +13,7 @@ use armor_module_api::{ENV_MODULE, ENV_SUPERVISOR};
 use crate::Settings;
 use crate::harness::LINK_TIMEOUT;
 use crate::procs::{ChildGuard, module_binary, sibling_binary};
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "startup_10_modules";
 const MODULES: usize = 10;

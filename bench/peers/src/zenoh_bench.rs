@@ -39,7 +39,7 @@ use zenoh::Wait as _;
 use zenoh::qos::CongestionControl;
 
 use crate::Settings;
-use crate::report::{Report, median, percentile};
+use armor_bench_report::{Report, median, percentile};
 
 /// The latency benches: (name, the `armor-bench` bench of our side, message bytes).
 pub const LATENCY: [(&str, &str, usize); 4] = [

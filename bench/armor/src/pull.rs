@@ -14,7 +14,7 @@ use crate::Settings;
 use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
 use crate::procs::{ChildGuard, spawn_echo};
 use crate::raw;
-use crate::report::Report;
+use armor_bench_report::Report;
 
 pub const NAME: &str = "pull_latest";
 const SIZE: usize = 64;

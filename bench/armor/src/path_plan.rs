@@ -32,7 +32,7 @@ use armor_module_catalog::sim::rng::Rng;
 
 use crate::Settings;
 use crate::compile_plan;
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "path_plan_ms";
 pub const NAME_CHECK: &str = "check_plan_100_legs_ms";
@@ -168,11 +168,11 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
         .with("costmap_build_ms", round(built.as_secs_f64() * 1e3))
         .with(
             "our_search_p50_ms",
-            round(crate::report::percentile(&sorted, 0.5)),
+            round(armor_bench_report::percentile(&sorted, 0.5)),
         )
         .with(
             "our_search_p99_ms",
-            round(crate::report::percentile(&sorted, 0.99)),
+            round(armor_bench_report::percentile(&sorted, 0.99)),
         )
         .with("pairs", pairs)
         .with("pairs_cut_skipped", cut)

@@ -8,17 +8,12 @@
 //! root workspace, so `cargo build/test --workspace` never builds its dependencies:
 //!
 //! ```sh
-//! CARGO_TARGET_DIR=target/peers cargo build --release --manifest-path bench_peers/Cargo.toml
+//! CARGO_TARGET_DIR=target/peers cargo build --release --manifest-path bench/peers/Cargo.toml
 //! target/peers/release/armor-bench-peers [NAME...] [--quick] [--list]
 //! ```
 
 mod firings;
 mod probe_cold;
-// The line format of `armor-bench`, from its own source: that crate is a binary and exports
-// nothing, and a copy would drift.
-#[allow(dead_code)]
-#[path = "../../runtime/bench/src/report.rs"]
-mod report;
 mod spin;
 mod xml_load;
 #[cfg(feature = "zenoh")]
@@ -29,7 +24,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
-use crate::report::Report;
+use armor_bench_report::Report;
 
 #[derive(Parser)]
 #[command(

@@ -13,7 +13,7 @@ use crate::Settings;
 use crate::harness::{LINK_TIMEOUT, STALL_TIMEOUT, Security};
 use crate::procs::{ChildGuard, spawn_echo};
 use crate::raw;
-use crate::report::Report;
+use armor_bench_report::Report;
 
 /// The benches, by message size.
 pub const SIZES: [(&str, usize); 4] = [

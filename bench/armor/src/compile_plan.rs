@@ -20,7 +20,7 @@ use armor_module_api::ModuleDescription;
 use armor_runtime::mission::ANALYSIS_LIMIT_STATES;
 
 use crate::Settings;
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "compile_10k_waypoints_ms";
 

@@ -28,7 +28,7 @@ use crate::Settings;
 use crate::benchprobe::{self, Kind, Line};
 use crate::harness::{LINK_TIMEOUT, STALL_TIMEOUT};
 use crate::procs::{ChildGuard, self_command, sibling_binary};
-use crate::report::Report;
+use armor_bench_report::Report;
 
 pub const NAME: &str = "event_to_start_ms";
 /// How long `armor run` has to stop after SIGTERM.

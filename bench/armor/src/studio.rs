@@ -12,7 +12,7 @@ use anyhow::Context as _;
 
 use crate::Settings;
 use crate::procs::sibling_binary;
-use crate::report::Report;
+use armor_bench_report::Report;
 
 pub const NAME_FRAME: &str = "studio_frame_ms_1000_blocks";
 pub const NAME_LOAD: &str = "studio_load_ms_1000_blocks";

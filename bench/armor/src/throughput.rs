@@ -15,7 +15,7 @@ use crate::Settings;
 use crate::harness::{LINK_TIMEOUT, STALL_TIMEOUT, Security};
 use crate::procs::{ChildGuard, module_command};
 use crate::raw;
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME_1MIB: &str = "throughput_1mib";
 pub const NAME_64B: &str = "throughput_64b";

@@ -23,7 +23,7 @@ use armor_module_api::{ENV_MODULE, ENV_SUPERVISOR};
 
 use crate::Settings;
 use crate::procs::{ChildGuard, module_binary, sibling_binary};
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME_RECOVER: &str = "kill_recover_ms";
 pub const NAME_LOST: &str = "messages_lost_under_kill";
@@ -110,7 +110,7 @@ pub fn run_lost(settings: &Settings) -> anyhow::Result<Report> {
 fn percentile_99(values: &[f64]) -> f64 {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
-    crate::report::percentile(&sorted, 0.99)
+    armor_bench_report::percentile(&sorted, 0.99)
 }
 
 fn scenario(settings: &Settings) -> anyhow::Result<Outcome> {

@@ -34,7 +34,7 @@ use armor_module_catalog::sim::{SimParams, Simulator};
 use crate::Settings;
 use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
 use crate::procs::{ChildGuard, module_binary, sibling_binary};
-use crate::report::Report;
+use armor_bench_report::Report;
 
 pub const NAME: &str = "sim_realtime_factor";
 pub const NAME_MONITOR: &str = "monitor_overhead";

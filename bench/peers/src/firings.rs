@@ -25,7 +25,7 @@ use armor_model::net::{Arc, CompiledNet, Engine, MissionNet, Place, Transition};
 use serde_json::json;
 
 use crate::Settings;
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "firings_vs_libpetri";
 

@@ -8,7 +8,7 @@ use std::process::Command;
 use anyhow::{Context as _, bail};
 
 use crate::Settings;
-use crate::report::Report;
+use armor_bench_report::Report;
 
 pub const NAME: &str = "fuzz_execs";
 

@@ -19,7 +19,7 @@ use armor_model::system::SystemConfig;
 use serde_json::json;
 
 use crate::Settings;
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "xml_load_vs_xmlrs";
 

@@ -22,7 +22,7 @@ use armor_model::net::{MissionNet, analyse, dining_philosophers};
 use serde_json::json;
 
 use crate::Settings;
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "states_vs_spin";
 

@@ -18,7 +18,7 @@ use armor_model::net::{MissionNet, analyse, dining_philosophers};
 use armor_runtime::mission::ANALYSIS_LIMIT_STATES;
 
 use crate::Settings;
-use crate::report::{Report, median};
+use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "reachability_states_per_s";
 
