@@ -768,3 +768,30 @@ fn an_empty_studio_offers_a_start_page_with_the_examples() {
         "the page is gone"
     );
 }
+
+#[test]
+fn the_parameter_dialog_shows_and_enforces_the_declared_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(options(&dir.path().join("home"), None));
+    drop_module(&mut harness, "counter", Pos2::new(450.0, 200.0));
+    let at = harness.state().block_pos("counter").unwrap();
+    double_click(&mut harness, at);
+    harness.get_by_label("Block counter");
+    harness.get_by_label("allowed: greater than 0 s");
+    type_into(&mut harness, "period_secs", "0");
+    harness.get_by_label("`0` is not greater than 0 s");
+    harness.key_press(Key::Backspace);
+    harness.get_by_label("period_secs").type_text("0.5");
+    harness.run();
+    assert!(
+        harness
+            .query_by_label("`0` is not greater than 0 s")
+            .is_none()
+    );
+    assert!(
+        harness
+            .query_by_label("`0.5` is not greater than 0 s")
+            .is_none()
+    );
+    harness.get_by_label("ok");
+}

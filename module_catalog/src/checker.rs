@@ -3,8 +3,6 @@
 use armor_module_api::types::Counter;
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
-use crate::params::int_at_least;
-
 pub const TYPE: &str = "checker";
 
 pub fn spec() -> ModuleSpec {
@@ -20,7 +18,7 @@ pub fn spec() -> ModuleSpec {
             "report_every",
             ParamType::Int,
             "log a summary line every this many values (1 or more)",
-        )
+        ).min(1.0)
         .default("10"),
     )
     .event(
@@ -36,7 +34,7 @@ pub fn spec() -> ModuleSpec {
 pub fn body(node: &mut Node) -> BodyResult {
     let input = node.reliable_input::<Counter>("input")?;
     let output = node.output::<Counter>("received")?;
-    let report_every = int_at_least(node, "report_every", 1, "1 or more")?;
+    let report_every = node.param::<u64>("report_every")?;
     let mut tally = Tally::default();
     loop {
         match node.next_event(None)? {

@@ -4,7 +4,6 @@ use armor_module_api::types::Counter;
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
-use crate::params::{FloatRange, float_in, int_at_least};
 
 pub const TYPE: &str = "counter";
 
@@ -18,6 +17,7 @@ pub fn spec() -> ModuleSpec {
                 ParamType::Float,
                 "time between two values (run time, greater than 0; tunable live)",
             )
+            .above(0.0)
             .unit("s")
             .default("0.1"),
         )
@@ -27,6 +27,7 @@ pub fn spec() -> ModuleSpec {
                 ParamType::Int,
                 "how many values to publish before reporting `done` (0: no limit)",
             )
+            .min(0.0)
             .default("0"),
         )
         .event("done", "`limit` values have been published")
@@ -35,7 +36,7 @@ pub fn spec() -> ModuleSpec {
 pub fn body(node: &mut Node) -> BodyResult {
     let output = node.output::<Counter>("count")?;
     let period_secs = period(node)?;
-    let limit = int_at_least(node, "limit", 0, "0 (no limit) or more")?;
+    let limit = node.param::<u64>("limit")?;
     let mut schedule = Schedule::new(period_secs, node.timestamp());
     let mut next_value: u64 = 1;
     let mut done = false;
@@ -83,7 +84,7 @@ fn retune(node: &Node, schedule: &mut Schedule) {
 
 /// The `period_secs` parameter, refused unless it is a positive number of seconds.
 fn period(node: &Node) -> Result<f64, BodyError> {
-    float_in(node, "period_secs", FloatRange::above(0.0, "s"))
+    Ok(node.param::<f64>("period_secs")?)
 }
 
 /// When the counter publishes, in run time (seconds).

@@ -19,7 +19,6 @@ use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType
 
 use crate::BodyError;
 use crate::nav::sanitized;
-use crate::params::{FloatRange, float_in};
 
 pub const TYPE: &str = "mux";
 
@@ -57,6 +56,7 @@ pub fn spec() -> ModuleSpec {
             "a command received longer ago than this (run time) no longer counts (greater than \
              0; tunable live)",
         )
+        .above(0.0)
         .unit("s")
         .default("0.3"),
     )
@@ -67,6 +67,8 @@ pub fn spec() -> ModuleSpec {
             "commands published per second of run time (greater than 0, at most 1000; tunable \
              live)",
         )
+        .above(0.0)
+        .max(MAX_RATE_HZ)
         .unit("Hz")
         .default("20"),
     )
@@ -137,12 +139,8 @@ pub struct Settings {
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
         Ok(Self {
-            fresh_secs: float_in(node, "fresh_secs", FloatRange::above(0.0, "s"))?,
-            rate_hz: float_in(
-                node,
-                "rate_hz",
-                FloatRange::above(0.0, "Hz").at_most(MAX_RATE_HZ),
-            )?,
+            fresh_secs: node.param::<f64>("fresh_secs")?,
+            rate_hz: node.param::<f64>("rate_hz")?,
         })
     }
 

@@ -11,7 +11,6 @@ use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType
 
 use crate::BodyError;
 use crate::nav::wrap_angle;
-use crate::params::{FloatRange, float_in, float_where};
 
 pub const TYPE: &str = "observer";
 
@@ -38,6 +37,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "how far to turn (greater than 0; more than 360 turns more than once)",
         )
+        .above(0.0)
         .unit("deg")
         .default("360"),
     )
@@ -47,6 +47,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "turning speed, counter-clockwise (negative: clockwise; not 0)",
         )
+        .nonzero()
         .unit("rad/s")
         .default("0.6"),
     )
@@ -105,8 +106,8 @@ pub struct Settings {
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
         Ok(Self {
-            sector_deg: float_in(node, "sector_deg", FloatRange::above(0.0, "°"))?,
-            turn_radps: float_where(node, "turn_radps", |value| value != 0.0, "non-zero")?,
+            sector_deg: node.param::<f64>("sector_deg")?,
+            turn_radps: node.param::<f64>("turn_radps")?,
         })
     }
 }

@@ -35,7 +35,6 @@ use serde::de::DeserializeOwned;
 use serde_json::json;
 
 use crate::BodyError;
-use crate::params::{FloatRange, float_in};
 
 pub const TYPE: &str = "recorder";
 /// Channel metadata key naming the ArMoR data type of a channel's messages.
@@ -66,7 +65,7 @@ pub fn spec() -> ModuleSpec {
             "format",
             ParamType::String,
             "file format: `mcap` (JSON messages for the built-in types, postcard bytes for others)",
-        )
+        ).choices(&["mcap"])
         .default("mcap"),
     )
     .param(
@@ -74,7 +73,7 @@ pub fn spec() -> ModuleSpec {
             "compression",
             ParamType::String,
             "compression of the file's chunks: `zstd`, `lz4` or `none`",
-        )
+        ).choices(&["zstd", "lz4", "none"])
         .default("zstd"),
     )
     .param(
@@ -82,7 +81,7 @@ pub fn spec() -> ModuleSpec {
             "report_secs",
             ParamType::Float,
             "log how many messages were recorded every this many seconds (0: only when a file is saved)",
-        )
+        ).min(0.0)
         .unit("s")
         .default("5"),
     )
@@ -259,7 +258,7 @@ impl Settings {
     }
 
     fn report_period(node: &Node) -> Result<Option<Duration>, BodyError> {
-        let secs = float_in(node, "report_secs", FloatRange::at_least(0.0, "s"))?;
+        let secs = node.param::<f64>("report_secs")?;
         Ok((secs > 0.0).then(|| Duration::from_secs_f64(secs)))
     }
 }

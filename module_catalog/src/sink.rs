@@ -3,8 +3,6 @@
 use armor_module_api::types::{Blob, Counter};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
-use crate::params::int_at_least;
-
 pub const TYPE: &str = "sink";
 
 pub fn spec() -> ModuleSpec {
@@ -21,6 +19,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Int,
             "publish the count every this many values (1 or more)",
         )
+        .min(1.0)
         .default("1"),
     )
 }
@@ -28,7 +27,7 @@ pub fn spec() -> ModuleSpec {
 pub fn body(node: &mut Node) -> BodyResult {
     let input = node.reliable_input::<Blob>("input")?;
     let output = node.output::<Counter>("count")?;
-    let every = int_at_least(node, "every", 1, "1 or more")?;
+    let every = node.param::<u64>("every")?;
     let mut received: u64 = 0;
     loop {
         match node.next_event(None)? {

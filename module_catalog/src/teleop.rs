@@ -20,7 +20,6 @@ use armor_module_api::types::Twist;
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
-use crate::params::{FloatRange, float_in};
 
 pub const TYPE: &str = "teleop";
 
@@ -62,6 +61,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "linear speeds are clamped to ± this (0 or more)",
         )
+        .min(0.0)
         .unit("m/s")
         .default("0.5"),
     )
@@ -71,6 +71,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "turning speeds are clamped to ± this (0 or more)",
         )
+        .min(0.0)
         .unit("rad/s")
         .default("1.0"),
     )
@@ -81,6 +82,7 @@ pub fn spec() -> ModuleSpec {
             "a command is held this long in run time, then zero is commanded until the next one \
              (greater than 0)",
         )
+        .above(0.0)
         .unit("s")
         .default("0.5"),
     )
@@ -137,9 +139,9 @@ pub struct Limits {
 impl Limits {
     fn read(node: &Node) -> Result<Self, BodyError> {
         Ok(Self {
-            max_speed_mps: float_in(node, "max_speed_mps", FloatRange::at_least(0.0, "m/s"))?,
-            max_turn_radps: float_in(node, "max_turn_radps", FloatRange::at_least(0.0, "rad/s"))?,
-            deadman_secs: float_in(node, "deadman_secs", FloatRange::above(0.0, "s"))?,
+            max_speed_mps: node.param::<f64>("max_speed_mps")?,
+            max_turn_radps: node.param::<f64>("max_turn_radps")?,
+            deadman_secs: node.param::<f64>("deadman_secs")?,
         })
     }
 }

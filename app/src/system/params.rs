@@ -120,9 +120,7 @@ impl SystemView {
                                             Ok(None)
                                         }
                                     } else {
-                                        spec.param_type
-                                            .check_value(&trimmed)
-                                            .map(|()| Some(trimmed))
+                                        spec.check_value(&trimmed).map(|()| Some(trimmed))
                                     };
                                     match &verdict {
                                         Ok(_) => ui.colored_label(OK, "ok"),
@@ -131,6 +129,12 @@ impl SystemView {
                                     (edit, verdict)
                                 })
                                 .inner;
+                            if spec.is_limited() {
+                                ui.label(
+                                    RichText::new(format!("allowed: {}", spec.range_text()))
+                                        .small(),
+                                );
+                            }
                             if !spec.doc.is_empty() {
                                 ui.add(
                                     egui::Label::new(RichText::new(&spec.doc).small().weak())

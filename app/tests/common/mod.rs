@@ -31,7 +31,8 @@ pub fn descriptions() -> Vec<ModuleDescription> {
     counter.params.push(
         ParamSpec::new("period_secs", ParamType::Float, "time between two values")
             .unit("s")
-            .default("0.1"),
+            .default("0.1")
+            .above(0.0),
     );
     let mut checker =
         ModuleDescription::new("checker", "Checks that counter values arrive in order.");

@@ -32,7 +32,6 @@ use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType
 
 use crate::BodyError;
 use crate::nav::wrap_angle;
-use crate::params::{FloatRange, float_in};
 use grid::LogOddsGrid;
 use matcher::{Matcher, SearchWindow};
 
@@ -82,6 +81,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "side of a grid cell (greater than 0; taken at restart)",
         )
+        .above(0.0)
         .unit("m")
         .default("0.1"),
     )
@@ -92,6 +92,7 @@ pub fn spec() -> ModuleSpec {
             "side of the square grid, centred on the pose of the first scan (at least \
              resolution_m, at most 4000 cells a side; taken at restart)",
         )
+        .above(0.0)
         .unit("m")
         .default("60"),
     )
@@ -102,6 +103,8 @@ pub fn spec() -> ModuleSpec {
             "the scan matcher looks this far from the odometry's prediction, each way in x and y \
              (0 or more, at most 2; with 0, positions are only refined; tunable live)",
         )
+        .min(0.0)
+        .max(2.0)
         .unit("m")
         .default("0.3"),
     )
@@ -112,6 +115,8 @@ pub fn spec() -> ModuleSpec {
             "the scan matcher looks this far from the predicted heading, each way (0 or more, at \
              most 45; with 0, headings are only refined; tunable live)",
         )
+        .min(0.0)
+        .max(45.0)
         .unit("deg")
         .default("10"),
     )
@@ -122,6 +127,8 @@ pub fn spec() -> ModuleSpec {
             "beams are used up to this range: longer echoes only clear the cells before it \
              (greater than 0, at most 100; tunable live)",
         )
+        .above(0.0)
+        .max(100.0)
         .unit("m")
         .default("7.5"),
     )
@@ -132,6 +139,8 @@ pub fn spec() -> ModuleSpec {
             "how often the map is published, per second of run time (greater than 0, at most \
              100; tunable live)",
         )
+        .above(0.0)
+        .max(100.0)
         .unit("Hz")
         .default("1"),
     )
@@ -165,28 +174,12 @@ impl Settings {
     /// Reads and checks the parameters, refusing nonsense in words.
     pub fn read(node: &Node) -> Result<Self, BodyError> {
         let settings = Self {
-            resolution_m: float_in(node, "resolution_m", FloatRange::above(0.0, "m"))?,
-            size_m: float_in(node, "size_m", FloatRange::above(0.0, "m"))?,
-            match_search_m: float_in(
-                node,
-                "match_search_m",
-                FloatRange::at_least(0.0, "m").at_most(2.0),
-            )?,
-            match_search_deg: float_in(
-                node,
-                "match_search_deg",
-                FloatRange::at_least(0.0, "°").at_most(45.0),
-            )?,
-            max_range_m: float_in(
-                node,
-                "max_range_m",
-                FloatRange::above(0.0, "m").at_most(100.0),
-            )?,
-            map_rate_hz: float_in(
-                node,
-                "map_rate_hz",
-                FloatRange::above(0.0, "Hz").at_most(100.0),
-            )?,
+            resolution_m: node.param::<f64>("resolution_m")?,
+            size_m: node.param::<f64>("size_m")?,
+            match_search_m: node.param::<f64>("match_search_m")?,
+            match_search_deg: node.param::<f64>("match_search_deg")?,
+            max_range_m: node.param::<f64>("max_range_m")?,
+            map_rate_hz: node.param::<f64>("map_rate_hz")?,
         };
         settings.check_grid()?;
         Ok(settings)

@@ -18,7 +18,7 @@ use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType
 
 use super::{finite_or_zero, sanitized, wrap_angle};
 use crate::BodyError;
-use crate::params::{FloatRange, float_in, float_where};
+use crate::params::float_where;
 
 pub const TYPE: &str = "avoider";
 
@@ -74,6 +74,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "obstacles closer than this repel the robot and slow it down (greater than stop_m)",
         )
+        .above(0.0)
         .unit("m")
         .default("1.2"),
     )
@@ -84,6 +85,7 @@ pub fn spec() -> ModuleSpec {
             "an obstacle this close in the robot's path stops forward (or backward) motion; \
              turning is still allowed (greater than 0)",
         )
+        .above(0.0)
         .unit("m")
         .default("0.35"),
     )
@@ -94,6 +96,7 @@ pub fn spec() -> ModuleSpec {
             "weight of the repulsion against the desired direction (0 or more; 0 only slows \
              down and stops)",
         )
+        .min(0.0)
         .default("1.0"),
     )
     .param(
@@ -102,6 +105,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "half the width of the robot's path, checked for obstacles (0 or more)",
         )
+        .min(0.0)
         .unit("m")
         .default("0.25"),
     )
@@ -184,7 +188,7 @@ pub struct Settings {
 
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
-        let stop_m = float_in(node, "stop_m", FloatRange::above(0.0, "m"))?;
+        let stop_m = node.param::<f64>("stop_m")?;
         Ok(Self {
             influence_m: float_where(
                 node,
@@ -193,8 +197,8 @@ impl Settings {
                 &format!("greater than stop_m ({stop_m} m)"),
             )?,
             stop_m,
-            gain: float_in(node, "gain", FloatRange::at_least(0.0, ""))?,
-            robot_radius_m: float_in(node, "robot_radius_m", FloatRange::at_least(0.0, "m"))?,
+            gain: node.param::<f64>("gain")?,
+            robot_radius_m: node.param::<f64>("robot_radius_m")?,
         })
     }
 }

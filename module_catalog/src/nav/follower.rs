@@ -29,7 +29,6 @@ use super::pursuit::{Limits, Pursuit};
 use super::replan::{self, WorldMap};
 use super::wrap_angle;
 use crate::BodyError;
-use crate::params::{FloatRange, float_in, int_in};
 
 pub const TYPE: &str = "follower";
 
@@ -97,6 +96,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "the goal is reached within this distance (greater than 0)",
         )
+        .above(0.0)
         .unit("m")
         .default("0.3"),
     )
@@ -106,6 +106,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "forward speed far from the goal when facing it (greater than 0)",
         )
+        .above(0.0)
         .unit("m/s")
         .default("0.6"),
     )
@@ -115,6 +116,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "largest turning speed (greater than 0)",
         )
+        .above(0.0)
         .unit("rad/s")
         .default("1.2"),
     )
@@ -125,6 +127,7 @@ pub fn spec() -> ModuleSpec {
             "report `blocked` when the distance to the goal has not shrunk for this long, in run \
              time (0 or more; 0 reports at the first pose that shows no progress)",
         )
+        .min(0.0)
         .unit("s")
         .default("10"),
     )
@@ -164,6 +167,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "the robot's radius, for replanning (greater than 0)",
         )
+        .above(0.0)
         .unit("m")
         .default("0.25"),
     )
@@ -175,6 +179,7 @@ pub fn spec() -> ModuleSpec {
              the path for this long, or at once when the laser sees the path blocked ahead \
              (greater than 0)",
         )
+        .above(0.0)
         .unit("s")
         .default("3"),
     )
@@ -185,6 +190,8 @@ pub fn spec() -> ModuleSpec {
             "with a path: the most replans per leg (0 to 100); beyond them, no progress for \
              blocked_after_secs reports `blocked`, and so does a replan that finds no way",
         )
+        .min(0.0)
+        .max(100.0)
         .default("3"),
     )
     .event(
@@ -325,24 +332,20 @@ pub struct Settings {
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
         Ok(Self {
-            goal_x_m: float_in(node, "goal_x_m", FloatRange::any("m"))?,
-            goal_y_m: float_in(node, "goal_y_m", FloatRange::any("m"))?,
-            tolerance_m: float_in(node, "tolerance_m", FloatRange::above(0.0, "m"))?,
-            max_speed_mps: float_in(node, "max_speed_mps", FloatRange::above(0.0, "m/s"))?,
-            max_turn_radps: float_in(node, "max_turn_radps", FloatRange::above(0.0, "rad/s"))?,
-            blocked_after_secs: float_in(
-                node,
-                "blocked_after_secs",
-                FloatRange::at_least(0.0, "s"),
-            )?,
+            goal_x_m: node.param::<f64>("goal_x_m")?,
+            goal_y_m: node.param::<f64>("goal_y_m")?,
+            tolerance_m: node.param::<f64>("tolerance_m")?,
+            max_speed_mps: node.param::<f64>("max_speed_mps")?,
+            max_turn_radps: node.param::<f64>("max_turn_radps")?,
+            blocked_after_secs: node.param::<f64>("blocked_after_secs")?,
             no_go: geo::parse_polygons(&node.param::<String>("no_go")?)
                 .map_err(|why| format!("parameter `no_go`: {why}"))?,
             path: Path::parse(&node.param::<String>("path")?)
                 .map_err(|why| format!("parameter `path`: {why}"))?,
             world: node.param::<String>("world")?,
-            robot_radius_m: float_in(node, "robot_radius_m", FloatRange::above(0.0, "m"))?,
-            replan_after_secs: float_in(node, "replan_after_secs", FloatRange::above(0.0, "s"))?,
-            max_replans: int_in(node, "max_replans", 0..=100)? as u32,
+            robot_radius_m: node.param::<f64>("robot_radius_m")?,
+            replan_after_secs: node.param::<f64>("replan_after_secs")?,
+            max_replans: node.param::<u32>("max_replans")?,
         })
     }
 

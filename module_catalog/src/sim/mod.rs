@@ -20,7 +20,7 @@ use armor_module_api::types::{LaserScan, Odometry, Pose2D, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
-use crate::params::{FloatRange, float_in, int_in};
+use crate::params::float_where;
 use laser::Laser;
 use rng::Rng;
 use robot::{OdometryNoise, Robot};
@@ -82,6 +82,8 @@ pub fn spec() -> ModuleSpec {
             "physics steps per second of run time; odometry and pose_truth are published at \
              every step (greater than 0, at most 1000)",
         )
+        .above(0.0)
+        .max(1000.0)
         .unit("Hz")
         .default("50"),
     )
@@ -91,6 +93,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "laser scans per second of run time (greater than 0, at most rate_hz)",
         )
+        .above(0.0)
         .unit("Hz")
         .default("10"),
     )
@@ -100,6 +103,8 @@ pub fn spec() -> ModuleSpec {
             ParamType::Int,
             "beams per scan (1 to 100000)",
         )
+        .min(1.0)
+        .max(100_000.0)
         .default("360"),
     )
     .param(
@@ -109,6 +114,8 @@ pub fn spec() -> ModuleSpec {
             "field of view, centred on the robot's heading (greater than 0, at most 360; 360 \
              spreads the beams all around with none repeated)",
         )
+        .above(0.0)
+        .max(360.0)
         .unit("deg")
         .default("360"),
     )
@@ -118,6 +125,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "maximum range of the laser (greater than 0)",
         )
+        .above(0.0)
         .unit("m")
         .default("8"),
     )
@@ -127,6 +135,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "standard deviation of the Gaussian noise added to each range (0 or more)",
         )
+        .min(0.0)
         .unit("m")
         .default("0.01"),
     )
@@ -137,6 +146,7 @@ pub fn spec() -> ModuleSpec {
             "standard deviation of the odometry's distance error after travelling 1 m (a random \
              walk: it grows with the square root of the distance, whatever rate_hz; 0 or more)",
         )
+        .min(0.0)
         .unit("m")
         .default("0.02"),
     )
@@ -147,6 +157,7 @@ pub fn spec() -> ModuleSpec {
             "standard deviation of the odometry's heading error after turning 1 rad (grows with \
              the square root of the angle turned; 0 or more)",
         )
+        .min(0.0)
         .unit("rad")
         .default("0.02"),
     )
@@ -157,6 +168,7 @@ pub fn spec() -> ModuleSpec {
             "standard deviation of the odometry's heading error after travelling 1 m (grows with \
              the square root of the distance; 0 or more)",
         )
+        .min(0.0)
         .unit("rad")
         .default("0.005"),
     )
@@ -174,6 +186,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "linear speed limit, forwards and backwards (greater than 0)",
         )
+        .above(0.0)
         .unit("m/s")
         .default("1.0"),
     )
@@ -183,6 +196,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "turn rate limit, either way (greater than 0)",
         )
+        .above(0.0)
         .unit("rad/s")
         .default("1.5"),
     )
@@ -192,6 +206,7 @@ pub fn spec() -> ModuleSpec {
             ParamType::Float,
             "radius of the robot's disc, for collisions (greater than 0)",
         )
+        .above(0.0)
         .unit("m")
         .default("0.25"),
     )
@@ -253,42 +268,31 @@ impl Default for SimParams {
 impl SimParams {
     /// Reads and checks the parameters, refusing nonsense in words.
     pub fn from_node(node: &Node) -> Result<Self, BodyError> {
-        let positive = |name: &str, unit| float_in(node, name, FloatRange::above(0.0, unit));
-        let at_least_zero =
-            |name: &str, unit| float_in(node, name, FloatRange::at_least(0.0, unit));
-        let rate_hz = float_in(
-            node,
-            "rate_hz",
-            FloatRange::above(0.0, "Hz").at_most(1000.0),
-        )?;
-        let laser_rate_hz = float_in(
+        let rate_hz = node.param::<f64>("rate_hz")?;
+        let laser_rate_hz = float_where(
             node,
             "laser_rate_hz",
-            FloatRange::above(0.0, "Hz").at_most(rate_hz),
-        )
-        .map_err(|err| format!("{err} (scans are taken at physics steps)"))?;
-        let laser_beams = int_in(node, "laser_beams", 1..=100_000)?;
+            |value| value <= rate_hz,
+            &format!("at most rate_hz ({rate_hz} Hz, scans are taken at physics steps)"),
+        )?;
+        let laser_beams = node.param::<usize>("laser_beams")?;
         let seed: i64 = node.param("seed")?;
         Ok(Self {
             rate_hz,
             laser_rate_hz,
-            laser_beams: laser_beams.unsigned_abs() as usize,
-            laser_fov_deg: float_in(
-                node,
-                "laser_fov_deg",
-                FloatRange::above(0.0, "°").at_most(360.0),
-            )?,
-            laser_range_m: positive("laser_range_m", "m")?,
-            laser_noise_m: at_least_zero("laser_noise_m", "m")?,
+            laser_beams,
+            laser_fov_deg: node.param::<f64>("laser_fov_deg")?,
+            laser_range_m: node.param::<f64>("laser_range_m")?,
+            laser_noise_m: node.param::<f64>("laser_noise_m")?,
             odom_noise: OdometryNoise {
-                dist: at_least_zero("odom_noise_dist", "m")?,
-                rot: at_least_zero("odom_noise_rot", "rad")?,
-                drift: at_least_zero("odom_noise_drift", "rad")?,
+                dist: node.param::<f64>("odom_noise_dist")?,
+                rot: node.param::<f64>("odom_noise_rot")?,
+                drift: node.param::<f64>("odom_noise_drift")?,
             },
             seed: u64::from_ne_bytes(seed.to_ne_bytes()),
-            max_speed_mps: positive("max_speed_mps", "m/s")?,
-            max_turn_radps: positive("max_turn_radps", "rad/s")?,
-            robot_radius_m: positive("robot_radius_m", "m")?,
+            max_speed_mps: node.param::<f64>("max_speed_mps")?,
+            max_turn_radps: node.param::<f64>("max_turn_radps")?,
+            robot_radius_m: node.param::<f64>("robot_radius_m")?,
         })
     }
 }
@@ -882,7 +886,7 @@ boundary 0,0 10,0 10,10 0,10 0,0
         );
         assert_eq!(
             refusal(&[("laser_rate_hz", "60")]),
-            "parameter `laser_rate_hz` must be greater than 0 Hz and at most 50 Hz, not 60 (scans are taken at physics steps)"
+            "parameter `laser_rate_hz` must be at most rate_hz (50 Hz, scans are taken at physics steps), not 60"
         );
         assert_eq!(
             refusal(&[("laser_beams", "0")]),

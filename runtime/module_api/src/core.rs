@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use crate::clock::Clock;
-use crate::describe::ModuleDescription;
+use crate::describe::{ModuleDescription, ParamSpec};
 use crate::protocol::{ModuleConfig, NodeStats};
 use crate::types::CodecError;
 use crate::wire::{DataFrame, WireError};
@@ -39,6 +39,12 @@ pub enum ApiError {
         value: String,
         reason: String,
     },
+    #[error("parameter `{name}` must be {allowed}, not {value}")]
+    OutOfRange {
+        name: String,
+        value: String,
+        allowed: String,
+    },
     #[error("event `{0}` is not declared by this module")]
     UnknownEvent(String),
     #[error("cannot reach the supervisor at {addr} within {waited_secs:.1} s")]
@@ -63,6 +69,23 @@ pub enum ApiError {
         declared: String,
         requested: String,
     },
+}
+
+/// Checks a parameter's value against its declaration: its type, then its range, `nonzero` and
+/// choices.
+pub(crate) fn check_param(spec: &ParamSpec, value: &str) -> Result<(), ApiError> {
+    spec.param_type
+        .check_value(value)
+        .map_err(|reason| ApiError::BadParam {
+            name: spec.name.clone(),
+            value: value.to_owned(),
+            reason,
+        })?;
+    spec.check_value(value).map_err(|_| ApiError::OutOfRange {
+        name: spec.name.clone(),
+        value: value.trim().to_owned(),
+        allowed: spec.range_text(),
+    })
 }
 
 /// Identifies an input in [`Event::Input`]; compare with [`Input::id`].

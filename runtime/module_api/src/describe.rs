@@ -80,7 +80,16 @@ pub struct PortSpec {
     pub doc: String,
 }
 
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// One end of a numeric parameter's range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bound {
+    pub value: f64,
+    /// Whether the value itself is allowed (`min`, `max`) or only values beyond it
+    /// (`min_exclusive`, `max_exclusive`).
+    pub inclusive: bool,
+}
+
+#[derive(Clone, Debug, PartialEq)]
 pub struct ParamSpec {
     pub name: String,
     pub param_type: ParamType,
@@ -89,6 +98,14 @@ pub struct ParamSpec {
     /// The value used when the configuration gives none; `None` makes the parameter required.
     pub default: Option<String>,
     pub doc: String,
+    /// The lowest value allowed (`int` and `float` only).
+    pub min: Option<Bound>,
+    /// The highest value allowed (`int` and `float` only).
+    pub max: Option<Bound>,
+    /// 0 is refused (`int` and `float` only).
+    pub nonzero: bool,
+    /// The only values allowed, when not empty (`string` only).
+    pub choices: Vec<String>,
 }
 
 impl ParamSpec {
@@ -99,6 +116,10 @@ impl ParamSpec {
             unit: String::new(),
             default: None,
             doc: doc.to_owned(),
+            min: None,
+            max: None,
+            nonzero: false,
+            choices: Vec::new(),
         }
     }
 
@@ -112,8 +133,138 @@ impl ParamSpec {
         self
     }
 
+    /// `value` or more.
+    pub fn min(mut self, value: f64) -> Self {
+        self.min = Some(Bound {
+            value,
+            inclusive: true,
+        });
+        self
+    }
+
+    /// Strictly greater than `value`.
+    pub fn above(mut self, value: f64) -> Self {
+        self.min = Some(Bound {
+            value,
+            inclusive: false,
+        });
+        self
+    }
+
+    /// `value` or less.
+    pub fn max(mut self, value: f64) -> Self {
+        self.max = Some(Bound {
+            value,
+            inclusive: true,
+        });
+        self
+    }
+
+    /// Strictly less than `value`.
+    pub fn below(mut self, value: f64) -> Self {
+        self.max = Some(Bound {
+            value,
+            inclusive: false,
+        });
+        self
+    }
+
+    /// 0 is refused.
+    pub fn nonzero(mut self) -> Self {
+        self.nonzero = true;
+        self
+    }
+
+    /// The only values allowed.
+    pub fn choices(mut self, choices: &[&str]) -> Self {
+        self.choices = choices.iter().map(|&choice| choice.to_owned()).collect();
+        self
+    }
+
     pub fn is_required(&self) -> bool {
         self.default.is_none()
+    }
+
+    /// Whether a range, `nonzero` or choices limit the values beyond their type.
+    pub fn is_limited(&self) -> bool {
+        self.min.is_some() || self.max.is_some() || self.nonzero || !self.choices.is_empty()
+    }
+
+    /// Checks that `value` is a valid literal of the parameter's type and within its range,
+    /// `nonzero` and choices; the error says why in words: "`-5` is not greater than 0°".
+    pub fn check_value(&self, value: &str) -> Result<(), String> {
+        self.param_type.check_value(value)?;
+        match self.param_type {
+            ParamType::Int | ParamType::Float => {
+                let Ok(number) = value.trim().parse::<f64>() else {
+                    return Ok(());
+                };
+                let low = self.min.is_none_or(|bound| {
+                    number > bound.value || (bound.inclusive && number == bound.value)
+                });
+                let high = self.max.is_none_or(|bound| {
+                    number < bound.value || (bound.inclusive && number == bound.value)
+                });
+                if low && high && !(self.nonzero && number == 0.0) {
+                    Ok(())
+                } else {
+                    Err(format!("`{}` is not {}", value.trim(), self.range_text()))
+                }
+            }
+            ParamType::String if !self.choices.is_empty() => {
+                if self.choices.iter().any(|choice| choice == value) {
+                    Ok(())
+                } else {
+                    Err(format!("`{value}` is not {}", self.range_text()))
+                }
+            }
+            ParamType::Bool | ParamType::String => Ok(()),
+        }
+    }
+
+    /// The values allowed in words: `greater than 0 Hz and at most 1000 Hz`, `between 0° and
+    /// 45°`, `non-zero`, `one of: sorted, random`; `any TYPE` when nothing limits them.
+    pub fn range_text(&self) -> String {
+        let quantity = |value: f64| match self.unit.as_str() {
+            "" => format!("{value}"),
+            "°" | "deg" => format!("{value}°"),
+            unit => format!("{value} {unit}"),
+        };
+        if !self.choices.is_empty() {
+            return format!("one of: {}", self.choices.join(", "));
+        }
+        let mut parts = Vec::new();
+        match (self.min, self.max) {
+            (Some(low), Some(high)) if low.inclusive && high.inclusive => parts.push(format!(
+                "between {} and {}",
+                quantity(low.value),
+                quantity(high.value)
+            )),
+            (low, high) => {
+                if let Some(low) = low {
+                    parts.push(if low.inclusive {
+                        format!("{} or more", quantity(low.value))
+                    } else {
+                        format!("greater than {}", quantity(low.value))
+                    });
+                }
+                if let Some(high) = high {
+                    parts.push(if high.inclusive {
+                        format!("at most {}", quantity(high.value))
+                    } else {
+                        format!("less than {}", quantity(high.value))
+                    });
+                }
+            }
+        }
+        if self.nonzero {
+            parts.push("non-zero".to_owned());
+        }
+        if parts.is_empty() {
+            format!("any {}", self.param_type)
+        } else {
+            parts.join(" and ")
+        }
     }
 }
 
@@ -124,7 +275,7 @@ pub struct EventSpec {
 }
 
 /// Everything a tool needs to know about a module type without running it for real.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ModuleDescription {
     /// The module type; its binary is `armor-mod-<module_type>`.
     pub module_type: String,
@@ -208,6 +359,22 @@ impl ModuleDescription {
                 }
                 None => out.push_str(" required=\"true\""),
             }
+            for (attr, bound, inclusive) in [
+                ("min", param.min, true),
+                ("min_exclusive", param.min, false),
+                ("max", param.max, true),
+                ("max_exclusive", param.max, false),
+            ] {
+                if let Some(bound) = bound.filter(|bound| bound.inclusive == inclusive) {
+                    let _ = write!(out, " {attr}=\"{}\"", bound.value);
+                }
+            }
+            if param.nonzero {
+                out.push_str(" nonzero=\"true\"");
+            }
+            if !param.choices.is_empty() {
+                let _ = write!(out, " choices=\"{}\"", e(&param.choices.join("|")));
+            }
             let _ = writeln!(out, " doc=\"{}\"/>", e(&param.doc));
         }
         for event in &self.events {
@@ -289,10 +456,20 @@ impl ModuleDescription {
                     });
                 }
                 "param" => {
-                    problems
-                        .extend(child.unknown_attrs(&[
-                            "name", "type", "unit", "default", "required", "doc",
-                        ]));
+                    problems.extend(child.unknown_attrs(&[
+                        "name",
+                        "type",
+                        "unit",
+                        "default",
+                        "required",
+                        "min",
+                        "min_exclusive",
+                        "max",
+                        "max_exclusive",
+                        "nonzero",
+                        "choices",
+                        "doc",
+                    ]));
                     if let Some(param) = read_param(child, doc, &mut problems) {
                         if description.param(&param.name).is_some() {
                             problems.push(Located::new(
@@ -347,21 +524,114 @@ fn read_param(child: &Element, doc: String, problems: &mut Vec<Located>) -> Opti
             ));
         }
     }
-    if let Some(default) = default
-        && let Err(why) = param_type.check_value(&default.value)
+    let mut spec = ParamSpec::new(&name, param_type, &doc);
+    spec.unit = child.attr_value("unit").unwrap_or_default().to_owned();
+    read_limits(child, &mut spec, problems);
+    if let Some(default) = default {
+        if let Err(why) = spec.check_value(&default.value) {
+            problems.push(Located::new(
+                default.pos,
+                format!("default of parameter `{name}` ({param_type}): {why}"),
+            ));
+        }
+        spec.default = Some(default.value.as_str().to_owned());
+    }
+    Some(spec)
+}
+
+/// Reads a parameter's range (`min` or `min_exclusive`, `max` or `max_exclusive`, `nonzero`)
+/// and `choices` into `spec`, refusing those its type cannot have and ranges that hold no value.
+fn read_limits(child: &Element, spec: &mut ParamSpec, problems: &mut Vec<Located>) {
+    let numeric = matches!(spec.param_type, ParamType::Int | ParamType::Float);
+    let name = spec.name.clone();
+    let bound = |attr: &str, inclusive: bool, problems: &mut Vec<Located>| {
+        let found = child.attr(attr)?;
+        if !numeric {
+            problems.push(Located::new(
+                found.pos,
+                format!(
+                    "parameter `{name}`: `{attr}` applies to `int` and `float` parameters, not `{}`",
+                    spec.param_type
+                ),
+            ));
+            return None;
+        }
+        match found.value.trim().parse::<f64>() {
+            Ok(value) if value.is_finite() => Some(Bound { value, inclusive }),
+            _ => {
+                problems.push(Located::new(
+                    found.pos,
+                    format!(
+                        "parameter `{name}`: `{attr}` must be a finite number, not `{}`",
+                        found.value
+                    ),
+                ));
+                None
+            }
+        }
+    };
+    for (low, high) in [("min", "min_exclusive"), ("max", "max_exclusive")] {
+        let (inclusive, exclusive) = (bound(low, true, problems), bound(high, false, problems));
+        if inclusive.is_some() && exclusive.is_some() {
+            problems.push(Located::new(
+                child.pos,
+                format!("parameter `{name}`: give `{low}` or `{high}`, not both"),
+            ));
+        }
+        let found = inclusive.or(exclusive);
+        if low == "min" {
+            spec.min = found;
+        } else {
+            spec.max = found;
+        }
+    }
+    if let (Some(low), Some(high)) = (spec.min, spec.max)
+        && (low.value > high.value
+            || (low.value == high.value && !(low.inclusive && high.inclusive)))
     {
         problems.push(Located::new(
-            default.pos,
-            format!("default of parameter `{name}` ({param_type}): {why}"),
+            child.pos,
+            format!(
+                "parameter `{name}`: its range holds no value ({})",
+                spec.range_text()
+            ),
         ));
     }
-    Some(ParamSpec {
-        name,
-        param_type,
-        unit: child.attr_value("unit").unwrap_or_default().to_owned(),
-        default: default.map(|attr| attr.value.as_str().to_owned()),
-        doc,
-    })
+    if let Some(attr) = child.attr("nonzero") {
+        match attr.value.as_str() {
+            "true" if numeric => spec.nonzero = true,
+            "false" => {}
+            "true" => problems.push(Located::new(
+                attr.pos,
+                format!(
+                    "parameter `{name}`: `nonzero` applies to `int` and `float` parameters, not `{}`",
+                    spec.param_type
+                ),
+            )),
+            other => problems.push(Located::new(
+                attr.pos,
+                format!("parameter `{name}`: `nonzero` must be `true` or `false`, not `{other}`"),
+            )),
+        }
+    }
+    if let Some(attr) = child.attr("choices") {
+        if spec.param_type != ParamType::String {
+            problems.push(Located::new(
+                attr.pos,
+                format!(
+                    "parameter `{name}`: `choices` applies to `string` parameters, not `{}`",
+                    spec.param_type
+                ),
+            ));
+        } else if attr.value.is_empty() {
+            problems.push(Located::new(
+                attr.pos,
+                format!("parameter `{name}`: `choices` lists no value"),
+            ));
+        } else {
+            spec.choices = attr.value.split('|').map(str::to_owned).collect();
+        }
+    }
 }
 
 fn attr_or_problem(element: &Element, name: &str, problems: &mut Vec<Located>) -> Option<String> {
@@ -445,6 +715,73 @@ mod tests {
         let problems = ModuleDescription::from_xml(text).expect_err("should be refused");
         let got: Vec<String> = problems.iter().map(ToString::to_string).collect();
         assert_eq!(got, expected);
+    }
+
+    #[test]
+    fn ranges_and_choices_round_trip_and_refuse_in_words() {
+        let mut description = sample();
+        description.params = vec![
+            ParamSpec::new("rate_hz", ParamType::Float, "")
+                .unit("Hz")
+                .default("10")
+                .above(0.0)
+                .max(1000.0),
+            ParamSpec::new("beams", ParamType::Int, "")
+                .default("90")
+                .min(1.0)
+                .below(100_000.0),
+            ParamSpec::new("sector", ParamType::Float, "")
+                .unit("deg")
+                .default("90")
+                .min(0.0)
+                .max(360.0),
+            ParamSpec::new("turn", ParamType::Float, "")
+                .default("0.5")
+                .nonzero(),
+            ParamSpec::new("mode", ParamType::String, "")
+                .default("fast")
+                .choices(&["fast", "careful"]),
+        ];
+        assert_eq!(
+            ModuleDescription::from_xml(&description.to_xml()),
+            Ok(description.clone())
+        );
+        let refusal = |param: usize, value: &str| description.params[param].check_value(value);
+        assert_eq!(refusal(0, "1000"), Ok(()));
+        assert_eq!(
+            refusal(0, "0"),
+            Err("`0` is not greater than 0 Hz and at most 1000 Hz".to_owned())
+        );
+        assert_eq!(
+            refusal(1, "100000"),
+            Err("`100000` is not 1 or more and less than 100000".to_owned())
+        );
+        assert_eq!(
+            refusal(2, "-1"),
+            Err("`-1` is not between 0° and 360°".to_owned())
+        );
+        assert_eq!(refusal(3, "0"), Err("`0` is not non-zero".to_owned()));
+        assert_eq!(refusal(3, "-0.5"), Ok(()));
+        assert_eq!(
+            refusal(4, "slow"),
+            Err("`slow` is not one of: fast, careful".to_owned())
+        );
+        assert_eq!(
+            refusal(1, "2.5"),
+            Err("`2.5` is not a whole number".to_owned())
+        );
+        check_problems(
+            "<module type=\"x\">\n <param name=\"a\" type=\"string\" min=\"1\" nonzero=\"true\"/>\n <param name=\"b\" type=\"int\" min=\"5\" max_exclusive=\"5\" choices=\"x|y\"/>\n <param name=\"c\" type=\"float\" default=\"-1\" min=\"0\" min_exclusive=\"0\" max=\"inf\"/>\n</module>",
+            &[
+                "2:32: parameter `a`: `min` applies to `int` and `float` parameters, not `string`",
+                "2:40: parameter `a`: `nonzero` applies to `int` and `float` parameters, not `string`",
+                "3:2: parameter `b`: its range holds no value (5 or more and less than 5)",
+                "3:55: parameter `b`: `choices` applies to `string` parameters, not `int`",
+                "4:2: parameter `c`: give `min` or `min_exclusive`, not both",
+                "4:31: default of parameter `c` (float): `-1` is not 0 or more",
+                "4:70: parameter `c`: `max` must be a finite number, not `inf`",
+            ],
+        );
     }
 
     #[test]

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use crate::clock::Clock;
-use crate::core::{ApiError, Core};
+use crate::core::{ApiError, Core, check_param};
 use crate::describe::{EventSpec, ModuleDescription, ParamSpec, PortSpec};
 use crate::net::Net;
 use crate::node::{Node, Transport};
@@ -312,13 +312,7 @@ fn standalone_config(
         let spec = description
             .param(&param_name)
             .ok_or_else(|| ApiError::UnknownParam(param_name.clone()))?;
-        spec.param_type
-            .check_value(&value)
-            .map_err(|reason| ApiError::BadParam {
-                name: param_name.clone(),
-                value: value.clone(),
-                reason,
-            })?;
+        check_param(spec, &value)?;
         config.params.insert(param_name, value);
     }
     for (input, data_name) in binds {

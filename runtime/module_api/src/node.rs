@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use crate::clock::Clock;
 pub use crate::core::{ApiError, Event, PortId};
-use crate::core::{Core, InputSlot, OutputSlot};
+use crate::core::{Core, InputSlot, OutputSlot, check_param};
 use crate::describe::ModuleDescription;
 use crate::net::Net;
 use crate::protocol::ToSupervisor;
@@ -566,13 +566,17 @@ impl Node {
     where
         T::Err: std::fmt::Display,
     {
+        let spec = self.core.description.param(name);
         let value = self
             .core
             .config
             .params
             .get(name)
-            .or_else(|| self.core.description.param(name)?.default.as_ref())
+            .or_else(|| spec?.default.as_ref())
             .ok_or_else(|| ApiError::UnknownParam(name.to_owned()))?;
+        if let Some(spec) = spec {
+            check_param(spec, value)?;
+        }
         value
             .trim()
             .parse()

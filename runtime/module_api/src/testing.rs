@@ -47,6 +47,8 @@ impl TestBench {
             let declared = description
                 .param(param)
                 .ok_or_else(|| ApiError::UnknownParam((*param).to_owned()))?;
+            // Only the type is checked here: a value out of its declared range reaches the
+            // module, which refuses it where it reads it (as a reloaded configuration would).
             declared
                 .param_type
                 .check_value(value)

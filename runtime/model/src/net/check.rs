@@ -59,7 +59,7 @@ pub fn check_names(
                     ),
                 )),
                 Some(spec) => {
-                    if let Err(why) = spec.param_type.check_value(&param.value) {
+                    if let Err(why) = spec.check_value(&param.value) {
                         problems.push(Located::new(
                             param.pos,
                             format!(

@@ -155,7 +155,7 @@ fn check_params(
             ));
             continue;
         };
-        if let Err(why) = spec.param_type.check_value(&param.value) {
+        if let Err(why) = spec.check_value(&param.value) {
             problems.push(Located::new(
                 param.value_pos,
                 format!(
