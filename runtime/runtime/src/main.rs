@@ -369,8 +369,18 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 );
                 (plan.to_xml(), summary)
             } else {
-                let net = match armor_model::net::from_pnml(&text) {
-                    Ok(net) => net,
+                let net = match armor_model::net::read_pnml(&text) {
+                    Ok((net, warnings)) => {
+                        for warning in warnings {
+                            eprintln!(
+                                "{}:{}: warning: {}",
+                                file.display(),
+                                warning.pos,
+                                warning.message
+                            );
+                        }
+                        net
+                    }
                     Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
                 };
                 let summary = format!(

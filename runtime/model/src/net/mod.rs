@@ -47,7 +47,7 @@ pub use analysis::{Analysis, analyse, dining_philosophers};
 pub use check::check_names;
 pub use date::{format_rfc3339, parse_rfc3339};
 pub use engine::{CompiledNet, Engine, EngineError, Firing, MAX_FIRINGS_PER_STEP, MarkedPlaces};
-pub use pnml::{PNML_NAMESPACE, PTNET_TYPE, from_pnml, to_pnml};
+pub use pnml::{CORE_MODEL_TYPE, PNML_NAMESPACE, PTNET_TYPE, from_pnml, read_pnml, to_pnml};
 
 /// Tokens per place, naming only the places that hold some.
 pub type Marking = BTreeMap<String, u32>;

@@ -49,6 +49,9 @@ use crate::fields::{
 pub const PNML_NAMESPACE: &str = "http://www.pnml.org/version-2009/grammar/pnml";
 /// The type of place/transition nets.
 pub const PTNET_TYPE: &str = "http://www.pnml.org/version-2009/grammar/ptnet";
+/// The PNML core model's type, which pm4py and ProM write for place/transition nets (with
+/// markings and inscriptions the core model does not define).
+pub const CORE_MODEL_TYPE: &str = "http://www.pnml.org/version-2009/grammar/pnmlcoremodel";
 
 const TOOL: &str = "ArMoR";
 const TOOL_VERSION: &str = "1";
@@ -174,6 +177,27 @@ pub fn to_pnml(net: &MissionNet) -> String {
     out
 }
 
+/// A label of another tool made into a name: characters other than letters, digits, `_` and
+/// `-` become `_`, and a name that would start with a digit or `-` gets the kind's first letter
+/// (`p` or `t`) in front.
+fn as_name(label: &str, kind: &str) -> String {
+    let mut name: String = label
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if !name.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_') {
+        name.insert(0, '_');
+        name.insert(0, kind.chars().next().unwrap_or('n'));
+    }
+    name
+}
+
 /// `base`, or `base-2`, `base-3`... whichever is not in `used`; then it is.
 fn fresh(base: &str, used: &mut std::collections::BTreeSet<String>) -> String {
     let mut id = base.to_owned();
@@ -253,12 +277,25 @@ struct Reader<'a> {
     nodes: BTreeMap<String, Node>,
     /// Ids of nodes refused (already reported): arcs to them say nothing more.
     refused: std::collections::BTreeSet<String>,
+    /// A `pnmlcoremodel` net of another tool: names are made from labels, not taken from ids.
+    core_model: bool,
+    /// The names given so far (core model).
+    names: std::collections::BTreeSet<String>,
+    warnings: Vec<Located>,
     arcs: Vec<&'a Element<'a>>,
 }
 
 /// Reads a PNML document holding one place/transition net, reporting every problem found,
 /// sorted by position (see the module documentation for what is refused).
 pub fn from_pnml(text: &str) -> Result<MissionNet, Vec<Located>> {
+    read_pnml(text).map(|(net, _)| net)
+}
+
+/// [`from_pnml`], with the warnings of a net read leniently: a `pnmlcoremodel` net written by
+/// another tool (pm4py, ProM) that carries P/T markings and inscriptions is read as a
+/// place/transition net; its nodes are named after their `<name>` labels (or ids) made into
+/// names, and the places of its `<finalmarkings>` become final places.
+pub fn read_pnml(text: &str) -> Result<(MissionNet, Vec<Located>), Vec<Located>> {
     let root = tree::parse(text).map_err(|err| vec![err])?;
     if root.name != "pnml" {
         return Err(vec![Located::new(
@@ -286,7 +323,7 @@ pub fn from_pnml(text: &str) -> Result<MissionNet, Vec<Located>> {
     let mut nets = root.children_named("net");
     let Some(net_element) = nets.next() else {
         problems.push(Located::new(root.pos, "the document holds no <net>"));
-        return finish(MissionNet::default(), problems);
+        return finish((MissionNet::default(), Vec::new()), problems);
     };
     for other in nets {
         problems.push(Located::new(
@@ -302,14 +339,14 @@ pub fn from_pnml(text: &str) -> Result<MissionNet, Vec<Located>> {
                     "<net> needs the attribute `type` (`{PTNET_TYPE}` for place/transition nets)"
                 ),
             ));
-            return finish(MissionNet::default(), problems);
+            return finish((MissionNet::default(), Vec::new()), problems);
         }
+        Some(attr) if attr.value == CORE_MODEL_TYPE => {}
         Some(attr) if attr.value != PTNET_TYPE => {
             let kind = match attr.value.rsplit('/').next().unwrap_or_default() {
                 "symmetricnet" => " (a symmetric net)",
                 "highlevelnet" => " (a high-level net)",
                 "pt-hlpng" => " (a place/transition net in high-level notation)",
-                "pnmlcoremodel" => " (the core model, without markings or inscriptions)",
                 _ => "",
             };
             return Err(vec![Located::new(
@@ -322,12 +359,16 @@ pub fn from_pnml(text: &str) -> Result<MissionNet, Vec<Located>> {
         }
         Some(_) => {}
     }
+    let core_model = net_element.attr_value("type") == Some(CORE_MODEL_TYPE);
     let mut reader = Reader {
         net: MissionNet {
             pos: net_element.pos,
             ..MissionNet::default()
         },
         problems,
+        core_model,
+        names: std::collections::BTreeSet::new(),
+        warnings: Vec::new(),
         ids: BTreeMap::new(),
         nodes: BTreeMap::new(),
         refused: std::collections::BTreeSet::new(),
@@ -335,11 +376,36 @@ pub fn from_pnml(text: &str) -> Result<MissionNet, Vec<Located>> {
     };
     reader.read_net(net_element);
     reader.resolve_arcs();
+    if core_model {
+        reader.read_final_markings(net_element);
+        reader.warnings.push(Located::new(
+            net_element
+                .attr("type")
+                .map_or(net_element.pos, |attr| attr.pos),
+            format!(
+                "a `pnmlcoremodel` net, read as a place/transition net ({}, {} with tokens; nodes \
+                 named after their labels)",
+                crate::plural(reader.net.places.len(), "place"),
+                crate::plural(
+                    reader
+                        .net
+                        .places
+                        .iter()
+                        .filter(|place| place.tokens > 0)
+                        .count(),
+                    "place"
+                )
+            ),
+        ));
+    }
     let Reader {
-        net, mut problems, ..
+        net,
+        mut problems,
+        warnings,
+        ..
     } = reader;
     check_structure(&net, &mut problems);
-    finish(net, problems)
+    finish((net, warnings), problems)
 }
 
 impl<'a> Reader<'a> {
@@ -360,16 +426,27 @@ impl<'a> Reader<'a> {
         Some(field.value.to_owned())
     }
 
-    /// The id of a node as a mission name.
-    fn node_name(&mut self, element: &Element) -> Option<String> {
+    /// The node's id and its mission name: the id itself, or in a core-model net of another tool
+    /// its `<name>` label (or id) made into a name, unique in the net.
+    fn node_name(&mut self, element: &Element) -> Option<(String, String)> {
         let id = self.id(element)?;
+        if self.core_model {
+            let label = element
+                .children_named("name")
+                .flat_map(|name| name.children_named("text"))
+                .map(|text| text.text.trim())
+                .find(|text| !text.is_empty())
+                .unwrap_or(&id);
+            let name = fresh(&as_name(label, &element.name), &mut self.names);
+            return Some((id, name));
+        }
         let pos = element.attr("id").map_or(element.pos, |attr| attr.pos);
         match read_identifier(
             Field::new(&id, pos),
             "id",
             &format!("<{}>, which ArMoR uses as its name,", element.name),
         ) {
-            Ok(name) => Some(name),
+            Ok(name) => Some((id, name)),
             Err(err) => {
                 self.problems.push(err);
                 self.refused.insert(id);
@@ -378,13 +455,40 @@ impl<'a> Reader<'a> {
         }
     }
 
+    /// The places a core-model net's `<finalmarkings>` mark (pm4py's form: `<marking>` of
+    /// `<place idref="…"><text>1</text></place>`) become final places.
+    fn read_final_markings(&mut self, net_element: &Element) {
+        for marking in net_element
+            .children_named("finalmarkings")
+            .flat_map(|markings| markings.children_named("marking"))
+        {
+            for place in marking.children_named("place") {
+                let Some(idref) = place.attr("idref") else {
+                    continue;
+                };
+                let marked = place
+                    .children_named("text")
+                    .any(|text| text.text.trim().parse::<u32>().is_ok_and(|n| n > 0));
+                match self.nodes.get(idref.value.as_str()) {
+                    Some(Node::Place(index)) if marked => self.net.places[*index].is_final = true,
+                    Some(_) if !marked => {}
+                    _ => self.problems.push(Located::new(
+                        idref.pos,
+                        format!("final marking: no place `{}`", idref.value),
+                    )),
+                }
+            }
+        }
+    }
+
     fn read_net(&mut self, element: &'a Element<'a>) {
         self.problems.extend(element.unknown_attrs(&["id", "type"]));
-        check_children(
-            element,
-            &["name", "page", "toolspecific"],
-            &mut self.problems,
-        );
+        let allowed: &[&str] = if self.core_model {
+            &["name", "page", "toolspecific", "finalmarkings"]
+        } else {
+            &["name", "page", "toolspecific"]
+        };
+        check_children(element, allowed, &mut self.problems);
         no_text(element, &mut self.problems);
         let id = self.id(element);
         let mut name = None;
@@ -413,6 +517,7 @@ impl<'a> Reader<'a> {
         }
         self.net.name = match (name, id) {
             (Some(name), _) => name,
+            (None, Some(id)) if self.core_model => as_name(&id, "net"),
             (None, Some(id)) => {
                 let pos = element.attr("id").map_or(element.pos, |attr| attr.pos);
                 read_identifier(
@@ -487,9 +592,12 @@ impl<'a> Reader<'a> {
             &mut self.problems,
         );
         no_text(element, &mut self.problems);
-        let name = self.node_name(element);
+        let named = self.node_name(element);
         let mut place = Place {
-            name: name.clone().unwrap_or_default(),
+            name: named
+                .as_ref()
+                .map(|(_, name)| name.clone())
+                .unwrap_or_default(),
             pos: element.pos,
             ..Place::default()
         };
@@ -568,8 +676,8 @@ impl<'a> Reader<'a> {
                 _ => {}
             }
         }
-        if let Some(name) = name {
-            self.nodes.insert(name, Node::Place(self.net.places.len()));
+        if let Some((id, _)) = named {
+            self.nodes.insert(id, Node::Place(self.net.places.len()));
             self.net.places.push(place);
         }
     }
@@ -582,9 +690,12 @@ impl<'a> Reader<'a> {
             &mut self.problems,
         );
         no_text(element, &mut self.problems);
-        let name = self.node_name(element);
+        let named = self.node_name(element);
         let mut transition = Transition {
-            name: name.clone().unwrap_or_default(),
+            name: named
+                .as_ref()
+                .map(|(_, name)| name.clone())
+                .unwrap_or_default(),
             pos: element.pos,
             ..Transition::default()
         };
@@ -619,9 +730,9 @@ impl<'a> Reader<'a> {
                 _ => {}
             }
         }
-        if let Some(name) = name {
+        if let Some((id, _)) = named {
             self.nodes
-                .insert(name, Node::Transition(self.net.transitions.len()));
+                .insert(id, Node::Transition(self.net.transitions.len()));
             self.net.transitions.push(transition);
         }
     }
