@@ -285,6 +285,135 @@ fn an_obstacle_the_map_does_not_have_is_seen_and_driven_round() {
     );
 }
 
+/// A robot system on the world file `world`, written in `dir` (its file): sim, follower and
+/// avoider, the sim's odometry exact (this robot knows where it is: what is tested is the
+/// planning, the following and the replanning, not the dead reckoning) and its noise seeded by
+/// `seed`, with `sim_params` (`<param …/>` lines) added to the sim.
+fn robot_system(dir: &Path, world: &Path, seed: u64, sim_params: &str) -> PathBuf {
+    let system = dir.join("system.xml");
+    std::fs::write(
+        &system,
+        format!(
+            r#"<system name="robot">
+  <module name="sim" type="sim">
+    <param name="world" value="{world}"/>
+    <param name="seed" value="{seed}"/>
+    <param name="odom_noise_dist" value="0"/>
+    <param name="odom_noise_rot" value="0"/>
+    <param name="odom_noise_drift" value="0"/>
+    {sim_params}
+  </module>
+  <module name="follower" type="follower">
+    <param name="world" value="{world}"/>
+    <param name="goal_x_m" value="0"/>
+    <param name="goal_y_m" value="0"/>
+    <param name="blocked_after_secs" value="20"/>
+  </module>
+  <module name="avoider" type="avoider"/>
+  <module name="recorder" type="recorder">
+    <param name="record" value="sim.pose_truth"/>
+    <param name="file" value="{truth}"/>
+    <param name="compression" value="none"/>
+  </module>
+  <link from="sim.odometry" to="follower.odometry"/>
+  <link from="sim.scan" to="avoider.scan"/>
+  <link from="sim.scan" to="follower.scan"/>
+  <link from="follower.cmd_desired" to="avoider.cmd_desired"/>
+  <link from="avoider.cmd_vel" to="sim.cmd_vel"/>
+</system>
+"#,
+            world = world.display(),
+            truth = dir.join("truth.mcap").display(),
+        ),
+    )
+    .unwrap();
+    system
+}
+
+/// A hall 40 m × 12 m (start at (2, 3) facing east), a no-go area in it with a margin of 3 m
+/// (x 18 to 22, y 5 to 8: the robot's centre keeps 3.25 m off, so south of it below y 1.75),
+/// and a pallet only the sim has, across the way the plan takes south of the area (x 14 to 15,
+/// y 0 to 2): the follower replans round the pallet, and its new path must keep the area's own
+/// margin, not a default one (with 0.75 m, it would pass at 2 to 2.5 m from the area).
+#[test]
+fn a_replanned_path_keeps_the_no_go_area_s_own_margin() {
+    let started = Instant::now();
+    let dir = tempfile::tempdir().unwrap();
+    let world = dir.path().join("hall.world");
+    std::fs::write(
+        &world,
+        "name Hall\norigin 43.6 1.44\nstart 2 3 0\nboundary 0,0 40,0 40,12 0,12 0,0\n",
+    )
+    .unwrap();
+    let system = robot_system(
+        dir.path(),
+        &world,
+        26,
+        r#"<param name="obstacles" value="rect 14,0 15,2"/>"#,
+    );
+    let origin = LatLon::new(43.6, 1.44);
+    let at = |x: f64, y: f64| {
+        let at = LatLon::from_local(Point::new(x, y), origin);
+        format!("lat=\"{:.8}\" lon=\"{:.8}\"", at.lat_deg, at.lon_deg)
+    };
+    let plan = dir.path().join("hall.xml");
+    std::fs::write(
+        &plan,
+        format!(
+            "<plan name=\"hall\" system=\"{}\">\n  <navigation><module name=\"avoider\"/></navigation>\n\
+             <throughout><module name=\"recorder\"/></throughout>\n\
+             \x20 <waypoint name=\"west\" {}/>\n  <waypoint name=\"east\" {}/>\n\
+             \x20 <leg name=\"across\" from=\"west\" to=\"east\"/>\n\
+             \x20 <area name=\"pit\" kind=\"no-go\" margin_m=\"3\">\n\
+             \x20   <point {}/><point {}/><point {}/><point {}/>\n  </area>\n</plan>\n",
+            system.display(),
+            at(2.0, 3.0),
+            at(36.0, 3.0),
+            at(18.0, 5.0),
+            at(22.0, 5.0),
+            at(22.0, 8.0),
+            at(18.0, 8.0),
+        ),
+    )
+    .unwrap();
+    let output = armor(&["check".as_ref(), path_arg(&plan)]);
+    assert!(output.status.success(), "{}", output_text(&output));
+
+    let run = run_plan(&plan);
+    assert_eq!(run.fired_names(), ["across_arrived"]);
+    assert!(
+        run.any_line(|line| line.starts_with("[follower]") && line.contains("replanned:")),
+        "the follower never replanned:\n{}",
+        run.lines.join("\n")
+    );
+    let truth = read_truth(&dir.path().join("truth.mcap"));
+    let pit = armor_model::geo::Polygon::new(vec![
+        Point::new(18.0, 5.0),
+        Point::new(22.0, 5.0),
+        Point::new(22.0, 8.0),
+        Point::new(18.0, 8.0),
+    ]);
+    let nearest = truth
+        .iter()
+        .map(|p| pit.distance_to_outline(*p))
+        .fold(f64::INFINITY, f64::min);
+    // 3.25 m for the centre, less what pure pursuit cuts off the path's corners.
+    assert!(
+        nearest > 3.0,
+        "the robot came {nearest:.2} m from the area, inside its margin:\n{}",
+        run.lines
+            .iter()
+            .filter(|line| line.starts_with("[follower]"))
+            .cloned()
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    eprintln!(
+        "margin: the robot kept {nearest:.2} m from the area; {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+}
+
 /// The random worlds' seed: the worlds, their places and the sim's noise follow from it.
 const SEED: u64 = 2611;
 const WORLDS: usize = 30;
@@ -355,37 +484,7 @@ impl Case {
     fn write(&self, dir: &Path, plan_name: &str, places: &[usize]) -> (PathBuf, String) {
         let world = dir.join("random.world");
         std::fs::write(&world, &self.world_text).unwrap();
-        let system = dir.join("system.xml");
-        std::fs::write(
-            &system,
-            format!(
-                r#"<system name="random-robot">
-  <module name="sim" type="sim">
-    <param name="world" value="{world}"/>
-    <param name="seed" value="{seed}"/>
-    <param name="odom_noise_dist" value="0"/>
-    <param name="odom_noise_rot" value="0"/>
-    <param name="odom_noise_drift" value="0"/>
-  </module>
-  <module name="follower" type="follower">
-    <param name="world" value="{world}"/>
-    <param name="goal_x_m" value="0"/>
-    <param name="goal_y_m" value="0"/>
-    <param name="blocked_after_secs" value="20"/>
-  </module>
-  <module name="avoider" type="avoider"/>
-  <link from="sim.odometry" to="follower.odometry"/>
-  <link from="sim.scan" to="avoider.scan"/>
-  <link from="sim.scan" to="follower.scan"/>
-  <link from="follower.cmd_desired" to="avoider.cmd_desired"/>
-  <link from="avoider.cmd_vel" to="sim.cmd_vel"/>
-</system>
-"#,
-                world = world.display(),
-                seed = SEED + self.index as u64,
-            ),
-        )
-        .unwrap();
+        let system = robot_system(dir, &world, SEED + self.index as u64, "");
         let origin = LatLon::new(ORIGIN.0, ORIGIN.1);
         let mut text = format!(
             "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<plan name=\"{plan_name}\" system=\"{}\">\n  \

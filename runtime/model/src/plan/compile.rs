@@ -567,6 +567,8 @@ struct Builder<'a> {
     /// Each leg's planned path.
     paths: &'a [Path],
     no_go: String,
+    /// The areas' margins, `;` between them; empty when all are the default.
+    no_go_margins: String,
     net: MissionNet,
     /// Also the names made so far (the net's own lookup is a linear search).
     trace: BTreeMap<String, Origin>,
@@ -590,6 +592,18 @@ impl<'a> Builder<'a> {
             positions,
             paths,
             no_go: geo::format_polygons(&polygons),
+            no_go_margins: if keepouts
+                .iter()
+                .all(|keepout| keepout.margin_m == planner::DEFAULT_AREA_MARGIN_M)
+            {
+                String::new()
+            } else {
+                keepouts
+                    .iter()
+                    .map(|keepout| geo::round_mm(keepout.margin_m))
+                    .collect::<Vec<_>>()
+                    .join(";")
+            },
             net: MissionNet {
                 name: plan.name.clone(),
                 system: plan.system.clone(),
@@ -924,6 +938,11 @@ impl<'a> Builder<'a> {
         ];
         if !self.no_go.is_empty() {
             params.push(param(&nav.no_go_param, self.no_go.clone()));
+        }
+        // The follower replans round what its laser sees on the way: with the margins the
+        // plan was checked with, not a default.
+        if !self.no_go_margins.is_empty() && !nav.no_go_margins_param.is_empty() {
+            params.push(param(&nav.no_go_margins_param, self.no_go_margins.clone()));
         }
         if let Some(path) = path
             && !nav.path_param.is_empty()

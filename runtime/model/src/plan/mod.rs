@@ -86,6 +86,10 @@ pub struct Navigation {
     pub goal_y_param: String,
     /// The parameter that gets the no-go areas (polygons in the world frame), if there are any.
     pub no_go_param: String,
+    /// The parameter that gets the no-go areas' margins (metres, `;` between areas, in the
+    /// order of `no_go_param`'s polygons), when one of them is not the default; empty: the
+    /// margins are not passed on (a navigation module that has no such parameter).
+    pub no_go_margins_param: String,
     pub reached_event: String,
     pub blocked_event: String,
     /// The parameter that gets each leg's planned path (`X,Y X,Y …` in the world frame); empty:
@@ -140,6 +144,7 @@ impl Default for Navigation {
             goal_x_param: "goal_x_m".into(),
             goal_y_param: "goal_y_m".into(),
             no_go_param: "no_go".into(),
+            no_go_margins_param: "no_go_margins_m".into(),
             reached_event: "goal_reached".into(),
             blocked_event: "blocked".into(),
             path_param: "path".into(),

@@ -230,6 +230,30 @@ fn legs_go_around_no_go_areas_and_the_navigation_learns_them() {
     for (got, want) in polygons[0].corners.iter().zip(&area.corners) {
         assert!((got.x - want.x).abs() < 0.01 && (got.y - want.y).abs() < 0.01);
     }
+    // The default margin is not passed on; another one is, so that the follower's replans
+    // keep what the plan was checked with.
+    assert!(!drive.params.iter().any(|p| p.name == "no_go_margins_m"));
+    let two = format!(
+        "<leg from=\"home\" to=\"gate\"/><area name=\"mines\" kind=\"no-go\">{corners}</area>\
+         <area name=\"pit\" kind=\"no-go\" margin_m=\"1.5\">{}</area>",
+        [(30.0, 20.0), (32.0, 20.0), (32.0, 22.0)]
+            .map(|(x, y)| {
+                let at = LatLon::from_local(Point::new(x, y), origin());
+                format!(
+                    "<point lat=\"{:.8}\" lon=\"{:.8}\"/>",
+                    at.lat_deg, at.lon_deg
+                )
+            })
+            .join("")
+    );
+    let compiled = self::compiled(&two);
+    let drive = compiled.net.place("leg1_drive").expect("drive");
+    let margins = drive
+        .params
+        .iter()
+        .find(|p| p.name == "no_go_margins_m")
+        .expect("no_go_margins_m");
+    assert_eq!(margins.value, "0.75;1.5");
 }
 
 #[test]
