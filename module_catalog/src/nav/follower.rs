@@ -18,6 +18,8 @@
 //! When a `path` is given (as a compiled plan gives each leg the path planned at plan time, which
 //! already keeps out of the no-go areas), the follower drives along it instead, with regulated
 //! pure pursuit ([`super::pursuit`]), and progress is the length of path left to the goal.
+//! When it replans, it keeps each no-go area's own margin (`no_go_margins_m`, as the plan was
+//! checked with), not one for all.
 
 use armor_model::geo::{self, Polygon};
 use armor_model::planner::{self, Keepout, Path, Robot};

@@ -23,12 +23,12 @@ use anyhow::{Context as _, anyhow, ensure};
 use armor_model::SystemConfig;
 use armor_model::geo::LatLon;
 use armor_model::plan::{self, Plan};
-use armor_model::planner::random::{self, RandomWorld, SplitMix64};
 use armor_model::planner::{
     Costmap, CostmapSettings, LETHAL, Planner, Robot, heuristic, step_cost,
 };
 use armor_model::world::{Point, World};
 use armor_module_api::ModuleDescription;
+use armor_module_catalog::sim::rng::Rng;
 
 use crate::Settings;
 use crate::compile_plan;
@@ -44,20 +44,39 @@ const OBSTACLES: usize = 200;
 const REPEAT: usize = 3;
 const ORIGIN: LatLon = LatLon::new(43.5615, 1.469);
 
-/// The bench's world: 200 obstacles at random in a 100 m square, the start corner clear (drawn
-/// by the generator the planner's tests and the navigation tests use).
+/// The bench's world: 200 obstacles at random in a 100 m square, the start corner clear.
 pub fn world() -> anyhow::Result<World> {
-    let random = RandomWorld {
-        side_m: SIDE_M,
-        obstacles: (OBSTACLES, OBSTACLES),
-        block_max_m: 6.0,
-        clear_corner_m: 4.0,
-        origin: (ORIGIN.lat_deg, ORIGIN.lon_deg),
-        start: (1.0, 1.0, 0.0),
-    };
-    let body = random.obstacles_text(&mut SplitMix64(SEED));
-    World::parse(&random.file_text("bench", &body), "bench.world")
-        .map_err(|err| anyhow!("the bench's world: {err}"))
+    let mut rng = Rng::new(SEED, 1);
+    let mut text = format!(
+        "name bench\norigin {} {}\nstart 1 1 0\nboundary 0,0 {SIDE_M},0 {SIDE_M},{SIDE_M} 0,{SIDE_M} 0,0\n",
+        ORIGIN.lat_deg, ORIGIN.lon_deg
+    );
+    let mut placed = 0;
+    while placed < OBSTACLES {
+        let mut uniform = |lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
+        let (x, y) = (uniform(1.0, SIDE_M - 1.0), uniform(1.0, SIDE_M - 1.0));
+        if x < 4.0 && y < 4.0 {
+            continue;
+        }
+        let kind = uniform(0.0, 3.0) as u32;
+        let (w, h) = match kind {
+            0 => (uniform(0.5, 6.0), uniform(0.5, 6.0)),
+            1 if uniform(0.0, 1.0) < 0.5 => (uniform(4.0, 16.0), uniform(0.2, 0.5)),
+            1 => (uniform(0.2, 0.5), uniform(4.0, 16.0)),
+            _ => {
+                text.push_str(&format!("circle {x:.2},{y:.2} {:.2}\n", uniform(0.3, 3.0)));
+                placed += 1;
+                continue;
+            }
+        };
+        text.push_str(&format!(
+            "rect {x:.2},{y:.2} {:.2},{:.2}\n",
+            (x + w).min(SIDE_M - 0.1),
+            (y + h).min(SIDE_M - 0.1)
+        ));
+        placed += 1;
+    }
+    World::parse(&text, "bench.world").map_err(|err| anyhow!("the bench's world: {err}"))
 }
 
 fn planner(world: &World) -> anyhow::Result<(Planner, Duration)> {
@@ -68,11 +87,11 @@ fn planner(world: &World) -> anyhow::Result<(Planner, Duration)> {
     Ok((Planner::new(costmap), built))
 }
 
-/// A random place where the robot may be, on a cell the search may start from.
-fn free_place(rng: &mut SplitMix64, planner: &Planner) -> Point {
+/// A random place where the robot may be.
+fn free_place(rng: &mut Rng, planner: &Planner) -> Point {
     loop {
-        let p = random::free_place(rng, planner.costmap(), SIDE_M);
-        if !planner.costmap().is_lethal_at(p) {
+        let p = Point::new(rng.uniform() * SIDE_M, rng.uniform() * SIDE_M);
+        if planner.costmap().blocker_at(p).is_none() && !planner.costmap().is_lethal_at(p) {
             return p;
         }
     }
@@ -82,7 +101,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     let pairs = if settings.quick { 5 } else { 50 };
     let world = world()?;
     let (mut planner, built) = planner(&world)?;
-    let mut rng = SplitMix64(SEED ^ 2);
+    let mut rng = Rng::new(SEED, 2);
     let mut ours = Vec::with_capacity(pairs);
     let mut searches = Vec::with_capacity(pairs);
     let mut reference = Vec::with_capacity(pairs);
@@ -210,7 +229,7 @@ fn reference_astar(map: &Costmap, from: usize, to: usize) -> Option<(Vec<usize>,
 
 /// 101 waypoints in one connected part of the bench's world, and 100 legs through them.
 fn plan_text(world: &World, planner: &mut Planner, waypoints: usize) -> String {
-    let mut rng = SplitMix64(SEED ^ 3);
+    let mut rng = Rng::new(SEED, 3);
     let first = free_place(&mut rng, planner);
     let mut points = vec![first];
     while points.len() < waypoints {

@@ -1,7 +1,8 @@
 //! Seeded random worlds for tests and benchmarks: rectangles, long thin blocks (like walls, which
 //! close off pockets) and discs in a square, and random places where the robot may be. The
-//! planner's own tests, `armor-bench path_plan_ms` and the process tests of `tests/navigation.rs`
-//! all draw their worlds here, so that a seed names the same world everywhere.
+//! planner's own tests and the process tests of `tests/navigation.rs` draw their worlds here, so
+//! that a seed names the same world in both. (`armor-bench path_plan_ms` keeps its own world,
+//! drawn with the sim's generator: its published figures were measured on that one.)
 //!
 //! Not part of the model's interface (hidden from its documentation): only what tests and
 //! benchmarks share.
@@ -36,10 +37,6 @@ pub struct RandomWorld {
     pub side_m: f64,
     /// How many obstacles, at least and at most (both included).
     pub obstacles: (usize, usize),
-    /// The largest side of a block (the long thin ones are 4 to 16 m long whatever this is).
-    pub block_max_m: f64,
-    /// No obstacle starts in the square from (0, 0) to this corner (to keep a start clear).
-    pub clear_corner_m: f64,
     /// The `origin` and `start` lines of the world file.
     pub origin: (f64, f64),
     pub start: (f64, f64, f64),
@@ -51,8 +48,6 @@ impl Default for RandomWorld {
         Self {
             side_m: 40.0,
             obstacles: (20, 40),
-            block_max_m: 8.0,
-            clear_corner_m: 0.0,
             origin: (0.0, 0.0),
             start: (0.2, 0.2, 0.0),
         }
@@ -67,18 +62,11 @@ impl RandomWorld {
         let mut text = format!("boundary 0,0 {side},0 {side},{side} 0,{side} 0,0\n");
         let (fewest, most) = self.obstacles;
         let count = fewest + (rng.next_u64() % (most - fewest + 1) as u64) as usize;
-        let mut placed = 0;
-        while placed < count {
+        for _ in 0..count {
             let (x, y) = (rng.uniform(1.0, side - 1.0), rng.uniform(1.0, side - 1.0));
-            if x < self.clear_corner_m && y < self.clear_corner_m {
-                continue;
-            }
-            placed += 1;
             let (w, h) = match rng.next_u64() % 3 {
-                0 => (
-                    rng.uniform(0.5, self.block_max_m),
-                    rng.uniform(0.5, self.block_max_m),
-                ),
+                // Blocks of 0.5 to 8 m a side.
+                0 => (rng.uniform(0.5, 8.0), rng.uniform(0.5, 8.0)),
                 1 if rng.next_u64().is_multiple_of(2) => {
                     (rng.uniform(4.0, 16.0), rng.uniform(0.2, 0.5))
                 }
