@@ -414,6 +414,77 @@ fn a_replanned_path_keeps_the_no_go_area_s_own_margin() {
     );
 }
 
+/// The robot of a plan that says it is larger than the sim's (carrying a load: a radius of
+/// 0.45 m, so it keeps 0.55 m from obstacles), in a hall 40 m × 12 m, from (2, 4) to (36, 4).
+/// A block only the sim has stands across the way (x 18 to 19, y 1 to 9): 1 m between it and
+/// the south wall, which the plan's robot does not fit through, and 3 m to the north wall. The
+/// follower replans for the plan's robot, so it goes north, though south is shorter.
+#[test]
+fn a_replanned_path_is_for_the_plan_s_robot() {
+    let started = Instant::now();
+    let dir = tempfile::tempdir().unwrap();
+    let world = dir.path().join("hall.world");
+    std::fs::write(
+        &world,
+        "name Hall\norigin 43.6 1.44\nstart 2 4 0\nboundary 0,0 40,0 40,12 0,12 0,0\n",
+    )
+    .unwrap();
+    let system = robot_system(
+        dir.path(),
+        &world,
+        45,
+        r#"<param name="obstacles" value="rect 18,1 19,9"/>"#,
+    );
+    let origin = LatLon::new(43.6, 1.44);
+    let at = |x: f64, y: f64| {
+        let at = LatLon::from_local(Point::new(x, y), origin);
+        format!("lat=\"{:.8}\" lon=\"{:.8}\"", at.lat_deg, at.lon_deg)
+    };
+    let plan = dir.path().join("loaded.xml");
+    std::fs::write(
+        &plan,
+        format!(
+            "<plan name=\"loaded\" system=\"{}\">\n  <navigation robot_radius_m=\"0.45\">\
+             <module name=\"avoider\"/></navigation>\n\
+             <throughout><module name=\"recorder\"/></throughout>\n\
+             \x20 <waypoint name=\"west\" {}/>\n  <waypoint name=\"east\" {}/>\n\
+             \x20 <leg name=\"across\" from=\"west\" to=\"east\"/>\n</plan>\n",
+            system.display(),
+            at(2.0, 4.0),
+            at(36.0, 4.0),
+        ),
+    )
+    .unwrap();
+    let output = armor(&["check".as_ref(), path_arg(&plan)]);
+    assert!(output.status.success(), "{}", output_text(&output));
+
+    let run = run_plan(&plan);
+    assert_eq!(run.fired_names(), ["across_arrived"]);
+    let truth = read_truth(&dir.path().join("truth.mcap"));
+    let passing: Vec<Point> = truth
+        .iter()
+        .copied()
+        .filter(|p| (18.0..=19.0).contains(&p.x))
+        .collect();
+    assert!(!passing.is_empty(), "never passed the block");
+    assert!(
+        passing.iter().all(|p| p.y > 9.0),
+        "the robot went through the 1 m gap, too narrow for the plan's robot: {:?}\n{}",
+        passing.first(),
+        run.lines
+            .iter()
+            .filter(|line| line.starts_with("[follower]"))
+            .cloned()
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    eprintln!(
+        "robot: passed the block at y {:.2}; {:.1} s",
+        passing[0].y,
+        started.elapsed().as_secs_f64()
+    );
+}
+
 /// The random worlds' seed: the worlds, their places and the sim's noise follow from it.
 const SEED: u64 = 2611;
 const WORLDS: usize = 30;

@@ -174,10 +174,21 @@ pub fn spec() -> ModuleSpec {
         ParamSpec::new(
             "robot_radius_m",
             ParamType::Float,
-            "the robot's radius, for replanning (greater than 0)",
+            "the robot's radius, for replanning (greater than 0; a compiled plan gives its own \
+             when it is not the default)",
         )
         .unit("m")
         .default("0.25"),
+    )
+    .param(
+        ParamSpec::new(
+            "clearance_m",
+            ParamType::Float,
+            "how far the robot's body keeps from obstacles when replanning (0 or more; a \
+             compiled plan gives its own when it is not the default)",
+        )
+        .unit("m")
+        .default("0.1"),
     )
     .param(
         ParamSpec::new(
@@ -333,6 +344,7 @@ pub struct Settings {
     pub path: Path,
     pub world: String,
     pub robot_radius_m: f64,
+    pub clearance_m: f64,
     pub replan_after_secs: f64,
     pub max_replans: u32,
 }
@@ -357,6 +369,7 @@ impl Settings {
                 .map_err(|why| format!("parameter `path`: {why}"))?,
             world: node.param::<String>("world")?,
             robot_radius_m: float_in(node, "robot_radius_m", FloatRange::above(0.0, "m"))?,
+            clearance_m: float_in(node, "clearance_m", FloatRange::at_least(0.0, "m"))?,
             replan_after_secs: float_in(node, "replan_after_secs", FloatRange::above(0.0, "s"))?,
             max_replans: int_in(node, "max_replans", 0..=100)? as u32,
         };
@@ -619,14 +632,14 @@ impl Follower {
             && replan::blocked_ahead(
                 &pursuit.ahead(here),
                 &self.seen,
-                settings.robot_radius_m + planner::DEFAULT_CLEARANCE_M * 0.5,
+                settings.robot_radius_m + settings.clearance_m * 0.5,
             );
         if !stuck && !seen_in_the_way {
             return None;
         }
         let robot = Robot {
             radius_m: settings.robot_radius_m,
-            clearance_m: planner::DEFAULT_CLEARANCE_M,
+            clearance_m: settings.clearance_m,
         };
         let keepouts = settings.keepouts();
         let why = if stuck {
@@ -1022,6 +1035,7 @@ mod tests {
             path: Path::default(),
             world: String::new(),
             robot_radius_m: 0.25,
+            clearance_m: 0.1,
             replan_after_secs: 3.0,
             max_replans: 3,
         }

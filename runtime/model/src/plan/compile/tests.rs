@@ -257,6 +257,35 @@ fn legs_go_around_no_go_areas_and_the_navigation_learns_them() {
 }
 
 #[test]
+fn the_navigation_learns_the_robot_the_paths_were_planned_for_unless_it_is_the_default() {
+    let has = |compiled: &Compiled, name: &str| {
+        compiled
+            .net
+            .place("leg1_drive")
+            .expect("drive")
+            .params
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| p.value.clone())
+    };
+    let plain = compiled(r#"<leg from="home" to="gate"/>"#);
+    assert_eq!(has(&plain, "robot_radius_m"), None);
+    assert_eq!(has(&plain, "clearance_m"), None);
+    let robot = Robot {
+        radius_m: 0.45,
+        clearance_m: 0.2,
+    };
+    let loaded = compile_for(
+        &plan(r#"<leg from="home" to="gate"/>"#),
+        Some(&world()),
+        &robot,
+    )
+    .unwrap_or_else(|problems| panic!("{problems:?}"));
+    assert_eq!(has(&loaded, "robot_radius_m").as_deref(), Some("0.45"));
+    assert_eq!(has(&loaded, "clearance_m").as_deref(), Some("0.2"));
+}
+
+#[test]
 fn places_the_robot_cannot_reach_are_refused() {
     let text = format!(
         "<plan name=\"p\" system=\"s.xml\">{}{}{}<leg from=\"a\" to=\"b\"/><leg from=\"b\" to=\"c\"/></plan>",
