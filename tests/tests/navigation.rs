@@ -6,10 +6,12 @@
 //!   the shelves, too narrow; the plan goes the wide way round and the robot, in truth (the sim's
 //!   `pose_truth`, recorded), does too.
 //! * An obstacle in the sim only (its `obstacles` parameter, not the world file): the follower's
-//!   laser sees it, it replans round it and arrives.
+//!   laser sees it, it replans round it and arrives. Its new path keeps what the plan was
+//!   checked with: a no-go area's own margin, and the plan's robot (larger than the sim's).
 //! * Seeded random worlds: every leg the planner finds a way for is driven to its end without a
 //!   collision; every leg it finds none for is refused by `armor check`, named, with the narrowest
-//!   passage or where the way is closed.
+//!   passage or where the way is closed. The robots of these runs have exact odometry (nothing
+//!   corrects a drifting one yet: see `missions/robot/system-warehouse.xml`).
 //! * Bad places at check time, beyond `plans.rs`: a waypoint inside an obstacle, one too near a
 //!   shelf, a start within a no-go area's margin: each a `FILE:LINE:COL:` error, all at once, and
 //!   `armor run` refuses the plan before starting anything.
