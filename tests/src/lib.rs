@@ -1,9 +1,11 @@
 //! Support for the end-to-end suites in `tests/tests/`: find the workspace's binaries, start real
 //! processes whose output is captured line by line, wait for a line with a deadline (never a bare
 //! sleep), and kill every process a test started when it ends, even if it fails. [`mission`]
-//! runs a mission or plan headless and reads its report; [`mcap`] reads what a recorder wrote.
+//! runs a mission or plan headless and reads its report; [`mcap`] reads what a recorder wrote;
+//! [`check`] runs the one-shot commands (`armor check`, `armor compile`) and reads their errors.
 #![allow(clippy::unwrap_used)]
 
+pub mod check;
 pub mod mcap;
 pub mod mission;
 

@@ -11,7 +11,7 @@
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 use std::sync::{Mutex, PoisonError};
 use std::time::Duration;
 
@@ -22,9 +22,10 @@ use armor_model::plan::{self, Compiled, Plan};
 use armor_model::world::{Point, World};
 use armor_module_api::Datum as _;
 use armor_module_api::types::Pose2D;
+use armor_tests::check::{armor, assert_refused, line_of, located, output_text};
 use armor_tests::mcap::{read_mcap, recorder_segments};
 use armor_tests::mission::{Finished, run_mission};
-use armor_tests::{bin, bin_dir, workspace_root};
+use armor_tests::workspace_root;
 
 /// How close the robot must come to a waypoint, at least. The legs' goals are given to the
 /// follower in its odometry frame, which drifts from the true one, and the follower stops within
@@ -652,60 +653,6 @@ fn the_plan_imported_from_gpx_drives_the_route() {
     assert_eq!(
         run.run.fired_names(),
         ["leg1_arrived", "leg2_arrived", "leg3_arrived"]
-    );
-}
-
-/// `armor` with `args`, from the workspace root, with the workspace's modules.
-fn armor(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(bin("armor"))
-        .args(args)
-        .env("ARMOR_MODULE_PATH", bin_dir())
-        .current_dir(workspace_root())
-        .output()
-        .unwrap()
-}
-
-fn output_text(output: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&output.stdout),
-        String::from_utf8_lossy(&output.stderr)
-    )
-}
-
-/// The `FILE:LINE:COL: message` lines about `file` in the output: (line, col, message).
-fn located(output: &Output, file: &Path) -> Vec<(usize, usize, String)> {
-    let prefix = format!("{}:", file.display());
-    output_text(output)
-        .lines()
-        .filter_map(|line| {
-            let mut parts = line.strip_prefix(&prefix)?.splitn(3, ':');
-            let line_no = parts.next()?.parse().ok()?;
-            let col = parts.next()?.parse().ok()?;
-            Some((line_no, col, parts.next()?.trim().to_owned()))
-        })
-        .collect()
-}
-
-/// The 1-based number of the first line of `text` containing `needle`.
-fn line_of(text: &str, needle: &str) -> usize {
-    text.lines()
-        .position(|line| line.contains(needle))
-        .unwrap_or_else(|| panic!("no `{needle}` in {text}"))
-        + 1
-}
-
-/// A refusal: exit status 1 (not a panic's 101), a message at `line` saying `says`.
-fn assert_refused(output: &Output, file: &Path, line: usize, says: &[&str]) {
-    let all = output_text(output);
-    assert_eq!(output.status.code(), Some(1), "{all}");
-    assert!(!all.contains("panicked"), "{all}");
-    let problems = located(output, file);
-    assert!(
-        problems.iter().any(|(at, col, message)| *at == line
-            && *col > 0
-            && says.iter().all(|word| message.contains(word))),
-        "expected a message at line {line} saying {says:?}:\n{all}"
     );
 }
 

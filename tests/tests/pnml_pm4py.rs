@@ -69,7 +69,11 @@ print(json.dumps({"hand": describe(net, im, fm), "discovered": describe(dnet, di
 
 /// A net as the test compares it: places with their initial tokens, final places, and arcs as
 /// (from, to, weight).
-type Described = (BTreeMap<String, u32>, Vec<String>, Vec<(String, String, u32)>);
+type Described = (
+    BTreeMap<String, u32>,
+    Vec<String>,
+    Vec<(String, String, u32)>,
+);
 
 /// The same description of the mission `armor import` wrote, with each transition by the label
 /// pm4py gave it: the name ArMoR made of it, so compared after the same making.

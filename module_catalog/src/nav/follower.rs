@@ -18,6 +18,8 @@
 //! When a `path` is given (as a compiled plan gives each leg the path planned at plan time, which
 //! already keeps out of the no-go areas), the follower drives along it instead, with regulated
 //! pure pursuit ([`super::pursuit`]), and progress is the length of path left to the goal.
+//! When it replans, it keeps each no-go area's own margin (`no_go_margins_m`, as the plan was
+//! checked with), not one for all.
 
 use armor_model::geo::{self, Polygon};
 use armor_model::planner::{self, Keepout, Path, Robot};
@@ -143,6 +145,16 @@ pub fn spec() -> ModuleSpec {
     )
     .param(
         ParamSpec::new(
+            "no_go_margins_m",
+            ParamType::String,
+            "how far the robot's body keeps from each area of no_go when replanning: metres \
+             separated by `;`, one per area in no_go's order (a compiled plan gives them when one \
+             is not the default); empty: 0.75 m from each (tunable live)",
+        )
+        .default(""),
+    )
+    .param(
+        ParamSpec::new(
             "path",
             ParamType::String,
             "the path planned for this leg at plan time, in the frame of the odometry pose: \
@@ -165,11 +177,23 @@ pub fn spec() -> ModuleSpec {
         ParamSpec::new(
             "robot_radius_m",
             ParamType::Float,
-            "the robot's radius, for replanning (greater than 0)",
+            "the robot's radius, for replanning (greater than 0; a compiled plan gives its own \
+             when it is not the default)",
         )
         .above(0.0)
         .unit("m")
         .default("0.25"),
+    )
+    .param(
+        ParamSpec::new(
+            "clearance_m",
+            ParamType::Float,
+            "how far the robot's body keeps from obstacles when replanning (0 or more; a \
+             compiled plan gives its own when it is not the default)",
+        )
+        .min(0.0)
+        .unit("m")
+        .default("0.1"),
     )
     .param(
         ParamSpec::new(
@@ -321,17 +345,21 @@ pub struct Settings {
     pub max_turn_radps: f64,
     pub blocked_after_secs: f64,
     pub no_go: Vec<Polygon>,
+    /// How far the robot's body keeps from each area of `no_go` (as many, or none: the
+    /// default for each).
+    pub no_go_margins_m: Vec<f64>,
     /// The path planned for the leg (empty: none, head for the goal).
     pub path: Path,
     pub world: String,
     pub robot_radius_m: f64,
+    pub clearance_m: f64,
     pub replan_after_secs: f64,
     pub max_replans: u32,
 }
 
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
-        Ok(Self {
+        let settings = Self {
             goal_x_m: node.param::<f64>("goal_x_m")?,
             goal_y_m: node.param::<f64>("goal_y_m")?,
             tolerance_m: node.param::<f64>("tolerance_m")?,
@@ -340,13 +368,42 @@ impl Settings {
             blocked_after_secs: node.param::<f64>("blocked_after_secs")?,
             no_go: geo::parse_polygons(&node.param::<String>("no_go")?)
                 .map_err(|why| format!("parameter `no_go`: {why}"))?,
+            no_go_margins_m: parse_margins(&node.param::<String>("no_go_margins_m")?)?,
             path: Path::parse(&node.param::<String>("path")?)
                 .map_err(|why| format!("parameter `path`: {why}"))?,
             world: node.param::<String>("world")?,
             robot_radius_m: node.param::<f64>("robot_radius_m")?,
+            clearance_m: node.param::<f64>("clearance_m")?,
             replan_after_secs: node.param::<f64>("replan_after_secs")?,
             max_replans: node.param::<u32>("max_replans")?,
-        })
+        };
+        let margins = settings.no_go_margins_m.len();
+        if margins != 0 && margins != settings.no_go.len() {
+            return Err(format!(
+                "parameter `no_go_margins_m`: {margins} margin(s) for {} no-go area(s)",
+                settings.no_go.len()
+            )
+            .into());
+        }
+        Ok(settings)
+    }
+
+    /// The no-go areas as the planner keeps out of them, each with its margin.
+    fn keepouts(&self) -> Vec<Keepout> {
+        self.no_go
+            .iter()
+            .enumerate()
+            .map(|(i, polygon)| {
+                Keepout::new(
+                    format!("no-go area {}", i + 1),
+                    polygon.clone(),
+                    self.no_go_margins_m
+                        .get(i)
+                        .copied()
+                        .unwrap_or(planner::DEFAULT_AREA_MARGIN_M),
+                )
+            })
+            .collect()
     }
 
     fn same_goal(&self, other: &Settings) -> bool {
@@ -382,6 +439,29 @@ impl Settings {
         }
         Some(Pursuit::new(points))
     }
+}
+
+/// The `no_go_margins_m` parameter: metres, `;` between areas (empty: none given).
+fn parse_margins(text: &str) -> Result<Vec<f64>, BodyError> {
+    if text.trim().is_empty() {
+        return Ok(Vec::new());
+    }
+    text.split(';')
+        .map(|margin| {
+            margin
+                .trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|m| m.is_finite() && *m >= 0.0)
+                .ok_or_else(|| {
+                    format!(
+                        "parameter `no_go_margins_m`: `{}` is not a distance in metres (0 or more)",
+                        margin.trim()
+                    )
+                    .into()
+                })
+        })
+        .collect()
 }
 
 /// The command for one pose, and the event to report, if any.
@@ -556,27 +636,16 @@ impl Follower {
             && replan::blocked_ahead(
                 &pursuit.ahead(here),
                 &self.seen,
-                settings.robot_radius_m + planner::DEFAULT_CLEARANCE_M * 0.5,
+                settings.robot_radius_m + settings.clearance_m * 0.5,
             );
         if !stuck && !seen_in_the_way {
             return None;
         }
         let robot = Robot {
             radius_m: settings.robot_radius_m,
-            clearance_m: planner::DEFAULT_CLEARANCE_M,
+            clearance_m: settings.clearance_m,
         };
-        let keepouts: Vec<Keepout> = settings
-            .no_go
-            .iter()
-            .enumerate()
-            .map(|(i, polygon)| {
-                Keepout::new(
-                    format!("no-go area {}", i + 1),
-                    polygon.clone(),
-                    planner::DEFAULT_AREA_MARGIN_M,
-                )
-            })
-            .collect();
+        let keepouts = settings.keepouts();
         let why = if stuck {
             "no progress"
         } else {
@@ -884,6 +953,39 @@ mod tests {
     }
 
     #[test]
+    fn replans_keep_each_area_s_own_margin() {
+        let mut settings = settings_with("4,-2 6,-2 6,3 4,3; 8,1 9,1 9,2");
+        assert_eq!(
+            settings
+                .keepouts()
+                .iter()
+                .map(|keepout| keepout.margin_m)
+                .collect::<Vec<_>>(),
+            [planner::DEFAULT_AREA_MARGIN_M; 2]
+        );
+        settings.no_go_margins_m = parse_margins(" 2 ;0.5").expect("margins");
+        let keepouts = settings.keepouts();
+        assert_eq!(keepouts[0].margin_m, 2.0);
+        assert_eq!(keepouts[1].margin_m, 0.5);
+        for (margins, says) in [
+            ("1;wide", "`wide` is not a distance"),
+            ("-1", "`-1` is not a distance"),
+            ("1", "1 margin(s) for 2 no-go area(s)"),
+        ] {
+            let mut bench = bench(&[
+                ("no_go", "4,-2 6,-2 6,3 4,3; 8,1 9,1 9,2"),
+                ("no_go_margins_m", margins),
+            ]);
+            let err = body(bench.node()).expect_err("refused");
+            assert!(
+                err.to_string().contains("parameter `no_go_margins_m`")
+                    && err.to_string().contains(says),
+                "{margins}: {err}"
+            );
+        }
+    }
+
+    #[test]
     fn bad_no_go_text_is_refused_in_words() {
         let mut bench = TestBench::new(
             &spec(),
@@ -933,9 +1035,11 @@ mod tests {
             max_turn_radps: 1.2,
             blocked_after_secs: 10.0,
             no_go: Vec::new(),
+            no_go_margins_m: Vec::new(),
             path: Path::default(),
             world: String::new(),
             robot_radius_m: 0.25,
+            clearance_m: 0.1,
             replan_after_secs: 3.0,
             max_replans: 3,
         }

@@ -1622,7 +1622,12 @@ boundary 0,0 10,0 10,10 0,10 0,0
     #[test]
     fn the_bundled_worlds_load() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/worlds");
-        for name in ["yard.world", "building.world", "field.world"] {
+        for name in [
+            "yard.world",
+            "building.world",
+            "field.world",
+            "warehouse.world",
+        ] {
             let path = dir.join(name);
             let text = std::fs::read_to_string(&path).unwrap_or_else(|err| panic!("{err}"));
             let world = World::parse(&text, &path.display().to_string())

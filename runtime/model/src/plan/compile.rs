@@ -193,7 +193,7 @@ pub fn compile_for(
     }
     let routes: Vec<Vec<Point>> = paths.iter().map(|path| path.points.clone()).collect();
     let warnings = time_warnings(plan, &routes);
-    let mut builder = Builder::new(plan, &legs.positions, &legs.keepouts, &paths);
+    let mut builder = Builder::new(plan, &legs.positions, &legs.keepouts, &paths, robot);
     builder.build();
     Ok(Compiled {
         net: builder.net,
@@ -567,6 +567,10 @@ struct Builder<'a> {
     /// Each leg's planned path.
     paths: &'a [Path],
     no_go: String,
+    /// The areas' margins, `;` between them; empty when all are the default.
+    no_go_margins: String,
+    /// The robot the paths were planned for.
+    robot: Robot,
     net: MissionNet,
     /// Also the names made so far (the net's own lookup is a linear search).
     trace: BTreeMap<String, Origin>,
@@ -580,6 +584,7 @@ impl<'a> Builder<'a> {
         positions: &'a BTreeMap<String, Point>,
         keepouts: &[Keepout],
         paths: &'a [Path],
+        robot: &Robot,
     ) -> Self {
         let polygons: Vec<Polygon> = keepouts
             .iter()
@@ -590,6 +595,19 @@ impl<'a> Builder<'a> {
             positions,
             paths,
             no_go: geo::format_polygons(&polygons),
+            robot: *robot,
+            no_go_margins: if keepouts
+                .iter()
+                .all(|keepout| keepout.margin_m == planner::DEFAULT_AREA_MARGIN_M)
+            {
+                String::new()
+            } else {
+                keepouts
+                    .iter()
+                    .map(|keepout| geo::round_mm(keepout.margin_m))
+                    .collect::<Vec<_>>()
+                    .join(";")
+            },
             net: MissionNet {
                 name: plan.name.clone(),
                 system: plan.system.clone(),
@@ -924,6 +942,28 @@ impl<'a> Builder<'a> {
         ];
         if !self.no_go.is_empty() {
             params.push(param(&nav.no_go_param, self.no_go.clone()));
+        }
+        // The follower replans round what its laser sees on the way: with the margins the
+        // plan was checked with, not a default.
+        if !self.no_go_margins.is_empty() && !nav.no_go_margins_param.is_empty() {
+            params.push(param(&nav.no_go_margins_param, self.no_go_margins.clone()));
+        }
+        // And for the robot the paths were planned for (the navigation module's defaults are
+        // the planner's).
+        if self.robot.radius_m != planner::DEFAULT_ROBOT_RADIUS_M
+            && !nav.robot_radius_param.is_empty()
+        {
+            params.push(param(
+                &nav.robot_radius_param,
+                geo::round_mm(self.robot.radius_m),
+            ));
+        }
+        if self.robot.clearance_m != planner::DEFAULT_CLEARANCE_M && !nav.clearance_param.is_empty()
+        {
+            params.push(param(
+                &nav.clearance_param,
+                geo::round_mm(self.robot.clearance_m),
+            ));
         }
         if let Some(path) = path
             && !nav.path_param.is_empty()

@@ -86,6 +86,15 @@ pub struct Navigation {
     pub goal_y_param: String,
     /// The parameter that gets the no-go areas (polygons in the world frame), if there are any.
     pub no_go_param: String,
+    /// The parameter that gets the no-go areas' margins (metres, `;` between areas, in the
+    /// order of `no_go_param`'s polygons), when one of them is not the default; empty: the
+    /// margins are not passed on (a navigation module that has no such parameter).
+    pub no_go_margins_param: String,
+    /// The parameters that get the robot's radius and clearance (what the paths were planned
+    /// for), when they are not the planner's defaults, so that the navigation module's replans
+    /// are for the same robot; empty: not passed on.
+    pub robot_radius_param: String,
+    pub clearance_param: String,
     pub reached_event: String,
     pub blocked_event: String,
     /// The parameter that gets each leg's planned path (`X,Y X,Y …` in the world frame); empty:
@@ -140,6 +149,9 @@ impl Default for Navigation {
             goal_x_param: "goal_x_m".into(),
             goal_y_param: "goal_y_m".into(),
             no_go_param: "no_go".into(),
+            no_go_margins_param: "no_go_margins_m".into(),
+            robot_radius_param: "robot_radius_m".into(),
+            clearance_param: "clearance_m".into(),
             reached_event: "goal_reached".into(),
             blocked_event: "blocked".into(),
             path_param: "path".into(),

@@ -138,6 +138,17 @@ impl Plan {
                 ("goal_x", &nav.goal_x_param, &defaults.goal_x_param),
                 ("goal_y", &nav.goal_y_param, &defaults.goal_y_param),
                 ("no_go", &nav.no_go_param, &defaults.no_go_param),
+                (
+                    "no_go_margins",
+                    &nav.no_go_margins_param,
+                    &defaults.no_go_margins_param,
+                ),
+                (
+                    "robot_radius",
+                    &nav.robot_radius_param,
+                    &defaults.robot_radius_param,
+                ),
+                ("clearance", &nav.clearance_param, &defaults.clearance_param),
                 ("reached", &nav.reached_event, &defaults.reached_event),
                 ("blocked", &nav.blocked_event, &defaults.blocked_event),
                 ("path", &nav.path_param, &defaults.path_param),
@@ -424,6 +435,9 @@ fn read_navigation(element: &Element, p: &mut Vec<Located>) -> Navigation {
         "goal_x",
         "goal_y",
         "no_go",
+        "no_go_margins",
+        "robot_radius",
+        "clearance",
         "reached",
         "blocked",
         "path",
@@ -442,13 +456,20 @@ fn read_navigation(element: &Element, p: &mut Vec<Located>) -> Navigation {
         ("goal_x", &mut navigation.goal_x_param),
         ("goal_y", &mut navigation.goal_y_param),
         ("no_go", &mut navigation.no_go_param),
+        ("no_go_margins", &mut navigation.no_go_margins_param),
+        ("robot_radius", &mut navigation.robot_radius_param),
+        ("clearance", &mut navigation.clearance_param),
         ("reached", &mut navigation.reached_event),
         ("blocked", &mut navigation.blocked_event),
         ("path", &mut navigation.path_param),
     ] {
         if let Some(value) = element.attr(attr) {
-            // An empty `path` passes no path on.
-            if attr == "path" && value.value.trim().is_empty() {
+            // An empty `path` (`no_go_margins`, …) passes no path (no margins, …) on.
+            if matches!(
+                attr,
+                "path" | "no_go_margins" | "robot_radius" | "clearance"
+            ) && value.value.trim().is_empty()
+            {
                 *slot = String::new();
                 continue;
             }
@@ -1010,6 +1031,18 @@ mod tests {
         assert_eq!(plan.navigation.robot_radius_m, Some(0.3));
         assert_eq!(plan.navigation.clearance_m, Some(0.15));
         assert_eq!(plan.navigation.path_param, "path");
+        assert_eq!(plan.navigation.no_go_margins_param, "no_go_margins_m");
+        assert_eq!(plan.navigation.robot_radius_param, "robot_radius_m");
+        assert_eq!(plan.navigation.clearance_param, "clearance_m");
+        // Other names, and none, are written back and read again.
+        for name in ["keep_m", ""] {
+            let mut renamed = plan.clone();
+            renamed.navigation.no_go_margins_param = name.to_owned();
+            renamed.navigation.robot_radius_param = format!("{name}r");
+            renamed.navigation.clearance_param = name.to_owned();
+            let again = Plan::parse(&renamed.to_xml()).unwrap_or_else(|p| panic!("{p:?}"));
+            assert_eq!(again.navigation, renamed.navigation);
+        }
         assert_eq!(plan.graphics[1].margin_m, Some(1.5));
         assert_eq!(plan.legs[0].wait_secs, Some(10.0));
         let arrival = plan.legs[0].arrival.as_ref().expect("arrival");

@@ -38,6 +38,8 @@
 //!   place and width of the passage the robot does not fit through.
 
 mod costmap;
+#[doc(hidden)]
+pub mod random;
 mod search;
 #[cfg(test)]
 mod tests;

@@ -1,27 +1,10 @@
 use std::collections::VecDeque;
 
 use super::costmap::distance_transform_for_tests;
+use super::random::{self, RandomWorld, SplitMix64 as Rng};
 use super::*;
 use crate::geo::Polygon;
 use crate::world::World;
-
-/// A small seeded generator (SplitMix64): the same worlds on every platform.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [lo, hi).
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 fn world(body: &str) -> World {
     World::parse(
@@ -412,45 +395,12 @@ fn reachable(map: &Costmap, from: usize, to: usize) -> bool {
 
 /// A random world: 40 m × 40 m, 20 to 40 rectangles and discs.
 fn random_world(rng: &mut Rng) -> World {
-    let mut text = String::from("boundary 0,0 40,0 40,40 0,40 0,0\n");
-    let count = 20 + (rng.next() % 21) as usize;
-    for _ in 0..count {
-        let (x, y) = (rng.uniform(1.0, 39.0), rng.uniform(1.0, 39.0));
-        let (w, h) = match rng.next() % 3 {
-            0 => (rng.uniform(0.5, 8.0), rng.uniform(0.5, 8.0)),
-            // Long thin blocks, like walls: they close off pockets.
-            1 if rng.next().is_multiple_of(2) => (rng.uniform(4.0, 16.0), rng.uniform(0.2, 0.5)),
-            1 => (rng.uniform(0.2, 0.5), rng.uniform(4.0, 16.0)),
-            _ => {
-                text.push_str(&format!(
-                    "circle {x:.2},{y:.2} {:.2}\n",
-                    rng.uniform(0.3, 3.0)
-                ));
-                continue;
-            }
-        };
-        text.push_str(&format!(
-            "rect {x:.2},{y:.2} {:.2},{:.2}\n",
-            (x + w).min(39.9),
-            (y + h).min(39.9)
-        ));
-    }
-    // The start pose of the world file is not used here; any free place will do.
-    World::parse(
-        &format!("name random\norigin 0 0\nstart 0.2 0.2 0\n{text}"),
-        "random.world",
-    )
-    .unwrap_or_else(|err| panic!("{err}\n{text}"))
+    RandomWorld::default().draw(rng)
 }
 
 /// A random place where the robot may be.
 fn free_place(rng: &mut Rng, map: &Costmap) -> Point {
-    loop {
-        let p = Point::new(rng.uniform(0.0, 40.0), rng.uniform(0.0, 40.0));
-        if map.blocker_at(p).is_none() {
-            return p;
-        }
-    }
+    random::free_place(rng, map, 40.0)
 }
 
 #[test]

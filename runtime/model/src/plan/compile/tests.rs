@@ -230,6 +230,59 @@ fn legs_go_around_no_go_areas_and_the_navigation_learns_them() {
     for (got, want) in polygons[0].corners.iter().zip(&area.corners) {
         assert!((got.x - want.x).abs() < 0.01 && (got.y - want.y).abs() < 0.01);
     }
+    // The default margin is not passed on; another one is, so that the follower's replans
+    // keep what the plan was checked with.
+    assert!(!drive.params.iter().any(|p| p.name == "no_go_margins_m"));
+    let two = format!(
+        "<leg from=\"home\" to=\"gate\"/><area name=\"mines\" kind=\"no-go\">{corners}</area>\
+         <area name=\"pit\" kind=\"no-go\" margin_m=\"1.5\">{}</area>",
+        [(30.0, 20.0), (32.0, 20.0), (32.0, 22.0)]
+            .map(|(x, y)| {
+                let at = LatLon::from_local(Point::new(x, y), origin());
+                format!(
+                    "<point lat=\"{:.8}\" lon=\"{:.8}\"/>",
+                    at.lat_deg, at.lon_deg
+                )
+            })
+            .join("")
+    );
+    let compiled = self::compiled(&two);
+    let drive = compiled.net.place("leg1_drive").expect("drive");
+    let margins = drive
+        .params
+        .iter()
+        .find(|p| p.name == "no_go_margins_m")
+        .expect("no_go_margins_m");
+    assert_eq!(margins.value, "0.75;1.5");
+}
+
+#[test]
+fn the_navigation_learns_the_robot_the_paths_were_planned_for_unless_it_is_the_default() {
+    let has = |compiled: &Compiled, name: &str| {
+        compiled
+            .net
+            .place("leg1_drive")
+            .expect("drive")
+            .params
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| p.value.clone())
+    };
+    let plain = compiled(r#"<leg from="home" to="gate"/>"#);
+    assert_eq!(has(&plain, "robot_radius_m"), None);
+    assert_eq!(has(&plain, "clearance_m"), None);
+    let robot = Robot {
+        radius_m: 0.45,
+        clearance_m: 0.2,
+    };
+    let loaded = compile_for(
+        &plan(r#"<leg from="home" to="gate"/>"#),
+        Some(&world()),
+        &robot,
+    )
+    .unwrap_or_else(|problems| panic!("{problems:?}"));
+    assert_eq!(has(&loaded, "robot_radius_m").as_deref(), Some("0.45"));
+    assert_eq!(has(&loaded, "clearance_m").as_deref(), Some("0.2"));
 }
 
 #[test]
