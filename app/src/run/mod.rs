@@ -86,6 +86,8 @@ pub struct RunView {
     pub follow: bool,
     /// Frame the plan's world (and so the robot) at the next frame: a run just started.
     fit_pending: bool,
+    /// The mission's net was shown above the map at the last frame.
+    net_shown: bool,
     /// Answers to the operator, newest last, shown in the status line by the app.
     pub messages: Vec<(bool, String)>,
     /// The follower's `max_replans` in the run's system (its value there, else its default).
@@ -115,6 +117,7 @@ impl RunView {
             last_frame: None,
             follow: false,
             fit_pending: false,
+            net_shown: false,
             messages: Vec::new(),
             max_replans: None,
             followed: FollowedLeg::default(),
@@ -589,7 +592,7 @@ impl RunView {
             },
             marking.join(", ")
         ));
-        if let Some(summary) = self.followed.summary() {
+        if let Some(summary) = self.followed.summary().filter(|_| running) {
             ui.label(format!("Path: {summary}"));
         }
         if !mission.enabled.is_empty() {
@@ -809,9 +812,14 @@ impl RunView {
                 })
         });
         let grid_texture = self.grid_texture(ui.ctx(), &live);
-        let fit = std::mem::take(&mut self.fit_pending);
+        // The net appears above the map once the run reports its marking, and the map shrinks:
+        // it is framed again then, or the robot's start may be left below its edge.
+        let net_appeared = has_plan_run && !self.net_shown;
+        self.net_shown = has_plan_run;
+        let fit = std::mem::take(&mut self.fit_pending) || net_appeared;
         let follow = self.follow;
         let max_replans = self.max_replans;
+        let watching = self.is_running() || self.recording.is_some();
         let mission = match (
             self.session.as_ref().map(|s| s.options.target.clone()),
             surroundings.mission.as_deref_mut(),
@@ -844,49 +852,33 @@ impl RunView {
         } else {
             FollowedLeg::default()
         };
-        let response = mission.watch_ui(ui, current_leg, |painter, project| {
+        // What the map shows, in words, on a line above it rather than over it, where it hid
+        // the plan's labels.
+        // Once the run is over, nothing is being followed (the paths stay drawn as they were).
+        let followed_text = followed.summary().filter(|_| watching);
+        if live.samples > 0 || live.refused.is_some() {
+            egui::Panel::top("run-map-status").show(ui, |ui| {
+                ui.horizontal_wrapped(|ui| {
+                    if live.samples > 0 {
+                        ui.label(monitor::pose_text(&live));
+                    }
+                    if let Some(text) = &followed_text {
+                        ui.label("·");
+                        ui.label(text);
+                    }
+                });
+                if let Some(refused) = &live.refused {
+                    ui.label(
+                        RichText::new(format!("not shown: {refused}"))
+                            .color(monitor::state_colour(ModuleState::Failed)),
+                    );
+                }
+            });
+        }
+        mission.watch_ui(ui, current_leg, |painter, project| {
             monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
         });
-        let followed_text = followed.summary();
-        if live.samples > 0 {
-            let text = monitor::pose_text(&live);
-            ui.put(
-                egui::Rect::from_min_size(
-                    response.rect.left_top() + egui::vec2(8.0, 8.0),
-                    egui::vec2(420.0, 20.0),
-                ),
-                egui::Label::new(
-                    RichText::new(text).background_color(Color32::from_white_alpha(220)),
-                ),
-            );
-        }
         self.followed = followed;
-        let mut line_y = 30.0;
-        if let Some(text) = followed_text {
-            ui.put(
-                egui::Rect::from_min_size(
-                    response.rect.left_top() + egui::vec2(8.0, line_y),
-                    egui::vec2(420.0, 20.0),
-                ),
-                egui::Label::new(
-                    RichText::new(text).background_color(Color32::from_white_alpha(220)),
-                ),
-            );
-            line_y += 22.0;
-        }
-        if let Some(refused) = &live.refused {
-            ui.put(
-                egui::Rect::from_min_size(
-                    response.rect.left_top() + egui::vec2(8.0, line_y),
-                    egui::vec2(640.0, 20.0),
-                ),
-                egui::Label::new(
-                    RichText::new(format!("not shown: {refused}"))
-                        .color(monitor::state_colour(ModuleState::Failed))
-                        .background_color(Color32::from_white_alpha(220)),
-                ),
-            );
-        }
     }
 
     /// The grid's picture, made again only when a new grid arrived. Its size is the grid's,
