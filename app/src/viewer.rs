@@ -54,9 +54,11 @@ pub struct Canvas {
     pub move_before: Option<Diagram>,
     /// A canvas rectangle to show whole on the next frame (zoom to fit, find).
     pub view_request: Option<Rect>,
-    /// Fit again once the blocks have been drawn: a fit asked before (on opening a file)
-    /// measured them at an estimated size, and framed a wide diagram off its middle.
-    pub refit_once_drawn: bool,
+    /// Fit again after this many frames that drew the blocks (one): a fit asked before (on
+    /// opening a file) measured them at an estimated size, and framed a wide diagram off its
+    /// middle. The sizes of the first frame that draws them are still a few points off; a
+    /// second refit would settle them but costs two more frames after every fit.
+    pub refits_when_drawn: u8,
     /// The snarl's own selection as last seen (shift-click and rectangle selection).
     snarl_selection: Vec<NodeId>,
     /// The block dragged in the overview, where egui-snarl holds none.
@@ -76,7 +78,7 @@ impl Default for Canvas {
             wire_from: None,
             move_before: None,
             view_request: None,
-            refit_once_drawn: false,
+            refits_when_drawn: 0,
             snarl_selection: Vec::new(),
             overview_grab: None,
         }
