@@ -142,9 +142,7 @@ fuzz_target!(|data: &[u8]| {
             identity: "fuzz".into(),
             encrypt: flags & 8 != 0,
         };
-        FrameReader::dialer(Some(&dial))
-            .expect("a valid identity")
-            .0
+        FrameReader::dialer(Some(&dial)).expect("a valid identity").0
     } else if flags & 1 != 0 {
         FrameReader::expecting_hello()
     } else {
