@@ -44,6 +44,15 @@ impl FollowedLeg {
     /// Tells the leg's own path from the replans among `followed`, given the path the plan
     /// planned for the current leg (`None` without a plan).
     pub fn of(followed: &Followed, planned: Option<&[Point]>, max_replans: Option<u32>) -> Self {
+        // The paths to another goal than the leg's are the next leg's, published before the
+        // run's marking said the leg changed: the plan cannot tell their replans then.
+        let goal = |path: &[Point]| path.last().copied();
+        let planned = planned.filter(|planned| {
+            match (goal(planned), followed.paths.last().and_then(|p| goal(p))) {
+                (Some(a), Some(b)) => (a.x - b.x).hypot(a.y - b.y) < SAME_POINT_M,
+                _ => true,
+            }
+        });
         let own = |path: &[Point]| planned.is_some_and(|planned| same_route(path, planned));
         // The leg's own path, the last time the follower set out on it; without a plan, the
         // first path seen.
@@ -224,6 +233,8 @@ mod tests {
             Some(OWN),
             &["followed own"],
         );
+        // The next leg's path, before the marking says so: not counted against this leg.
+        check(&[&[(16.0, 4.0), (20.0, 4.0)]], Some(OWN), &["followed own"]);
         // No plan: the first path seen is the leg's own.
         check(
             &[REPLAN_1, REPLAN_2],
