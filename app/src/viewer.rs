@@ -54,6 +54,11 @@ pub struct Canvas {
     pub move_before: Option<Diagram>,
     /// A canvas rectangle to show whole on the next frame (zoom to fit, find).
     pub view_request: Option<Rect>,
+    /// Fit again after this many frames that drew the blocks (one): a fit asked before (on
+    /// opening a file) measured them at an estimated size, and framed a wide diagram off its
+    /// middle. The sizes of the first frame that draws them are still a few points off; a
+    /// second refit would settle them but costs two more frames after every fit.
+    pub refits_when_drawn: u8,
     /// The snarl's own selection as last seen (shift-click and rectangle selection).
     snarl_selection: Vec<NodeId>,
     /// The block dragged in the overview, where egui-snarl holds none.
@@ -73,6 +78,7 @@ impl Default for Canvas {
             wire_from: None,
             move_before: None,
             view_request: None,
+            refits_when_drawn: 0,
             snarl_selection: Vec::new(),
             overview_grab: None,
         }
@@ -765,10 +771,19 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
 /// nameless boxes, or of names too small to read, tells a newcomer nothing, so a large diagram
 /// shows its middle, named, and the rest is a zoom or pan away.
 pub fn fit(view: Rect, screen: Rect) -> TSTransform {
-    let view = view.expand(40.0);
-    let scale = (screen.width() / view.width())
-        .min(screen.height() / view.height())
-        .clamp(FIT_FLOOR, 1.0);
+    let scale_of = |view: Rect| {
+        (screen.width() / view.width())
+            .min(screen.height() / view.height())
+            .clamp(FIT_FLOOR, 1.0)
+    };
+    // A margin round the diagram, but not at the price of cutting a block off at the floor.
+    let margin = if scale_of(view.expand(40.0)) > FIT_FLOOR {
+        40.0
+    } else {
+        8.0
+    };
+    let view = view.expand(margin);
+    let scale = scale_of(view);
     let scale = if scale.is_finite() { scale } else { 1.0 };
     TSTransform::new(
         screen.center().to_vec2() - view.center().to_vec2() * scale,

@@ -141,6 +141,7 @@ fn studio_data(folder: &Path) {
     }
     times.extend(12.5_f64.to_le_bytes());
     write(folder, "timeline", &seed(3, 0, &times));
+    write(folder, "path", &seed(4, 0, b"0,0 1.5,2 -3,4e2 x"));
 }
 
 struct Channel {

@@ -1,12 +1,14 @@
 //! What the studio's Run view draws from a peer's samples (`app/src/run/untrusted.rs`): the
-//! first byte picks a pose, a scan, a grid or a recording's times; the second, for a grid, the
+//! first byte picks a pose, a scan, a grid, a recording's times or a followed path (text); the
+//! second, for a grid, the
 //! largest texture side (1 to 8192). Nothing panics; a grid that passes the checks has a
 //! picture of its size (shrunk to the side), made without allocating more than four bytes a
-//! cell; a scan's points are finite and near; the play head stays within the recording.
+//! cell; a scan's points are finite and near; the play head stays within the recording; a path
+//! is bounded, near, and one too long is refused before anything is allocated for it.
 #![no_main]
 
 use armor_fuzz::counting::{Counting, measure};
-use armor_fuzz::untrusted::{self, MAX_COORDINATE_M, Timeline};
+use armor_fuzz::untrusted::{self, MAX_COORDINATE_M, MAX_PATH_POINTS, Refused, Timeline};
 use armor_module_api::Datum;
 use armor_module_api::types::{LaserScan, OccupancyGrid, Pose2D};
 use libfuzzer_sys::fuzz_target;
@@ -92,14 +94,38 @@ fn timeline(payload: &[u8]) {
     assert_eq!(span.until_ns(duration), span.last_ns);
 }
 
+/// The follower's `path` output as the Run view reads it.
+fn path(payload: &[u8]) {
+    let Ok(text) = std::str::from_utf8(payload) else {
+        return;
+    };
+    let (parsed, largest) = measure(|| untrusted::parse_path(text));
+    match parsed {
+        Ok(points) => {
+            assert!(points.len() <= MAX_PATH_POINTS);
+            for (x_m, y_m) in points {
+                assert!(x_m.abs() <= MAX_COORDINATE_M && y_m.abs() <= MAX_COORDINATE_M);
+            }
+        }
+        Err(Refused::PathTooLong { .. }) => {
+            assert_eq!(
+                largest, 0,
+                "a path refused for its length allocated {largest} bytes"
+            );
+        }
+        Err(_) => {}
+    }
+}
+
 fuzz_target!(|data: &[u8]| {
     let [which, side, payload @ ..] = data else {
         return;
     };
-    match which % 4 {
+    match which % 5 {
         0 => pose(payload),
         1 => scan(payload),
         2 => grid(1 << (side % 14), payload),
-        _ => timeline(payload),
+        3 => timeline(payload),
+        _ => path(payload),
     }
 });

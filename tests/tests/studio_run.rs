@@ -2,7 +2,8 @@
 //! accelerated time to its final place; a run paused (the robot holds), resumed, advanced by
 //! hand and aborted; a module killed from outside shown crashed, then running again; the robot
 //! driven with the arrow keys through the teleop module, and the recording of that drive opened
-//! into the same map.
+//! into the same map; a crate only the sim knows of replanned round, the path followed and the
+//! one replaced drawn.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -438,6 +439,70 @@ fn the_mappers_grid_and_corrected_pose_are_shown_on_the_live_map() {
     step_until(&mut harness, "the run to stop", PATIENCE, |app| {
         !app.run().is_running()
     });
+}
+
+#[test]
+fn a_replan_round_what_only_the_sim_knows_is_drawn_on_the_live_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = plan(dir.path(), "");
+    // A crate on the way from home (4, 4) to the gate (16, 4) that the world file, and so the
+    // plan, does not hold: the follower's laser finds it and the follower plans round it.
+    let crate_at = Point::new(10.0, 4.0);
+    let system = dir.path().join("system.xml");
+    let text = std::fs::read_to_string(&system).unwrap().replace(
+        r#"<module name="sim" type="sim">"#,
+        r#"<module name="sim" type="sim">
+    <param name="obstacles" value="circle 10,4 0.5"/>"#,
+    );
+    assert!(text.contains("circle 10,4"));
+    std::fs::write(&system, text).unwrap();
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &file, 5.0);
+    step_until(&mut harness, "a replan drawn", PATIENCE, |app| {
+        app.run().followed().replans() >= 1
+    });
+    harness.run_ok();
+    let followed = harness.state().run().followed().clone();
+    assert_eq!(followed.max_replans, Some(3), "the follower's default");
+    let (now, before) = followed.paths.split_last().unwrap();
+    assert!(!now.replaced && now.replan.is_some(), "{followed:#?}");
+    assert!(
+        !before.is_empty() && before.iter().all(|path| path.replaced),
+        "the path replaced stays drawn: {followed:#?}"
+    );
+    let clearance_m = now
+        .points
+        .windows(2)
+        .map(|pair| distance_to_segment(crate_at, pair[0], pair[1]))
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        clearance_m > 0.5 + 0.25,
+        "the path followed goes round the crate, {clearance_m} m from its centre: {now:?}"
+    );
+    let goal = now.points.last().unwrap();
+    assert!(
+        (goal.x - 16.0).abs() < 0.1 && (goal.y - 4.0).abs() < 0.1,
+        "{goal:?}"
+    );
+    // Said in words too: on the map and in the mission panel.
+    harness.get_by_label_contains("Path: following replan");
+    step_until(&mut harness, "the run to end", PATIENCE, |app| {
+        app.run().ended().is_some()
+    });
+    let mission = status(harness.state()).mission.unwrap();
+    assert_eq!(mission.outcome.as_deref(), Some("complete"));
+}
+
+/// How far `p` is from the segment `a`–`b`.
+fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let length_sq = dx * dx + dy * dy;
+    let t = if length_sq > 0.0 {
+        (((p.x - a.x) * dx + (p.y - a.y) * dy) / length_sq).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p.x - a.x - t * dx).hypot(p.y - a.y - t * dy)
 }
 
 #[test]

@@ -1,13 +1,16 @@
 //! The studio in a real X window (Xvfb), driven with the mouse and keyboard through xdotool as a
 //! person would: it opens a system file given on its command line, duplicates the blocks,
 //! saves under a path typed into the path field, and the saved file passes the real
-//! `armor check`; the Run view starts the system with F5 and stops it with Shift+F5. Needs Debian's `xvfb` and `xdotool` (installed by `.ci/run`). Xvfb is started
+//! `armor check`; the Run view starts the system with F5 and stops it with Shift+F5; a newcomer
+//! opens the robot example, reads its block names on the first frame (OCR of a screenshot),
+//! opens the yard plan, runs it until the robot moves and stops it. Needs Debian's `xvfb`,
+//! `xdotool`, `imagemagick` and `tesseract-ocr` (installed by `.ci/run`). Xvfb is started
 //! directly rather than through `xvfb-run`, so that the guard kills the server itself.
 #![allow(clippy::unwrap_used)]
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use armor_tests::{PATIENCE, Proc, bin, bin_dir, wait_until};
 
@@ -112,14 +115,21 @@ fn start(dir: &Path, file: &Path) -> Session {
     });
     let display = format!(":{}", number.trim());
 
+    // A studio started in `dir`, as a user starts it where their files are: runs work there.
     let studio = Proc::start(
         Command::new(bin("armor-studio"))
+            .current_dir(dir)
             .arg(file)
             .env("DISPLAY", &display)
             .env_remove("WAYLAND_DISPLAY")
             .env("ARMOR_STUDIO_HOME", dir.join("home"))
             .env("ARMOR_MODULE_PATH", bin_dir())
-            .env("RUST_LOG", "armor_studio=info"),
+            // The studio's own lines at info, which the tests wait on; the modules of its
+            // runs inherit this, and their logs show in the Run view at info as without it.
+            .env(
+                "RUST_LOG",
+                "info,wgpu_core=warn,wgpu_hal=warn,naga=warn,egui_wgpu=warn",
+            ),
     );
     studio.wait_for("the first frame", Duration::from_secs(60), |line| {
         line.contains("window ready")
@@ -264,6 +274,251 @@ fn the_run_view_starts_and_stops_a_run_from_the_keyboard() {
     wait_until("the run to end", PATIENCE, || {
         armor_tests::children_of(studio.pid()).is_empty()
     });
+}
+
+/// Whether `tool` is on the path.
+fn installed(tool: &str) -> bool {
+    Command::new("sh")
+        .args(["-c", &format!("command -v {tool}")])
+        .output()
+        .is_ok_and(|out| out.status.success())
+}
+
+/// Where the newcomer's screenshots are kept, to be looked at after the test.
+fn shots_dir() -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("studio_newcomer");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A screenshot of the whole display (`import -window root`), saved as `name`.png.
+fn screenshot(display: &str, name: &str) -> PathBuf {
+    let file = shots_dir().join(format!("{name}.png"));
+    let out = Command::new("import")
+        .args(["-window", "root"])
+        .arg(&file)
+        .env("DISPLAY", display)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "import: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    file
+}
+
+/// The words tesseract reads in `crop` (ImageMagick geometry `WxH+X+Y`) of `shot`, scaled up
+/// three times and in grey (inverted when `dark`: tesseract reads dark text on light), as sparse
+/// text (`--psm 11`: the words of a diagram are not in lines).
+fn ocr(shot: &Path, crop: &str, dark: bool) -> String {
+    let scaled = shot.with_extension("ocr.png");
+    let mut convert = Command::new("convert");
+    convert.arg(shot).args([
+        "-crop",
+        crop,
+        "+repage",
+        "-resize",
+        "300%",
+        "-colorspace",
+        "Gray",
+    ]);
+    if dark {
+        convert.arg("-negate");
+    }
+    let out = convert.arg(&scaled).output().unwrap();
+    assert!(
+        out.status.success(),
+        "convert: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = Command::new("tesseract")
+        .arg(&scaled)
+        .args(["-", "--psm", "11"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "tesseract: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Whether OCR `text` holds `name`, with the slack OCR needs: case apart, and a name of six
+/// letters or more may have one letter misread, added or lost (`recorcer` for `recorder`).
+fn ocr_has(text: &str, name: &str) -> bool {
+    let name = name.to_lowercase();
+    let slack = usize::from(name.chars().count() >= 6);
+    text.to_lowercase()
+        .split(|c: char| !(c.is_alphanumeric() || c == '_'))
+        .any(|word| edit_distance(word, &name) <= slack)
+}
+
+/// Levenshtein distance, in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let next = (diagonal + usize::from(ca != *cb))
+                .min(row[j] + 1)
+                .min(row[j + 1] + 1);
+            diagonal = row[j + 1];
+            row[j + 1] = next;
+        }
+    }
+    row[b.len()]
+}
+
+/// The `(x, y)` pairs OCR read in `text` (the poses above the live map).
+fn ocr_points(text: &str) -> Vec<(f64, f64)> {
+    text.split('(')
+        .skip(1)
+        .filter_map(|rest| {
+            let (pair, _) = rest.split_once(')')?;
+            let (x, y) = pair.split_once(',')?;
+            Some((x.trim().parse().ok()?, y.trim().parse().ok()?))
+        })
+        .collect()
+}
+
+#[test]
+fn ocr_slack_is_small() {
+    assert!(ocr_has("v recorcer  ema_vet", "recorder"));
+    assert!(ocr_has("MUX auto", "mux"));
+    assert!(!ocr_has("mix auto", "mux"), "short names are read exactly");
+    assert!(!ocr_has("recorcar", "recorder"), "two letters off");
+    assert_eq!(
+        ocr_points("| estimated (7.30, 4.01) 0° - true (7.36, 3.99) e (x"),
+        [(7.3, 4.01), (7.36, 3.99)]
+    );
+}
+
+/// Screenshots `name` until `done` holds of the OCR of `crop`, at most `patience`; returns the
+/// text read.
+fn ocr_until(
+    display: &str,
+    name: &str,
+    crop: &str,
+    dark: bool,
+    patience: Duration,
+    done: impl Fn(&str) -> bool,
+) -> String {
+    let deadline = Instant::now() + patience;
+    loop {
+        let shot = screenshot(display, name);
+        let text = ocr(&shot, crop, dark);
+        if done(&text) {
+            return text;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "after {patience:?}, {} reads:\n{text}",
+            shot.display()
+        );
+    }
+}
+
+/// A newcomer's session in a real window: the robot example given on the command line shows
+/// every block's name at once; the yard plan opened from the keyboard runs with F5 until the
+/// robot is seen to move, and Shift+F5 stops it, every module then reading so.
+#[test]
+fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
+    for tool in ["import", "convert", "tesseract"] {
+        assert!(
+            installed(tool),
+            "{tool} is not installed: run .ci/run, or apt-get install imagemagick tesseract-ocr"
+        );
+    }
+    // The examples as they are, in a folder of the newcomer's with the yard's world where the
+    // sim looks for it (under assets/worlds/ of the folder the run starts in).
+    let dir = tempfile::tempdir().unwrap();
+    let examples = armor_tests::workspace_root().join("missions/robot");
+    for name in ["system.xml", "plan-yard.xml"] {
+        std::fs::copy(examples.join(name), dir.path().join(name)).unwrap();
+    }
+    let worlds = dir.path().join("assets/worlds");
+    std::fs::create_dir_all(&worlds).unwrap();
+    std::fs::copy(
+        armor_tests::workspace_root().join("assets/worlds/yard.world"),
+        worlds.join("yard.world"),
+    )
+    .unwrap();
+    let system = armor_model::SystemConfig::parse(
+        &std::fs::read_to_string(dir.path().join("system.xml")).unwrap(),
+    )
+    .unwrap();
+    let names: Vec<&str> = system.modules.iter().map(|m| m.name.as_str()).collect();
+    assert!(names.len() >= 5, "{names:?}");
+
+    let session = start(dir.path(), &dir.path().join("system.xml"));
+    let Session {
+        studio,
+        display,
+        window,
+        ..
+    } = &session;
+
+    // The canvas only (right of the palette, below the problems line): the palette lists the
+    // module types, which are these blocks' names too. Dark text on light after inversion.
+    let canvas = "1050x725+230+45";
+    let text = ocr_until(display, "1-system", canvas, true, PATIENCE, |text| {
+        names.iter().all(|name| ocr_has(text, name))
+    });
+    assert!(!text.is_empty());
+
+    // Open… from the System view takes the plan too, and shows it in the Mission view.
+    keys_until(studio, display, window, &["ctrl+o"], "type a path");
+    assert!(xdotool(display, &["key", "--window", window, "ctrl+a"]));
+    let plan = dir.path().join("plan-yard.xml");
+    assert!(xdotool(
+        display,
+        &["type", "--window", window, &plan.display().to_string()]
+    ));
+    keys_until(studio, display, window, &["Return"], "opened ");
+    // The plan's waypoints are named on the map (`gate`, on the phase line, reads to a person
+    // but not to tesseract).
+    ocr_until(display, "2-plan", "950x600+0+45", false, PATIENCE, |text| {
+        ["home", "east", "north", "rally"]
+            .iter()
+            .all(|name| ocr_has(text, name))
+    });
+
+    // F5 runs it: the robot leaves home at (4, 4), as the poses above the live map say.
+    keys_until(studio, display, window, &["F5"], "running ");
+    // The line above the map (light on dark).
+    let poses = "660x26+300+45";
+    let text = ocr_until(display, "3-running", poses, true, PATIENCE, |text| {
+        ocr_points(text).iter().any(|(x, _)| *x > 5.0)
+    });
+    assert!(
+        ocr_has(&text, "following"),
+        "the path followed is named: {text}"
+    );
+    let shot = screenshot(display, "3-running-whole");
+
+    // Shift+F5 stops it, and the modules' list says so (at the left, light on dark).
+    keys_until(studio, display, window, &["shift+F5"], "the run ended");
+    wait_until("the run's processes to end", PATIENCE, || {
+        armor_tests::children_of(studio.pid()).is_empty()
+    });
+    let modules = "300x700+0+45";
+    let text = ocr_until(display, "4-stopped", modules, true, PATIENCE, |text| {
+        let lines: Vec<String> = text.lines().map(str::to_lowercase).collect();
+        names.iter().all(|name| {
+            lines.iter().any(|line| {
+                ocr_has(line, name) && (line.contains("ended") || line.contains("exited"))
+            })
+        })
+    });
+    assert!(
+        !text.to_lowercase().contains("running"),
+        "no module reads running after the run: {text}"
+    );
+    assert!(shot.exists());
 }
 
 /// The real `armor check` accepts the file.

@@ -308,6 +308,16 @@ impl StudioApp {
                     return;
                 }
                 match purpose {
+                    // A plan typed into the System view's Open opens in the Mission view, as
+                    // on the command line, rather than failing as a system.
+                    PathPurpose::Open if super::is_plan(&path) => {
+                        self.set_view(View::Mission);
+                        if self.mission.is_some() {
+                            self.replace(Replacing::OpenPlan(path), ctx);
+                        } else {
+                            self.plan_to_open = Some(path);
+                        }
+                    }
                     PathPurpose::Open => self.replace(Replacing::OpenSystem(path), ctx),
                     PathPurpose::SaveAs => {
                         self.save(Some(&path));

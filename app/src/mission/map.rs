@@ -850,28 +850,7 @@ fn draw_legs(
             );
             continue;
         }
-        painter.add(egui::Shape::line(route.clone(), Stroke::new(width, colour)));
-        // An arrowhead halfway along the longest piece shows the direction.
-        let Some(piece) = route
-            .windows(2)
-            .max_by(|a, b| a[0].distance(a[1]).total_cmp(&b[0].distance(b[1])))
-        else {
-            continue;
-        };
-        let direction = (piece[1] - piece[0]).normalized();
-        let middle = piece[0] + (piece[1] - piece[0]) * 0.5;
-        if piece[0].distance(piece[1]) > 24.0 {
-            let side = direction.rot90() * 6.0;
-            let tip = middle + direction * 7.0;
-            painter.add(egui::Shape::convex_polygon(
-                vec![
-                    tip,
-                    middle - direction * 5.0 + side,
-                    middle - direction * 5.0 - side,
-                ],
-                colour,
-                Stroke::NONE,
-            ));
+        if let Some(middle) = draw_route(painter, route, Stroke::new(width, colour), false) {
             labels.add(
                 vec![middle],
                 8.0,
@@ -882,6 +861,42 @@ fn draw_legs(
             );
         }
     }
+}
+
+/// A route as a leg is drawn: a line (`dashed` or not) with an arrowhead halfway along its
+/// longest piece, when that piece is long enough to show one. Returns where the arrowhead is,
+/// for a label. The Run view draws the paths the follower follows with it.
+pub fn draw_route(
+    painter: &egui::Painter,
+    route: &[Pos2],
+    stroke: Stroke,
+    dashed: bool,
+) -> Option<Pos2> {
+    if dashed {
+        painter.extend(egui::Shape::dashed_line(route, stroke, 10.0, 6.0));
+    } else {
+        painter.add(egui::Shape::line(route.to_vec(), stroke));
+    }
+    let piece = route
+        .windows(2)
+        .max_by(|a, b| a[0].distance(a[1]).total_cmp(&b[0].distance(b[1])))?;
+    if piece[0].distance(piece[1]) <= 24.0 {
+        return None;
+    }
+    let direction = (piece[1] - piece[0]).normalized();
+    let middle = piece[0] + (piece[1] - piece[0]) * 0.5;
+    let side = direction.rot90() * 6.0;
+    let tip = middle + direction * 7.0;
+    painter.add(egui::Shape::convex_polygon(
+        vec![
+            tip,
+            middle - direction * 5.0 + side,
+            middle - direction * 5.0 - side,
+        ],
+        stroke.color,
+        Stroke::NONE,
+    ));
+    Some(middle)
 }
 
 /// Appointments and deadlines the way a plan's synchronisation matrix puts them on the map:

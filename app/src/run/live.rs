@@ -1,5 +1,5 @@
-//! The robot's data as the run view shows it: poses (estimated and true), the laser scan and the
-//! occupancy grid. During a run, a node of the studio's own (named `studio`) subscribes to the
+//! The robot's data as the run view shows it: poses (estimated and true), the laser scan, the
+//! occupancy grid and the paths the follower follows. During a run, a node of the studio's own (named `studio`) subscribes to the
 //! outputs that carry them, as any module would, best-effort and at most [`MAX_RATE_HZ`] samples
 //! a second (the providers skip the others): it never holds a provider back. A recording (an MCAP file of the recorder) feeds the same
 //! views from its messages instead.
@@ -12,7 +12,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use armor_model::SystemConfig;
-use armor_module_api::types::{LaserScan, OccupancyGrid, Odometry, Pose2D};
+use armor_model::world::Point;
+use armor_module_api::types::{LaserScan, OccupancyGrid, Odometry, Pose2D, Text};
 use armor_module_api::{Datum, Event, ModuleDescription, ModuleSpec, Node, Standalone};
 
 use super::session::{SharedRef, lock};
@@ -22,6 +23,9 @@ use super::untrusted::{self, Refused, Timeline};
 pub const NODE_NAME: &str = "studio";
 /// Points of the true path kept for the trail.
 const MAX_TRAIL: usize = 4000;
+/// Paths kept for one goal: the follower's first and at most 100 replans (its `max_replans`
+/// range), and one more for a restart.
+const MAX_FOLLOWED: usize = 102;
 /// Samples per second asked of each provider: a display needs no more, and a simulation run
 /// fast publishes thousands, each of which would cost its provider a send.
 pub const MAX_RATE_HZ: f64 = 30.0;
@@ -36,6 +40,8 @@ pub struct Sources {
     pub truth: Option<String>,
     pub scan: Option<String>,
     pub grid: Option<String>,
+    /// The path the navigation follows (the follower's `path` output, `Text`).
+    pub path: Option<String>,
 }
 
 impl Sources {
@@ -71,13 +77,22 @@ impl Sources {
             .or_else(|| find(&|_, _, data_type| data_type == "Odometry")),
             scan: find(&|_, _, data_type| data_type == "LaserScan"),
             grid: find(&|_, _, data_type| data_type == "OccupancyGrid"),
+            path: find(&|module_type, name, data_type| {
+                module_type == "follower" && data_type == "Text" && name.ends_with(".path")
+            }),
         }
     }
 
     fn names(&self) -> impl Iterator<Item = &String> {
-        [&self.estimated, &self.truth, &self.scan, &self.grid]
-            .into_iter()
-            .flatten()
+        [
+            &self.estimated,
+            &self.truth,
+            &self.scan,
+            &self.grid,
+            &self.path,
+        ]
+        .into_iter()
+        .flatten()
     }
 }
 
@@ -92,6 +107,8 @@ pub struct LiveData {
     /// Bumped with each new grid, so that its picture is made again only then.
     pub grid_revision: u64,
     pub trail: VecDeque<(f64, f64)>,
+    /// The paths followed towards the current goal.
+    pub followed: Followed,
     /// Samples received, all sources together.
     pub samples: u64,
     /// The last sample that was not taken, and why (`mapper.grid: …`); the view keeps showing
@@ -125,6 +142,14 @@ impl LiveData {
                 self.grid = Some(Arc::new(grid));
                 self.grid_revision += 1;
             })
+        } else if is(&sources.path) {
+            Text::decode(payload)
+                .map_err(|err| err.to_string())
+                .and_then(|text| untrusted::parse_path(&text.0).map_err(|err| err.to_string()))
+                .map(|points| {
+                    self.followed
+                        .take(points.into_iter().map(|(x, y)| Point::new(x, y)).collect());
+                })
         } else {
             Ok(())
         };
@@ -156,6 +181,43 @@ impl LiveData {
         self.truth.as_ref().or(self.estimated.as_ref())
     }
 }
+
+/// The paths the follower published towards its current goal, oldest first: the one it set
+/// out on (unless it was published before the studio subscribed), then one per replan, and the
+/// leg's own again if it was started afresh. A path to another goal (the next leg) starts the
+/// list again; which of them are replans is the view's to tell, with the plan's routes.
+#[derive(Clone, Debug, Default)]
+pub struct Followed {
+    pub paths: Vec<Arc<[Point]>>,
+}
+
+impl Followed {
+    /// Takes a newly published path (the same one again is not a new one); an empty one (no
+    /// path: the follower heads for its goal) ends the list.
+    pub fn take(&mut self, points: Vec<Point>) {
+        let goal = |path: &[Point]| path.last().copied();
+        let same_goal = match (self.paths.last().and_then(|p| goal(p)), goal(&points)) {
+            (Some(a), Some(b)) => (a.x - b.x).hypot(a.y - b.y) < SAME_POINT_M,
+            _ => false,
+        };
+        if !same_goal {
+            self.paths.clear();
+        }
+        let again = self
+            .paths
+            .last()
+            .is_some_and(|last| **last == *points.as_slice());
+        if points.len() >= 2 && !again {
+            if self.paths.len() == MAX_FOLLOWED {
+                self.paths.remove(0);
+            }
+            self.paths.push(points.into());
+        }
+    }
+}
+
+/// Points this close are the same (paths are published to the millimetre).
+pub const SAME_POINT_M: f64 = 0.05;
 
 /// A decoded sample that passes `check`, else why not.
 fn checked<T>(
@@ -280,6 +342,7 @@ impl Recording {
             }),
             scan: first_of(&|m| m.data_type == "LaserScan"),
             grid: first_of(&|m| m.data_type == "OccupancyGrid"),
+            path: first_of(&|m| m.data_type == "Text" && m.data_name.ends_with(".path")),
         };
         let mut recording = Recording {
             file: file.to_path_buf(),
@@ -372,6 +435,36 @@ mod tests {
         assert_eq!(live.truth.map(|pose| pose.x_m), Some(1.0));
         live.take(&sources, "other.thing", &[1, 2, 3]);
         assert_eq!(live.samples, 5);
+    }
+
+    #[test]
+    fn the_followers_paths_are_kept_per_goal() {
+        let sources = Sources {
+            path: Some("follower.path".into()),
+            ..Sources::default()
+        };
+        let mut live = LiveData::default();
+        let mut send = |text: &str| {
+            live.take(&sources, "follower.path", &encode(&Text(text.into())));
+            (
+                live.followed
+                    .paths
+                    .iter()
+                    .map(|path| path.len())
+                    .collect::<Vec<_>>(),
+                live.refused.clone(),
+            )
+        };
+        assert_eq!(send("4,4 16,4"), (vec![2], None));
+        // A replan: from where the robot is, to the same goal (to the millimetre).
+        assert_eq!(send("9,4 10,5 16.001,4"), (vec![2, 3], None));
+        // The next leg's path, to another goal.
+        assert_eq!(send("16,4 20,4"), (vec![2], None));
+        let (kept, refused) = send("16,4 x");
+        assert_eq!(kept, vec![2], "a broken path leaves the last good one");
+        assert!(refused.is_some_and(|r| r.contains("point 2")));
+        // No path: nothing is followed.
+        assert_eq!(send("").0, Vec::<usize>::new());
     }
 
     fn grid(width: u32, height: u32, cells: Vec<i8>) -> OccupancyGrid {

@@ -3,10 +3,12 @@
 //! switches to start and stop it by hand; the mission monitor shows the net with its live
 //! marking, what the enabled transitions wait for, the firings so far, and the operator's
 //! buttons; the live map shows the robot (estimated and true pose), its laser scan and the
-//! mapper's grid over the plan, the current leg highlighted; the operator drives through the
+//! mapper's grid over the plan, the current leg highlighted, the path the follower follows and
+//! the ones it replaced by replanning ([`followed`]); the operator drives through the
 //! teleop module from the keyboard or the on-screen pad; each module's log is kept and
 //! filterable. A recording of the recorder opens into the same map.
 
+pub mod followed;
 pub mod live;
 pub mod monitor;
 pub mod session;
@@ -23,7 +25,8 @@ use armor_runtime::control::{ModuleState, Request, Status};
 use egui::{Color32, RichText, Ui};
 
 use crate::diagram::Catalog;
-use crate::mission::MissionView;
+use crate::mission::{LegRoute, MissionView};
+use followed::FollowedLeg;
 use live::{LiveData, Recording, Sources};
 use session::{Level, RunOptions, RunSession};
 
@@ -83,8 +86,14 @@ pub struct RunView {
     pub follow: bool,
     /// Frame the plan's world (and so the robot) at the next frame: a run just started.
     fit_pending: bool,
+    /// The mission's net was shown above the map at the last frame.
+    net_shown: bool,
     /// Answers to the operator, newest last, shown in the status line by the app.
     pub messages: Vec<(bool, String)>,
+    /// The follower's `max_replans` in the run's system (its value there, else its default).
+    max_replans: Option<u32>,
+    /// The follower's paths of the current leg, as drawn at the last frame.
+    followed: FollowedLeg,
 }
 
 impl RunView {
@@ -108,7 +117,10 @@ impl RunView {
             last_frame: None,
             follow: false,
             fit_pending: false,
+            net_shown: false,
             messages: Vec::new(),
+            max_replans: None,
+            followed: FollowedLeg::default(),
         }
     }
 
@@ -165,6 +177,12 @@ impl RunView {
             (Some(session), None) => Some(session.options.sources.clone()),
             (None, None) => None,
         }
+    }
+
+    /// The follower's paths of the current leg drawn on the live map at the last frame: the one
+    /// followed, those replaced by replans, and how many replans there were.
+    pub fn followed(&self) -> &FollowedLeg {
+        &self.followed
     }
 
     /// The size in pixels of the occupancy grid's picture last drawn on the live map.
@@ -244,8 +262,13 @@ impl RunView {
             }
         };
         let sources = system
-            .map(|system| Sources::of(&system, |t| surroundings.catalog.get(t).cloned()))
+            .as_ref()
+            .map(|system| Sources::of(system, |t| surroundings.catalog.get(t).cloned()))
             .unwrap_or_default();
+        self.max_replans = system
+            .as_ref()
+            .zip(sources.path.as_deref())
+            .and_then(|(system, path)| max_replans(system, path, surroundings.catalog));
         let start_at = match self.start_at.trim() {
             "" => match (&target, &surroundings.mission) {
                 (Target::Plan(_), Some(mission)) => mission
@@ -561,6 +584,9 @@ impl RunView {
             },
             armor_model::net::marking_text(&mission.marking)
         ));
+        if let Some(summary) = self.followed.summary().filter(|_| running) {
+            ui.label(format!("Path: {summary}"));
+        }
         if !mission.enabled.is_empty() {
             ui.label(RichText::new("Next").strong());
         }
@@ -778,8 +804,14 @@ impl RunView {
                 })
         });
         let grid_texture = self.grid_texture(ui.ctx(), &live);
-        let fit = std::mem::take(&mut self.fit_pending);
+        // The net appears above the map once the run reports its marking, and the map shrinks:
+        // it is framed again then, or the robot's start may be left below its edge.
+        let net_appeared = has_plan_run && !self.net_shown;
+        self.net_shown = has_plan_run;
+        let fit = std::mem::take(&mut self.fit_pending) || net_appeared;
         let follow = self.follow;
+        let max_replans = self.max_replans;
+        let watching = self.is_running() || self.recording.is_some();
         let mission = match (
             self.session.as_ref().map(|s| s.options.target.clone()),
             surroundings.mission.as_deref_mut(),
@@ -801,34 +833,44 @@ impl RunView {
         if follow && let Some(pose) = live.estimated.as_ref().or(live.truth.as_ref()) {
             mission.centre_on(armor_model::world::Point::new(pose.x_m, pose.y_m));
         }
-        let response = mission.watch_ui(ui, current_leg, |painter, project| {
-            monitor::paint_live(painter, project, &live, grid_texture.as_ref());
+        let planned = current_leg.and_then(|leg| match mission.checked().legs.get(leg) {
+            Some(LegRoute::Path { points, .. }) => Some(points.as_slice()),
+            _ => None,
         });
-        if live.samples > 0 {
-            let text = monitor::pose_text(&live);
-            ui.put(
-                egui::Rect::from_min_size(
-                    response.rect.left_top() + egui::vec2(8.0, 8.0),
-                    egui::vec2(420.0, 20.0),
-                ),
-                egui::Label::new(
-                    RichText::new(text).background_color(Color32::from_white_alpha(220)),
-                ),
-            );
+        // A plan's run without a current leg (before the first, after the last) has no path to
+        // tell the replans by: what the follower published then is not shown.
+        let followed = if current_leg.is_some() || !has_plan_run {
+            FollowedLeg::of(&live.followed, planned, max_replans)
+        } else {
+            FollowedLeg::default()
+        };
+        // What the map shows, in words, on a line above it rather than over it, where it hid
+        // the plan's labels.
+        // Once the run is over, nothing is being followed (the paths stay drawn as they were).
+        let followed_text = followed.summary().filter(|_| watching);
+        if live.samples > 0 || live.refused.is_some() {
+            egui::Panel::top("run-map-status").show(ui, |ui| {
+                ui.horizontal_wrapped(|ui| {
+                    if live.samples > 0 {
+                        ui.label(monitor::pose_text(&live));
+                    }
+                    if let Some(text) = &followed_text {
+                        ui.label("·");
+                        ui.label(text);
+                    }
+                });
+                if let Some(refused) = &live.refused {
+                    ui.label(
+                        RichText::new(format!("not shown: {refused}"))
+                            .color(monitor::state_colour(ModuleState::Failed)),
+                    );
+                }
+            });
         }
-        if let Some(refused) = &live.refused {
-            ui.put(
-                egui::Rect::from_min_size(
-                    response.rect.left_top() + egui::vec2(8.0, 30.0),
-                    egui::vec2(640.0, 20.0),
-                ),
-                egui::Label::new(
-                    RichText::new(format!("not shown: {refused}"))
-                        .color(monitor::state_colour(ModuleState::Failed))
-                        .background_color(Color32::from_white_alpha(220)),
-                ),
-            );
-        }
+        mission.watch_ui(ui, current_leg, |painter, project| {
+            monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
+        });
+        self.followed = followed;
     }
 
     /// The grid's picture, made again only when a new grid arrived. Its size is the grid's,
@@ -863,6 +905,28 @@ impl RunView {
             .as_ref()
             .map(|(_, texture)| (texture.clone(), Arc::clone(grid)))
     }
+}
+
+/// The `max_replans` of the module that publishes `path` (`follower.path`): its value in
+/// `system`, else its default in the module's description.
+fn max_replans(system: &armor_model::SystemConfig, path: &str, catalog: &Catalog) -> Option<u32> {
+    let (name, _) = path.split_once('.')?;
+    let module = system.modules.iter().find(|module| module.name == name)?;
+    let value = module
+        .params
+        .iter()
+        .find(|param| param.name == "max_replans")
+        .map(|param| param.value.clone())
+        .or_else(|| {
+            catalog
+                .get(&module.module_type)?
+                .params
+                .iter()
+                .find(|param| param.name == "max_replans")?
+                .default
+                .clone()
+        })?;
+    value.trim().parse().ok()
 }
 
 fn level_rank(level: Level) -> u8 {

@@ -1,5 +1,6 @@
 //! The run view's pieces: one module's row (state, switches, cycle time, rates with a plot),
-//! the firing timeline, and what is painted on the live map (the grid, the scan, the poses).
+//! the firing timeline, and what is painted on the live map (the grid, the follower's paths, the
+//! scan, the poses).
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -10,6 +11,7 @@ use armor_runtime::control::{FiringRecord, ModuleState, ModuleStatus, Request};
 use egui::{Color32, Pos2, RichText, Stroke, Ui};
 use egui_plot::{Line, Plot, Points};
 
+use super::followed::FollowedLeg;
 use super::live::LiveData;
 use super::session::Sample;
 use super::untrusted::{self, Refused};
@@ -271,12 +273,14 @@ pub fn grid_image(grid: &OccupancyGrid, max_side: usize) -> Result<egui::ColorIm
     ))
 }
 
-/// Paints the grid, the true path, the scan and both poses.
+/// Paints the grid, the paths the follower follows and replaced, the true path, the scan and
+/// both poses.
 pub fn paint_live(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     live: &LiveData,
     grid: Option<&(egui::TextureHandle, Arc<OccupancyGrid>)>,
+    followed: &FollowedLeg,
 ) {
     if let Some((texture, grid)) = grid {
         let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
@@ -291,6 +295,7 @@ pub fn paint_live(
             Color32::WHITE,
         );
     }
+    followed.paint(painter, project);
     let trail: Vec<Pos2> = live
         .trail
         .iter()

@@ -321,7 +321,7 @@ impl RunSession {
         let _ = std::fs::remove_file(&self.report);
         let mut shared = self.shared();
         let ended = match (&report, status.code()) {
-            (Some(report), _) => format!("mission {}", report.outcome),
+            (Some(report), _) => format!("ended: mission {}", report.outcome),
             (None, Some(0)) => "ended".to_owned(),
             (None, Some(code)) => format!("ended with status {code}"),
             (None, None) => "was killed".to_owned(),

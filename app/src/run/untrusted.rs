@@ -2,8 +2,8 @@
 //! grid, a scan or a pose comes from any node that publishes under the right name, or from any
 //! file opened as a recording, so none of its sizes or numbers is taken on its word.
 //!
-//! The bounds ([`MAX_GRID_CELLS`], [`MAX_SCAN_RANGES`], [`MAX_COORDINATE_M`],
-//! [`MAX_RECORDING_BYTES`]) are checked in
+//! The bounds ([`MAX_GRID_CELLS`], [`MAX_SCAN_RANGES`], [`MAX_PATH_POINTS`],
+//! [`MAX_COORDINATE_M`], [`MAX_RECORDING_BYTES`]) are checked in
 //! O(1) before anything the size of the data is allocated; what passes them is then drawn
 //! without a panic whatever the values (a cell of 127, a range of NaN). A recording's times are
 //! read through [`Timeline`], whose arithmetic saturates.
@@ -24,6 +24,8 @@ pub const MAX_SCAN_RANGES: usize = 65_536;
 /// How far from the world's origin anything drawn may be: 10,000 km, a quarter of the Earth's
 /// circumference. Beyond that, a position is a fault, and its screen coordinates would overflow.
 pub const MAX_COORDINATE_M: f64 = 1e7;
+/// Points of the longest path drawn (the follower's `path` output): a 5 km path at 5 cm.
+pub const MAX_PATH_POINTS: usize = 100_000;
 
 /// Bytes a recording's messages may take once read (decompressed): a file of a few megabytes can
 /// hold gigabytes in compressed chunks.
@@ -48,6 +50,10 @@ pub enum Refused {
     TooFar { what: &'static str, value: f64 },
     /// More ranges than [`MAX_SCAN_RANGES`].
     ScanTooLong { ranges: usize },
+    /// More points than [`MAX_PATH_POINTS`] (counted before any is read).
+    PathTooLong { points: usize },
+    /// The path's `index`th point (from 1) is not `X,Y` in metres.
+    PathPoint { index: usize },
 }
 
 impl fmt::Display for Refused {
@@ -77,6 +83,13 @@ impl fmt::Display for Refused {
                 f,
                 "a scan of {ranges} ranges is longer than the {MAX_SCAN_RANGES} drawn"
             ),
+            Refused::PathTooLong { points } => write!(
+                f,
+                "a path of {points} points is longer than the {MAX_PATH_POINTS} drawn"
+            ),
+            Refused::PathPoint { index } => {
+                write!(f, "the path's point {index} is not `X,Y` in metres")
+            }
         }
     }
 }
@@ -159,6 +172,28 @@ pub fn check_pose(pose: &Pose2D) -> Result<(), Refused> {
     coordinate("the pose's y", pose.y_m)?;
     finite("the pose's heading", pose.theta_rad)?;
     Ok(())
+}
+
+/// A path as the follower publishes it (`X,Y X,Y …` in metres, the form of
+/// `armor_model::planner::Path::format`): at most [`MAX_PATH_POINTS`] points, counted before
+/// any is kept, each within [`MAX_COORDINATE_M`] of the origin. An empty text is no path.
+pub fn parse_path(text: &str) -> Result<Vec<(f64, f64)>, Refused> {
+    let points = text.split_whitespace().count();
+    if points > MAX_PATH_POINTS {
+        return Err(Refused::PathTooLong { points });
+    }
+    let mut path = Vec::with_capacity(points);
+    for (index, pair) in text.split_whitespace().enumerate() {
+        let point = pair
+            .split_once(',')
+            .and_then(|(x, y)| Some((x.parse::<f64>().ok()?, y.parse::<f64>().ok()?)))
+            .filter(|(x, y)| {
+                coordinate("the path's x", *x).is_ok() && coordinate("the path's y", *y).is_ok()
+            })
+            .ok_or(Refused::PathPoint { index: index + 1 })?;
+        path.push(point);
+    }
+    Ok(path)
 }
 
 /// A grid as RGBA pixels (not premultiplied), row by row from the top (the grid's north edge).
@@ -317,6 +352,29 @@ mod tests {
             origin_y_m: 2.0,
             cells,
         }
+    }
+
+    #[test]
+    fn a_path_is_read_within_its_bounds() {
+        assert_eq!(
+            parse_path("0,0 2.5,-1  3,4\n"),
+            Ok(vec![(0.0, 0.0), (2.5, -1.0), (3.0, 4.0)])
+        );
+        assert_eq!(parse_path(""), Ok(Vec::new()));
+        for (text, index) in [("1,1 x", 2), ("1,NaN", 1), ("1,1e12", 1), ("1;1", 1)] {
+            assert_eq!(
+                parse_path(text),
+                Err(Refused::PathPoint { index }),
+                "{text}"
+            );
+        }
+        let long = "0,0 ".repeat(MAX_PATH_POINTS + 1);
+        assert_eq!(
+            parse_path(&long),
+            Err(Refused::PathTooLong {
+                points: MAX_PATH_POINTS + 1
+            })
+        );
     }
 
     #[test]

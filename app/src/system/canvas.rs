@@ -82,6 +82,10 @@ impl SystemView {
         let mut node_rects = HashMap::new();
         let mut to_global = self.canvas.to_global;
         let view_request = self.canvas.view_request.take();
+        let refit = view_request.is_some() && self.canvas.refits_when_drawn > 0;
+        if refit {
+            self.canvas.refits_when_drawn -= 1;
+        }
         let wire_from = self.canvas.wire_from.clone();
         // The viewer reads the canvas while egui-snarl edits the snarl: hold them apart.
         let mut canvas = std::mem::take(&mut self.canvas);
@@ -111,6 +115,11 @@ impl SystemView {
         self.canvas.node_rects.extend(node_rects);
         self.canvas.to_global = to_global;
         self.canvas.pins = pins.take();
+        if refit {
+            // The blocks in view now have their drawn sizes: fit on them at the next frame
+            // (egui-snarl asks for one after a change of view).
+            self.canvas.view_request = self.canvas.bounds(&self.editor.diagram, None);
+        }
 
         // In the overview, a double click zooms in on the block (its pins and parameters are
         // there).

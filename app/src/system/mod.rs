@@ -290,6 +290,7 @@ impl SystemView {
 
     pub fn zoom_to_fit(&mut self) {
         self.canvas.view_request = self.canvas.bounds(&self.editor.diagram, None);
+        self.canvas.refits_when_drawn = 1;
     }
 
     /// Selects a block and brings it into view.

@@ -36,6 +36,9 @@ pub const TYPE: &str = "follower";
 
 /// How often, in run time, the follower checks for lack of progress when no pose arrives.
 const TICK_SECS: f64 = 0.1;
+/// How often, in run time, the path followed is published again while active: a subscriber
+/// that comes late (the studio's Run view, after the first leg started) still gets it.
+const PATH_AGAIN_SECS: f64 = 1.0;
 /// The distance to the goal must shrink by this much to count as progress.
 const PROGRESS_M: f64 = 0.05;
 /// Turning speed per radian of heading error (before clamping to `max_turn_radps`).
@@ -68,7 +71,8 @@ pub fn spec() -> ModuleSpec {
     .output::<Text>(
         "path",
         "the path being followed, `X,Y X,Y ...` in metres: the planned one at each activation, \
-         and each new one after a replan",
+         each new one after a replan, and the same again every second of run time while \
+         active (for a display that subscribes late)",
     )
     .output::<Twist>(
         "cmd_desired",
@@ -244,6 +248,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let mut follower = Follower::new(settings, node.timestamp());
     follower.world = world;
     let mut next_tick = node.timestamp() + TICK_SECS;
+    let mut path_sent = f64::NEG_INFINITY;
     loop {
         let event = if node.is_active() {
             let deadline = node.clock().instant_at(next_tick);
@@ -260,6 +265,7 @@ pub fn body(node: &mut Node) -> BodyResult {
                     let control = follower.on_pose(sample.value.pose_in_odom, node.timestamp());
                     if control.new_path {
                         send_path(node, &path_output, &follower)?;
+                        path_sent = node.timestamp();
                     }
                     node.send(&output, &control.twist)?;
                     if let Some(event) = control.report {
@@ -275,6 +281,10 @@ pub fn body(node: &mut Node) -> BodyResult {
             Event::Timeout if node.is_active() => {
                 let now = node.timestamp();
                 next_tick = now + TICK_SECS;
+                if now - path_sent >= PATH_AGAIN_SECS {
+                    send_path(node, &path_output, &follower)?;
+                    path_sent = now;
+                }
                 if let Some(event) = follower.on_tick(now) {
                     node.report(event)?;
                 }
@@ -284,6 +294,7 @@ pub fn body(node: &mut Node) -> BodyResult {
                 follower.restart(node.timestamp());
                 next_tick = node.timestamp() + TICK_SECS;
                 send_path(node, &path_output, &follower)?;
+                path_sent = node.timestamp();
             }
             Event::Stop => {
                 tracing::info!("inactive: stopping");
