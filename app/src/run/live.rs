@@ -7,8 +7,8 @@
 use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 
 use armor_model::SystemConfig;
@@ -16,7 +16,6 @@ use armor_model::world::Point;
 use armor_module_api::types::{LaserScan, OccupancyGrid, Odometry, Pose2D, Text};
 use armor_module_api::{Datum, Event, ModuleDescription, ModuleSpec, Node, Standalone};
 
-use super::session::{SharedRef, lock};
 use super::untrusted::{self, Refused, Timeline};
 
 /// The studio node's name, as the agent and the providers' logs show it.
@@ -229,13 +228,20 @@ fn checked<T>(
     Ok(value)
 }
 
+/// The live data of a run: written by the studio's node, read by the frame.
+pub type SharedLive = Arc<Mutex<LiveData>>;
+
+pub fn lock(live: &SharedLive) -> MutexGuard<'_, LiveData> {
+    live.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
 /// Starts the studio's node on a thread: it subscribes to `sources` through the agent at
-/// `agent` and writes what arrives into the session's live data until `stop`.
+/// `agent` and writes what arrives into `shared` until `stop`.
 pub fn start(
     agent: SocketAddr,
     secret: Option<PathBuf>,
     sources: Sources,
-    shared: &SharedRef,
+    shared: &SharedLive,
     stop: &Arc<AtomicBool>,
     ctx: &egui::Context,
 ) {
@@ -256,7 +262,7 @@ fn watch(
     agent: SocketAddr,
     secret: Option<PathBuf>,
     sources: &Sources,
-    shared: &SharedRef,
+    shared: &SharedLive,
     stop: &AtomicBool,
     ctx: &egui::Context,
 ) -> anyhow::Result<()> {
@@ -281,7 +287,7 @@ fn watch(
                     continue;
                 };
                 if let Some(sample) = node.take_raw(input) {
-                    lock(shared).live.take(sources, name, &sample.payload);
+                    lock(shared).take(sources, name, &sample.payload);
                     ctx.request_repaint_after(Duration::from_millis(30));
                 }
             }

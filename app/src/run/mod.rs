@@ -165,7 +165,7 @@ impl RunView {
     pub fn live(&self) -> LiveData {
         match (&self.session, &self.recording) {
             (_, Some(recording)) => recording.live.clone(),
-            (Some(session), None) => session.shared().live.clone(),
+            (Some(session), None) => live::lock(&session.shared().live).clone(),
             (None, None) => LiveData::default(),
         }
     }

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use armor_runtime::control::{FiringRecord, MissionStatus, Request, Status};
 
-use super::live::{self, LiveData, Sources};
+use super::live::{self, Sources};
 
 /// How often the control interface is asked for the state.
 const POLL_EVERY: Duration = Duration::from_millis(200);
@@ -93,7 +93,7 @@ pub struct Shared {
     pub replies: Vec<(bool, String)>,
     /// How the run ended, once it has.
     pub ended: Option<String>,
-    pub live: LiveData,
+    pub live: live::SharedLive,
 }
 
 impl Shared {
@@ -569,7 +569,7 @@ fn poll_control(
                             agent,
                             secret_file.clone(),
                             sources.clone(),
-                            shared,
+                            &shared_now.live,
                             stop,
                             ctx,
                         );
