@@ -60,6 +60,8 @@ pub struct LoadedMission {
     pub states: usize,
     /// The compiled plan, when the file is a plan.
     pub compiled: Option<Compiled>,
+    /// The date the plan is made for (its `start`), when the file is a plan that gives one.
+    pub planned_start_unix_secs: Option<f64>,
 }
 
 impl LoadedMission {
@@ -107,6 +109,7 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         )]));
     }
     let system = load_system(&system_file, module_path)?;
+    let planned_start_unix_secs = source.as_ref().err().and_then(|plan| plan.start_unix_secs);
     let (net, compiled) = match source {
         Ok(net) => (net, None),
         Err(plan) => {
@@ -133,6 +136,7 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         system,
         states: analysis.states,
         compiled,
+        planned_start_unix_secs,
     })
 }
 

@@ -155,6 +155,18 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     };
     let epoch_ns = unix_now_ns();
     let clock = Clock::new(epoch_ns, options.time_scale);
+    // A plan made for a day that has passed is rehearsed on that day, not run late.
+    let start_at_unix_secs = options.start_at_unix_secs.or_else(|| {
+        let planned = mission.as_ref()?.planned_start_unix_secs?;
+        (planned < epoch_ns as f64 / 1e9).then(|| {
+            tracing::info!(
+                "the plan is made for {}, which has passed: rehearsed as if starting then \
+                 (--start-at DATE to choose another day)",
+                armor_model::net::format_rfc3339(planned)
+            );
+            planned
+        })
+    });
     let system_file = mission.as_ref().map_or_else(
         || options.file.clone(),
         |mission| mission.system_file.clone(),
@@ -181,7 +193,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             mission.net,
             controllable,
             clock,
-            options.start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9),
+            start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9),
             options.report.is_some(),
         )
     });
