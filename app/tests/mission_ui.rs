@@ -358,6 +358,7 @@ fn the_bundled_plans_labels_never_overlap_at_the_first_frame() {
         "plan-yard-route.xml",
         "plan-building.xml",
         "plan-field.xml",
+        "plan-warehouse.xml",
     ] {
         let dir = tempfile::tempdir().unwrap();
         let mut harness = studio(options(&dir.path().join("home"), Some(robot(name))));
@@ -533,6 +534,7 @@ fn the_net_opens_readable_and_its_names_never_overlap_nor_leave_the_view_at_fit(
         "plan-yard-route.xml",
         "plan-building.xml",
         "plan-field.xml",
+        "plan-warehouse.xml",
     ] {
         let dir = tempfile::tempdir().unwrap();
         let mut harness = bundled(dir.path(), name);
