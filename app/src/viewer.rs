@@ -17,6 +17,7 @@ use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 use crate::diagram::{BlockId, Catalog, Diagram, Pin, PinSide, PortRef};
 use crate::editor::Command;
 use crate::run::monitor::state_colour;
+use armor_module_api::Category;
 use armor_runtime::control::ModuleState;
 
 /// Pins drawn this frame, in canvas coordinates.
@@ -34,6 +35,10 @@ pub const DETAIL_SCALE: f32 = 0.5;
 /// The least zoom fit chooses: names and port labels about 8 points high or more, read at
 /// first sight (below, they are drawn, but small).
 pub const FIT_FLOOR: f32 = 0.75;
+/// The size of a block's name in its header, at zoom 1 (the body's text is 12).
+const HEADER_NAME_SIZE: f32 = 16.0;
+/// The height of the header's band in the overview, in canvas points (about a header's).
+const OVERVIEW_BAND: f32 = 34.0;
 
 /// The canvas's state across frames.
 pub struct Canvas {
@@ -83,8 +88,8 @@ impl Default for Canvas {
 /// (which select-all and the problem list can set) is drawn by [`DiagramViewer::node_frame`].
 pub fn style() -> SnarlStyle {
     let mut style = SnarlStyle::new();
-    style.min_scale = Some(0.05);
-    style.max_scale = Some(2.0);
+    style.min_scale = Some(MIN_SCALE);
+    style.max_scale = Some(MAX_SCALE);
     style.centering = Some(false);
     style.select_style = Some(egui_snarl::ui::SelectionStyle {
         margin: egui::Margin::ZERO,
@@ -338,6 +343,42 @@ pub struct DiagramViewer<'a> {
     pub canvas: &'a Canvas,
     /// During a run, each module's state: blocks and the links they feed are coloured by it.
     pub live: &'a BTreeMap<String, ModuleState>,
+    /// The wheel's zoom this frame, which replaces egui-snarl's own handling of the wheel.
+    pub wheel: Option<WheelZoom>,
+}
+
+/// A zoom by the wheel: `factor` about the screen point `about`, from the transform `from` of
+/// the last frame.
+#[derive(Clone, Copy, Debug)]
+pub struct WheelZoom {
+    pub factor: f32,
+    pub about: Pos2,
+    pub from: TSTransform,
+}
+
+impl WheelZoom {
+    /// The transform after the zoom: the canvas point under `about` stays under it, and the
+    /// zoom stays within the canvas's range.
+    pub fn apply(&self) -> TSTransform {
+        let scale = (self.from.scaling * self.factor).clamp(MIN_SCALE, MAX_SCALE);
+        let under = self.from.inverse() * self.about;
+        TSTransform::new(self.about.to_vec2() - under.to_vec2() * scale, scale)
+    }
+}
+
+/// One notch of the wheel zooms by this factor (as in the net view).
+pub const ZOOM_STEP: f32 = 1.1;
+/// The canvas's zoom range.
+const MIN_SCALE: f32 = 0.05;
+const MAX_SCALE: f32 = 2.0;
+
+/// How many notches a wheel event turns, up positive (zoom in).
+pub fn wheel_notches(unit: egui::MouseWheelUnit, delta: Vec2) -> f32 {
+    match unit {
+        egui::MouseWheelUnit::Line => delta.y,
+        egui::MouseWheelUnit::Point => delta.y / 50.0,
+        egui::MouseWheelUnit::Page => delta.y * 10.0,
+    }
 }
 
 impl DiagramViewer<'_> {
@@ -441,6 +482,24 @@ impl DiagramViewer<'_> {
                     stroke
                 };
                 painter.rect(rect, 6.0, fill, stroke, egui::StrokeKind::Inside);
+                // The header's band in the category's colour, as the block has it zoomed in.
+                let category = self.diagram.block(id).map_or(Category::Other, |block| {
+                    category_of(self.catalog, &block.module_type)
+                });
+                let band = Rect::from_min_size(
+                    rect.min,
+                    Vec2::new(rect.width(), rect.height().min(OVERVIEW_BAND)),
+                );
+                painter.rect_filled(
+                    band.shrink(stroke.width),
+                    egui::CornerRadius {
+                        nw: 6,
+                        ne: 6,
+                        sw: 0,
+                        se: 0,
+                    },
+                    category_colour(category),
+                );
             }
         }
         let drawn: HashMap<(BlockId, PinSide, &str), Pos2> = canvas
@@ -535,23 +594,31 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
             let chars = longest(&description.inputs) + longest(&description.outputs);
             ui.set_min_width(chars as f32 * 5.5 + 30.0);
         }
-        ui.label(RichText::new(&block.name).strong());
-        // The type only where the name does not say it already.
-        let module_type = (block.module_type != block.name).then_some(block.module_type.as_str());
-        match (self.live.get(&block.name), module_type) {
-            (Some(state), Some(module_type)) => ui.label(
-                RichText::new(format!("{module_type} · {}", state.as_str()))
-                    .color(state_colour(*state))
-                    .small(),
-            ),
-            (Some(state), None) => ui.label(
-                RichText::new(state.as_str())
-                    .color(state_colour(*state))
-                    .small(),
-            ),
-            (None, Some(module_type)) => ui.label(RichText::new(module_type).weak().small()),
-            (None, None) => return,
-        };
+        // The instance's name large; its type small, only where the name does not say it.
+        ui.vertical(|ui| {
+            ui.spacing_mut().item_spacing.y = 0.0;
+            ui.label(
+                RichText::new(&block.name)
+                    .size(HEADER_NAME_SIZE)
+                    .strong()
+                    .color(HEADER_TEXT),
+            );
+            let module_type =
+                (block.module_type != block.name).then_some(block.module_type.as_str());
+            if let Some(module_type) = module_type {
+                ui.label(RichText::new(module_type).small().color(HEADER_TEXT_WEAK));
+            }
+            // During a run, the module's state in its colour, on a dark ground so that it reads
+            // on every header colour.
+            if let Some(state) = self.live.get(&block.name) {
+                ui.label(
+                    RichText::new(format!(" {} ", state.as_str()))
+                        .small()
+                        .color(state_colour(*state))
+                        .background_color(Color32::from_black_alpha(190)),
+                );
+            }
+        });
     }
 
     fn inputs(&mut self, node: &BlockId) -> usize {
@@ -612,6 +679,31 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
         if missing > 0 {
             ui.colored_label(WARNING, format!("{missing} required unset"));
         }
+    }
+
+    fn header_frame(
+        &mut self,
+        default: egui::Frame,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        snarl: &Snarl<BlockId>,
+    ) -> egui::Frame {
+        let category = self
+            .diagram
+            .block(snarl[node])
+            .map_or(Category::Other, |block| {
+                category_of(self.catalog, &block.module_type)
+            });
+        let radius = default.corner_radius;
+        default
+            .fill(category_colour(category))
+            .stroke(Stroke::NONE)
+            .corner_radius(egui::CornerRadius {
+                sw: 0,
+                se: 0,
+                ..radius
+            })
     }
 
     fn node_frame(
@@ -755,6 +847,8 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
     fn current_transform(&mut self, to_global: &mut TSTransform, _snarl: &mut Snarl<BlockId>) {
         if let Some(view) = self.view_request.take() {
             *to_global = fit(view, self.screen_rect);
+        } else if let Some(wheel) = self.wheel {
+            *to_global = wheel.apply();
         }
         *self.to_global = *to_global;
     }
@@ -774,6 +868,46 @@ pub fn fit(view: Rect, screen: Rect) -> TSTransform {
         screen.center().to_vec2() - view.center().to_vec2() * scale,
         scale,
     )
+}
+
+/// The header colour of a block of a module `category`, and the text colour on it. Mid-dark,
+/// moderately saturated fills: they stand out from the dark theme's grey canvas and blocks,
+/// white text on each has a contrast of at least 4.5:1 (WCAG AA; checked by a test), and the
+/// hues are far apart (green, blue, violet, amber, crimson) so that roles are told apart at a
+/// glance, as Node-RED colours its palette's groups. Unknown and absent categories are grey.
+pub fn category_colour(category: Category) -> Color32 {
+    match category {
+        Category::Sensor => Color32::from_rgb(34, 118, 84),
+        Category::Navigation => Color32::from_rgb(44, 92, 168),
+        Category::Mapping => Color32::from_rgb(118, 70, 160),
+        Category::Operator => Color32::from_rgb(168, 88, 24),
+        Category::Recording => Color32::from_rgb(160, 50, 66),
+        Category::Other => Color32::from_rgb(78, 82, 90),
+    }
+}
+
+/// The text on a [`category_colour`].
+pub const HEADER_TEXT: Color32 = Color32::WHITE;
+/// The smaller, secondary text on a [`category_colour`] (the type): still 4.5:1 on each.
+pub const HEADER_TEXT_WEAK: Color32 = Color32::from_rgb(236, 236, 236);
+
+/// A category as the palette and the legend name it.
+pub fn category_name(category: Category) -> &'static str {
+    match category {
+        Category::Sensor => "sensors & sim",
+        Category::Navigation => "navigation",
+        Category::Mapping => "mapping",
+        Category::Operator => "operator",
+        Category::Recording => "recording",
+        Category::Other => "other",
+    }
+}
+
+/// The category of a block's module type (`Other` when the type is unknown).
+fn category_of(catalog: &Catalog, module_type: &str) -> Category {
+    catalog
+        .get(module_type)
+        .map_or(Category::Other, |description| description.category)
 }
 
 /// A colour per data type, so that wires and pins of one type look alike.

@@ -77,6 +77,8 @@ impl SystemView {
                 .and_then(|pos| self.canvas.pin_at(pos).cloned());
         }
 
+        let wheel = self.wheel_zoom(&ctx);
+
         let pins = std::rc::Rc::new(std::cell::RefCell::new(Vec::new()));
         let mut events = CanvasEvents::default();
         let mut node_rects = HashMap::new();
@@ -102,6 +104,7 @@ impl SystemView {
             double_click: double_click.filter(|pos| canvas.rect.contains(*pos)),
             canvas: &canvas,
             live,
+            wheel,
         };
         let widget = SnarlWidget::new().id_salt(CANVAS_ID).style(viewer::style());
         widget.show(&mut snarl, &mut viewer, ui);
@@ -111,6 +114,8 @@ impl SystemView {
         self.canvas.node_rects.extend(node_rects);
         self.canvas.to_global = to_global;
         self.canvas.pins = pins.take();
+
+        self.canvas_tools_ui(&ctx);
 
         // In the overview, a double click zooms in on the block (its pins and parameters are
         // there).
@@ -202,6 +207,80 @@ impl SystemView {
                 None => self.commands.push(Command::Select(BTreeSet::new())),
             }
         }
+    }
+
+    /// The canvas's corner, as the map's and the net's toolbars: Fit, and how to zoom and pan.
+    /// Over the canvas (egui-snarl's layer covers the panel it is in), in the bottom right
+    /// corner, where Node-RED has its zoom buttons.
+    fn canvas_tools_ui(&mut self, ctx: &egui::Context) {
+        let rect = self.canvas.rect;
+        if !rect.is_positive() {
+            return;
+        }
+        egui::Area::new(egui::Id::new("canvas-tools"))
+            .order(egui::Order::Middle)
+            .pivot(egui::Align2::RIGHT_BOTTOM)
+            .fixed_pos(rect.right_bottom() - egui::vec2(10.0, 10.0))
+            .constrain_to(rect)
+            .show(ctx, |ui| {
+                egui::Frame::popup(ui.style()).show(ui, |ui| {
+                    ui.horizontal(|ui| {
+                        ui.weak("wheel: zoom · drag: pan");
+                        if ui
+                            .button("Fit")
+                            .on_hover_text("show every block (Home)")
+                            .clicked()
+                        {
+                            self.zoom_to_fit();
+                        }
+                    });
+                });
+            });
+    }
+
+    /// The wheel's zoom this frame, when the pointer is over the canvas (and no window or menu
+    /// over it): the factor and the point it zooms about, on screen.
+    ///
+    /// egui-snarl pans on the plain wheel and zooms on Ctrl+wheel, through egui's `Scene`, in
+    /// steps that follow egui's smoothed scroll and scroll-zoom speed. Every other canvas of the
+    /// studio (the map, the net) zooms on the plain wheel about the pointer, one notch a fine
+    /// step, and pans by dragging: so the diagram does too. The wheel's pan is taken out of
+    /// egui's input before egui-snarl reads it, and the transform egui-snarl computes is
+    /// replaced by ours in [`DiagramViewer`]'s `current_transform` for the frames the wheel
+    /// moves (egui's smoothed Ctrl+wheel zoom cannot be taken out of its input).
+    fn wheel_zoom(&mut self, ctx: &egui::Context) -> Option<viewer::WheelZoom> {
+        let pointer = ctx.input(|input| input.pointer.hover_pos())?;
+        let over_canvas = self.canvas.rect.contains(pointer)
+            && ctx
+                .layer_id_at(pointer)
+                .is_some_and(|layer| layer.order == egui::Order::Background);
+        if !over_canvas {
+            return None;
+        }
+        let (notches, pinch, wheeling) = ctx.input_mut(|input| {
+            let mut notches = 0.0;
+            let mut pinch = 1.0;
+            for event in &input.events {
+                match event {
+                    egui::Event::MouseWheel { unit, delta, .. } => {
+                        notches += viewer::wheel_notches(*unit, *delta);
+                    }
+                    egui::Event::Zoom(factor) => pinch *= factor,
+                    _ => {}
+                }
+            }
+            // egui spreads a notch's scroll over the next frames: those frames are the wheel's
+            // too, and must not pan.
+            let wheeling =
+                input.smooth_scroll_delta != egui::Vec2::ZERO || input.zoom_delta() != 1.0;
+            input.smooth_scroll_delta = egui::Vec2::ZERO;
+            (notches, pinch, wheeling)
+        });
+        (notches != 0.0 || pinch != 1.0 || wheeling).then(|| viewer::WheelZoom {
+            factor: viewer::ZOOM_STEP.powf(notches) * pinch,
+            about: pointer,
+            from: self.canvas.to_global,
+        })
     }
 
     /// Cut, copy and paste. The platform turns Ctrl+C / Ctrl+X / Ctrl+V into copy, cut and

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use crate::clock::Clock;
-use crate::describe::{EventSpec, ModuleDescription, ParamSpec, PortSpec};
+use crate::describe::{Category, EventSpec, ModuleDescription, ParamSpec, PortSpec};
 use crate::net::Net;
 use crate::node::{ApiError, Core, Node, Transport};
 use crate::protocol::{FromSupervisor, ModuleConfig, ToSupervisor};
@@ -66,6 +66,12 @@ impl ModuleSpec {
     /// An operator interface or safety module: the mission controller never stops it.
     pub fn not_controllable(mut self) -> Self {
         self.description.controllable = false;
+        self
+    }
+
+    /// Its role, which tools show (the studio colours its blocks' headers by it).
+    pub fn category(mut self, category: Category) -> Self {
+        self.description.category = category;
         self
     }
 
