@@ -267,6 +267,16 @@ impl StudioApp {
         self.system.block_header_pos(&self.palette.catalog, block)
     }
 
+    /// The wires' ends marked last frame: the input pin (`block.port`) and where, on screen.
+    pub fn wire_ends(&self) -> Vec<(String, Pos2)> {
+        self.system.wire_ends()
+    }
+
+    /// A block's rectangle on screen (as drawn last frame).
+    pub fn block_screen_rect(&self, block: &str) -> Option<egui::Rect> {
+        self.system.block_screen_rect(&self.palette.catalog, block)
+    }
+
     /// Whether the canvas shows the overview (zoomed out: boxes and lines, no widgets).
     pub fn is_overview(&self) -> bool {
         self.system.canvas.is_overview()

@@ -32,9 +32,10 @@ const WARNING: Color32 = Color32::from_rgb(230, 90, 70);
 /// Below this zoom, text is too small to read: the diagram is painted as an overview of boxes
 /// and wires instead of widgets: blocks are selected and moved there, and linked once zoomed in.
 pub const DETAIL_SCALE: f32 = 0.5;
-/// The least zoom fit chooses: names and port labels about 8 points high or more, read at
-/// first sight (below, they are drawn, but small).
-pub const FIT_FLOOR: f32 = 0.75;
+/// The least zoom fit chooses: block names (16 points) over 10 pixels high and port labels (at
+/// the body's 12.5 points) about 8, read at first sight (below, they are drawn, but small).
+/// Low enough that the bundled robot systems fit whole in a 1280×800 window.
+pub const FIT_FLOOR: f32 = 0.65;
 /// The size of a block's name in its header, at zoom 1 (the body's text is 12).
 const HEADER_NAME_SIZE: f32 = 16.0;
 /// The height of the header's band in the overview, in canvas points (about a header's).
@@ -63,6 +64,8 @@ pub struct Canvas {
     snarl_selection: Vec<NodeId>,
     /// The block dragged in the overview, where egui-snarl holds none.
     pub overview_grab: Option<BlockId>,
+    /// The input pins whose wire's end was marked last frame, and where (canvas coordinates).
+    pub wire_ends: Vec<(PortRef, Pos2)>,
 }
 
 impl Default for Canvas {
@@ -80,6 +83,7 @@ impl Default for Canvas {
             view_request: None,
             snarl_selection: Vec::new(),
             overview_grab: None,
+            wire_ends: Vec::new(),
         }
     }
 }
@@ -98,6 +102,11 @@ pub fn style() -> SnarlStyle {
         stroke: Stroke::NONE,
     });
     style.pin_size = Some(10.0);
+    style.wire_width = Some(2.0);
+    // Wires above blocks, so that none passes under a block unseen and seems to come out of a
+    // pin it does not enter; where each ends is marked over everything by
+    // [`Canvas::paint_wire_ends`].
+    style.wire_layer = Some(egui_snarl::ui::WireLayer::AboveNodes);
     // Pins on the frame's edge, so that they never cover the end of a label.
     style.pin_placement = Some(egui_snarl::ui::PinPlacement::Edge);
     style
@@ -299,6 +308,44 @@ impl Canvas {
         }
     }
 
+    /// Marks where each wire ends, over the blocks and the wires: an arrowhead in the wire's
+    /// colour, outlined, pointing into the input pin the wire enters. Wires are drawn above
+    /// blocks (egui-snarl's `WireLayer::AboveNodes`), so a wire that crosses a block is seen
+    /// crossing it; the arrowhead says which pin it ends at, so that a wire passing close to
+    /// another pin cannot be taken for entering it. Only the pins egui-snarl drew this frame
+    /// (the blocks in view) are marked. `painter` paints on the canvas's layer, in canvas
+    /// coordinates.
+    pub fn paint_wire_ends(
+        &mut self,
+        diagram: &Diagram,
+        catalog: &Catalog,
+        painter: &egui::Painter,
+    ) {
+        self.wire_ends.clear();
+        if self.is_overview() {
+            return;
+        }
+        let drawn: HashMap<(BlockId, &str), Rect> = self
+            .pins
+            .iter()
+            .filter(|(pin, _)| pin.side == PinSide::Input)
+            .map(|(pin, rect)| ((pin.port.block, pin.port.port.as_str()), *rect))
+            .collect();
+        for link in diagram.links() {
+            let Some(rect) = drawn.get(&(link.to.block, link.to.port.as_str())) else {
+                continue;
+            };
+            let colour = diagram
+                .block(link.from.block)
+                .and_then(|block| catalog.get(&block.module_type))
+                .and_then(|description| description.output(&link.from.port))
+                .map_or(Color32::GRAY, |spec| type_colour(&spec.data_type));
+            let tip = Pos2::new(rect.left(), rect.center().y);
+            paint_arrowhead(painter, tip, colour);
+            self.wire_ends.push((link.to.clone(), tip));
+        }
+    }
+
     /// The blocks of the snarl's own selection, when it changed since last asked.
     pub fn snarl_selection_change(&mut self, selected: Vec<NodeId>) -> Option<BTreeSet<BlockId>> {
         if selected == self.snarl_selection {
@@ -442,7 +489,9 @@ impl DiagramViewer<'_> {
                 ));
         }
         let text = format!("{}: {}", pin.port.port, data_type.0);
-        ui.label(RichText::new(text).small())
+        // At the body's size, not small: at the least zoom fit chooses it is still about 9
+        // pixels high.
+        ui.add(egui::Label::new(text).extend())
             .on_hover_text(data_type.1);
         TrackedPin {
             info,
@@ -558,6 +607,9 @@ impl DiagramViewer<'_> {
                 .and_then(|description| description.output(&link.from.port))
                 .map_or(Color32::GRAY, |spec| type_colour(&spec.data_type));
             painter.line_segment([from, to], Stroke::new(width, colour));
+            if !overview {
+                paint_arrowhead(painter, to, colour);
+            }
         }
     }
 }
@@ -592,21 +644,28 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                     .unwrap_or(0)
             };
             let chars = longest(&description.inputs) + longest(&description.outputs);
-            ui.set_min_width(chars as f32 * 5.5 + 30.0);
+            ui.set_min_width(chars as f32 * 6.8 + 36.0);
         }
         // The instance's name large; its type small, only where the name does not say it.
         ui.vertical(|ui| {
             ui.spacing_mut().item_spacing.y = 0.0;
-            ui.label(
-                RichText::new(&block.name)
-                    .size(HEADER_NAME_SIZE)
-                    .strong()
-                    .color(HEADER_TEXT),
+            // Never wrapped: the block is as wide as its name.
+            ui.add(
+                egui::Label::new(
+                    RichText::new(&block.name)
+                        .size(HEADER_NAME_SIZE)
+                        .strong()
+                        .color(HEADER_TEXT),
+                )
+                .extend(),
             );
             let module_type =
                 (block.module_type != block.name).then_some(block.module_type.as_str());
             if let Some(module_type) = module_type {
-                ui.label(RichText::new(module_type).small().color(HEADER_TEXT_WEAK));
+                ui.add(
+                    egui::Label::new(RichText::new(module_type).small().color(HEADER_TEXT_WEAK))
+                        .extend(),
+                );
             }
             // During a run, the module's state in its colour, on a dark ground so that it reads
             // on every header colour.
@@ -880,7 +939,7 @@ pub fn category_colour(category: Category) -> Color32 {
         Category::Sensor => Color32::from_rgb(34, 118, 84),
         Category::Navigation => Color32::from_rgb(44, 92, 168),
         Category::Mapping => Color32::from_rgb(118, 70, 160),
-        Category::Operator => Color32::from_rgb(168, 88, 24),
+        Category::Operator => Color32::from_rgb(156, 80, 20),
         Category::Recording => Color32::from_rgb(160, 50, 66),
         Category::Other => Color32::from_rgb(78, 82, 90),
     }
@@ -909,6 +968,25 @@ fn category_of(catalog: &Catalog, module_type: &str) -> Category {
         .get(module_type)
         .map_or(Category::Other, |description| description.category)
 }
+
+/// An arrowhead whose tip is at `tip`, pointing right (into an input pin), in `colour` with a
+/// dark outline that keeps it visible on a block, on the canvas and on a wire of its colour.
+fn paint_arrowhead(painter: &egui::Painter, tip: Pos2, colour: Color32) {
+    let points = vec![
+        tip,
+        tip + Vec2::new(-ARROW_LENGTH, -ARROW_HALF_WIDTH),
+        tip + Vec2::new(-ARROW_LENGTH, ARROW_HALF_WIDTH),
+    ];
+    painter.add(egui::Shape::convex_polygon(
+        points,
+        colour,
+        Stroke::new(1.5, Color32::from_black_alpha(220)),
+    ));
+}
+
+/// The arrowhead at a wire's end, in canvas points.
+const ARROW_LENGTH: f32 = 11.0;
+const ARROW_HALF_WIDTH: f32 = 6.0;
 
 /// A colour per data type, so that wires and pins of one type look alike.
 pub fn type_colour(data_type: &str) -> Color32 {

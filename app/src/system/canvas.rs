@@ -106,7 +106,9 @@ impl SystemView {
             live,
             wheel,
         };
-        let widget = SnarlWidget::new().id_salt(CANVAS_ID).style(viewer::style());
+        // The id given, not a salt, so that its layer is known: the wires' ends are painted on it.
+        let snarl_id = ui.id().with(CANVAS_ID);
+        let widget = SnarlWidget::new().id(snarl_id).style(viewer::style());
         widget.show(&mut snarl, &mut viewer, ui);
         drop(viewer);
         self.canvas = canvas;
@@ -114,8 +116,20 @@ impl SystemView {
         self.canvas.node_rects.extend(node_rects);
         self.canvas.to_global = to_global;
         self.canvas.pins = pins.take();
+        // Drawn on egui-snarl's own layer (whose id is the widget's), after its blocks and
+        // wires, and in canvas coordinates, as that layer is transformed.
+        let snarl_layer = egui::LayerId::new(ui.layer_id().order, snarl_id);
+        let painter = ctx
+            .layer_painter(snarl_layer)
+            .with_clip_rect(self.canvas.viewport());
+        self.canvas
+            .paint_wire_ends(&self.editor.diagram, catalog, &painter);
 
         self.canvas_tools_ui(&ctx);
+        if self.fit_again > 0 {
+            self.fit_again -= 1;
+            self.canvas.view_request = self.canvas.bounds(&self.editor.diagram, None);
+        }
 
         // In the overview, a double click zooms in on the block (its pins and parameters are
         // there).
@@ -269,10 +283,10 @@ impl SystemView {
                     _ => {}
                 }
             }
-            // egui spreads a notch's scroll over the next frames: those frames are the wheel's
-            // too, and must not pan.
-            let wheeling =
-                input.smooth_scroll_delta != egui::Vec2::ZERO || input.zoom_delta() != 1.0;
+            // egui spreads a notch's scroll over the next frames: taken out, those frames do
+            // not pan. Its Ctrl+wheel zoom, spread likewise, cannot be taken out: in those
+            // frames egui-snarl's transform is replaced by last frame's.
+            let wheeling = input.zoom_delta() != 1.0;
             input.smooth_scroll_delta = egui::Vec2::ZERO;
             (notches, pinch, wheeling)
         });
