@@ -778,6 +778,9 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
             .diagram
             .block(id)
             .and_then(|block| self.live.get(&block.name));
+        // Flat, as Node-RED's: a block's shadow would darken the coloured header of a block
+        // below it, by an amount that depends on which is drawn first.
+        let default = default.shadow(egui::Shadow::NONE);
         if self.selection.contains(&id) {
             default.stroke(Stroke::new(2.5, SELECTED))
         } else if let Some(state) = live {
@@ -985,8 +988,8 @@ fn paint_arrowhead(painter: &egui::Painter, tip: Pos2, colour: Color32) {
 }
 
 /// The arrowhead at a wire's end, in canvas points.
-const ARROW_LENGTH: f32 = 11.0;
-const ARROW_HALF_WIDTH: f32 = 6.0;
+const ARROW_LENGTH: f32 = 14.0;
+const ARROW_HALF_WIDTH: f32 = 7.0;
 
 /// A colour per data type, so that wires and pins of one type look alike.
 pub fn type_colour(data_type: &str) -> Color32 {

@@ -93,7 +93,7 @@ fn bundled_modules_say_their_category_and_the_palette_groups_them() {
     assert_eq!(category("recorder"), Category::Recording);
 
     let dir = tempfile::tempdir().unwrap();
-    let harness = robot_harness(dir.path());
+    let robot = robot_harness(dir.path());
     // The palette's groups are named, in the colours of the headers.
     for group in [
         "sensors & sim",
@@ -102,16 +102,16 @@ fn bundled_modules_say_their_category_and_the_palette_groups_them() {
         "operator",
         "recording",
     ] {
-        harness.get_by_label(group);
+        robot.get_by_label(group);
     }
-    // The common harness's modules were described without a category: they are "other".
-    let plain = harness_with_plain_modules(dir.path());
+    // A module that says no category (as one written before categories) is "other".
+    let plain = harness(options(&dir.path().join("plain-home"), None));
+    assert_eq!(
+        plain.state().palette().catalog["checker"].category,
+        Category::Other
+    );
     plain.get_by_label("other");
-    assert!(plain.query_by_label("navigation").is_none());
-}
-
-fn harness_with_plain_modules(dir: &std::path::Path) -> Harness<'static, StudioApp> {
-    harness(options(&dir.join("plain-home"), None))
+    assert!(plain.query_by_label("mapping").is_none());
 }
 
 /// Headers in the category's colour, the instance name large and the type only where it
@@ -133,17 +133,10 @@ fn headers_are_coloured_by_category_and_wire_ends_are_drawn_on_top() {
 "#,
     )
     .unwrap();
-    // The common modules, with categories as a module's describe output gives them.
+    // The common modules, through their describe output (the checker's says no category).
     let described: Vec<ModuleDescription> = descriptions()
         .into_iter()
-        .map(|mut description| {
-            description.category = match description.module_type.as_str() {
-                "counter" => Category::Sensor,
-                "follower" => Category::Navigation,
-                _ => Category::Other,
-            };
-            ModuleDescription::from_xml(&description.to_xml()).unwrap()
-        })
+        .map(|description| ModuleDescription::from_xml(&description.to_xml()).unwrap())
         .collect();
     let mut options = options(&dir.path().join("home"), Some(file));
     options.palette = Some(Palette::from_descriptions(described));
@@ -198,8 +191,9 @@ fn headers_are_coloured_by_category_and_wire_ends_are_drawn_on_top() {
         .pin_pos("check_a", "input", PinSide::Input)
         .unwrap();
     assert!((tip.y - pin.y).abs() < 1.0 && tip.x < pin.x && pin.x - tip.x < 8.0);
+    // Off the wire's line (which enters the pin level), inside the arrowhead.
     let scale = harness.state().canvas_transform().scaling;
-    let inside = Pos2::new(tip.x - 5.0 * scale, tip.y);
+    let inside = Pos2::new(tip.x - 9.0 * scale, tip.y + 2.5 * scale);
     let got = pixel(inside);
     let want = viewer::type_colour("Counter");
     assert!(

@@ -119,9 +119,10 @@ impl SystemView {
         // Drawn on egui-snarl's own layer (whose id is the widget's), after its blocks and
         // wires, and in canvas coordinates, as that layer is transformed.
         let snarl_layer = egui::LayerId::new(ui.layer_id().order, snarl_id);
-        let painter = ctx
-            .layer_painter(snarl_layer)
-            .with_clip_rect(self.canvas.viewport());
+        // Its clip set, not intersected with the layer's default (the screen, which is not in
+        // canvas coordinates).
+        let mut painter = ctx.layer_painter(snarl_layer);
+        painter.set_clip_rect(self.canvas.viewport());
         self.canvas
             .paint_wire_ends(&self.editor.diagram, catalog, &painter);
 
