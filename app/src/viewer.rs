@@ -66,6 +66,9 @@ pub struct Canvas {
     pub overview_grab: Option<BlockId>,
     /// The input pins whose wire's end was marked last frame, and where (canvas coordinates).
     pub wire_ends: Vec<(PortRef, Pos2)>,
+    /// The frame (egui's count) the canvas was last drawn in, and its transform when that
+    /// frame began: the wheel zooms from it in every pass of the frame.
+    pub frame_start: Option<(u64, TSTransform)>,
 }
 
 impl Default for Canvas {
@@ -84,6 +87,7 @@ impl Default for Canvas {
             snarl_selection: Vec::new(),
             overview_grab: None,
             wire_ends: Vec::new(),
+            frame_start: None,
         }
     }
 }

@@ -291,10 +291,18 @@ impl SystemView {
             input.smooth_scroll_delta = egui::Vec2::ZERO;
             (notches, pinch, wheeling)
         });
+        // egui may run a frame's UI twice (a discarded first pass) with the same input: the
+        // zoom is taken from the transform the frame began with, so that it is applied once.
+        let frame = ctx.cumulative_frame_nr();
+        let from = match self.canvas.frame_start {
+            Some((seen, transform)) if seen == frame => transform,
+            _ => self.canvas.to_global,
+        };
+        self.canvas.frame_start = Some((frame, from));
         (notches != 0.0 || pinch != 1.0 || wheeling).then(|| viewer::WheelZoom {
             factor: viewer::ZOOM_STEP.powf(notches) * pinch,
             about: pointer,
-            from: self.canvas.to_global,
+            from,
         })
     }
 
