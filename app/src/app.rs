@@ -272,6 +272,12 @@ impl StudioApp {
         self.system.wire_ends()
     }
 
+    /// The links drawn round the blocks (those that run backwards): `from -> to` and the
+    /// route's corners on screen, as drawn last frame.
+    pub fn routes(&self) -> Vec<(String, Vec<Pos2>)> {
+        self.system.routes(&self.palette.catalog)
+    }
+
     /// A block's rectangle on screen (as drawn last frame).
     pub fn block_screen_rect(&self, block: &str) -> Option<egui::Rect> {
         self.system.block_screen_rect(&self.palette.catalog, block)

@@ -14,7 +14,7 @@ use egui::{Color32, Pos2, Rect, RichText, Stroke, Ui, Vec2};
 use egui_snarl::ui::{PinInfo, PinWireInfo, SnarlPin, SnarlStyle, SnarlViewer};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 
-use crate::diagram::{BlockId, Catalog, Diagram, Pin, PinSide, PortRef};
+use crate::diagram::{BlockId, Catalog, Diagram, Link, Pin, PinSide, PortRef};
 use crate::editor::Command;
 use crate::run::monitor::state_colour;
 use armor_module_api::Category;
@@ -66,6 +66,10 @@ pub struct Canvas {
     pub overview_grab: Option<BlockId>,
     /// The input pins whose wire's end was marked last frame, and where (canvas coordinates).
     pub wire_ends: Vec<(PortRef, Pos2)>,
+    /// Links that run backwards (into an input left of their output): egui-snarl does not hold
+    /// them, as its curve would run across the blocks between; [`Canvas::paint_routes`] draws
+    /// them round, below the blocks they pass.
+    pub routed: BTreeSet<Link>,
     /// The frame (egui's count) the canvas was last drawn in, and its transform when that
     /// frame began: the wheel zooms from it in every pass of the frame.
     pub frame_start: Option<(u64, TSTransform)>,
@@ -87,6 +91,7 @@ impl Default for Canvas {
             snarl_selection: Vec::new(),
             overview_grab: None,
             wire_ends: Vec::new(),
+            routed: BTreeSet::new(),
             frame_start: None,
         }
     }
@@ -105,7 +110,7 @@ pub fn style() -> SnarlStyle {
         fill: Color32::TRANSPARENT,
         stroke: Stroke::NONE,
     });
-    style.pin_size = Some(10.0);
+    style.pin_size = Some(PIN_SIZE);
     style.wire_width = Some(2.0);
     // Wires above blocks, so that none passes under a block unseen and seems to come out of a
     // pin it does not enter; where each ends is marked over everything by
@@ -127,6 +132,7 @@ impl Canvas {
             self.synced = Some(revision);
             self.snarl = Snarl::new();
             self.node_of.clear();
+            self.routed.clear();
             self.node_rects.retain(|id, _| diagram.block(*id).is_some());
         } else if wanted.len() == self.node_of.len()
             && wanted.iter().all(|id| self.node_of.contains_key(id))
@@ -161,6 +167,13 @@ impl Canvas {
             if !added.contains(&link.from.block) && !added.contains(&link.to.block) {
                 continue;
             }
+            let from = self.rect_of(diagram, catalog, link.from.block);
+            let to = self.rect_of(diagram, catalog, link.to.block);
+            if to.left() < from.right() + BACK_GAP {
+                self.routed.insert(link.clone());
+                continue;
+            }
+            self.routed.remove(link);
             let (Some(from), Some(to)) = (
                 self.pin_id(diagram, catalog, &link.from, PinSide::Output),
                 self.pin_id(diagram, catalog, &link.to, PinSide::Input),
@@ -347,6 +360,65 @@ impl Canvas {
             let tip = Pos2::new(rect.left(), rect.center().y);
             paint_arrowhead(painter, tip, colour);
             self.wire_ends.push((link.to.clone(), tip));
+        }
+    }
+
+    /// The links egui-snarl does not hold because they run backwards (`routed`), as drawn: out
+    /// of the output to the right, down below every block between the two ends, left, and up
+    /// into the input from its left, so that no part runs under or across a block between.
+    /// Only those whose both pins were drawn this frame (the others are the overview's lines);
+    /// points in canvas coordinates.
+    pub fn routes(&self, diagram: &Diagram, catalog: &Catalog) -> Vec<(Link, Vec<Pos2>)> {
+        if self.is_overview() || self.routed.is_empty() {
+            return Vec::new();
+        }
+        let pin = |port: &PortRef, side: PinSide| {
+            self.pins
+                .iter()
+                .find(|(pin, _)| pin.side == side && pin.port == *port)
+                .map(|(_, rect)| rect.center())
+        };
+        let mut routes = Vec::new();
+        for link in &self.routed {
+            let (Some(from), Some(to)) = (
+                pin(&link.from, PinSide::Output),
+                pin(&link.to, PinSide::Input),
+            ) else {
+                continue;
+            };
+            let right = from.x + ROUTE_STUB;
+            // Clear of the arrowhead, whose tip is at the pin's edge (half the pin's size in).
+            let left = to.x - PIN_SIZE / 2.0 - ARROW_LENGTH - ROUTE_STUB / 2.0;
+            let (low, high) = (left.min(right), left.max(right));
+            let below = diagram
+                .blocks()
+                .map(|(id, _)| self.rect_of(diagram, catalog, id))
+                .filter(|rect| rect.right() >= low && rect.left() <= high)
+                .map(|rect| rect.bottom())
+                .fold(from.y.max(to.y), f32::max)
+                + ROUTE_STUB;
+            let points = vec![
+                from,
+                Pos2::new(right, from.y),
+                Pos2::new(right, below),
+                Pos2::new(left, below),
+                Pos2::new(left, to.y),
+                to,
+            ];
+            routes.push((link.clone(), points));
+        }
+        routes
+    }
+
+    /// Draws [`Canvas::routes`] in their wires' colours.
+    pub fn paint_routes(&self, diagram: &Diagram, catalog: &Catalog, painter: &egui::Painter) {
+        for (link, points) in self.routes(diagram, catalog) {
+            let colour = diagram
+                .block(link.from.block)
+                .and_then(|block| catalog.get(&block.module_type))
+                .and_then(|description| description.output(&link.from.port))
+                .map_or(Color32::GRAY, |spec| type_colour(&spec.data_type));
+            painter.add(egui::Shape::line(points, Stroke::new(2.0, colour)));
         }
     }
 
@@ -990,6 +1062,14 @@ fn paint_arrowhead(painter: &egui::Painter, tip: Pos2, colour: Color32) {
         Stroke::new(1.5, Color32::from_black_alpha(220)),
     ));
 }
+
+/// A pin's size, in canvas points.
+const PIN_SIZE: f32 = 10.0;
+/// How far a routed link runs straight out of its pins and below the blocks, in canvas points.
+/// Small enough that a route stays within the margin fit leaves round the blocks.
+const ROUTE_STUB: f32 = 16.0;
+/// A link whose input is left of its output plus this is routed (see [`Canvas::routed`]).
+const BACK_GAP: f32 = 40.0;
 
 /// The arrowhead at a wire's end, in canvas points.
 const ARROW_LENGTH: f32 = 14.0;

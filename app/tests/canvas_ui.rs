@@ -366,6 +366,60 @@ fn every_wire_is_marked_at_the_pin_it_enters_and_nowhere_else() {
     }
 }
 
+/// The robot's loop (the mux commands the sim, which feeds everything) runs right to left:
+/// drawn as a curve it would cross every block between. It goes round them, below.
+#[test]
+fn a_backward_link_goes_round_the_blocks_between() {
+    let dir = tempfile::tempdir().unwrap();
+    let harness = robot_harness(dir.path());
+    let routes = harness.state().routes();
+    assert_eq!(
+        routes
+            .iter()
+            .map(|(link, _)| link.as_str())
+            .collect::<Vec<_>>(),
+        ["mux.cmd_vel -> sim.cmd_vel"]
+    );
+    let points = &routes[0].1;
+    let from = harness
+        .state()
+        .pin_pos("mux", "cmd_vel", PinSide::Output)
+        .unwrap();
+    let to = harness
+        .state()
+        .pin_pos("sim", "cmd_vel", PinSide::Input)
+        .unwrap();
+    assert_eq!((points[0], points[points.len() - 1]), (from, to));
+    // Every segment but the stubs out of and into the pins is clear of every block.
+    let blocks: Vec<(String, egui::Rect)> = harness
+        .state()
+        .editor()
+        .diagram
+        .blocks()
+        .map(|(_, block)| {
+            let rect = harness.state().block_screen_rect(&block.name).unwrap();
+            (block.name.clone(), rect)
+        })
+        .collect();
+    for segment in points[1..points.len() - 1].windows(2) {
+        let box_of = egui::Rect::from_two_pos(segment[0], segment[1]).expand(0.5);
+        for (name, rect) in &blocks {
+            assert!(
+                !rect.intersects(box_of),
+                "{segment:?} crosses {name} at {rect:?}"
+            );
+        }
+    }
+    // Its end is marked at the sim's input, as every wire's.
+    assert!(
+        harness
+            .state()
+            .wire_ends()
+            .iter()
+            .any(|(port, _)| port == "sim.cmd_vel")
+    );
+}
+
 #[test]
 fn menu_entries_show_their_keys_and_keep_their_names() {
     let dir = tempfile::tempdir().unwrap();

@@ -124,6 +124,8 @@ impl SystemView {
         let mut painter = ctx.layer_painter(snarl_layer);
         painter.set_clip_rect(self.canvas.viewport());
         self.canvas
+            .paint_routes(&self.editor.diagram, catalog, &painter);
+        self.canvas
             .paint_wire_ends(&self.editor.diagram, catalog, &painter);
 
         self.canvas_tools_ui(&ctx);

@@ -357,6 +357,30 @@ impl SystemView {
             .collect()
     }
 
+    /// The links drawn round the blocks (those that run backwards): `from -> to` as
+    /// `block.port` and the route's corners on screen, as drawn last frame.
+    pub fn routes(&self, catalog: &Catalog) -> Vec<(String, Vec<Pos2>)> {
+        let diagram = &self.editor.diagram;
+        self.canvas
+            .routes(diagram, catalog)
+            .into_iter()
+            .map(|(link, points)| {
+                let name = |port: &crate::diagram::PortRef| {
+                    diagram
+                        .block(port.block)
+                        .map_or_else(String::new, |block| format!("{}.{}", block.name, port.port))
+                };
+                (
+                    format!("{} -> {}", name(&link.from), name(&link.to)),
+                    points
+                        .into_iter()
+                        .map(|point| self.canvas.to_global * point)
+                        .collect(),
+                )
+            })
+            .collect()
+    }
+
     /// A block's rectangle on screen (as drawn last frame).
     pub fn block_screen_rect(&self, catalog: &Catalog, block: &str) -> Option<egui::Rect> {
         self.block_rect(catalog, block)
