@@ -267,6 +267,22 @@ impl StudioApp {
         self.system.block_header_pos(&self.palette.catalog, block)
     }
 
+    /// The wires' ends marked last frame: the input pin (`block.port`) and where, on screen.
+    pub fn wire_ends(&self) -> Vec<(String, Pos2)> {
+        self.system.wire_ends()
+    }
+
+    /// The links drawn round the blocks (those that run backwards): `from -> to` and the
+    /// route's corners on screen, as drawn last frame.
+    pub fn routes(&self) -> Vec<(String, Vec<Pos2>)> {
+        self.system.routes(&self.palette.catalog)
+    }
+
+    /// A block's rectangle on screen (as drawn last frame).
+    pub fn block_screen_rect(&self, block: &str) -> Option<egui::Rect> {
+        self.system.block_screen_rect(&self.palette.catalog, block)
+    }
+
     /// Whether the canvas shows the overview (zoomed out: boxes and lines, no widgets).
     pub fn is_overview(&self) -> bool {
         self.system.canvas.is_overview()
@@ -586,20 +602,21 @@ impl StudioApp {
                                 ui.separator();
                             }
                             MenuItem::Recent => self.recent_menu_ui(ui),
+                            MenuItem::Note(text) => {
+                                ui.weak(text);
+                            }
                             MenuItem::Command(command) => {
-                                // The Run view's entries show their keys, as the command
-                                // table has them; the other views' keys are on the sheet (F1).
-                                let mut button = egui::Button::new(command.label(self.view));
                                 let keys = command.keys_text();
-                                if self.view == View::Run && !keys.is_empty() {
-                                    button = button.shortcut_text(keys);
-                                }
+                                let label = command.label(self.view);
+                                let button = egui::Button::new(label).shortcut_text(keys.as_str());
                                 let enabled = match command {
                                     UiCommand::Run => !self.run.is_running(),
                                     UiCommand::Stop => self.run.is_running(),
                                     _ => true,
                                 };
-                                if ui.add_enabled(enabled, button).clicked() {
+                                let response = ui.add_enabled(enabled, button);
+                                name_menu_item(&response, label, &keys, enabled);
+                                if response.clicked() {
                                     self.execute(command, ui.ctx(), true);
                                 }
                             }
@@ -628,6 +645,19 @@ impl StudioApp {
                 ui.visuals().text_color()
             };
             ui.colored_label(colour, &self.status.text);
+        });
+    }
+}
+
+/// Gives a menu entry its own name for screen readers and tests: egui names a button with a
+/// shortcut by both texts run together ("SaveCtrl+S"), which neither a screen reader nor a test
+/// looking for "Save" should have to read. The keys go where AccessKit keeps them, in the
+/// entry's keyboard shortcut, which screen readers announce after the name.
+fn name_menu_item(response: &egui::Response, label: &str, keys: &str, enabled: bool) {
+    response.widget_info(|| egui::WidgetInfo::labeled(egui::WidgetType::Button, enabled, label));
+    if !keys.is_empty() {
+        response.ctx.accesskit_node_builder(response.id, |node| {
+            node.set_keyboard_shortcut(keys);
         });
     }
 }

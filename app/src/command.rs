@@ -292,6 +292,8 @@ pub enum MenuItem {
     Separator,
     /// The submenu of recently opened files.
     Recent,
+    /// A line of text (how the mouse zooms and pans, in the View menu).
+    Note(&'static str),
 }
 
 /// A menu of the menu bar.
@@ -300,7 +302,10 @@ pub struct Menu {
     pub items: &'static [MenuItem],
 }
 
-use MenuItem::{Command as Item, Recent, Separator};
+use MenuItem::{Command as Item, Note, Recent, Separator};
+
+/// The View menu's line on the mouse, the same in every view.
+const MOUSE_NOTE: MenuItem = Note("Wheel: zoom · drag: pan");
 
 const SYSTEM_MENUS: &[Menu] = &[
     Menu {
@@ -333,6 +338,8 @@ const SYSTEM_MENUS: &[Menu] = &[
         title: "View",
         items: &[
             Item(UiCommand::ZoomToFit),
+            MOUSE_NOTE,
+            Separator,
             Item(UiCommand::Find),
             Item(UiCommand::Help),
         ],
@@ -366,7 +373,12 @@ const MISSION_MENUS: &[Menu] = &[
     },
     Menu {
         title: "View",
-        items: &[Item(UiCommand::ZoomToFit), Item(UiCommand::Help)],
+        items: &[
+            Item(UiCommand::ZoomToFit),
+            MOUSE_NOTE,
+            Separator,
+            Item(UiCommand::Help),
+        ],
     },
 ];
 
@@ -382,7 +394,12 @@ const RUN_MENUS: &[Menu] = &[
     },
     Menu {
         title: "View",
-        items: &[Item(UiCommand::ZoomToFit), Item(UiCommand::Help)],
+        items: &[
+            Item(UiCommand::ZoomToFit),
+            MOUSE_NOTE,
+            Separator,
+            Item(UiCommand::Help),
+        ],
     },
 ];
 
@@ -397,6 +414,8 @@ pub fn menus(view: View) -> &'static [Menu] {
 
 /// What the mouse (and the Run view's arrow keys) do, listed on the sheet after the commands.
 pub const GESTURES: &[(&str, &str)] = &[
+    ("Wheel", "zoom about the pointer (diagram, map, net)"),
+    ("Drag empty space", "pan (diagram, map, net)"),
     ("Double-click a block", "its name and parameters"),
     ("Right-click a block", "parameters, duplicate, delete"),
     ("Right-click the canvas", "add a block"),
@@ -479,6 +498,7 @@ mod tests {
                         MenuItem::Command(command) => command.label(view),
                         MenuItem::Separator => "---",
                         MenuItem::Recent => "Open recent",
+                        MenuItem::Note(text) => text,
                     });
                     (menu.title, items.collect())
                 })
@@ -517,6 +537,12 @@ mod tests {
             "---",
             "Quit",
         ];
+        let view_menu = vec![
+            "Zoom to fit",
+            "Wheel: zoom · drag: pan",
+            "---",
+            "Keyboard shortcuts",
+        ];
         assert_eq!(
             labels(View::System),
             [
@@ -524,7 +550,13 @@ mod tests {
                 ("Edit", system_edit.to_vec()),
                 (
                     "View",
-                    vec!["Zoom to fit", "Find block…", "Keyboard shortcuts"]
+                    vec![
+                        "Zoom to fit",
+                        "Wheel: zoom · drag: pan",
+                        "---",
+                        "Find block…",
+                        "Keyboard shortcuts"
+                    ]
                 ),
             ]
         );
@@ -533,14 +565,14 @@ mod tests {
             [
                 ("File", mission_file.to_vec()),
                 ("Edit", vec!["Undo", "Redo", "Delete"]),
-                ("View", vec!["Zoom to fit", "Keyboard shortcuts"]),
+                ("View", view_menu.clone()),
             ]
         );
         assert_eq!(
             labels(View::Run),
             [
                 ("Run", vec!["Run", "Stop", "---", "Open recording…"]),
-                ("View", vec!["Zoom to fit", "Keyboard shortcuts"]),
+                ("View", view_menu),
             ]
         );
         // The View menu is in every view, so that the menu bar does not move.

@@ -571,7 +571,7 @@ impl Diagram {
         let header = block.name.len() + block.module_type.len() + 4;
         let chars = (longest(&inputs) + longest(&outputs)).max(header) as f32;
         let rows = inputs.len().max(outputs.len()).max(1) as f32;
-        [chars * 6.5 + 60.0, 56.0 + rows * 26.0]
+        [chars * 7.5 + 80.0, 60.0 + rows * 26.0]
     }
 
     /// Reads a system file; a file without saved positions is laid out in layers by data flow

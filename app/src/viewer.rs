@@ -14,9 +14,10 @@ use egui::{Color32, Pos2, Rect, RichText, Stroke, Ui, Vec2};
 use egui_snarl::ui::{PinInfo, PinWireInfo, SnarlPin, SnarlStyle, SnarlViewer};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 
-use crate::diagram::{BlockId, Catalog, Diagram, Pin, PinSide, PortRef};
+use crate::diagram::{BlockId, Catalog, Diagram, Link, Pin, PinSide, PortRef};
 use crate::editor::Command;
 use crate::run::monitor::state_colour;
+use armor_module_api::Category;
 use armor_runtime::control::ModuleState;
 
 /// Pins drawn this frame, in canvas coordinates.
@@ -31,9 +32,14 @@ const WARNING: Color32 = Color32::from_rgb(230, 90, 70);
 /// Below this zoom, text is too small to read: the diagram is painted as an overview of boxes
 /// and wires instead of widgets: blocks are selected and moved there, and linked once zoomed in.
 pub const DETAIL_SCALE: f32 = 0.5;
-/// The least zoom fit chooses: names and port labels about 8 points high or more, read at
-/// first sight (below, they are drawn, but small).
-pub const FIT_FLOOR: f32 = 0.75;
+/// The least zoom fit chooses: block names (16 points) over 10 pixels high and port labels (at
+/// the body's 12.5 points) about 8, read at first sight (below, they are drawn, but small).
+/// Low enough that the bundled robot systems fit whole in a 1280×800 window.
+pub const FIT_FLOOR: f32 = 0.65;
+/// The size of a block's name in its header, at zoom 1 (the body's text is 12).
+const HEADER_NAME_SIZE: f32 = 16.0;
+/// The height of the header's band in the overview, in canvas points (about a header's).
+const OVERVIEW_BAND: f32 = 34.0;
 
 /// The canvas's state across frames.
 pub struct Canvas {
@@ -54,15 +60,19 @@ pub struct Canvas {
     pub move_before: Option<Diagram>,
     /// A canvas rectangle to show whole on the next frame (zoom to fit, find).
     pub view_request: Option<Rect>,
-    /// Fit again after this many frames that drew the blocks (one): a fit asked before (on
-    /// opening a file) measured them at an estimated size, and framed a wide diagram off its
-    /// middle. The sizes of the first frame that draws them are still a few points off; a
-    /// second refit would settle them but costs two more frames after every fit.
-    pub refits_when_drawn: u8,
     /// The snarl's own selection as last seen (shift-click and rectangle selection).
     snarl_selection: Vec<NodeId>,
     /// The block dragged in the overview, where egui-snarl holds none.
     pub overview_grab: Option<BlockId>,
+    /// The input pins whose wire's end was marked last frame, and where (canvas coordinates).
+    pub wire_ends: Vec<(PortRef, Pos2)>,
+    /// Links that run backwards (into an input left of their output): egui-snarl does not hold
+    /// them, as its curve would run across the blocks between; [`Canvas::paint_routes`] draws
+    /// them round, below the blocks they pass.
+    pub routed: BTreeSet<Link>,
+    /// The frame (egui's count) the canvas was last drawn in, and its transform when that
+    /// frame began: the wheel zooms from it in every pass of the frame.
+    pub frame_start: Option<(u64, TSTransform)>,
 }
 
 impl Default for Canvas {
@@ -78,9 +88,11 @@ impl Default for Canvas {
             wire_from: None,
             move_before: None,
             view_request: None,
-            refits_when_drawn: 0,
             snarl_selection: Vec::new(),
             overview_grab: None,
+            wire_ends: Vec::new(),
+            routed: BTreeSet::new(),
+            frame_start: None,
         }
     }
 }
@@ -89,8 +101,8 @@ impl Default for Canvas {
 /// (which select-all and the problem list can set) is drawn by [`DiagramViewer::node_frame`].
 pub fn style() -> SnarlStyle {
     let mut style = SnarlStyle::new();
-    style.min_scale = Some(0.05);
-    style.max_scale = Some(2.0);
+    style.min_scale = Some(MIN_SCALE);
+    style.max_scale = Some(MAX_SCALE);
     style.centering = Some(false);
     style.select_style = Some(egui_snarl::ui::SelectionStyle {
         margin: egui::Margin::ZERO,
@@ -98,7 +110,12 @@ pub fn style() -> SnarlStyle {
         fill: Color32::TRANSPARENT,
         stroke: Stroke::NONE,
     });
-    style.pin_size = Some(10.0);
+    style.pin_size = Some(PIN_SIZE);
+    style.wire_width = Some(2.0);
+    // Wires above blocks, so that none passes under a block unseen and seems to come out of a
+    // pin it does not enter; where each ends is marked over everything by
+    // [`Canvas::paint_wire_ends`].
+    style.wire_layer = Some(egui_snarl::ui::WireLayer::AboveNodes);
     // Pins on the frame's edge, so that they never cover the end of a label.
     style.pin_placement = Some(egui_snarl::ui::PinPlacement::Edge);
     style
@@ -115,6 +132,7 @@ impl Canvas {
             self.synced = Some(revision);
             self.snarl = Snarl::new();
             self.node_of.clear();
+            self.routed.clear();
             self.node_rects.retain(|id, _| diagram.block(*id).is_some());
         } else if wanted.len() == self.node_of.len()
             && wanted.iter().all(|id| self.node_of.contains_key(id))
@@ -149,6 +167,13 @@ impl Canvas {
             if !added.contains(&link.from.block) && !added.contains(&link.to.block) {
                 continue;
             }
+            let from = self.rect_of(diagram, catalog, link.from.block);
+            let to = self.rect_of(diagram, catalog, link.to.block);
+            if to.left() < from.right() + BACK_GAP {
+                self.routed.insert(link.clone());
+                continue;
+            }
+            self.routed.remove(link);
             let (Some(from), Some(to)) = (
                 self.pin_id(diagram, catalog, &link.from, PinSide::Output),
                 self.pin_id(diagram, catalog, &link.to, PinSide::Input),
@@ -300,6 +325,103 @@ impl Canvas {
         }
     }
 
+    /// Marks where each wire ends, over the blocks and the wires: an arrowhead in the wire's
+    /// colour, outlined, pointing into the input pin the wire enters. Wires are drawn above
+    /// blocks (egui-snarl's `WireLayer::AboveNodes`), so a wire that crosses a block is seen
+    /// crossing it; the arrowhead says which pin it ends at, so that a wire passing close to
+    /// another pin cannot be taken for entering it. Only the pins egui-snarl drew this frame
+    /// (the blocks in view) are marked. `painter` paints on the canvas's layer, in canvas
+    /// coordinates.
+    pub fn paint_wire_ends(
+        &mut self,
+        diagram: &Diagram,
+        catalog: &Catalog,
+        painter: &egui::Painter,
+    ) {
+        self.wire_ends.clear();
+        if self.is_overview() {
+            return;
+        }
+        let drawn: HashMap<(BlockId, &str), Rect> = self
+            .pins
+            .iter()
+            .filter(|(pin, _)| pin.side == PinSide::Input)
+            .map(|(pin, rect)| ((pin.port.block, pin.port.port.as_str()), *rect))
+            .collect();
+        for link in diagram.links() {
+            let Some(rect) = drawn.get(&(link.to.block, link.to.port.as_str())) else {
+                continue;
+            };
+            let colour = diagram
+                .block(link.from.block)
+                .and_then(|block| catalog.get(&block.module_type))
+                .and_then(|description| description.output(&link.from.port))
+                .map_or(Color32::GRAY, |spec| type_colour(&spec.data_type));
+            let tip = Pos2::new(rect.left(), rect.center().y);
+            paint_arrowhead(painter, tip, colour);
+            self.wire_ends.push((link.to.clone(), tip));
+        }
+    }
+
+    /// The links egui-snarl does not hold because they run backwards (`routed`), as drawn: out
+    /// of the output to the right, down below every block between the two ends, left, and up
+    /// into the input from its left, so that no part runs under or across a block between.
+    /// Only those whose both pins were drawn this frame (the others are the overview's lines);
+    /// points in canvas coordinates.
+    pub fn routes(&self, diagram: &Diagram, catalog: &Catalog) -> Vec<(Link, Vec<Pos2>)> {
+        if self.is_overview() || self.routed.is_empty() {
+            return Vec::new();
+        }
+        let pin = |port: &PortRef, side: PinSide| {
+            self.pins
+                .iter()
+                .find(|(pin, _)| pin.side == side && pin.port == *port)
+                .map(|(_, rect)| rect.center())
+        };
+        let mut routes = Vec::new();
+        for link in &self.routed {
+            let (Some(from), Some(to)) = (
+                pin(&link.from, PinSide::Output),
+                pin(&link.to, PinSide::Input),
+            ) else {
+                continue;
+            };
+            let right = from.x + ROUTE_STUB;
+            // Clear of the arrowhead, whose tip is at the pin's edge (half the pin's size in).
+            let left = to.x - PIN_SIZE / 2.0 - ARROW_LENGTH - ROUTE_STUB / 2.0;
+            let (low, high) = (left.min(right), left.max(right));
+            let below = diagram
+                .blocks()
+                .map(|(id, _)| self.rect_of(diagram, catalog, id))
+                .filter(|rect| rect.right() >= low && rect.left() <= high)
+                .map(|rect| rect.bottom())
+                .fold(from.y.max(to.y), f32::max)
+                + ROUTE_STUB;
+            let points = vec![
+                from,
+                Pos2::new(right, from.y),
+                Pos2::new(right, below),
+                Pos2::new(left, below),
+                Pos2::new(left, to.y),
+                to,
+            ];
+            routes.push((link.clone(), points));
+        }
+        routes
+    }
+
+    /// Draws [`Canvas::routes`] in their wires' colours.
+    pub fn paint_routes(&self, diagram: &Diagram, catalog: &Catalog, painter: &egui::Painter) {
+        for (link, points) in self.routes(diagram, catalog) {
+            let colour = diagram
+                .block(link.from.block)
+                .and_then(|block| catalog.get(&block.module_type))
+                .and_then(|description| description.output(&link.from.port))
+                .map_or(Color32::GRAY, |spec| type_colour(&spec.data_type));
+            painter.add(egui::Shape::line(points, Stroke::new(2.0, colour)));
+        }
+    }
+
     /// The blocks of the snarl's own selection, when it changed since last asked.
     pub fn snarl_selection_change(&mut self, selected: Vec<NodeId>) -> Option<BTreeSet<BlockId>> {
         if selected == self.snarl_selection {
@@ -344,6 +466,42 @@ pub struct DiagramViewer<'a> {
     pub canvas: &'a Canvas,
     /// During a run, each module's state: blocks and the links they feed are coloured by it.
     pub live: &'a BTreeMap<String, ModuleState>,
+    /// The wheel's zoom this frame, which replaces egui-snarl's own handling of the wheel.
+    pub wheel: Option<WheelZoom>,
+}
+
+/// A zoom by the wheel: `factor` about the screen point `about`, from the transform `from` of
+/// the last frame.
+#[derive(Clone, Copy, Debug)]
+pub struct WheelZoom {
+    pub factor: f32,
+    pub about: Pos2,
+    pub from: TSTransform,
+}
+
+impl WheelZoom {
+    /// The transform after the zoom: the canvas point under `about` stays under it, and the
+    /// zoom stays within the canvas's range.
+    pub fn apply(&self) -> TSTransform {
+        let scale = (self.from.scaling * self.factor).clamp(MIN_SCALE, MAX_SCALE);
+        let under = self.from.inverse() * self.about;
+        TSTransform::new(self.about.to_vec2() - under.to_vec2() * scale, scale)
+    }
+}
+
+/// One notch of the wheel zooms by this factor (as in the net view).
+pub const ZOOM_STEP: f32 = 1.1;
+/// The canvas's zoom range.
+const MIN_SCALE: f32 = 0.05;
+const MAX_SCALE: f32 = 2.0;
+
+/// How many notches a wheel event turns, up positive (zoom in).
+pub fn wheel_notches(unit: egui::MouseWheelUnit, delta: Vec2) -> f32 {
+    match unit {
+        egui::MouseWheelUnit::Line => delta.y,
+        egui::MouseWheelUnit::Point => delta.y / 50.0,
+        egui::MouseWheelUnit::Page => delta.y * 10.0,
+    }
 }
 
 impl DiagramViewer<'_> {
@@ -407,7 +565,9 @@ impl DiagramViewer<'_> {
                 ));
         }
         let text = format!("{}: {}", pin.port.port, data_type.0);
-        ui.label(RichText::new(text).small())
+        // At the body's size, not small: at the least zoom fit chooses it is still about 9
+        // pixels high.
+        ui.add(egui::Label::new(text).extend())
             .on_hover_text(data_type.1);
         TrackedPin {
             info,
@@ -447,6 +607,24 @@ impl DiagramViewer<'_> {
                     stroke
                 };
                 painter.rect(rect, 6.0, fill, stroke, egui::StrokeKind::Inside);
+                // The header's band in the category's colour, as the block has it zoomed in.
+                let category = self.diagram.block(id).map_or(Category::Other, |block| {
+                    category_of(self.catalog, &block.module_type)
+                });
+                let band = Rect::from_min_size(
+                    rect.min,
+                    Vec2::new(rect.width(), rect.height().min(OVERVIEW_BAND)),
+                );
+                painter.rect_filled(
+                    band.shrink(stroke.width),
+                    egui::CornerRadius {
+                        nw: 6,
+                        ne: 6,
+                        sw: 0,
+                        se: 0,
+                    },
+                    category_colour(category),
+                );
             }
         }
         let drawn: HashMap<(BlockId, PinSide, &str), Pos2> = canvas
@@ -505,6 +683,9 @@ impl DiagramViewer<'_> {
                 .and_then(|description| description.output(&link.from.port))
                 .map_or(Color32::GRAY, |spec| type_colour(&spec.data_type));
             painter.line_segment([from, to], Stroke::new(width, colour));
+            if !overview {
+                paint_arrowhead(painter, to, colour);
+            }
         }
     }
 }
@@ -539,25 +720,40 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                     .unwrap_or(0)
             };
             let chars = longest(&description.inputs) + longest(&description.outputs);
-            ui.set_min_width(chars as f32 * 5.5 + 30.0);
+            ui.set_min_width(chars as f32 * 6.8 + 36.0);
         }
-        ui.label(RichText::new(&block.name).strong());
-        // The type only where the name does not say it already.
-        let module_type = (block.module_type != block.name).then_some(block.module_type.as_str());
-        match (self.live.get(&block.name), module_type) {
-            (Some(state), Some(module_type)) => ui.label(
-                RichText::new(format!("{module_type} · {}", state.as_str()))
-                    .color(state_colour(*state))
-                    .small(),
-            ),
-            (Some(state), None) => ui.label(
-                RichText::new(state.as_str())
-                    .color(state_colour(*state))
-                    .small(),
-            ),
-            (None, Some(module_type)) => ui.label(RichText::new(module_type).weak().small()),
-            (None, None) => return,
-        };
+        // The instance's name large; its type small, only where the name does not say it.
+        ui.vertical(|ui| {
+            ui.spacing_mut().item_spacing.y = 0.0;
+            // Never wrapped: the block is as wide as its name.
+            ui.add(
+                egui::Label::new(
+                    RichText::new(&block.name)
+                        .size(HEADER_NAME_SIZE)
+                        .strong()
+                        .color(HEADER_TEXT),
+                )
+                .extend(),
+            );
+            let module_type =
+                (block.module_type != block.name).then_some(block.module_type.as_str());
+            if let Some(module_type) = module_type {
+                ui.add(
+                    egui::Label::new(RichText::new(module_type).small().color(HEADER_TEXT_WEAK))
+                        .extend(),
+                );
+            }
+            // During a run, the module's state in its colour, on a dark ground so that it reads
+            // on every header colour.
+            if let Some(state) = self.live.get(&block.name) {
+                ui.label(
+                    RichText::new(format!(" {} ", state.as_str()))
+                        .small()
+                        .color(state_colour(*state))
+                        .background_color(Color32::from_black_alpha(190)),
+                );
+            }
+        });
     }
 
     fn inputs(&mut self, node: &BlockId) -> usize {
@@ -620,6 +816,31 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
         }
     }
 
+    fn header_frame(
+        &mut self,
+        default: egui::Frame,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        snarl: &Snarl<BlockId>,
+    ) -> egui::Frame {
+        let category = self
+            .diagram
+            .block(snarl[node])
+            .map_or(Category::Other, |block| {
+                category_of(self.catalog, &block.module_type)
+            });
+        let radius = default.corner_radius;
+        default
+            .fill(category_colour(category))
+            .stroke(Stroke::NONE)
+            .corner_radius(egui::CornerRadius {
+                sw: 0,
+                se: 0,
+                ..radius
+            })
+    }
+
     fn node_frame(
         &mut self,
         default: egui::Frame,
@@ -633,6 +854,9 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
             .diagram
             .block(id)
             .and_then(|block| self.live.get(&block.name));
+        // Flat, as Node-RED's: a block's shadow would darken the coloured header of a block
+        // below it, by an amount that depends on which is drawn first.
+        let default = default.shadow(egui::Shadow::NONE);
         if self.selection.contains(&id) {
             default.stroke(Stroke::new(2.5, SELECTED))
         } else if let Some(state) = live {
@@ -761,6 +985,8 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
     fn current_transform(&mut self, to_global: &mut TSTransform, _snarl: &mut Snarl<BlockId>) {
         if let Some(view) = self.view_request.take() {
             *to_global = fit(view, self.screen_rect);
+        } else if let Some(wheel) = self.wheel {
+            *to_global = wheel.apply();
         }
         *self.to_global = *to_global;
     }
@@ -790,6 +1016,73 @@ pub fn fit(view: Rect, screen: Rect) -> TSTransform {
         scale,
     )
 }
+
+/// The header colour of a block of a module `category`, and the text colour on it. Mid-dark,
+/// moderately saturated fills: they stand out from the dark theme's grey canvas and blocks,
+/// white text on each has a contrast of at least 4.5:1 (WCAG AA; checked by a test), and the
+/// hues are far apart (green, blue, violet, amber, crimson) so that roles are told apart at a
+/// glance, as Node-RED colours its palette's groups. Unknown and absent categories are grey.
+pub fn category_colour(category: Category) -> Color32 {
+    match category {
+        Category::Sensor => Color32::from_rgb(34, 118, 84),
+        Category::Navigation => Color32::from_rgb(44, 92, 168),
+        Category::Mapping => Color32::from_rgb(118, 70, 160),
+        Category::Operator => Color32::from_rgb(156, 80, 20),
+        Category::Recording => Color32::from_rgb(160, 50, 66),
+        Category::Other => Color32::from_rgb(78, 82, 90),
+    }
+}
+
+/// The text on a [`category_colour`].
+pub const HEADER_TEXT: Color32 = Color32::WHITE;
+/// The smaller, secondary text on a [`category_colour`] (the type): still 4.5:1 on each.
+pub const HEADER_TEXT_WEAK: Color32 = Color32::from_rgb(236, 236, 236);
+
+/// A category as the palette and the legend name it.
+pub fn category_name(category: Category) -> &'static str {
+    match category {
+        Category::Sensor => "sensors & sim",
+        Category::Navigation => "navigation",
+        Category::Mapping => "mapping",
+        Category::Operator => "operator",
+        Category::Recording => "recording",
+        Category::Other => "other",
+    }
+}
+
+/// The category of a block's module type (`Other` when the type is unknown).
+fn category_of(catalog: &Catalog, module_type: &str) -> Category {
+    catalog
+        .get(module_type)
+        .map_or(Category::Other, |description| description.category)
+}
+
+/// An arrowhead whose tip is at `tip`, pointing right (into an input pin), in `colour` with a
+/// dark outline that keeps it visible on a block, on the canvas and on a wire of its colour.
+fn paint_arrowhead(painter: &egui::Painter, tip: Pos2, colour: Color32) {
+    let points = vec![
+        tip,
+        tip + Vec2::new(-ARROW_LENGTH, -ARROW_HALF_WIDTH),
+        tip + Vec2::new(-ARROW_LENGTH, ARROW_HALF_WIDTH),
+    ];
+    painter.add(egui::Shape::convex_polygon(
+        points,
+        colour,
+        Stroke::new(1.5, Color32::from_black_alpha(220)),
+    ));
+}
+
+/// A pin's size, in canvas points.
+const PIN_SIZE: f32 = 10.0;
+/// How far a routed link runs straight out of its pins and below the blocks, in canvas points.
+/// Small enough that a route stays within the margin fit leaves round the blocks.
+const ROUTE_STUB: f32 = 16.0;
+/// A link whose input is left of its output plus this is routed (see [`Canvas::routed`]).
+const BACK_GAP: f32 = 40.0;
+
+/// The arrowhead at a wire's end, in canvas points.
+const ARROW_LENGTH: f32 = 14.0;
+const ARROW_HALF_WIDTH: f32 = 7.0;
 
 /// A colour per data type, so that wires and pins of one type look alike.
 pub fn type_colour(data_type: &str) -> Color32 {

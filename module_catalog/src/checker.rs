@@ -10,6 +10,7 @@ pub fn spec() -> ModuleSpec {
         TYPE,
         "Checks that counter values arrive one more than the previous, and logs a summary.",
     )
+        .category(armor_module_api::Category::Other)
     .version(env!("CARGO_PKG_VERSION"))
     .input::<Counter>("input", "the values to check (every one, in order)")
     .output::<Counter>("received", "how many values were received so far")

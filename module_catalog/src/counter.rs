@@ -9,6 +9,7 @@ pub const TYPE: &str = "counter";
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(TYPE, "Publishes 1, 2, 3, ... every period while active.")
+        .category(armor_module_api::Category::Sensor)
         .version(env!("CARGO_PKG_VERSION"))
         .output::<Counter>("count", "the values 1, 2, 3, ... in order")
         .param(

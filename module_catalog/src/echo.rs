@@ -10,6 +10,7 @@ pub fn spec() -> ModuleSpec {
         TYPE,
         "Republishes every value it receives, unchanged and at once.",
     )
+    .category(armor_module_api::Category::Other)
     .version(env!("CARGO_PKG_VERSION"))
     .input::<Blob>("input", "the values to send back (every one, in order)")
     .output::<Blob>("output", "the same values")

@@ -32,6 +32,7 @@ pub fn spec() -> ModuleSpec {
          observe when fresh, else auto when fresh, else zero; publishes it at a fixed rate and \
          logs which source is in control when that changes.",
     )
+    .category(armor_module_api::Category::Navigation)
     .version(env!("CARGO_PKG_VERSION"))
     .not_controllable()
     .input::<Twist>(

@@ -21,6 +21,7 @@ pub fn spec() -> ModuleSpec {
          heading, then reports observation_done and commands zero. Each activation starts a new \
          turn.",
     )
+    .category(armor_module_api::Category::Navigation)
     .version(env!("CARGO_PKG_VERSION"))
     .input::<Odometry>(
         "odometry",

@@ -49,6 +49,7 @@ pub fn spec() -> ModuleSpec {
         TYPE,
         "Records every sample of the named data streams, with its stamp and type, into an MCAP file while active.",
     )
+        .category(armor_module_api::Category::Recording)
     .version(env!("CARGO_PKG_VERSION"))
     .param(ParamSpec::new(
         "record",

@@ -10,6 +10,7 @@ pub fn spec() -> ModuleSpec {
         TYPE,
         "Counts the values it receives and publishes the count every `every` values.",
     )
+    .category(armor_module_api::Category::Other)
     .version(env!("CARGO_PKG_VERSION"))
     .input::<Blob>("input", "the values to count (every one)")
     .output::<Counter>("count", "how many values were received so far")

@@ -39,6 +39,7 @@ pub fn spec() -> ModuleSpec {
          or `error: ...`; commands are clamped and held for deadman_secs, after which it \
          commands zero.",
     )
+    .category(armor_module_api::Category::Operator)
     .version(env!("CARGO_PKG_VERSION"))
     .not_controllable()
     .output::<Twist>(

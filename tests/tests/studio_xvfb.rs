@@ -311,7 +311,19 @@ fn screenshot(display: &str, name: &str) -> PathBuf {
 /// The words tesseract reads in `crop` (ImageMagick geometry `WxH+X+Y`) of `shot`, scaled up
 /// three times and in grey (inverted when `dark`: tesseract reads dark text on light), as sparse
 /// text (`--psm 11`: the words of a diagram are not in lines).
-fn ocr(shot: &Path, crop: &str, dark: bool) -> String {
+/// How the text to read is drawn.
+#[derive(Clone, Copy)]
+enum Ink {
+    /// Dark text on a light ground (the map).
+    Dark,
+    /// Light text on a dark ground (panels): negated for tesseract.
+    Light,
+    /// White text on coloured headers (the blocks' names): only the near-white pixels kept, as
+    /// black on white.
+    White,
+}
+
+fn ocr(shot: &Path, crop: &str, ink: Ink) -> String {
     let scaled = shot.with_extension("ocr.png");
     let mut convert = Command::new("convert");
     convert.arg(shot).args([
@@ -323,8 +335,14 @@ fn ocr(shot: &Path, crop: &str, dark: bool) -> String {
         "-colorspace",
         "Gray",
     ]);
-    if dark {
-        convert.arg("-negate");
+    match ink {
+        Ink::Dark => {}
+        Ink::Light => {
+            convert.arg("-negate");
+        }
+        Ink::White => {
+            convert.args(["-threshold", "50%", "-negate"]);
+        }
     }
     let out = convert.arg(&scaled).output().unwrap();
     assert!(
@@ -403,14 +421,14 @@ fn ocr_until(
     display: &str,
     name: &str,
     crop: &str,
-    dark: bool,
+    ink: Ink,
     patience: Duration,
     done: impl Fn(&str) -> bool,
 ) -> String {
     let deadline = Instant::now() + patience;
     loop {
         let shot = screenshot(display, name);
-        let text = ocr(&shot, crop, dark);
+        let text = ocr(&shot, crop, ink);
         if done(&text) {
             return text;
         }
@@ -465,7 +483,7 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     // The canvas only (right of the palette, below the problems line): the palette lists the
     // module types, which are these blocks' names too. Dark text on light after inversion.
     let canvas = "1050x725+230+45";
-    let text = ocr_until(display, "1-system", canvas, true, PATIENCE, |text| {
+    let text = ocr_until(display, "1-system", canvas, Ink::White, PATIENCE, |text| {
         names.iter().all(|name| ocr_has(text, name))
     });
     assert!(!text.is_empty());
@@ -481,17 +499,24 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     keys_until(studio, display, window, &["Return"], "opened ");
     // The plan's waypoints are named on the map (`gate`, on the phase line, reads to a person
     // but not to tesseract).
-    ocr_until(display, "2-plan", "950x600+0+45", false, PATIENCE, |text| {
-        ["home", "east", "north", "rally"]
-            .iter()
-            .all(|name| ocr_has(text, name))
-    });
+    ocr_until(
+        display,
+        "2-plan",
+        "950x600+0+45",
+        Ink::Dark,
+        PATIENCE,
+        |text| {
+            ["home", "east", "north", "rally"]
+                .iter()
+                .all(|name| ocr_has(text, name))
+        },
+    );
 
     // F5 runs it: the robot leaves home at (4, 4), as the poses above the live map say.
     keys_until(studio, display, window, &["F5"], "running ");
     // The line above the map (light on dark).
     let poses = "660x26+300+45";
-    let text = ocr_until(display, "3-running", poses, true, PATIENCE, |text| {
+    let text = ocr_until(display, "3-running", poses, Ink::Light, PATIENCE, |text| {
         ocr_points(text).iter().any(|(x, _)| *x > 5.0)
     });
     assert!(
@@ -506,14 +531,21 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
         armor_tests::children_of(studio.pid()).is_empty()
     });
     let modules = "300x700+0+45";
-    let text = ocr_until(display, "4-stopped", modules, true, PATIENCE, |text| {
-        let lines: Vec<String> = text.lines().map(str::to_lowercase).collect();
-        names.iter().all(|name| {
-            lines.iter().any(|line| {
-                ocr_has(line, name) && (line.contains("ended") || line.contains("exited"))
+    let text = ocr_until(
+        display,
+        "4-stopped",
+        modules,
+        Ink::Light,
+        PATIENCE,
+        |text| {
+            let lines: Vec<String> = text.lines().map(str::to_lowercase).collect();
+            names.iter().all(|name| {
+                lines.iter().any(|line| {
+                    ocr_has(line, name) && (line.contains("ended") || line.contains("exited"))
+                })
             })
-        })
-    });
+        },
+    );
     assert!(
         !text.to_lowercase().contains("running"),
         "no module reads running after the run: {text}"

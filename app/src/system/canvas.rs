@@ -77,15 +77,13 @@ impl SystemView {
                 .and_then(|pos| self.canvas.pin_at(pos).cloned());
         }
 
+        let wheel = self.wheel_zoom(&ctx);
+
         let pins = std::rc::Rc::new(std::cell::RefCell::new(Vec::new()));
         let mut events = CanvasEvents::default();
         let mut node_rects = HashMap::new();
         let mut to_global = self.canvas.to_global;
         let view_request = self.canvas.view_request.take();
-        let refit = view_request.is_some() && self.canvas.refits_when_drawn > 0;
-        if refit {
-            self.canvas.refits_when_drawn -= 1;
-        }
         let wire_from = self.canvas.wire_from.clone();
         // The viewer reads the canvas while egui-snarl edits the snarl: hold them apart.
         let mut canvas = std::mem::take(&mut self.canvas);
@@ -106,8 +104,11 @@ impl SystemView {
             double_click: double_click.filter(|pos| canvas.rect.contains(*pos)),
             canvas: &canvas,
             live,
+            wheel,
         };
-        let widget = SnarlWidget::new().id_salt(CANVAS_ID).style(viewer::style());
+        // The id given, not a salt, so that its layer is known: the wires' ends are painted on it.
+        let snarl_id = ui.id().with(CANVAS_ID);
+        let widget = SnarlWidget::new().id(snarl_id).style(viewer::style());
         widget.show(&mut snarl, &mut viewer, ui);
         drop(viewer);
         self.canvas = canvas;
@@ -115,9 +116,21 @@ impl SystemView {
         self.canvas.node_rects.extend(node_rects);
         self.canvas.to_global = to_global;
         self.canvas.pins = pins.take();
-        if refit {
-            // The blocks in view now have their drawn sizes: fit on them at the next frame
-            // (egui-snarl asks for one after a change of view).
+        // Drawn on egui-snarl's own layer (whose id is the widget's), after its blocks and
+        // wires, and in canvas coordinates, as that layer is transformed.
+        let snarl_layer = egui::LayerId::new(ui.layer_id().order, snarl_id);
+        // Its clip set, not intersected with the layer's default (the screen, which is not in
+        // canvas coordinates).
+        let mut painter = ctx.layer_painter(snarl_layer);
+        painter.set_clip_rect(self.canvas.viewport());
+        self.canvas
+            .paint_routes(&self.editor.diagram, catalog, &painter);
+        self.canvas
+            .paint_wire_ends(&self.editor.diagram, catalog, &painter);
+
+        self.canvas_tools_ui(&ctx);
+        if self.fit_again > 0 {
+            self.fit_again -= 1;
             self.canvas.view_request = self.canvas.bounds(&self.editor.diagram, None);
         }
 
@@ -211,6 +224,88 @@ impl SystemView {
                 None => self.commands.push(Command::Select(BTreeSet::new())),
             }
         }
+    }
+
+    /// The canvas's corner, as the map's and the net's toolbars: Fit, and how to zoom and pan.
+    /// Over the canvas (egui-snarl's layer covers the panel it is in), in the bottom right
+    /// corner, where Node-RED has its zoom buttons.
+    fn canvas_tools_ui(&mut self, ctx: &egui::Context) {
+        let rect = self.canvas.rect;
+        if !rect.is_positive() {
+            return;
+        }
+        egui::Area::new(egui::Id::new("canvas-tools"))
+            .order(egui::Order::Middle)
+            .pivot(egui::Align2::RIGHT_BOTTOM)
+            .fixed_pos(rect.right_bottom() - egui::vec2(10.0, 10.0))
+            .constrain_to(rect)
+            .show(ctx, |ui| {
+                egui::Frame::popup(ui.style()).show(ui, |ui| {
+                    ui.horizontal(|ui| {
+                        ui.weak("wheel: zoom · drag: pan");
+                        if ui
+                            .button("Fit")
+                            .on_hover_text("show every block (Home)")
+                            .clicked()
+                        {
+                            self.zoom_to_fit();
+                        }
+                    });
+                });
+            });
+    }
+
+    /// The wheel's zoom this frame, when the pointer is over the canvas (and no window or menu
+    /// over it): the factor and the point it zooms about, on screen.
+    ///
+    /// egui-snarl pans on the plain wheel and zooms on Ctrl+wheel, through egui's `Scene`, in
+    /// steps that follow egui's smoothed scroll and scroll-zoom speed. Every other canvas of the
+    /// studio (the map, the net) zooms on the plain wheel about the pointer, one notch a fine
+    /// step, and pans by dragging: so the diagram does too. The wheel's pan is taken out of
+    /// egui's input before egui-snarl reads it, and the transform egui-snarl computes is
+    /// replaced by ours in [`DiagramViewer`]'s `current_transform` for the frames the wheel
+    /// moves (egui's smoothed Ctrl+wheel zoom cannot be taken out of its input).
+    fn wheel_zoom(&mut self, ctx: &egui::Context) -> Option<viewer::WheelZoom> {
+        let pointer = ctx.input(|input| input.pointer.hover_pos())?;
+        let over_canvas = self.canvas.rect.contains(pointer)
+            && ctx
+                .layer_id_at(pointer)
+                .is_some_and(|layer| layer.order == egui::Order::Background);
+        if !over_canvas {
+            return None;
+        }
+        let (notches, pinch, wheeling) = ctx.input_mut(|input| {
+            let mut notches = 0.0;
+            let mut pinch = 1.0;
+            for event in &input.events {
+                match event {
+                    egui::Event::MouseWheel { unit, delta, .. } => {
+                        notches += viewer::wheel_notches(*unit, *delta);
+                    }
+                    egui::Event::Zoom(factor) => pinch *= factor,
+                    _ => {}
+                }
+            }
+            // egui spreads a notch's scroll over the next frames: taken out, those frames do
+            // not pan. Its Ctrl+wheel zoom, spread likewise, cannot be taken out: in those
+            // frames egui-snarl's transform is replaced by last frame's.
+            let wheeling = input.zoom_delta() != 1.0;
+            input.smooth_scroll_delta = egui::Vec2::ZERO;
+            (notches, pinch, wheeling)
+        });
+        // egui may run a frame's UI twice (a discarded first pass) with the same input: the
+        // zoom is taken from the transform the frame began with, so that it is applied once.
+        let frame = ctx.cumulative_frame_nr();
+        let from = match self.canvas.frame_start {
+            Some((seen, transform)) if seen == frame => transform,
+            _ => self.canvas.to_global,
+        };
+        self.canvas.frame_start = Some((frame, from));
+        (notches != 0.0 || pinch != 1.0 || wheeling).then(|| viewer::WheelZoom {
+            factor: viewer::ZOOM_STEP.powf(notches) * pinch,
+            about: pointer,
+            from,
+        })
     }
 
     /// Cut, copy and paste. The platform turns Ctrl+C / Ctrl+X / Ctrl+V into copy, cut and

@@ -56,6 +56,8 @@ pub struct SystemView {
     draft_saved: bool,
     /// What the view has to say on the status line (text, is an error), taken by the window.
     messages: Vec<(String, bool)>,
+    /// The last fit guessed the size of blocks not yet drawn: fit again after this many frames.
+    fit_again: u8,
 }
 
 impl SystemView {
@@ -290,7 +292,14 @@ impl SystemView {
 
     pub fn zoom_to_fit(&mut self) {
         self.canvas.view_request = self.canvas.bounds(&self.editor.diagram, None);
-        self.canvas.refits_when_drawn = 1;
+        // Blocks not drawn yet have a guessed size: fitted again once they are (egui-snarl
+        // draws the blocks in view, and the view changes with the fit: a few frames).
+        let guessed = self
+            .editor
+            .diagram
+            .blocks()
+            .any(|(id, _)| !self.canvas.node_rects.contains_key(&id));
+        self.fit_again = if guessed { 3 } else { 0 };
     }
 
     /// Selects a block and brings it into view.
@@ -331,6 +340,51 @@ impl SystemView {
                 port: port.to_owned(),
             },
         })
+    }
+
+    /// The wires' ends marked last frame: the input pin (`block.port`) and where, on screen.
+    pub fn wire_ends(&self) -> Vec<(String, Pos2)> {
+        self.canvas
+            .wire_ends
+            .iter()
+            .filter_map(|(port, at)| {
+                let block = self.editor.diagram.block(port.block)?;
+                Some((
+                    format!("{}.{}", block.name, port.port),
+                    self.canvas.to_global * *at,
+                ))
+            })
+            .collect()
+    }
+
+    /// The links drawn round the blocks (those that run backwards): `from -> to` as
+    /// `block.port` and the route's corners on screen, as drawn last frame.
+    pub fn routes(&self, catalog: &Catalog) -> Vec<(String, Vec<Pos2>)> {
+        let diagram = &self.editor.diagram;
+        self.canvas
+            .routes(diagram, catalog)
+            .into_iter()
+            .map(|(link, points)| {
+                let name = |port: &crate::diagram::PortRef| {
+                    diagram
+                        .block(port.block)
+                        .map_or_else(String::new, |block| format!("{}.{}", block.name, port.port))
+                };
+                (
+                    format!("{} -> {}", name(&link.from), name(&link.to)),
+                    points
+                        .into_iter()
+                        .map(|point| self.canvas.to_global * point)
+                        .collect(),
+                )
+            })
+            .collect()
+    }
+
+    /// A block's rectangle on screen (as drawn last frame).
+    pub fn block_screen_rect(&self, catalog: &Catalog, block: &str) -> Option<egui::Rect> {
+        self.block_rect(catalog, block)
+            .map(|rect| self.canvas.to_global * rect)
     }
 
     /// Where a block is on screen (its centre, as drawn last frame).

@@ -24,9 +24,11 @@ fn port(name: &str, data_type: &str) -> PortSpec {
     }
 }
 
-/// Module types shaped like the bundled `counter`, `checker` and `follower`.
+/// Module types shaped like the bundled `counter` (a sensor), `checker` (no category, as a
+/// module written before categories) and `follower` (navigation).
 pub fn descriptions() -> Vec<ModuleDescription> {
     let mut counter = ModuleDescription::new("counter", "Publishes 1, 2, 3, ... every period.");
+    counter.category = armor_module_api::Category::Sensor;
     counter.outputs.push(port("count", "Counter"));
     counter.params.push(
         ParamSpec::new("period_secs", ParamType::Float, "time between two values")
@@ -42,6 +44,7 @@ pub fn descriptions() -> Vec<ModuleDescription> {
         ParamSpec::new("report_every", ParamType::Int, "log every this many values").default("10"),
     );
     let mut follower = ModuleDescription::new("follower", "Drives towards a goal position.");
+    follower.category = armor_module_api::Category::Navigation;
     follower.inputs.push(port("odometry", "Odometry"));
     follower.outputs.push(port("cmd_desired", "Twist"));
     follower

@@ -52,6 +52,7 @@ pub fn spec() -> ModuleSpec {
          by matching each scan against the map built so far; publishes the map and the corrected \
          pose in the map frame (the odometry frame at the first scan).",
     )
+    .category(armor_module_api::Category::Mapping)
     .version(env!("CARGO_PKG_VERSION"))
     .not_controllable()
     .input::<LaserScan>(

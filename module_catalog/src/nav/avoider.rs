@@ -52,6 +52,7 @@ pub fn spec() -> ModuleSpec {
          command away from close laser points, slows down before obstacles in the robot's path, \
          stops forward motion when one is closer than stop_m, and stops without fresh scans.",
     )
+    .category(armor_module_api::Category::Navigation)
     .version(env!("CARGO_PKG_VERSION"))
     .input::<LaserScan>(
         "scan",

@@ -58,6 +58,7 @@ pub fn spec() -> ModuleSpec {
         "Drives towards a goal position: turns towards it, moves forward when roughly facing it, \
          slows down near it, and reports goal_reached within tolerance (once per goal).",
     )
+    .category(armor_module_api::Category::Navigation)
     .version(env!("CARGO_PKG_VERSION"))
     .input::<Odometry>(
         "odometry",

@@ -45,6 +45,7 @@ pub fn spec() -> ModuleSpec {
          and obstacles, on the run clock: drives as commanded on cmd_vel, stops at walls, and \
          publishes drifting odometry, laser scans and the true pose.",
     )
+    .category(armor_module_api::Category::Sensor)
     .version(env!("CARGO_PKG_VERSION"))
     .not_controllable()
     .input::<Twist>(

@@ -268,6 +268,61 @@ impl ParamSpec {
     }
 }
 
+/// A module's role, which tools show (the studio colours a block's header by it). Optional in
+/// the describe format: a module that says none, or one this version does not know, is
+/// [`Category::Other`], so modules written before categories existed, and categories added
+/// later, are read without complaint.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Category {
+    /// Sensors and simulators: where data comes from.
+    Sensor,
+    Navigation,
+    Mapping,
+    /// Operator interfaces (teleop and the like).
+    Operator,
+    Recording,
+    #[default]
+    Other,
+}
+
+impl Category {
+    /// Every category, in the order tools list them.
+    pub const ALL: [Category; 6] = [
+        Category::Sensor,
+        Category::Navigation,
+        Category::Mapping,
+        Category::Operator,
+        Category::Recording,
+        Category::Other,
+    ];
+
+    /// As written in XML.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Category::Sensor => "sensor",
+            Category::Navigation => "navigation",
+            Category::Mapping => "mapping",
+            Category::Operator => "operator",
+            Category::Recording => "recording",
+            Category::Other => "other",
+        }
+    }
+
+    /// As read from XML: an unknown name is `Other`, never an error (see the type's doc).
+    pub fn from_name(name: &str) -> Self {
+        Category::ALL
+            .into_iter()
+            .find(|category| category.as_str() == name)
+            .unwrap_or_default()
+    }
+}
+
+impl fmt::Display for Category {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct EventSpec {
     pub name: String,
@@ -288,6 +343,8 @@ pub struct ModuleDescription {
     pub events: Vec<EventSpec>,
     /// `false` for modules the mission controller must never stop (operator interfaces).
     pub controllable: bool,
+    /// Its role (`category="…"`, optional).
+    pub category: Category,
 }
 
 impl ModuleDescription {
@@ -301,6 +358,7 @@ impl ModuleDescription {
             params: Vec::new(),
             events: Vec::new(),
             controllable: true,
+            category: Category::Other,
         }
     }
 
@@ -324,13 +382,19 @@ impl ModuleDescription {
         use std::fmt::Write as _;
         let e = |s: &str| xml::escape(s).into_owned();
         let mut out = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
-        let _ = writeln!(
+        let _ = write!(
             out,
-            "<module type=\"{}\" version=\"{}\" controllable=\"{}\">",
+            "<module type=\"{}\" version=\"{}\" controllable=\"{}\"",
             e(&self.module_type),
             e(&self.version),
             self.controllable
         );
+        // Written only when it says something, so that a module without one describes itself
+        // exactly as before categories existed.
+        if self.category != Category::Other {
+            let _ = write!(out, " category=\"{}\"", self.category);
+        }
+        out.push_str(">\n");
         let _ = writeln!(out, "  <doc>{}</doc>", e(&self.doc));
         for (tag, ports) in [("input", &self.inputs), ("output", &self.outputs)] {
             for port in ports {
@@ -399,7 +463,7 @@ impl ModuleDescription {
                 format!("expected <module> at the top, found <{}>", root.name),
             )]);
         }
-        problems.extend(root.unknown_attrs(&["type", "version", "controllable"]));
+        problems.extend(root.unknown_attrs(&["type", "version", "controllable", "category"]));
         problems.extend(root.unknown_children(&["doc", "input", "output", "param", "event"]));
         let mut description = ModuleDescription::new("", "");
         match root.required_attr("type") {
@@ -426,6 +490,9 @@ impl ModuleDescription {
                 )),
             }
         }
+        description.category = root
+            .attr_value("category")
+            .map_or(Category::Other, Category::from_name);
         for child in &root.children {
             let doc = child.attr_value("doc").unwrap_or_default().to_owned();
             match child.name.as_str() {
@@ -699,6 +766,7 @@ mod tests {
             doc: "limit reached".into(),
         });
         description.controllable = false;
+        description.category = Category::Navigation;
         description
     }
 
@@ -709,6 +777,24 @@ mod tests {
             ModuleDescription::from_xml(&description.to_xml()),
             Ok(description)
         );
+    }
+
+    #[test]
+    fn category_is_optional_and_unknown_ones_are_other() {
+        let read = |attr: &str| {
+            ModuleDescription::from_xml(&format!("<module type=\"x\"{attr}/>"))
+                .map(|description| description.category)
+        };
+        assert_eq!(read(""), Ok(Category::Other));
+        assert_eq!(read(" category=\"mapping\""), Ok(Category::Mapping));
+        assert_eq!(read(" category=\"sensor\""), Ok(Category::Sensor));
+        assert_eq!(read(" category=\"teleportation\""), Ok(Category::Other));
+        // A module without one describes itself as before categories existed.
+        let plain = ModuleDescription::new("x", "");
+        assert!(!plain.to_xml().contains("category"));
+        for category in Category::ALL {
+            assert_eq!(Category::from_name(category.as_str()), category);
+        }
     }
 
     fn check_problems(text: &str, expected: &[&str]) {

@@ -27,7 +27,7 @@ pub mod wire;
 pub mod xml;
 
 pub use clock::Clock;
-pub use describe::{ModuleDescription, ParamSpec, ParamType};
+pub use describe::{Category, ModuleDescription, ParamSpec, ParamType};
 pub use module::{
     BodyResult, DEFAULT_AGENT, ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR, ModuleSpec, Standalone,
     init_logging, run,

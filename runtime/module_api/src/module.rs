@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use crate::clock::Clock;
 use crate::core::{ApiError, Core, check_param};
-use crate::describe::{EventSpec, ModuleDescription, ParamSpec, PortSpec};
+use crate::describe::{Category, EventSpec, ModuleDescription, ParamSpec, PortSpec};
 use crate::net::Net;
 use crate::node::{Node, Transport};
 use crate::protocol::{FromSupervisor, ModuleConfig, ToSupervisor};
@@ -67,6 +67,12 @@ impl ModuleSpec {
     /// An operator interface or safety module: the mission controller never stops it.
     pub fn not_controllable(mut self) -> Self {
         self.description.controllable = false;
+        self
+    }
+
+    /// Its role, which tools show (the studio colours its blocks' headers by it).
+    pub fn category(mut self, category: Category) -> Self {
+        self.description.category = category;
         self
     }
 
