@@ -372,12 +372,17 @@ impl Canvas {
         if self.is_overview() || self.routed.is_empty() {
             return Vec::new();
         }
-        let pin = |port: &PortRef, side: PinSide| {
-            self.pins
-                .iter()
-                .find(|(pin, _)| pin.side == side && pin.port == *port)
-                .map(|(_, rect)| rect.center())
-        };
+        let drawn: HashMap<(PinSide, &PortRef), Pos2> = self
+            .pins
+            .iter()
+            .map(|(pin, rect)| ((pin.side, &pin.port), rect.center()))
+            .collect();
+        let pin = |port: &PortRef, side: PinSide| drawn.get(&(side, port)).copied();
+        // Measured once for every route (a large diagram has many blocks to pass below).
+        let blocks: Vec<Rect> = diagram
+            .blocks()
+            .map(|(id, _)| self.rect_of(diagram, catalog, id))
+            .collect();
         let mut routes = Vec::new();
         for link in &self.routed {
             let (Some(from), Some(to)) = (
@@ -390,9 +395,8 @@ impl Canvas {
             // Clear of the arrowhead, whose tip is at the pin's edge (half the pin's size in).
             let left = to.x - PIN_SIZE / 2.0 - ARROW_LENGTH - ROUTE_STUB / 2.0;
             let (low, high) = (left.min(right), left.max(right));
-            let below = diagram
-                .blocks()
-                .map(|(id, _)| self.rect_of(diagram, catalog, id))
+            let below = blocks
+                .iter()
                 .filter(|rect| rect.right() >= low && rect.left() <= high)
                 .map(|rect| rect.bottom())
                 .fold(from.y.max(to.y), f32::max)
