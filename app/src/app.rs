@@ -4,20 +4,22 @@
 //! act on, and what each view reports to the status line. The views queue their edits and
 //! apply them after the frame; then the window keeps what derives from the documents (title,
 //! dirty marker, problems, recovery copies) up to date. Its documents' files are handled in
-//! `app/documents.rs`, pictures in `app/picture.rs`.
+//! `app/documents.rs`, pictures in `app/picture.rs`, the menu bar in `app/menu.rs`, and what tests
+//! and the bench read of the canvas in `app/probes.rs`.
 
 mod documents;
+mod menu;
 mod picture;
+mod probes;
 
 use crate::start::StartChoice;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use egui::{Pos2, RichText, Ui};
+use egui::Ui;
 
 pub use crate::command::View;
-use crate::command::{self, MenuItem, UiCommand};
-use crate::diagram::PinSide;
+use crate::command::{self, UiCommand};
 use crate::dialogs::{PathDialog, PathPurpose, Replacing};
 use crate::editor::Editor;
 use crate::files::{Document, Home, Recovery};
@@ -250,57 +252,6 @@ impl StudioApp {
 
     pub fn problems(&self) -> &[Problem] {
         self.system.problems()
-    }
-
-    /// Where a block's pin is on screen (as drawn last frame): `side` is input or output.
-    pub fn pin_pos(&self, block: &str, port: &str, side: PinSide) -> Option<Pos2> {
-        self.system.pin_pos(block, port, side)
-    }
-
-    /// Where a block is on screen (its centre, as drawn last frame).
-    pub fn block_pos(&self, block: &str) -> Option<Pos2> {
-        self.system.block_pos(&self.palette.catalog, block)
-    }
-
-    /// Where a block's header is on screen (where a hand grabs it to move it).
-    pub fn block_header_pos(&self, block: &str) -> Option<Pos2> {
-        self.system.block_header_pos(&self.palette.catalog, block)
-    }
-
-    /// The wires' ends marked last frame: the input pin (`block.port`) and where, on screen.
-    pub fn wire_ends(&self) -> Vec<(String, Pos2)> {
-        self.system.wire_ends()
-    }
-
-    /// The links drawn round the blocks (those that run backwards): `from -> to` and the
-    /// route's corners on screen, as drawn last frame.
-    pub fn routes(&self) -> Vec<(String, Vec<Pos2>)> {
-        self.system.routes(&self.palette.catalog)
-    }
-
-    /// A block's rectangle on screen (as drawn last frame).
-    pub fn block_screen_rect(&self, block: &str) -> Option<egui::Rect> {
-        self.system.block_screen_rect(&self.palette.catalog, block)
-    }
-
-    /// Whether the canvas shows the overview (zoomed out: boxes and lines, no widgets).
-    pub fn is_overview(&self) -> bool {
-        self.system.canvas.is_overview()
-    }
-
-    /// The canvas's transform (graph to screen), as drawn last frame.
-    pub fn canvas_transform(&self) -> egui::emath::TSTransform {
-        self.system.canvas.to_global
-    }
-
-    /// The screen rectangle of the canvas.
-    pub fn canvas_rect(&self) -> egui::Rect {
-        self.system.canvas.rect
-    }
-
-    /// Shows the first blocks at about `scale` (the bench's other views).
-    pub fn view_at_scale(&mut self, scale: f32) {
-        self.system.view_at_scale(scale);
     }
 
     fn set_status(&mut self, text: String, is_error: bool) {
@@ -592,51 +543,6 @@ impl StudioApp {
         }
     }
 
-    fn menu_ui(&mut self, ui: &mut Ui) {
-        egui::MenuBar::new().ui(ui, |ui| {
-            for menu in command::menus(self.view) {
-                ui.menu_button(menu.title, |ui| {
-                    for item in menu.items {
-                        match *item {
-                            MenuItem::Separator => {
-                                ui.separator();
-                            }
-                            MenuItem::Recent => self.recent_menu_ui(ui),
-                            MenuItem::Note(text) => {
-                                ui.weak(text);
-                            }
-                            MenuItem::Command(command) => {
-                                let keys = command.keys_text();
-                                let label = command.label(self.view);
-                                let button = egui::Button::new(label).shortcut_text(keys.as_str());
-                                let enabled = match command {
-                                    UiCommand::Run => !self.run.is_running(),
-                                    UiCommand::Stop => self.run.is_running(),
-                                    _ => true,
-                                };
-                                let response = ui.add_enabled(enabled, button);
-                                name_menu_item(&response, label, &keys, enabled);
-                                if response.clicked() {
-                                    self.execute(command, ui.ctx(), true);
-                                }
-                            }
-                        }
-                    }
-                });
-            }
-            ui.separator();
-            let mut view = self.view;
-            ui.selectable_value(&mut view, View::System, "System");
-            ui.selectable_value(&mut view, View::Mission, "Mission");
-            ui.selectable_value(&mut view, View::Run, "Run");
-            if view != self.view {
-                self.set_view(view);
-            }
-            ui.separator();
-            ui.label(RichText::new(&self.title).weak());
-        });
-    }
-
     fn status_ui(&mut self, ui: &mut Ui) {
         ui.horizontal(|ui| {
             let colour = if self.status.is_error {
@@ -645,19 +551,6 @@ impl StudioApp {
                 ui.visuals().text_color()
             };
             ui.colored_label(colour, &self.status.text);
-        });
-    }
-}
-
-/// Gives a menu entry its own name for screen readers and tests: egui names a button with a
-/// shortcut by both texts run together ("SaveCtrl+S"), which neither a screen reader nor a test
-/// looking for "Save" should have to read. The keys go where AccessKit keeps them, in the
-/// entry's keyboard shortcut, which screen readers announce after the name.
-fn name_menu_item(response: &egui::Response, label: &str, keys: &str, enabled: bool) {
-    response.widget_info(|| egui::WidgetInfo::labeled(egui::WidgetType::Button, enabled, label));
-    if !keys.is_empty() {
-        response.ctx.accesskit_node_builder(response.id, |node| {
-            node.set_keyboard_shortcut(keys);
         });
     }
 }
