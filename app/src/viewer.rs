@@ -40,6 +40,10 @@ pub const FIT_FLOOR: f32 = 0.65;
 const HEADER_NAME_SIZE: f32 = 16.0;
 /// The height of the header's band in the overview, in canvas points (about a header's).
 const OVERVIEW_BAND: f32 = 34.0;
+/// The size of a block's name in the overview, in pixels on screen (drawn where it fits).
+const OVERVIEW_NAME_PX: f32 = 12.0;
+/// The radius of a port's dot in the overview, in pixels on screen.
+const OVERVIEW_PORT_PX: f32 = 2.5;
 
 /// The canvas's state across frames.
 pub struct Canvas {
@@ -64,6 +68,8 @@ pub struct Canvas {
     snarl_selection: Vec<NodeId>,
     /// The block dragged in the overview, where egui-snarl holds none.
     pub overview_grab: Option<BlockId>,
+    /// The blocks whose names the overview drew last frame.
+    pub overview_names: Vec<String>,
     /// The input pins whose wire's end was marked last frame, and where (canvas coordinates).
     pub wire_ends: Vec<(PortRef, Pos2)>,
     /// Links that run backwards (into an input left of their output): egui-snarl does not hold
@@ -90,6 +96,7 @@ impl Default for Canvas {
             view_request: None,
             snarl_selection: Vec::new(),
             overview_grab: None,
+            overview_names: Vec::new(),
             wire_ends: Vec::new(),
             routed: BTreeSet::new(),
             frame_start: None,
@@ -446,6 +453,8 @@ impl Canvas {
 pub struct CanvasEvents {
     /// A block was double-clicked (or "Parameters…" chosen in its menu).
     pub open_params: Option<BlockId>,
+    /// The blocks whose names the overview drew this frame.
+    pub overview_names: Vec<String>,
 }
 
 /// The adapter egui-snarl calls to draw and edit the diagram.
@@ -582,12 +591,19 @@ impl DiagramViewer<'_> {
 }
 
 impl DiagramViewer<'_> {
-    /// Paints what egui-snarl does not hold: the blocks of the overview, and the links with an
-    /// end outside the view (egui-snarl draws only links between blocks it holds).
-    fn paint_outside_snarl(&self, viewport: &Rect, style: &egui::Style, painter: &egui::Painter) {
+    /// Paints what egui-snarl does not hold: the blocks of the overview (each with its name
+    /// where it fits and its ports), and the links with an end outside the view (egui-snarl draws
+    /// only links between blocks it holds). Returns the names the overview drew.
+    fn paint_outside_snarl(
+        &self,
+        viewport: &Rect,
+        style: &egui::Style,
+        painter: &egui::Painter,
+    ) -> Vec<String> {
         let canvas = self.canvas;
         let held = |id: &BlockId| canvas.node_of.contains_key(id);
         let overview = canvas.is_overview();
+        let mut names = Vec::new();
         if overview {
             let visuals = &style.visuals;
             let fill = visuals.widgets.inactive.bg_fill;
@@ -629,6 +645,9 @@ impl DiagramViewer<'_> {
                     },
                     category_colour(category),
                 );
+                if let Some(block) = self.diagram.block(id) {
+                    self.paint_overview_block(block, rect, style, painter, &mut names);
+                }
             }
         }
         let drawn: HashMap<(BlockId, PinSide, &str), Pos2> = canvas
@@ -690,6 +709,46 @@ impl DiagramViewer<'_> {
             if !overview {
                 paint_arrowhead(painter, to, colour);
             }
+        }
+        names
+    }
+
+    /// A block of the overview: its name in the body where it fits at a readable size on
+    /// screen, and a dot for each port, at the edge where its pin is zoomed in.
+    fn paint_overview_block(
+        &self,
+        block: &crate::diagram::Block,
+        rect: Rect,
+        style: &egui::Style,
+        painter: &egui::Painter,
+        names: &mut Vec<String>,
+    ) {
+        let scale = self.canvas.to_global.scaling;
+        if let Some(description) = self.catalog.get(&block.module_type) {
+            let radius = OVERVIEW_PORT_PX / scale;
+            for (ports, x) in [
+                (&description.inputs, rect.left()),
+                (&description.outputs, rect.right()),
+            ] {
+                for (index, port) in ports.iter().enumerate() {
+                    let y = rect.top() + 36.0 + 20.0 * index as f32;
+                    if y + radius > rect.bottom() {
+                        break;
+                    }
+                    painter.circle_filled(Pos2::new(x, y), radius, type_colour(&port.data_type));
+                }
+            }
+        }
+        let galley = painter.layout_no_wrap(
+            block.name.clone(),
+            egui::FontId::proportional(OVERVIEW_NAME_PX / scale),
+            style.visuals.strong_text_color(),
+        );
+        let room = rect.shrink(2.0 / scale);
+        if galley.size().x <= room.width() && galley.size().y <= room.height() {
+            let at = room.center() - galley.size() / 2.0;
+            painter.galley(at, galley, style.visuals.strong_text_color());
+            names.push(block.name.clone());
         }
     }
 }
@@ -983,7 +1042,7 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
         if let Some(background) = background {
             background.draw(viewport, snarl_style, style, painter);
         }
-        self.paint_outside_snarl(viewport, style, painter);
+        self.events.overview_names = self.paint_outside_snarl(viewport, style, painter);
     }
 
     fn current_transform(&mut self, to_global: &mut TSTransform, _snarl: &mut Snarl<BlockId>) {

@@ -424,8 +424,30 @@ fn a_large_diagram_opens_named_and_a_double_click_in_the_overview_zooms_in() {
     // Fit stops at the zoom at which names are drawn: the middle of the diagram, named.
     assert!(!harness.state().is_overview());
     zoom_out_to_overview(&mut harness);
-    // No block is a widget in the overview: their names are not on screen as text.
+    // No block is a widget in the overview: their names are not on screen as text. They are
+    // painted, where they fit at a readable size: just below the detail zoom, every block's.
     assert!(harness.query_by_label("relay_221").is_none());
+    assert!(
+        harness
+            .state()
+            .overview_names()
+            .iter()
+            .any(|name| name == "relay_221"),
+        "{:?}",
+        harness.state().overview_names()
+    );
+    // Zoomed far out, names that would not fit are left out rather than run together.
+    let centre = harness.state().canvas_rect().center();
+    harness.hover_at(centre);
+    for _ in 0..12 {
+        harness.event(egui::Event::Zoom(0.7));
+        harness.run_steps(2);
+    }
+    assert!(harness.state().canvas_transform().scaling < 0.08);
+    assert!(harness.state().overview_names().is_empty());
+    harness.key_press(Key::Home);
+    harness.run_steps(3);
+    zoom_out_to_overview(&mut harness);
     let at = harness.state().block_pos("relay_221").unwrap();
     double_click(&mut harness, at);
     harness.run_steps(3);

@@ -38,6 +38,11 @@ impl StudioApp {
         self.system.block_screen_rect(&self.palette.catalog, block)
     }
 
+    /// The blocks whose names the overview drew last frame (none when zoomed in).
+    pub fn overview_names(&self) -> &[String] {
+        &self.system.canvas.overview_names
+    }
+
     /// Whether the canvas shows the overview (zoomed out: boxes and lines, no widgets).
     pub fn is_overview(&self) -> bool {
         self.system.canvas.is_overview()

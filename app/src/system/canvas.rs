@@ -142,6 +142,7 @@ impl SystemView {
         {
             self.show_block(block);
         }
+        self.canvas.overview_names = std::mem::take(&mut events.overview_names);
         if let Some(block) = events.open_params {
             self.open_params(block);
         }
