@@ -245,3 +245,20 @@ fn a_place_parameter_out_of_range_fails_armor_check_in_a_mission_and_in_a_plan()
         "{said}"
     );
 }
+
+#[test]
+fn armor_probe_shows_the_category_and_the_ranges() {
+    let out = Command::new(bin("armor"))
+        .args(["probe", "--no-cache"])
+        .arg(bin("armor-mod-observer"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(text.starts_with("observer 0.1.0 [navigation] "), "{text}");
+    assert!(
+        text.contains("param sector_deg: float [deg] = 360 (greater than 0°)"),
+        "{text}"
+    );
+    assert!(text.contains("(non-zero)"), "{text}");
+}

@@ -610,9 +610,10 @@ fn summary(binary: &std::path::Path, description: &armor_module_api::ModuleDescr
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "{} {}{} ({}): {}",
+        "{} {} [{}]{} ({}): {}",
         description.module_type,
         description.version,
+        description.category,
         if description.controllable {
             ""
         } else {
@@ -643,9 +644,14 @@ fn summary(binary: &std::path::Path, description: &armor_module_api::ModuleDescr
             || " (required)".to_owned(),
             |default| format!(" = {default}"),
         );
+        let allowed = if param.is_limited() {
+            format!(" ({})", param.range_text())
+        } else {
+            String::new()
+        };
         let _ = writeln!(
             out,
-            "  param {}: {}{unit}{value} — {}",
+            "  param {}: {}{unit}{value}{allowed} — {}",
             param.name, param.param_type, param.doc
         );
     }
