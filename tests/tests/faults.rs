@@ -175,14 +175,15 @@ fn killing_one_module_again_and_again_costs_other_links_nothing() {
 fn a_crash_looping_module_ends_failed_while_the_rest_runs_on() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("system.xml");
-    // `broken` is refused its parameters at every start: it exits at once, again and again.
+    // `broken` cannot listen where it is told (an address of no interface of this machine,
+    // which no check can know): it exits at every start, again and again.
     std::fs::write(
         &file,
         std::fs::read_to_string(workspace_root().join("missions/demo/system.xml"))
             .unwrap()
             .replace(
                 "</system>",
-                r#"<module name="broken" type="sink"><param name="every" value="0"/></module></system>"#,
+                r#"<module name="broken" type="teleop"><param name="listen" value="192.0.2.1:9"/></module></system>"#,
             ),
     )
     .unwrap();
