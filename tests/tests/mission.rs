@@ -144,17 +144,27 @@ fn the_operator_pauses_resumes_and_fires_by_hand() {
 
 #[test]
 fn a_module_that_fails_for_good_takes_the_mission_to_its_contingency() {
+    // `listener` (a teleop, which runs all the time) cannot listen where it is told (an address
+    // of no interface of this machine, which no check can know): it fails at its first start
+    // and is not restarted.
     let dir = mission_files(
-        r#"restart="never""#,
-        r#"<param name="period_secs" value="-1"/>"#,
+        "",
+        "",
         r#"<mission name="contingency" system="system.xml">
   <place name="counting" tokens="1"><module name="counter"/><module name="checker"/></place>
   <place name="safe" final="true"/>
   <place name="done" final="true"/>
-  <transition name="fallback" event="module.counter.failed"><input place="counting"/><output place="safe"/></transition>
+  <transition name="fallback" event="module.listener.failed"><input place="counting"/><output place="safe"/></transition>
   <transition name="counted" event="counter.done"><input place="counting"/><output place="done"/></transition>
 </mission>"#,
     );
+    let system = dir.path().join("system.xml");
+    let text = std::fs::read_to_string(&system).unwrap().replace(
+        "</system>",
+        r#"  <module name="listener" type="teleop" restart="never"><param name="listen" value="192.0.2.1:9"/></module>
+</system>"#,
+    );
+    std::fs::write(&system, text).unwrap();
     let mut run = armor_run(&dir.path().join("mission.xml"), &[]);
     let status = run.wait_exit(PATIENCE);
     assert!(status.success(), "{status}: {:#?}", run.lines());

@@ -161,7 +161,7 @@ fn probe_isolates_broken_binaries() {
     assert_eq!(output.status.code(), Some(1));
     let stdout = text(&output.stdout);
     assert!(
-        stdout.starts_with("counter 1.0 ("),
+        stdout.starts_with("counter 1.0 [other] ("),
         "the good module still answers: {stdout}"
     );
     assert!(
