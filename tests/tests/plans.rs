@@ -590,6 +590,23 @@ fn the_yard_plan_waits_for_its_appointment_and_goes_round_the_minefield() {
     );
     // The appointment is at 08:01:30, the run starting at 08:00:00.
     assert!(run.run.fired_at("cross_appointment").unwrap() >= 90.0);
+    // The run ends with a table of the legs: when each set off and arrived, against its
+    // deadline (advance by 08:01:00, 60 s in).
+    let lines = &run.run.lines;
+    let at = lines
+        .iter()
+        .position(|line| line == "plan `yard-recon`, complete:")
+        .unwrap_or_else(|| panic!("no summary:\n{}", lines.join("\n")));
+    let advance = &lines[at + 2];
+    assert!(
+        advance.starts_with("advance")
+            && advance.contains("s early")
+            && advance.contains("(home → gate)"),
+        "{advance}"
+    );
+    let arrived = run.run.fired_at("advance_arrived").unwrap();
+    assert!(advance.contains(&format!("{arrived:.1} s")), "{advance}");
+    assert!(lines[at + 3].starts_with("cross") && lines[at + 3].contains("no deadline"));
     // Looking around at the gate took a full turn (10.5 s at the observer's 0.6 rad/s).
     let observing = run.run.between("advance_arrived", "advance_arrival_done");
     assert!(observing >= 10.0, "observed for {observing} s");

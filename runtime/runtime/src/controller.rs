@@ -3,7 +3,7 @@
 //! delays and dates wake the supervisor's loop at the right moment. What a firing starts and
 //! stops, and the parameters of the marked places, reach the modules through the config server.
 
-use std::collections::{BTreeSet, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
 use std::time::Instant;
 
@@ -51,6 +51,10 @@ pub struct Controller {
     /// The latest firings, for the status, and how many there were.
     recent: VecDeque<FiringRecord>,
     firings_total: usize,
+    /// Each transition's first firing and each place's first marking, in run seconds (one entry
+    /// per element of the net at most).
+    first_fired: BTreeMap<String, f64>,
+    first_marked: BTreeMap<String, f64>,
 }
 
 /// The modules that every place of `net` runs, each with the same parameters in all: a plan's
@@ -112,7 +116,16 @@ impl Controller {
             timeline_dropped: 0,
             recent: VecDeque::new(),
             firings_total: 0,
+            first_fired: BTreeMap::new(),
+            first_marked: BTreeMap::new(),
         };
+        let at = controller.clock.now_secs();
+        controller.first_marked = controller
+            .engine
+            .marking()
+            .into_keys()
+            .map(|place| (place, at))
+            .collect();
         controller.record("started", json!({ "marking": controller.engine.marking() }));
         controller
     }
@@ -149,7 +162,23 @@ impl Controller {
             .map(|run_secs| self.clock.instant_at(run_secs))
     }
 
+    /// When each transition first fired and each place was first marked (run seconds): what a
+    /// plan's summary reads its legs' times from.
+    pub fn first_fired(&self) -> &BTreeMap<String, f64> {
+        &self.first_fired
+    }
+
+    pub fn first_marked(&self) -> &BTreeMap<String, f64> {
+        &self.first_marked
+    }
+
     fn remember(&mut self, firing: &Firing, by_hand: bool) {
+        self.first_fired
+            .entry(firing.transition.clone())
+            .or_insert(firing.at_secs);
+        for place in firing.marking_after.to_marking().into_keys() {
+            self.first_marked.entry(place).or_insert(firing.at_secs);
+        }
         if self.recent.len() == RECENT_FIRINGS {
             self.recent.pop_front();
         }

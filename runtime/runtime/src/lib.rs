@@ -17,6 +17,7 @@ pub mod probe;
 pub mod process;
 pub mod replay;
 pub mod restart;
+pub mod summary;
 pub mod supervisor;
 
 /// The agent's first line on stdout, followed by the address it listens on.

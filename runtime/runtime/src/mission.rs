@@ -62,6 +62,8 @@ pub struct LoadedMission {
     pub compiled: Option<Compiled>,
     /// The date the plan is made for (its `start`), when the file is a plan that gives one.
     pub planned_start_unix_secs: Option<f64>,
+    /// The plan, when the file is one.
+    pub plan: Option<Plan>,
 }
 
 impl LoadedMission {
@@ -110,6 +112,7 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
     }
     let system = load_system(&system_file, module_path)?;
     let planned_start_unix_secs = source.as_ref().err().and_then(|plan| plan.start_unix_secs);
+    let plan = source.as_ref().err().cloned();
     let (net, compiled) = match source {
         Ok(net) => (net, None),
         Err(plan) => {
@@ -137,6 +140,7 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         states: analysis.states,
         compiled,
         planned_start_unix_secs,
+        plan,
     })
 }
 

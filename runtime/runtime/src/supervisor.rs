@@ -171,6 +171,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         || options.file.clone(),
         |mission| mission.system_file.clone(),
     );
+    // A plan's legs, for the summary printed when the run ends.
+    let plan_legs = mission
+        .as_ref()
+        .and_then(|mission| Some((mission.plan.clone()?, mission.compiled.clone()?)));
     let mut controller = mission.map(|mission| {
         let controllable = loaded
             .system
@@ -392,6 +396,21 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     };
     stop_all(&mut modules, &server);
     agent.stop();
+    if let (Some(controller), Some((plan, compiled))) = (&controller, &plan_legs) {
+        let legs = crate::summary::legs(
+            plan,
+            compiled,
+            controller.first_fired(),
+            controller.first_marked(),
+            start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9),
+        );
+        println!(
+            "plan `{}`, {}:\n{}",
+            plan.name,
+            controller.outcome().map_or("not finished", Outcome::as_str),
+            crate::summary::table(&legs)
+        );
+    }
     if let (Some(controller), Some(report)) = (&controller, &options.report) {
         match controller.write_report(report) {
             Ok(()) => tracing::info!(file = %report.display(), "mission report written"),
