@@ -23,9 +23,7 @@ use anyhow::{Context as _, anyhow, ensure};
 use armor_model::SystemConfig;
 use armor_model::geo::LatLon;
 use armor_model::plan::{self, Plan};
-use armor_model::planner::{
-    Costmap, CostmapSettings, LETHAL, Planner, Robot, heuristic, step_cost,
-};
+use armor_model::planner::{Costmap, CostmapSettings, Planner, Robot, heuristic};
 use armor_model::world::{Point, World};
 use armor_module_api::ModuleDescription;
 use armor_module_catalog::sim::rng::Rng;
@@ -193,29 +191,10 @@ fn round(value: f64) -> f64 {
 /// `pathfinding`'s A* over the costmap's cells, with our step costs and heuristic.
 fn reference_astar(map: &Costmap, from: usize, to: usize) -> Option<(Vec<usize>, u32)> {
     let width = map.width() as i64;
-    let costs = map.costs();
     let (goal_x, goal_y) = (to as i64 % width, to as i64 / width);
     pathfinding::directed::astar::astar(
         &from,
-        |&cell| {
-            let (x, y) = (cell as i64 % width, cell as i64 / width);
-            [
-                (1, 0),
-                (-1, 0),
-                (0, 1),
-                (0, -1),
-                (1, 1),
-                (-1, 1),
-                (1, -1),
-                (-1, -1),
-            ]
-            .into_iter()
-            .filter_map(move |(dx, dy): (i64, i64)| {
-                let next = ((y + dy) * width + x + dx) as usize;
-                let cost = costs[next];
-                (cost != LETHAL).then(|| (next, step_cost(cost, dx != 0 && dy != 0)))
-            })
-        },
+        |&cell| map.neighbours(cell),
         |&cell| {
             let (x, y) = (cell as i64 % width, cell as i64 / width);
             heuristic(

@@ -51,6 +51,26 @@ const STEPS: [(i64, i64); 8] = [
     (1, -1),
     (-1, -1),
 ];
+impl Costmap {
+    /// The cells a path can step to from the free cell `cell`, with what each step costs
+    /// ([`step_cost`]): the graph the planner searches, for other searches to run on the same
+    /// costs (the reference searches of the tests and the bench). The costmap's border is
+    /// lethal, so a free cell is never at its edge.
+    pub fn neighbours(&self, cell: usize) -> impl Iterator<Item = (usize, u32)> + '_ {
+        let width = self.width() as i64;
+        let (x, y) = (cell as i64 % width, cell as i64 / width);
+        let costs = self.costs();
+        STEPS
+            .iter()
+            .enumerate()
+            .filter_map(move |(index, (dx, dy))| {
+                let next = ((y + dy) * width + x + dx) as usize;
+                let cost = costs[next];
+                (cost != LETHAL).then(|| (next, step_cost(cost, index >= 4)))
+            })
+    }
+}
+
 /// How far round a start or goal whose own cell is lethal a free cell is looked for.
 const SNAP_CELLS: i64 = 3;
 /// Slack is bucketed by this many metres when the widest way is looked for.

@@ -498,29 +498,9 @@ fn a_star_costs_match_an_independent_dijkstra_seed_7() {
             if map.costs()[from] == LETHAL || map.costs()[to] == LETHAL {
                 continue;
             }
-            let width = map.width() as i64;
-            let costs = map.costs();
             let reference = pathfinding::directed::dijkstra::dijkstra(
                 &from,
-                |&cell| {
-                    let (x, y) = (cell as i64 % width, cell as i64 / width);
-                    [
-                        (1, 0),
-                        (-1, 0),
-                        (0, 1),
-                        (0, -1),
-                        (1, 1),
-                        (-1, 1),
-                        (1, -1),
-                        (-1, -1),
-                    ]
-                    .into_iter()
-                    .filter_map(move |(dx, dy): (i64, i64)| {
-                        let next = ((y + dy) * width + x + dx) as usize;
-                        let cost = costs[next];
-                        (cost != LETHAL).then(|| (next, step_cost(cost, dx != 0 && dy != 0)))
-                    })
-                },
+                |&cell| map.neighbours(cell),
                 |&cell| cell == to,
             )
             .map(|(_, cost)| cost);
