@@ -33,13 +33,12 @@ mod startup;
 mod studio;
 mod throughput;
 
-use std::io::Write as _;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
 use clap::Parser;
 
-use armor_bench_report::Report;
+use armor_bench_report::{Bench, run_benches};
 
 #[derive(Parser)]
 #[command(
@@ -71,17 +70,7 @@ struct Cli {
     raw_hop: Option<Vec<String>>,
 }
 
-/// What every benchmark gets.
-#[derive(Clone, Copy, Debug)]
-pub struct Settings {
-    pub quick: bool,
-}
-
-struct Bench {
-    name: &'static str,
-    about: &'static str,
-    run: fn(&Settings) -> anyhow::Result<Report>,
-}
+pub use armor_bench_report::Settings;
 
 const BENCHES: &[Bench] = &[
     Bench {
@@ -163,7 +152,7 @@ const BENCHES: &[Bench] = &[
     Bench {
         name: throughput::NAME_FANOUT,
         about: "what one more subscriber adds to each 64-byte message published (1 vs 4 sinks) \
-                vs one more raw buffered TCP send (ns/msg; goal ratio <= 1)",
+                vs what one more subscriber costs raw TCP, buffered (ns/msg; goal ratio <= 1)",
         run: throughput::run_fanout,
     },
     Bench {
@@ -312,52 +301,12 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             parse_number(&args[2], "--raw-hop ROUNDS")?,
         );
     }
-    if cli.list {
-        for bench in BENCHES {
-            println!("{:<26} {}", bench.name, bench.about);
-        }
-        return Ok(ExitCode::SUCCESS);
-    }
-    let selected: Vec<&Bench> = if cli.names.is_empty() {
-        BENCHES.iter().collect()
-    } else {
-        let mut selected = Vec::new();
-        for name in &cli.names {
-            match BENCHES.iter().find(|bench| bench.name == name.as_str()) {
-                Some(bench) => selected.push(bench),
-                None => {
-                    let known: Vec<&str> = BENCHES.iter().map(|bench| bench.name).collect();
-                    eprintln!(
-                        "error: unknown benchmark `{name}` (known: {})",
-                        known.join(", ")
-                    );
-                    return Ok(ExitCode::from(2));
-                }
-            }
-        }
-        selected
-    };
-    let settings = Settings { quick: cli.quick };
-    let mut stdout = std::io::stdout().lock();
-    let mut failed = 0;
-    for bench in selected {
-        // A failing benchmark does not hide the others; the exit status still tells.
-        match (bench.run)(&settings) {
-            Ok(report) => {
-                writeln!(stdout, "{}", serde_json::to_string(&report)?)?;
-                stdout.flush()?;
-            }
-            Err(err) => {
-                eprintln!("error: benchmark {}: {err:#}", bench.name);
-                failed += 1;
-            }
-        }
-    }
-    if failed > 0 {
-        eprintln!("error: {failed} benchmark(s) failed");
-        return Ok(ExitCode::FAILURE);
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(run_benches(
+        BENCHES,
+        &cli.names,
+        Settings { quick: cli.quick },
+        cli.list,
+    ))
 }
 
 fn parse_number<T: std::str::FromStr>(text: &str, what: &str) -> anyhow::Result<T>

@@ -1,5 +1,8 @@
-//! One benchmark's result line, and the statistics behind it.
+//! One benchmark's result line, the statistics behind it, and the loop both benchmark programs
+//! run their benchmarks with ([`run_benches`]).
 
+use std::io::Write as _;
+use std::process::ExitCode;
 use std::time::Duration;
 
 use serde::Serialize;
@@ -159,4 +162,72 @@ mod tests {
             r#"{"bench":"z","ours":60.0,"reference":50.0,"unit":"x","ratio":1.2,"goal":50.0}"#
         );
     }
+}
+
+/// What every benchmark gets.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    /// Fewer rounds and smaller sizes: a check that the benchmark runs, not a figure.
+    pub quick: bool,
+}
+
+/// A benchmark of a program's list.
+pub struct Bench {
+    pub name: &'static str,
+    pub about: &'static str,
+    pub run: fn(&Settings) -> anyhow::Result<Report>,
+}
+
+/// Lists `benches` (with `list`), or runs those `names` asks for (all when empty) and prints a
+/// JSON line for each. A failing benchmark does not hide the others; the exit status tells (2
+/// for an unknown name, 1 when any failed).
+pub fn run_benches(
+    benches: &[Bench],
+    names: &[String],
+    settings: Settings,
+    list: bool,
+) -> ExitCode {
+    if list {
+        for bench in benches {
+            println!("{:<26} {}", bench.name, bench.about);
+        }
+        return ExitCode::SUCCESS;
+    }
+    let mut selected = Vec::new();
+    if names.is_empty() {
+        selected.extend(benches.iter());
+    }
+    for name in names {
+        match benches.iter().find(|bench| bench.name == name.as_str()) {
+            Some(bench) => selected.push(bench),
+            None => {
+                let known: Vec<&str> = benches.iter().map(|bench| bench.name).collect();
+                eprintln!(
+                    "error: unknown benchmark `{name}` (known: {})",
+                    known.join(", ")
+                );
+                return ExitCode::from(2);
+            }
+        }
+    }
+    let mut stdout = std::io::stdout().lock();
+    let mut failed = 0;
+    for bench in selected {
+        match (bench.run)(&settings) {
+            Ok(report) => {
+                let line = serde_json::to_string(&report).unwrap_or_default();
+                let _ = writeln!(stdout, "{line}");
+                let _ = stdout.flush();
+            }
+            Err(err) => {
+                eprintln!("error: benchmark {}: {err:#}", bench.name);
+                failed += 1;
+            }
+        }
+    }
+    if failed > 0 {
+        eprintln!("error: {failed} benchmark(s) failed");
+        return ExitCode::FAILURE;
+    }
+    ExitCode::SUCCESS
 }
