@@ -464,6 +464,10 @@ impl<'a> Reader<'a> {
         {
             for place in marking.children_named("place") {
                 let Some(idref) = place.attr("idref") else {
+                    self.problems.push(Located::new(
+                        place.pos,
+                        "final marking: <place> needs the attribute `idref`",
+                    ));
                     continue;
                 };
                 let marked = place
@@ -1162,6 +1166,59 @@ mod tests {
                 "7:47: ArMoR data of version `2` is not supported (this ArMoR reads version 1)",
                 "7:60: <toolspecific> needs the attribute `tool`",
             ],
+        );
+    }
+
+    #[test]
+    fn core_model_nets_of_other_tools_are_read_with_names_from_their_labels() {
+        let core = |body: &str| {
+            format!(
+                "<pnml><net id=\"order flow\" type=\"{CORE_MODEL_TYPE}\"><page id=\"n0\">\n{body}\n</page>\n\
+                 <finalmarkings><marking><place idref=\"p-end\"><text>1</text></place></marking></finalmarkings>\n\
+                 </net></pnml>"
+            )
+        };
+        let text = core(
+            "<place id=\"p-start\"><name><text>start</text></name><initialMarking><text>2</text></initialMarking></place>\n\
+             <place id=\"p-end\"><name><text>end</text></name></place>\n\
+             <transition id=\"3f2a\"><name><text>check order</text></name></transition>\n\
+             <transition id=\"9bc0\"><name><text>check order</text></name>\
+             <toolspecific tool=\"ProM\" version=\"6.4\" activity=\"$invisible$\"/></transition>\n\
+             <arc id=\"a1\" source=\"p-start\" target=\"3f2a\"/>\n\
+             <arc id=\"a2\" source=\"3f2a\" target=\"p-end\"><inscription><text>2</text></inscription></arc>\n\
+             <arc id=\"a3\" source=\"p-start\" target=\"9bc0\"/>",
+        );
+        let (net, warnings) = read_pnml(&text).expect("read");
+        assert_eq!(net.name, "order_flow");
+        let names: Vec<&str> = net.transitions.iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(names, ["check_order", "check_order-2"]);
+        assert_eq!(net.places[0].tokens, 2);
+        assert!(net.places[1].is_final && !net.places[0].is_final);
+        assert_eq!(net.transitions[0].outputs[0].weight, 2);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0]
+                .message
+                .contains("read as a place/transition net")
+        );
+        // The same net as our own type refuses the ids it cannot use as names.
+        let strict = text.replace(CORE_MODEL_TYPE, PTNET_TYPE);
+        assert!(from_pnml(&strict).is_err());
+        // A final marking naming nothing, or no place, is a problem.
+        let broken = text
+            .replace("<place idref=\"p-end\">", "<place idref=\"nowhere\">")
+            .replace("</marking>", "<place><text>1</text></place></marking>");
+        let problems: Vec<String> = read_pnml(&broken)
+            .expect_err("refused")
+            .iter()
+            .map(|problem| problem.message.clone())
+            .collect();
+        assert_eq!(
+            problems,
+            [
+                "final marking: no place `nowhere`",
+                "final marking: <place> needs the attribute `idref`"
+            ]
         );
     }
 }
