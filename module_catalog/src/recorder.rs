@@ -14,7 +14,9 @@
 //! the last second, and leaves a truncated but recoverable MCAP under that name), and renamed
 //! into place when recording stops: when the module is stopped, shuts down, or gets SIGTERM or
 //! SIGINT (see [`body_until`]). Recording resumes on the next start in a new file: `NAME-2.EXT`,
-//! then `NAME-3.EXT`, ...
+//! then `NAME-3.EXT`, ... A file that exists already is never written over: the next free name
+//! is taken, with a warning. A relative `file` is written into the run's folder
+//! (`armor_module_api::output_path`).
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -59,7 +61,7 @@ pub fn spec() -> ModuleSpec {
     .param(ParamSpec::new(
         "file",
         ParamType::String,
-        "the file to write: written as FILE.partial and renamed into place when recording stops; after a stop, the next start records into NAME-2.EXT, NAME-3.EXT, ... (tunable live: a new file is used from the next start, as a mission sets it per place)",
+        "the file to write (a relative name goes into the run's folder): written as FILE.partial and renamed into place when recording stops; after a stop, the next start records into NAME-2.EXT, NAME-3.EXT, ...; an existing file is never written over, the next free name is taken (tunable live: a new file is used from the next start, as a mission sets it per place)",
     ))
     .param(
         ParamSpec::new(
@@ -109,9 +111,8 @@ pub fn body_until(node: &mut Node, terminate: &AtomicBool) -> BodyResult {
     let mut segments = 0;
     let mut recording = None;
     if node.is_active() {
-        segments += 1;
         recording = Some(Recording::create(
-            &segment_path(&settings.file, segments),
+            &next_segment(&settings.file, &mut segments),
             settings.compression,
         )?);
     }
@@ -139,10 +140,9 @@ pub fn body_until(node: &mut Node, terminate: &AtomicBool) -> BodyResult {
                 }
             }
             Event::Start if recording.is_none() => {
-                segments += 1;
                 reported = 0;
                 recording = Some(Recording::create(
-                    &segment_path(&settings.file, segments),
+                    &next_segment(&settings.file, &mut segments),
                     settings.compression,
                 )?);
             }
@@ -233,7 +233,7 @@ impl Settings {
                 .ok_or_else(|| format!("parameter `{name}` is required").into())
         };
         let record = parse_record(&required("record")?)?;
-        let file = PathBuf::from(required("file")?.trim());
+        let file = armor_module_api::output_path(Path::new(required("file")?.trim()));
         let format: String = node.param("format")?;
         if format.trim() != "mcap" {
             return Err(format!("parameter `format` must be `mcap`, not `{format}`").into());
@@ -301,6 +301,20 @@ pub fn segment_path(file: &Path, segment: u32) -> PathBuf {
         None => format!("{stem}-{segment}"),
     };
     file.with_file_name(name)
+}
+
+/// The file of the next recording after the `segments`th: the first free one of `file`,
+/// `NAME-2.EXT`, …, so that a file left by an earlier run (or a crashed one's partial file) is
+/// never written over.
+fn next_segment(file: &Path, segments: &mut u32) -> PathBuf {
+    loop {
+        *segments += 1;
+        let path = segment_path(file, *segments);
+        if !path.exists() && !partial_path(&path).exists() {
+            return path;
+        }
+        tracing::warn!("{} exists: not writing over it", path.display());
+    }
 }
 
 /// The name a recording has until it is complete.
@@ -984,6 +998,20 @@ mod tests {
         assert_eq!(recorded_payloads(&first), [vec![1]]);
         // The new file's first segment, not `leg-2.mcap`.
         assert_eq!(recorded_payloads(&second), [vec![3]]);
+    }
+
+    #[test]
+    fn a_file_left_by_an_earlier_run_is_never_written_over() {
+        let dir = tempfile::tempdir().expect("dir");
+        let file = dir.path().join("run.mcap");
+        std::fs::write(&file, b"an earlier run").expect("write");
+        std::fs::write(partial_path(&dir.path().join("run-2.mcap")), b"a crash").expect("write");
+        let mut bench = bench(&file, &[]);
+        bench.script([push(1), Step::Active(false), Step::Active(true), push(2)]);
+        body(bench.node()).expect("body");
+        assert_eq!(std::fs::read(&file).expect("read"), b"an earlier run");
+        assert_eq!(recorded_payloads(&dir.path().join("run-3.mcap")), [vec![1]]);
+        assert_eq!(recorded_payloads(&dir.path().join("run-4.mcap")), [vec![2]]);
     }
 
     #[test]

@@ -53,6 +53,11 @@ struct Output {
     closed_pipes: usize,
 }
 
+/// Where the runs of the tests make their folders: `target/tmp/test-runs`.
+pub fn test_runs_dir() -> PathBuf {
+    workspace_root().join("target/tmp/test-runs")
+}
+
 /// A running process whose stdout and stderr lines are collected. Killed (SIGKILL) on drop.
 pub struct Proc {
     name: String,
@@ -63,6 +68,14 @@ pub struct Proc {
 impl Proc {
     pub fn start(command: &mut Command) -> Proc {
         let name = command.get_program().to_string_lossy().into_owned();
+        // Runs make their folders under the build's own temporary folder, not in the
+        // workspace, unless the test names another.
+        if !command
+            .get_envs()
+            .any(|(key, _)| key == armor_runtime::run_dir::ENV_RUNS_DIR)
+        {
+            command.env(armor_runtime::run_dir::ENV_RUNS_DIR, test_runs_dir());
+        }
         let mut child = command
             .stdin(Stdio::null())
             .stdout(Stdio::piped())

@@ -29,8 +29,8 @@ pub mod xml;
 pub use clock::Clock;
 pub use describe::{Category, ModuleDescription, ParamSpec, ParamType};
 pub use module::{
-    BodyResult, DEFAULT_AGENT, ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR, ModuleSpec, Standalone,
-    init_logging, run,
+    BodyResult, DEFAULT_AGENT, ENV_AGENT, ENV_MODULE, ENV_RUN_DIR, ENV_SUPERVISOR, ModuleSpec,
+    Standalone, init_logging, output_path, run,
 };
 pub use node::{
     ApiError, Event, Input, Node, Output, PortId, RawInput, RawOutput, RawSample, Sample,

@@ -18,10 +18,22 @@ use crate::wire::blocking;
 pub const ENV_MODULE: &str = "ARMOR_MODULE";
 pub const ENV_AGENT: &str = "ARMOR_AGENT";
 pub const ENV_SUPERVISOR: &str = "ARMOR_SUPERVISOR";
+/// The folder of the run a module is part of (`armor run` makes one per run): where the files
+/// it writes under relative names go (see [`output_path`]).
+pub const ENV_RUN_DIR: &str = "ARMOR_RUN_DIR";
 /// Where a module looks for the agent when nothing says otherwise.
 pub const DEFAULT_AGENT: &str = "127.0.0.1:7400";
 /// How long a module started under a supervisor tries to reach it before giving up.
 const SUPERVISOR_PATIENCE: Duration = Duration::from_secs(10);
+
+/// Where a module writes a file its parameters name: a relative `file` goes into the run's
+/// folder when it has one (`ARMOR_RUN_DIR`), else it is taken from the current folder.
+pub fn output_path(file: &std::path::Path) -> std::path::PathBuf {
+    match std::env::var_os(ENV_RUN_DIR) {
+        Some(dir) if file.is_relative() && !dir.is_empty() => std::path::Path::new(&dir).join(file),
+        _ => file.to_path_buf(),
+    }
+}
 
 /// What a module declares about itself: its ports, parameters and events.
 #[derive(Clone, Debug)]

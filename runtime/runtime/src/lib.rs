@@ -6,6 +6,7 @@
 
 pub mod agent;
 pub mod config_server;
+pub mod console;
 pub mod control;
 pub mod controller;
 pub mod fs;
@@ -15,8 +16,10 @@ mod mcap_read;
 pub mod mission;
 pub mod probe;
 pub mod process;
+pub mod progress;
 pub mod replay;
 pub mod restart;
+pub mod run_dir;
 pub mod summary;
 pub mod supervisor;
 

@@ -96,6 +96,14 @@ enum Command {
         /// node is called `studio`. Repeat for several.
         #[arg(long = "observer", value_name = "NAME")]
         observers: Vec<String>,
+        /// Where the run makes its own folder, `NAME-DATE` (its log, the mission's report, the
+        /// plan's table of legs, and the files modules write under relative names, such as a
+        /// recording).
+        #[arg(long, value_name = "DIR", env = armor_runtime::run_dir::ENV_RUNS_DIR, default_value = "runs")]
+        runs_dir: PathBuf,
+        /// Make no run folder: modules write relative files into the current folder.
+        #[arg(long)]
+        no_run_folder: bool,
     },
     /// Compile a plan (waypoints, legs, actions, time constraints) into a mission net.
     Compile {
@@ -197,7 +205,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    armor_module_api::init_logging();
+    armor_runtime::console::init_logging();
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(err) => {
@@ -221,6 +229,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             secret,
             encrypt,
             observers,
+            runs_dir,
+            no_run_folder,
         } => {
             let lease = match lease_secs {
                 0.0 => None,
@@ -257,6 +267,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 secret_file: secret.filter(|file| !file.as_os_str().is_empty()),
                 encrypt,
                 observers,
+                runs_dir: (!no_run_folder).then_some(runs_dir),
             })
         }
         Command::Check { file } => Ok(check(&file)),

@@ -1,11 +1,14 @@
-//! The table `armor run PLAN` prints when the run ends: each leg of the plan, when it started
-//! and arrived (run time), the length of its planned path, and how it stood against its
-//! deadline.
+//! The table `armor run PLAN` prints when the run ends: each leg of the plan, the length of its
+//! planned path and how far the robot drove it, its appointment, when it set off and arrived
+//! (run time), its deadline and how it stood against it, and the events modules reported on
+//! the way.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use armor_model::geo;
-use armor_model::plan::{Compiled, Plan};
+
+use crate::progress::{LegExtras, LegPlan};
 
 /// What a leg did, from the controller's first firings and markings (run seconds).
 #[derive(Debug, PartialEq)]
@@ -14,63 +17,111 @@ pub struct LegRun {
     pub from: String,
     pub to: String,
     pub length_m: f64,
+    /// How far the robot drove while on it (odometry), when known.
+    pub driven_m: Option<f64>,
+    /// Its appointment: not to set off before.
+    pub not_before_secs: Option<f64>,
     /// When the robot set off on it (its drive place was first marked).
     pub started_secs: Option<f64>,
     /// When it arrived (its arrival transition first fired).
     pub arrived_secs: Option<f64>,
     /// Its `arrive_by`, in run seconds from the run's start date.
     pub deadline_secs: Option<f64>,
+    /// The events modules reported while it was under way.
+    pub events: Vec<String>,
 }
 
-/// Each leg of `plan` as the run went, `start_unix_secs` being the date the run started at.
+/// Each leg as the run went.
 pub fn legs(
-    plan: &Plan,
-    compiled: &Compiled,
-    first_fired: &std::collections::BTreeMap<String, f64>,
-    first_marked: &std::collections::BTreeMap<String, f64>,
-    start_unix_secs: f64,
+    plans: &[LegPlan],
+    first_fired: &BTreeMap<String, f64>,
+    first_marked: &BTreeMap<String, f64>,
+    extras: &[LegExtras],
 ) -> Vec<LegRun> {
-    plan.legs
+    plans
         .iter()
         .enumerate()
         .map(|(index, leg)| {
             let arrived = format!("{}_arrived", leg.name);
+            let extras = extras.get(index).cloned().unwrap_or_default();
             LegRun {
                 name: leg.name.clone(),
                 from: leg.from.clone(),
                 to: leg.to.clone(),
-                length_m: compiled
-                    .routes
-                    .get(index)
-                    .map_or(0.0, |route| geo::path_length(route)),
+                length_m: geo::path_length(&leg.route),
+                driven_m: extras.driven_m,
+                not_before_secs: leg.not_before_secs,
                 started_secs: first_marked.get(&format!("{}_drive", leg.name)).copied(),
                 arrived_secs: first_fired
                     .iter()
                     .filter(|(name, _)| name.starts_with(&arrived))
                     .map(|(_, at)| *at)
                     .reduce(f64::min),
-                deadline_secs: leg.arrive_by_unix_secs.map(|at| at - start_unix_secs),
+                deadline_secs: leg.deadline_secs,
+                events: extras.events,
             }
         })
         .collect()
 }
 
+/// Events in order, a run of the same one counted (`follower.replanned ×2`).
+fn events_text(events: &[String]) -> String {
+    let mut runs: Vec<(&str, usize)> = Vec::new();
+    for event in events {
+        match runs.last_mut() {
+            Some((last, count)) if last == event => *count += 1,
+            _ => runs.push((event, 1)),
+        }
+    }
+    let text: Vec<String> = runs
+        .into_iter()
+        .map(|(event, count)| match count {
+            1 => event.to_owned(),
+            n => format!("{event} ×{n}"),
+        })
+        .collect();
+    if text.is_empty() {
+        "-".to_owned()
+    } else {
+        text.join(", ")
+    }
+}
+
 /// The legs as a table, one line each.
 pub fn table(legs: &[LegRun]) -> String {
     let mut out = String::new();
-    let width = legs
+    let name_width = legs
         .iter()
         .map(|leg| leg.name.len())
         .max()
         .unwrap_or(3)
         .max(3);
+    let ways: Vec<String> = legs
+        .iter()
+        .map(|leg| format!("{} → {}", leg.from, leg.to))
+        .collect();
+    let way_width = ways
+        .iter()
+        .map(|way| way.chars().count())
+        .max()
+        .unwrap_or(3)
+        .max(3);
     let _ = writeln!(
         out,
-        "{:width$}  {:>8}  {:>9}  {:>9}  against its deadline",
-        "leg", "length", "set off", "arrived"
+        "{:name_width$}  {:way_width$}  {:>8}  {:>8}  {:>10}  {:>8}  {:>8}  {:>8}  {:12}  events",
+        "leg",
+        "way",
+        "planned",
+        "driven",
+        "not before",
+        "set off",
+        "arrived",
+        "deadline",
+        "against it"
     );
     let secs = |at: Option<f64>| at.map_or("-".to_owned(), |at| format!("{at:.1} s"));
-    for leg in legs {
+    let metres = |m: Option<f64>| m.map_or("-".to_owned(), |m| format!("{m:.1} m"));
+    for (leg, way) in legs.iter().zip(&ways) {
         let against = match (leg.arrived_secs, leg.deadline_secs) {
             (Some(arrived), Some(deadline)) if arrived <= deadline => {
                 format!("{:.1} s early", deadline - arrived)
@@ -79,15 +130,18 @@ pub fn table(legs: &[LegRun]) -> String {
             (None, Some(_)) => "not reached".to_owned(),
             (_, None) => "no deadline".to_owned(),
         };
+        // `{:width$}` counts chars, and the arrow is one.
         let _ = writeln!(
             out,
-            "{:width$}  {:>6.1} m  {:>9}  {:>9}  {against}   ({} → {})",
+            "{:name_width$}  {way:way_width$}  {:>8}  {:>8}  {:>10}  {:>8}  {:>8}  {:>8}  {against:12}  {}",
             leg.name,
-            leg.length_m,
+            metres(Some(leg.length_m)),
+            metres(leg.driven_m),
+            secs(leg.not_before_secs),
             secs(leg.started_secs),
             secs(leg.arrived_secs),
-            leg.from,
-            leg.to
+            secs(leg.deadline_secs),
+            events_text(&leg.events),
         );
     }
     out
@@ -104,14 +158,26 @@ mod tests {
             from: "a".to_owned(),
             to: "b".to_owned(),
             length_m: 12.34,
+            driven_m: Some(13.06),
+            not_before_secs: None,
             started_secs: Some(1.0),
             arrived_secs: arrived,
             deadline_secs: deadline,
+            events: vec![
+                "follower.replanned".to_owned(),
+                "follower.replanned".to_owned(),
+                "follower.arrived".to_owned(),
+            ],
         };
+        let mut waited = leg("cross", Some(70.0), Some(65.5));
+        waited.not_before_secs = Some(60.0);
+        let mut unknown = leg("climb", None, Some(100.0));
+        unknown.driven_m = None;
+        unknown.events.clear();
         let table = table(&[
             leg("advance", Some(20.6), Some(60.0)),
-            leg("cross", Some(70.0), Some(65.5)),
-            leg("climb", None, Some(100.0)),
+            waited,
+            unknown,
             leg("regroup", Some(90.0), None),
         ]);
         let lines: Vec<&str> = table.lines().collect();
@@ -121,14 +187,33 @@ mod tests {
             "{table}"
         );
         assert!(
-            lines[1].contains("12.3 m") && lines[1].contains("20.6 s"),
+            lines[1].contains("12.3 m")
+                && lines[1].contains("13.1 m")
+                && lines[1].contains("20.6 s"),
             "{table}"
         );
-        assert!(lines[2].contains("4.5 s late"), "{table}");
         assert!(
-            lines[3].contains("not reached") && lines[3].contains("  -  "),
+            lines[1].ends_with("follower.replanned ×2, follower.arrived"),
+            "{table}"
+        );
+        assert!(
+            lines[2].contains("4.5 s late") && lines[2].contains("60.0 s"),
+            "{table}"
+        );
+        assert!(
+            lines[3].contains("not reached")
+                && lines[3].contains("  -  ")
+                && lines[3].ends_with(" -"),
             "{table}"
         );
         assert!(lines[4].contains("no deadline"), "{table}");
+        // Columns line up under their headings.
+        let column = lines[0].find("against it").expect("heading");
+        assert!(
+            lines[1..]
+                .iter()
+                .all(|line| line.chars().nth(column).is_some()),
+            "{table}"
+        );
     }
 }

@@ -4,7 +4,7 @@
 //! supervisor, which stops them in order) and die with it if it is killed (`PR_SET_PDEATHSIG`).
 
 use std::collections::BTreeMap;
-use std::io::{BufRead as _, BufReader, Read, Write as _};
+use std::io::{BufRead as _, BufReader, Read};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, ExitStatus, Stdio};
@@ -18,16 +18,16 @@ use armor_model::RestartPolicy;
 use armor_module_api::auth::{ENV_ENCRYPT, ENV_KEY, ENV_SECRET_FILE, Secret};
 use armor_module_api::clock::{ENV_EPOCH, ENV_TIME_SCALE, unix_now_ns};
 use armor_module_api::protocol::FromSupervisor;
-use armor_module_api::{Clock, ENV_AGENT, ENV_MODULE, ENV_SUPERVISOR};
+use armor_module_api::{Clock, ENV_AGENT, ENV_MODULE, ENV_RUN_DIR, ENV_SUPERVISOR};
 
 use crate::agent::{Acl, ENV_ACL};
 use crate::config_server::{ConfigServer, ServerEvent};
-use crate::control;
 use crate::controller::{Controller, Outcome};
 use crate::load::{Diagnostics, Loaded, load_system};
 use crate::mission::{DocumentKind, LoadedMission, document_kind, load_mission};
-use crate::probe;
+use crate::progress::{self, Progress};
 use crate::restart::{AfterCrash, Backoff, CRASH_WINDOW, FIRST_BACKOFF, MAX_BACKOFF};
+use crate::{console, control, probe, run_dir};
 
 const TICK: Duration = Duration::from_millis(20);
 /// After asking modules to shut down, how long before SIGTERM, and then before SIGKILL.
@@ -63,6 +63,9 @@ pub struct RunOptions {
     pub encrypt: bool,
     /// Names outside the system that the access lists let subscribe to everything.
     pub observers: Vec<String>,
+    /// The folder under which the run makes its own (`run_dir`): its log, report, summary and
+    /// the files its modules write under relative names. `None`: no folder.
+    pub runs_dir: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -99,6 +102,8 @@ struct RunEnv {
     module_path: Vec<PathBuf>,
     secret: Option<Secret>,
     encrypt: bool,
+    /// The run's folder, given to every module (`ARMOR_RUN_DIR`).
+    run_dir: Option<PathBuf>,
 }
 
 /// A file to run: a system, or a mission over a system.
@@ -141,6 +146,23 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             return Ok(ExitCode::FAILURE);
         }
     };
+    let epoch_ns = unix_now_ns();
+    let run_folder = match &options.runs_dir {
+        None => None,
+        Some(parent) => {
+            let name = mission
+                .as_ref()
+                .map_or(&loaded.system.name, |mission| &mission.net.name);
+            let dir = run_dir::create(parent, name, epoch_ns as f64 / 1e9).with_context(|| {
+                format!("cannot make the run's folder under {}", parent.display())
+            })?;
+            let log = std::fs::File::create(dir.join(run_dir::LOG))
+                .with_context(|| format!("cannot write {}", dir.join(run_dir::LOG).display()))?;
+            console::log_to(log);
+            tracing::info!("this run's folder: {}", dir.display());
+            Some(dir)
+        }
+    };
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, Arc::clone(&stop))
@@ -153,7 +175,6 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             .or_else(|_| format!("[{host}]:{port}").parse())
             .with_context(|| format!("bad host `{host}`"))
     };
-    let epoch_ns = unix_now_ns();
     let clock = Clock::new(epoch_ns, options.time_scale);
     // A plan made for a day that has passed is rehearsed on that day, not run late.
     let start_at_unix_secs = options.start_at_unix_secs.or_else(|| {
@@ -198,7 +219,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             controllable,
             clock,
             start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9),
-            options.report.is_some(),
+            options.report.is_some() || run_folder.is_some(),
         )
     });
     for name in &options.observers {
@@ -206,10 +227,16 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             tracing::warn!("--observer `{name}` is a module of the system: it keeps its own lists");
         }
     }
+    // The run's own node, which follows the robot for the progress line, watches like any
+    // observer.
+    let mut observers = options.observers.clone();
+    if plan_legs.is_some() {
+        observers.push(progress::NODE_NAME.to_owned());
+    }
     let mut agent = AgentProc::start(
         options.agent_addr.map_or_else(|| local(0), Ok)?,
         secret_file.clone(),
-        Acl::of(&loaded.system, &options.observers),
+        Acl::of(&loaded.system, &observers),
     )?;
     let control = controller
         .as_ref()
@@ -234,7 +261,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     )
     .context("cannot start the control interface")?;
     tracing::info!(addr = %control_addr, "control interface listening (armor ctl --addr {control_addr} status|start|stop|pause|resume|abort|fire NAME)");
-    println!("{}{control_addr}", crate::CONTROL_READY_PREFIX);
+    console::out_line(&format!("{}{control_addr}", crate::CONTROL_READY_PREFIX));
     let env = RunEnv {
         agent_addr: agent.addr,
         supervisor_addr: server.addr(),
@@ -243,7 +270,24 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         module_path: options.module_path.clone(),
         secret: secret.clone(),
         encrypt: options.encrypt,
+        run_dir: run_folder.clone(),
     };
+    let start_unix_secs = start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9);
+    let mut progress = plan_legs.as_ref().map(|(plan, compiled)| {
+        let odometry = loaded
+            .system
+            .bindings(&plan.navigation.module, None)
+            .and_then(|bindings| bindings.inputs.get("odometry").cloned());
+        Progress::start(
+            progress::leg_plans(plan, compiled, start_unix_secs),
+            plan.navigation.speed_mps,
+            odometry.map(|odometry| progress::Watch {
+                agent: env.agent_addr,
+                secret_file: secret_file.clone(),
+                odometry,
+            }),
+        )
+    });
     let started = Instant::now();
     tracing::info!(
         system = loaded.system.name,
@@ -275,6 +319,13 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         }
         if let Some(controller) = &mut controller {
             controller.step(&server);
+            if let Some(progress) = &mut progress {
+                progress.tick(
+                    clock.now_secs(),
+                    controller.first_marked(),
+                    controller.first_fired(),
+                );
+            }
             match controller.outcome() {
                 None => {}
                 Some(Outcome::Complete) => break ExitCode::SUCCESS,
@@ -342,6 +393,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             }
             Ok(ServerEvent::Event { module, name }) => {
                 tracing::info!("event {module}.{name}");
+                if let Some(progress) = &mut progress {
+                    progress.on_event(&format!("{module}.{name}"));
+                }
                 if let Some(controller) = &mut controller {
                     controller.on_event(&format!("{module}.{name}"), &server);
                 }
@@ -360,7 +414,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 }
             }
             Ok(ServerEvent::Reloaded(loaded)) => {
-                agent.set_acl(Acl::of(&loaded.system, &options.observers));
+                agent.set_acl(Acl::of(&loaded.system, &observers));
                 apply_reload(&mut modules, &loaded, &env, &server);
             }
             Err(RecvTimeoutError::Timeout) => {}
@@ -394,28 +448,50 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             break ExitCode::FAILURE;
         }
     };
+    let extras = progress.map(Progress::finish);
     stop_all(&mut modules, &server);
     agent.stop();
     if let (Some(controller), Some((plan, compiled))) = (&controller, &plan_legs) {
         let legs = crate::summary::legs(
-            plan,
-            compiled,
+            &progress::leg_plans(plan, compiled, start_unix_secs),
             controller.first_fired(),
             controller.first_marked(),
-            start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9),
+            extras.as_deref().unwrap_or_default(),
         );
-        println!(
+        let summary = format!(
             "plan `{}`, {}:\n{}",
             plan.name,
             controller.outcome().map_or("not finished", Outcome::as_str),
             crate::summary::table(&legs)
         );
-    }
-    if let (Some(controller), Some(report)) = (&controller, &options.report) {
-        match controller.write_report(report) {
-            Ok(()) => tracing::info!(file = %report.display(), "mission report written"),
-            Err(err) => tracing::error!("cannot write the report {}: {err}", report.display()),
+        console::out_line(summary.trim_end());
+        if let Some(dir) = &run_folder {
+            let file = dir.join(run_dir::SUMMARY);
+            if let Err(err) = std::fs::write(&file, &summary) {
+                tracing::error!("cannot write {}: {err}", file.display());
+            }
         }
+    }
+    if let Some(controller) = &controller {
+        let reports = options
+            .report
+            .iter()
+            .cloned()
+            .chain(run_folder.as_ref().map(|dir| dir.join(run_dir::REPORT)));
+        for report in reports {
+            match controller.write_report(&report) {
+                Ok(()) => tracing::info!(file = %report.display(), "mission report written"),
+                Err(err) => tracing::error!("cannot write the report {}: {err}", report.display()),
+            }
+        }
+    }
+    if let Some(dir) = &run_folder {
+        tracing::info!(
+            "this run's folder: {} ({})",
+            dir.display(),
+            run_dir::listing(dir).join(", ")
+        );
+        console::close_log();
     }
     Ok(outcome)
 }
@@ -607,6 +683,7 @@ impl ModuleProc {
             .env(ENV_SUPERVISOR, env.supervisor_addr.to_string())
             .env(ENV_EPOCH, env.epoch_ns.to_string())
             .env(ENV_TIME_SCALE, env.time_scale.to_string())
+            .env_remove(ENV_RUN_DIR)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
@@ -618,6 +695,9 @@ impl ModuleProc {
         };
         if env.secret.is_some() && env.encrypt {
             command.env(ENV_ENCRYPT, "1");
+        }
+        if let Some(dir) = &env.run_dir {
+            command.env(ENV_RUN_DIR, dir);
         }
         crate::process::die_with_parent(&mut command);
         match command.spawn() {
@@ -742,9 +822,7 @@ fn stream_lines(name: &str, pipe: Option<impl Read + Send + 'static>) {
                 Ok(0) | Err(_) => return,
                 Ok(_) => {
                     let text = String::from_utf8_lossy(&line);
-                    let mut stdout = std::io::stdout().lock();
-                    let _ = writeln!(stdout, "{prefix}{}", text.trim_end());
-                    let _ = stdout.flush();
+                    console::out_line(&format!("{prefix}{}", text.trim_end()));
                 }
             }
         }
