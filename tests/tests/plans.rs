@@ -601,7 +601,7 @@ fn the_yard_plan_waits_for_its_appointment_and_goes_round_the_minefield() {
     assert!(
         advance.starts_with("advance")
             && advance.contains("s early")
-            && advance.contains("(home → gate)"),
+            && advance.contains("home → gate"),
         "{advance}"
     );
     let arrived = run.run.fired_at("advance_arrived").unwrap();
