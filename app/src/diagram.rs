@@ -638,6 +638,7 @@ fn new_instance(name: &str, module_type: &str) -> ModuleInstance {
             module_type: module_type.to_owned(),
             host: None,
             restart: Default::default(),
+            activation: Default::default(),
             params: Vec::new(),
             may_publish: None,
             may_subscribe: None,

@@ -19,6 +19,8 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use armor_model::ModuleInstance;
+use armor_model::system::{Reason, demand};
 use armor_module_api::auth::{Admit, Listen, Secret};
 use armor_module_api::protocol::{FromSupervisor, ModuleConfig, NodeStats, ToSupervisor};
 use armor_module_api::wire::blocking::{SecureStream, SecureWriter};
@@ -76,8 +78,13 @@ struct ModuleConn {
 /// What the mission controller wants of the modules right now.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Control {
-    /// Controllable modules that must idle (without a mission: none).
-    pub inactive: BTreeSet<String>,
+    /// The modules the mission wants for themselves, each with why (`place cross_drive`);
+    /// `None` without a mission: every module. The modules they need follow
+    /// ([`armor_model::system::demand`]).
+    pub wanted: Option<BTreeMap<String, String>>,
+    /// Modules that idle whatever needs them: those of a place entered again, for a moment,
+    /// so that they start afresh.
+    pub held: BTreeSet<String>,
     /// Parameter values of the marked places, over the system file's: module → name → value.
     pub overlays: BTreeMap<String, BTreeMap<String, String>>,
 }
@@ -93,6 +100,9 @@ struct State {
     overrides: BTreeMap<String, bool>,
     /// What each module last said of its work (with its answers to pings).
     stats: HashMap<String, NodeStats>,
+    /// The modules that run and why: the controller's wishes and the operator's hand, closed
+    /// over what they need (updated by [`State::push_changes`]).
+    demand: BTreeMap<String, Reason>,
 }
 
 impl State {
@@ -103,23 +113,43 @@ impl State {
         if let Some(overlay) = self.control.overlays.get(module) {
             config.params.extend(overlay.clone());
         }
-        let controllable = self
-            .loaded
-            .descriptions
-            .get(&instance.module_type)
-            .is_none_or(|description| description.controllable);
-        config.active = !controllable
-            || self
-                .overrides
-                .get(module)
-                .copied()
-                .unwrap_or(!self.control.inactive.contains(module));
+        config.active = self.demand.contains_key(module);
         Some(config)
+    }
+
+    /// Which modules run and why, from the controller's wishes and the operator's hand.
+    fn compute_demand(&self) -> BTreeMap<String, Reason> {
+        let system = &self.loaded.system;
+        let mut wanted: BTreeMap<String, String> = match &self.control.wanted {
+            Some(wanted) => wanted.clone(),
+            None => system
+                .modules
+                .iter()
+                .map(|module| (module.name.clone(), "no mission".to_owned()))
+                .collect(),
+        };
+        let mut held = self.control.held.clone();
+        for (module, started) in &self.overrides {
+            if *started {
+                wanted.insert(module.clone(), "by hand".to_owned());
+                held.remove(module);
+            } else {
+                held.insert(module.clone());
+            }
+        }
+        let controllable = |instance: &ModuleInstance| {
+            self.loaded
+                .descriptions
+                .get(&instance.module_type)
+                .is_none_or(|description| description.controllable)
+        };
+        demand(system, controllable, &wanted, &held)
     }
 
     /// Sends every connected module whose configuration changed its new one (and a start or
     /// stop if that is what changed). Returns the modules updated.
     fn push_changes(&mut self) -> Vec<String> {
+        self.demand = self.compute_demand();
         let mut updated = Vec::new();
         // Modules that stop go first, so two modules commanding the same thing never overlap;
         // then the others, in name order.
@@ -193,16 +223,19 @@ impl ConfigServer {
     ) -> std::io::Result<(Self, Receiver<ServerEvent>)> {
         let listener = TcpListener::bind(addr)?;
         let (events, receiver) = mpsc::channel();
+        let mut state = State {
+            secret,
+            loaded: Arc::new(loaded),
+            control,
+            conns: HashMap::new(),
+            next_conn_id: 0,
+            overrides: BTreeMap::new(),
+            stats: HashMap::new(),
+            demand: BTreeMap::new(),
+        };
+        state.demand = state.compute_demand();
         let server = Self {
-            state: Arc::new(Mutex::new(State {
-                secret,
-                loaded: Arc::new(loaded),
-                control,
-                conns: HashMap::new(),
-                next_conn_id: 0,
-                overrides: BTreeMap::new(),
-                stats: HashMap::new(),
-            })),
+            state: Arc::new(Mutex::new(state)),
             events,
             addr: listener.local_addr()?,
         };
@@ -454,6 +487,11 @@ impl ConfigServer {
                 )
             })
             .collect()
+    }
+
+    /// Why each module runs (those that idle are absent).
+    pub fn demand(&self) -> BTreeMap<String, Reason> {
+        self.lock().demand.clone()
     }
 
     /// What each module last said of its work.

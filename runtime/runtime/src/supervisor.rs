@@ -223,6 +223,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         secret.clone(),
     )
     .context("cannot start the config server")?;
+    if let Some(controller) = &mut controller {
+        controller.note_demand(&server);
+    }
     if let Err(err) = server.watch(&system_file, options.module_path.clone()) {
         tracing::warn!("cannot watch {} for changes: {err}", system_file.display());
     }
@@ -309,6 +312,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     None => (false, "this run has no mission".to_owned()),
                 },
             };
+            if let Some(controller) = &mut controller {
+                controller.note_demand(&server);
+            }
             let status = run_status(&modules, &server, controller.as_ref(), &env, &clock);
             let _ = reply.send(control::Reply {
                 ok,
@@ -444,6 +450,7 @@ fn run_status(
 ) -> control::Status {
     let loaded = server.loaded();
     let activity = server.activity();
+    let demand = server.demand();
     let mut stats = server.stats();
     let modules = modules
         .values()
@@ -473,6 +480,7 @@ fn run_status(
                 restarts: module.restarts,
                 last_exit: module.last_exit.clone(),
                 stats: stats.remove(&module.name),
+                why: demand.get(&module.name).map(ToString::to_string),
             }
         })
         .collect();

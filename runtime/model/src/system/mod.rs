@@ -72,6 +72,51 @@ impl FromStr for RestartPolicy {
     }
 }
 
+/// When a controllable module runs (the `activation` attribute; a module that is not
+/// controllable runs whenever its process does).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Activation {
+    /// When a place or the operator wants it, and also when a module that runs needs what it
+    /// publishes, or when it carries the commands of a wanted module on (see [`demand`]).
+    #[default]
+    OnDemand,
+    /// All the time, mission or not.
+    Always,
+    /// Only when a place or the operator names it: never pulled in by another's needs (a
+    /// source that the mission starts and stops on purpose).
+    Explicit,
+}
+
+impl Activation {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Activation::OnDemand => "on-demand",
+            Activation::Always => "always",
+            Activation::Explicit => "explicit",
+        }
+    }
+}
+
+impl fmt::Display for Activation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for Activation {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "on-demand" => Ok(Activation::OnDemand),
+            "always" => Ok(Activation::Always),
+            "explicit" => Ok(Activation::Explicit),
+            other => Err(format!(
+                "unknown activation `{other}` (expected on-demand, always or explicit)"
+            )),
+        }
+    }
+}
+
 /// One end of a link: a port of a module instance, written `module.port`.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Endpoint {
@@ -126,6 +171,8 @@ pub struct ModuleInstance {
     /// Where the module runs; `None` for the system's host.
     pub host: Option<String>,
     pub restart: RestartPolicy,
+    /// When it runs, if it is controllable.
+    pub activation: Activation,
     pub params: Vec<ParamValue>,
     /// Data name patterns the module may publish (all of its outputs when `None`).
     pub may_publish: Option<Vec<String>>,
@@ -274,9 +321,11 @@ impl SystemConfig {
 }
 
 mod check;
+pub mod demand;
 mod xml;
 
 pub use check::check;
+pub use demand::{Reason, demand};
 
 #[cfg(test)]
 mod tests;

@@ -172,7 +172,7 @@ fn structural_problems() {
         &[
             "1:18: unknown attribute `color` on <system> (expected one of: name, host)",
             "2:3: unknown element <modul> inside <system> (expected one of: module, link)",
-            "3:29: unknown attribute `prio` on <module> (expected one of: name, type, restart, host, may_publish, may_subscribe)",
+            "3:29: unknown attribute `prio` on <module> (expected one of: name, type, restart, activation, host, may_publish, may_subscribe)",
             "4:5: unknown element <parameter> inside <module> (expected one of: param)",
             "5:31: unknown attribute `unit` on <param> (expected one of: name, value)",
             "5:40: unknown element <x> inside <param> (it has no elements)",
@@ -197,7 +197,7 @@ fn structural_problems() {
     );
     // Names that are not identifiers, bad restart policy, bad endpoints.
     parse_problems(
-        "<system name=\"my system\">\n<module name=\"9a\" type=\"a.b\" restart=\"sometimes\">\n<param name=\"-p\" value=\"\"/>\n</module>\n<link from=\"counter\" to=\"a.b.c\"/>\n<link from=\".x\" to=\"a.9\"/>\n</system>",
+        "<system name=\"my system\">\n<module name=\"9a\" type=\"a.b\" restart=\"sometimes\">\n<param name=\"-p\" value=\"\"/>\n</module>\n<link from=\"counter\" to=\"a.b.c\"/>\n<link from=\".x\" to=\"a.9\"/>\n<module name=\"c\" type=\"c\" activation=\"lazy\"/>\n</system>",
         &[
             "1:9: name `my system` of <system> is not valid (use letters, digits, `_` or `-`, starting with a letter or `_`)",
             "2:9: name `9a` of <module> is not valid (use letters, digits, `_` or `-`, starting with a letter or `_`)",
@@ -208,6 +208,7 @@ fn structural_problems() {
             "5:22: `to` must be MODULE.INPUT (two names joined by a dot), not `a.b.c`",
             "6:7: `from` must be MODULE.OUTPUT (two names joined by a dot), not `.x`",
             "6:17: `to` must be MODULE.INPUT (two names joined by a dot), not `a.9`",
+            "7:27: unknown activation `lazy` (expected on-demand, always or explicit)",
         ],
     );
 }
@@ -365,7 +366,7 @@ fn round_trips_through_xml() {
     round_trip(DEMO);
     round_trip("<system name=\"s\"/>");
     round_trip(
-        "<system name=\"s\" host=\"::1\">\n<module name=\"a\" type=\"t\" restart=\"never\"/>\n<module name=\"b\" type=\"t\" restart=\"always\" host=\"robot-2.local\">\n<param name=\"text\" value=\"&lt;a &amp; 'b' &quot;c&quot;&gt;&#10;&#9;next&#13;\"/>\n<param name=\"empty\" value=\"\"/>\n<param name=\"unicode\" value=\"été → 🤖\"/>\n</module>\n<link from=\"a.x\" to=\"b.y\"/>\n<link from=\"b.y\" to=\"b.z\"/>\n</system>",
+        "<system name=\"s\" host=\"::1\">\n<module name=\"a\" type=\"t\" restart=\"never\" activation=\"explicit\"/><module name=\"c\" type=\"t\" activation=\"always\"/>\n<module name=\"b\" type=\"t\" restart=\"always\" host=\"robot-2.local\">\n<param name=\"text\" value=\"&lt;a &amp; 'b' &quot;c&quot;&gt;&#10;&#9;next&#13;\"/>\n<param name=\"empty\" value=\"\"/>\n<param name=\"unicode\" value=\"été → 🤖\"/>\n</module>\n<link from=\"a.x\" to=\"b.y\"/>\n<link from=\"b.y\" to=\"b.z\"/>\n</system>",
     );
     // Values set in code, written then read.
     let mut system = SystemConfig::parse(DEMO).expect("valid");

@@ -4,7 +4,7 @@
 use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{self, Attr, Element, Located, Pos};
 
-use super::{Endpoint, Link, ModuleInstance, ParamValue, RestartPolicy, SystemConfig};
+use super::{Activation, Endpoint, Link, ModuleInstance, ParamValue, RestartPolicy, SystemConfig};
 use crate::fields::{escape, identifier, no_children, no_text, required};
 
 impl SystemConfig {
@@ -69,6 +69,9 @@ impl SystemConfig {
                 escape(&module.module_type),
                 module.restart
             );
+            if module.activation != Activation::default() {
+                let _ = write!(out, " activation=\"{}\"", module.activation);
+            }
             if let Some(host) = &module.host {
                 let _ = write!(out, " host=\"{}\"", escape(host));
             }
@@ -113,6 +116,7 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
         "name",
         "type",
         "restart",
+        "activation",
         "host",
         "may_publish",
         "may_subscribe",
@@ -131,6 +135,14 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
             .map_err(|err| problems.push(Located::new(attr.pos, err)))
             .ok(),
     };
+    let activation = match element.attr("activation") {
+        None => Some(Activation::default()),
+        Some(attr) => attr
+            .value
+            .parse()
+            .map_err(|err| problems.push(Located::new(attr.pos, err)))
+            .ok(),
+    };
     let params: Vec<ParamValue> = element
         .children_named("param")
         .filter_map(|child| read_param(child, problems))
@@ -140,6 +152,7 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
         module_type: module_type?,
         host,
         restart: restart?,
+        activation: activation?,
         params,
         may_publish: element
             .attr("may_publish")
