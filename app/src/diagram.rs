@@ -480,6 +480,7 @@ impl Diagram {
             .map(|link| SystemLink {
                 from: endpoint(&link.from),
                 to: endpoint(&link.to),
+                fallback: 0,
                 pos: Default::default(),
                 from_pos: Default::default(),
                 to_pos: Default::default(),

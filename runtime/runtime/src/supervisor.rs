@@ -221,6 +221,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         control,
         options.lease,
         secret.clone(),
+        clock.clone(),
     )
     .context("cannot start the config server")?;
     if let Some(controller) = &mut controller {
@@ -373,9 +374,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
         }
         for module in modules.values_mut() {
-            let was_failed = module.state == ProcState::Failed;
+            let before = module.state;
             module.supervise(&env);
-            if !was_failed
+            tell_health(&server, module, before);
+            if before != ProcState::Failed
                 && module.state == ProcState::Failed
                 && let Some(controller) = &mut controller
             {
@@ -424,6 +426,26 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         }
     }
     Ok(outcome)
+}
+
+/// Puts on the health stream what supervising `module` changed since it was `before`: a
+/// crash restarted (`restarting`) or given up (`gave_up`).
+fn tell_health(server: &ConfigServer, module: &ModuleProc, before: ProcState) {
+    let how = module.last_exit.as_deref().unwrap_or("ended");
+    match module.state {
+        ProcState::Restarting(at) if !matches!(before, ProcState::Restarting(_)) => {
+            let in_ms = at.saturating_duration_since(Instant::now()).as_millis();
+            server.report_health(
+                &module.name,
+                "restarting",
+                &format!("{how}; restarting in {in_ms} ms"),
+            );
+        }
+        ProcState::Failed if before != ProcState::Failed => {
+            server.report_health(&module.name, "gave_up", &format!("{how}; not restarted"));
+        }
+        _ => {}
+    }
 }
 
 fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (bool, String) {

@@ -218,6 +218,9 @@ pub fn allowed(patterns: Option<&[String]>, data_name: &str) -> bool {
 pub struct Link {
     pub from: Endpoint,
     pub to: Endpoint,
+    /// 0 for an input's source; 1, 2, … for its fallbacks, taken in that order while the
+    /// sources before them are down (`fallback="1"`).
+    pub fallback: u32,
     /// The `<link>` element.
     pub pos: Pos,
     /// The `from` attribute.
@@ -255,6 +258,13 @@ impl SystemConfig {
         self.modules.iter().find(|module| module.name == name)
     }
 
+    /// The sources of the input `to`, best first: its source, then its fallbacks by rank.
+    pub fn sources(&self, to: &Endpoint) -> Vec<&Link> {
+        let mut sources: Vec<&Link> = self.links.iter().filter(|link| link.to == *to).collect();
+        sources.sort_by_key(|link| link.fallback);
+        sources
+    }
+
     /// The host the agent and config server listen on: the configured one or [`DEFAULT_HOST`].
     pub fn host_or_default(&self) -> &str {
         self.host.as_deref().unwrap_or(DEFAULT_HOST)
@@ -275,7 +285,7 @@ impl SystemConfig {
             ..ModuleBindings::default()
         };
         for link in &self.links {
-            if link.to.module == module {
+            if link.to.module == module && link.fallback == 0 {
                 bindings
                     .inputs
                     .entry(link.to.port.clone())

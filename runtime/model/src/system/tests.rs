@@ -177,7 +177,7 @@ fn structural_problems() {
             "5:31: unknown attribute `unit` on <param> (expected one of: name, value)",
             "5:40: unknown element <x> inside <param> (it has no elements)",
             "7:3: <link> must not contain text (found `text`)",
-            "7:29: unknown attribute `via` on <link> (expected one of: from, to)",
+            "7:29: unknown attribute `via` on <link> (expected one of: from, to, fallback)",
         ],
     );
     // Missing and empty required attributes.
@@ -220,6 +220,53 @@ fn an_empty_string_parameter_value_is_allowed() {
         )
         .expect("valid");
     assert_eq!(system.modules[0].params[0].value, "");
+}
+
+#[test]
+fn fallback_sources_and_the_health_stream() {
+    let xml = |links: &str| {
+        format!(
+            "<system name=\"s\">\n<module name=\"a\" type=\"counter\"/>\n<module name=\"b\" type=\"counter\"/>\n<module name=\"k\" type=\"checker\"/>\n{links}</system>"
+        )
+    };
+    // A source, two fallbacks in any order: the bindings take the source, `sources` all.
+    let text = xml(
+        "<link from=\"b.count\" to=\"k.input\" fallback=\"2\"/>\n<link from=\"a.count\" to=\"k.input\"/>\n<link from=\"a.count\" to=\"k.input\" fallback=\"1\"/>\n",
+    );
+    check(&text, &[]);
+    let system = SystemConfig::parse(&text).expect("valid");
+    let sources: Vec<(String, u32)> = system
+        .sources(&Endpoint::new("k", "input"))
+        .iter()
+        .map(|link| (link.from.to_string(), link.fallback))
+        .collect();
+    assert_eq!(
+        sources,
+        [
+            ("a.count".to_owned(), 0),
+            ("a.count".to_owned(), 1),
+            ("b.count".to_owned(), 2)
+        ]
+    );
+    let bindings = system.bindings("k", None).expect("a module");
+    assert_eq!(bindings.inputs["input"], "a.count");
+    round_trip(&text);
+    // Two fallbacks of one rank; a rank that is not one.
+    check(
+        &xml(
+            "<link from=\"a.count\" to=\"k.input\"/>\n<link from=\"b.count\" to=\"k.input\" fallback=\"1\"/>\n<link from=\"a.count\" to=\"k.input\" fallback=\"1\"/>\n",
+        ),
+        &["7:1: input `k.input` already has `b.count` as fallback 1 (line 6)"],
+    );
+    parse_problems(
+        &xml("<link from=\"a.count\" to=\"k.input\" fallback=\"0\"/>\n"),
+        &["5:35: `fallback` is the fallback's rank, 1, 2, …, not `0`"],
+    );
+    // The health stream is the runtime's: a `Health` input takes it, a `Counter` one does not.
+    check(
+        &xml("<link from=\"armor.health\" to=\"k.input\"/>\n"),
+        &["5:27: module `k`: input `input` expects Counter but `armor.health` is Health"],
+    );
 }
 
 #[test]
@@ -308,8 +355,8 @@ fn problems_against_descriptions() {
         ),
         &[
             "6:27: module `nav`: input `scan` expects LaserScan but `sim.odometry` is Odometry",
-            "7:23: input `nav.scan` is already fed by `sim.odometry` (line 6)",
-            "9:22: input `k.input` is already fed by `c.count` (line 8)",
+            "7:23: input `nav.scan` is already fed by `sim.odometry` (line 6); another source is a fallback (fallback=\"1\", \"2\", …)",
+            "9:22: input `k.input` is already fed by `c.count` (line 8); another source is a fallback (fallback=\"1\", \"2\", …)",
         ],
     );
 }

@@ -99,12 +99,16 @@ impl SystemConfig {
             out.push_str("  </module>\n");
         }
         for link in &self.links {
-            let _ = writeln!(
+            let _ = write!(
                 out,
-                "  <link from=\"{}\" to=\"{}\"/>",
+                "  <link from=\"{}\" to=\"{}\"",
                 escape(&link.from.to_string()),
                 escape(&link.to.to_string())
             );
+            if link.fallback > 0 {
+                let _ = write!(out, " fallback=\"{}\"", link.fallback);
+            }
+            out.push_str("/>\n");
         }
         out.push_str("</system>\n");
         out
@@ -188,15 +192,32 @@ fn read_param(element: &Element, problems: &mut Vec<Located>) -> Option<ParamVal
 }
 
 fn read_link(element: &Element, problems: &mut Vec<Located>) -> Option<Link> {
-    problems.extend(element.unknown_attrs(&["from", "to"]));
+    problems.extend(element.unknown_attrs(&["from", "to", "fallback"]));
     no_children(element, problems);
     no_text(element, problems);
     let from = endpoint_attr(element, "from", "MODULE.OUTPUT", problems);
     let to = endpoint_attr(element, "to", "MODULE.INPUT", problems);
+    let fallback = match element.attr("fallback") {
+        None => Some(0),
+        Some(attr) => match attr.value.parse::<u32>() {
+            Ok(rank) if rank > 0 => Some(rank),
+            _ => {
+                problems.push(Located::new(
+                    attr.pos,
+                    format!(
+                        "`fallback` is the fallback's rank, 1, 2, …, not `{}`",
+                        attr.value
+                    ),
+                ));
+                None
+            }
+        },
+    };
     let ((from, from_pos), (to, to_pos)) = (from?, to?);
     Some(Link {
         from,
         to,
+        fallback: fallback?,
         pos: element.pos,
         from_pos,
         to_pos,
