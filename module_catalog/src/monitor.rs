@@ -22,11 +22,13 @@ pub fn spec() -> ModuleSpec {
     .output::<Counter>("count", "how many reports were received so far")
 }
 
-/// The log line of one report: `health #3 at 12.40 s: mapper failed (its connection closed)`.
-pub fn line(seq: u64, health: &Health) -> String {
+/// The log line of one report, heard at `heard_ns` (run clock): `health #3 at 12.400 s (heard
+/// 0.210 ms later): mapper failed (its connection closed)`.
+pub fn line(seq: u64, health: &Health, heard_ns: u64) -> String {
     format!(
-        "health #{seq} at {:.2} s: {} {} ({})",
+        "health #{seq} at {:.3} s (heard {:.3} ms later): {} {} ({})",
         health.at_ns as f64 / 1e9,
+        heard_ns.saturating_sub(health.at_ns) as f64 / 1e6,
         health.module,
         health.kind,
         health.reason
@@ -41,8 +43,9 @@ pub fn body(node: &mut Node) -> BodyResult {
         match node.next_event(None)? {
             Event::Input(port) if port == input.id() => {
                 while let Some(sample) = node.take(&input)? {
+                    let heard_ns = node.clock().now_ns();
                     received += 1;
-                    tracing::info!("{}", line(sample.seq, &sample.value));
+                    tracing::info!("{}", line(sample.seq, &sample.value, heard_ns));
                     node.send(&output, &Counter(received))?;
                 }
             }
@@ -65,8 +68,8 @@ mod tests {
             at_ns: 12_400_000_000,
         };
         assert_eq!(
-            line(3, &health),
-            "health #3 at 12.40 s: mapper failed (its connection closed)"
+            line(3, &health, 12_400_210_000),
+            "health #3 at 12.400 s (heard 0.210 ms later): mapper failed (its connection closed)"
         );
     }
 }

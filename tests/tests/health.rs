@@ -88,7 +88,7 @@ fn reports(run: &Proc) -> (Vec<String>, Vec<(u64, String)>) {
         .filter_map(|line| {
             let rest = line.split_once("health #")?.1;
             let (seq, rest) = rest.split_once(" at ")?;
-            let report = rest.split_once(" s: ")?.1;
+            let report = rest.split_once(" later): ")?.1;
             Some((seq.parse().ok()?, report.to_owned()))
         })
         .collect();
