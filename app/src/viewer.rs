@@ -1014,6 +1014,7 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                 .push(Command::RemoveLink(crate::diagram::Link {
                     from: from.port,
                     to: to.port,
+                    fallback: 0,
                 }));
         }
     }
