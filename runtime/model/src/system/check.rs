@@ -139,6 +139,17 @@ pub fn check(
             }
         }
     }
+    for ((input, rank), link) in &fed {
+        if *rank > 0 && !fed.contains_key(&(*input, 0)) {
+            problems.push(Located::new(
+                link.pos,
+                format!(
+                    "input `{input}` has a fallback but no source: one of its links needs no \
+                     `fallback`"
+                ),
+            ));
+        }
+    }
     problems.sort_by_key(|problem| problem.pos);
     problems
 }

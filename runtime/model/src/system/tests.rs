@@ -262,6 +262,13 @@ fn fallback_sources_and_the_health_stream() {
         &xml("<link from=\"a.count\" to=\"k.input\" fallback=\"0\"/>\n"),
         &["5:35: `fallback` is the fallback's rank, 1, 2, …, not `0`"],
     );
+    // Fallbacks alone: nothing feeds the input.
+    check(
+        &xml("<link from=\"b.count\" to=\"k.input\" fallback=\"2\"/>\n"),
+        &[
+            "5:1: input `k.input` has a fallback but no source: one of its links needs no `fallback`",
+        ],
+    );
     // The health stream is the runtime's: a `Health` input takes it, a `Counter` one does not.
     check(
         &xml("<link from=\"armor.health\" to=\"k.input\"/>\n"),
