@@ -11,7 +11,9 @@ use std::time::{Duration, Instant};
 use armor_module_api::types::Pose2D;
 use armor_module_api::{Event, ModuleSpec, Node};
 use armor_tests::mission::MISSION_DEADLINE;
-use armor_tests::{PATIENCE, Proc, bin, bin_dir, field, test_node, wait_until, workspace_root};
+use armor_tests::{
+    PATIENCE, Proc, bin, bin_dir, ctl_status, field, test_node, wait_until, workspace_root,
+};
 
 const SIGKILL: i32 = 9;
 const SIGSTOP: i32 = 19;
@@ -39,16 +41,6 @@ const SYSTEM: &str = r#"<system name="fallback">
   <link from="mux.cmd_vel" to="sim.cmd_vel"/>
   <link from="armor.health" to="monitor.health"/>
 </system>"#;
-
-fn status(addr: &str) -> serde_json::Value {
-    let output = Command::new(bin("armor"))
-        .args(["ctl", "--addr", addr, "status", "--json"])
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&output.stdout);
-    let json = text.find('{').map_or("", |start| &text[start..]);
-    serde_json::from_str(json).unwrap_or_else(|err| panic!("{err}: {text}"))
-}
 
 fn pid_of(status: &serde_json::Value, module: &str) -> Option<i32> {
     status["modules"]
@@ -115,7 +107,7 @@ fn a_killed_or_frozen_mapper_does_not_stop_the_robot() {
     run.wait_for("every module configured", PATIENCE, |line| {
         line.contains("modules configured")
     });
-    let first = status(&addr);
+    let first = ctl_status(&addr);
     let agent = first["agent"].as_str().unwrap().parse().unwrap();
     let mut watcher = test_node(
         ModuleSpec::new("watcher", "the test's eye on the robot").input::<Pose2D>("pose", "truth"),
@@ -146,7 +138,7 @@ fn a_killed_or_frozen_mapper_does_not_stop_the_robot() {
     // SIGSTOP: stalled within the lease, the fallback, then killed, restarted, switched back.
     let mut mapper = None;
     wait_until("the new mapper", PATIENCE, || {
-        mapper = pid_of(&status(&addr), "mapper");
+        mapper = pid_of(&ctl_status(&addr), "mapper");
         mapper.is_some()
     });
     let skip = run.line_count();

@@ -5,29 +5,10 @@
 use std::process::Command;
 
 use armor_tests::mission::armor_run;
-use armor_tests::{PATIENCE, Proc, bin, bin_dir, field, wait_until, workspace_root};
+use armor_tests::{
+    PATIENCE, Proc, bin, bin_dir, ctl, ctl_status, field, wait_until, workspace_root,
+};
 use serde_json::Value;
-
-fn ctl(addr: &str, args: &[&str]) -> (bool, String) {
-    let output = Command::new(bin("armor"))
-        .args(["ctl", "--addr", addr])
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        output.status.success(),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-    )
-}
-
-/// The run's status as `armor ctl status --json` prints it.
-fn status(addr: &str) -> Value {
-    let (ok, text) = ctl(addr, &["status", "--json"]);
-    assert!(ok, "{text}");
-    // The reply's message comes first, on a line of its own.
-    let json = text.find('{').map_or("", |start| &text[start..]);
-    serde_json::from_str(json).unwrap_or_else(|err| panic!("{err}: {text}"))
-}
 
 /// A module's row of a status: its state and why it runs (`null` when nothing needs it).
 fn module(status: &Value, name: &str) -> (String, Value) {
@@ -58,7 +39,7 @@ fn control_addr(run: &Proc) -> String {
 fn wait_status(addr: &str, what: &str, condition: impl Fn(&Value) -> bool) -> Value {
     let mut last = Value::Null;
     wait_until(what, PATIENCE, || {
-        last = status(addr);
+        last = ctl_status(addr);
         condition(&last)
     });
     last

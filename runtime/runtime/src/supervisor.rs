@@ -438,7 +438,7 @@ fn tell_health(server: &ConfigServer, module: &ModuleProc, before: ProcState) {
             server.report_health(
                 &module.name,
                 "restarting",
-                &format!("{how}; restarting in {in_ms} ms"),
+                &format!("{how}; started again in {in_ms} ms"),
             );
         }
         ProcState::Failed if before != ProcState::Failed => {

@@ -131,22 +131,8 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
     let type_attr = element.attr("type");
     let module_type = identifier(element, "type", "module type", problems);
     let host = host_attr(element, problems);
-    let restart = match element.attr("restart") {
-        None => Some(RestartPolicy::default()),
-        Some(attr) => attr
-            .value
-            .parse()
-            .map_err(|err| problems.push(Located::new(attr.pos, err)))
-            .ok(),
-    };
-    let activation = match element.attr("activation") {
-        None => Some(Activation::default()),
-        Some(attr) => attr
-            .value
-            .parse()
-            .map_err(|err| problems.push(Located::new(attr.pos, err)))
-            .ok(),
-    };
+    let restart = word_attr::<RestartPolicy>(element, "restart", problems);
+    let activation = word_attr::<Activation>(element, "activation", problems);
     let params: Vec<ParamValue> = element
         .children_named("param")
         .filter_map(|child| read_param(child, problems))
@@ -167,6 +153,23 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
         pos: element.pos,
         type_pos: type_attr.map_or(element.pos, |attr| attr.pos),
     })
+}
+
+/// An attribute that takes one of a few words (its type's `FromStr` says which), or the
+/// type's default when absent; `None` after reporting a word it does not take.
+fn word_attr<T: std::str::FromStr<Err = String> + Default>(
+    element: &Element,
+    name: &str,
+    problems: &mut Vec<Located>,
+) -> Option<T> {
+    match element.attr(name) {
+        None => Some(T::default()),
+        Some(attr) => attr
+            .value
+            .parse()
+            .map_err(|err| problems.push(Located::new(attr.pos, err)))
+            .ok(),
+    }
 }
 
 fn read_param(element: &Element, problems: &mut Vec<Located>) -> Option<ParamValue> {
