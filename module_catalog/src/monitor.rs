@@ -22,8 +22,9 @@ pub fn spec() -> ModuleSpec {
     .output::<Counter>("count", "how many reports were received so far")
 }
 
-/// The log line of one report, heard at `heard_ns` (run clock): `health #3 at 12.400 s (heard
-/// 0.210 ms later): mapper failed (its connection closed)`.
+/// The log line of one report, heard at `heard_ns` (run clock, as the report's stamp; with
+/// `--time-scale` the lag is in run time too): `health #3 at 12.400 s (heard 0.210 ms later):
+/// mapper failed (its connection closed)`.
 pub fn line(seq: u64, health: &Health, heard_ns: u64) -> String {
     format!(
         "health #{seq} at {:.3} s (heard {:.3} ms later): {} {} ({})",
