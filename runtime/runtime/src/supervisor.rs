@@ -221,7 +221,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         control,
         options.lease,
         secret.clone(),
-        clock.clone(),
+        clock,
     )
     .context("cannot start the config server")?;
     if let Some(controller) = &mut controller {
