@@ -9,8 +9,8 @@
 //!
 //! Detection: a module whose process dies is `failed` as soon as its connection to the config
 //! server closes (the kernel closes it with the process); one that is stopped or stuck is
-//! `stalled` once it has sent nothing for a lease, found within an eighth of a lease after
-//! (the heartbeat's check period), so at most 1.125 leases after its last answer.
+//! `stalled` once it has sent nothing for a lease, found within a sixteenth of a lease after
+//! (the heartbeat's check period), so at most 1.0625 leases after its last answer.
 
 use std::collections::{BTreeMap, BTreeSet};
 
