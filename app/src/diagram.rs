@@ -51,6 +51,9 @@ pub struct PortRef {
 pub struct Link {
     pub from: PortRef,
     pub to: PortRef,
+    /// 0 for the input's source, 1, 2, … for its fallbacks (`fallback="N"` in the file),
+    /// kept as the file says; the editor makes sources only.
+    pub fallback: u32,
 }
 
 /// Which side of a block a pin is on.
@@ -249,8 +252,12 @@ impl Diagram {
             .retain(|link| !ids.contains(&link.from.block) && !ids.contains(&link.to.block));
     }
 
+    /// Removes the link from `link.from` to `link.to`, whatever its fallback rank.
     pub fn remove_link(&mut self, link: &Link) -> bool {
-        self.links.remove(link)
+        let before = self.links.len();
+        self.links
+            .retain(|kept| !(kept.from == link.from && kept.to == link.to));
+        before != self.links.len()
     }
 
     /// Removes the links that end at an input; returns how many.
@@ -269,7 +276,9 @@ impl Diagram {
 
     /// The link feeding an input, if any.
     pub fn source_of(&self, input: &PortRef) -> Option<&Link> {
-        self.links.iter().find(|link| &link.to == input)
+        self.links
+            .iter()
+            .find(|link| &link.to == input && link.fallback == 0)
     }
 
     /// Whether a wire dragged from `a` may end on `b` (in either order), and as which link; else
@@ -305,6 +314,7 @@ impl Diagram {
         Ok(Link {
             from: output.clone(),
             to: input.clone(),
+            fallback: 0,
         })
     }
 
@@ -319,6 +329,8 @@ impl Diagram {
         if let Some(old) = &replaced {
             self.links.remove(old);
         }
+        // The same output as a fallback of this input becomes its source.
+        self.remove_link(&link);
         self.links.insert(link);
         Ok(replaced)
     }
@@ -439,6 +451,7 @@ impl Diagram {
                         block: *to,
                         port: link.to.port.clone(),
                     },
+                    fallback: link.fallback,
                 });
             }
         }
@@ -480,6 +493,7 @@ impl Diagram {
             .map(|link| SystemLink {
                 from: endpoint(&link.from),
                 to: endpoint(&link.to),
+                fallback: link.fallback,
                 pos: Default::default(),
                 from_pos: Default::default(),
                 to_pos: Default::default(),
@@ -616,6 +630,7 @@ impl Diagram {
                         block: *to,
                         port: link.to.port.clone(),
                     },
+                    fallback: link.fallback,
                 });
             }
         }
@@ -638,6 +653,7 @@ fn new_instance(name: &str, module_type: &str) -> ModuleInstance {
             module_type: module_type.to_owned(),
             host: None,
             restart: Default::default(),
+            activation: Default::default(),
             params: Vec::new(),
             may_publish: None,
             may_subscribe: None,
@@ -785,6 +801,46 @@ mod tests {
         let again = Diagram::from_xml(&xml).unwrap();
         assert_eq!(again.to_xml(), xml);
         assert_eq!(again.block(BlockId(2)).map(|b| b.pos), Some([300.0, 40.0]));
+    }
+
+    #[test]
+    fn fallback_links_are_kept_and_a_new_wire_replaces_only_the_source() {
+        let catalog = catalog();
+        let xml = "<system name=\"s\">\n<module name=\"a\" type=\"counter\"/>\n<module name=\"b\" type=\"counter\"/>\n<module name=\"k\" type=\"checker\"/>\n<link from=\"a.count\" to=\"k.input\"/>\n<link from=\"b.count\" to=\"k.input\" fallback=\"1\"/>\n</system>";
+        let mut diagram = Diagram::from_xml(xml).unwrap();
+        let written = diagram.to_xml();
+        assert!(
+            written.contains(r#"<link from="b.count" to="k.input" fallback="1"/>"#),
+            "{written}"
+        );
+        let system = SystemConfig::parse(&written).unwrap();
+        assert_eq!(system.links.len(), 2);
+        // A wire from `b` into the input becomes its source; the fallback from `b` goes with
+        // the old source, replaced.
+        let [a, b, k] = ["a", "b", "k"].map(|name| diagram.block_named(name).unwrap());
+        let replaced = diagram
+            .connect(
+                &catalog,
+                &pin(PinSide::Output, b, "count"),
+                &pin(PinSide::Input, k, "input"),
+            )
+            .unwrap();
+        assert_eq!(replaced.map(|link| link.from.block), Some(a));
+        assert!(
+            diagram.remove_link(&Link {
+                from: PortRef {
+                    block: b,
+                    port: "count".into()
+                },
+                to: PortRef {
+                    block: k,
+                    port: "input".into()
+                },
+                fallback: 7,
+            }),
+            "removed whatever its rank"
+        );
+        assert_eq!(diagram.links().count(), 0);
     }
 
     #[test]

@@ -72,9 +72,10 @@ pub struct Canvas {
     pub overview_names: Vec<String>,
     /// The input pins whose wire's end was marked last frame, and where (canvas coordinates).
     pub wire_ends: Vec<(PortRef, Pos2)>,
-    /// Links that run backwards (into an input left of their output): egui-snarl does not hold
-    /// them, as its curve would run across the blocks between; [`Canvas::paint_routes`] draws
-    /// them round, below the blocks they pass.
+    /// Links that run backwards (into an input left of their output), and fallback sources:
+    /// egui-snarl does not hold them, as its curve would run across the blocks between and it
+    /// draws every wire alike; [`Canvas::paint_routes`] draws them round, below the blocks they
+    /// pass, the fallbacks dashed.
     pub routed: BTreeSet<Link>,
     /// The frame (egui's count) the canvas was last drawn in, and its transform when that
     /// frame began: the wheel zooms from it in every pass of the frame.
@@ -176,7 +177,8 @@ impl Canvas {
             }
             let from = self.rect_of(diagram, catalog, link.from.block);
             let to = self.rect_of(diagram, catalog, link.to.block);
-            if to.left() < from.right() + BACK_GAP {
+            // A fallback is drawn by us too, dashed: egui-snarl draws every wire alike.
+            if link.fallback > 0 || to.left() < from.right() + BACK_GAP {
                 self.routed.insert(link.clone());
                 continue;
             }
@@ -421,7 +423,7 @@ impl Canvas {
         routes
     }
 
-    /// Draws [`Canvas::routes`] in their wires' colours.
+    /// Draws [`Canvas::routes`] in their wires' colours, fallback sources dashed.
     pub fn paint_routes(&self, diagram: &Diagram, catalog: &Catalog, painter: &egui::Painter) {
         for (link, points) in self.routes(diagram, catalog) {
             let colour = diagram
@@ -429,7 +431,12 @@ impl Canvas {
                 .and_then(|block| catalog.get(&block.module_type))
                 .and_then(|description| description.output(&link.from.port))
                 .map_or(Color32::GRAY, |spec| type_colour(&spec.data_type));
-            painter.add(egui::Shape::line(points, Stroke::new(2.0, colour)));
+            let stroke = Stroke::new(2.0, colour);
+            if link.fallback > 0 {
+                painter.extend(egui::Shape::dashed_line(&points, stroke, 8.0, 5.0));
+            } else {
+                painter.add(egui::Shape::line(points, stroke));
+            }
         }
     }
 
@@ -1014,6 +1021,7 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                 .push(Command::RemoveLink(crate::diagram::Link {
                     from: from.port,
                     to: to.port,
+                    fallback: 0,
                 }));
         }
     }

@@ -366,6 +366,42 @@ fn every_wire_is_marked_at_the_pin_it_enters_and_nowhere_else() {
     }
 }
 
+/// A fallback source of an input is drawn dashed, round the blocks like a backward link, and
+/// saved as the file had it.
+#[test]
+fn a_fallback_source_is_drawn_apart_and_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = dir.path().join("system.xml");
+    let robot = std::fs::read_to_string(robot_system()).unwrap();
+    let with_fallback = robot.replace(
+        r#"<link from="sim.odometry" to="observer.odometry"/>"#,
+        r#"<link from="sim.odometry" to="observer.odometry"/>
+  <module name="mapper" type="mapper"/>
+  <link from="sim.scan" to="mapper.scan"/>
+  <link from="mapper.pose" to="observer.odometry" fallback="1"/>"#,
+    );
+    assert_ne!(with_fallback, robot);
+    std::fs::write(&system, &with_fallback).unwrap();
+    let mut options = options(&dir.path().join("home"), Some(system));
+    options.palette = Some(bundled_palette());
+    let harness = harness(options);
+    let routes: Vec<String> = harness
+        .state()
+        .routes()
+        .into_iter()
+        .map(|(link, _)| link)
+        .collect();
+    assert!(
+        routes.contains(&"mapper.pose -> observer.odometry (fallback 1)".to_owned()),
+        "{routes:?}"
+    );
+    let saved = harness.state().editor().diagram.to_xml();
+    assert!(
+        saved.contains(r#"<link from="mapper.pose" to="observer.odometry" fallback="1"/>"#),
+        "{saved}"
+    );
+}
+
 /// The robot's loop (the mux commands the sim, which feeds everything) runs right to left:
 /// drawn as a curve it would cross every block between. It goes round them, below.
 #[test]

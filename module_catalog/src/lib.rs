@@ -24,6 +24,8 @@
 //!   reports `observation_done`.
 //! - [`teleop`]: operator velocity commands over a TCP line protocol, clamped and held for a
 //!   dead-man time (not controllable).
+//! - [`monitor`]: logs every report of the run's health stream (`armor.health`) and counts
+//!   them (not controllable).
 //! - [`params`]: numeric parameters read with their range, refused in the same words by every
 //!   module.
 //! - [`recorder`]: records every sample of the data names in `record`, with stamp and type,
@@ -33,6 +35,7 @@ pub mod checker;
 pub mod counter;
 pub mod echo;
 pub mod mapper;
+pub mod monitor;
 pub mod mux;
 pub mod nav;
 pub mod observer;

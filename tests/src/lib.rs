@@ -283,6 +283,27 @@ pub fn process_alive(pid: i32) -> bool {
     })
 }
 
+/// `armor ctl --addr ADDR ARGS…`: whether it succeeded, and what it printed.
+pub fn ctl(addr: &str, args: &[&str]) -> (bool, String) {
+    let output = Command::new(bin("armor"))
+        .args(["ctl", "--addr", addr])
+        .args(args)
+        .output()
+        .unwrap_or_else(|err| panic!("cannot run armor ctl: {err}"));
+    (
+        output.status.success(),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+    )
+}
+
+/// The run's status as `armor ctl status --json` prints it (after the reply's message line).
+pub fn ctl_status(addr: &str) -> serde_json::Value {
+    let (ok, text) = ctl(addr, &["status", "--json"]);
+    assert!(ok, "{text}");
+    let json = text.find('{').map_or("", |start| &text[start..]);
+    serde_json::from_str(json).unwrap_or_else(|err| panic!("{err}: {text}"))
+}
+
 /// Waits until `condition` holds, checking every few milliseconds, at most `timeout`.
 pub fn wait_until(what: &str, timeout: Duration, mut condition: impl FnMut() -> bool) {
     let deadline = Instant::now() + timeout;

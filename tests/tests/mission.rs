@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use armor_tests::{PATIENCE, Proc, bin, field, workspace_root};
+use armor_tests::{PATIENCE, Proc, bin, ctl, field, workspace_root};
 
 fn armor_run(file: &Path, extra: &[&str]) -> Proc {
     Proc::start(
@@ -13,18 +13,6 @@ fn armor_run(file: &Path, extra: &[&str]) -> Proc {
             .arg(file)
             .args(extra)
             .env("ARMOR_MODULE_PATH", armor_tests::bin_dir()),
-    )
-}
-
-fn ctl(addr: &str, args: &[&str]) -> (bool, String) {
-    let output = Command::new(bin("armor"))
-        .args(["ctl", "--addr", addr])
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        output.status.success(),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
     )
 }
 
@@ -179,7 +167,7 @@ fn a_module_that_fails_for_good_takes_the_mission_to_its_contingency() {
 
 /// A mission that never ends by itself (the checker sees every value in order).
 const ENDLESS: &str = r#"<mission name="endless" system="system.xml">
-  <place name="waiting" tokens="1"><module name="counter"/></place>
+  <place name="waiting" tokens="1"><module name="counter"/><module name="checker"/></place>
   <place name="done" final="true"/>
   <transition name="go" event="checker.out_of_order"><input place="waiting"/><output place="done"/></transition>
 </mission>"#;

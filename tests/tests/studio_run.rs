@@ -106,7 +106,7 @@ fn plan(dir: &Path, legs: &str) -> PathBuf {
         &file,
         format!(
             r#"<plan name="short" system="system.xml">
-  <navigation module="follower" speed_mps="0.5"><module name="avoider"/></navigation>
+  <navigation module="follower" speed_mps="0.5"/>
   <waypoint name="home" lat="43.5615360" lon="1.4690496"/>
   <waypoint name="gate" lat="43.5615360" lon="1.4691986"/>
   <leg name="advance" from="home" to="gate"/>
@@ -165,6 +165,13 @@ fn a_plan_run_from_the_run_view_reaches_its_final_place() {
     });
     harness.run_ok();
     assert_eq!(harness.state().title(), "plan.xml (running) — ArMoR Studio");
+    // The plan names the follower only: the avoider its commands pass through runs with it,
+    // and its row says why.
+    step_until(&mut harness, "the avoider running", PATIENCE, |app| {
+        module_state(app, "avoider") == Some(ModuleState::Running)
+    });
+    harness.run_ok();
+    harness.get_by_label("carries follower.cmd_desired");
     let truth = harness.state().run().live().truth.unwrap();
     let (robot, map) = harness
         .state()

@@ -457,33 +457,9 @@ impl MissionView {
         self.editor.replace(plan);
         self.path = None;
         self.refresh_surroundings(true);
-        // The modules the navigation's commands go through (an avoider) must drive with it.
-        let catalog = &self.inspector.catalog;
-        let companions = self
-            .surroundings
-            .system
-            .as_ref()
-            .map(|system| {
-                self.editor
-                    .plan
-                    .navigation
-                    .companions_in(system, |module_type| {
-                        catalog.get(module_type).is_some_and(|d| d.controllable)
-                    })
-            })
-            .unwrap_or_default();
-        let drives_with = if companions.is_empty() {
-            String::new()
-        } else {
-            let mut plan = self.editor.plan.clone();
-            plan.navigation.companions.clone_from(&companions);
-            self.saved = plan.clone();
-            self.editor.replace(plan);
-            format!(" (drives with {})", companions.join(", "))
-        };
-        Ok(format!(
-            "new plan{drives_with}: click the map with the waypoint tool (W) to draw its route"
-        ))
+        // It names the follower only: the avoider its commands pass through, and what it
+        // reads, run with it on demand.
+        Ok("new plan: click the map with the waypoint tool (W) to draw its route".to_owned())
     }
 
     pub fn open(&mut self, file: &Path) -> Report {

@@ -370,8 +370,13 @@ impl SystemView {
                         .block(port.block)
                         .map_or_else(String::new, |block| format!("{}.{}", block.name, port.port))
                 };
+                let fallback = if link.fallback > 0 {
+                    format!(" (fallback {})", link.fallback)
+                } else {
+                    String::new()
+                };
                 (
-                    format!("{} -> {}", name(&link.from), name(&link.to)),
+                    format!("{} -> {}{fallback}", name(&link.from), name(&link.to)),
                     points
                         .into_iter()
                         .map(|point| self.canvas.to_global * point)

@@ -18,7 +18,7 @@ use std::process::Command;
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context as _, bail};
+use anyhow::Context as _;
 use armor_module_api::{ENV_MODULE, ENV_SUPERVISOR};
 
 use crate::Settings;
@@ -128,21 +128,7 @@ fn scenario(settings: &Settings) -> anyhow::Result<Outcome> {
         .env_remove(ENV_SUPERVISOR)
         .env_remove(ENV_MODULE);
     let mut run = ChildGuard::spawn_capturing_stdout("armor run", command)?.graceful();
-    // The supervisor logs on stderr, the modules' lines come on stdout: one stream of both.
-    let (Some(stderr), Some(stdout)) = (run.take_lines(), run.take_stdout_lines()) else {
-        bail!("armor run: no output to read");
-    };
-    let (merged, lines) = std::sync::mpsc::channel();
-    for source in [stderr, stdout] {
-        let merged = merged.clone();
-        std::thread::spawn(move || {
-            for line in source {
-                if merged.send(line).is_err() {
-                    return;
-                }
-            }
-        });
-    }
+    let lines = run.merged_lines()?;
     let mut log = Log::default();
     let mut victim = log.wait(&lines, &mut run, "the victim's pid", |log| log.victim_pid)?;
     log.wait(&lines, &mut run, "the watch linked", |log| {

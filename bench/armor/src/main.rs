@@ -20,6 +20,7 @@ mod event_start;
 mod fuzz;
 mod handshake;
 mod harness;
+mod health;
 mod kill;
 mod latency;
 mod mapper_scan;
@@ -208,6 +209,19 @@ const BENCHES: &[Bench] = &[
         about: "values lost, duplicated or reordered on a 1 kHz link while another module is \
                 killed again and again (must be 0)",
         run: kill::run_lost,
+    },
+    Bench {
+        name: health::NAME_SWITCH,
+        about: "SIGKILL (and SIGSTOP, in sigstop_p50/p99) of an input's provider to the first \
+                value from its fallback, vs SIGKILL to EOF on a TCP connection (and the lease) \
+                (ms; goals p99 < 50, SIGSTOP < lease + 10 %)",
+        run: health::run_switch,
+    },
+    Bench {
+        name: health::NAME_BROADCAST,
+        about: "a module's failure on the health stream to each of 20 subscribers, vs one \
+                message written to 20 TCP connections (ms; goal p99 < 5)",
+        run: health::run_broadcast,
     },
     Bench {
         name: sim_realtime::NAME,

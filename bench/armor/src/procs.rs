@@ -285,6 +285,31 @@ impl ChildGuard {
         }
     }
 
+    /// Its process id.
+    pub fn id(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Its stderr and captured stdout as one stream of lines (`armor run` logs on stderr, its
+    /// modules' lines come on stdout), in the order they are read.
+    pub fn merged_lines(&mut self) -> anyhow::Result<Receiver<String>> {
+        let (Some(stderr), Some(stdout)) = (self.take_lines(), self.take_stdout_lines()) else {
+            anyhow::bail!("{}: no output to read", self.name);
+        };
+        let (merged, lines) = std::sync::mpsc::channel();
+        for source in [stderr, stdout] {
+            let merged = merged.clone();
+            std::thread::spawn(move || {
+                for line in source {
+                    if merged.send(line).is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+        Ok(lines)
+    }
+
     /// Sends SIGTERM and expects the child to exit well within `timeout`.
     pub fn stop(&mut self, timeout: Duration) -> anyhow::Result<()> {
         let status = self.terminate(timeout)?;

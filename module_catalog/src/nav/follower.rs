@@ -313,6 +313,10 @@ pub fn body(node: &mut Node) -> BodyResult {
                 }
                 Err(err) => tracing::error!("{err}; keeping the previous settings"),
             },
+            Event::ProviderFailed(port) if port == odometry.id() => {
+                // The run moves the input to its fallback, if it has one; poses go on from it.
+                tracing::warn!("the provider of `odometry` failed");
+            }
             Event::Shutdown => return Ok(()),
             _ => {}
         }

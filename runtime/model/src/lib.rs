@@ -30,6 +30,6 @@ pub fn plural(count: usize, noun: &str) -> String {
 }
 
 pub use system::{
-    DEFAULT_HOST, Endpoint, Link, ModuleBindings, ModuleInstance, ParamValue, RestartPolicy,
-    SystemConfig, check,
+    Activation, DEFAULT_HOST, Endpoint, Link, ModuleBindings, ModuleInstance, ParamValue,
+    RestartPolicy, SystemConfig, check,
 };

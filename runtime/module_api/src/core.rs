@@ -109,6 +109,10 @@ pub enum Event {
     Shutdown,
     /// The deadline given to [`Node::next_event_until`] has passed.
     Timeout,
+    /// The provider of this input failed or stalled (the run's health stream said so, before
+    /// any socket closes); the input goes on from a fallback source if it has one, else from
+    /// the provider once it is back.
+    ProviderFailed(PortId),
 }
 
 pub(crate) struct InputSlot {
@@ -309,6 +313,35 @@ impl Core {
             _ => {}
         }
         Some(event)
+    }
+
+    /// A report of the run's health stream: a sample for the inputs linked from it, and
+    /// [`Event::ProviderFailed`] on the inputs its module feeds when it failed or stalled.
+    pub fn on_health(&mut self, seq: u64, health: &crate::types::Health) {
+        use crate::types::Datum as _;
+        let mut payload = Vec::new();
+        if let Err(err) = health.encode(&mut payload) {
+            tracing::error!("health report: {err}");
+            return;
+        }
+        let lost = matches!(health.kind.as_str(), "failed" | "stalled" | "gave_up");
+        for index in 0..self.inputs.len() {
+            let source = self.inputs[index].source.as_deref();
+            if source == Some(crate::protocol::HEALTH) {
+                let frame = DataFrame {
+                    seq,
+                    stamp_ns: health.at_ns,
+                    payload: payload.clone(),
+                };
+                self.deliver(index, frame);
+            } else if lost
+                && source
+                    .and_then(|source| source.split_once('.'))
+                    .is_some_and(|(module, _)| module == health.module)
+            {
+                self.events.push_back(Event::ProviderFailed(PortId(index)));
+            }
+        }
     }
 
     pub fn set_active(&mut self, active: bool) {

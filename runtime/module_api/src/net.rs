@@ -132,6 +132,15 @@ enum InputLink {
     Linked(Token),
 }
 
+/// An input's first state: looked up at the agent if it has a source, unless the source is
+/// the run's health stream, which the config server's connection brings.
+fn resolve_or_unbound(slot: &crate::core::InputSlot) -> InputLink {
+    match slot.source.as_deref() {
+        Some(crate::protocol::HEALTH) | None => InputLink::Unbound,
+        Some(_) => InputLink::Resolve { at: Instant::now() },
+    }
+}
+
 pub(crate) struct Net {
     poll: Poll,
     events: Events,
@@ -232,14 +241,7 @@ impl Net {
             )?;
             net.supervisor = Link::Up(token);
         }
-        net.inputs = core
-            .inputs
-            .iter()
-            .map(|slot| match slot.source {
-                Some(_) => InputLink::Resolve { at: now },
-                None => InputLink::Unbound,
-            })
-            .collect();
+        net.inputs = core.inputs.iter().map(resolve_or_unbound).collect();
         tracing::debug!(addr = %listen_addr, "data listener ready");
         net.connect_agent(core);
         Ok(net)
@@ -338,10 +340,7 @@ impl Net {
     /// A raw input was added to `core` at `index`: look its provider up.
     pub fn add_input(&mut self, core: &Core, index: usize) {
         debug_assert_eq!(index, self.inputs.len());
-        self.inputs.push(match core.inputs[index].source {
-            Some(_) => InputLink::Resolve { at: Instant::now() },
-            None => InputLink::Unbound,
-        });
+        self.inputs.push(resolve_or_unbound(&core.inputs[index]));
     }
 
     /// A raw output was added to `core` (last): register everything again, so that the agent
@@ -407,10 +406,7 @@ impl Net {
             self.unsubscribe(core, token);
         }
         if let Some(link) = self.inputs.get_mut(input) {
-            *link = match core.inputs[input].source {
-                Some(_) => InputLink::Resolve { at: Instant::now() },
-                None => InputLink::Unbound,
-            };
+            *link = resolve_or_unbound(&core.inputs[input]);
         }
     }
 
@@ -1051,6 +1047,7 @@ impl Net {
                 },
             ),
             FromSupervisor::Error { message } => tracing::error!("supervisor: {message}"),
+            FromSupervisor::Health { seq, health } => core.on_health(seq, &health),
         }
     }
 

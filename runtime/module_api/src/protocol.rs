@@ -105,8 +105,22 @@ pub enum FromSupervisor {
     Stop,
     Shutdown,
     Ping,
-    Error { message: String },
+    Error {
+        message: String,
+    },
+    /// One report of the run's health stream, sent to every module: an input linked from
+    /// [`HEALTH`] receives it as a sample (`seq` its sequence number), and the inputs fed by
+    /// the module it is about hear [`crate::Event::ProviderFailed`] when it failed or stalled.
+    Health {
+        seq: u64,
+        #[serde(flatten)]
+        health: crate::types::Health,
+    },
 }
+
+/// The data name of the run's health stream: an input of type `Health` linked from it gets
+/// every report, through the module's connection to the config server.
+pub const HEALTH: &str = "armor.health";
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]

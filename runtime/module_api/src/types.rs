@@ -156,6 +156,23 @@ pub struct OccupancyGrid {
 }
 postcard_datum!(OccupancyGrid, "OccupancyGrid");
 
+/// One report of the run's health stream (`armor.health`, see [`crate::protocol::HEALTH`]):
+/// what happened to a module, when, and why.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Health {
+    /// The module it is about.
+    pub module: String,
+    /// `failed` (its process ended or its connection closed), `stalled` (it answered no ping
+    /// for a lease), `restarting`, `recovered` (configured and at work again), `gave_up` (no
+    /// more restarts), `switched` (one of its inputs moved to another source).
+    pub kind: String,
+    /// In words: `was killed by signal 9`, `follower.odometry: mapper.pose → sim.odometry`.
+    pub reason: String,
+    /// Run time of the report, in nanoseconds.
+    pub at_ns: u64,
+}
+postcard_datum!(Health, "Health");
+
 #[cfg(test)]
 mod tests {
     use super::*;

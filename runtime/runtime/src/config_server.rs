@@ -19,12 +19,16 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use armor_model::system::{Reason, demand};
+use armor_model::{Endpoint, ModuleInstance};
+use armor_module_api::Clock;
 use armor_module_api::auth::{Admit, Listen, Secret};
 use armor_module_api::protocol::{FromSupervisor, ModuleConfig, NodeStats, ToSupervisor};
 use armor_module_api::wire::blocking::{SecureStream, SecureWriter};
 use armor_module_api::wire::{WireError, blocking};
 use notify::{RecursiveMode, Watcher as _};
 
+use crate::health::HealthBook;
 use crate::load::{Loaded, load_system};
 
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
@@ -32,6 +36,9 @@ const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
 const SETTLE: Duration = Duration::from_millis(50);
 /// Pings per lease: a module answers within a fraction of the lease when it is alive.
 const PINGS_PER_LEASE: u32 = 4;
+/// Checks of silence per lease: a module silent for a lease is found stalled at most a
+/// sixteenth of a lease later.
+const CHECKS_PER_LEASE: u32 = 16;
 /// A write to a module that does not read (stopped) gives up after this long, so that one such
 /// module never holds up the others.
 const WRITE_TIMEOUT: Duration = Duration::from_secs(1);
@@ -76,8 +83,13 @@ struct ModuleConn {
 /// What the mission controller wants of the modules right now.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Control {
-    /// Controllable modules that must idle (without a mission: none).
-    pub inactive: BTreeSet<String>,
+    /// The modules the mission wants for themselves, each with why (`place cross_drive`);
+    /// `None` without a mission: every module. The modules they need follow
+    /// ([`armor_model::system::demand`]).
+    pub wanted: Option<BTreeMap<String, String>>,
+    /// Modules that idle whatever needs them: those of a place entered again, for a moment,
+    /// so that they start afresh.
+    pub held: BTreeSet<String>,
     /// Parameter values of the marked places, over the system file's: module → name → value.
     pub overlays: BTreeMap<String, BTreeMap<String, String>>,
 }
@@ -93,6 +105,11 @@ struct State {
     overrides: BTreeMap<String, bool>,
     /// What each module last said of its work (with its answers to pings).
     stats: HashMap<String, NodeStats>,
+    /// The modules that run and why: the controller's wishes and the operator's hand, closed
+    /// over what they need (updated by [`State::push_changes`]).
+    demand: BTreeMap<String, Reason>,
+    /// The run's health: which modules are down, which sources inputs take.
+    health: HealthBook,
 }
 
 impl State {
@@ -103,24 +120,64 @@ impl State {
         if let Some(overlay) = self.control.overlays.get(module) {
             config.params.extend(overlay.clone());
         }
-        let controllable = self
-            .loaded
-            .descriptions
-            .get(&instance.module_type)
-            .is_none_or(|description| description.controllable);
-        config.active = !controllable
-            || self
-                .overrides
-                .get(module)
-                .copied()
-                .unwrap_or(!self.control.inactive.contains(module));
+        config.active = self.demand.contains_key(module);
+        for (input, source) in &mut config.inputs {
+            let endpoint = Endpoint::new(module, input);
+            *source = self
+                .health
+                .source_for(&self.loaded.system, &endpoint, source);
+        }
         Some(config)
+    }
+
+    /// Notes a health report, sends it to every connected module, then moves the inputs whose
+    /// sources it changed.
+    fn report_health(&mut self, module: &str, kind: &str, reason: &str) {
+        let (seq, health) = self.health.report(module, kind, reason);
+        let message = FromSupervisor::Health { seq, health };
+        for conn in self.conns.values_mut() {
+            if blocking::write_message(&mut conn.writer, &message).is_ok() {
+                let _ = conn.writer.flush();
+            }
+        }
+        self.push_changes();
+    }
+
+    /// Which modules run and why, from the controller's wishes and the operator's hand.
+    fn compute_demand(&self) -> BTreeMap<String, Reason> {
+        let system = &self.loaded.system;
+        let mut wanted: BTreeMap<String, String> = match &self.control.wanted {
+            Some(wanted) => wanted.clone(),
+            None => system
+                .modules
+                .iter()
+                .map(|module| (module.name.clone(), "no mission".to_owned()))
+                .collect(),
+        };
+        let mut held = self.control.held.clone();
+        for (module, started) in &self.overrides {
+            if *started {
+                wanted.insert(module.clone(), "by hand".to_owned());
+                held.remove(module);
+            } else {
+                held.insert(module.clone());
+            }
+        }
+        let controllable = |instance: &ModuleInstance| {
+            self.loaded
+                .descriptions
+                .get(&instance.module_type)
+                .is_none_or(|description| description.controllable)
+        };
+        demand(system, controllable, &wanted, &held)
     }
 
     /// Sends every connected module whose configuration changed its new one (and a start or
     /// stop if that is what changed). Returns the modules updated.
     fn push_changes(&mut self) -> Vec<String> {
+        self.demand = self.compute_demand();
         let mut updated = Vec::new();
+        let mut switched = Vec::new();
         // Modules that stop go first, so two modules commanding the same thing never overlap;
         // then the others, in name order.
         let mut names: Vec<(bool, String)> = self
@@ -145,6 +202,13 @@ impl State {
                 continue;
             }
             let mut message_ok = true;
+            for (input, source) in &config.inputs {
+                if let Some(before) = conn.sent.inputs.get(input)
+                    && before != source
+                {
+                    switched.push((name.clone(), format!("{name}.{input}: {before} → {source}")));
+                }
+            }
             let activity_changed = config.active != conn.sent.active;
             let mut as_sent = config.clone();
             as_sent.active = conn.sent.active;
@@ -170,6 +234,9 @@ impl State {
             conn.sent = config;
         }
         updated.sort();
+        for (module, reason) in switched {
+            self.report_health(&module, "switched", &reason);
+        }
         updated
     }
 }
@@ -190,19 +257,24 @@ impl ConfigServer {
         control: Control,
         lease: Option<Duration>,
         secret: Option<Secret>,
+        clock: Clock,
     ) -> std::io::Result<(Self, Receiver<ServerEvent>)> {
         let listener = TcpListener::bind(addr)?;
         let (events, receiver) = mpsc::channel();
+        let mut state = State {
+            secret,
+            loaded: Arc::new(loaded),
+            control,
+            conns: HashMap::new(),
+            next_conn_id: 0,
+            overrides: BTreeMap::new(),
+            stats: HashMap::new(),
+            demand: BTreeMap::new(),
+            health: HealthBook::new(clock),
+        };
+        state.demand = state.compute_demand();
         let server = Self {
-            state: Arc::new(Mutex::new(State {
-                secret,
-                loaded: Arc::new(loaded),
-                control,
-                conns: HashMap::new(),
-                next_conn_id: 0,
-                overrides: BTreeMap::new(),
-                stats: HashMap::new(),
-            })),
+            state: Arc::new(Mutex::new(state)),
             events,
             addr: listener.local_addr()?,
         };
@@ -215,10 +287,12 @@ impl ConfigServer {
         Ok((server, receiver))
     }
 
-    /// Pings every module a few times per lease and reports those silent for a whole lease.
+    /// Pings every module a few times per lease and reports those silent for a whole lease:
+    /// on the health stream at once, and to the supervisor.
     fn heartbeat_loop(&self, lease: Duration) {
-        loop {
-            std::thread::sleep(lease / PINGS_PER_LEASE);
+        for check in 1u32.. {
+            std::thread::sleep(lease / CHECKS_PER_LEASE);
+            let ping = check.is_multiple_of(CHECKS_PER_LEASE / PINGS_PER_LEASE);
             let now = Instant::now();
             let mut silent = Vec::new();
             {
@@ -232,7 +306,13 @@ impl ConfigServer {
                         }
                         continue;
                     }
-                    let _ = blocking::write_message(&mut conn.writer, &FromSupervisor::Ping);
+                    if ping {
+                        let _ = blocking::write_message(&mut conn.writer, &FromSupervisor::Ping);
+                    }
+                }
+                for (module, quiet) in &silent {
+                    let reason = format!("no answer for {:.2} s", quiet.as_secs_f64());
+                    state.report_health(module, "stalled", &reason);
                 }
             }
             for (module, silent_for) in silent {
@@ -269,6 +349,9 @@ impl ConfigServer {
     /// Sends a control message to a connected module. Returns whether it was connected.
     pub fn send(&self, module: &str, message: &FromSupervisor) -> bool {
         let mut state = self.lock();
+        if *message == FromSupervisor::Shutdown {
+            state.health.leaving(module);
+        }
         let Some(conn) = state.conns.get_mut(module) else {
             return false;
         };
@@ -310,6 +393,9 @@ impl ConfigServer {
             {
                 state.conns.remove(&module);
                 state.stats.remove(&module);
+                if state.health.closed_is_failure(&module) {
+                    state.report_health(&module, "failed", "its connection closed");
+                }
                 drop(state);
                 let _ = self.events.send(ServerEvent::Disconnected { module });
             }
@@ -350,6 +436,7 @@ impl ConfigServer {
             };
             blocking::write_message(&mut writer, &FromSupervisor::Config(config.clone()))?;
             writer.get_ref().set_write_timeout(Some(WRITE_TIMEOUT))?;
+            state.health.connected(&name);
             state.conns.insert(
                 name.clone(),
                 ModuleConn {
@@ -370,9 +457,16 @@ impl ConfigServer {
             let message = blocking::read_message::<ToSupervisor>(stream)?;
             self.heard(&name, conn_id);
             let event = match message {
-                ToSupervisor::Ready => ServerEvent::Ready {
-                    module: name.clone(),
-                },
+                ToSupervisor::Ready => {
+                    let mut state = self.lock();
+                    if state.health.is_down(&name) {
+                        state.report_health(&name, "recovered", "configured and at work again");
+                    }
+                    drop(state);
+                    ServerEvent::Ready {
+                        module: name.clone(),
+                    }
+                }
                 ToSupervisor::Event { name: event } => ServerEvent::Event {
                     module: name.clone(),
                     name: event,
@@ -454,6 +548,17 @@ impl ConfigServer {
                 )
             })
             .collect()
+    }
+
+    /// Reports `kind` of `module` on the health stream (the supervisor's `restarting`,
+    /// `gave_up`), to every module.
+    pub fn report_health(&self, module: &str, kind: &str, reason: &str) {
+        self.lock().report_health(module, kind, reason);
+    }
+
+    /// Why each module runs (those that idle are absent).
+    pub fn demand(&self) -> BTreeMap<String, Reason> {
+        self.lock().demand.clone()
     }
 
     /// What each module last said of its work.

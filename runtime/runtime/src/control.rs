@@ -162,6 +162,11 @@ pub struct ModuleStatus {
     pub last_exit: Option<String>,
     /// What it did so far, as of its last answer to a ping.
     pub stats: Option<NodeStats>,
+    /// Why it runs (or would, once up): `place cross_drive`, `needed by follower.odometry`,
+    /// `carries follower.cmd_desired`, `by hand`, `always`, `not controllable`, `no mission`;
+    /// `None` when nothing needs it and it idles.
+    #[serde(default)]
+    pub why: Option<String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

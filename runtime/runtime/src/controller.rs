@@ -8,6 +8,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use armor_model::net::{Engine, Firing, MissionNet, Place};
+use armor_model::system::Reason;
 use armor_module_api::Clock;
 use serde_json::json;
 
@@ -55,6 +56,8 @@ pub struct Controller {
     /// per element of the net at most).
     first_fired: BTreeMap<String, f64>,
     first_marked: BTreeMap<String, f64>,
+    /// Which modules ran and why when last noted in the timeline.
+    running: BTreeMap<String, String>,
 }
 
 /// The modules that every place of `net` runs, each with the same parameters in all: a plan's
@@ -118,6 +121,7 @@ impl Controller {
             firings_total: 0,
             first_fired: BTreeMap::new(),
             first_marked: BTreeMap::new(),
+            running: BTreeMap::new(),
         };
         let at = controller.clock.now_secs();
         controller.first_marked = controller
@@ -133,17 +137,26 @@ impl Controller {
     /// What the modules must be told: who idles, and the parameters of the marked places.
     /// Paused, the mission's modules idle (the robot holds), but for those that run it through
     /// (a recorder records the pause too).
+    ///
+    /// The modules the marked places name are wanted, each for the first such place; what they
+    /// need follows them (the config server closes the set).
     pub fn control(&self) -> Control {
-        let active = self.engine.active_modules();
+        let mut wanted = BTreeMap::new();
+        for place in self.engine.marking().into_keys() {
+            let Some(place) = self.net.place(&place) else {
+                continue;
+            };
+            for module in &place.modules {
+                if !self.paused || self.steady.contains(module) {
+                    wanted
+                        .entry(module.clone())
+                        .or_insert_with(|| format!("place {}", place.name));
+                }
+            }
+        }
         Control {
-            inactive: self
-                .controllable
-                .iter()
-                .filter(|module| {
-                    !active.contains(*module) || (self.paused && !self.steady.contains(*module))
-                })
-                .cloned()
-                .collect(),
+            wanted: Some(wanted),
+            held: BTreeSet::new(),
             overlays: self.engine.params(),
         }
     }
@@ -225,7 +238,12 @@ impl Controller {
         let event = format!("module.{module}.failed");
         let latched = self.engine.report_event(&event, self.clock.now_secs());
         self.record("failed", json!({ "module": module, "latched_by": latched }));
-        let needed = self.engine.active_modules().contains(module);
+        // Needed: named by a marked place, or pulled in by what such a module needs.
+        let needed = self.engine.active_modules().contains(module)
+            || server
+                .demand()
+                .get(module)
+                .is_some_and(|reason| matches!(reason, Reason::NeededBy(_) | Reason::Carries(_)));
         self.step(server);
         if latched.is_empty() && needed && self.outcome.is_none() {
             self.outcome = Some(Outcome::Failed {
@@ -289,7 +307,12 @@ impl Controller {
     /// leg with the same goal would otherwise reach the follower as nothing at all, and the
     /// mission would wait for ever. Such modules are stopped, then started again. A module that
     /// every place runs alike (see [`steady_modules`]) goes on.
-    fn apply_firings(&self, server: &ConfigServer, before: &BTreeSet<String>, firings: &[Firing]) {
+    fn apply_firings(
+        &mut self,
+        server: &ConfigServer,
+        before: &BTreeSet<String>,
+        firings: &[Firing],
+    ) {
         let after = self.engine.active_modules();
         let entered_again: BTreeSet<String> = firings
             .iter()
@@ -308,10 +331,31 @@ impl Controller {
         if !entered_again.is_empty() {
             tracing::info!(modules = ?entered_again, "restarting the modules of a place entered");
             let mut control = self.control();
-            control.inactive.extend(entered_again);
+            control.held.extend(entered_again);
             server.set_control(control);
         }
+        self.tell(server);
+    }
+
+    /// Puts the mission's wishes in force, and records in the timeline which modules run and
+    /// why when that changed.
+    fn tell(&mut self, server: &ConfigServer) {
         server.set_control(self.control());
+        self.note_demand(server);
+    }
+
+    /// Records in the timeline which modules run and why, if that changed since last noted
+    /// (the operator's hand changes it too).
+    pub fn note_demand(&mut self, server: &ConfigServer) {
+        let running: BTreeMap<String, String> = server
+            .demand()
+            .into_iter()
+            .map(|(module, reason)| (module, reason.to_string()))
+            .collect();
+        if running != self.running {
+            self.record("demand", json!({ "running": running }));
+            self.running = running;
+        }
     }
 
     pub fn status(&self) -> MissionStatus {
@@ -381,7 +425,7 @@ impl Controller {
             Request::Pause if self.paused => (false, "already paused".to_owned()),
             Request::Pause => {
                 self.paused = true;
-                server.set_control(self.control());
+                self.tell(server);
                 self.record("paused", json!({}));
                 tracing::info!("mission paused by the operator");
                 (true, "paused: controllable modules hold".to_owned())
@@ -389,7 +433,7 @@ impl Controller {
             Request::Resume if !self.paused => (false, "not paused".to_owned()),
             Request::Resume => {
                 self.paused = false;
-                server.set_control(self.control());
+                self.tell(server);
                 self.record("resumed", json!({}));
                 tracing::info!("mission resumed by the operator");
                 self.step(server);
@@ -474,13 +518,20 @@ mod tests {
         let net = MissionNet::parse(&text).expect("a valid net");
         let controllable = ["follower", "recorder", "sim"].map(str::to_owned).into();
         let mut controller = Controller::new(net, controllable, Clock::real_time(), 0.0, false);
+        let wanted = |modules: &[&str]| {
+            Some(
+                modules
+                    .iter()
+                    .map(|module| ((*module).to_owned(), "place one".to_owned()))
+                    .collect(),
+            )
+        };
         assert_eq!(
-            controller.control().inactive,
-            BTreeSet::from(["sim".to_owned()])
+            controller.control().wanted,
+            wanted(&["follower", "recorder"])
         );
         controller.paused = true;
-        let inactive = ["follower", "sim"].map(str::to_owned).into();
-        assert_eq!(controller.control().inactive, inactive);
+        assert_eq!(controller.control().wanted, wanted(&["recorder"]));
     }
 
     #[test]

@@ -11,6 +11,7 @@ pub mod control;
 pub mod controller;
 pub mod fs;
 pub mod gate;
+pub mod health;
 pub mod load;
 mod mcap_read;
 pub mod mission;

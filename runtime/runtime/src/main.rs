@@ -577,12 +577,13 @@ fn status_text(status: &control::Status) -> String {
             module.module_type,
             module.state.as_str()
         );
-        if let Some(manual) = module.manual {
-            out.push_str(if manual {
-                ", started by hand"
-            } else {
-                ", stopped by hand"
-            });
+        match (module.manual, &module.why) {
+            (Some(true), _) => out.push_str(", started by hand"),
+            (Some(false), _) => out.push_str(", stopped by hand"),
+            (None, Some(why)) => {
+                let _ = write!(out, ", {why}");
+            }
+            (None, None) => out.push_str(", not needed"),
         }
         if module.restarts > 0 {
             let _ = write!(out, ", {}", plural(module.restarts as usize, "restart"));

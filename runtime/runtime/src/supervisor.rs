@@ -248,8 +248,12 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         control,
         options.lease,
         secret.clone(),
+        clock,
     )
     .context("cannot start the config server")?;
+    if let Some(controller) = &mut controller {
+        controller.note_demand(&server);
+    }
     if let Err(err) = server.watch(&system_file, options.module_path.clone()) {
         tracing::warn!("cannot watch {} for changes: {err}", system_file.display());
     }
@@ -360,6 +364,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     None => (false, "this run has no mission".to_owned()),
                 },
             };
+            if let Some(controller) = &mut controller {
+                controller.note_demand(&server);
+            }
             let status = run_status(&modules, &server, controller.as_ref(), &env, &clock);
             let _ = reply.send(control::Reply {
                 ok,
@@ -421,9 +428,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
         }
         for module in modules.values_mut() {
-            let was_failed = module.state == ProcState::Failed;
+            let before = module.state;
             module.supervise(&env);
-            if !was_failed
+            tell_health(&server, module, before);
+            if before != ProcState::Failed
                 && module.state == ProcState::Failed
                 && let Some(controller) = &mut controller
             {
@@ -496,6 +504,26 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     Ok(outcome)
 }
 
+/// Puts on the health stream what supervising `module` changed since it was `before`: a
+/// crash restarted (`restarting`) or given up (`gave_up`).
+fn tell_health(server: &ConfigServer, module: &ModuleProc, before: ProcState) {
+    let how = module.last_exit.as_deref().unwrap_or("ended");
+    match module.state {
+        ProcState::Restarting(at) if !matches!(before, ProcState::Restarting(_)) => {
+            let in_ms = at.saturating_duration_since(Instant::now()).as_millis();
+            server.report_health(
+                &module.name,
+                "restarting",
+                &format!("{how}; started again in {in_ms} ms"),
+            );
+        }
+        ProcState::Failed if before != ProcState::Failed => {
+            server.report_health(&module.name, "gave_up", &format!("{how}; not restarted"));
+        }
+        _ => {}
+    }
+}
+
 fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (bool, String) {
     match server.set_override(module, active) {
         Ok(()) => (
@@ -520,6 +548,7 @@ fn run_status(
 ) -> control::Status {
     let loaded = server.loaded();
     let activity = server.activity();
+    let demand = server.demand();
     let mut stats = server.stats();
     let modules = modules
         .values()
@@ -549,6 +578,7 @@ fn run_status(
                 restarts: module.restarts,
                 last_exit: module.last_exit.clone(),
                 stats: stats.remove(&module.name),
+                why: demand.get(&module.name).map(ToString::to_string),
             }
         })
         .collect();

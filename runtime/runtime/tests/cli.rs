@@ -96,7 +96,7 @@ fn check_reports_every_problem_with_its_place() {
             "FILE:6:24: module `n`: input `scan` expects LaserScan but `c.count` is Counter",
             "FILE:7:9: link from `n.scan`: `scan` is an input of `n`; a link goes from an output to an input",
             "FILE:8:24: module `n`: input `scan` expects LaserScan but `c.count` is Counter",
-            "FILE:8:24: input `n.scan` is already fed by `c.count` (line 6)",
+            "FILE:8:24: input `n.scan` is already fed by `c.count` (line 6); another source is a fallback (fallback=\"1\", \"2\", …)",
         ],
     );
 }

@@ -1,13 +1,13 @@
 //! The checks of a mission against the system it runs on and the module descriptions.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use armor_module_api::describe::ModuleDescription;
 use armor_module_api::xml::{Located, Pos};
 
 use super::{EventRef, MissionNet};
 use crate::fields::listing;
-use crate::system::{ModuleInstance, SystemConfig};
+use crate::system::{ModuleInstance, SystemConfig, demand};
 
 /// Every problem of the names a mission uses, sorted by position: the modules its places run
 /// exist in `system` and can be started and stopped; their parameters are declared by the
@@ -72,6 +72,7 @@ pub fn check_names(
             }
         }
     }
+    let running = runs_somewhere(net, system, descriptions);
     for transition in &net.transitions {
         let Some(event) = &transition.condition.event else {
             continue;
@@ -85,6 +86,17 @@ pub fn check_names(
                 else {
                     continue;
                 };
+                if description.event(event).is_some() && !running.contains(module) {
+                    problems.push(Located::new(
+                        pos,
+                        format!(
+                            "transition `{}`: waits for `{module}.{event}`, but no place of the \
+                             mission runs `{module}`, nor anything that needs it: the event \
+                             never comes",
+                            transition.name
+                        ),
+                    ));
+                }
                 if description.event(event).is_none() {
                     problems.push(Located::new(
                         pos,
@@ -116,6 +128,34 @@ pub fn check_names(
     }
     problems.sort_by_key(|problem| problem.pos);
     problems
+}
+
+/// The modules that run in some place of `net`: those each place names, closed over what they
+/// need (activation on demand, [`crate::system::demand`]), and those that always run.
+fn runs_somewhere(
+    net: &MissionNet,
+    system: &SystemConfig,
+    descriptions: &BTreeMap<String, ModuleDescription>,
+) -> BTreeSet<String> {
+    let controllable = |instance: &ModuleInstance| {
+        descriptions
+            .get(&instance.module_type)
+            .is_none_or(|description| description.controllable)
+    };
+    let held = BTreeSet::new();
+    let mut running = BTreeSet::new();
+    for place in &net.places {
+        let wanted = place
+            .modules
+            .iter()
+            .map(|module| (module.clone(), format!("place {}", place.name)))
+            .collect();
+        running.extend(demand(system, controllable, &wanted, &held).into_keys());
+    }
+    if net.places.is_empty() {
+        running.extend(demand(system, controllable, &BTreeMap::new(), &held).into_keys());
+    }
+    running
 }
 
 /// The module instance `name` and its description, if known; reports a module missing from the
@@ -155,6 +195,7 @@ mod tests {
   <module name="sim" type="sim"/>
   <module name="ui" type="console"/>
   <module name="cam" type="camera"/>
+  <link from="cam.image" to="nav.image"/>
 </system>"#;
 
     fn descriptions() -> BTreeMap<String, ModuleDescription> {
@@ -218,6 +259,28 @@ mod tests {
                 "<transition name=\"cam_event\" event=\"cam.whatever\"><input place=\"go\"/></transition>",
             ],
             &[],
+        );
+    }
+
+    #[test]
+    fn an_event_of_a_module_that_never_runs_never_comes() {
+        check(
+            &[
+                "<place name=\"look\" tokens=\"1\"><module name=\"nav\"/></place>",
+                "<place name=\"idle\"/>",
+                // `cam` runs in `look`: `nav` reads its image.
+                "<transition name=\"seen\" event=\"cam.whatever\"><input place=\"look\"/><output place=\"idle\"/></transition>",
+            ],
+            &[],
+        );
+        check(
+            &[
+                "<place name=\"look\" tokens=\"1\"><module name=\"cam\"/></place>",
+                "<transition name=\"arrive\" event=\"nav.blocked\"><input place=\"look\"/></transition>",
+            ],
+            &[
+                "3:1: transition `arrive`: waits for `nav.blocked`, but no place of the mission runs `nav`, nor anything that needs it: the event never comes",
+            ],
         );
     }
 

@@ -109,38 +109,6 @@ pub struct Navigation {
     pub pos: Pos,
 }
 
-impl Navigation {
-    /// The modules the navigation module's commands pass through on their way to the robot, as
-    /// a new plan guesses its companions: those fed from its outputs, link after link, as long
-    /// as they are `controllable` (a module that is not, a mux, runs whatever the plan says).
-    /// A plan without them would leave them stopped and the robot still.
-    pub fn companions_in(
-        &self,
-        system: &crate::SystemConfig,
-        controllable: impl Fn(&str) -> bool,
-    ) -> Vec<String> {
-        let mut found: Vec<String> = Vec::new();
-        let mut frontier = vec![self.module.clone()];
-        while let Some(module) = frontier.pop() {
-            for link in system
-                .links
-                .iter()
-                .filter(|link| link.from.module == module)
-            {
-                let next = &link.to.module;
-                let is_controllable = system
-                    .module(next)
-                    .is_some_and(|instance| controllable(&instance.module_type));
-                if *next != self.module && is_controllable && !found.contains(next) {
-                    found.push(next.clone());
-                    frontier.push(next.clone());
-                }
-            }
-        }
-        found
-    }
-}
-
 impl Default for Navigation {
     fn default() -> Self {
         Self {
@@ -409,34 +377,5 @@ mod tests {
                 .contains("`%`")
         );
         assert!(check_sidc("1003100000121100000X").is_err());
-    }
-
-    #[test]
-    fn companions_are_the_controllable_modules_downstream_of_the_navigation() {
-        let system = crate::SystemConfig::parse(
-            r#"<system name="robot">
-  <module name="sim" type="sim"/>
-  <module name="follower" type="follower"/>
-  <module name="avoider" type="avoider"/>
-  <module name="smoother" type="smoother"/>
-  <module name="observer" type="observer"/>
-  <module name="mux" type="mux"/>
-  <link from="sim.odometry" to="follower.odometry"/>
-  <link from="follower.cmd_desired" to="avoider.cmd_desired"/>
-  <link from="avoider.cmd_vel" to="smoother.cmd"/>
-  <link from="smoother.cmd" to="mux.auto"/>
-  <link from="observer.cmd_vel" to="mux.observe"/>
-  <link from="mux.cmd_vel" to="sim.cmd_vel"/>
-</system>"#,
-        )
-        .expect("parses");
-        let navigation = Navigation::default();
-        let controllable = |module_type: &str| !matches!(module_type, "mux" | "sim");
-        assert_eq!(
-            navigation.companions_in(&system, controllable),
-            ["avoider", "smoother"],
-            "through the avoider and the smoother, not past the mux"
-        );
-        assert!(navigation.companions_in(&system, |_| false).is_empty());
     }
 }

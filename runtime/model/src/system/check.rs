@@ -3,6 +3,7 @@
 use std::collections::BTreeMap;
 
 use armor_module_api::describe::{ModuleDescription, PortSpec};
+use armor_module_api::protocol::HEALTH;
 use armor_module_api::xml::{Located, Pos};
 
 use super::{Endpoint, Link, ModuleInstance, ParamValue, SystemConfig};
@@ -58,17 +59,27 @@ pub fn check(
             )),
         }
     }
-    // Input -> the first link feeding it.
-    let mut fed: BTreeMap<&Endpoint, &Link> = BTreeMap::new();
+    // The run's health stream is an output of the runtime, not of a module.
+    let health = PortSpec {
+        name: "health".to_owned(),
+        data_type: "Health".to_owned(),
+        doc: String::new(),
+    };
+    // (Input, fallback rank) -> the first link feeding it so.
+    let mut fed: BTreeMap<(&Endpoint, u32), &Link> = BTreeMap::new();
     for link in &system.links {
-        let from = resolve(
-            &link.from,
-            link.from_pos,
-            Side::From,
-            &modules,
-            descriptions,
-            &mut problems,
-        );
+        let from = if link.from.to_string() == HEALTH {
+            Some(Some(&health))
+        } else {
+            resolve(
+                &link.from,
+                link.from_pos,
+                Side::From,
+                &modules,
+                descriptions,
+                &mut problems,
+            )
+        };
         let to = resolve(
             &link.to,
             link.to_pos,
@@ -106,18 +117,37 @@ pub fn check(
             ));
         }
         if to.is_some() {
-            match fed.get(&link.to) {
-                Some(first) => problems.push(Located::new(
+            match fed.get(&(&link.to, link.fallback)) {
+                Some(first) if link.fallback == 0 => problems.push(Located::new(
                     link.to_pos,
                     format!(
-                        "input `{}` is already fed by `{}` (line {})",
+                        "input `{}` is already fed by `{}` (line {}); another source is a \
+                         fallback (fallback=\"1\", \"2\", …)",
                         link.to, first.from, first.pos.line
                     ),
                 )),
+                Some(first) => problems.push(Located::new(
+                    link.pos,
+                    format!(
+                        "input `{}` already has `{}` as fallback {} (line {})",
+                        link.to, first.from, link.fallback, first.pos.line
+                    ),
+                )),
                 None => {
-                    fed.insert(&link.to, link);
+                    fed.insert((&link.to, link.fallback), link);
                 }
             }
+        }
+    }
+    for ((input, rank), link) in &fed {
+        if *rank > 0 && !fed.contains_key(&(*input, 0)) {
+            problems.push(Located::new(
+                link.pos,
+                format!(
+                    "input `{input}` has a fallback but no source: one of its links needs no \
+                     `fallback`"
+                ),
+            ));
         }
     }
     problems.sort_by_key(|problem| problem.pos);

@@ -72,6 +72,51 @@ impl FromStr for RestartPolicy {
     }
 }
 
+/// When a controllable module runs (the `activation` attribute; a module that is not
+/// controllable runs whenever its process does).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Activation {
+    /// When a place or the operator wants it, and also when a module that runs needs what it
+    /// publishes, or when it carries the commands of a wanted module on (see [`demand`]).
+    #[default]
+    OnDemand,
+    /// All the time, mission or not.
+    Always,
+    /// Only when a place or the operator names it: never pulled in by another's needs (a
+    /// source that the mission starts and stops on purpose).
+    Explicit,
+}
+
+impl Activation {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Activation::OnDemand => "on-demand",
+            Activation::Always => "always",
+            Activation::Explicit => "explicit",
+        }
+    }
+}
+
+impl fmt::Display for Activation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for Activation {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "on-demand" => Ok(Activation::OnDemand),
+            "always" => Ok(Activation::Always),
+            "explicit" => Ok(Activation::Explicit),
+            other => Err(format!(
+                "unknown activation `{other}` (expected on-demand, always or explicit)"
+            )),
+        }
+    }
+}
+
 /// One end of a link: a port of a module instance, written `module.port`.
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Endpoint {
@@ -126,6 +171,8 @@ pub struct ModuleInstance {
     /// Where the module runs; `None` for the system's host.
     pub host: Option<String>,
     pub restart: RestartPolicy,
+    /// When it runs, if it is controllable.
+    pub activation: Activation,
     pub params: Vec<ParamValue>,
     /// Data name patterns the module may publish (all of its outputs when `None`).
     pub may_publish: Option<Vec<String>>,
@@ -171,6 +218,9 @@ pub fn allowed(patterns: Option<&[String]>, data_name: &str) -> bool {
 pub struct Link {
     pub from: Endpoint,
     pub to: Endpoint,
+    /// 0 for an input's source; 1, 2, … for its fallbacks, taken in that order while the
+    /// sources before them are down (`fallback="1"`).
+    pub fallback: u32,
     /// The `<link>` element.
     pub pos: Pos,
     /// The `from` attribute.
@@ -208,6 +258,13 @@ impl SystemConfig {
         self.modules.iter().find(|module| module.name == name)
     }
 
+    /// The sources of the input `to`, best first: its source, then its fallbacks by rank.
+    pub fn sources(&self, to: &Endpoint) -> Vec<&Link> {
+        let mut sources: Vec<&Link> = self.links.iter().filter(|link| link.to == *to).collect();
+        sources.sort_by_key(|link| link.fallback);
+        sources
+    }
+
     /// The host the agent and config server listen on: the configured one or [`DEFAULT_HOST`].
     pub fn host_or_default(&self) -> &str {
         self.host.as_deref().unwrap_or(DEFAULT_HOST)
@@ -228,7 +285,7 @@ impl SystemConfig {
             ..ModuleBindings::default()
         };
         for link in &self.links {
-            if link.to.module == module {
+            if link.to.module == module && link.fallback == 0 {
                 bindings
                     .inputs
                     .entry(link.to.port.clone())
@@ -274,9 +331,11 @@ impl SystemConfig {
 }
 
 mod check;
+pub mod demand;
 mod xml;
 
 pub use check::check;
+pub use demand::{Reason, demand};
 
 #[cfg(test)]
 mod tests;

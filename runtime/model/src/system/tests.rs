@@ -172,12 +172,12 @@ fn structural_problems() {
         &[
             "1:18: unknown attribute `color` on <system> (expected one of: name, host)",
             "2:3: unknown element <modul> inside <system> (expected one of: module, link)",
-            "3:29: unknown attribute `prio` on <module> (expected one of: name, type, restart, host, may_publish, may_subscribe)",
+            "3:29: unknown attribute `prio` on <module> (expected one of: name, type, restart, activation, host, may_publish, may_subscribe)",
             "4:5: unknown element <parameter> inside <module> (expected one of: param)",
             "5:31: unknown attribute `unit` on <param> (expected one of: name, value)",
             "5:40: unknown element <x> inside <param> (it has no elements)",
             "7:3: <link> must not contain text (found `text`)",
-            "7:29: unknown attribute `via` on <link> (expected one of: from, to)",
+            "7:29: unknown attribute `via` on <link> (expected one of: from, to, fallback)",
         ],
     );
     // Missing and empty required attributes.
@@ -197,7 +197,7 @@ fn structural_problems() {
     );
     // Names that are not identifiers, bad restart policy, bad endpoints.
     parse_problems(
-        "<system name=\"my system\">\n<module name=\"9a\" type=\"a.b\" restart=\"sometimes\">\n<param name=\"-p\" value=\"\"/>\n</module>\n<link from=\"counter\" to=\"a.b.c\"/>\n<link from=\".x\" to=\"a.9\"/>\n</system>",
+        "<system name=\"my system\">\n<module name=\"9a\" type=\"a.b\" restart=\"sometimes\">\n<param name=\"-p\" value=\"\"/>\n</module>\n<link from=\"counter\" to=\"a.b.c\"/>\n<link from=\".x\" to=\"a.9\"/>\n<module name=\"c\" type=\"c\" activation=\"lazy\"/>\n</system>",
         &[
             "1:9: name `my system` of <system> is not valid (use letters, digits, `_` or `-`, starting with a letter or `_`)",
             "2:9: name `9a` of <module> is not valid (use letters, digits, `_` or `-`, starting with a letter or `_`)",
@@ -208,6 +208,7 @@ fn structural_problems() {
             "5:22: `to` must be MODULE.INPUT (two names joined by a dot), not `a.b.c`",
             "6:7: `from` must be MODULE.OUTPUT (two names joined by a dot), not `.x`",
             "6:17: `to` must be MODULE.INPUT (two names joined by a dot), not `a.9`",
+            "7:27: unknown activation `lazy` (expected on-demand, always or explicit)",
         ],
     );
 }
@@ -219,6 +220,60 @@ fn an_empty_string_parameter_value_is_allowed() {
         )
         .expect("valid");
     assert_eq!(system.modules[0].params[0].value, "");
+}
+
+#[test]
+fn fallback_sources_and_the_health_stream() {
+    let xml = |links: &str| {
+        format!(
+            "<system name=\"s\">\n<module name=\"a\" type=\"counter\"/>\n<module name=\"b\" type=\"counter\"/>\n<module name=\"k\" type=\"checker\"/>\n{links}</system>"
+        )
+    };
+    // A source, two fallbacks in any order: the bindings take the source, `sources` all.
+    let text = xml(
+        "<link from=\"b.count\" to=\"k.input\" fallback=\"2\"/>\n<link from=\"a.count\" to=\"k.input\"/>\n<link from=\"a.count\" to=\"k.input\" fallback=\"1\"/>\n",
+    );
+    check(&text, &[]);
+    let system = SystemConfig::parse(&text).expect("valid");
+    let sources: Vec<(String, u32)> = system
+        .sources(&Endpoint::new("k", "input"))
+        .iter()
+        .map(|link| (link.from.to_string(), link.fallback))
+        .collect();
+    assert_eq!(
+        sources,
+        [
+            ("a.count".to_owned(), 0),
+            ("a.count".to_owned(), 1),
+            ("b.count".to_owned(), 2)
+        ]
+    );
+    let bindings = system.bindings("k", None).expect("a module");
+    assert_eq!(bindings.inputs["input"], "a.count");
+    round_trip(&text);
+    // Two fallbacks of one rank; a rank that is not one.
+    check(
+        &xml(
+            "<link from=\"a.count\" to=\"k.input\"/>\n<link from=\"b.count\" to=\"k.input\" fallback=\"1\"/>\n<link from=\"a.count\" to=\"k.input\" fallback=\"1\"/>\n",
+        ),
+        &["7:1: input `k.input` already has `b.count` as fallback 1 (line 6)"],
+    );
+    parse_problems(
+        &xml("<link from=\"a.count\" to=\"k.input\" fallback=\"0\"/>\n"),
+        &["5:35: `fallback` is the fallback's rank, 1, 2, …, not `0`"],
+    );
+    // Fallbacks alone: nothing feeds the input.
+    check(
+        &xml("<link from=\"b.count\" to=\"k.input\" fallback=\"2\"/>\n"),
+        &[
+            "5:1: input `k.input` has a fallback but no source: one of its links needs no `fallback`",
+        ],
+    );
+    // The health stream is the runtime's: a `Health` input takes it, a `Counter` one does not.
+    check(
+        &xml("<link from=\"armor.health\" to=\"k.input\"/>\n"),
+        &["5:27: module `k`: input `input` expects Counter but `armor.health` is Health"],
+    );
 }
 
 #[test]
@@ -307,8 +362,8 @@ fn problems_against_descriptions() {
         ),
         &[
             "6:27: module `nav`: input `scan` expects LaserScan but `sim.odometry` is Odometry",
-            "7:23: input `nav.scan` is already fed by `sim.odometry` (line 6)",
-            "9:22: input `k.input` is already fed by `c.count` (line 8)",
+            "7:23: input `nav.scan` is already fed by `sim.odometry` (line 6); another source is a fallback (fallback=\"1\", \"2\", …)",
+            "9:22: input `k.input` is already fed by `c.count` (line 8); another source is a fallback (fallback=\"1\", \"2\", …)",
         ],
     );
 }
@@ -365,7 +420,7 @@ fn round_trips_through_xml() {
     round_trip(DEMO);
     round_trip("<system name=\"s\"/>");
     round_trip(
-        "<system name=\"s\" host=\"::1\">\n<module name=\"a\" type=\"t\" restart=\"never\"/>\n<module name=\"b\" type=\"t\" restart=\"always\" host=\"robot-2.local\">\n<param name=\"text\" value=\"&lt;a &amp; 'b' &quot;c&quot;&gt;&#10;&#9;next&#13;\"/>\n<param name=\"empty\" value=\"\"/>\n<param name=\"unicode\" value=\"été → 🤖\"/>\n</module>\n<link from=\"a.x\" to=\"b.y\"/>\n<link from=\"b.y\" to=\"b.z\"/>\n</system>",
+        "<system name=\"s\" host=\"::1\">\n<module name=\"a\" type=\"t\" restart=\"never\" activation=\"explicit\"/><module name=\"c\" type=\"t\" activation=\"always\"/>\n<module name=\"b\" type=\"t\" restart=\"always\" host=\"robot-2.local\">\n<param name=\"text\" value=\"&lt;a &amp; 'b' &quot;c&quot;&gt;&#10;&#9;next&#13;\"/>\n<param name=\"empty\" value=\"\"/>\n<param name=\"unicode\" value=\"été → 🤖\"/>\n</module>\n<link from=\"a.x\" to=\"b.y\"/>\n<link from=\"b.y\" to=\"b.z\"/>\n</system>",
     );
     // Values set in code, written then read.
     let mut system = SystemConfig::parse(DEMO).expect("valid");

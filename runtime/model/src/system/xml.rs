@@ -4,7 +4,7 @@
 use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{self, Attr, Element, Located, Pos};
 
-use super::{Endpoint, Link, ModuleInstance, ParamValue, RestartPolicy, SystemConfig};
+use super::{Activation, Endpoint, Link, ModuleInstance, ParamValue, RestartPolicy, SystemConfig};
 use crate::fields::{escape, identifier, no_children, no_text, required};
 
 impl SystemConfig {
@@ -69,6 +69,9 @@ impl SystemConfig {
                 escape(&module.module_type),
                 module.restart
             );
+            if module.activation != Activation::default() {
+                let _ = write!(out, " activation=\"{}\"", module.activation);
+            }
             if let Some(host) = &module.host {
                 let _ = write!(out, " host=\"{}\"", escape(host));
             }
@@ -96,12 +99,16 @@ impl SystemConfig {
             out.push_str("  </module>\n");
         }
         for link in &self.links {
-            let _ = writeln!(
+            let _ = write!(
                 out,
-                "  <link from=\"{}\" to=\"{}\"/>",
+                "  <link from=\"{}\" to=\"{}\"",
                 escape(&link.from.to_string()),
                 escape(&link.to.to_string())
             );
+            if link.fallback > 0 {
+                let _ = write!(out, " fallback=\"{}\"", link.fallback);
+            }
+            out.push_str("/>\n");
         }
         out.push_str("</system>\n");
         out
@@ -113,6 +120,7 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
         "name",
         "type",
         "restart",
+        "activation",
         "host",
         "may_publish",
         "may_subscribe",
@@ -123,14 +131,8 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
     let type_attr = element.attr("type");
     let module_type = identifier(element, "type", "module type", problems);
     let host = host_attr(element, problems);
-    let restart = match element.attr("restart") {
-        None => Some(RestartPolicy::default()),
-        Some(attr) => attr
-            .value
-            .parse()
-            .map_err(|err| problems.push(Located::new(attr.pos, err)))
-            .ok(),
-    };
+    let restart = word_attr::<RestartPolicy>(element, "restart", problems);
+    let activation = word_attr::<Activation>(element, "activation", problems);
     let params: Vec<ParamValue> = element
         .children_named("param")
         .filter_map(|child| read_param(child, problems))
@@ -140,6 +142,7 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
         module_type: module_type?,
         host,
         restart: restart?,
+        activation: activation?,
         params,
         may_publish: element
             .attr("may_publish")
@@ -150,6 +153,23 @@ fn read_module(element: &Element, problems: &mut Vec<Located>) -> Option<ModuleI
         pos: element.pos,
         type_pos: type_attr.map_or(element.pos, |attr| attr.pos),
     })
+}
+
+/// An attribute that takes one of a few words (its type's `FromStr` says which), or the
+/// type's default when absent; `None` after reporting a word it does not take.
+fn word_attr<T: std::str::FromStr<Err = String> + Default>(
+    element: &Element,
+    name: &str,
+    problems: &mut Vec<Located>,
+) -> Option<T> {
+    match element.attr(name) {
+        None => Some(T::default()),
+        Some(attr) => attr
+            .value
+            .parse()
+            .map_err(|err| problems.push(Located::new(attr.pos, err)))
+            .ok(),
+    }
 }
 
 fn read_param(element: &Element, problems: &mut Vec<Located>) -> Option<ParamValue> {
@@ -175,15 +195,32 @@ fn read_param(element: &Element, problems: &mut Vec<Located>) -> Option<ParamVal
 }
 
 fn read_link(element: &Element, problems: &mut Vec<Located>) -> Option<Link> {
-    problems.extend(element.unknown_attrs(&["from", "to"]));
+    problems.extend(element.unknown_attrs(&["from", "to", "fallback"]));
     no_children(element, problems);
     no_text(element, problems);
     let from = endpoint_attr(element, "from", "MODULE.OUTPUT", problems);
     let to = endpoint_attr(element, "to", "MODULE.INPUT", problems);
+    let fallback = match element.attr("fallback") {
+        None => Some(0),
+        Some(attr) => match attr.value.parse::<u32>() {
+            Ok(rank) if rank > 0 => Some(rank),
+            _ => {
+                problems.push(Located::new(
+                    attr.pos,
+                    format!(
+                        "`fallback` is the fallback's rank, 1, 2, …, not `{}`",
+                        attr.value
+                    ),
+                ));
+                None
+            }
+        },
+    };
     let ((from, from_pos), (to, to_pos)) = (from?, to?);
     Some(Link {
         from,
         to,
+        fallback: fallback?,
         pos: element.pos,
         from_pos,
         to_pos,
