@@ -25,6 +25,8 @@ pub fn spec() -> ModuleSpec {
     )
     .category(armor_module_api::Category::Sensor)
     .version(env!("CARGO_PKG_VERSION"))
+    // Part of the robot, as the sim is: a mission's places never stop it.
+    .not_controllable()
     .input::<Pose2D>(
         "pose",
         "the robot's true pose in the world frame (link the sim's pose_truth); until one \
@@ -80,6 +82,19 @@ pub fn spec() -> ModuleSpec {
             .max(120.0)
             .unit("Hz")
             .default("15"),
+    )
+    .param(
+        ParamSpec::new(
+            "max_real_hz",
+            ParamType::Float,
+            "at most this many frames per second of real time, whatever the run's time scale \
+             (a run ten times faster than real time would otherwise draw ten times as many \
+             frames a second, which no viewer needs): the frames between are skipped",
+        )
+        .above(0.0)
+        .max(1000.0)
+        .unit("Hz")
+        .default("30"),
     )
     .param(
         ParamSpec::new(
@@ -145,6 +160,7 @@ pub fn spec() -> ModuleSpec {
 pub struct Settings {
     pub camera: Camera,
     pub rate_hz: f64,
+    pub max_real_hz: f64,
     pub encoding: ImageEncoding,
     pub jpeg_quality: u8,
     pub frame_id: String,
@@ -165,6 +181,7 @@ impl Settings {
                 max_range_m: node.param("max_range_m")?,
             },
             rate_hz: node.param("rate_hz")?,
+            max_real_hz: node.param("max_real_hz")?,
             encoding,
             jpeg_quality: node.param("jpeg_quality")?,
             frame_id: node.param("frame_id")?,
@@ -237,7 +254,12 @@ pub fn body(node: &mut Node) -> BodyResult {
         settings.rate_hz,
         settings.camera.fov_rad.to_degrees()
     );
+    // Frames are due every `period_secs` of run time, and drawn at most every `min_gap` of
+    // real time (less a tenth, so that timer jitter never skips a frame at a rate of exactly
+    // max_real_hz).
     let period_secs = 1.0 / settings.rate_hz;
+    let min_gap = std::time::Duration::from_secs_f64(0.9 / settings.max_real_hz);
+    let mut last_drawn: Option<Instant> = None;
     let mut shooter = Shooter::new(settings);
     let mut pose = world.start();
     let mut image = Image {
@@ -253,7 +275,9 @@ pub fn body(node: &mut Node) -> BodyResult {
         let deadline: Instant = node.clock().instant_at(next_frame);
         match node.next_event_until(deadline)? {
             Event::Timeout => {
-                if node.is_active() {
+                let due = last_drawn.is_none_or(|at| at.elapsed() >= min_gap);
+                if due {
+                    last_drawn = Some(Instant::now());
                     let stamp_ns = (next_frame.max(0.0) * 1e9) as u64;
                     shooter.shoot(&world, pose, stamp_ns, &mut image)?;
                     node.send(&output, &image)?;
