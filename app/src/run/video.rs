@@ -139,18 +139,15 @@ impl VideoPanel {
             ui.label("No image output in this run.");
             return;
         };
-        ui.horizontal(|ui| {
-            ui.label("Camera");
-            egui::ComboBox::from_id_salt("run-video-output")
-                .selected_text(&shown)
-                .show_ui(ui, |ui| {
-                    for output in outputs {
-                        if ui.selectable_label(*output == shown, output).clicked() {
-                            self.picked = Some(output.clone());
-                        }
+        egui::ComboBox::new("run-video-output", "Camera")
+            .selected_text(&shown)
+            .show_ui(ui, |ui| {
+                for output in outputs {
+                    if ui.selectable_label(*output == shown, output).clicked() {
+                        self.picked = Some(output.clone());
                     }
-                });
-        });
+                }
+            });
         let Some(frame) = frames.get(&shown) else {
             ui.label(format!("Waiting for a frame of {shown}…"));
             return;
@@ -181,6 +178,9 @@ impl VideoPanel {
         let response = ui
             .interact(rect, picture_id(), egui::Sense::click())
             .on_hover_text("Click, then drive with the arrow keys");
+        response.widget_info(|| {
+            egui::WidgetInfo::labeled(egui::WidgetType::Image, true, "Camera view")
+        });
         ui.painter().image(
             texture.id(),
             rect,
