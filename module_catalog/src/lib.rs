@@ -28,6 +28,8 @@
 //!   dead-man time (not controllable).
 //! - [`params`]: numeric parameters read with their range, refused in the same words by every
 //!   module.
+//! - [`webcam`]: a V4L2 camera published as images (Motion-JPEG as it comes, YUYV as rgb8);
+//!   no camera is a clear error and a normal end, not a crash loop.
 //! - [`recorder`]: records every sample of the data names in `record`, with stamp and type,
 //!   into an MCAP file while active (JSON for the built-in types); `armor replay` plays it back.
 
@@ -44,6 +46,7 @@ pub mod recorder;
 pub mod sim;
 pub mod sink;
 pub mod teleop;
+pub mod webcam;
 
 /// An angle brought into (-π, π].
 pub fn wrap_angle(angle_rad: f64) -> f64 {
