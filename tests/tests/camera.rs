@@ -1,7 +1,9 @@
 //! The simulated camera as a process: its images cross a real link unchanged (the picture the
 //! renderer draws here, byte for byte, for a 640×480 `rgb8` frame sent from the module's own
 //! buffer), and a recorder writes them into MCAP in Foxglove's image schemas, which the official
-//! `mcap` Python package reads back with the schemas named.
+//! `mcap` Python package reads back with the schemas named. A Python program written from
+//! docs/protocol.md alone (tests/python/image_publisher.py) publishes images that arrive
+//! decoded as it meant them.
 #![allow(clippy::unwrap_used)]
 
 use std::process::Command;
@@ -236,4 +238,66 @@ fn recorded_images_are_read_by_the_mcap_python_package_in_foxglove_schemas() {
         )
     );
     assert_eq!(rear["first"]["data_len"], 64 * 48);
+}
+
+#[test]
+fn images_published_by_a_python_module_written_from_the_protocol_arrive_decoded() {
+    let (_agent, agent) = start_agent();
+    let publisher = Proc::start(
+        Command::new("python3")
+            .arg(workspace_root().join("tests/python/image_publisher.py"))
+            .arg(agent.to_string())
+            .arg("pycam"),
+    );
+    publisher.wait_for("saying it registered", PATIENCE, |line| {
+        line == "registered pycam.image"
+    });
+    let mut viewer = test_node(
+        ModuleSpec::new("viewer", "looks").input::<Image>("image", "every one"),
+        agent,
+        &[("image", "pycam.image")],
+    );
+    let input = viewer.reliable_input::<Image>("image").unwrap();
+    let deadline = Instant::now() + PATIENCE;
+    let mut received = Vec::new();
+    while received.len() < 2 {
+        assert!(
+            Instant::now() < deadline,
+            "got {} images; the publisher said:\n{}",
+            received.len(),
+            publisher.lines().join("\n")
+        );
+        viewer.next_event(Some(Duration::from_millis(50))).unwrap();
+        while let Some(sample) = viewer.take(&input).unwrap() {
+            received.push(sample.value);
+        }
+    }
+    let rgb: Vec<u8> = (0..3_u8)
+        .flat_map(|y| (0..4_u8).flat_map(move |x| [10 * x, 20 * y, 7]))
+        .collect();
+    let mono: Vec<u8> = (0..480_usize)
+        .flat_map(|y| (0..640_usize).map(move |x| ((x + y) % 256) as u8))
+        .collect();
+    let expected = [
+        Image {
+            width: 4,
+            height: 3,
+            encoding: ImageEncoding::Rgb8,
+            stamp_ns: 1_500_000_000,
+            frame_id: "py-front".into(),
+            data: rgb,
+        },
+        Image {
+            width: 640,
+            height: 480,
+            encoding: ImageEncoding::Mono8,
+            stamp_ns: 2_000_000_000,
+            frame_id: "py-front".into(),
+            data: mono,
+        },
+    ];
+    assert!(
+        received == expected,
+        "the images differ from what Python sent"
+    );
 }
