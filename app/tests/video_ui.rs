@@ -19,14 +19,7 @@ fn yard_frame(encoding: ImageEncoding, turn_rad: f64) -> Vec<u8> {
     let text = std::fs::read_to_string(root.join("assets/worlds/yard.world")).unwrap();
     let world = World::parse(&text, "yard.world").unwrap();
     let mut shooter = Shooter::new(armor_module_catalog::camera::Settings {
-        camera: Camera {
-            width: 320,
-            height: 240,
-            fov_rad: 90_f64.to_radians(),
-            wall_height_m: 2.0,
-            camera_height_m: 0.5,
-            max_range_m: 100.0,
-        },
+        camera: Camera::default(),
         rate_hz: 10.0,
         max_real_hz: 10.0,
         encoding,

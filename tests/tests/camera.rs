@@ -13,6 +13,7 @@ use armor_model::world::World;
 use armor_module_api::types::{Image, ImageEncoding};
 use armor_module_api::{Event, ModuleSpec};
 use armor_module_catalog::camera::render::Camera;
+use armor_tests::mcap::recorded;
 use armor_tests::{PATIENCE, Proc, bin, start_agent, test_node, workspace_root};
 
 /// `armor-mod-camera-sim` standalone on the agent at `agent`, in the workspace's folder (where it
@@ -76,9 +77,7 @@ fn a_camera_frame_crosses_a_link_unchanged() {
         width: 640,
         height: 480,
         fov_rad: 70_f64.to_radians(),
-        wall_height_m: 2.0,
-        camera_height_m: 0.5,
-        max_range_m: 100.0,
+        ..Camera::default()
     }
     .render(&world, world.start(), &mut expected);
     assert_eq!(image.data.len(), 921_600);
@@ -153,12 +152,6 @@ fn a_seeded_random_picture_crosses_a_link_unchanged() {
         }
     }
     assert!(received == sent, "the images changed on the way");
-}
-
-/// The `N` of a recorder's `recorded N messages` line.
-fn recorded(line: &str) -> Option<u64> {
-    let rest = &line[line.find("recorded ")? + "recorded ".len()..];
-    rest.split_whitespace().next()?.parse().ok()
 }
 
 #[test]

@@ -140,6 +140,20 @@ fn open_and_run(harness: &mut Harness<'_, StudioApp>, file: &Path, time_scale: f
     );
 }
 
+/// In a plain system run the follower and the observer drive too: stops them by hand, for the
+/// operator to drive alone.
+fn stop_the_drivers(harness: &mut Harness<'_, StudioApp>) {
+    for module in ["follower", "observer"] {
+        harness.state_mut().run_mut().request(Request::StopModule {
+            module: module.to_owned(),
+        });
+    }
+    step_until(harness, "follower and observer stopped", PATIENCE, |app| {
+        module_state(app, "follower") == Some(ModuleState::Stopped)
+            && module_state(app, "observer") == Some(ModuleState::Stopped)
+    });
+}
+
 fn truth_x(app: &StudioApp) -> Option<f64> {
     app.run().live().truth.map(|pose| pose.x_m)
 }
@@ -348,21 +362,7 @@ fn the_robot_is_driven_with_the_keys_and_its_recording_replays() {
                 .iter()
                 .all(|module| module.state == ModuleState::Running)
     });
-    // In a plain system run the follower and the observer drive too: stop them by hand first.
-    for module in ["follower", "observer"] {
-        harness.state_mut().run_mut().request(Request::StopModule {
-            module: module.to_owned(),
-        });
-    }
-    step_until(
-        &mut harness,
-        "follower and observer stopped",
-        PATIENCE,
-        |app| {
-            module_state(app, "follower") == Some(ModuleState::Stopped)
-                && module_state(app, "observer") == Some(ModuleState::Stopped)
-        },
-    );
+    stop_the_drivers(&mut harness);
     harness.run_ok();
     harness.get_by_label("forward");
     let rest = Instant::now() + Duration::from_millis(800);
@@ -593,20 +593,7 @@ fn the_robot_is_driven_by_its_camera_and_the_video_is_recorded() {
     });
     harness.run_ok();
     harness.get_by_label_contains("320 × 240 jpeg · camera · age");
-    for module in ["follower", "observer"] {
-        harness.state_mut().run_mut().request(Request::StopModule {
-            module: module.to_owned(),
-        });
-    }
-    step_until(
-        &mut harness,
-        "follower and observer stopped",
-        PATIENCE,
-        |app| {
-            module_state(app, "follower") == Some(ModuleState::Stopped)
-                && module_state(app, "observer") == Some(ModuleState::Stopped)
-        },
-    );
+    stop_the_drivers(&mut harness);
     // The operator clicks the picture and drives by it: left turns the robot.
     harness.get_by_label("Camera view").click();
     harness.run_ok();

@@ -31,14 +31,8 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     let limit = if settings.quick { 20 } else { 600 };
     let world = World::parse(BUILDING_WORLD, "building.world").map_err(|err| anyhow!("{err}"))?;
     let poses = tour_poses(&world, limit)?;
-    let camera = Camera {
-        width: 320,
-        height: 240,
-        fov_rad: 90_f64.to_radians(),
-        wall_height_m: 2.0,
-        camera_height_m: 0.5,
-        max_range_m: 100.0,
-    };
+    // The module's defaults: 320×240, 90° wide.
+    let camera = Camera::default();
     let mut shooter = Shooter::new(CameraSettings {
         camera,
         rate_hz: 15.0,

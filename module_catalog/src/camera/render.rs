@@ -26,6 +26,20 @@ pub struct Camera {
     pub max_range_m: f64,
 }
 
+impl Default for Camera {
+    /// The module's defaults: 320×240, 90° wide, walls 2 m tall, the lens 0.5 m up, 100 m deep.
+    fn default() -> Self {
+        Self {
+            width: 320,
+            height: 240,
+            fov_rad: 90_f64.to_radians(),
+            wall_height_m: 2.0,
+            camera_height_m: 0.5,
+            max_range_m: 100.0,
+        }
+    }
+}
+
 type Rgb = [f32; 3];
 
 const SKY_HORIZON: Rgb = [200.0, 222.0, 240.0];
@@ -196,14 +210,7 @@ boundary 0,0 20,0 20,20 0,20 0,0
 ";
 
     fn camera() -> Camera {
-        Camera {
-            width: 320,
-            height: 240,
-            fov_rad: 90_f64.to_radians(),
-            wall_height_m: 2.0,
-            camera_height_m: 0.5,
-            max_range_m: 100.0,
-        }
+        Camera::default()
     }
 
     fn render(world: &str, camera: &Camera, pose: Pose2D) -> Vec<u8> {
@@ -303,11 +310,7 @@ boundary 0,0 20,0 20,20 0,20 0,0
         .expect("yard");
         let world = World::parse(&text, "yard.world").expect("world");
         let mut rng = crate::sim::rng::Rng::new(7, 0);
-        let camera = Camera {
-            width: 320,
-            height: 240,
-            ..camera()
-        };
+        let camera = camera();
         let bounds = world.bounds();
         let mut checked = 0;
         while checked < 40 {

@@ -228,7 +228,7 @@ pub fn capture(node: &mut Node, source: &mut impl FrameSource, settings: &Settin
 /// RGB of a YUYV 4:2:2 frame (ITU-R BT.601, studio range), rows without padding.
 pub fn yuyv_to_rgb(yuyv: &[u8], width: u32, height: u32, rgb: &mut Vec<u8>) -> Result<(), String> {
     let pixels = width as usize * height as usize;
-    if width % 2 != 0 || yuyv.len() < pixels * 2 {
+    if !width.is_multiple_of(2) || yuyv.len() < pixels * 2 {
         return Err(format!(
             "{} bytes of YUYV for {width}×{height} pixels, not {}",
             yuyv.len(),
@@ -309,7 +309,7 @@ mod tests {
         bench.script([Step::Timeouts(3)]);
         let mut camera = FakeCamera {
             format: PixelFormat::Yuyv,
-            frames: vec![vec![235, 128, 235, 128].repeat(4), vec![0; 3]],
+            frames: vec![[235, 128, 235, 128].repeat(4), vec![0; 3]],
         };
         capture(bench.node(), &mut camera, &settings(PixelFormat::Yuyv)).expect("runs");
         let sent = bench.sent::<Image>("image").expect("images");
