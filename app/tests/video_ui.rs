@@ -34,7 +34,7 @@ fn yard_frame(encoding: ImageEncoding, turn_rad: f64) -> Vec<u8> {
         encoding,
         stamp_ns: 0,
         frame_id: String::new(),
-        data: Vec::new(),
+        data: Default::default(),
     };
     shooter
         .shoot(&world, pose, 1_000_000_000, &mut image)
@@ -135,7 +135,7 @@ fn hostile_frames_are_refused_in_words() {
         encoding: ImageEncoding::Jpeg,
         stamp_ns: 0,
         frame_id: "liar".into(),
-        data: jpeg,
+        data: jpeg.into(),
     };
     let err = video::decode(&huge).unwrap_err();
     assert!(err.contains("65535 × 65535 pixels is larger"), "{err}");
@@ -147,7 +147,7 @@ fn hostile_frames_are_refused_in_words() {
         encoding: ImageEncoding::Mono8,
         stamp_ns: 0,
         frame_id: String::new(),
-        data: vec![0; 25_000_000],
+        data: vec![0; 25_000_000].into(),
     }
     .encode(&mut payload)
     .unwrap();
@@ -165,7 +165,7 @@ fn hostile_frames_are_refused_in_words() {
         encoding: ImageEncoding::Jpeg,
         stamp_ns: 0,
         frame_id: "broken".into(),
-        data: vec![0xFF, 0xD8, 0xFF, 0xC0, 0, 11, 8, 0, 8, 0, 8, 1],
+        data: vec![0xFF, 0xD8, 0xFF, 0xC0, 0, 11, 8, 0, 8, 0, 8, 1].into(),
     }
     .encode(&mut bad)
     .unwrap();

@@ -122,7 +122,7 @@ fn data_types(folder: &Path) {
         encoding: ImageEncoding::Mono8,
         stamp_ns: 1_500_000_000,
         frame_id: "cam".into(),
-        data: vec![10, 20],
+        data: vec![10, 20].into(),
     }));
     write(folder, "image", &image);
     let mut long_image = image[..image.len() - 3].to_vec();

@@ -867,13 +867,13 @@ mod tests {
             encoding: armor_module_api::types::ImageEncoding::Rgb8,
             stamp_ns: 2_000_000_001,
             frame_id: "camera".into(),
-            data: vec![1, 2, 3, 4, 5, 6],
+            data: vec![1, 2, 3, 4, 5, 6].into(),
         };
         recording
             .write("cam.image", &sample(1, 10, &image))
             .expect("write");
         image.encoding = armor_module_api::types::ImageEncoding::Jpeg;
-        image.data = vec![0xFF, 0xD8, 0xFF, 0xC0, 0, 11, 8, 0, 1, 0, 2, 3];
+        image.data = vec![0xFF, 0xD8, 0xFF, 0xC0, 0, 11, 8, 0, 1, 0, 2, 3].into();
         recording
             .write("cam.image", &sample(2, 20, &image))
             .expect("write");

@@ -278,7 +278,7 @@ fn images_published_by_a_python_module_written_from_the_protocol_arrive_decoded(
             encoding: ImageEncoding::Rgb8,
             stamp_ns: 1_500_000_000,
             frame_id: "py-front".into(),
-            data: rgb,
+            data: rgb.into(),
         },
         Image {
             width: 640,
@@ -286,7 +286,7 @@ fn images_published_by_a_python_module_written_from_the_protocol_arrive_decoded(
             encoding: ImageEncoding::Mono8,
             stamp_ns: 2_000_000_000,
             frame_id: "py-front".into(),
-            data: mono,
+            data: mono.into(),
         },
     ];
     assert!(

@@ -47,7 +47,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
         encoding: ImageEncoding::Jpeg,
         stamp_ns: 0,
         frame_id: String::new(),
-        data: Vec::new(),
+        data: Default::default(),
     };
     let mut ours = Vec::with_capacity(poses.len());
     let mut bytes = 0;

@@ -220,10 +220,10 @@ impl Shooter {
         image.stamp_ns = stamp_ns;
         image.frame_id.clone_from(&settings.frame_id);
         match settings.encoding {
-            ImageEncoding::Rgb8 => camera.render(world, pose, &mut image.data),
+            ImageEncoding::Rgb8 => camera.render(world, pose, image.data.as_mut_vec()),
             ImageEncoding::Mono8 => {
                 camera.render(world, pose, &mut self.rgb);
-                render::to_mono(&self.rgb, &mut image.data);
+                render::to_mono(&self.rgb, image.data.as_mut_vec());
             }
             ImageEncoding::Jpeg => {
                 camera.render(world, pose, &mut self.rgb);
@@ -232,7 +232,7 @@ impl Shooter {
                     camera.width,
                     camera.height,
                     settings.jpeg_quality,
-                    &mut image.data,
+                    image.data.as_mut_vec(),
                 )?;
             }
         }
@@ -268,7 +268,7 @@ pub fn body(node: &mut Node) -> BodyResult {
         encoding: ImageEncoding::Rgb8,
         stamp_ns: 0,
         frame_id: String::new(),
-        data: Vec::new(),
+        data: Default::default(),
     };
     let mut next_frame = node.timestamp();
     loop {

@@ -186,7 +186,7 @@ pub fn capture(node: &mut Node, source: &mut impl FrameSource, settings: &Settin
         },
         stamp_ns: 0,
         frame_id: settings.frame_id.clone(),
-        data: Vec::new(),
+        data: Default::default(),
     };
     let mut refused = 0_u64;
     loop {
@@ -208,10 +208,10 @@ pub fn capture(node: &mut Node, source: &mut impl FrameSource, settings: &Settin
         image.stamp_ns = (node.timestamp().max(0.0) * 1e9) as u64;
         let taken = match format {
             PixelFormat::Mjpeg => {
-                std::mem::swap(&mut image.data, &mut raw);
+                std::mem::swap(image.data.as_mut_vec(), &mut raw);
                 image.check()
             }
-            PixelFormat::Yuyv => yuyv_to_rgb(&raw, width, height, &mut image.data),
+            PixelFormat::Yuyv => yuyv_to_rgb(&raw, width, height, image.data.as_mut_vec()),
         };
         match taken {
             Ok(()) => node.send(&output, &image)?,
@@ -323,7 +323,7 @@ mod tests {
             ),
             (4, 2, ImageEncoding::Rgb8, "front")
         );
-        assert_eq!(sent[0].data, [255; 24]);
+        assert_eq!(*sent[0].data, [255; 24]);
     }
 
     #[test]
@@ -337,7 +337,7 @@ mod tests {
         };
         capture(bench.node(), &mut camera, &settings(PixelFormat::Mjpeg)).expect("runs");
         let sent = bench.sent::<Image>("image").expect("images");
-        let data: Vec<_> = sent.iter().map(|image| image.data.clone()).collect();
+        let data: Vec<_> = sent.iter().map(|image| image.data.to_vec()).collect();
         assert_eq!(data, [jpeg.clone(), jpeg], "the empty frame is dropped");
         assert!(
             sent.iter()

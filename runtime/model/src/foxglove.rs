@@ -145,7 +145,7 @@ pub fn from_json(json: &[u8]) -> Result<Image, String> {
             encoding,
             stamp_ns: stamp_ns(&message.timestamp),
             frame_id: message.frame_id,
-            data,
+            data: data.into(),
         }
     } else {
         let message: RawImage =
@@ -166,7 +166,7 @@ pub fn from_json(json: &[u8]) -> Result<Image, String> {
             encoding,
             stamp_ns: stamp_ns(&message.timestamp),
             frame_id: message.frame_id,
-            data: decode_data(&message.data)?,
+            data: decode_data(&message.data)?.into(),
         }
     };
     image.check()?;
@@ -228,7 +228,7 @@ mod tests {
             encoding,
             stamp_ns: 12_345_678_901,
             frame_id: "camera".into(),
-            data,
+            data: data.into(),
         }
     }
 

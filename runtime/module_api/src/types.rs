@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 mod image;
-pub use image::{Image, ImageEncoding};
+pub use image::{Image, ImageEncoding, Pixels};
 
 #[derive(Debug, thiserror::Error)]
 #[error("cannot {action} {data_type}: {reason}")]

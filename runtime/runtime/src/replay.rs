@@ -487,7 +487,7 @@ mod tests {
                 encoding: armor_module_api::types::ImageEncoding::Mono8,
                 stamp_ns: 1_000_000_005,
                 frame_id: "cam".into(),
-                data: vec![10, 0],
+                data: vec![10, 0].into(),
             })
         );
         let err = from_json("Counter", br#"{"count":1}"#).unwrap_err();

@@ -1,7 +1,10 @@
 //! [`Image`]: a camera frame. Its encoding is postcard's for the struct (so a module in another
 //! language writes it from docs/protocol.md alone), and the pixels come last, as a byte
 //! sequence: a large image is sent from the module's own buffer, and a received one keeps the
-//! frame's buffer as its pixels.
+//! frame's buffer as its pixels, where they arrived ([`Pixels`]: moving them to the front of
+//! the buffer, past the few bytes of head, would copy the whole frame once more).
+
+use std::ops::Deref;
 
 use serde::{Deserialize, Serialize};
 
@@ -59,7 +62,82 @@ pub struct Image {
     pub stamp_ns: u64,
     pub frame_id: String,
     /// `width × height × bytes a pixel` bytes for a raw encoding, a whole file for JPEG.
-    pub data: Vec<u8>,
+    pub data: Pixels,
+}
+
+/// An image's bytes, in a buffer that may hold something before them (the rest of the frame
+/// they arrived in). Reads as a byte slice; [`Pixels::as_mut_vec`] gives a vector to fill.
+#[derive(Clone, Default)]
+pub struct Pixels {
+    buf: Vec<u8>,
+    start: usize,
+}
+
+impl Pixels {
+    /// The bytes as a vector to fill or replace (what the buffer held before them is dropped
+    /// first: a move, once).
+    pub fn as_mut_vec(&mut self) -> &mut Vec<u8> {
+        if self.start > 0 {
+            self.buf.drain(..self.start);
+            self.start = 0;
+        }
+        &mut self.buf
+    }
+
+    pub fn into_vec(mut self) -> Vec<u8> {
+        std::mem::take(self.as_mut_vec())
+    }
+}
+
+impl Deref for Pixels {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        &self.buf[self.start..]
+    }
+}
+
+impl AsRef<[u8]> for Pixels {
+    fn as_ref(&self) -> &[u8] {
+        self
+    }
+}
+
+impl From<Vec<u8>> for Pixels {
+    fn from(buf: Vec<u8>) -> Self {
+        Self { buf, start: 0 }
+    }
+}
+
+impl FromIterator<u8> for Pixels {
+    fn from_iter<I: IntoIterator<Item = u8>>(bytes: I) -> Self {
+        Vec::from_iter(bytes).into()
+    }
+}
+
+impl PartialEq for Pixels {
+    fn eq(&self, other: &Self) -> bool {
+        **self == **other
+    }
+}
+
+impl Eq for Pixels {}
+
+impl PartialEq<[u8]> for Pixels {
+    fn eq(&self, other: &[u8]) -> bool {
+        **self == *other
+    }
+}
+
+impl PartialEq<Vec<u8>> for Pixels {
+    fn eq(&self, other: &Vec<u8>) -> bool {
+        **self == **other
+    }
+}
+
+impl std::fmt::Debug for Pixels {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} bytes", self.len())
+    }
 }
 
 /// Everything before the pixels, as postcard writes it: the pixels' length is the varint
@@ -139,7 +217,7 @@ impl Image {
             encoding,
             stamp_ns: head.stamp_ns,
             frame_id: head.frame_id.to_owned(),
-            data: Vec::new(),
+            data: Pixels::default(),
         };
         Ok((image, bytes.len() - rest.len()))
     }
@@ -165,15 +243,14 @@ impl Datum for Image {
 
     fn decode(bytes: &[u8]) -> Result<Self, CodecError> {
         let (mut image, start) = Self::decode_head(bytes)?;
-        image.data = bytes[start..].to_vec();
+        image.data = bytes[start..].to_vec().into();
         image.checked()
     }
 
-    fn decode_owned(mut bytes: Vec<u8>) -> Result<Self, CodecError> {
+    fn decode_owned(bytes: Vec<u8>) -> Result<Self, CodecError> {
         let (mut image, start) = Self::decode_head(&bytes)?;
-        // The pixels move to the front of the buffer they came in: no second allocation.
-        bytes.drain(..start);
-        image.data = bytes;
+        // The pixels stay where they came: no copy.
+        image.data = Pixels { buf: bytes, start };
         image.checked()
     }
 
@@ -194,7 +271,7 @@ mod tests {
             encoding,
             stamp_ns: 1_500_000_000,
             frame_id: "camera".into(),
-            data,
+            data: data.into(),
         }
     }
 
@@ -227,9 +304,12 @@ mod tests {
             encoding: ImageEncoding::Mono8,
             stamp_ns: 1_500_000_000,
             frame_id: "cam".into(),
-            data: vec![10, 20],
+            data: vec![10, 20].into(),
         };
         assert_eq!(Image::decode(&bytes).expect("decode"), expected);
+        let owned = Image::decode_owned(bytes.to_vec()).expect("decode owned");
+        assert_eq!(owned, expected);
+        assert_eq!(owned.data.into_vec(), [10, 20]);
     }
 
     #[test]
@@ -239,7 +319,7 @@ mod tests {
         value.encode(&mut whole).expect("encode");
         let mut head = Vec::new();
         let pixels = value.split_encoding(&mut head).expect("split");
-        assert!(std::ptr::eq(pixels, value.data.as_slice()));
+        assert!(std::ptr::eq(pixels, &*value.data));
         assert_eq!([head.as_slice(), pixels].concat(), whole);
     }
 
