@@ -145,14 +145,17 @@ pub fn spec() -> ModuleSpec {
         .max(100.0)
         .default("80"),
     )
-    .param(
-        ParamSpec::new(
-            "frame_id",
-            ParamType::String,
-            "the frame named in each image",
-        )
-        .default("camera"),
+    .param(frame_id_param())
+}
+
+/// The `frame_id` parameter of a camera module (this one and the webcam).
+pub fn frame_id_param() -> ParamSpec {
+    ParamSpec::new(
+        "frame_id",
+        ParamType::String,
+        "the frame named in each image",
     )
+    .default("camera")
 }
 
 /// The camera's settings, read from its parameters.

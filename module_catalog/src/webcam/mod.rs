@@ -78,14 +78,7 @@ pub fn spec() -> ModuleSpec {
         .choices(&["mjpeg", "yuyv"])
         .default("mjpeg"),
     )
-    .param(
-        ParamSpec::new(
-            "frame_id",
-            ParamType::String,
-            "the frame named in each image",
-        )
-        .default("camera"),
-    )
+    .param(crate::camera::frame_id_param())
 }
 
 /// The pixel formats the module reads from a camera.
