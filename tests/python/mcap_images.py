@@ -1,7 +1,8 @@
-"""Reads an MCAP file with the official `mcap` package and prints, as one JSON object, what a
-viewer would see of its image channels: per topic, the schema's name and encoding, the channel's
-message encoding, how many messages, and the first message's fields (its `data` decoded from
-base64 and described by length and first bytes)."""
+"""Reads an MCAP file with the official `mcap` package and prints, as one JSON list, what a
+viewer would see of its image channels (those in Foxglove's schemas; the others are skipped):
+per topic, the schema's name and encoding, the channel's message encoding, how many messages,
+and the first message's fields (its `data` decoded from base64 and described by length and
+first bytes)."""
 
 import base64
 import json
@@ -15,6 +16,8 @@ def main(path):
     with open(path, "rb") as stream:
         reader = make_reader(stream)
         for schema, channel, message in reader.iter_messages():
+            if schema is None or not schema.name.startswith("foxglove."):
+                continue  # not an image channel
             entry = topics.setdefault(
                 channel.topic + " " + (schema.name if schema else ""),
                 {
