@@ -21,7 +21,8 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
     let dir = tempfile::tempdir().unwrap();
     let harness = harness(options(&dir.path().join("home"), Some(robot_system())));
     let diagram = &harness.state().editor().diagram;
-    assert_eq!(diagram.len(), 7);
+    // sim, camera, follower, avoider, observer, teleop, mux, recorder.
+    assert_eq!(diagram.len(), 8);
 
     // Sources left of their sinks, for every link but the one that closes the loop through
     // the robot (mux → sim), which the layout turns round.

@@ -11,7 +11,7 @@ use std::path::Path;
 
 use armor_module_api::Datum;
 use armor_module_api::types::{
-    Blob, Counter, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist,
+    Blob, Counter, Image, ImageEncoding, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist,
 };
 
 fn encode<T: Datum>(value: &T) -> Vec<u8> {
@@ -113,6 +113,21 @@ fn data_types(folder: &Path) {
     long_scan.extend([0; 24]);
     long_scan.extend([0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x01]);
     write(folder, "laserscan-long", &long_scan);
+    // An image (2 × 1 mono8: the example of docs/protocol.md), and one announcing u64::MAX bytes
+    // of pixels.
+    let mut image = vec![8];
+    image.extend(encode(&Image {
+        width: 2,
+        height: 1,
+        encoding: ImageEncoding::Mono8,
+        stamp_ns: 1_500_000_000,
+        frame_id: "cam".into(),
+        data: vec![10, 20].into(),
+    }));
+    write(folder, "image", &image);
+    let mut long_image = image[..image.len() - 3].to_vec();
+    long_image.extend([0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x01, 10, 20]);
+    write(folder, "image-long", &long_image);
 }
 
 fn studio_data(folder: &Path) {

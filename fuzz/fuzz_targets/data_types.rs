@@ -1,5 +1,5 @@
 //! The module API's data types: the first byte picks one (Counter, Text, Blob, Pose2D, Twist,
-//! Odometry, LaserScan, OccupancyGrid), the rest is decoded as a payload from a peer would be.
+//! Odometry, LaserScan, OccupancyGrid, Image), the rest is decoded as a payload from a peer would be.
 //! Decoding never panics, never allocates more than four bytes per byte of input whatever length
 //! a sequence announces, and what it accepts encodes to bytes that decode and encode to themselves.
 #![no_main]
@@ -7,7 +7,7 @@
 use armor_fuzz::counting::{Counting, measure};
 use armor_module_api::Datum;
 use armor_module_api::types::{
-    Blob, Counter, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist,
+    Blob, Counter, Image, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -56,7 +56,7 @@ fuzz_target!(|data: &[u8]| {
     let Some((&which, payload)) = data.split_first() else {
         return;
     };
-    match which % 8 {
+    match which % 9 {
         0 => check::<Counter>(payload),
         1 => check::<Text>(payload),
         2 => check::<Blob>(payload),
@@ -64,6 +64,7 @@ fuzz_target!(|data: &[u8]| {
         4 => check::<Twist>(payload),
         5 => check::<Odometry>(payload),
         6 => check::<LaserScan>(payload),
-        _ => check::<OccupancyGrid>(payload),
+        7 => check::<OccupancyGrid>(payload),
+        _ => check::<Image>(payload),
     }
 });

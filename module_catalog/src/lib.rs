@@ -12,6 +12,8 @@
 //!   (throughput benchmark).
 //! - [`sim`]: a simulated differential-drive robot with a laser scanner in a 2-D world file,
 //!   on the run clock; its world model is [`armor_model::world`], shared with plans and maps.
+//! - [`camera`]: `camera-sim`, a camera over the simulator's world, rendered on the CPU from the
+//!   robot's true pose (raw `rgb8`, `mono8` or JPEG images).
 //! - [`nav`]: navigation in two modules linked by `cmd_desired`: [`nav::follower`] drives
 //!   towards a goal set per leg (`goal_reached`, `blocked`), round the plan's no-go areas,
 //!   and [`nav::avoider`] bends that
@@ -28,9 +30,12 @@
 //!   them (not controllable).
 //! - [`params`]: numeric parameters read with their range, refused in the same words by every
 //!   module.
+//! - [`webcam`]: a V4L2 camera published as images (Motion-JPEG as it comes, YUYV as rgb8);
+//!   no camera is a clear error and a normal end, not a crash loop.
 //! - [`recorder`]: records every sample of the data names in `record`, with stamp and type,
 //!   into an MCAP file while active (JSON for the built-in types); `armor replay` plays it back.
 
+pub mod camera;
 pub mod checker;
 pub mod counter;
 pub mod echo;
@@ -44,6 +49,7 @@ pub mod recorder;
 pub mod sim;
 pub mod sink;
 pub mod teleop;
+pub mod webcam;
 
 /// An angle brought into (-π, π].
 pub fn wrap_angle(angle_rad: f64) -> f64 {

@@ -5,7 +5,9 @@
 //! (`Counter`, `Text`, `Pose2D`, `Twist`, `Odometry`, `LaserScan`, `OccupancyGrid`) are stored
 //! as JSON objects with a JSON Schema, so that common viewers (Foxglove, the `mcap` CLI) show
 //! them; a sample JSON cannot carry exactly (a NaN or infinite number) goes to a second channel
-//! of the same topic, stored as postcard. Any other type is stored as it travelled: message
+//! of the same topic, stored as postcard. `Image` samples are stored as JSON in Foxglove's own
+//! schemas ([`armor_model::foxglove`]): `foxglove.RawImage` for `rgb8` and `mono8`,
+//! `foxglove.CompressedImage` for JPEG, which Foxglove shows in its image panel. Any other type is stored as it travelled: message
 //! encoding `postcard`, schema named after the type with no schema data, except `Blob`, whose
 //! bytes are not postcard (encoding `raw`). Every channel's metadata names its data type under
 //! [`DATA_TYPE_KEY`]; `armor replay` publishes the file again.
@@ -26,8 +28,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use armor_model::foxglove;
 use armor_module_api::types::{
-    CodecError, Counter, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist,
+    CodecError, Counter, Image, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist,
 };
 use armor_module_api::{
     BodyResult, Datum, Event, ModuleSpec, Node, ParamSpec, ParamType, RawInput, RawSample,
@@ -357,7 +360,7 @@ pub fn encoding_for(data_type: &str) -> Encoding {
 }
 
 /// The types stored as JSON: the built-in types that postcard encodes.
-pub const JSON_TYPES: [&str; 7] = [
+pub const JSON_TYPES: [&str; 8] = [
     "Counter",
     "Text",
     "Pose2D",
@@ -365,6 +368,7 @@ pub const JSON_TYPES: [&str; 7] = [
     "Odometry",
     "LaserScan",
     "OccupancyGrid",
+    "Image",
 ];
 
 #[derive(Serialize, serde::Deserialize, PartialEq)]
@@ -388,7 +392,19 @@ pub fn to_json(data_type: &str, payload: &[u8]) -> Result<Option<Vec<u8>>, Codec
         "Odometry" => exact_json(payload, |value: Odometry| value),
         "LaserScan" => exact_json(payload, |value: LaserScan| value),
         "OccupancyGrid" => exact_json(payload, |value: OccupancyGrid| value),
+        "Image" => Ok(Some(foxglove::to_json(&Image::decode(payload)?))),
         _ => Ok(None),
+    }
+}
+
+/// The name of the schema of a sample stored as JSON: the type's, but for an image the
+/// Foxglove schema of its encoding.
+fn json_schema_name(data_type: &str, payload: &[u8]) -> String {
+    match data_type {
+        "Image" => Image::decode(payload)
+            .map(|image| foxglove::schema_name(image.encoding).to_owned())
+            .unwrap_or_default(),
+        _ => data_type.to_owned(),
     }
 }
 
@@ -406,8 +422,12 @@ fn exact_json<T: Datum, J: Serialize + DeserializeOwned + PartialEq>(
     Ok(exact.then_some(bytes))
 }
 
-/// The JSON Schema of a built-in type's JSON form, `None` for other types.
+/// The JSON Schema of a built-in type's JSON form (named as [`json_schema_name`] names it),
+/// `None` for other types.
 pub fn json_schema(data_type: &str) -> Option<serde_json::Value> {
+    if let Some(schema) = foxglove::json_schema(data_type) {
+        return Some(schema);
+    }
     let number = |doc: &str| json!({"type": "number", "description": doc});
     let pose = json!({
         "type": "object",
@@ -507,8 +527,8 @@ pub struct Recording {
     file: PathBuf,
     partial: PathBuf,
     writer: mcap::Writer<BufWriter<DurableFile>>,
-    /// (data name, data type, encoding, channel id), in the order they were added.
-    channels: Vec<(String, String, Encoding, u16)>,
+    /// (data name, data type, encoding, schema name, channel id), in the order they were added.
+    channels: Vec<(String, String, Encoding, String, u16)>,
     counts: BTreeMap<String, u64>,
     total: u64,
     /// Written since the last flush.
@@ -563,7 +583,11 @@ impl Recording {
         if encoding == Encoding::Json && json.is_none() {
             encoding = Encoding::Postcard;
         }
-        let channel_id = self.channel(data_name, &sample.data_type, encoding)?;
+        let schema_name = match encoding {
+            Encoding::Json => json_schema_name(&sample.data_type, &sample.payload),
+            _ => sample.data_type.clone(),
+        };
+        let channel_id = self.channel(data_name, &sample.data_type, encoding, &schema_name)?;
         let header = mcap::records::MessageHeader {
             channel_id,
             // MCAP sequences are 32 bits: they wrap.
@@ -586,23 +610,31 @@ impl Recording {
         Ok(())
     }
 
-    /// The channel of a data name, type and encoding, added on first use.
+    /// The channel of a data name, type, encoding and schema, added on first use.
     fn channel(
         &mut self,
         data_name: &str,
         data_type: &str,
         encoding: Encoding,
+        schema_name: &str,
     ) -> anyhow::Result<u16> {
-        if let Some(&(.., id)) = self.channels.iter().find(|(name, type_name, how, _)| {
-            name == data_name && type_name == data_type && *how == encoding
-        }) {
+        if let Some(&(.., id)) = self
+            .channels
+            .iter()
+            .find(|(name, type_name, how, schema, _)| {
+                name == data_name
+                    && type_name == data_type
+                    && *how == encoding
+                    && schema == schema_name
+            })
+        {
             return Ok(id);
         }
-        let schema_id = match (encoding, json_schema(data_type)) {
+        let schema_id = match (encoding, json_schema(schema_name)) {
             _ if data_type.is_empty() => 0,
             (Encoding::Json, Some(schema)) => {
                 let schema = serde_json::to_vec(&schema)?;
-                self.writer.add_schema(data_type, "jsonschema", &schema)?
+                self.writer.add_schema(schema_name, "jsonschema", &schema)?
             }
             // No schema language describes these bytes: the schema only names the type.
             _ => self.writer.add_schema(data_type, "", &[])?,
@@ -620,8 +652,13 @@ impl Recording {
             },
             encoding.name()
         );
-        self.channels
-            .push((data_name.to_owned(), data_type.to_owned(), encoding, id));
+        self.channels.push((
+            data_name.to_owned(),
+            data_type.to_owned(),
+            encoding,
+            schema_name.to_owned(),
+            id,
+        ));
         Ok(id)
     }
 
@@ -739,9 +776,16 @@ mod tests {
     fn built_in_types_are_json_blob_raw_others_postcard() {
         for json_type in JSON_TYPES {
             assert_eq!(encoding_for(json_type), Encoding::Json, "{json_type}");
-            let schema = json_schema(json_type).expect("schema");
-            assert_eq!(schema["title"], json_type);
-            assert_eq!(schema["type"], "object");
+            // An image's schema is Foxglove's for its encoding.
+            let schema_names = match json_type {
+                "Image" => vec![foxglove::RAW_IMAGE, foxglove::COMPRESSED_IMAGE],
+                _ => vec![json_type],
+            };
+            for name in schema_names {
+                let schema = json_schema(name).expect("schema");
+                assert_eq!(schema["title"], name);
+                assert_eq!(schema["type"], "object");
+            }
         }
         assert_eq!(encoding_for("Blob"), Encoding::Raw);
         assert_eq!(encoding_for("Imu"), Encoding::Postcard);
@@ -824,6 +868,59 @@ mod tests {
             },
         );
         assert_eq!(to_json("Pose2D", &pose.payload).expect("decodes"), None);
+    }
+
+    #[test]
+    fn images_are_stored_in_foxglove_schemas_by_encoding() {
+        let dir = tempfile::tempdir().expect("dir");
+        let file = dir.path().join("cam.mcap");
+        let mut recording = Recording::create(&file, None).expect("create");
+        let mut image = Image {
+            width: 2,
+            height: 1,
+            encoding: armor_module_api::types::ImageEncoding::Rgb8,
+            stamp_ns: 2_000_000_001,
+            frame_id: "camera".into(),
+            data: vec![1, 2, 3, 4, 5, 6].into(),
+        };
+        recording
+            .write("cam.image", &sample(1, 10, &image))
+            .expect("write");
+        image.encoding = armor_module_api::types::ImageEncoding::Jpeg;
+        image.data = vec![0xFF, 0xD8, 0xFF, 0xC0, 0, 11, 8, 0, 1, 0, 2, 3].into();
+        recording
+            .write("cam.image", &sample(2, 20, &image))
+            .expect("write");
+        recording.finish().expect("finish");
+        let rows = read_back(&file);
+        let kinds: Vec<_> = rows
+            .iter()
+            .map(|row| (&*row.0, &*row.1, &*row.2, &*row.3, &*row.4))
+            .collect();
+        assert_eq!(
+            kinds,
+            [
+                (
+                    "cam.image",
+                    "json",
+                    "foxglove.RawImage",
+                    "jsonschema",
+                    "Image"
+                ),
+                (
+                    "cam.image",
+                    "json",
+                    "foxglove.CompressedImage",
+                    "jsonschema",
+                    "Image"
+                ),
+            ]
+        );
+        let raw: serde_json::Value = serde_json::from_slice(&rows[0].6).expect("json");
+        assert_eq!(raw["data"], "AQIDBAUG");
+        assert_eq!(raw["timestamp"], json!({"sec": 2, "nsec": 1}));
+        let compressed: serde_json::Value = serde_json::from_slice(&rows[1].6).expect("json");
+        assert_eq!(compressed["format"], "jpeg");
     }
 
     #[test]

@@ -34,6 +34,12 @@ pub fn read_mcap(file: &Path) -> HashMap<(String, String), Vec<Message>> {
     by_channel
 }
 
+/// The `N` of a recorder's `recorded N messages` line.
+pub fn recorded(line: &str) -> Option<u64> {
+    let rest = &line[line.find("recorded ")? + "recorded ".len()..];
+    rest.split_whitespace().next()?.parse().ok()
+}
+
 /// The files a recorder wrote for `file` over a run: `NAME.EXT`, then `NAME-2.EXT`,
 /// `NAME-3.EXT`, … (it starts a new one each time it is started again), those that exist, in
 /// that order.

@@ -71,10 +71,14 @@ fn compiled_path(net: &MissionNet, place: &str) -> Vec<Point> {
     points(&param.value)
 }
 
-/// The sim's true poses a recorder wrote, in time order.
+/// The sim's true poses a recorder wrote, in time order (the robot's camera, recorded beside
+/// them, is skipped).
 fn read_truth(file: &Path) -> Vec<Point> {
     let mut truth = Vec::new();
     for ((topic, encoding), messages) in read_mcap(file) {
+        if topic == "camera.image" {
+            continue;
+        }
         assert_eq!(topic, "sim.pose_truth");
         for (log_time, data) in messages {
             let pose = match encoding.as_str() {

@@ -283,7 +283,7 @@ fn run_example(name: &str) -> PlanRun {
 /// `<throughout>` recorder runs in every place alike, so it records the whole mission in that one
 /// file (a restart would have started `NAME-2.mcap`). The recorder stores a sample as JSON when
 /// JSON gives it back exactly, else as its postcard bytes on a second channel of the same topic:
-/// both are read.
+/// both are read. The robot's camera is recorded beside it (as JSON images).
 fn read_truth(file: &Path) -> Vec<Sample> {
     assert_eq!(
         recorder_segments(file),
@@ -291,7 +291,13 @@ fn read_truth(file: &Path) -> Vec<Sample> {
         "one recording for the whole mission"
     );
     let mut truth = Vec::new();
+    let mut frames = 0;
     for ((topic, encoding), messages) in read_mcap(file) {
+        if topic == "camera.image" {
+            assert_eq!(encoding, "json", "{}", file.display());
+            frames += messages.len();
+            continue;
+        }
         assert_eq!(topic, "sim.pose_truth", "{}", file.display());
         for (log_time, data) in messages {
             let pose = match encoding.as_str() {
@@ -307,6 +313,7 @@ fn read_truth(file: &Path) -> Vec<Sample> {
     }
     truth.sort_by(|a, b| a.secs.total_cmp(&b.secs));
     assert!(truth.len() > 100, "{} samples of the truth", truth.len());
+    assert!(frames > 0, "the camera's video is in {}", file.display());
     truth
 }
 

@@ -4,7 +4,7 @@
 
 use std::process::Command;
 
-use armor_tests::mcap::read_mcap;
+use armor_tests::mcap::{read_mcap, recorded};
 use armor_tests::{PATIENCE, Proc, bin};
 
 /// How many values the recording should hold at least (0.01 s apart: a second or more).
@@ -13,12 +13,6 @@ const ENOUGH: u64 = 100;
 fn start_agent() -> (Proc, String) {
     let (agent, addr) = armor_tests::start_agent();
     (agent, addr.to_string())
-}
-
-/// The `N` of a recorder's `recorded N messages` line.
-fn recorded(line: &str) -> Option<u64> {
-    let rest = &line[line.find("recorded ")? + "recorded ".len()..];
-    rest.split_whitespace().next()?.parse().ok()
 }
 
 #[test]

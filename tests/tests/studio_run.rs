@@ -3,7 +3,8 @@
 //! hand and aborted; a module killed from outside shown crashed, then running again; the robot
 //! driven with the arrow keys through the teleop module, and the recording of that drive opened
 //! into the same map; a crate only the sim knows of replanned round, the path followed and the
-//! one replaced drawn.
+//! one replaced drawn; the robot driven by its camera (the video panel holding the arrow keys)
+//! and the recorded video played back in the same panel.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -137,6 +138,20 @@ fn open_and_run(harness: &mut Harness<'_, StudioApp>, file: &Path, time_scale: f
         "{:?}",
         harness.state().status()
     );
+}
+
+/// In a plain system run the follower and the observer drive too: stops them by hand, for the
+/// operator to drive alone.
+fn stop_the_drivers(harness: &mut Harness<'_, StudioApp>) {
+    for module in ["follower", "observer"] {
+        harness.state_mut().run_mut().request(Request::StopModule {
+            module: module.to_owned(),
+        });
+    }
+    step_until(harness, "follower and observer stopped", PATIENCE, |app| {
+        module_state(app, "follower") == Some(ModuleState::Stopped)
+            && module_state(app, "observer") == Some(ModuleState::Stopped)
+    });
 }
 
 fn truth_x(app: &StudioApp) -> Option<f64> {
@@ -354,21 +369,7 @@ fn the_robot_is_driven_with_the_keys_and_its_recording_replays() {
                 .iter()
                 .all(|module| module.state == ModuleState::Running)
     });
-    // In a plain system run the follower and the observer drive too: stop them by hand first.
-    for module in ["follower", "observer"] {
-        harness.state_mut().run_mut().request(Request::StopModule {
-            module: module.to_owned(),
-        });
-    }
-    step_until(
-        &mut harness,
-        "follower and observer stopped",
-        PATIENCE,
-        |app| {
-            module_state(app, "follower") == Some(ModuleState::Stopped)
-                && module_state(app, "observer") == Some(ModuleState::Stopped)
-        },
-    );
+    stop_the_drivers(&mut harness);
     harness.run_ok();
     harness.get_by_label("forward");
     let rest = Instant::now() + Duration::from_millis(800);
@@ -580,4 +581,66 @@ fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
     step_until(&mut harness, "the run to stop", PATIENCE, |app| {
         !app.run().is_running()
     });
+}
+
+#[test]
+fn the_robot_is_driven_by_its_camera_and_the_video_is_recorded() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = robot_system(dir.path());
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &system, 1.0);
+    let sources = harness.state().run().sources().unwrap();
+    assert_eq!(sources.images, ["camera.image"]);
+    step_until(&mut harness, "a camera frame", PATIENCE, |app| {
+        app.run().live().video.get("camera.image").is_some()
+            && status(app)
+                .modules
+                .iter()
+                .all(|module| module.state == ModuleState::Running)
+    });
+    harness.run_ok();
+    harness.get_by_label_contains("320 × 240 jpeg · camera · age");
+    stop_the_drivers(&mut harness);
+    // The operator clicks the picture and drives by it: left turns the robot.
+    harness.get_by_label("Camera view").click();
+    harness.run_ok();
+    assert!(armor_studio::run::video::has_focus(&harness.ctx));
+    let start = harness.state().run().live().truth.unwrap();
+    let first_frame = harness
+        .state()
+        .run()
+        .live()
+        .video
+        .get("camera.image")
+        .unwrap()
+        .number;
+    harness.key_down(Key::ArrowLeft);
+    step_until(&mut harness, "the robot to turn left", PATIENCE, |app| {
+        app.run()
+            .live()
+            .truth
+            .is_some_and(|now| now.theta_rad - start.theta_rad > 0.3)
+    });
+    harness.key_up(Key::ArrowLeft);
+    assert!(
+        armor_studio::run::video::has_focus(&harness.ctx),
+        "the arrows stayed the robot's"
+    );
+    let live = harness.state().run().live();
+    assert!(
+        live.video.get("camera.image").unwrap().number > first_frame,
+        "new frames came while driving"
+    );
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+    // The recording plays the video back in the same panel, aged against its play head.
+    let recording = dir.path().join("truth.mcap");
+    harness.state_mut().run_mut().open_recording(&recording);
+    harness.run_ok();
+    let recorded = harness.state().run().live();
+    let frame = recorded.video.get("camera.image").expect("recorded frames");
+    assert_eq!((frame.image.width, frame.image.height), (320, 240));
+    harness.get_by_label_contains("320 × 240 jpeg · camera · age");
 }

@@ -41,6 +41,8 @@ pub struct Sources {
     pub grid: Option<String>,
     /// The path the navigation follows (the follower's `path` output, `Text`).
     pub path: Option<String>,
+    /// Every `Image` output, for the video panel to pick from.
+    pub images: Vec<String>,
 }
 
 impl Sources {
@@ -79,6 +81,11 @@ impl Sources {
             path: find(&|module_type, name, data_type| {
                 module_type == "follower" && data_type == "Text" && name.ends_with(".path")
             }),
+            images: outputs
+                .iter()
+                .filter(|(_, _, data_type)| data_type == "Image")
+                .map(|(_, name, _)| name.clone())
+                .collect(),
         }
     }
 
@@ -92,6 +99,7 @@ impl Sources {
         ]
         .into_iter()
         .flatten()
+        .chain(&self.images)
     }
 }
 
@@ -108,6 +116,8 @@ pub struct LiveData {
     pub trail: VecDeque<(f64, f64)>,
     /// The paths followed towards the current goal.
     pub followed: Followed,
+    /// The latest frame of each image output.
+    pub video: super::video::Frames,
     /// Samples received, all sources together.
     pub samples: u64,
     /// The last sample that was not taken, and why (`mapper.grid: …`); the view keeps showing
@@ -149,6 +159,8 @@ impl LiveData {
                     self.followed
                         .take(points.into_iter().map(|(x, y)| Point::new(x, y)).collect());
                 })
+        } else if sources.images.iter().any(|name| name == data_name) {
+            self.video.take(data_name, payload)
         } else {
             Ok(())
         };
@@ -349,6 +361,15 @@ impl Recording {
             scan: first_of(&|m| m.data_type == "LaserScan"),
             grid: first_of(&|m| m.data_type == "OccupancyGrid"),
             path: first_of(&|m| m.data_type == "Text" && m.data_name.ends_with(".path")),
+            images: messages
+                .iter()
+                .filter(|message| message.data_type == "Image")
+                .fold(Vec::new(), |mut names, message| {
+                    if !names.contains(&message.data_name) {
+                        names.push(message.data_name.clone());
+                    }
+                    names
+                }),
         };
         let mut recording = Recording {
             file: file.to_path_buf(),
@@ -363,6 +384,11 @@ impl Recording {
         };
         recording.seek(recording.duration_secs);
         Ok(recording)
+    }
+
+    /// The run time the play head shows, in nanoseconds (as the messages' log times).
+    pub fn play_head_ns(&self) -> u64 {
+        self.timeline.until_ns(self.at_secs)
     }
 
     pub fn message_count(&self) -> usize {

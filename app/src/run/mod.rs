@@ -13,6 +13,7 @@ pub mod live;
 pub mod monitor;
 pub mod session;
 pub mod untrusted;
+pub mod video;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -94,6 +95,7 @@ pub struct RunView {
     max_replans: Option<u32>,
     /// The follower's paths of the current leg, as drawn at the last frame.
     followed: FollowedLeg,
+    pub video: video::VideoPanel,
 }
 
 impl RunView {
@@ -121,6 +123,7 @@ impl RunView {
             messages: Vec::new(),
             max_replans: None,
             followed: FollowedLeg::default(),
+            video: video::VideoPanel::default(),
         }
     }
 
@@ -660,7 +663,8 @@ impl RunView {
     /// Arrow keys over the map drive; the pad's command is folded in. Sends the command again
     /// while held, and `stop` when let go.
     fn drive_keys(&mut self, ctx: &egui::Context) {
-        let typing = ctx.egui_wants_keyboard_input();
+        // The video panel takes the focus to drive by the camera.
+        let typing = ctx.egui_wants_keyboard_input() && !video::has_focus(ctx);
         let mut command = std::mem::take(&mut self.drive);
         if !typing {
             ctx.input(|input| {
@@ -812,6 +816,21 @@ impl RunView {
         let follow = self.follow;
         let max_replans = self.max_replans;
         let watching = self.is_running() || self.recording.is_some();
+        // The camera beside the map.
+        let images = self
+            .sources()
+            .map(|sources| sources.images)
+            .unwrap_or_default();
+        if !images.is_empty() {
+            let clock = match &self.recording {
+                Some(recording) => video::Clock::PlayHead(recording.play_head_ns()),
+                None => video::Clock::Live,
+            };
+            egui::Panel::right("run-video")
+                .resizable(true)
+                .default_size(360.0)
+                .show(ui, |ui| self.video.ui(ui, &images, &live.video, clock));
+        }
         let mission = match (
             self.session.as_ref().map(|s| s.options.target.clone()),
             surroundings.mission.as_deref_mut(),

@@ -14,6 +14,7 @@
 //! under `armor run` (see `benchprobe.rs`).
 
 mod benchprobe;
+mod camera_sim;
 mod compile_plan;
 mod discovery;
 mod event_start;
@@ -21,6 +22,7 @@ mod fuzz;
 mod handshake;
 mod harness;
 mod health;
+mod image_link;
 mod kill;
 mod latency;
 mod mapper_scan;
@@ -105,6 +107,24 @@ const BENCHES: &[Bench] = &[
         about: "round trip of 64 bytes on encrypted links (--secret --encrypt) vs the same \
                 without a secret (us; goal ratio <= 1.3)",
         run: latency::run_encrypted,
+    },
+    Bench {
+        name: image_link::NAME_LATENCY,
+        about: "a 640x480 rgb8 camera frame (921,600 bytes) through one link, one in flight, vs \
+                raw TCP moving the same bytes between two threads (ms; goal ratio <= 1.2)",
+        run: image_link::run_latency,
+    },
+    Bench {
+        name: image_link::NAME_FPS,
+        about: "640x480 rgb8 frames streamed through one link vs raw TCP moving the same bytes \
+                (frames/s; goal ratio >= 0.8)",
+        run: image_link::run_fps,
+    },
+    Bench {
+        name: camera_sim::NAME,
+        about: "one 320x240 frame of the simulated camera, drawn and JPEG-encoded, vs the JPEG \
+                encoding alone (ms; goal under 10)",
+        run: camera_sim::run,
     },
     Bench {
         name: handshake::NAME,

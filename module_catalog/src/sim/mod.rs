@@ -480,7 +480,7 @@ impl Simulator {
 }
 
 /// Loads the world named by the `world` parameter.
-fn load_world(node: &Node) -> Result<World, BodyError> {
+pub fn load_world(node: &Node) -> Result<World, BodyError> {
     let name: String = node.param("world").map_err(|_| {
         "parameter `world` is required: the path of a world file (for example `yard` for \
          assets/worlds/yard.world)"

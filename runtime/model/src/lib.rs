@@ -11,8 +11,12 @@
 //! constraints, contingencies, tactical graphics); they compile into mission nets, on a
 //! [`world`] (the simulated robot's plane, which [`geo`] routes through around no-go areas);
 //! [`planner`] finds each leg's path on a costmap of that world.
+//!
+//! [`foxglove`] gives camera images the JSON forms of Foxglove's image schemas, in which the
+//! recorder writes them.
 
 mod fields;
+pub mod foxglove;
 pub mod geo;
 pub mod net;
 pub mod plan;

@@ -355,6 +355,16 @@ fn segments_meet(p1: Point, p2: Point, q1: Point, q2: Point) -> bool {
         || (d4 == 0.0 && within(p1, p2, q2))
 }
 
+/// What a ray met first ([`World::raycast_hit`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayHit {
+    pub distance_m: f64,
+    /// Index in [`World::shapes`].
+    pub shape: usize,
+    /// The edge of that shape that was met.
+    pub edge: (Point, Point),
+}
+
 /// The planar world of the simulator: boundary, walls and obstacles, start pose and geographic
 /// origin. Cheap to share (`Clone`) and safe to query from several threads.
 #[derive(Clone, Debug)]
@@ -451,13 +461,31 @@ impl World {
     /// The distance from `origin` along the direction `angle_rad` (counter-clockwise from the x
     /// axis) to the first wall, obstacle or boundary edge, or `max_range` if there is none closer.
     pub fn raycast(&self, origin: Point, angle_rad: f64, max_range: f64) -> f64 {
+        self.cast(origin, angle_rad, max_range).0
+    }
+
+    /// What a ray from `origin` along `angle_rad` meets first within `max_range`: the distance,
+    /// the shape and the edge (for a camera, which shades each shape and each face apart).
+    pub fn raycast_hit(&self, origin: Point, angle_rad: f64, max_range: f64) -> Option<RayHit> {
+        let (distance_m, segment) = self.cast(origin, angle_rad, max_range);
+        let segment = &self.segments[segment? as usize];
+        Some(RayHit {
+            distance_m,
+            shape: segment.shape,
+            edge: (segment.a, segment.b),
+        })
+    }
+
+    /// The distance to the first edge met and that edge's index in `segments`, or `max_range`
+    /// and `None`.
+    fn cast(&self, origin: Point, angle_rad: f64, max_range: f64) -> (f64, Option<u32>) {
         let max_range = if max_range.is_nan() {
             0.0
         } else {
             max_range.max(0.0)
         };
         if !origin.is_finite() || !angle_rad.is_finite() || max_range == 0.0 {
-            return max_range;
+            return (max_range, None);
         }
         let dir = Point::new(angle_rad.cos(), angle_rad.sin());
         let grid = &self.grid;
@@ -470,7 +498,7 @@ impl World {
         ] {
             if d == 0.0 {
                 if o < lo || o > hi {
-                    return max_range;
+                    return (max_range, None);
                 }
             } else {
                 let (t0, t1) = ((lo - o) / d, (hi - o) / d);
@@ -479,7 +507,7 @@ impl World {
             }
         }
         if t_enter > t_exit {
-            return max_range;
+            return (max_range, None);
         }
         let entry = Point::new(origin.x + dir.x * t_enter, origin.y + dir.y * t_enter);
         let mut col = grid.index_of(entry.x, grid.min.x, grid.cols);
@@ -506,18 +534,18 @@ impl World {
         } else {
             grid.cell / dir.y.abs()
         };
-        let mut best = max_range;
+        let mut best = (max_range, None);
         loop {
             for &index in grid.cell_items(col, row) {
                 let segment = &self.segments[index as usize];
                 if let Some(t) = ray_meets_segment(origin, dir, segment.a, segment.b)
-                    && t < best
+                    && t < best.0
                 {
-                    best = t;
+                    best = (t, Some(index));
                 }
             }
             let t_leave = t_next_col.min(t_next_row);
-            if best <= t_leave || t_leave >= t_exit {
+            if best.0 <= t_leave || t_leave >= t_exit {
                 return best;
             }
             if t_next_col < t_next_row {

@@ -133,6 +133,8 @@ pub struct Node {
     pub(crate) core: Core,
     pub(crate) transport: Transport,
     scratch: Vec<u8>,
+    /// The encoding before a large payload's own bytes (see [`Datum::split_encoding`]).
+    large_head: Vec<u8>,
 }
 
 impl Node {
@@ -141,6 +143,7 @@ impl Node {
             core,
             transport,
             scratch: Vec::new(),
+            large_head: Vec::new(),
         }
     }
 
@@ -315,11 +318,19 @@ impl Node {
     /// next waits for an event (or calls [`Node::flush`]), so a burst of sends shares system calls
     /// without delaying anything the module waits on.
     pub fn send<T: Datum>(&mut self, output: &Output<T>, value: &T) -> Result<(), ApiError> {
-        if let Some(bytes) = value.as_encoded()
-            && bytes.len() >= wire::LARGE_PAYLOAD_BYTES
-            && matches!(self.transport, Transport::Net(_))
-        {
-            return self.send_large(output.index, bytes);
+        if matches!(self.transport, Transport::Net(_)) {
+            let mut head = std::mem::take(&mut self.large_head);
+            head.clear();
+            let sent = match value.split_encoding(&mut head) {
+                Some(bytes) if bytes.len() >= wire::LARGE_PAYLOAD_BYTES => {
+                    Some(self.send_large(output.index, &head, bytes))
+                }
+                _ => None,
+            };
+            self.large_head = head;
+            if let Some(sent) = sent {
+                return sent;
+            }
         }
         self.send_frame(output.index, |out| {
             value
@@ -336,15 +347,16 @@ impl Node {
         })
     }
 
-    /// A large payload sent from the caller's bytes: the frame's header is encoded alone, and
-    /// the payload is written after it, not copied behind it.
-    fn send_large(&mut self, index: usize, payload: &[u8]) -> Result<(), ApiError> {
+    /// A large payload sent from the caller's bytes: the frame's header and the datum's `head`
+    /// are encoded alone, and the payload is written after them, not copied behind them.
+    fn send_large(&mut self, index: usize, head: &[u8], payload: &[u8]) -> Result<(), ApiError> {
         let slot = &mut self.core.outputs[index];
         slot.seq += 1;
         let seq = slot.seq;
         let stamp_ns = self.core.clock.now_ns();
         self.scratch.clear();
-        wire::encode_data_header(&mut self.scratch, seq, stamp_ns, payload.len())?;
+        wire::encode_data_header(&mut self.scratch, seq, stamp_ns, head.len() + payload.len())?;
+        self.scratch.extend_from_slice(head);
         if let Transport::Net(net) = &mut self.transport {
             let parts = [self.scratch.as_slice(), payload];
             net.publish(&mut self.core, index, &parts)?;

@@ -3,6 +3,9 @@
 
 use serde::{Deserialize, Serialize};
 
+mod image;
+pub use image::{Image, ImageEncoding, Pixels};
+
 #[derive(Debug, thiserror::Error)]
 #[error("cannot {action} {data_type}: {reason}")]
 pub struct CodecError {
@@ -21,9 +24,10 @@ pub trait Datum: Sized {
     fn decode_owned(bytes: Vec<u8>) -> Result<Self, CodecError> {
         Self::decode(&bytes)
     }
-    /// The encoding as it is in memory, for a type whose encoding is its bytes: a large one
-    /// is then sent from them, not copied into a frame first.
-    fn as_encoded(&self) -> Option<&[u8]> {
+    /// For a type whose encoding ends in bytes it holds as they are (a `Blob`'s, an `Image`'s
+    /// pixels): appends the encoding before them to `head` and returns them, so that a large
+    /// value is sent from its own memory, not copied into a frame first.
+    fn split_encoding(&self, _head: &mut Vec<u8>) -> Option<&[u8]> {
         None
     }
 }
@@ -100,7 +104,7 @@ impl Datum for Blob {
     fn decode_owned(bytes: Vec<u8>) -> Result<Self, CodecError> {
         Ok(Blob(bytes))
     }
-    fn as_encoded(&self) -> Option<&[u8]> {
+    fn split_encoding(&self, _head: &mut Vec<u8>) -> Option<&[u8]> {
         Some(&self.0)
     }
 }

@@ -254,7 +254,7 @@ const MIN_READ_BYTES: usize = 64 * 1024;
 const IDLE_KEEP_BYTES: usize = 4 * 1024 * 1024;
 /// Data frames from this size on are read straight into their payload buffer.
 const LARGE_FRAME_BYTES: usize = 256 * 1024;
-/// Payloads from this size on are sent from the caller's bytes (see `Datum::as_encoded`).
+/// Payloads from this size on are sent from the caller's bytes (see `Datum::split_encoding`).
 pub const LARGE_PAYLOAD_BYTES: usize = LARGE_FRAME_BYTES;
 
 impl FrameReader {

@@ -101,7 +101,14 @@ fn plan(channel: &Channel) -> anyhow::Result<Plan> {
 fn json_type(data_type: &str) -> bool {
     matches!(
         data_type,
-        "Counter" | "Text" | "Pose2D" | "Twist" | "Odometry" | "LaserScan" | "OccupancyGrid"
+        "Counter"
+            | "Text"
+            | "Pose2D"
+            | "Twist"
+            | "Odometry"
+            | "LaserScan"
+            | "OccupancyGrid"
+            | "Image"
     )
 }
 
@@ -134,6 +141,14 @@ fn from_json(data_type: &str, json: &[u8]) -> anyhow::Result<Vec<u8>> {
         "Odometry" => encode(json, |value: Odometry| value),
         "LaserScan" => encode(json, |value: LaserScan| value),
         "OccupancyGrid" => encode(json, |value: OccupancyGrid| value),
+        // Foxglove's RawImage or CompressedImage, as the recorder writes an image.
+        "Image" => armor_model::foxglove::from_json(json)
+            .map_err(anyhow::Error::msg)
+            .and_then(|image| {
+                let mut out = Vec::new();
+                image.encode(&mut out)?;
+                Ok(out)
+            }),
         _ => bail!("no JSON form is known for type `{data_type}`"),
     };
     bytes.with_context(|| format!("a JSON message is not a {data_type}"))
@@ -460,6 +475,19 @@ mod tests {
                 height: 1,
                 cells: vec![-1, 100],
                 ..OccupancyGrid::default()
+            })
+        );
+        // An image as Foxglove's RawImage (what the recorder writes, and other tools too).
+        let image = br#"{"timestamp":{"sec":1,"nsec":5},"frame_id":"cam","width":2,"height":1,"encoding":"mono8","step":2,"data":"CgA="}"#;
+        assert_eq!(
+            from_json("Image", image).unwrap(),
+            encode(&armor_module_api::types::Image {
+                width: 2,
+                height: 1,
+                encoding: armor_module_api::types::ImageEncoding::Mono8,
+                stamp_ns: 1_000_000_005,
+                frame_id: "cam".into(),
+                data: vec![10, 0].into(),
             })
         );
         let err = from_json("Counter", br#"{"count":1}"#).unwrap_err();
