@@ -173,10 +173,11 @@ pub fn spec() -> ModuleSpec {
         ParamSpec::new(
             "world",
             ParamType::String,
-            "the world file replanning starts from (found as the sim finds its own: as given, \
-             then under assets/worlds/; empty: replan on what the laser sees alone)",
+            "the world file replanning starts from (found as the sim finds its own; empty: \
+             replan on what the laser sees alone)",
         )
-        .default(""),
+        .default("")
+        .file("worlds"),
     )
     .param(
         ParamSpec::new(

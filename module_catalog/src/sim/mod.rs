@@ -69,13 +69,18 @@ pub fn spec() -> ModuleSpec {
         "true pose in the world frame, every physics step (for evaluation and display only: a \
          real robot has no such sensor)",
     )
-    .param(ParamSpec::new(
-        "world",
-        ParamType::String,
-        "the world file (format in the module's docs; examples: yard, building, field): tried \
-         as given, then as assets/worlds/WORLD under the current directory, adding `.world` if \
-         it has no extension",
-    ))
+    .param(
+        ParamSpec::new(
+            "world",
+            ParamType::String,
+            "the world file (format in the module's docs; examples: yard.world, building.world, \
+             field.world; or a ROS map_server map.yaml): armor run hands the module the file \
+             found next to the system file, in the module path or under assets/worlds/; run \
+             alone, tried as given, then under assets/worlds/ of the current directory, adding \
+             `.world` if it has no extension",
+        )
+        .file("worlds"),
+    )
     .param(
         ParamSpec::new(
             "rate_hz",

@@ -17,6 +17,7 @@ pub mod geo;
 pub mod net;
 pub mod plan;
 pub mod planner;
+pub mod ros_map;
 pub mod system;
 pub mod world;
 

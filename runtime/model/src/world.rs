@@ -666,14 +666,22 @@ impl World {
         } else {
             format!("the start pose {p}")
         };
+        // Shapes made from a map rather than read from a line have no line to name.
+        let on_line = |shape: &Shape| match shape.line {
+            0 => " of the map".to_owned(),
+            line => format!(" on line {line}"),
+        };
         let problem = if shape.kind == ShapeKind::Boundary && !self.boundary().contains(p) {
-            format!("is outside the boundary (line {})", shape.line)
+            match shape.line {
+                0 => "is outside the map".to_owned(),
+                line => format!("is outside the boundary (line {line})"),
+            }
         } else if shape.kind == ShapeKind::Obstacle && shape.contains(p) {
-            format!("is inside the obstacle on line {}", shape.line)
+            format!("is inside the obstacle{}", on_line(shape))
         } else if radius > 0.0 {
-            format!("overlaps the {} on line {}", shape.kind.noun(), shape.line)
+            format!("overlaps the {}{}", shape.kind.noun(), on_line(shape))
         } else {
-            format!("lies on the {} on line {}", shape.kind.noun(), shape.line)
+            format!("lies on the {}{}", shape.kind.noun(), on_line(shape))
         };
         Err(WorldError {
             file: self.file_name.clone(),
@@ -1255,6 +1263,61 @@ impl Parser<'_> {
         let shapes: Vec<Shape> = std::iter::once(boundary.clone())
             .chain(self.shapes.iter().cloned())
             .collect();
+        World::assemble(
+            name.clone(),
+            self.file.to_owned(),
+            (lat, lon),
+            start,
+            (start_line, start_col),
+            shapes,
+        )
+    }
+}
+
+impl World {
+    /// A world made of a boundary and solid obstacles given as corner lists (not repeating the
+    /// first), which must not cross themselves (a map's cells, for one); the start pose is
+    /// checked as a world file's is. `file_name` names where they came from in messages.
+    pub fn from_shapes(
+        name: &str,
+        file_name: &str,
+        origin_lat_lon: (f64, f64),
+        start: Pose2D,
+        boundary: Vec<Point>,
+        obstacles: Vec<Vec<Point>>,
+    ) -> Result<World, WorldError> {
+        let shape = |kind, points| Shape {
+            kind,
+            points,
+            closed: true,
+            line: 0,
+        };
+        let shapes = std::iter::once(shape(ShapeKind::Boundary, boundary))
+            .chain(
+                obstacles
+                    .into_iter()
+                    .map(|points| shape(ShapeKind::Obstacle, points)),
+            )
+            .collect();
+        World::assemble(
+            name.to_owned(),
+            file_name.to_owned(),
+            origin_lat_lon,
+            start,
+            (0, 0),
+            shapes,
+        )
+    }
+
+    /// The world of checked shapes (the boundary first), with its indexes built.
+    fn assemble(
+        name: String,
+        file_name: String,
+        origin_lat_lon: (f64, f64),
+        start: Pose2D,
+        start_at: (usize, usize),
+        shapes: Vec<Shape>,
+    ) -> Result<World, WorldError> {
         let segments: Vec<Segment> = shapes
             .iter()
             .enumerate()
@@ -1273,11 +1336,11 @@ impl Parser<'_> {
         let bounds = Bounds::around(shapes.iter().flat_map(|shape| shape.points.iter().copied()));
         let grid = Grid::build(&bounds, &segments);
         let world = World {
-            name: name.clone(),
-            file_name: self.file.to_owned(),
-            origin_lat_lon: (lat, lon),
+            name,
+            file_name,
+            origin_lat_lon,
             start,
-            start_at: (start_line, start_col),
+            start_at,
             shapes,
             segments,
             obstacles,
@@ -1287,6 +1350,28 @@ impl Parser<'_> {
         world.check_start(0.0)?;
         Ok(world)
     }
+}
+
+/// Reads the world file at `path`: a `.world` file, or a ROS map_server map (`.yaml`, see
+/// [`crate::ros_map`]) and its image; `read` does the reading, so that this crate does none.
+pub fn load(
+    path: &std::path::Path,
+    read: &mut dyn FnMut(&std::path::Path) -> std::io::Result<Vec<u8>>,
+) -> Result<World, WorldError> {
+    if crate::ros_map::is_map_yaml(path) {
+        return crate::ros_map::load_world(path, read);
+    }
+    let file_name = path.display().to_string();
+    let fail = |message: String| WorldError {
+        file: file_name.clone(),
+        line: 0,
+        col: 0,
+        message,
+    };
+    let bytes = read(path).map_err(|err| fail(format!("cannot read the world file: {err}")))?;
+    let text =
+        String::from_utf8(bytes).map_err(|_| fail("the world file is not UTF-8 text".into()))?;
+    World::parse(&text, &file_name)
 }
 
 #[cfg(test)]

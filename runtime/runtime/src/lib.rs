@@ -13,6 +13,7 @@ pub mod gate;
 pub mod load;
 mod mcap_read;
 pub mod mission;
+pub mod paths;
 pub mod probe;
 pub mod process;
 pub mod replay;
