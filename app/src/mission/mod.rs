@@ -180,7 +180,8 @@ impl Surroundings {
         };
         let world = system.as_ref().and_then(|system| {
             let system_dir = system_file.parent().unwrap_or(base);
-            armor_runtime::mission::plan_world(plan, system, &[base, system_dir])
+            let module_path = armor_runtime::probe::module_path();
+            armor_runtime::mission::plan_world(plan, system, base, system_dir, &module_path)
                 .map_err(|err| problems.push(err))
                 .ok()
                 .flatten()

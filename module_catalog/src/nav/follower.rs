@@ -339,11 +339,9 @@ fn load_world(name: &str) -> Result<Option<WorldMap>, BodyError> {
         return Ok(None);
     }
     let path = crate::sim::find_world(name).map_err(|err| format!("parameter `world`: {err}"))?;
-    let file_name = path.display().to_string();
-    let text = std::fs::read_to_string(&path)
-        .map_err(|err| format!("parameter `world`: cannot read `{file_name}`: {err}"))?;
-    let world =
-        WorldMap::parse(text, file_name).map_err(|err| format!("parameter `world`: {err}"))?;
+    let world = crate::sim::load_world_file(&path)
+        .map(WorldMap::new)
+        .map_err(|err| format!("parameter `world`: {err}"))?;
     tracing::info!("replanning on the world `{}`", world.file_name);
     Ok(Some(world))
 }

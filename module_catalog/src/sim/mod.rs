@@ -495,6 +495,9 @@ fn load_world(node: &Node) -> Result<World, BodyError> {
     if obstacles.trim().is_empty() {
         return Ok(load_world_file(&path)?);
     }
+    if armor_model::ros_map::is_map_yaml(&path) {
+        return Ok(map_with_obstacles(load_world_file(&path)?, &obstacles)?);
+    }
     // The extra shapes are read as lines after the file's own, so that the world's parser
     // checks them as it checks the file.
     let file_name = path.display().to_string();
@@ -512,16 +515,36 @@ fn load_world(node: &Node) -> Result<World, BodyError> {
     .map_err(|err| format!("{err}").into())
 }
 
-/// Reads and checks a world file.
+/// A map's world with the `obstacles` parameter's shapes added: they are read as a world
+/// file's lines, in a world that is the map's rectangle, and added to the map.
+fn map_with_obstacles(map: World, obstacles: &str) -> Result<World, world::WorldError> {
+    let (b, start) = (map.bounds(), map.start());
+    let mut text = format!(
+        "name obstacles\norigin 0 0\nstart {} {} 0\nboundary {},{} {},{} {},{} {},{} {},{}\n",
+        start.x_m,
+        start.y_m,
+        b.min_x,
+        b.min_y,
+        b.max_x,
+        b.min_y,
+        b.max_x,
+        b.max_y,
+        b.min_x,
+        b.max_y,
+        b.min_x,
+        b.min_y
+    );
+    for line in obstacles.split(';') {
+        text.push_str(line.trim());
+        text.push('\n');
+    }
+    let extra = World::parse(&text, "the `obstacles` parameter")?;
+    map.with_shapes(extra.shapes().iter().skip(1).cloned())
+}
+
+/// Reads and checks a world file (a `.world` file or a ROS map_server `map.yaml`).
 pub fn load_world_file(path: &std::path::Path) -> Result<World, world::WorldError> {
-    let file_name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|err| world::WorldError {
-        file: file_name.clone(),
-        line: 0,
-        col: 0,
-        message: format!("cannot read the world file: {err}"),
-    })?;
-    World::parse(&text, &file_name)
+    world::load(path, &mut |path| std::fs::read(path))
 }
 
 pub fn body(node: &mut Node) -> BodyResult {

@@ -114,6 +114,16 @@ pub struct Shape {
 }
 
 impl Shape {
+    /// A solid obstacle from its corners (not repeating the first), which must not cross.
+    pub fn obstacle(points: Vec<Point>) -> Shape {
+        Shape {
+            kind: ShapeKind::Obstacle,
+            points,
+            closed: true,
+            line: 0,
+        }
+    }
+
     /// The shape's edges, including the closing one of a closed shape.
     pub fn edges(&self) -> impl Iterator<Item = (Point, Point)> + '_ {
         let n = self.points.len();
@@ -991,18 +1001,9 @@ impl Parser<'_> {
                         format!("the radius must be greater than 0 m, not {radius}"),
                     ));
                 }
-                let points = (0..CIRCLE_SIDES)
-                    .map(|i| {
-                        let angle = std::f64::consts::TAU * i as f64 / CIRCLE_SIDES as f64;
-                        Point::new(
-                            centre.x + radius * angle.cos(),
-                            centre.y + radius * angle.sin(),
-                        )
-                    })
-                    .collect();
                 self.shapes.push(Shape {
                     kind: ShapeKind::Obstacle,
-                    points,
+                    points: circle(centre, radius),
                     closed: true,
                     line,
                 });
@@ -1274,7 +1275,38 @@ impl Parser<'_> {
     }
 }
 
+/// The polygon that stands for a disc (as the `circle` statement makes it).
+pub fn circle(centre: Point, radius: f64) -> Vec<Point> {
+    (0..CIRCLE_SIDES)
+        .map(|i| {
+            let angle = std::f64::consts::TAU * i as f64 / CIRCLE_SIDES as f64;
+            Point::new(
+                centre.x + radius * angle.cos(),
+                centre.y + radius * angle.sin(),
+            )
+        })
+        .collect()
+}
+
 impl World {
+    /// This world with more walls and obstacles.
+    pub fn with_shapes(&self, extra: impl IntoIterator<Item = Shape>) -> Result<World, WorldError> {
+        let mut shapes = self.shapes.clone();
+        shapes.extend(
+            extra
+                .into_iter()
+                .filter(|shape| shape.kind != ShapeKind::Boundary),
+        );
+        World::assemble(
+            self.name.clone(),
+            self.file_name.clone(),
+            self.origin_lat_lon,
+            self.start,
+            self.start_at,
+            shapes,
+        )
+    }
+
     /// A world made of a boundary and solid obstacles given as corner lists (not repeating the
     /// first), which must not cross themselves (a map's cells, for one); the start pose is
     /// checked as a world file's is. `file_name` names where they came from in messages.
@@ -1286,18 +1318,12 @@ impl World {
         boundary: Vec<Point>,
         obstacles: Vec<Vec<Point>>,
     ) -> Result<World, WorldError> {
-        let shape = |kind, points| Shape {
-            kind,
-            points,
-            closed: true,
-            line: 0,
+        let boundary = Shape {
+            kind: ShapeKind::Boundary,
+            ..Shape::obstacle(boundary)
         };
-        let shapes = std::iter::once(shape(ShapeKind::Boundary, boundary))
-            .chain(
-                obstacles
-                    .into_iter()
-                    .map(|points| shape(ShapeKind::Obstacle, points)),
-            )
+        let shapes = std::iter::once(boundary)
+            .chain(obstacles.into_iter().map(Shape::obstacle))
             .collect();
         World::assemble(
             name.to_owned(),

@@ -733,7 +733,7 @@ fn read_limits(child: &Element, spec: &mut ParamSpec, problems: &mut Vec<Located
                 ),
             ));
         } else {
-            spec.file = Some(attr.value.clone());
+            spec.file = Some(attr.value.as_str().to_owned());
         }
     }
 }

@@ -18,6 +18,7 @@ pub mod probe;
 pub mod process;
 pub mod replay;
 pub mod restart;
+pub mod ros_export;
 pub mod summary;
 pub mod supervisor;
 
