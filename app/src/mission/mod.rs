@@ -25,6 +25,7 @@ use crate::command::UiCommand;
 use crate::diagram::Catalog;
 use plan_edit::{Outcome, PlanCommand, PlanEditor, Selection};
 
+pub mod basemap;
 pub mod inspector;
 pub mod labels;
 pub mod map;
@@ -148,10 +149,12 @@ pub struct Surroundings {
     pub system_file: PathBuf,
     pub system: Option<SystemConfig>,
     pub world: Option<World>,
+    /// Where the plan's base map (`<basemap href>`) is, when it opens.
+    pub basemap: Option<PathBuf>,
     /// Why the system or the world could not be read.
     pub problems: Vec<String>,
-    /// What they were read for: (base, system, world) of the plan.
-    key: (PathBuf, String, String),
+    /// What they were read for: (base, system, world, base map) of the plan.
+    key: (PathBuf, String, String, String),
 }
 
 impl Surroundings {
@@ -186,11 +189,19 @@ impl Surroundings {
                 .ok()
                 .flatten()
         });
+        let basemap = plan.basemap.as_ref().and_then(|basemap| {
+            let module_path = armor_runtime::probe::module_path();
+            armor_runtime::mission::plan_basemap(&basemap.href, base, &module_path)
+                .map(|map| map.path().to_path_buf())
+                .map_err(|err| problems.push(err))
+                .ok()
+        });
         Surroundings {
             base: base.to_path_buf(),
             system_file,
             system,
             world,
+            basemap,
             problems,
             key: key_of(plan, base),
         }
@@ -216,8 +227,14 @@ impl Surroundings {
     }
 }
 
-fn key_of(plan: &Plan, base: &Path) -> (PathBuf, String, String) {
-    (base.to_path_buf(), plan.system.clone(), plan.world.clone())
+fn key_of(plan: &Plan, base: &Path) -> (PathBuf, String, String, String) {
+    let basemap = plan.basemap.as_ref().map(|basemap| basemap.href.clone());
+    (
+        base.to_path_buf(),
+        plan.system.clone(),
+        plan.world.clone(),
+        basemap.unwrap_or_default(),
+    )
 }
 
 /// The plan compiled and verified.
@@ -641,6 +658,12 @@ impl MissionView {
             self.surroundings = Surroundings::load(&self.editor.plan, &base);
             let origin = self.surroundings.origin(&self.editor.plan);
             self.map.set_world(self.surroundings.world.clone(), origin);
+            let basemap = self.surroundings.basemap.as_deref().and_then(|path| {
+                armor_runtime::basemap::Basemap::open(path)
+                    .map_err(|err| tracing::error!("{err}"))
+                    .ok()
+            });
+            self.map.set_basemap(basemap);
             self.checked_revision = None;
         }
     }

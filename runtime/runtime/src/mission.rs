@@ -123,6 +123,10 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
             // The robot's size comes from the plan, else from the system's modules.
             let robot = plan::robot(&plan, Some(&system.system), &system.descriptions);
             let compiled = plan::compile_for(&plan, world.as_ref(), &robot).map_err(fail)?;
+            if let Some(basemap) = &plan.basemap {
+                plan_basemap(&basemap.href, base, module_path)
+                    .map_err(|message| fail(vec![Located::new(basemap.pos, message)]))?;
+            }
             (compiled.net.clone(), Some(compiled))
         }
     };
@@ -143,6 +147,18 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         planned_start_unix_secs,
         plan,
     })
+}
+
+/// The base map a plan names (`<basemap href>`), found from `plan_dir` as [`paths::resolve`]
+/// says (bundled maps under `assets/maps/`) and opened.
+pub fn plan_basemap(
+    href: &str,
+    plan_dir: &Path,
+    module_path: &[PathBuf],
+) -> Result<crate::basemap::Basemap, String> {
+    let path = paths::resolve(href, plan_dir, module_path, "maps")
+        .map_err(|err| format!("the base map: {err}"))?;
+    crate::basemap::Basemap::open(&path).map_err(|err| format!("the base map: {err}"))
 }
 
 /// The world a plan is drawn on: the one it names (found from `plan_dir`, the plan file's

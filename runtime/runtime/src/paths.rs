@@ -10,8 +10,8 @@
 
 use std::path::{Path, PathBuf};
 
-/// Where `name`, written in a file in the folder `referrer_dir`, is; `Err` lists where it was
-/// looked for.
+/// Where the file or folder `name`, written in a file in the folder `referrer_dir`, is; `Err`
+/// says where it was looked for.
 pub fn resolve(
     name: &str,
     referrer_dir: &Path,
@@ -20,14 +20,14 @@ pub fn resolve(
 ) -> Result<PathBuf, String> {
     let given = Path::new(name);
     if given.is_absolute() {
-        return if given.is_file() {
+        return if given.exists() {
             Ok(given.to_path_buf())
         } else {
-            Err(format!("`{name}` is not a file"))
+            Err(format!("`{name}` does not exist"))
         };
     }
     let candidates = candidates(given, referrer_dir, module_path, assets_folder);
-    if let Some(found) = candidates.iter().find(|candidate| candidate.is_file()) {
+    if let Some(found) = candidates.iter().find(|candidate| candidate.exists()) {
         return Ok(std::path::absolute(found).unwrap_or_else(|_| found.clone()));
     }
     Err(format!(
