@@ -325,3 +325,44 @@ fn the_mappers_last_grid_is_exported_as_a_ros_map_that_reads_back_as_it() {
         output_text(&output)
     );
 }
+
+#[test]
+fn a_plans_base_map_is_found_beside_it_and_one_missing_fails_the_check_where_it_is_named() {
+    let dir = tempfile::tempdir().expect("temporary folder");
+    let plan = yard_plan_on(dir.path(), "yard.world");
+    let original = std::fs::read_to_string(&plan).expect("plan");
+    let with_map = |href: &str| {
+        let text = original.replacen(
+            "  <navigation",
+            &format!("  <basemap href=\"{href}\"/>\n  <navigation"),
+            1,
+        );
+        std::fs::write(&plan, &text).expect("write");
+        text
+    };
+    let text = with_map("survey.mbtiles");
+    let elsewhere = tempfile::tempdir().expect("temporary folder");
+    let output = armor_in(elsewhere.path(), &[os("check"), plan.as_os_str()]);
+    assert_refused(
+        &output,
+        &plan,
+        line_of(&text, "<basemap"),
+        &["the base map", "cannot find `survey.mbtiles`"],
+    );
+    // A folder of tiles beside the plan opens, from any current folder.
+    std::fs::create_dir_all(dir.path().join("tiles/18/0")).expect("folder");
+    std::fs::write(dir.path().join("tiles/18/0/0.png"), b"png").expect("tile");
+    with_map("tiles");
+    let output = armor_in(elsewhere.path(), &[os("check"), plan.as_os_str()]);
+    assert!(output.status.success(), "{}", output_text(&output));
+    // A file that is not an MBTiles database is refused in words.
+    std::fs::write(dir.path().join("notes.mbtiles"), "notes").expect("write");
+    let text = with_map("notes.mbtiles");
+    let output = armor_in(elsewhere.path(), &[os("check"), plan.as_os_str()]);
+    assert_refused(
+        &output,
+        &plan,
+        line_of(&text, "<basemap"),
+        &["not an MBTiles file"],
+    );
+}

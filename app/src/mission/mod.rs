@@ -567,6 +567,43 @@ impl MissionView {
         ))
     }
 
+    /// The plan's base map, as it names it.
+    pub fn basemap_href(&self) -> Option<String> {
+        self.editor
+            .plan
+            .basemap
+            .as_ref()
+            .map(|basemap| basemap.href.clone())
+    }
+
+    /// Draws the plan on the base map at `path` (an MBTiles file or a tile folder), named in
+    /// the plan relative to its file; `none` or an empty path goes back to the world's tiles.
+    /// An edit of the plan like any other (undone by Undo, kept by Save).
+    pub fn choose_basemap(&mut self, path: &Path) -> Report {
+        let mut plan = self.editor.plan.clone();
+        let typed = path.to_string_lossy();
+        let message = if matches!(typed.trim(), "" | "none") {
+            plan.basemap = None;
+            "the map shows the world's own tiles".to_owned()
+        } else {
+            let map = armor_runtime::basemap::Basemap::open(path).map_err(anyhow::Error::msg)?;
+            let href = match self.path.as_deref() {
+                Some(file) => armor_runtime::fs::relative_path(path, &folder_of(file)),
+                None => std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()),
+            };
+            plan.basemap = Some(plan::Basemap {
+                href: href.display().to_string(),
+                pos: Default::default(),
+            });
+            format!("the plan is drawn on the base map `{}`", map.name)
+        };
+        self.commands.push(PlanCommand::Change {
+            plan: Box::new(plan),
+            field: "base map".to_owned(),
+        });
+        Ok(message)
+    }
+
     /// The compiled net, or why there is none.
     fn net_for_export(&self) -> anyhow::Result<MissionNet> {
         if let Some(first) = self.checked.errors.first() {
