@@ -74,7 +74,7 @@ fn a_base_map_chosen_in_the_view_menu_shows_under_the_plan() {
     std::fs::write(&plan, text).unwrap();
     red_yard(&dir.path().join("red.mbtiles"));
 
-    let mut options = Options::new(Home::new(&dir.path().join("home")));
+    let mut options = Options::new(Home::new(dir.path().join("home")));
     options.palette = Some(Palette::from_descriptions(Vec::new()));
     let mut harness = Harness::builder()
         .with_size([1280.0, 800.0])

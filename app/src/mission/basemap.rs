@@ -101,12 +101,7 @@ impl Tiles for BaseTiles {
     }
 
     fn attribution(&self) -> Attribution {
-        Attribution {
-            text: self.attribution,
-            url: "",
-            logo_light: None,
-            logo_dark: None,
-        }
+        super::tiles::text_attribution(self.attribution)
     }
 
     fn tile_size(&self) -> u32 {

@@ -198,6 +198,16 @@ impl WorldTiles {
     }
 }
 
+/// An attribution of text alone (offline maps have no link or logo).
+pub fn text_attribution(text: &'static str) -> Attribution {
+    Attribution {
+        text,
+        url: "",
+        logo_light: None,
+        logo_dark: None,
+    }
+}
+
 /// The part of `texture`, the tile `levels` zoom levels above `tile_id`, that covers it.
 pub fn part_of_ancestor(texture: TextureHandle, tile_id: TileId, levels: u8) -> TilePiece {
     let parts = f32::from(1u16 << levels);
@@ -237,12 +247,7 @@ impl Tiles for WorldTiles {
     }
 
     fn attribution(&self) -> Attribution {
-        Attribution {
-            text: self.attribution,
-            url: "",
-            logo_light: None,
-            logo_dark: None,
-        }
+        text_attribution(self.attribution)
     }
 
     fn tile_size(&self) -> u32 {

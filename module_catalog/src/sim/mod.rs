@@ -1,5 +1,6 @@
 //! `sim`: a simulated differential-drive robot with a planar laser scanner, in a 2-D world read
-//! from a `.world` file ([`world`] documents the format; `assets/worlds/` holds examples).
+//! from a `.world` file ([`world`] documents the format; `assets/worlds/` holds examples) or a
+//! ROS map_server map ([`armor_model::ros_map`]).
 //!
 //! The simulation runs on the run clock: it steps the physics `rate_hz` times per second of run
 //! time, so `armor run --time-scale 20` runs a simulated minute in three seconds. Each step takes

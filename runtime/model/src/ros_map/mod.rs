@@ -99,7 +99,7 @@ fn error(file: &str, line: usize, col: usize, message: impl Into<String>) -> Wor
 #[derive(Clone, Debug)]
 enum Value {
     Scalar(String, (usize, usize)),
-    List(Vec<(String, (usize, usize))>, (usize, usize)),
+    List(Vec<Item>, (usize, usize)),
     Other((usize, usize)),
 }
 
@@ -111,6 +111,9 @@ impl Value {
     }
 }
 
+/// A scalar of a YAML list and where it starts.
+type Item = (String, (usize, usize));
+
 /// The top-level keys of a YAML mapping, each with its value (scalars, and lists of scalars;
 /// anything deeper is kept as `Other`).
 #[derive(Default)]
@@ -118,7 +121,7 @@ struct TopLevel {
     depth: usize,
     key: Option<(String, (usize, usize))>,
     /// The list being read as the current key's value, and whether it holds more than scalars.
-    list: Option<(Vec<(String, (usize, usize))>, (usize, usize), bool)>,
+    list: Option<(Vec<Item>, (usize, usize), bool)>,
     entries: Vec<(String, (usize, usize), Value)>,
     not_a_mapping: Option<(usize, usize)>,
 }
@@ -323,39 +326,30 @@ pub fn parse_yaml(text: &str, file: &str) -> Result<MapYaml, WorldError> {
             format!("`free_thresh` ({free_thresh}) is above `occupied_thresh` ({occupied_thresh})"),
         ));
     }
-    let negate = match find("negate") {
-        None => false,
-        Some((_, _, value)) => match scalar(value, "negate")?.trim() {
-            "0" | "false" | "False" => false,
-            "1" | "true" | "True" => true,
-            other => {
-                let (line, col) = value.at();
-                return Err(error(
-                    file,
-                    line,
-                    col,
-                    format!("`negate` is 0 or 1, not `{other}`"),
-                ));
-            }
-        },
-    };
-    let mode = match find("mode") {
-        None => Mode::Trinary,
-        Some((_, _, value)) => match scalar(value, "mode")?.trim() {
-            "trinary" => Mode::Trinary,
-            "scale" => Mode::Scale,
-            "raw" => Mode::Raw,
-            other => {
-                let (line, col) = value.at();
-                return Err(error(
-                    file,
-                    line,
-                    col,
-                    format!("`mode` is trinary, scale or raw, not `{other}`"),
-                ));
-            }
-        },
-    };
+    let value_of = |key: &str| find(key).map(|(_, _, value)| value);
+    let negate = choose(
+        file,
+        "negate",
+        value_of("negate"),
+        false,
+        &[
+            (&["0", "false", "False"], false),
+            (&["1", "true", "True"], true),
+        ],
+        "0 or 1",
+    )?;
+    let mode = choose(
+        file,
+        "mode",
+        value_of("mode"),
+        Mode::Trinary,
+        &[
+            (&["trinary"], Mode::Trinary),
+            (&["scale"], Mode::Scale),
+            (&["raw"], Mode::Raw),
+        ],
+        "trinary, scale or raw",
+    )?;
     let geo_origin = match find("geo_origin") {
         None => (0.0, 0.0),
         Some((_, _, value)) => {
@@ -394,6 +388,42 @@ pub fn parse_yaml(text: &str, file: &str) -> Result<MapYaml, WorldError> {
         geo_origin,
         start,
     })
+}
+
+/// The value of `key`, one of a few words (each with its spellings), or `default` when absent.
+fn choose<T: Copy>(
+    file: &str,
+    key: &str,
+    value: Option<&Value>,
+    default: T,
+    words: &[(&[&str], T)],
+    expected: &str,
+) -> Result<T, WorldError> {
+    let Some(value) = value else {
+        return Ok(default);
+    };
+    let (line, col) = value.at();
+    let Value::Scalar(text, _) = value else {
+        return Err(error(
+            file,
+            line,
+            col,
+            format!("`{key}` must be a single value"),
+        ));
+    };
+    let text = text.trim();
+    words
+        .iter()
+        .find(|(spellings, _)| spellings.contains(&text))
+        .map(|(_, chosen)| *chosen)
+        .ok_or_else(|| {
+            error(
+                file,
+                line,
+                col,
+                format!("`{key}` is {expected}, not `{text}`"),
+            )
+        })
 }
 
 /// Decodes a PGM (binary `P5` or plain `P2`) or PNG image.
@@ -602,7 +632,7 @@ pub fn world_of_grid(
     let resolution = grid.resolution_m;
     let blocked = |col: usize, row: usize| {
         let value = grid.cells[row * width + col];
-        value < 0 || value >= BLOCKED_FROM
+        !(0..BLOCKED_FROM).contains(&value)
     };
     let corner = |col: usize, row: usize| {
         Point::new(
@@ -806,6 +836,16 @@ pub fn load_world(
     )
 }
 
+/// What a cell of `value` reads back as once saved by [`to_map_files`]: free (0), occupied
+/// (100) or unknown (-1).
+pub fn as_saved(value: i8) -> i8 {
+    match value {
+        0..=FREE_UP_TO => 0,
+        OCCUPIED_AT.. => 100,
+        _ => -1,
+    }
+}
+
 /// A grid as `map_saver` saves it: the YAML (naming `image_name`) and a binary PGM, free cells
 /// (at most 25) 254, occupied ones (65 or more) 0, the rest 205, with the thresholds that read
 /// them back as they were.
@@ -820,9 +860,9 @@ pub fn to_map_files(grid: &OccupancyGrid, image_name: &str) -> (String, Vec<u8>)
         pgm.extend(
             grid.cells[row * width..(row + 1) * width]
                 .iter()
-                .map(|&value| match value {
-                    0..=FREE_UP_TO => 254,
-                    OCCUPIED_AT.. => 0,
+                .map(|&value| match as_saved(value) {
+                    0 => 254,
+                    100 => 0,
                     _ => 205,
                 }),
         );
