@@ -544,12 +544,6 @@ mod tests {
             "---",
             "Quit",
         ];
-        let view_menu = vec![
-            "Zoom to fit",
-            "Wheel: zoom · drag: pan",
-            "---",
-            "Keyboard shortcuts",
-        ];
         assert_eq!(
             labels(View::System),
             [
@@ -572,14 +566,31 @@ mod tests {
             [
                 ("File", mission_file.to_vec()),
                 ("Edit", vec!["Undo", "Redo", "Delete"]),
-                ("View", view_menu.clone()),
+                (
+                    "View",
+                    vec![
+                        "Zoom to fit",
+                        "Base map…",
+                        "Wheel: zoom · drag: pan",
+                        "---",
+                        "Keyboard shortcuts"
+                    ]
+                ),
             ]
         );
         assert_eq!(
             labels(View::Run),
             [
                 ("Run", vec!["Run", "Stop", "---", "Open recording…"]),
-                ("View", view_menu),
+                (
+                    "View",
+                    vec![
+                        "Zoom to fit",
+                        "Wheel: zoom · drag: pan",
+                        "---",
+                        "Keyboard shortcuts"
+                    ]
+                ),
             ]
         );
         // The View menu is in every view, so that the menu bar does not move.

@@ -904,7 +904,7 @@ mod tests {
                 "4:2: parameter `c`: give `min` or `min_exclusive`, not both",
                 "4:31: default of parameter `c` (float): `-1` is not 0 or more",
                 "4:70: parameter `c`: `max` must be a finite number, not `inf`",
-                "5:43: parameter `d`: `file` applies to `string` parameters, not `int`",
+                "5:41: parameter `d`: `file` applies to `string` parameters, not `int`",
             ],
         );
     }
