@@ -288,7 +288,7 @@ fn the_mappers_last_grid_is_exported_as_a_ros_map_that_reads_back_as_it() {
     };
     assert_eq!(read, expected);
     assert!(
-        expected.contains(&100) && expected.contains(&0),
+        expected.cells.contains(&100) && expected.cells.contains(&0),
         "the mapper saw walls and floor"
     );
     // A recording with no grid is refused in words.
