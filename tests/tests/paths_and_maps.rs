@@ -117,24 +117,37 @@ fn a_system_naming_a_missing_world_fails_the_check_where_it_is_named() {
     assert!(output.status.success(), "{}", output_text(&output));
 }
 
-/// The yard as a ROS map at 5 cm, written as map_saver would, with our keys for its
-/// geographic origin and start, in `dir`.
-fn yard_as_ros_map(dir: &Path) -> PathBuf {
-    let yard =
-        std::fs::read_to_string(workspace_root().join("assets/worlds/yard.world")).expect("yard");
+/// The yard as a ROS map at 10 cm, as map_saver writes one, with our keys for its geographic
+/// origin and start: (map.yaml, map.pgm).
+fn yard_as_ros_map() -> (String, Vec<u8>) {
+    let yard = std::fs::read_to_string(workspace_root().join("assets/worlds/yard.world"))
+        .expect("yard");
     let world = World::parse(&yard, "yard.world").expect("the yard");
-    let grid = world.occupancy_grid(0.05).expect("grid");
+    let grid = world.occupancy_grid(0.1).expect("grid");
     let (yaml, pgm) = ros_map::to_map_files(&grid, "yard-map.pgm");
     let (lat, lon) = world.origin_lat_lon();
     let start = world.start();
     let yaml = format!(
-        "{yaml}geo_origin: [{lat}, {lon}]\nstart: [{}, {}, {}]\n",
+        "# The yard (yard.world) as a ROS map_server map, rasterised at 10 cm.\n{yaml}geo_origin: [{lat}, {lon}]\nstart: [{}, {}, {}]\n",
         start.x_m, start.y_m, start.theta_rad
     );
-    std::fs::write(dir.join("yard-map.pgm"), pgm).expect("write");
-    let file = dir.join("yard-map.yaml");
-    std::fs::write(&file, yaml).expect("write");
-    file
+    (yaml, pgm)
+}
+
+#[test]
+fn the_bundled_yard_map_is_the_yard_rasterised() {
+    let (yaml, pgm) = yard_as_ros_map();
+    let worlds = workspace_root().join("assets/worlds");
+    if std::env::var_os("ARMOR_WRITE_YARD_MAP").is_some() {
+        std::fs::write(worlds.join("yard-map.yaml"), &yaml).expect("write");
+        std::fs::write(worlds.join("yard-map.pgm"), &pgm).expect("write");
+    }
+    assert_eq!(
+        std::fs::read_to_string(worlds.join("yard-map.yaml")).expect("yard-map.yaml"),
+        yaml,
+        "ARMOR_WRITE_YARD_MAP=1 writes it anew"
+    );
+    assert!(std::fs::read(worlds.join("yard-map.pgm")).expect("yard-map.pgm") == pgm);
 }
 
 /// The yard's system and plan in `dir`, on `world` (named relative to `dir`).
@@ -151,9 +164,7 @@ fn yard_plan_on(dir: &Path, world: &str) -> PathBuf {
 
 #[test]
 fn the_yard_plan_runs_on_the_yard_as_a_ros_map() {
-    let dir = tempfile::tempdir().expect("temporary folder");
-    yard_as_ros_map(dir.path());
-    let plan = yard_plan_on(dir.path(), "yard-map.yaml");
+    let plan = robot_file("plan-yard-map.xml");
     let elsewhere = tempfile::tempdir().expect("temporary folder");
     let checked = armor_in(elsewhere.path(), &[os("check"), plan.as_os_str()]);
     assert!(checked.status.success(), "{}", output_text(&checked));
