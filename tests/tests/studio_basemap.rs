@@ -1,5 +1,6 @@
-//! A base map chosen in the studio's View menu shows under the plan: an MBTiles file whose
-//! tiles are all one colour tints the map where the yard is, and Undo takes it away.
+//! A base map chosen in the studio's View menu shows under the plan, in the Mission and Run
+//! views: an MBTiles file whose tiles are all one colour tints the map where the yard is, and
+//! Undo takes it away.
 #![allow(clippy::unwrap_used)]
 
 use std::path::Path;
@@ -134,6 +135,12 @@ fn a_base_map_chosen_in_the_view_menu_shows_under_the_plan() {
         after > 60,
         "the red base map shows through the world: {after}"
     );
+
+    // The Run view draws the same map, base map and all.
+    harness.state_mut().set_view(View::Run);
+    let in_run_view = redness(&mut harness);
+    assert!(in_run_view > 60, "the Run view shows the base map: {in_run_view}");
+    harness.state_mut().set_view(View::Mission);
 
     // Undo takes the base map away again.
     harness.key_press_modifiers(Modifiers::COMMAND, Key::Z);
