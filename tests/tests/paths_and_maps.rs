@@ -120,8 +120,8 @@ fn a_system_naming_a_missing_world_fails_the_check_where_it_is_named() {
 /// The yard as a ROS map at 10 cm, as map_saver writes one, with our keys for its geographic
 /// origin and start: (map.yaml, map.pgm).
 fn yard_as_ros_map() -> (String, Vec<u8>) {
-    let yard = std::fs::read_to_string(workspace_root().join("assets/worlds/yard.world"))
-        .expect("yard");
+    let yard =
+        std::fs::read_to_string(workspace_root().join("assets/worlds/yard.world")).expect("yard");
     let world = World::parse(&yard, "yard.world").expect("the yard");
     let grid = world.occupancy_grid(0.1).expect("grid");
     let (yaml, pgm) = ros_map::to_map_files(&grid, "yard-map.pgm");

@@ -139,7 +139,10 @@ fn a_base_map_chosen_in_the_view_menu_shows_under_the_plan() {
     // The Run view draws the same map, base map and all.
     harness.state_mut().set_view(View::Run);
     let in_run_view = redness(&mut harness);
-    assert!(in_run_view > 60, "the Run view shows the base map: {in_run_view}");
+    assert!(
+        in_run_view > 60,
+        "the Run view shows the base map: {in_run_view}"
+    );
     harness.state_mut().set_view(View::Mission);
 
     // Undo takes the base map away again.

@@ -676,11 +676,7 @@ impl World {
         } else {
             format!("the start pose {p}")
         };
-        // Shapes made from a map rather than read from a line have no line to name.
-        let on_line = |shape: &Shape| match shape.line {
-            0 => " of the map".to_owned(),
-            line => format!(" on line {line}"),
-        };
+        let on_line = |shape: &Shape| shape_origin(shape.line);
         let problem = if shape.kind == ShapeKind::Boundary && !self.boundary().contains(p) {
             match shape.line {
                 0 => "is outside the map".to_owned(),
@@ -1272,6 +1268,15 @@ impl Parser<'_> {
             (start_line, start_col),
             shapes,
         )
+    }
+}
+
+/// Where a shape comes from, for messages: ` on line N` of a world file, or what a shape made
+/// from a map's cells (line 0) stands for.
+pub fn shape_origin(line: usize) -> String {
+    match line {
+        0 => " (occupied or unknown cells of the map)".to_owned(),
+        line => format!(" on line {line}"),
     }
 }
 
