@@ -360,3 +360,38 @@ fn a_plans_base_map_is_found_beside_it_and_one_missing_fails_the_check_where_it_
         &["not an MBTiles file"],
     );
 }
+
+#[test]
+fn a_plans_world_is_found_beside_it_and_a_broken_map_is_refused_with_its_place() {
+    let dir = tempfile::tempdir().expect("temporary folder");
+    let plan = yard_plan_on(dir.path(), "yard.world");
+    let text = std::fs::read_to_string(&plan).expect("plan").replacen(
+        "<plan name=",
+        "<plan world=\"room.yaml\" name=",
+        1,
+    );
+    std::fs::write(&plan, &text).expect("write");
+    let elsewhere = tempfile::tempdir().expect("temporary folder");
+    let output = armor_in(elsewhere.path(), &[os("check"), plan.as_os_str()]);
+    assert_refused(
+        &output,
+        &plan,
+        line_of(&text, "<plan "),
+        &["the world", "cannot find `room.yaml`"],
+    );
+    // Beside the plan, a map whose resolution is negative: the YAML's own place is given.
+    std::fs::write(dir.path().join("room.pgm"), "P2 2 2 255 254 254 254 254\n").expect("write");
+    let yaml = dir.path().join("room.yaml");
+    std::fs::write(
+        &yaml,
+        "image: room.pgm\nresolution: -0.5\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+    )
+    .expect("write");
+    let output = armor_in(elsewhere.path(), &[os("check"), plan.as_os_str()]);
+    let all = output_text(&output);
+    assert!(!output.status.success(), "{all}");
+    assert!(
+        all.contains(&format!("{}:2:13: `resolution`", yaml.display())),
+        "{all}"
+    );
+}
