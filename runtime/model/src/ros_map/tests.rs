@@ -4,6 +4,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use super::*;
+use crate::world::Point;
 
 /// Files in memory, read as `load` reads them.
 fn reader(files: &BTreeMap<PathBuf, Vec<u8>>) -> impl FnMut(&Path) -> std::io::Result<Vec<u8>> {
