@@ -483,6 +483,14 @@ impl StudioApp {
             (View::Mission, UiCommand::ExportPnml) => {
                 self.ask_path(PathPurpose::ExportPnml, self.plan_path_with("pnml"));
             }
+            (View::Mission, UiCommand::BaseMap) => {
+                let current = self
+                    .mission
+                    .as_ref()
+                    .and_then(|mission| mission.basemap_href())
+                    .unwrap_or_default();
+                self.ask_path(PathPurpose::BaseMap, current);
+            }
             (View::Mission, UiCommand::ExportPng) => {
                 self.ask_path(PathPurpose::ExportMapPng, self.plan_path_with("png"));
             }

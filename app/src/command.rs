@@ -40,6 +40,7 @@ pub enum UiCommand {
     ImportGpx,
     ExportMission,
     ExportPnml,
+    BaseMap,
     Quit,
 }
 
@@ -51,7 +52,7 @@ const fn key(modifiers: Modifiers, key: Key) -> KeyboardShortcut {
 }
 
 impl UiCommand {
-    pub const ALL: [UiCommand; 24] = [
+    pub const ALL: [UiCommand; 25] = [
         UiCommand::Save,
         UiCommand::SaveAs,
         UiCommand::Open,
@@ -75,6 +76,7 @@ impl UiCommand {
         UiCommand::ImportGpx,
         UiCommand::ExportMission,
         UiCommand::ExportPnml,
+        UiCommand::BaseMap,
         UiCommand::Quit,
     ];
 
@@ -97,6 +99,7 @@ impl UiCommand {
             UiCommand::ImportGpx => "Import GPX…",
             UiCommand::ExportMission => "Export mission XML…",
             UiCommand::ExportPnml => "Export PNML…",
+            UiCommand::BaseMap => "Base map…",
             UiCommand::Quit => "Quit",
             UiCommand::Undo => "Undo",
             UiCommand::Redo => "Redo",
@@ -150,6 +153,7 @@ impl UiCommand {
             | UiCommand::ImportGpx
             | UiCommand::ExportMission
             | UiCommand::ExportPnml
+            | UiCommand::BaseMap
             | UiCommand::Quit => const { &[] },
         }
     }
@@ -190,6 +194,7 @@ impl UiCommand {
             UiCommand::ImportGpx => "import waypoints and a route (GPX)",
             UiCommand::ExportMission => "export the mission (XML for armor run)",
             UiCommand::ExportPnml => "export the net (PNML)",
+            UiCommand::BaseMap => "draw the plan on an offline base map (MBTiles or a tile folder)",
             UiCommand::Quit => "close the window",
         }
     }
@@ -217,6 +222,7 @@ impl UiCommand {
             | UiCommand::ImportGpx
             | UiCommand::ExportMission
             | UiCommand::ExportPnml
+            | UiCommand::BaseMap
             | UiCommand::Quit => false,
         }
     }
@@ -375,6 +381,7 @@ const MISSION_MENUS: &[Menu] = &[
         title: "View",
         items: &[
             Item(UiCommand::ZoomToFit),
+            Item(UiCommand::BaseMap),
             MOUSE_NOTE,
             Separator,
             Item(UiCommand::Help),
@@ -537,12 +544,6 @@ mod tests {
             "---",
             "Quit",
         ];
-        let view_menu = vec![
-            "Zoom to fit",
-            "Wheel: zoom · drag: pan",
-            "---",
-            "Keyboard shortcuts",
-        ];
         assert_eq!(
             labels(View::System),
             [
@@ -565,14 +566,31 @@ mod tests {
             [
                 ("File", mission_file.to_vec()),
                 ("Edit", vec!["Undo", "Redo", "Delete"]),
-                ("View", view_menu.clone()),
+                (
+                    "View",
+                    vec![
+                        "Zoom to fit",
+                        "Base map…",
+                        "Wheel: zoom · drag: pan",
+                        "---",
+                        "Keyboard shortcuts"
+                    ]
+                ),
             ]
         );
         assert_eq!(
             labels(View::Run),
             [
                 ("Run", vec!["Run", "Stop", "---", "Open recording…"]),
-                ("View", view_menu),
+                (
+                    "View",
+                    vec![
+                        "Zoom to fit",
+                        "Wheel: zoom · drag: pan",
+                        "---",
+                        "Keyboard shortcuts"
+                    ]
+                ),
             ]
         );
         // The View menu is in every view, so that the menu bar does not move.

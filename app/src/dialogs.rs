@@ -21,6 +21,7 @@ pub enum PathPurpose {
     ExportPnml,
     ExportMapPng,
     OpenRecording,
+    BaseMap,
 }
 
 impl PathPurpose {
@@ -35,6 +36,7 @@ impl PathPurpose {
             PathPurpose::ExportMission => "export the mission",
             PathPurpose::ExportPnml => "export PNML",
             PathPurpose::OpenRecording => "open a recording",
+            PathPurpose::BaseMap => "choose a base map",
         }
     }
 }
@@ -63,6 +65,7 @@ impl PathPurpose {
                 | PathPurpose::OpenPlan
                 | PathPurpose::ImportGpx
                 | PathPurpose::OpenRecording
+                | PathPurpose::BaseMap
         )
     }
 
@@ -76,6 +79,7 @@ impl PathPurpose {
             PathPurpose::ExportPng | PathPurpose::ExportMapPng => ("Picture (PNG)", &["png"]),
             PathPurpose::ImportGpx => ("GPX", &["gpx"]),
             PathPurpose::OpenRecording => ("Recording (MCAP)", &["mcap"]),
+            PathPurpose::BaseMap => ("Base map (MBTiles)", &["mbtiles"]),
         }
     }
 }
@@ -136,6 +140,10 @@ impl PathDialog {
             PathPurpose::ExportPnml => ("Export the net (PNML)", "Export"),
             PathPurpose::ExportMapPng => ("Export the map (PNG)", "Export"),
             PathPurpose::OpenRecording => ("Open a recording (MCAP)", "Open"),
+            PathPurpose::BaseMap => (
+                "Base map: an MBTiles file or a folder of {z}/{x}/{y}.png tiles (none: the world's)",
+                "Show",
+            ),
         };
         if !dialog.native_offered {
             dialog.native_offered = true;

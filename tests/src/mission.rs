@@ -29,8 +29,8 @@ pub fn armor_run(mission: &Path, report: &Path, extra: &[&str]) -> Proc {
             .arg(report)
             .args(extra)
             .env("ARMOR_MODULE_PATH", bin_dir())
-            // The sim looks its `world` up relative to the current directory only (as given,
-            // then under assets/worlds/), so the missions run from the workspace root.
+            // The worlds are found from the files that name them; a recorder's relative
+            // `file` is written in the current folder, here the workspace root.
             .current_dir(workspace_root()),
     )
 }

@@ -334,6 +334,7 @@ impl StudioApp {
                     PathPurpose::ExportPnml => self.with_mission(|m| m.export_pnml(&path)),
                     PathPurpose::ExportMapPng => self.export_png(ctx, path, View::Mission),
                     PathPurpose::OpenRecording => self.run.open_recording(&path),
+                    PathPurpose::BaseMap => self.with_mission(|m| m.choose_basemap(&path)),
                 }
             }
         }

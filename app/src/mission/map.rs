@@ -10,6 +10,7 @@ use armor_model::world::{Point, World};
 use egui::{Color32, Pos2, Rect, RichText, Sense, Stroke, Ui, Vec2, pos2, vec2};
 use walkers::{Map, MapMemory, Projector, lat_lon};
 
+use super::basemap::BaseTiles;
 use super::plan_edit::{Handle, PlanCommand, Selection, unique_name};
 use super::symbols::SymbolCache;
 use super::tiles::WorldTiles;
@@ -36,6 +37,9 @@ pub struct MapState {
     /// The code a placed unit gets.
     pub unit_sidc: String,
     pub tiles: WorldTiles,
+    /// An offline base map (MBTiles or a tile folder) under the world's tiles.
+    pub basemap: Option<BaseTiles>,
+    ctx: egui::Context,
     /// OpenStreetMap under the world, when the user turns it on (off by default: the machines
     /// the studio runs on are often offline).
     pub online: Option<walkers::HttpTiles>,
@@ -64,6 +68,8 @@ impl MapState {
             pending: Vec::new(),
             unit_sidc: "SFGPUCR----D---".to_owned(),
             tiles: WorldTiles::new(ctx, None, (0.0, 0.0)),
+            basemap: None,
+            ctx: ctx.clone(),
             online: None,
             memory: MapMemory::default(),
             symbols: SymbolCache::default(),
@@ -100,6 +106,12 @@ impl MapState {
         self.tiles
             .set_world(world, (origin.lat_deg, origin.lon_deg));
         self.fit_requested = true;
+    }
+
+    /// Shows `map` under the world's tiles (which are then drawn half seen through), or no
+    /// base map.
+    pub fn set_basemap(&mut self, map: Option<armor_runtime::basemap::Basemap>) {
+        self.basemap = map.map(|map| BaseTiles::new(&self.ctx, map));
     }
 
     pub fn set_online(&mut self, ctx: &egui::Context, on: bool) {
@@ -233,18 +245,22 @@ impl MissionView {
         let origin = self.surroundings.origin(&self.editor.plan);
         let MapState {
             tiles,
+            basemap,
             online,
             memory,
             symbols,
             centre,
             ..
         } = &mut self.map;
-        let map = match online {
-            // The world drawn over the street map, half seen through.
-            Some(online) => {
+        let map = match (basemap, online) {
+            // The world drawn over the base map or the street map, half seen through.
+            (Some(basemap), _) => {
+                Map::new(Some(basemap), memory, position(*centre)).with_layer(tiles, 0.55)
+            }
+            (None, Some(online)) => {
                 Map::new(Some(online), memory, position(*centre)).with_layer(tiles, 0.55)
             }
-            None => Map::new(Some(tiles), memory, position(*centre)),
+            (None, None) => Map::new(Some(tiles), memory, position(*centre)),
         }
         .zoom_with_ctrl(false)
         .double_click_to_zoom(false);

@@ -25,6 +25,7 @@ use crate::command::UiCommand;
 use crate::diagram::Catalog;
 use plan_edit::{Outcome, PlanCommand, PlanEditor, Selection};
 
+pub mod basemap;
 pub mod inspector;
 pub mod labels;
 pub mod map;
@@ -148,10 +149,12 @@ pub struct Surroundings {
     pub system_file: PathBuf,
     pub system: Option<SystemConfig>,
     pub world: Option<World>,
+    /// Where the plan's base map (`<basemap href>`) is, when it opens.
+    pub basemap: Option<PathBuf>,
     /// Why the system or the world could not be read.
     pub problems: Vec<String>,
-    /// What they were read for: (base, system, world) of the plan.
-    key: (PathBuf, String, String),
+    /// What they were read for: (base, system, world, base map) of the plan.
+    key: (PathBuf, String, String, String),
 }
 
 impl Surroundings {
@@ -180,16 +183,25 @@ impl Surroundings {
         };
         let world = system.as_ref().and_then(|system| {
             let system_dir = system_file.parent().unwrap_or(base);
-            armor_runtime::mission::plan_world(plan, system, &[base, system_dir])
+            let module_path = armor_runtime::probe::module_path();
+            armor_runtime::mission::plan_world(plan, system, base, system_dir, &module_path)
                 .map_err(|err| problems.push(err))
                 .ok()
                 .flatten()
+        });
+        let basemap = plan.basemap.as_ref().and_then(|basemap| {
+            let module_path = armor_runtime::probe::module_path();
+            armor_runtime::mission::plan_basemap(&basemap.href, base, &module_path)
+                .map(|map| map.path().to_path_buf())
+                .map_err(|err| problems.push(err))
+                .ok()
         });
         Surroundings {
             base: base.to_path_buf(),
             system_file,
             system,
             world,
+            basemap,
             problems,
             key: key_of(plan, base),
         }
@@ -215,8 +227,14 @@ impl Surroundings {
     }
 }
 
-fn key_of(plan: &Plan, base: &Path) -> (PathBuf, String, String) {
-    (base.to_path_buf(), plan.system.clone(), plan.world.clone())
+fn key_of(plan: &Plan, base: &Path) -> (PathBuf, String, String, String) {
+    let basemap = plan.basemap.as_ref().map(|basemap| basemap.href.clone());
+    (
+        base.to_path_buf(),
+        plan.system.clone(),
+        plan.world.clone(),
+        basemap.unwrap_or_default(),
+    )
 }
 
 /// The plan compiled and verified.
@@ -525,6 +543,43 @@ impl MissionView {
         ))
     }
 
+    /// The plan's base map, as it names it.
+    pub fn basemap_href(&self) -> Option<String> {
+        self.editor
+            .plan
+            .basemap
+            .as_ref()
+            .map(|basemap| basemap.href.clone())
+    }
+
+    /// Draws the plan on the base map at `path` (an MBTiles file or a tile folder), named in
+    /// the plan relative to its file; `none` or an empty path goes back to the world's tiles.
+    /// An edit of the plan like any other (undone by Undo, kept by Save).
+    pub fn choose_basemap(&mut self, path: &Path) -> Report {
+        let mut plan = self.editor.plan.clone();
+        let typed = path.to_string_lossy();
+        let message = if matches!(typed.trim(), "" | "none") {
+            plan.basemap = None;
+            "the map shows the world's own tiles".to_owned()
+        } else {
+            let map = armor_runtime::basemap::Basemap::open(path).map_err(anyhow::Error::msg)?;
+            let href = match self.path.as_deref() {
+                Some(file) => armor_runtime::fs::relative_path(path, &folder_of(file)),
+                None => std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()),
+            };
+            plan.basemap = Some(plan::Basemap {
+                href: href.display().to_string(),
+                pos: Default::default(),
+            });
+            format!("the plan is drawn on the base map `{}`", map.name)
+        };
+        self.commands.push(PlanCommand::Change {
+            plan: Box::new(plan),
+            field: "base map".to_owned(),
+        });
+        Ok(message)
+    }
+
     /// The compiled net, or why there is none.
     fn net_for_export(&self) -> anyhow::Result<MissionNet> {
         if let Some(first) = self.checked.errors.first() {
@@ -616,6 +671,12 @@ impl MissionView {
             self.surroundings = Surroundings::load(&self.editor.plan, &base);
             let origin = self.surroundings.origin(&self.editor.plan);
             self.map.set_world(self.surroundings.world.clone(), origin);
+            let basemap = self.surroundings.basemap.as_deref().and_then(|path| {
+                armor_runtime::basemap::Basemap::open(path)
+                    .map_err(|err| tracing::error!("{err}"))
+                    .ok()
+            });
+            self.map.set_basemap(basemap);
             self.checked_revision = None;
         }
     }

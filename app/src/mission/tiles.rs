@@ -191,18 +191,33 @@ impl WorldTiles {
             };
             if let Some(cached) = self.cache.get_mut(&ancestor) {
                 cached.last_used = self.clock;
-                let parts = f32::from(1u16 << levels);
-                let mask = (1u32 << levels) - 1;
-                let (u, v) = ((tile_id.x & mask) as f32, (tile_id.y & mask) as f32);
-                let uv = egui::Rect::from_min_max(
-                    pos2(u / parts, v / parts),
-                    pos2((u + 1.0) / parts, (v + 1.0) / parts),
-                );
-                return Some(TilePiece::new(Tile::Raster(cached.texture.clone()), uv));
+                return Some(part_of_ancestor(cached.texture.clone(), tile_id, levels));
             }
         }
         None
     }
+}
+
+/// An attribution of text alone (offline maps have no link or logo).
+pub fn text_attribution(text: &'static str) -> Attribution {
+    Attribution {
+        text,
+        url: "",
+        logo_light: None,
+        logo_dark: None,
+    }
+}
+
+/// The part of `texture`, the tile `levels` zoom levels above `tile_id`, that covers it.
+pub fn part_of_ancestor(texture: TextureHandle, tile_id: TileId, levels: u8) -> TilePiece {
+    let parts = f32::from(1u16 << levels);
+    let mask = (1u32 << levels) - 1;
+    let (u, v) = ((tile_id.x & mask) as f32, (tile_id.y & mask) as f32);
+    let uv = egui::Rect::from_min_max(
+        pos2(u / parts, v / parts),
+        pos2((u + 1.0) / parts, (v + 1.0) / parts),
+    );
+    TilePiece::new(Tile::Raster(texture), uv)
 }
 
 impl Tiles for WorldTiles {
@@ -232,12 +247,7 @@ impl Tiles for WorldTiles {
     }
 
     fn attribution(&self) -> Attribution {
-        Attribution {
-            text: self.attribution,
-            url: "",
-            logo_light: None,
-            logo_dark: None,
-        }
+        text_attribution(self.attribution)
     }
 
     fn tile_size(&self) -> u32 {

@@ -173,10 +173,11 @@ pub fn spec() -> ModuleSpec {
         ParamSpec::new(
             "world",
             ParamType::String,
-            "the world file replanning starts from (found as the sim finds its own: as given, \
-             then under assets/worlds/; empty: replan on what the laser sees alone)",
+            "the world file replanning starts from (found as the sim finds its own; empty: \
+             replan on what the laser sees alone)",
         )
-        .default(""),
+        .default("")
+        .file("worlds"),
     )
     .param(
         ParamSpec::new(
@@ -342,11 +343,9 @@ fn load_world(name: &str) -> Result<Option<WorldMap>, BodyError> {
         return Ok(None);
     }
     let path = crate::sim::find_world(name).map_err(|err| format!("parameter `world`: {err}"))?;
-    let file_name = path.display().to_string();
-    let text = std::fs::read_to_string(&path)
-        .map_err(|err| format!("parameter `world`: cannot read `{file_name}`: {err}"))?;
-    let world =
-        WorldMap::parse(text, file_name).map_err(|err| format!("parameter `world`: {err}"))?;
+    let world = crate::sim::load_world_file(&path)
+        .map(WorldMap::new)
+        .map_err(|err| format!("parameter `world`: {err}"))?;
     tracing::info!("replanning on the world `{}`", world.file_name);
     Ok(Some(world))
 }

@@ -13,7 +13,7 @@ use armor_model::geo;
 use armor_model::planner::{
     Costmap, CostmapSettings, Keepout, Path, PathError, Planner, Robot, open_extent,
 };
-use armor_model::world::{Point, World};
+use armor_model::world::{Point, Shape, World};
 use armor_module_api::types::{LaserScan, Pose2D};
 
 /// A hit this close to the world's walls and outlines is the world, not a new obstacle.
@@ -32,19 +32,16 @@ const SET_OFF_SEARCH_M: f64 = 1.0;
 /// The world the follower plans on: its text (to add the hits to) and its parsed form.
 #[derive(Clone, Debug)]
 pub struct WorldMap {
-    pub text: String,
     pub file_name: String,
     pub world: World,
 }
 
 impl WorldMap {
-    pub fn parse(text: String, file_name: String) -> Result<WorldMap, String> {
-        let world = World::parse(&text, &file_name).map_err(|err| err.to_string())?;
-        Ok(WorldMap {
-            text,
-            file_name,
+    pub fn new(world: World) -> WorldMap {
+        WorldMap {
+            file_name: world.file_name().to_owned(),
             world,
-        })
+        }
     }
 }
 
@@ -154,35 +151,33 @@ fn costmap_with(
     goal: Point,
     settings: &CostmapSettings,
 ) -> Option<Costmap> {
-    let mut text = match world {
-        Some(world) => world.text.clone(),
+    let hits: Vec<Vec<Point>> = obstacles
+        .iter()
+        .map(|&hit| armor_model::world::circle(hit, HIT_RADIUS_M))
+        .collect();
+    let world = match world {
+        Some(world) => world
+            .world
+            .with_shapes(hits.into_iter().map(Shape::obstacle)),
         None => {
             let mut points = vec![from, goal];
             points.extend_from_slice(obstacles);
             let b = open_extent(&points, keepouts, robot, settings);
-            format!(
-                "name seen\norigin 0 0\nstart {} {} 0\nboundary {},{} {},{} {},{} {},{} {},{}\n",
-                from.x,
-                from.y,
-                b.min_x,
-                b.min_y,
-                b.max_x,
-                b.min_y,
-                b.max_x,
-                b.max_y,
-                b.min_x,
-                b.max_y,
-                b.min_x,
-                b.min_y
-            )
+            let start = Pose2D {
+                x_m: from.x,
+                y_m: from.y,
+                theta_rad: 0.0,
+            };
+            let corners = vec![
+                Point::new(b.min_x, b.min_y),
+                Point::new(b.max_x, b.min_y),
+                Point::new(b.max_x, b.max_y),
+                Point::new(b.min_x, b.max_y),
+            ];
+            World::from_shapes("seen", "the laser's map", (0.0, 0.0), start, corners, hits)
         }
-    };
-    text.push_str("\n# Seen by the laser:\n");
-    for hit in obstacles {
-        text.push_str(&format!("circle {},{} {HIT_RADIUS_M}\n", hit.x, hit.y));
     }
-    let file_name = world.map_or("the laser's map", |world| world.file_name.as_str());
-    let world = World::parse(&text, file_name).ok()?;
+    .ok()?;
     Costmap::for_world(&world, robot, keepouts, settings).ok()
 }
 
@@ -214,7 +209,7 @@ mod tests {
     const ROOM: &str = "name room\norigin 0 0\nstart 1 5 0\nboundary 0,0 20,0 20,10 0,10 0,0\n";
 
     fn room() -> WorldMap {
-        WorldMap::parse(ROOM.into(), "room.world".into()).expect("world")
+        WorldMap::new(World::parse(ROOM, "room.world").expect("world"))
     }
 
     /// A scan from (x, 5) facing east that sees a wall across the room 2 m ahead, from y 0 to 7.

@@ -1,5 +1,6 @@
 //! `sim`: a simulated differential-drive robot with a planar laser scanner, in a 2-D world read
-//! from a `.world` file ([`world`] documents the format; `assets/worlds/` holds examples).
+//! from a `.world` file ([`world`] documents the format; `assets/worlds/` holds examples) or a
+//! ROS map_server map ([`armor_model::ros_map`]).
 //!
 //! The simulation runs on the run clock: it steps the physics `rate_hz` times per second of run
 //! time, so `armor run --time-scale 20` runs a simulated minute in three seconds. Each step takes
@@ -69,13 +70,18 @@ pub fn spec() -> ModuleSpec {
         "true pose in the world frame, every physics step (for evaluation and display only: a \
          real robot has no such sensor)",
     )
-    .param(ParamSpec::new(
-        "world",
-        ParamType::String,
-        "the world file (format in the module's docs; examples: yard, building, field): tried \
-         as given, then as assets/worlds/WORLD under the current directory, adding `.world` if \
-         it has no extension",
-    ))
+    .param(
+        ParamSpec::new(
+            "world",
+            ParamType::String,
+            "the world file (format in the module's docs; examples: yard.world, building.world, \
+             field.world; or a ROS map_server map.yaml): armor run hands the module the file \
+             found next to the system file, in the module path or under assets/worlds/; run \
+             alone, tried as given, then under assets/worlds/ of the current directory, adding \
+             `.world` if it has no extension",
+        )
+        .file("worlds"),
+    )
     .param(
         ParamSpec::new(
             "rate_hz",
@@ -490,6 +496,9 @@ pub fn load_world(node: &Node) -> Result<World, BodyError> {
     if obstacles.trim().is_empty() {
         return Ok(load_world_file(&path)?);
     }
+    if armor_model::ros_map::is_map_yaml(&path) {
+        return Ok(map_with_obstacles(load_world_file(&path)?, &obstacles)?);
+    }
     // The extra shapes are read as lines after the file's own, so that the world's parser
     // checks them as it checks the file.
     let file_name = path.display().to_string();
@@ -507,16 +516,36 @@ pub fn load_world(node: &Node) -> Result<World, BodyError> {
     .map_err(|err| format!("{err}").into())
 }
 
-/// Reads and checks a world file.
+/// A map's world with the `obstacles` parameter's shapes added: they are read as a world
+/// file's lines, in a world that is the map's rectangle, and added to the map.
+fn map_with_obstacles(map: World, obstacles: &str) -> Result<World, world::WorldError> {
+    let (b, start) = (map.bounds(), map.start());
+    let mut text = format!(
+        "name obstacles\norigin 0 0\nstart {} {} 0\nboundary {},{} {},{} {},{} {},{} {},{}\n",
+        start.x_m,
+        start.y_m,
+        b.min_x,
+        b.min_y,
+        b.max_x,
+        b.min_y,
+        b.max_x,
+        b.max_y,
+        b.min_x,
+        b.max_y,
+        b.min_x,
+        b.min_y
+    );
+    for line in obstacles.split(';') {
+        text.push_str(line.trim());
+        text.push('\n');
+    }
+    let extra = World::parse(&text, "the `obstacles` parameter")?;
+    map.with_shapes(extra.shapes().iter().skip(1).cloned())
+}
+
+/// Reads and checks a world file (a `.world` file or a ROS map_server `map.yaml`).
 pub fn load_world_file(path: &std::path::Path) -> Result<World, world::WorldError> {
-    let file_name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|err| world::WorldError {
-        file: file_name.clone(),
-        line: 0,
-        col: 0,
-        message: format!("cannot read the world file: {err}"),
-    })?;
-    World::parse(&text, &file_name)
+    world::load(path, &mut |path| std::fs::read(path))
 }
 
 pub fn body(node: &mut Node) -> BodyResult {

@@ -10,7 +10,8 @@
 //! Plans ([`plan`]) are what an operator draws on a map (waypoints, legs, actions, time
 //! constraints, contingencies, tactical graphics); they compile into mission nets, on a
 //! [`world`] (the simulated robot's plane, which [`geo`] routes through around no-go areas);
-//! [`planner`] finds each leg's path on a costmap of that world.
+//! [`planner`] finds each leg's path on a costmap of that world. A world may also be a ROS
+//! map_server map ([`ros_map`]).
 //!
 //! [`foxglove`] gives camera images the JSON forms of Foxglove's image schemas, in which the
 //! recorder writes them.
@@ -21,6 +22,7 @@ pub mod geo;
 pub mod net;
 pub mod plan;
 pub mod planner;
+pub mod ros_map;
 pub mod system;
 pub mod world;
 

@@ -114,6 +114,16 @@ pub struct Shape {
 }
 
 impl Shape {
+    /// A solid obstacle from its corners (not repeating the first), which must not cross.
+    pub fn obstacle(points: Vec<Point>) -> Shape {
+        Shape {
+            kind: ShapeKind::Obstacle,
+            points,
+            closed: true,
+            line: 0,
+        }
+    }
+
     /// The shape's edges, including the closing one of a closed shape.
     pub fn edges(&self) -> impl Iterator<Item = (Point, Point)> + '_ {
         let n = self.points.len();
@@ -694,14 +704,18 @@ impl World {
         } else {
             format!("the start pose {p}")
         };
+        let on_line = |shape: &Shape| shape_origin(shape.line);
         let problem = if shape.kind == ShapeKind::Boundary && !self.boundary().contains(p) {
-            format!("is outside the boundary (line {})", shape.line)
+            match shape.line {
+                0 => "is outside the map".to_owned(),
+                line => format!("is outside the boundary (line {line})"),
+            }
         } else if shape.kind == ShapeKind::Obstacle && shape.contains(p) {
-            format!("is inside the obstacle on line {}", shape.line)
+            format!("is inside the obstacle{}", on_line(shape))
         } else if radius > 0.0 {
-            format!("overlaps the {} on line {}", shape.kind.noun(), shape.line)
+            format!("overlaps the {}{}", shape.kind.noun(), on_line(shape))
         } else {
-            format!("lies on the {} on line {}", shape.kind.noun(), shape.line)
+            format!("lies on the {}{}", shape.kind.noun(), on_line(shape))
         };
         Err(WorldError {
             file: self.file_name.clone(),
@@ -1011,18 +1025,9 @@ impl Parser<'_> {
                         format!("the radius must be greater than 0 m, not {radius}"),
                     ));
                 }
-                let points = (0..CIRCLE_SIDES)
-                    .map(|i| {
-                        let angle = std::f64::consts::TAU * i as f64 / CIRCLE_SIDES as f64;
-                        Point::new(
-                            centre.x + radius * angle.cos(),
-                            centre.y + radius * angle.sin(),
-                        )
-                    })
-                    .collect();
                 self.shapes.push(Shape {
                     kind: ShapeKind::Obstacle,
-                    points,
+                    points: circle(centre, radius),
                     closed: true,
                     line,
                 });
@@ -1283,6 +1288,95 @@ impl Parser<'_> {
         let shapes: Vec<Shape> = std::iter::once(boundary.clone())
             .chain(self.shapes.iter().cloned())
             .collect();
+        World::assemble(
+            name.clone(),
+            self.file.to_owned(),
+            (lat, lon),
+            start,
+            (start_line, start_col),
+            shapes,
+        )
+    }
+}
+
+/// Where a shape comes from, for messages: ` on line N` of a world file, or what a shape made
+/// from a map's cells (line 0) stands for.
+pub fn shape_origin(line: usize) -> String {
+    match line {
+        0 => " (occupied or unknown cells of the map)".to_owned(),
+        line => format!(" on line {line}"),
+    }
+}
+
+/// The polygon that stands for a disc (as the `circle` statement makes it).
+pub fn circle(centre: Point, radius: f64) -> Vec<Point> {
+    (0..CIRCLE_SIDES)
+        .map(|i| {
+            let angle = std::f64::consts::TAU * i as f64 / CIRCLE_SIDES as f64;
+            Point::new(
+                centre.x + radius * angle.cos(),
+                centre.y + radius * angle.sin(),
+            )
+        })
+        .collect()
+}
+
+impl World {
+    /// This world with more walls and obstacles.
+    pub fn with_shapes(&self, extra: impl IntoIterator<Item = Shape>) -> Result<World, WorldError> {
+        let mut shapes = self.shapes.clone();
+        shapes.extend(
+            extra
+                .into_iter()
+                .filter(|shape| shape.kind != ShapeKind::Boundary),
+        );
+        World::assemble(
+            self.name.clone(),
+            self.file_name.clone(),
+            self.origin_lat_lon,
+            self.start,
+            self.start_at,
+            shapes,
+        )
+    }
+
+    /// A world made of a boundary and solid obstacles given as corner lists (not repeating the
+    /// first), which must not cross themselves (a map's cells, for one); the start pose is
+    /// checked as a world file's is. `file_name` names where they came from in messages.
+    pub fn from_shapes(
+        name: &str,
+        file_name: &str,
+        origin_lat_lon: (f64, f64),
+        start: Pose2D,
+        boundary: Vec<Point>,
+        obstacles: Vec<Vec<Point>>,
+    ) -> Result<World, WorldError> {
+        let boundary = Shape {
+            kind: ShapeKind::Boundary,
+            ..Shape::obstacle(boundary)
+        };
+        let shapes = std::iter::once(boundary)
+            .chain(obstacles.into_iter().map(Shape::obstacle))
+            .collect();
+        World::assemble(
+            name.to_owned(),
+            file_name.to_owned(),
+            origin_lat_lon,
+            start,
+            (0, 0),
+            shapes,
+        )
+    }
+
+    /// The world of checked shapes (the boundary first), with its indexes built.
+    fn assemble(
+        name: String,
+        file_name: String,
+        origin_lat_lon: (f64, f64),
+        start: Pose2D,
+        start_at: (usize, usize),
+        shapes: Vec<Shape>,
+    ) -> Result<World, WorldError> {
         let segments: Vec<Segment> = shapes
             .iter()
             .enumerate()
@@ -1301,11 +1395,11 @@ impl Parser<'_> {
         let bounds = Bounds::around(shapes.iter().flat_map(|shape| shape.points.iter().copied()));
         let grid = Grid::build(&bounds, &segments);
         let world = World {
-            name: name.clone(),
-            file_name: self.file.to_owned(),
-            origin_lat_lon: (lat, lon),
+            name,
+            file_name,
+            origin_lat_lon,
             start,
-            start_at: (start_line, start_col),
+            start_at,
             shapes,
             segments,
             obstacles,
@@ -1315,6 +1409,28 @@ impl Parser<'_> {
         world.check_start(0.0)?;
         Ok(world)
     }
+}
+
+/// Reads the world file at `path`: a `.world` file, or a ROS map_server map (`.yaml`, see
+/// [`crate::ros_map`]) and its image; `read` does the reading, so that this crate does none.
+pub fn load(
+    path: &std::path::Path,
+    read: &mut dyn FnMut(&std::path::Path) -> std::io::Result<Vec<u8>>,
+) -> Result<World, WorldError> {
+    if crate::ros_map::is_map_yaml(path) {
+        return crate::ros_map::load_world(path, read);
+    }
+    let file_name = path.display().to_string();
+    let fail = |message: String| WorldError {
+        file: file_name.clone(),
+        line: 0,
+        col: 0,
+        message,
+    };
+    let bytes = read(path).map_err(|err| fail(format!("cannot read the world file: {err}")))?;
+    let text =
+        String::from_utf8(bytes).map_err(|_| fail("the world file is not UTF-8 text".into()))?;
+    World::parse(&text, &file_name)
 }
 
 #[cfg(test)]

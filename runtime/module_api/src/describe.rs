@@ -106,6 +106,11 @@ pub struct ParamSpec {
     pub nonzero: bool,
     /// The only values allowed, when not empty (`string` only).
     pub choices: Vec<String>,
+    /// The value names a file the module reads (`string` only), bundled under
+    /// `assets/FOLDER/` with this folder: the runtime resolves it (next to the system file
+    /// first) and hands the module a path it can open, and `armor check` refuses a file it
+    /// cannot find or read.
+    pub file: Option<String>,
 }
 
 impl ParamSpec {
@@ -120,6 +125,7 @@ impl ParamSpec {
             max: None,
             nonzero: false,
             choices: Vec::new(),
+            file: None,
         }
     }
 
@@ -178,6 +184,12 @@ impl ParamSpec {
     /// The only values allowed.
     pub fn choices(mut self, choices: &[&str]) -> Self {
         self.choices = choices.iter().map(|&choice| choice.to_owned()).collect();
+        self
+    }
+
+    /// The value names a file the module reads, bundled under `assets/FOLDER/`.
+    pub fn file(mut self, assets_folder: &str) -> Self {
+        self.file = Some(assets_folder.to_owned());
         self
     }
 
@@ -439,6 +451,9 @@ impl ModuleDescription {
             if !param.choices.is_empty() {
                 let _ = write!(out, " choices=\"{}\"", e(&param.choices.join("|")));
             }
+            if let Some(folder) = &param.file {
+                let _ = write!(out, " file=\"{}\"", e(folder));
+            }
             let _ = writeln!(out, " doc=\"{}\"/>", e(&param.doc));
         }
         for event in &self.events {
@@ -535,6 +550,7 @@ impl ModuleDescription {
                         "max_exclusive",
                         "nonzero",
                         "choices",
+                        "file",
                         "doc",
                     ]));
                     if let Some(param) = read_param(child, doc, &mut problems) {
@@ -699,6 +715,27 @@ fn read_limits(child: &Element, spec: &mut ParamSpec, problems: &mut Vec<Located
             spec.choices = attr.value.split('|').map(str::to_owned).collect();
         }
     }
+    if let Some(attr) = child.attr("file") {
+        if spec.param_type != ParamType::String {
+            problems.push(Located::new(
+                attr.pos,
+                format!(
+                    "parameter `{name}`: `file` applies to `string` parameters, not `{}`",
+                    spec.param_type
+                ),
+            ));
+        } else if !is_identifier(&attr.value) {
+            problems.push(Located::new(
+                attr.pos,
+                format!(
+                    "parameter `{name}`: `file` names a folder under assets/ (letters, digits, `_`, `-`), not `{}`",
+                    attr.value
+                ),
+            ));
+        } else {
+            spec.file = Some(attr.value.as_str().to_owned());
+        }
+    }
 }
 
 fn attr_or_problem(element: &Element, name: &str, problems: &mut Vec<Located>) -> Option<String> {
@@ -827,6 +864,7 @@ mod tests {
             ParamSpec::new("mode", ParamType::String, "")
                 .default("fast")
                 .choices(&["fast", "careful"]),
+            ParamSpec::new("world", ParamType::String, "").file("worlds"),
         ];
         assert_eq!(
             ModuleDescription::from_xml(&description.to_xml()),
@@ -857,7 +895,7 @@ mod tests {
             Err("`2.5` is not a whole number".to_owned())
         );
         check_problems(
-            "<module type=\"x\">\n <param name=\"a\" type=\"string\" min=\"1\" nonzero=\"true\"/>\n <param name=\"b\" type=\"int\" min=\"5\" max_exclusive=\"5\" choices=\"x|y\"/>\n <param name=\"c\" type=\"float\" default=\"-1\" min=\"0\" min_exclusive=\"0\" max=\"inf\"/>\n</module>",
+            "<module type=\"x\">\n <param name=\"a\" type=\"string\" min=\"1\" nonzero=\"true\"/>\n <param name=\"b\" type=\"int\" min=\"5\" max_exclusive=\"5\" choices=\"x|y\"/>\n <param name=\"c\" type=\"float\" default=\"-1\" min=\"0\" min_exclusive=\"0\" max=\"inf\"/>\n <param name=\"d\" type=\"int\" default=\"1\" file=\"worlds\"/>\n</module>",
             &[
                 "2:32: parameter `a`: `min` applies to `int` and `float` parameters, not `string`",
                 "2:40: parameter `a`: `nonzero` applies to `int` and `float` parameters, not `string`",
@@ -866,6 +904,7 @@ mod tests {
                 "4:2: parameter `c`: give `min` or `min_exclusive`, not both",
                 "4:31: default of parameter `c` (float): `-1` is not 0 or more",
                 "4:70: parameter `c`: `max` must be a finite number, not `inf`",
+                "5:41: parameter `d`: `file` applies to `string` parameters, not `int`",
             ],
         );
     }

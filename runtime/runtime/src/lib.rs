@@ -5,6 +5,7 @@
 //! these. Nothing here knows egui.
 
 pub mod agent;
+pub mod basemap;
 pub mod config_server;
 pub mod console;
 pub mod control;
@@ -15,11 +16,13 @@ pub mod health;
 pub mod load;
 mod mcap_read;
 pub mod mission;
+pub mod paths;
 pub mod probe;
 pub mod process;
 pub mod progress;
 pub mod replay;
 pub mod restart;
+pub mod ros_export;
 pub mod run_dir;
 pub mod summary;
 pub mod supervisor;

@@ -9,7 +9,7 @@ use armor_module_api::ModuleDescription;
 use armor_module_api::protocol::ModuleConfig;
 use armor_module_api::xml::{Located, Pos};
 
-use crate::probe;
+use crate::{paths, probe};
 
 /// A checked system and the descriptions of its module types.
 #[derive(Clone, Debug)]
@@ -82,7 +82,7 @@ pub fn load_system(file: &Path, module_path: &[PathBuf]) -> Result<Loaded, Diagn
         problems,
     };
     let text = read_source(file)?;
-    let system = SystemConfig::parse(&text).map_err(fail)?;
+    let mut system = SystemConfig::parse(&text).map_err(fail)?;
     let used = || {
         system
             .modules
@@ -117,6 +117,13 @@ pub fn load_system(file: &Path, module_path: &[PathBuf]) -> Result<Loaded, Diagn
             ));
         }
     }
+    let folder = file.parent().unwrap_or_else(|| Path::new("."));
+    problems.extend(resolve_files(
+        &mut system,
+        &descriptions,
+        folder,
+        module_path,
+    ));
     problems.sort_by_key(|problem| problem.pos);
     if problems.is_empty() {
         Ok(Loaded {
@@ -126,4 +133,50 @@ pub fn load_system(file: &Path, module_path: &[PathBuf]) -> Result<Loaded, Diagn
     } else {
         Err(fail(problems))
     }
+}
+
+/// Replaces the value of every parameter that names a file (declared `file` in its module's
+/// description) by the path of the file it names, found from `folder` (the system file's) as
+/// [`paths::resolve`] says, so that a module opens it whatever its current folder; a file that
+/// cannot be found or read is a problem at the value.
+fn resolve_files(
+    system: &mut SystemConfig,
+    descriptions: &BTreeMap<String, ModuleDescription>,
+    folder: &Path,
+    module_path: &[PathBuf],
+) -> Vec<Located> {
+    let mut problems = Vec::new();
+    for module in &mut system.modules {
+        let Some(description) = descriptions.get(&module.module_type) else {
+            continue;
+        };
+        for param in &mut module.params {
+            let Some(assets_folder) = description
+                .param(&param.name)
+                .and_then(|spec| spec.file.as_deref())
+            else {
+                continue;
+            };
+            let name = param.value.trim();
+            if name.is_empty() {
+                continue;
+            }
+            let found = paths::resolve(name, folder, module_path, assets_folder).and_then(|path| {
+                std::fs::File::open(&path)
+                    .map(|_| path.clone())
+                    .map_err(|err| format!("cannot read `{}`: {err}", path.display()))
+            });
+            match found {
+                Ok(path) => param.value = path.display().to_string(),
+                Err(message) => problems.push(Located::new(
+                    param.value_pos,
+                    format!(
+                        "module `{}`: parameter `{}`: {message}",
+                        module.name, param.name
+                    ),
+                )),
+            }
+        }
+    }
+    problems
 }

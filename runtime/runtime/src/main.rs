@@ -147,8 +147,8 @@ enum Command {
         #[arg(long)]
         no_cache: bool,
     },
-    /// Export a mission net or a plan to another format.
-    #[command(group(clap::ArgGroup::new("format").required(true).args(["pnml", "gpx"])))]
+    /// Export a mission net or a plan to another format, or a recording's map as a ROS map.
+    #[command(group(clap::ArgGroup::new("format").required(true).args(["pnml", "gpx", "ros_map"])))]
     Export {
         /// Write a mission (or a plan's net) as ISO/IEC 15909-2 PNML (a P/T net; our extra data
         /// in toolspecific elements).
@@ -157,9 +157,13 @@ enum Command {
         /// Write a plan's waypoints and route as GPX 1.1.
         #[arg(long)]
         gpx: bool,
-        /// The mission or plan file.
+        /// Write a recording's last occupancy grid (the mapper's map) as a ROS map_server map:
+        /// map.yaml and map.pgm in the folder given with -o.
+        #[arg(long)]
+        ros_map: bool,
+        /// The mission, plan or recording file.
         file: PathBuf,
-        /// The file to write.
+        /// The file (for --ros-map, the folder) to write.
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -316,8 +320,25 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Compile { plan, output } => compile(&plan, &output),
         Command::Export {
+            ros_map: true,
+            file,
+            output,
+            ..
+        } => {
+            let (yaml, grid) = armor_runtime::ros_export::export(&file, &output)?;
+            println!(
+                "{}: ROS map written ({} × {} cells at {} m, image map.pgm beside it)",
+                yaml.display(),
+                grid.width,
+                grid.height,
+                grid.resolution_m
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Export {
             pnml,
             gpx: _,
+            ros_map: false,
             file,
             output,
         } => {

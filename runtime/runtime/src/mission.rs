@@ -13,6 +13,7 @@ use armor_model::world::World;
 use armor_module_api::xml::{self, Located, Pos};
 
 use crate::load::{Diagnostics, Loaded, load_system, read_source};
+use crate::paths;
 
 /// More reachable markings than this and the analysis says so instead of going on.
 pub const ANALYSIS_LIMIT_STATES: usize = 1_000_000;
@@ -117,11 +118,15 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         Ok(net) => (net, None),
         Err(plan) => {
             let system_dir = system_file.parent().unwrap_or(base);
-            let world = plan_world(&plan, &system.system, &[base, system_dir])
+            let world = plan_world(&plan, &system.system, base, system_dir, module_path)
                 .map_err(|message| fail(vec![Located::new(plan.pos, message)]))?;
             // The robot's size comes from the plan, else from the system's modules.
             let robot = plan::robot(&plan, Some(&system.system), &system.descriptions);
             let compiled = plan::compile_for(&plan, world.as_ref(), &robot).map_err(fail)?;
+            if let Some(basemap) = &plan.basemap {
+                plan_basemap(&basemap.href, base, module_path)
+                    .map_err(|message| fail(vec![Located::new(basemap.pos, message)]))?;
+            }
             (compiled.net.clone(), Some(compiled))
         }
     };
@@ -144,15 +149,30 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
     })
 }
 
-/// The world a plan is drawn on: the one it names, else the one its system's simulator loads
-/// (a module parameter called `world`); `None` when neither names one (a real robot). It is
-/// looked for from each folder of `bases` in turn (the plan's, then its system file's).
+/// The base map a plan names (`<basemap href>`), found from `plan_dir` as [`paths::resolve`]
+/// says (bundled maps under `assets/maps/`) and opened.
+pub fn plan_basemap(
+    href: &str,
+    plan_dir: &Path,
+    module_path: &[PathBuf],
+) -> Result<crate::basemap::Basemap, String> {
+    let path = paths::resolve(href, plan_dir, module_path, "maps")
+        .map_err(|err| format!("the base map: {err}"))?;
+    crate::basemap::Basemap::open(&path).map_err(|err| format!("the base map: {err}"))
+}
+
+/// The world a plan is drawn on: the one it names (found from `plan_dir`, the plan file's
+/// folder, as [`paths::resolve`] says), else the one its system's simulator loads (a module
+/// parameter called `world`, found from `system_dir`); `None` when neither names one (a real
+/// robot). A `.world` file or a ROS map_server map (`.yaml`).
 pub fn plan_world(
     plan: &Plan,
     system: &SystemConfig,
-    bases: &[&Path],
+    plan_dir: &Path,
+    system_dir: &Path,
+    module_path: &[PathBuf],
 ) -> Result<Option<World>, String> {
-    let name = if plan.world.is_empty() {
+    let (name, base) = if plan.world.is_empty() {
         let from_system = system.modules.iter().find_map(|module| {
             module
                 .param("world")
@@ -160,37 +180,15 @@ pub fn plan_world(
                 .filter(|value| !value.is_empty())
         });
         match from_system {
-            Some(name) => name,
+            Some(name) => (name, system_dir),
             None => return Ok(None),
         }
     } else {
-        plan.world.clone()
+        (plan.world.clone(), plan_dir)
     };
-    let Some(path) = bases.iter().find_map(|base| find_world(&name, base)) else {
-        return Err(format!(
-            "cannot find the world `{name}`: looked next to the plan, then in assets/worlds/ \
-             of the folders above it and of the current folder"
-        ));
-    };
-    let text = std::fs::read_to_string(&path)
-        .map_err(|err| format!("cannot read the world {}: {err}", path.display()))?;
-    World::parse(&text, &path.display().to_string())
+    let path = paths::resolve(&name, base, module_path, "worlds")
+        .map_err(|err| format!("the world: {err}"))?;
+    armor_model::world::load(&path, &mut |path| std::fs::read(path))
         .map(Some)
         .map_err(|err| format!("the world does not load: {err}"))
-}
-
-/// `name` as given, next to the plan, or under `assets/worlds/` of the plan's folder, one of
-/// its parents or the current folder (where the simulator looks too).
-pub fn find_world(name: &str, base: &Path) -> Option<PathBuf> {
-    let given = Path::new(name);
-    if given.is_absolute() {
-        return given.is_file().then(|| given.to_path_buf());
-    }
-    let mut candidates = vec![base.join(given)];
-    let absolute_base = std::fs::canonicalize(base).unwrap_or_else(|_| base.to_path_buf());
-    for folder in absolute_base.ancestors() {
-        candidates.push(folder.join("assets/worlds").join(given));
-    }
-    candidates.push(Path::new("assets/worlds").join(given));
-    candidates.into_iter().find(|candidate| candidate.is_file())
 }

@@ -30,7 +30,7 @@ use crate::net::{Arc, Condition, MissionNet, Place, PlaceParam, Transition, form
 use crate::planner::{
     self, Blocker, Costmap, CostmapSettings, End, Keepout, Path, PathError, Planner, Robot,
 };
-use crate::world::{Point, World};
+use crate::world::{Point, World, shape_origin};
 
 /// How far the follower's own detours round no-go areas keep its centre from them, in metres
 /// (it routes round them itself until it drives the planned path): the default area margin
@@ -385,8 +385,8 @@ fn waypoint_problem(
             )
         }
         Blocker::InObstacle { line } => format!(
-            "waypoint `{name}` at {point} m is inside the obstacle on line {line} of the world \
-             `{world_name}`"
+            "waypoint `{name}` at {point} m is inside the obstacle{} of the world `{world_name}`",
+            shape_origin(*line)
         ),
         Blocker::NearObstacle {
             kind,
@@ -394,9 +394,10 @@ fn waypoint_problem(
             distance_m,
             keep_m,
         } => format!(
-            "waypoint `{name}` at {point} m is {} m from the {kind} on line {line} of the world \
+            "waypoint `{name}` at {point} m is {} m from the {kind}{} of the world \
              `{world_name}`; {}",
             mm(*distance_m),
+            shape_origin(*line),
             robot_is(*keep_m, "clearance", robot.clearance_m)
         ),
         Blocker::InArea { name: area } => {

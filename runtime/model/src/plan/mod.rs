@@ -61,6 +61,9 @@ pub struct Plan {
     /// The geographic point of the world frame's (0, 0) when there is no world (a real robot);
     /// with a world, the world's origin is used and this one must agree.
     pub origin: Option<LatLon>,
+    /// The offline map drawn under the plan (`<basemap href>`): an MBTiles file or a folder of
+    /// `{z}/{x}/{y}.png` tiles, relative to the plan file; `None`: the world's own tiles.
+    pub basemap: Option<Basemap>,
     /// The planned start, for the checks of time constraints (Unix seconds).
     pub start_unix_secs: Option<f64>,
     pub navigation: Navigation,
@@ -72,6 +75,13 @@ pub struct Plan {
     pub contingencies: Vec<Contingency>,
     pub graphics: Vec<Graphic>,
     pub units: Vec<Unit>,
+    pub pos: Pos,
+}
+
+/// A plan's base map: where it is, and where the plan names it.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Basemap {
+    pub href: String,
     pub pos: Pos,
 }
 

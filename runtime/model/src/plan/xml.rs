@@ -8,8 +8,8 @@ use std::fmt::Write as _;
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
 use super::{
-    Action, ActionModule, ActionParam, AreaKind, Contingency, Graphic, GraphicKind, LatLon, Leg,
-    Navigation, Plan, Response, Trigger, Unit, Waypoint, check_sidc,
+    Action, ActionModule, ActionParam, AreaKind, Basemap, Contingency, Graphic, GraphicKind,
+    LatLon, Leg, Navigation, Plan, Response, Trigger, Unit, Waypoint, check_sidc,
 };
 use crate::fields::{
     Field, escape, finish, identifier, is_decimal, no_children, no_text, optional, read_identifier,
@@ -35,6 +35,7 @@ impl Plan {
         p.extend(root.unknown_attrs(&["name", "system", "world", "start"]));
         p.extend(root.unknown_children(&[
             "origin",
+            "basemap",
             "navigation",
             "throughout",
             "waypoint",
@@ -70,6 +71,21 @@ impl Plan {
                     no_children(child, p);
                     no_text(child, p);
                     plan.origin = lat_lon(child, p);
+                }
+                "basemap" => {
+                    if plan.basemap.is_some() {
+                        p.push(Located::new(
+                            child.pos,
+                            "the plan has one <basemap> at most",
+                        ));
+                    }
+                    p.extend(child.unknown_attrs(&["href"]));
+                    no_children(child, p);
+                    no_text(child, p);
+                    plan.basemap = required(child, "href", p).map(|href| Basemap {
+                        href: href.value.to_owned(),
+                        pos: href.pos,
+                    });
                 }
                 "navigation" => {
                     if let Some(first) = navigation_seen {
@@ -128,6 +144,9 @@ impl Plan {
         out.push_str(">\n");
         if let Some(origin) = self.origin {
             let _ = writeln!(out, "  <origin {}/>", lat_lon_attrs(origin));
+        }
+        if let Some(basemap) = &self.basemap {
+            let _ = writeln!(out, "  <basemap href=\"{}\"/>", escape(&basemap.href));
         }
         let nav = &self.navigation;
         if *nav != Navigation::default() {

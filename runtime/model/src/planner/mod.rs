@@ -47,7 +47,7 @@ mod tests;
 use std::fmt;
 
 use crate::geo::{self, Polygon};
-use crate::world::{Bounds, Point, World};
+use crate::world::{Bounds, Point, World, shape_origin};
 
 pub use costmap::{Costmap, CostmapError, LETHAL};
 pub use search::{Planner, heuristic, step_cost};
@@ -212,7 +212,9 @@ impl fmt::Display for Blocker {
         let mm = geo::round_mm;
         match self {
             Blocker::OutsideWorld => write!(f, "is outside the world"),
-            Blocker::InObstacle { line } => write!(f, "is inside the obstacle on line {line}"),
+            Blocker::InObstacle { line } => {
+                write!(f, "is inside the obstacle{}", shape_origin(*line))
+            }
             Blocker::NearObstacle {
                 kind,
                 line,
@@ -220,8 +222,9 @@ impl fmt::Display for Blocker {
                 keep_m,
             } => write!(
                 f,
-                "is {} m from the {kind} on line {line}; the robot keeps {} m from obstacles",
+                "is {} m from the {kind}{}; the robot keeps {} m from obstacles",
                 mm(*distance_m),
+                shape_origin(*line),
                 mm(*keep_m)
             ),
             Blocker::InArea { name } => write!(f, "is in the no-go area `{name}`"),
