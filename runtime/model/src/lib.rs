@@ -14,6 +14,7 @@
 
 mod fields;
 pub mod geo;
+mod json_positions;
 pub mod net;
 pub mod plan;
 pub mod planner;

@@ -188,12 +188,12 @@ fn local(name: &str) -> &str {
 
 /// Identifiers made from free text, each given once.
 #[derive(Default)]
-struct Names {
+pub(super) struct Names {
     used: BTreeSet<String>,
 }
 
 impl Names {
-    fn identifier(&mut self, text: &str, fallback: &str) -> String {
+    pub(super) fn identifier(&mut self, text: &str, fallback: &str) -> String {
         let mut base: String = text
             .trim()
             .chars()

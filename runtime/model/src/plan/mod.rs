@@ -43,6 +43,8 @@ use armor_module_api::xml::Pos;
 
 mod compile;
 pub mod gpx;
+pub mod kml;
+pub mod qgc;
 mod xml;
 
 pub use crate::geo::LatLon;

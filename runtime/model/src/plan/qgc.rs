@@ -1,0 +1,970 @@
+//! QGroundControl plan files (`.plan`: JSON, as QGC's developer guide documents it under
+//! "Plan File Format") to and from plans, for the ground stations that read them.
+//!
+//! Export: the route as the mission's items, its first waypoint as `plannedHomePosition`; each
+//! leg's destination is a `MAV_CMD_NAV_WAYPOINT` (16) whose hold time (param1) is the leg's
+//! `wait_secs`; an appointment (`not_before`) is a `MAV_CMD_NAV_DELAY` (93) until its time of
+//! day (UTC) before the leg; no-go areas are exclusion polygons of the geofence, wound
+//! clockwise; the waypoints a `return` contingency names are rally points. The robot is
+//! written as a ground rover (`MAV_TYPE` 10) of a generic autopilot (`MAV_AUTOPILOT` 0), at
+//! 0 m above home (frame 3, global with relative altitude). What the format cannot carry is
+//! listed in [`Exported::dropped`].
+//!
+//! Import: `plannedHomePosition` is the start (`home`); waypoint items (16, and 82 spline
+//! waypoints, 19 timed loiters, which hold) become waypoints `wp1`, `wp2`, … joined by legs;
+//! a delay (93) of seconds lengthens the wait where the robot is, a delay until a time of day
+//! is the next leg's `not_before` on the day of the plan's start (when one is given); exclusion
+//! polygons become no-go areas, exclusion circles no-go polygons round them, inclusion fences
+//! named areas, rally points waypoints. Everything else (complex items such as surveys, other
+//! commands, altitudes) is skipped with a warning. Problems and warnings say `LINE:COL` and the
+//! JSON path of the value.
+
+use std::f64::consts::PI;
+
+use armor_module_api::xml::{Located, Pos};
+use serde_json::{Map, Value, json};
+
+use super::{AreaKind, Graphic, GraphicKind, LatLon, Leg, Plan, Response, Waypoint};
+use crate::json_positions::{JsonPositions, index_path, key_path};
+use crate::plan::xml::default_leg_name;
+use crate::world::Point;
+
+pub const MAV_CMD_NAV_WAYPOINT: u64 = 16;
+pub const MAV_CMD_NAV_LOITER_TIME: u64 = 19;
+pub const MAV_CMD_NAV_SPLINE_WAYPOINT: u64 = 82;
+pub const MAV_CMD_NAV_DELAY: u64 = 93;
+/// `MAV_FRAME_MISSION`: a command without coordinates.
+pub const MAV_FRAME_MISSION: u64 = 2;
+pub const MAV_FRAME_GLOBAL_RELATIVE_ALT: u64 = 3;
+pub const MAV_TYPE_GROUND_ROVER: u64 = 10;
+const MAV_TYPE_SURFACE_BOAT: u64 = 11;
+pub const MAV_AUTOPILOT_GENERIC: u64 = 0;
+/// QGC's `AltitudeModeRelative` (its `AltMode` enum: mixed, relative, absolute, …).
+pub const ALTITUDE_MODE_RELATIVE: u64 = 1;
+/// The frames whose coordinates are latitude and longitude: global, relative, terrain, and
+/// their `_INT` forms.
+const GLOBAL_FRAMES: [u64; 6] = [0, 3, 5, 6, 10, 11];
+/// Corners of the polygon an exclusion circle is imported as.
+pub const CIRCLE_CORNERS: usize = 32;
+const SECS_PER_DAY: f64 = 86_400.0;
+
+/// A plan written as a QGC plan file.
+#[derive(Debug)]
+pub struct Exported {
+    pub text: String,
+    /// What the plan has that the file does not carry, one line per kind.
+    pub dropped: Vec<String>,
+}
+
+/// The plan as a QGC plan file.
+pub fn export(plan: &Plan) -> Exported {
+    let stops = route_stops(plan);
+    let home = stops.first().map(|waypoint| waypoint.position);
+    let mut items = Vec::new();
+    let mut push = |mut item: Value| {
+        item["doJumpId"] = json!(items.len() + 1);
+        items.push(item);
+    };
+    if plan.legs.is_empty() {
+        for waypoint in stops.iter().skip(1) {
+            push(waypoint_item(waypoint.position, 0.0));
+        }
+    }
+    for leg in &plan.legs {
+        if let Some(at) = leg.not_before_unix_secs {
+            push(delay_until_item(at));
+        }
+        if let Some(to) = plan.waypoint(&leg.to) {
+            push(waypoint_item(to.position, leg.wait_secs.unwrap_or(0.0)));
+        }
+    }
+    let polygons: Vec<Value> = plan
+        .no_go_areas()
+        .map(|area| {
+            let corners: Vec<Value> = clockwise(&area.points)
+                .iter()
+                .map(|corner| json!([corner.lat_deg, corner.lon_deg]))
+                .collect();
+            json!({"inclusion": false, "polygon": corners, "version": 1})
+        })
+        .collect();
+    let rally: Vec<Value> = rally_waypoints(plan)
+        .iter()
+        .map(|waypoint| json!([waypoint.position.lat_deg, waypoint.position.lon_deg, 0.0]))
+        .collect();
+    let home = home.map_or(Value::Null, |home| json!([home.lat_deg, home.lon_deg, 0.0]));
+    let document = json!({
+        "fileType": "Plan",
+        "groundStation": "ArMoR",
+        "version": 1,
+        "mission": {
+            "version": 2,
+            "firmwareType": MAV_AUTOPILOT_GENERIC,
+            "vehicleType": MAV_TYPE_GROUND_ROVER,
+            "cruiseSpeed": plan.navigation.speed_mps,
+            "hoverSpeed": plan.navigation.speed_mps,
+            "globalPlanAltitudeMode": ALTITUDE_MODE_RELATIVE,
+            "plannedHomePosition": home,
+            "items": items,
+        },
+        "geoFence": {"version": 2, "polygons": polygons, "circles": []},
+        "rallyPoints": {"version": 2, "points": rally},
+    });
+    let mut text = serde_json::to_string_pretty(&document).unwrap_or_default();
+    text.push('\n');
+    Exported {
+        text,
+        dropped: dropped(plan),
+    }
+}
+
+/// The waypoints the route passes, in order: the first leg's start and each leg's end; a plan
+/// without legs, its waypoints.
+fn route_stops(plan: &Plan) -> Vec<&Waypoint> {
+    match plan.legs.first() {
+        Some(first) => std::iter::once(&first.from)
+            .chain(plan.legs.iter().map(|leg| &leg.to))
+            .filter_map(|name| plan.waypoint(name))
+            .collect(),
+        None => plan.waypoints.iter().collect(),
+    }
+}
+
+/// The waypoints some `return` contingency names, once each, in the plan's order.
+fn rally_waypoints(plan: &Plan) -> Vec<&Waypoint> {
+    let returns: Vec<&str> = plan
+        .contingencies
+        .iter()
+        .chain(plan.legs.iter().flat_map(|leg| &leg.contingencies))
+        .filter_map(|contingency| match &contingency.response {
+            Response::Return { waypoint } => Some(waypoint.as_str()),
+            _ => None,
+        })
+        .collect();
+    plan.waypoints
+        .iter()
+        .filter(|waypoint| returns.contains(&waypoint.name.as_str()))
+        .collect()
+}
+
+fn waypoint_item(position: LatLon, hold_secs: f64) -> Value {
+    json!({
+        "type": "SimpleItem",
+        "command": MAV_CMD_NAV_WAYPOINT,
+        "frame": MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        // Hold, acceptance radius, pass radius, yaw (NaN, which QGC writes as null: keep the
+        // heading), latitude, longitude, altitude.
+        "params": [hold_secs, 0.0, 0.0, null, position.lat_deg, position.lon_deg, 0.0],
+        "autoContinue": true,
+        "AMSLAltAboveTerrain": null,
+        "Altitude": 0.0,
+        "AltitudeMode": ALTITUDE_MODE_RELATIVE,
+    })
+}
+
+/// A `MAV_CMD_NAV_DELAY` until the time of day of `unix_secs` (UTC): param1 -1 enables the
+/// hour, minute and second fields.
+fn delay_until_item(unix_secs: f64) -> Value {
+    let in_day = unix_secs.rem_euclid(SECS_PER_DAY);
+    let hour = (in_day / 3600.0).floor();
+    let minute = ((in_day - hour * 3600.0) / 60.0).floor();
+    let second = in_day - hour * 3600.0 - minute * 60.0;
+    json!({
+        "type": "SimpleItem",
+        "command": MAV_CMD_NAV_DELAY,
+        "frame": MAV_FRAME_MISSION,
+        "params": [-1.0, hour, minute, second, 0.0, 0.0, 0.0],
+        "autoContinue": true,
+    })
+}
+
+/// The corners wound clockwise (seen on a map, north up), as QGC's geofence wants them.
+fn clockwise(points: &[LatLon]) -> Vec<LatLon> {
+    // The shoelace sum with x = longitude, y = latitude: positive is anticlockwise.
+    let twice_area: f64 = points
+        .iter()
+        .zip(points.iter().cycle().skip(1))
+        .map(|(a, b)| a.lon_deg * b.lat_deg - b.lon_deg * a.lat_deg)
+        .sum();
+    let mut corners = points.to_vec();
+    if twice_area > 0.0 {
+        corners.reverse();
+    }
+    corners
+}
+
+/// What of `plan` a QGC plan cannot carry, one line per kind.
+fn dropped(plan: &Plan) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut note = |what: String, names: Vec<&str>| {
+        if !names.is_empty() {
+            lines.push(format!("{what}: {}", quoted(&names)));
+        }
+    };
+    note(
+        "waypoint names (read back as home, wp1, wp2, …)".into(),
+        plan.waypoints.iter().map(|w| w.name.as_str()).collect(),
+    );
+    note(
+        "waypoint symbols".into(),
+        plan.waypoints
+            .iter()
+            .filter(|w| w.symbol.is_some())
+            .map(|w| w.name.as_str())
+            .collect(),
+    );
+    note(
+        "deadlines (arrive_by) of legs".into(),
+        legs_where(plan, |leg| leg.arrive_by_unix_secs.is_some()),
+    );
+    note(
+        "the day of appointments (not_before; kept as a NAV_DELAY until their time of day, UTC) \
+         of legs"
+            .into(),
+        legs_where(plan, |leg| leg.not_before_unix_secs.is_some()),
+    );
+    note(
+        "actions (during and on arrival) of legs".into(),
+        legs_where(plan, |leg| leg.during.is_some() || leg.arrival.is_some()),
+    );
+    if let Some(action) = &plan.throughout {
+        note(
+            "the action run throughout".into(),
+            action.modules.iter().map(|m| m.name.as_str()).collect(),
+        );
+    }
+    let contingencies: Vec<String> = plan
+        .contingencies
+        .iter()
+        .chain(plan.legs.iter().flat_map(|leg| &leg.contingencies))
+        .map(|contingency| contingency.trigger.describe())
+        .collect();
+    note(
+        "contingencies (the waypoints a `return` names are rally points)".into(),
+        contingencies.iter().map(String::as_str).collect(),
+    );
+    for (kind, what) in [
+        (GraphicKind::PhaseLine, "phase lines"),
+        (GraphicKind::Boundary, "boundaries"),
+        (
+            GraphicKind::Area(AreaKind::Objective),
+            "objective areas (only no-go areas are geofences)",
+        ),
+        (
+            GraphicKind::Area(AreaKind::Assembly),
+            "assembly areas (only no-go areas are geofences)",
+        ),
+        (
+            GraphicKind::Area(AreaKind::Named),
+            "named areas (only no-go areas are geofences)",
+        ),
+    ] {
+        note(
+            what.into(),
+            plan.graphics
+                .iter()
+                .filter(|g| g.kind == kind)
+                .map(|g| g.name.as_str())
+                .collect(),
+        );
+    }
+    note(
+        "the margins of no-go areas".into(),
+        plan.no_go_areas()
+            .filter(|area| area.margin_m.is_some())
+            .map(|area| area.name.as_str())
+            .collect(),
+    );
+    note(
+        "units".into(),
+        plan.units.iter().map(|u| u.name.as_str()).collect(),
+    );
+    if plan.start_unix_secs.is_some() {
+        lines.push("the plan's start date".into());
+    }
+    lines
+}
+
+fn legs_where(plan: &Plan, keep: impl Fn(&Leg) -> bool) -> Vec<&str> {
+    plan.legs
+        .iter()
+        .filter(|leg| keep(leg))
+        .map(|leg| leg.name.as_str())
+        .collect()
+}
+
+fn quoted(names: &[&str]) -> String {
+    names
+        .iter()
+        .map(|name| format!("`{name}`"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A plan read from a QGC plan file, with what was dropped or changed on the way.
+#[derive(Debug)]
+pub struct Imported {
+    pub plan: Plan,
+    pub warnings: Vec<Located>,
+}
+
+/// Reads a QGC plan file into a plan called `name` over the system file `system`. A delay
+/// until a time of day becomes an appointment on the day of `start_unix_secs` (the plan's
+/// start), or the next day when that time has passed; without a start it is dropped.
+pub fn import(
+    text: &str,
+    name: &str,
+    system: &str,
+    start_unix_secs: Option<f64>,
+) -> Result<Imported, Vec<Located>> {
+    let root: Value = serde_json::from_str(text).map_err(|err| vec![json_error(&err)])?;
+    let mut reader = Reader {
+        positions: JsonPositions::of(text),
+        problems: Vec::new(),
+        warnings: Vec::new(),
+    };
+    let plan = reader.plan(&root, name, system, start_unix_secs);
+    let Reader {
+        mut problems,
+        mut warnings,
+        ..
+    } = reader;
+    match plan {
+        Some(plan) if problems.is_empty() => {
+            warnings.sort_by_key(|warning| warning.pos);
+            Ok(Imported { plan, warnings })
+        }
+        _ => {
+            problems.sort_by_key(|problem| problem.pos);
+            Err(problems)
+        }
+    }
+}
+
+/// serde_json's syntax error at its line and column, its message without them.
+fn json_error(err: &serde_json::Error) -> Located {
+    let message = err.to_string();
+    let message = message
+        .rsplit_once(" at line ")
+        .map_or(message.as_str(), |(message, _)| message);
+    Located::new(
+        Pos {
+            line: u32::try_from(err.line().max(1)).unwrap_or(u32::MAX),
+            col: u32::try_from(err.column().max(1)).unwrap_or(u32::MAX),
+        },
+        format!("not a QGC plan (JSON): {message}"),
+    )
+}
+
+struct Reader {
+    positions: JsonPositions,
+    problems: Vec<Located>,
+    warnings: Vec<Located>,
+}
+
+/// What the items read so far leave for the legs that follow.
+#[derive(Default)]
+struct Route {
+    waypoints: Vec<Waypoint>,
+    legs: Vec<Leg>,
+    /// A time-of-day delay waiting for the next leg: its date and where it was written.
+    not_before: Option<(f64, String)>,
+    /// The latest appointment so far, after which the next time of day falls.
+    last_time: Option<f64>,
+}
+
+impl Route {
+    /// A leg from the last stop to `position`, holding `hold_secs` there.
+    /// The first is the start, `home`.
+    fn drive_to(&mut self, position: LatLon, hold_secs: f64) {
+        let name = match self.waypoints.len() {
+            0 => "home".to_owned(),
+            n => format!("wp{n}"),
+        };
+        let from = self.waypoints.last().map(|w| w.name.clone());
+        self.waypoints.push(Waypoint {
+            name: name.clone(),
+            position,
+            ..Waypoint::default()
+        });
+        if let Some(from) = from {
+            let index = self.legs.len();
+            self.legs.push(Leg {
+                name: default_leg_name(index),
+                from,
+                to: name,
+                wait_secs: (hold_secs > 0.0).then_some(hold_secs),
+                not_before_unix_secs: self.not_before.take().map(|(at, _)| at),
+                ..Leg::default()
+            });
+        }
+    }
+}
+
+impl Reader {
+    fn at(&self, path: &str) -> Pos {
+        self.positions.at(path)
+    }
+
+    fn problem(&mut self, path: &str, message: impl std::fmt::Display) {
+        let pos = self.at(path);
+        self.problems.push(Located::new(pos, message.to_string()));
+    }
+
+    fn warn(&mut self, path: &str, message: impl std::fmt::Display) {
+        let pos = self.at(path);
+        self.warnings.push(Located::new(pos, message.to_string()));
+    }
+
+    fn plan(
+        &mut self,
+        root: &Value,
+        name: &str,
+        system: &str,
+        start_unix_secs: Option<f64>,
+    ) -> Option<Plan> {
+        let Some(root) = root.as_object() else {
+            self.problem(
+                "",
+                "a QGC plan is a JSON object with `\"fileType\": \"Plan\"`",
+            );
+            return None;
+        };
+        match root.get("fileType") {
+            Some(Value::String(kind)) if kind == "Plan" => {}
+            Some(other) => {
+                self.problem(
+                    "fileType",
+                    format!("`fileType` is {other}: a QGC plan file says \"Plan\""),
+                );
+                return None;
+            }
+            None => {
+                self.problem(
+                    "",
+                    "no `fileType`: a QGC plan file says `\"fileType\": \"Plan\"`",
+                );
+                return None;
+            }
+        }
+        self.expect_version(root, "", 1, "the file");
+        let Some(mission) = root.get("mission").and_then(Value::as_object) else {
+            self.problem(
+                if root.contains_key("mission") {
+                    "mission"
+                } else {
+                    ""
+                },
+                "a QGC plan needs a `mission` object",
+            );
+            return None;
+        };
+        self.expect_version(mission, "mission", 2, "the mission");
+        let mut plan = Plan {
+            name: super::gpx::Names::default().identifier(name, "plan"),
+            system: system.to_owned(),
+            start_unix_secs,
+            ..Plan::default()
+        };
+        self.vehicle(mission, &mut plan);
+        let mut route = Route {
+            last_time: start_unix_secs,
+            ..Route::default()
+        };
+        match mission.get("plannedHomePosition") {
+            Some(home) => {
+                if let Some(home) = self.lat_lon(home, "mission.plannedHomePosition") {
+                    route.drive_to(home, 0.0);
+                }
+            }
+            None => self.warn(
+                "mission",
+                "no `plannedHomePosition`: the route starts at the first waypoint",
+            ),
+        }
+        match mission.get("items") {
+            Some(Value::Array(items)) => {
+                for (index, item) in items.iter().enumerate() {
+                    self.item(item, &index_path("mission.items", index), &mut route);
+                }
+            }
+            _ => self.problem("mission", "the mission needs `items`, a list"),
+        }
+        if let Some((_, path)) = route.not_before.take() {
+            self.warn(
+                &path,
+                "a delay after the last waypoint holds nothing: dropped",
+            );
+        }
+        plan.waypoints = route.waypoints;
+        plan.legs = route.legs;
+        if let Some(fence) = root.get("geoFence") {
+            self.fence(fence, &mut plan);
+        }
+        if let Some(rally) = root.get("rallyPoints") {
+            self.rally(rally, &mut plan);
+        }
+        if self.problems.is_empty() && plan.legs.is_empty() {
+            self.problem(
+                "mission.items",
+                "the QGC plan has no waypoint to drive to: a plan needs two points to make a leg",
+            );
+        }
+        Some(plan)
+    }
+
+    fn expect_version(&mut self, object: &Map<String, Value>, path: &str, want: u64, what: &str) {
+        let version_path = key_path(path, "version");
+        match object.get("version") {
+            Some(version) if version.as_u64() == Some(want) => {}
+            Some(version) => self.warn(
+                &version_path,
+                format!("{what} is version {version}, read as version {want}"),
+            ),
+            None => self.warn(
+                path,
+                format!("{what} has no `version`, read as version {want}"),
+            ),
+        }
+    }
+
+    /// The vehicle the plan was made for: a ground robot's speed is taken.
+    fn vehicle(&mut self, mission: &Map<String, Value>, plan: &mut Plan) {
+        let vehicle = mission.get("vehicleType").and_then(Value::as_u64);
+        match vehicle {
+            Some(MAV_TYPE_GROUND_ROVER | MAV_TYPE_SURFACE_BOAT) => {
+                if let Some(speed) = mission
+                    .get("cruiseSpeed")
+                    .and_then(Value::as_f64)
+                    .filter(|speed| speed.is_finite() && *speed > 0.0)
+                {
+                    plan.navigation.speed_mps = speed;
+                }
+            }
+            Some(other) => self.warn(
+                "mission.vehicleType",
+                format!(
+                    "the plan was made for a vehicle of MAV_TYPE {other}, not a ground rover \
+                     (10): its route is read for the robot, its speeds are not"
+                ),
+            ),
+            None => {}
+        }
+    }
+
+    fn item(&mut self, item: &Value, path: &str, route: &mut Route) {
+        let Some(object) = item.as_object() else {
+            self.problem(path, "a mission item is a JSON object");
+            return;
+        };
+        match object.get("type").and_then(Value::as_str) {
+            Some("SimpleItem") => self.simple_item(object, path, route),
+            Some("ComplexItem") => {
+                let kind = object
+                    .get("complexItemType")
+                    .and_then(Value::as_str)
+                    .unwrap_or("unknown");
+                self.warn(
+                    path,
+                    format!(
+                        "a complex item (`{kind}`, a pattern QGC expands into waypoints of its \
+                         own) is not supported: skipped"
+                    ),
+                );
+            }
+            Some(other) => self.warn(
+                &key_path(path, "type"),
+                format!("an item of type `{other}` is not supported: skipped"),
+            ),
+            None => self.problem(path, "a mission item needs its `type` (\"SimpleItem\")"),
+        }
+    }
+
+    fn simple_item(&mut self, item: &Map<String, Value>, path: &str, route: &mut Route) {
+        let Some(command) = item.get("command").and_then(Value::as_u64) else {
+            self.problem(path, "a simple item needs its `command`, a MAV_CMD number");
+            return;
+        };
+        let params_path = key_path(path, "params");
+        let Some(params) = item.get("params").and_then(Value::as_array) else {
+            self.problem(path, "a simple item needs its `params`, a list of seven");
+            return;
+        };
+        // QGC writes a NaN parameter (unused) as null.
+        let param = |index: usize| params.get(index).and_then(Value::as_f64);
+        match command {
+            MAV_CMD_NAV_WAYPOINT | MAV_CMD_NAV_SPLINE_WAYPOINT | MAV_CMD_NAV_LOITER_TIME => {
+                let frame = item.get("frame").and_then(Value::as_u64);
+                if !frame.is_some_and(|frame| GLOBAL_FRAMES.contains(&frame)) {
+                    self.warn(
+                        &key_path(path, "frame"),
+                        format!(
+                            "a waypoint in MAV_FRAME {}, not latitude and longitude: skipped",
+                            frame.map_or("(none)".into(), |f| f.to_string())
+                        ),
+                    );
+                    return;
+                }
+                let lat = self.param_number(params, &params_path, 4, "the latitude");
+                let lon = self.param_number(params, &params_path, 5, "the longitude");
+                let (Some(lat), Some(lon)) = (lat, lon) else {
+                    return;
+                };
+                let Some(position) = self.check_lat_lon(
+                    (lat, &index_path(&params_path, 4)),
+                    (lon, &index_path(&params_path, 5)),
+                ) else {
+                    return;
+                };
+                if command == MAV_CMD_NAV_SPLINE_WAYPOINT {
+                    self.warn(path, "a spline waypoint is driven to in a straight line");
+                }
+                let altitude = param(6).unwrap_or(0.0);
+                if altitude != 0.0 {
+                    self.warn(
+                        &index_path(&params_path, 6),
+                        format!("the altitude ({altitude} m) is not carried: a ground robot"),
+                    );
+                }
+                let hold = param(0).filter(|hold| hold.is_finite() && *hold > 0.0);
+                if route.waypoints.is_empty() {
+                    // No home: the first waypoint is the start.
+                    route.drive_to(position, 0.0);
+                    if hold.is_some() {
+                        self.warn(
+                            &index_path(&params_path, 0),
+                            "a hold at the start holds nothing: dropped",
+                        );
+                    }
+                } else {
+                    route.drive_to(position, hold.unwrap_or(0.0));
+                }
+            }
+            MAV_CMD_NAV_DELAY => self.delay(params, &params_path, route),
+            other => self.warn(
+                &key_path(path, "command"),
+                format!(
+                    "command {other} ({}) is not supported: skipped",
+                    command_name(other)
+                ),
+            ),
+        }
+    }
+
+    /// A delay of seconds (param1 ≥ 0) or until a time of day (param1 = -1, then hour, minute,
+    /// second in UTC).
+    fn delay(&mut self, params: &[Value], params_path: &str, route: &mut Route) {
+        let Some(delay) = self.param_number(params, params_path, 0, "the delay") else {
+            return;
+        };
+        if delay >= 0.0 {
+            match route.legs.last_mut() {
+                Some(leg) => leg.wait_secs = Some(leg.wait_secs.unwrap_or(0.0) + delay),
+                None => self.warn(
+                    params_path,
+                    "a delay before the first waypoint cannot be held at the start: dropped",
+                ),
+            }
+            return;
+        }
+        let mut field = |index: usize, what: &str, limit: f64| -> Option<f64> {
+            let value = self.param_number(params, params_path, index, what)?;
+            if (0.0..limit).contains(&value) {
+                Some(value)
+            } else {
+                self.problem(
+                    &index_path(params_path, index),
+                    format!("{what} must be from 0 to {limit} (excluded), not {value}"),
+                );
+                None
+            }
+        };
+        let (hour, minute, second) = (
+            field(1, "the hour", 24.0),
+            field(2, "the minute", 60.0),
+            field(3, "the second", 60.0),
+        );
+        let (Some(hour), Some(minute), Some(second)) = (hour, minute, second) else {
+            return;
+        };
+        let in_day = hour * 3600.0 + minute * 60.0 + second;
+        let Some(after) = route.last_time else {
+            self.warn(
+                params_path,
+                format!(
+                    "a delay until {:02}:{:02}:{second:02} UTC needs the plan's start date \
+                     (`--start`): dropped",
+                    hour as u32, minute as u32
+                ),
+            );
+            return;
+        };
+        let mut at = (after / SECS_PER_DAY).floor() * SECS_PER_DAY + in_day;
+        if at < after {
+            at += SECS_PER_DAY;
+        }
+        route.last_time = Some(at);
+        if let Some((earlier, _)) = route.not_before {
+            at = at.max(earlier);
+        }
+        route.not_before = Some((at, params_path.to_owned()));
+    }
+
+    fn param_number(
+        &mut self,
+        params: &[Value],
+        params_path: &str,
+        index: usize,
+        what: &str,
+    ) -> Option<f64> {
+        let path = index_path(params_path, index);
+        match params.get(index) {
+            Some(value) => match value.as_f64().filter(|v| v.is_finite()) {
+                Some(number) => Some(number),
+                None => {
+                    self.problem(&path, format!("{what} must be a number, not {value}"));
+                    None
+                }
+            },
+            None => {
+                self.problem(
+                    params_path,
+                    format!("{what} (params[{index}]) is missing: a simple item has seven"),
+                );
+                None
+            }
+        }
+    }
+
+    /// A `[latitude, longitude, …]` point.
+    fn lat_lon(&mut self, value: &Value, path: &str) -> Option<LatLon> {
+        let numbers = value.as_array().filter(|point| point.len() >= 2);
+        let Some(point) = numbers else {
+            self.problem(
+                path,
+                format!("a point is a list [latitude, longitude, …], not {value}"),
+            );
+            return None;
+        };
+        let lat = self.param_number(point, path, 0, "the latitude");
+        let lon = self.param_number(point, path, 1, "the longitude");
+        self.check_lat_lon((lat?, &index_path(path, 0)), (lon?, &index_path(path, 1)))
+    }
+
+    /// Each value with its path.
+    fn check_lat_lon(
+        &mut self,
+        (lat, lat_path): (f64, &str),
+        (lon, lon_path): (f64, &str),
+    ) -> Option<LatLon> {
+        if lat.abs() > 90.0 {
+            self.problem(
+                lat_path,
+                format!("the latitude must be degrees between -90 and 90, not {lat}"),
+            );
+            return None;
+        }
+        if lon.abs() > 180.0 {
+            self.problem(
+                lon_path,
+                format!("the longitude must be degrees between -180 and 180, not {lon}"),
+            );
+            return None;
+        }
+        Some(LatLon::new(lat, lon))
+    }
+
+    fn fence(&mut self, fence: &Value, plan: &mut Plan) {
+        let Some(fence) = fence.as_object() else {
+            self.problem("geoFence", "`geoFence` is a JSON object");
+            return;
+        };
+        if fence.get("version").and_then(Value::as_u64) != Some(2) {
+            self.warn(
+                "geoFence",
+                "a geofence of another version than 2 (QGC's own since 2017) is not read: skipped",
+            );
+            return;
+        }
+        let (mut no_go, mut kept) = (0, 0);
+        let mut area = |inclusion: bool, points: Vec<LatLon>, pos: Pos| {
+            let (kind, name) = if inclusion {
+                kept += 1;
+                (AreaKind::Named, format!("fence_{kept}"))
+            } else {
+                no_go += 1;
+                (AreaKind::NoGo, format!("no_go_{no_go}"))
+            };
+            plan.graphics.push(Graphic {
+                kind: GraphicKind::Area(kind),
+                name,
+                points,
+                pos,
+                ..Graphic::default()
+            });
+        };
+        for (index, polygon) in list(fence, "polygons").iter().enumerate() {
+            let path = index_path("geoFence.polygons", index);
+            let inclusion = self.inclusion(polygon, &path);
+            let corners_path = key_path(&path, "polygon");
+            let corners: Vec<LatLon> = list_of(polygon, "polygon")
+                .iter()
+                .enumerate()
+                .filter_map(|(i, corner)| self.lat_lon(corner, &index_path(&corners_path, i)))
+                .collect();
+            if corners.len() < 3 {
+                self.warn(
+                    &path,
+                    format!(
+                        "a fence polygon of {} corners encloses nothing: skipped",
+                        corners.len()
+                    ),
+                );
+                continue;
+            }
+            area(inclusion, corners, self.at(&path));
+        }
+        for (index, circle) in list(fence, "circles").iter().enumerate() {
+            let path = index_path("geoFence.circles", index);
+            let inclusion = self.inclusion(circle, &path);
+            let centre = circle.get("circle").and_then(|c| c.get("center"));
+            let radius = circle
+                .get("circle")
+                .and_then(|c| c.get("radius"))
+                .and_then(Value::as_f64)
+                .filter(|radius| radius.is_finite() && *radius > 0.0);
+            let (Some(centre), Some(radius)) = (centre, radius) else {
+                self.problem(
+                    &path,
+                    "a fence circle needs `circle` with its `center` [latitude, longitude] and a \
+                     `radius` in metres above 0",
+                );
+                continue;
+            };
+            let Some(centre) = self.lat_lon(centre, &key_path(&path, "circle.center")) else {
+                continue;
+            };
+            self.warn(
+                &path,
+                format!(
+                    "a fence circle ({radius} m) is kept as a polygon of {CIRCLE_CORNERS} \
+                     corners round it"
+                ),
+            );
+            area(inclusion, circle_polygon(centre, radius), self.at(&path));
+        }
+        if kept > 0 {
+            self.warn(
+                "geoFence",
+                format!(
+                    "{kept} inclusion fence(s) kept as named areas (`fence_1`, …): the robot is \
+                     not held inside them"
+                ),
+            );
+        }
+    }
+
+    fn inclusion(&mut self, fence: &Value, path: &str) -> bool {
+        match fence.get("inclusion") {
+            Some(Value::Bool(inclusion)) => *inclusion,
+            _ => {
+                self.warn(path, "no `inclusion`: read as an inclusion fence");
+                true
+            }
+        }
+    }
+
+    fn rally(&mut self, rally: &Value, plan: &mut Plan) {
+        let mut names = Vec::new();
+        for (index, point) in list_of(rally, "points").iter().enumerate() {
+            let Some(position) = self.lat_lon(point, &index_path("rallyPoints.points", index))
+            else {
+                continue;
+            };
+            let same = |w: &&Waypoint| {
+                (w.position.lat_deg - position.lat_deg).abs() < 1e-9
+                    && (w.position.lon_deg - position.lon_deg).abs() < 1e-9
+            };
+            if let Some(existing) = plan.waypoints.iter().find(same) {
+                names.push(existing.name.clone());
+                continue;
+            }
+            let name = match names.len() {
+                0 => "rally".to_owned(),
+                n => format!("rally_{}", n + 1),
+            };
+            names.push(name.clone());
+            plan.waypoints.push(Waypoint {
+                name,
+                position,
+                ..Waypoint::default()
+            });
+        }
+        if !names.is_empty() {
+            self.warn(
+                "rallyPoints",
+                format!(
+                    "rally points kept as waypoints ({}): no contingency returns there",
+                    names.join(", ")
+                ),
+            );
+        }
+    }
+}
+
+/// `object[key]` as a list, empty when it is not one.
+fn list<'a>(object: &'a Map<String, Value>, key: &str) -> &'a [Value] {
+    object
+        .get(key)
+        .and_then(Value::as_array)
+        .map_or(&[], Vec::as_slice)
+}
+
+fn list_of<'a>(value: &'a Value, key: &str) -> &'a [Value] {
+    value.as_object().map_or(&[], |object| list(object, key))
+}
+
+/// A polygon that holds the circle: its corners on a circle larger by 1 / cos(π / n), so
+/// that its edges touch the circle from outside.
+fn circle_polygon(centre: LatLon, radius_m: f64) -> Vec<LatLon> {
+    let outer = radius_m / (PI / CIRCLE_CORNERS as f64).cos();
+    (0..CIRCLE_CORNERS)
+        .map(|i| {
+            // Clockwise from north, as QGC winds fences.
+            let bearing = 2.0 * PI * i as f64 / CIRCLE_CORNERS as f64;
+            LatLon::from_local(
+                Point::new(outer * bearing.sin(), outer * bearing.cos()),
+                centre,
+            )
+        })
+        .collect()
+}
+
+/// The MAVLink name of the commands QGC plans use most, for warnings.
+fn command_name(command: u64) -> &'static str {
+    match command {
+        17 => "NAV_LOITER_UNLIM",
+        18 => "NAV_LOITER_TURNS",
+        20 => "NAV_RETURN_TO_LAUNCH",
+        21 => "NAV_LAND",
+        22 => "NAV_TAKEOFF",
+        31 => "NAV_LOITER_TO_ALT",
+        84 => "NAV_VTOL_TAKEOFF",
+        85 => "NAV_VTOL_LAND",
+        112 => "CONDITION_DELAY",
+        177 => "DO_JUMP",
+        178 => "DO_CHANGE_SPEED",
+        183 => "DO_SET_SERVO",
+        189 => "DO_LAND_START",
+        201 => "DO_SET_ROI",
+        203 => "DO_DIGICAM_CONTROL",
+        205 => "DO_MOUNT_CONTROL",
+        206 => "DO_SET_CAM_TRIGG_DIST",
+        530 => "SET_CAMERA_MODE",
+        2000 => "IMAGE_START_CAPTURE",
+        2001 => "IMAGE_STOP_CAPTURE",
+        2500 => "VIDEO_START_CAPTURE",
+        3000 => "DO_VTOL_TRANSITION",
+        _ => "a MAV_CMD",
+    }
+}
