@@ -410,11 +410,19 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 };
                 plan.world = world.unwrap_or_default();
                 plan.start_unix_secs = plan.start_unix_secs.or(start_unix_secs);
+                let areas = plan
+                    .graphics
+                    .iter()
+                    .filter(|graphic| {
+                        matches!(graphic.kind, armor_model::plan::GraphicKind::Area(_))
+                    })
+                    .count();
                 let summary = format!(
-                    "plan `{}` written ({}, {})",
+                    "plan `{}` written ({}, {}, {})",
                     plan.name,
                     plural(plan.waypoints.len(), "waypoint"),
-                    plural(plan.legs.len(), "leg")
+                    plural(plan.legs.len(), "leg"),
+                    plural(areas, "area")
                 );
                 (plan.to_xml(), summary)
             } else {

@@ -1,305 +1,19 @@
-//! QGroundControl plan files (`.plan`: JSON, as QGC's developer guide documents it under
-//! "Plan File Format") to and from plans, for the ground stations that read them.
-//!
-//! Export: the route as the mission's items, its first waypoint as `plannedHomePosition`; each
-//! leg's destination is a `MAV_CMD_NAV_WAYPOINT` (16) whose hold time (param1) is the leg's
-//! `wait_secs`; an appointment (`not_before`) is a `MAV_CMD_NAV_DELAY` (93) until its time of
-//! day (UTC) before the leg; no-go areas are exclusion polygons of the geofence, wound
-//! clockwise; the waypoints a `return` contingency names are rally points. The robot is
-//! written as a ground rover (`MAV_TYPE` 10) of a generic autopilot (`MAV_AUTOPILOT` 0), at
-//! 0 m above home (frame 3, global with relative altitude). What the format cannot carry is
-//! listed in [`Exported::dropped`].
-//!
-//! Import: `plannedHomePosition` is the start (`home`); waypoint items (16, and 82 spline
-//! waypoints, 19 timed loiters, which hold) become waypoints `wp1`, `wp2`, … joined by legs;
-//! a delay (93) of seconds lengthens the wait where the robot is, a delay until a time of day
-//! is the next leg's `not_before` on the day of the plan's start (when one is given); exclusion
-//! polygons become no-go areas, exclusion circles no-go polygons round them, inclusion fences
-//! named areas, rally points waypoints. Everything else (complex items such as surveys, other
-//! commands, altitudes) is skipped with a warning. Problems and warnings say `LINE:COL` and the
-//! JSON path of the value.
+//! A QGC plan file read into a plan (see [`super`]).
 
 use std::f64::consts::PI;
 
 use armor_module_api::xml::{Located, Pos};
-use serde_json::{Map, Value, json};
+use serde_json::{Map, Value};
 
-use super::{AreaKind, Graphic, GraphicKind, LatLon, Leg, Plan, Response, Waypoint};
+use super::{
+    CIRCLE_CORNERS, GLOBAL_FRAMES, MAV_CMD_NAV_DELAY, MAV_CMD_NAV_LOITER_TIME,
+    MAV_CMD_NAV_SPLINE_WAYPOINT, MAV_CMD_NAV_WAYPOINT, MAV_TYPE_GROUND_ROVER,
+    MAV_TYPE_SURFACE_BOAT, SECS_PER_DAY,
+};
 use crate::json_positions::{JsonPositions, index_path, key_path};
 use crate::plan::xml::default_leg_name;
+use crate::plan::{AreaKind, Graphic, GraphicKind, LatLon, Leg, Plan, Waypoint};
 use crate::world::Point;
-
-pub const MAV_CMD_NAV_WAYPOINT: u64 = 16;
-pub const MAV_CMD_NAV_LOITER_TIME: u64 = 19;
-pub const MAV_CMD_NAV_SPLINE_WAYPOINT: u64 = 82;
-pub const MAV_CMD_NAV_DELAY: u64 = 93;
-/// `MAV_FRAME_MISSION`: a command without coordinates.
-pub const MAV_FRAME_MISSION: u64 = 2;
-pub const MAV_FRAME_GLOBAL_RELATIVE_ALT: u64 = 3;
-pub const MAV_TYPE_GROUND_ROVER: u64 = 10;
-const MAV_TYPE_SURFACE_BOAT: u64 = 11;
-pub const MAV_AUTOPILOT_GENERIC: u64 = 0;
-/// QGC's `AltitudeModeRelative` (its `AltMode` enum: mixed, relative, absolute, …).
-pub const ALTITUDE_MODE_RELATIVE: u64 = 1;
-/// The frames whose coordinates are latitude and longitude: global, relative, terrain, and
-/// their `_INT` forms.
-const GLOBAL_FRAMES: [u64; 6] = [0, 3, 5, 6, 10, 11];
-/// Corners of the polygon an exclusion circle is imported as.
-pub const CIRCLE_CORNERS: usize = 32;
-const SECS_PER_DAY: f64 = 86_400.0;
-
-/// A plan written as a QGC plan file.
-#[derive(Debug)]
-pub struct Exported {
-    pub text: String,
-    /// What the plan has that the file does not carry, one line per kind.
-    pub dropped: Vec<String>,
-}
-
-/// The plan as a QGC plan file.
-pub fn export(plan: &Plan) -> Exported {
-    let stops = route_stops(plan);
-    let home = stops.first().map(|waypoint| waypoint.position);
-    let mut items = Vec::new();
-    let mut push = |mut item: Value| {
-        item["doJumpId"] = json!(items.len() + 1);
-        items.push(item);
-    };
-    if plan.legs.is_empty() {
-        for waypoint in stops.iter().skip(1) {
-            push(waypoint_item(waypoint.position, 0.0));
-        }
-    }
-    for leg in &plan.legs {
-        if let Some(at) = leg.not_before_unix_secs {
-            push(delay_until_item(at));
-        }
-        if let Some(to) = plan.waypoint(&leg.to) {
-            push(waypoint_item(to.position, leg.wait_secs.unwrap_or(0.0)));
-        }
-    }
-    let polygons: Vec<Value> = plan
-        .no_go_areas()
-        .map(|area| {
-            let corners: Vec<Value> = clockwise(&area.points)
-                .iter()
-                .map(|corner| json!([corner.lat_deg, corner.lon_deg]))
-                .collect();
-            json!({"inclusion": false, "polygon": corners, "version": 1})
-        })
-        .collect();
-    let rally: Vec<Value> = rally_waypoints(plan)
-        .iter()
-        .map(|waypoint| json!([waypoint.position.lat_deg, waypoint.position.lon_deg, 0.0]))
-        .collect();
-    let home = home.map_or(Value::Null, |home| json!([home.lat_deg, home.lon_deg, 0.0]));
-    let document = json!({
-        "fileType": "Plan",
-        "groundStation": "ArMoR",
-        "version": 1,
-        "mission": {
-            "version": 2,
-            "firmwareType": MAV_AUTOPILOT_GENERIC,
-            "vehicleType": MAV_TYPE_GROUND_ROVER,
-            "cruiseSpeed": plan.navigation.speed_mps,
-            "hoverSpeed": plan.navigation.speed_mps,
-            "globalPlanAltitudeMode": ALTITUDE_MODE_RELATIVE,
-            "plannedHomePosition": home,
-            "items": items,
-        },
-        "geoFence": {"version": 2, "polygons": polygons, "circles": []},
-        "rallyPoints": {"version": 2, "points": rally},
-    });
-    let mut text = serde_json::to_string_pretty(&document).unwrap_or_default();
-    text.push('\n');
-    Exported {
-        text,
-        dropped: dropped(plan),
-    }
-}
-
-/// The waypoints the route passes, in order: the first leg's start and each leg's end; a plan
-/// without legs, its waypoints.
-fn route_stops(plan: &Plan) -> Vec<&Waypoint> {
-    match plan.legs.first() {
-        Some(first) => std::iter::once(&first.from)
-            .chain(plan.legs.iter().map(|leg| &leg.to))
-            .filter_map(|name| plan.waypoint(name))
-            .collect(),
-        None => plan.waypoints.iter().collect(),
-    }
-}
-
-/// The waypoints some `return` contingency names, once each, in the plan's order.
-fn rally_waypoints(plan: &Plan) -> Vec<&Waypoint> {
-    let returns: Vec<&str> = plan
-        .contingencies
-        .iter()
-        .chain(plan.legs.iter().flat_map(|leg| &leg.contingencies))
-        .filter_map(|contingency| match &contingency.response {
-            Response::Return { waypoint } => Some(waypoint.as_str()),
-            _ => None,
-        })
-        .collect();
-    plan.waypoints
-        .iter()
-        .filter(|waypoint| returns.contains(&waypoint.name.as_str()))
-        .collect()
-}
-
-fn waypoint_item(position: LatLon, hold_secs: f64) -> Value {
-    json!({
-        "type": "SimpleItem",
-        "command": MAV_CMD_NAV_WAYPOINT,
-        "frame": MAV_FRAME_GLOBAL_RELATIVE_ALT,
-        // Hold, acceptance radius, pass radius, yaw (NaN, which QGC writes as null: keep the
-        // heading), latitude, longitude, altitude.
-        "params": [hold_secs, 0.0, 0.0, null, position.lat_deg, position.lon_deg, 0.0],
-        "autoContinue": true,
-        "AMSLAltAboveTerrain": null,
-        "Altitude": 0.0,
-        "AltitudeMode": ALTITUDE_MODE_RELATIVE,
-    })
-}
-
-/// A `MAV_CMD_NAV_DELAY` until the time of day of `unix_secs` (UTC): param1 -1 enables the
-/// hour, minute and second fields.
-fn delay_until_item(unix_secs: f64) -> Value {
-    let in_day = unix_secs.rem_euclid(SECS_PER_DAY);
-    let hour = (in_day / 3600.0).floor();
-    let minute = ((in_day - hour * 3600.0) / 60.0).floor();
-    let second = in_day - hour * 3600.0 - minute * 60.0;
-    json!({
-        "type": "SimpleItem",
-        "command": MAV_CMD_NAV_DELAY,
-        "frame": MAV_FRAME_MISSION,
-        "params": [-1.0, hour, minute, second, 0.0, 0.0, 0.0],
-        "autoContinue": true,
-    })
-}
-
-/// The corners wound clockwise (seen on a map, north up), as QGC's geofence wants them.
-fn clockwise(points: &[LatLon]) -> Vec<LatLon> {
-    // The shoelace sum with x = longitude, y = latitude: positive is anticlockwise.
-    let twice_area: f64 = points
-        .iter()
-        .zip(points.iter().cycle().skip(1))
-        .map(|(a, b)| a.lon_deg * b.lat_deg - b.lon_deg * a.lat_deg)
-        .sum();
-    let mut corners = points.to_vec();
-    if twice_area > 0.0 {
-        corners.reverse();
-    }
-    corners
-}
-
-/// What of `plan` a QGC plan cannot carry, one line per kind.
-fn dropped(plan: &Plan) -> Vec<String> {
-    let mut lines = Vec::new();
-    let mut note = |what: String, names: Vec<&str>| {
-        if !names.is_empty() {
-            lines.push(format!("{what}: {}", quoted(&names)));
-        }
-    };
-    note(
-        "waypoint names (read back as home, wp1, wp2, …)".into(),
-        plan.waypoints.iter().map(|w| w.name.as_str()).collect(),
-    );
-    note(
-        "waypoint symbols".into(),
-        plan.waypoints
-            .iter()
-            .filter(|w| w.symbol.is_some())
-            .map(|w| w.name.as_str())
-            .collect(),
-    );
-    note(
-        "deadlines (arrive_by) of legs".into(),
-        legs_where(plan, |leg| leg.arrive_by_unix_secs.is_some()),
-    );
-    note(
-        "the day of appointments (not_before; kept as a NAV_DELAY until their time of day, UTC) \
-         of legs"
-            .into(),
-        legs_where(plan, |leg| leg.not_before_unix_secs.is_some()),
-    );
-    note(
-        "actions (during and on arrival) of legs".into(),
-        legs_where(plan, |leg| leg.during.is_some() || leg.arrival.is_some()),
-    );
-    if let Some(action) = &plan.throughout {
-        note(
-            "the action run throughout".into(),
-            action.modules.iter().map(|m| m.name.as_str()).collect(),
-        );
-    }
-    let contingencies: Vec<String> = plan
-        .contingencies
-        .iter()
-        .chain(plan.legs.iter().flat_map(|leg| &leg.contingencies))
-        .map(|contingency| contingency.trigger.describe())
-        .collect();
-    note(
-        "contingencies (the waypoints a `return` names are rally points)".into(),
-        contingencies.iter().map(String::as_str).collect(),
-    );
-    for (kind, what) in [
-        (GraphicKind::PhaseLine, "phase lines"),
-        (GraphicKind::Boundary, "boundaries"),
-        (
-            GraphicKind::Area(AreaKind::Objective),
-            "objective areas (only no-go areas are geofences)",
-        ),
-        (
-            GraphicKind::Area(AreaKind::Assembly),
-            "assembly areas (only no-go areas are geofences)",
-        ),
-        (
-            GraphicKind::Area(AreaKind::Named),
-            "named areas (only no-go areas are geofences)",
-        ),
-    ] {
-        note(
-            what.into(),
-            plan.graphics
-                .iter()
-                .filter(|g| g.kind == kind)
-                .map(|g| g.name.as_str())
-                .collect(),
-        );
-    }
-    note(
-        "the margins of no-go areas".into(),
-        plan.no_go_areas()
-            .filter(|area| area.margin_m.is_some())
-            .map(|area| area.name.as_str())
-            .collect(),
-    );
-    note(
-        "units".into(),
-        plan.units.iter().map(|u| u.name.as_str()).collect(),
-    );
-    if plan.start_unix_secs.is_some() {
-        lines.push("the plan's start date".into());
-    }
-    lines
-}
-
-fn legs_where(plan: &Plan, keep: impl Fn(&Leg) -> bool) -> Vec<&str> {
-    plan.legs
-        .iter()
-        .filter(|leg| keep(leg))
-        .map(|leg| leg.name.as_str())
-        .collect()
-}
-
-fn quoted(names: &[&str]) -> String {
-    names
-        .iter()
-        .map(|name| format!("`{name}`"))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
 
 /// A plan read from a QGC plan file, with what was dropped or changed on the way.
 #[derive(Debug)]
@@ -461,7 +175,7 @@ impl Reader {
         };
         self.expect_version(mission, "mission", 2, "the mission");
         let mut plan = Plan {
-            name: super::gpx::Names::default().identifier(name, "plan"),
+            name: crate::plan::gpx::Names::default().identifier(name, "plan"),
             system: system.to_owned(),
             start_unix_secs,
             ..Plan::default()
@@ -786,23 +500,8 @@ impl Reader {
             );
             return;
         }
-        let (mut no_go, mut kept) = (0, 0);
-        let mut area = |inclusion: bool, points: Vec<LatLon>, pos: Pos| {
-            let (kind, name) = if inclusion {
-                kept += 1;
-                (AreaKind::Named, format!("fence_{kept}"))
-            } else {
-                no_go += 1;
-                (AreaKind::NoGo, format!("no_go_{no_go}"))
-            };
-            plan.graphics.push(Graphic {
-                kind: GraphicKind::Area(kind),
-                name,
-                points,
-                pos,
-                ..Graphic::default()
-            });
-        };
+        // Each fence: inclusion or not, its corners, its path.
+        let mut fences: Vec<(bool, Vec<LatLon>, String)> = Vec::new();
         for (index, polygon) in list(fence, "polygons").iter().enumerate() {
             let path = index_path("geoFence.polygons", index);
             let inclusion = self.inclusion(polygon, &path);
@@ -822,7 +521,7 @@ impl Reader {
                 );
                 continue;
             }
-            area(inclusion, corners, self.at(&path));
+            fences.push((inclusion, corners, path));
         }
         for (index, circle) in list(fence, "circles").iter().enumerate() {
             let path = index_path("geoFence.circles", index);
@@ -844,6 +543,21 @@ impl Reader {
             let Some(centre) = self.lat_lon(centre, &key_path(&path, "circle.center")) else {
                 continue;
             };
+            let corners = circle_polygon(centre, radius);
+            let on_earth = |c: &LatLon| c.lat_deg.abs() <= 90.0 && c.lon_deg.abs() <= 180.0;
+            if radius > MAX_CIRCLE_RADIUS_M || !corners.iter().all(on_earth) {
+                self.problem(
+                    &key_path(&path, "circle.radius"),
+                    format!(
+                        "a fence circle of {radius} m round ({}, {}) does not fit on the map: at \
+                         most {} km, away from the poles and the date line",
+                        centre.lat_deg,
+                        centre.lon_deg,
+                        MAX_CIRCLE_RADIUS_M / 1000.0
+                    ),
+                );
+                continue;
+            }
             self.warn(
                 &path,
                 format!(
@@ -851,16 +565,32 @@ impl Reader {
                      corners round it"
                 ),
             );
-            area(inclusion, circle_polygon(centre, radius), self.at(&path));
+            fences.push((inclusion, corners, path));
         }
-        if kept > 0 {
-            self.warn(
-                "geoFence",
-                format!(
-                    "{kept} inclusion fence(s) kept as named areas (`fence_1`, …): the robot is \
-                     not held inside them"
-                ),
-            );
+        let (mut no_go, mut kept) = (0, 0);
+        for (inclusion, points, path) in fences {
+            let (kind, name) = if inclusion {
+                kept += 1;
+                let name = format!("fence_{kept}");
+                self.warn(
+                    &path,
+                    format!(
+                        "an inclusion fence is kept as the named area `{name}`: the robot is not \
+                         held inside it"
+                    ),
+                );
+                (AreaKind::Named, name)
+            } else {
+                no_go += 1;
+                (AreaKind::NoGo, format!("no_go_{no_go}"))
+            };
+            plan.graphics.push(Graphic {
+                kind: GraphicKind::Area(kind),
+                name,
+                points,
+                pos: self.at(&path),
+                ..Graphic::default()
+            });
         }
     }
 
@@ -876,6 +606,7 @@ impl Reader {
 
     fn rally(&mut self, rally: &Value, plan: &mut Plan) {
         let mut names = Vec::new();
+        let mut added = 0;
         for (index, point) in list_of(rally, "points").iter().enumerate() {
             let Some(position) = self.lat_lon(point, &index_path("rallyPoints.points", index))
             else {
@@ -889,9 +620,10 @@ impl Reader {
                 names.push(existing.name.clone());
                 continue;
             }
-            let name = match names.len() {
-                0 => "rally".to_owned(),
-                n => format!("rally_{}", n + 1),
+            added += 1;
+            let name = match added {
+                1 => "rally".to_owned(),
+                n => format!("rally_{n}"),
             };
             names.push(name.clone());
             plan.waypoints.push(Waypoint {
@@ -923,6 +655,9 @@ fn list<'a>(object: &'a Map<String, Value>, key: &str) -> &'a [Value] {
 fn list_of<'a>(value: &'a Value, key: &str) -> &'a [Value] {
     value.as_object().map_or(&[], |object| list(object, key))
 }
+
+/// The largest fence circle read: a local plane is no good beyond.
+const MAX_CIRCLE_RADIUS_M: f64 = 100_000.0;
 
 /// A polygon that holds the circle: its corners on a circle larger by 1 / cos(π / n), so
 /// that its edges touch the circle from outside.
