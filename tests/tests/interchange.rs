@@ -58,7 +58,7 @@ fn import(file: &Path, output: &Path, extra: &[&str]) -> std::process::Output {
         "-o".as_ref(),
         output.as_os_str(),
     ];
-    args.extend(extra.iter().map(|arg| arg.as_ref()));
+    args.extend(extra.iter().map(std::ffi::OsStr::new));
     armor(&args)
 }
 
@@ -320,10 +320,14 @@ fn every_bundled_plan_comes_back_from_qgc_with_its_route_delays_and_no_go_areas(
         }
         let out = import(&qgc, &back, &args);
         assert!(out.status.success(), "{context}: {}", output_text(&out));
+        // Our own .plan reads without a warning, but for the rally points (where a `return`
+        // went), which no contingency uses once read back.
+        let text = output_text(&out);
         assert!(
-            !output_text(&out).contains("warning"),
-            "{context}: our own .plan reads without a warning: {}",
-            output_text(&out)
+            text.lines()
+                .filter(|line| line.contains("warning"))
+                .all(|line| line.contains("rally points kept as waypoints")),
+            "{context}: {text}"
         );
         let again = read_plan(&back);
 

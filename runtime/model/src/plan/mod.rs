@@ -30,8 +30,9 @@
 //! `blocked`, a module `failed`, or the robot is `late`: `skip` the rest of the leg, `hold` for
 //! the operator (who may retry or skip), `return` to a waypoint and end there, or (`late` only)
 //! `continue`. An action `throughout` runs from start to end (a recorder). The schema is
-//! `assets/schema/plan.xsd`; [`compile`] makes the net and [`gpx`] exchanges waypoints and
-//! routes with GIS tools.
+//! `assets/schema/plan.xsd`; [`compile`] makes the net, [`gpx`] exchanges waypoints and
+//! routes with GIS tools, [`qgc`] plans with ground stations (QGroundControl's plan files) and
+//! [`kml`] writes the plan for Google Earth and ATAK (what each carries: `docs/interchange.md`).
 //!
 //! Every leg is planned on the world ([`crate::planner`]): the robot, a disc of
 //! `robot_radius_m` (the system's simulator's or avoider's `robot_radius_m` unless the plan

@@ -20,6 +20,7 @@
 //! JSON path of the value.
 
 mod export;
+mod fence;
 mod import;
 #[cfg(test)]
 mod tests;
