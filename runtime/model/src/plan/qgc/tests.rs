@@ -30,8 +30,8 @@ fn random_plan(rng: &mut SplitMix64) -> Plan {
     let mut time = start;
     let legs: Vec<Leg> = (1..count)
         .map(|i| {
-            let wait_secs = (rng.next_u64() % 3 == 0).then(|| rng.uniform(0.5, 600.0));
-            let not_before_unix_secs = (rng.next_u64() % 3 == 0).then(|| {
+            let wait_secs = (rng.next_u64().is_multiple_of(3)).then(|| rng.uniform(0.5, 600.0));
+            let not_before_unix_secs = (rng.next_u64().is_multiple_of(3)).then(|| {
                 time += rng.uniform(1.0, 80_000.0);
                 time
             });
@@ -53,7 +53,7 @@ fn random_plan(rng: &mut SplitMix64) -> Plan {
                 .map(|_| rng.uniform(0.0, std::f64::consts::TAU))
                 .collect();
             angles.sort_by(f64::total_cmp);
-            if rng.next_u64() % 2 == 0 {
+            if rng.next_u64().is_multiple_of(2) {
                 angles.reverse();
             }
             let radius = rng.uniform(2.0, 50.0);
@@ -161,7 +161,7 @@ fn random_file(rng: &mut SplitMix64) -> String {
     let items: Vec<Value> = (0..rng.next_u64() % 8)
         .map(|i| {
             let command = [16, 16, 16, 19, 82, 93, 93, 20, 178, 22][(rng.next_u64() % 10) as usize];
-            let params: Vec<Value> = (0..7 - u64::from(rng.next_u64() % 20 == 0))
+            let params: Vec<Value> = (0..7 - u64::from(rng.next_u64().is_multiple_of(20)))
                 .map(|p| match (command, p) {
                     (93, 0) => json!([-1, 5, 0][(rng.next_u64() % 3) as usize]),
                     (93, 1..=3) => json!((rng.next_u64() % 24) as f64),
@@ -207,7 +207,7 @@ fn random_file(rng: &mut SplitMix64) -> String {
         },
         "geoFence": {
             "version": 2,
-            "polygons": [{"inclusion": rng.next_u64() % 2 == 0, "polygon": corners, "version": 1}],
+            "polygons": [{"inclusion": rng.next_u64().is_multiple_of(2), "polygon": corners, "version": 1}],
             "circles": [{
                 "inclusion": false,
                 "circle": {"center": centre, "radius": sometimes_broken(rng, 0.0, 100.0)},
@@ -216,13 +216,13 @@ fn random_file(rng: &mut SplitMix64) -> String {
         },
         "rallyPoints": {"version": 2, "points": [rally]},
     });
-    if rng.next_u64() % 4 == 0 {
+    if rng.next_u64().is_multiple_of(4) {
         doc["mission"]
             .as_object_mut()
             .map(|m| m.remove("plannedHomePosition"));
     }
     let text = serde_json::to_string_pretty(&doc).unwrap_or_default();
-    if rng.next_u64() % 5 == 0 {
+    if rng.next_u64().is_multiple_of(5) {
         // Cut anywhere (on a character boundary).
         let mut cut = (rng.next_u64() as usize) % text.len().max(1);
         while !text.is_char_boundary(cut) {
