@@ -340,12 +340,17 @@ impl Plan {
             .find(|contingency| &contingency.trigger == trigger)
     }
 
+    /// The plan's contingencies, then each leg's.
+    pub fn every_contingency(&self) -> impl Iterator<Item = &Contingency> {
+        self.contingencies
+            .iter()
+            .chain(self.legs.iter().flat_map(|leg| &leg.contingencies))
+    }
+
     /// Every module whose failure some contingency handles, sorted, once each.
     pub fn failure_modules(&self) -> Vec<String> {
         let mut modules: Vec<String> = self
-            .contingencies
-            .iter()
-            .chain(self.legs.iter().flat_map(|leg| &leg.contingencies))
+            .every_contingency()
             .filter_map(|contingency| match &contingency.trigger {
                 Trigger::Failed { module } => Some(module.clone()),
                 _ => None,

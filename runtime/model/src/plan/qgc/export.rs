@@ -93,9 +93,7 @@ fn route_stops(plan: &Plan) -> Vec<&Waypoint> {
 /// The waypoints some `return` contingency names, once each, in the plan's order.
 fn rally_waypoints(plan: &Plan) -> Vec<&Waypoint> {
     let returns: Vec<&str> = plan
-        .contingencies
-        .iter()
-        .chain(plan.legs.iter().flat_map(|leg| &leg.contingencies))
+        .every_contingency()
         .filter_map(|contingency| match &contingency.response {
             Response::Return { waypoint } => Some(waypoint.as_str()),
             _ => None,
@@ -194,9 +192,7 @@ fn dropped(plan: &Plan) -> Vec<String> {
         );
     }
     let contingencies: Vec<String> = plan
-        .contingencies
-        .iter()
-        .chain(plan.legs.iter().flat_map(|leg| &leg.contingencies))
+        .every_contingency()
         .map(|contingency| contingency.trigger.describe())
         .collect();
     note(
