@@ -1,7 +1,8 @@
 //! Mission interchange with ground stations (issue 24, item 4), as a user would use it:
 //! `armor export --qgc` of every bundled plan checked field by field against QGroundControl's
 //! documented plan file format; `armor import` of the .plan back (waypoints, delays, no-go
-//! areas kept, the plan accepted by `armor check` on its world); a .plan written the way QGC
+//! areas kept, the plan accepted by `armor check` on its world, and the yard's driven by the
+//! simulated robot, its appointment kept from QGC's delay); a .plan written the way QGC
 //! writes one, with items we do not support (a survey, a speed change, a return to launch),
 //! imported with a warning for each at its line and column; broken .plan files refused where
 //! they break; and `armor export --kml` read by fastkml (a KML library from PyPI, validating
@@ -724,4 +725,66 @@ fn every_bundled_plan_exports_to_kml_that_fastkml_reads_with_names_coordinates_a
             assert!(same_place((at.lat_deg, at.lon_deg), want.position));
         }
     }
+}
+
+#[test]
+fn the_yard_plan_through_qgc_drives_the_route_and_keeps_its_appointment() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = workspace_root().join("missions/robot/plan-yard.xml");
+    let qgc = dir.path().join("yard.plan");
+    export("--qgc", &original, &qgc);
+    let imported = dir.path().join("yard-from-qgc.xml");
+    let system = workspace_root().join("missions/robot/system.xml");
+    let out = import(
+        &qgc,
+        &imported,
+        &[
+            "--system",
+            system.to_str().unwrap(),
+            "--start",
+            "2026-11-23T08:00:00Z",
+        ],
+    );
+    assert!(out.status.success(), "{}", output_text(&out));
+    // As with a GPX import (README), the navigation is the user's to give: the avoider beside
+    // the follower, without which the robot's commands go nowhere.
+    let text = std::fs::read_to_string(&imported).unwrap().replacen(
+        "start=\"2026-11-23T08:00:00Z\">",
+        "start=\"2026-11-23T08:00:00Z\">\n  <navigation><module name=\"avoider\"/></navigation>",
+        1,
+    );
+    std::fs::write(&imported, text).unwrap();
+
+    let run = armor_tests::mission::run_mission(
+        &imported,
+        &["--start-at", "2026-11-23T08:00:00Z"],
+        std::time::Duration::from_secs(120),
+    );
+    assert_eq!(run.final_marking(), serde_json::json!({ "done": 1 }));
+    run.assert_clean();
+    let arrived: Vec<String> = run
+        .fired_names()
+        .into_iter()
+        .filter(|name| name.ends_with("_arrived"))
+        .collect();
+    assert_eq!(
+        arrived,
+        [
+            "leg1_arrived",
+            "leg2_arrived",
+            "leg3_arrived",
+            "leg4_arrived"
+        ]
+    );
+    // The appointment came back from the NAV_DELAY: the second leg left at 08:01:30, 90 s in,
+    // and the hold of 5 s at its end was kept.
+    let left = run.fired_at("leg2_appointment").unwrap_or_else(|| {
+        panic!("no appointment: {:?}", run.fired());
+    });
+    assert!(left >= 90.0 - 0.5, "left at {left} s");
+    assert!(
+        run.between("leg2_arrived", "leg2_waited") >= 5.0 - 0.5,
+        "{:?}",
+        run.fired()
+    );
 }
