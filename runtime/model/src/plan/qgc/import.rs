@@ -367,7 +367,11 @@ impl Reader {
         let Some(delay) = self.param_number(params, params_path, 0, "the delay") else {
             return;
         };
-        if delay >= 0.0 {
+        if delay == 0.0 {
+            // Nothing to hold (-0 too: found by fuzzing, it came back as a wait of 0 s).
+            return;
+        }
+        if delay > 0.0 {
             match route.legs.last_mut() {
                 Some(leg) => leg.wait_secs = Some(leg.wait_secs.unwrap_or(0.0) + delay),
                 None => self.warn(

@@ -318,6 +318,8 @@ fn delays_of_seconds_add_to_the_wait_where_the_robot_is() {
         delay([10.0, -1.0, -1.0, -1.0]),
         delay([2.5, -1.0, -1.0, -1.0]),
         waypoint(47.002, 8.0),
+        // Nothing to hold: not a wait of 0 s (found by fuzzing).
+        delay([-0.0, -1.0, -1.0, -1.0]),
         delay([-1.0, 23.0, 0.0, 0.0]),
     ]));
     let imported = import(&text, "p", "s.xml", Some(0.0)).map_err(|p| format!("{p:?}"));
