@@ -4,48 +4,55 @@
 //!
 //! The text must already have been read by serde_json (its syntax and nesting depth are
 //! checked there); on anything else the scan stops early and the missing paths fall back to
-//! their nearest recorded parent.
+//! their nearest recorded parent. The scan is made at the first question only: a file read
+//! without a problem or a warning never pays for it (`armor-bench qgc_import_10k_ms`).
 
+use std::cell::OnceCell;
 use std::collections::HashMap;
 
 use armor_module_api::xml::Pos;
 
-/// The start of every value of a JSON text, by path.
-#[derive(Debug, Default)]
-pub(crate) struct JsonPositions {
-    starts: HashMap<String, Pos>,
+type Starts = HashMap<String, Pos, foldhash::fast::RandomState>;
+
+/// The start of every value of a JSON text, by path, found when first asked.
+#[derive(Debug)]
+pub(crate) struct JsonPositions<'a> {
+    text: &'a str,
+    starts: OnceCell<Starts>,
 }
 
-impl JsonPositions {
-    pub(crate) fn of(text: &str) -> Self {
+impl<'a> JsonPositions<'a> {
+    pub(crate) fn of(text: &'a str) -> Self {
+        Self {
+            text,
+            starts: OnceCell::new(),
+        }
+    }
+
+    fn scan(text: &str) -> Starts {
         let mut scanner = Scanner {
             bytes: text.as_bytes(),
             index: 0,
             pos: Pos { line: 1, col: 1 },
-            starts: HashMap::new(),
+            starts: Starts::default(),
         };
         scanner.skip_whitespace();
         scanner.value(String::new());
-        Self {
-            starts: scanner.starts,
-        }
+        scanner.starts
     }
 
     /// Where the value at `path` starts, else where its nearest parent does, else 1:1.
     pub(crate) fn at(&self, path: &str) -> Pos {
+        let starts = self.starts.get_or_init(|| Self::scan(self.text));
         let mut path = path;
         loop {
-            if let Some(pos) = self.starts.get(path) {
+            if let Some(pos) = starts.get(path) {
                 return *pos;
             }
             match path.rfind(['.', '[']) {
                 Some(cut) => path = &path[..cut],
                 None => {
-                    return self
-                        .starts
-                        .get("")
-                        .copied()
-                        .unwrap_or(Pos { line: 1, col: 1 });
+                    return starts.get("").copied().unwrap_or(Pos { line: 1, col: 1 });
                 }
             }
         }
@@ -70,7 +77,7 @@ struct Scanner<'a> {
     bytes: &'a [u8],
     index: usize,
     pos: Pos,
-    starts: HashMap<String, Pos>,
+    starts: Starts,
 }
 
 impl Scanner<'_> {

@@ -11,7 +11,7 @@ use crate::json_positions::{index_path, key_path};
 use crate::plan::{AreaKind, Graphic, GraphicKind, LatLon, Plan, Waypoint};
 use crate::world::Point;
 
-impl Reader {
+impl Reader<'_> {
     pub(super) fn fence(&mut self, fence: &Value, plan: &mut Plan) {
         let Some(fence) = fence.as_object() else {
             self.problem("geoFence", "`geoFence` is a JSON object");

@@ -66,8 +66,8 @@ fn json_error(err: &serde_json::Error) -> Located {
     )
 }
 
-pub(super) struct Reader {
-    positions: JsonPositions,
+pub(super) struct Reader<'a> {
+    positions: JsonPositions<'a>,
     problems: Vec<Located>,
     warnings: Vec<Located>,
 }
@@ -111,7 +111,7 @@ impl Route {
     }
 }
 
-impl Reader {
+impl Reader<'_> {
     pub(super) fn at(&self, path: &str) -> Pos {
         self.positions.at(path)
     }
