@@ -108,11 +108,11 @@ impl Reader<'_> {
                 no_go += 1;
                 (AreaKind::NoGo, format!("no_go_{no_go}"))
             };
+            // No position: the plan is written out, and read again from there.
             plan.graphics.push(Graphic {
                 kind: GraphicKind::Area(kind),
                 name,
                 points,
-                pos: self.at(&path),
                 ..Graphic::default()
             });
         }

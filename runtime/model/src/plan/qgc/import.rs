@@ -112,7 +112,7 @@ impl Route {
 }
 
 impl Reader<'_> {
-    pub(super) fn at(&self, path: &str) -> Pos {
+    fn at(&self, path: &str) -> Pos {
         self.positions.at(path)
     }
 
