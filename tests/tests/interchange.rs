@@ -82,10 +82,9 @@ fn same_place(got: (f64, f64), want: LatLon) -> bool {
 
 /// The stops of a plan's route: the first leg's start, then each leg's end.
 fn stops(plan: &Plan) -> Vec<LatLon> {
-    std::iter::once(&plan.legs[0].from)
-        .chain(plan.legs.iter().map(|leg| &leg.to))
-        .map(|name| plan.waypoint(name).unwrap().position)
-        .collect()
+    let route: Vec<LatLon> = plan.route().iter().map(|w| w.position).collect();
+    assert_eq!(route.len(), plan.legs.len() + 1);
+    route
 }
 
 /// Twice the signed area of a ring of [lat, lon] pairs, with x = longitude: negative is

@@ -8,9 +8,10 @@
 //! the plan file; times and margins go in each placemark's `ExtendedData`, and a waypoint's
 //! deadline (or appointment) in its `TimeStamp`, which Google Earth's time slider shows.
 
+use std::collections::HashMap;
 use std::fmt::Write as _;
 
-use super::{AreaKind, Graphic, GraphicKind, LatLon, Plan};
+use super::{AreaKind, Graphic, GraphicKind, LatLon, Leg, Plan};
 use crate::fields::escape;
 use crate::net::format_date;
 
@@ -103,14 +104,10 @@ const STYLES: &str = r##"  <Style id="route">
 
 /// The legs as one line, start to end.
 fn route(out: &mut String, plan: &Plan) {
-    let Some(first) = plan.legs.first() else {
+    if plan.legs.is_empty() {
         return;
-    };
-    let stops: Vec<LatLon> = std::iter::once(&first.from)
-        .chain(plan.legs.iter().map(|leg| &leg.to))
-        .filter_map(|name| plan.waypoint(name))
-        .map(|waypoint| waypoint.position)
-        .collect();
+    }
+    let stops: Vec<LatLon> = plan.route().iter().map(|w| w.position).collect();
     let _ = writeln!(
         out,
         "  <Folder>\n    <name>Route</name>\n    <Placemark>\n      <name>{} route</name>\n      \
@@ -122,10 +119,20 @@ fn route(out: &mut String, plan: &Plan) {
 }
 
 /// Each waypoint, with the times of the legs that arrive there and leave from there.
-fn waypoints(out: &mut String, plan: &Plan) {
+fn waypoints<'a>(out: &mut String, plan: &'a Plan) {
     if plan.waypoints.is_empty() {
         return;
     }
+    // The legs that arrive at and leave from each waypoint, by name.
+    let mut arriving: HashMap<&str, Vec<&Leg>> = HashMap::new();
+    let mut leaving: HashMap<&str, Vec<&Leg>> = HashMap::new();
+    for leg in &plan.legs {
+        arriving.entry(leg.to.as_str()).or_default().push(leg);
+        leaving.entry(leg.from.as_str()).or_default().push(leg);
+    }
+    let legs_of = |map: &HashMap<&str, Vec<&'a Leg>>, name: &str| -> Vec<&'a Leg> {
+        map.get(name).cloned().unwrap_or_default()
+    };
     out.push_str("  <Folder>\n    <name>Waypoints</name>\n");
     for waypoint in &plan.waypoints {
         let mut data: Vec<(&str, String)> = Vec::new();
@@ -140,7 +147,7 @@ fn waypoints(out: &mut String, plan: &Plan) {
             notes.push(format!("start {}", format_date(start)));
             when = Some(start);
         }
-        for leg in plan.legs.iter().filter(|leg| leg.to == waypoint.name) {
+        for leg in legs_of(&arriving, &waypoint.name) {
             if let Some(at) = leg.arrive_by_unix_secs {
                 data.push(("arrive_by", format_date(at)));
                 notes.push(format!(
@@ -155,7 +162,7 @@ fn waypoints(out: &mut String, plan: &Plan) {
                 notes.push(format!("wait {wait} s"));
             }
         }
-        for leg in plan.legs.iter().filter(|leg| leg.from == waypoint.name) {
+        for leg in legs_of(&leaving, &waypoint.name) {
             if let Some(at) = leg.not_before_unix_secs {
                 data.push(("not_before", format_date(at)));
                 notes.push(format!(

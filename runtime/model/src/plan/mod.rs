@@ -325,6 +325,25 @@ impl Plan {
         self.waypoints.iter().find(|waypoint| waypoint.name == name)
     }
 
+    /// The waypoints the route passes, in order: the first leg's start, then each leg's end
+    /// (for a plan [`Plan::parse`] accepts, one more than its legs); none without legs. The
+    /// names are looked up in a map: a plan of 10,000 legs takes no longer than its size.
+    pub fn route(&self) -> Vec<&Waypoint> {
+        let Some(first) = self.legs.first() else {
+            return Vec::new();
+        };
+        let mut by_name: std::collections::HashMap<&str, &Waypoint> =
+            std::collections::HashMap::with_capacity(self.waypoints.len());
+        for waypoint in &self.waypoints {
+            // The first of a name, as `waypoint` finds it.
+            by_name.entry(waypoint.name.as_str()).or_insert(waypoint);
+        }
+        std::iter::once(&first.from)
+            .chain(self.legs.iter().map(|leg| &leg.to))
+            .filter_map(|name| by_name.get(name.as_str()).copied())
+            .collect()
+    }
+
     /// The no-go areas.
     pub fn no_go_areas(&self) -> impl Iterator<Item = &Graphic> {
         self.graphics

@@ -30,13 +30,11 @@ pub fn export(plan: &Plan) -> Exported {
             push(waypoint_item(waypoint.position, 0.0));
         }
     }
-    for leg in &plan.legs {
+    for (leg, to) in plan.legs.iter().zip(stops.iter().skip(1)) {
         if let Some(at) = leg.not_before_unix_secs {
             push(delay_until_item(at));
         }
-        if let Some(to) = plan.waypoint(&leg.to) {
-            push(waypoint_item(to.position, leg.wait_secs.unwrap_or(0.0)));
-        }
+        push(waypoint_item(to.position, leg.wait_secs.unwrap_or(0.0)));
     }
     let polygons: Vec<Value> = plan
         .no_go_areas()
@@ -81,12 +79,10 @@ pub fn export(plan: &Plan) -> Exported {
 /// The waypoints the route passes, in order: the first leg's start and each leg's end; a plan
 /// without legs, its waypoints.
 fn route_stops(plan: &Plan) -> Vec<&Waypoint> {
-    match plan.legs.first() {
-        Some(first) => std::iter::once(&first.from)
-            .chain(plan.legs.iter().map(|leg| &leg.to))
-            .filter_map(|name| plan.waypoint(name))
-            .collect(),
-        None => plan.waypoints.iter().collect(),
+    if plan.legs.is_empty() {
+        plan.waypoints.iter().collect()
+    } else {
+        plan.route()
     }
 }
 
