@@ -94,7 +94,7 @@ pub(crate) fn check(
 
 /// The time `work` takes to give its result; freeing the result afterwards is not counted
 /// (tens of thousands of small strings take milliseconds to free, on both sides alike).
-fn time_ms<T>(work: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<f64> {
+pub(crate) fn time_ms<T>(work: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<f64> {
     let start = Instant::now();
     let result = work().context("one round")?;
     let elapsed = start.elapsed();
@@ -112,7 +112,7 @@ pub(crate) const SYSTEM: &str = r#"<system name="bench">
 
 /// A lawnmower sweep: rows of 100 waypoints 20 m apart, rows 20 m apart, so no leg is longer
 /// than 20 m; no-go areas sit between rows, where the legs pass beside them.
-fn plan_text(waypoints: usize) -> String {
+pub(crate) fn plan_text(waypoints: usize) -> String {
     let mut text = String::from(
         "<plan name=\"sweep\" system=\"system.xml\">\n<origin lat=\"43.5615\" lon=\"1.469\"/>\n\
          <navigation><module name=\"avoider\"/></navigation>\n",

@@ -19,6 +19,7 @@
 mod fields;
 pub mod foxglove;
 pub mod geo;
+mod json_positions;
 pub mod net;
 pub mod plan;
 pub mod planner;

@@ -148,7 +148,7 @@ enum Command {
         no_cache: bool,
     },
     /// Export a mission net or a plan to another format, or a recording's map as a ROS map.
-    #[command(group(clap::ArgGroup::new("format").required(true).args(["pnml", "gpx", "ros_map"])))]
+    #[command(group(clap::ArgGroup::new("format").required(true).args(["pnml", "gpx", "qgc", "kml", "ros_map"])))]
     Export {
         /// Write a mission (or a plan's net) as ISO/IEC 15909-2 PNML (a P/T net; our extra data
         /// in toolspecific elements).
@@ -157,6 +157,13 @@ enum Command {
         /// Write a plan's waypoints and route as GPX 1.1.
         #[arg(long)]
         gpx: bool,
+        /// Write a plan as a QGroundControl plan file (.plan: mission items, no-go areas as
+        /// geofences, rally points).
+        #[arg(long)]
+        qgc: bool,
+        /// Write a plan as KML 2.2 (Google Earth, ATAK): route, waypoints, areas, lines, units.
+        #[arg(long)]
+        kml: bool,
         /// Write a recording's last occupancy grid (the mapper's map) as a ROS map_server map:
         /// map.yaml and map.pgm in the folder given with -o.
         #[arg(long)]
@@ -167,19 +174,24 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
-    /// Import a PNML P/T net as a mission, or a GPX file (waypoints, routes, tracks) as a plan.
+    /// Import a PNML P/T net as a mission, or a GPX file (waypoints, routes, tracks) or a
+    /// QGroundControl plan file (.plan) as a plan.
     Import {
-        /// The PNML or GPX file.
+        /// The PNML, GPX or QGC plan file.
         file: PathBuf,
         /// The mission or plan file to write.
         #[arg(short, long)]
         output: PathBuf,
-        /// For GPX: the system file the plan runs (relative to the plan).
+        /// For GPX and QGC: the system file the plan runs (relative to the plan).
         #[arg(long, default_value = "system.xml")]
         system: String,
-        /// For GPX: the world file the plan is drawn on (default: the system's).
+        /// For GPX and QGC: the world file the plan is drawn on (default: the system's).
         #[arg(long)]
         world: Option<String>,
+        /// For GPX and QGC: the plan's start (RFC 3339, UTC: 2026-11-23T08:00:00Z); a QGC delay
+        /// until a time of day becomes an appointment on that day (dropped without it).
+        #[arg(long)]
+        start: Option<String>,
     },
     /// Publish a recording (an MCAP file of armor-mod-recorder) again, with its timing.
     Replay {
@@ -337,7 +349,9 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Command::Export {
             pnml,
-            gpx: _,
+            gpx,
+            qgc,
+            kml: _,
             ros_map: false,
             file,
             output,
@@ -360,18 +374,34 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 };
                 armor_model::net::to_pnml(&net)
             } else {
-                match armor_model::plan::Plan::parse(&text) {
-                    Ok(plan) => armor_model::plan::gpx::export(&plan),
+                let plan = match armor_model::plan::Plan::parse(&text) {
+                    Ok(plan) => plan,
                     Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
+                };
+                if gpx {
+                    armor_model::plan::gpx::export(&plan)
+                } else if qgc {
+                    let exported = armor_model::plan::qgc::export(&plan);
+                    for what in &exported.dropped {
+                        eprintln!(
+                            "{}: warning: not carried by a QGC plan: {what}",
+                            file.display()
+                        );
+                    }
+                    exported.text
+                } else {
+                    armor_model::plan::kml::export(&plan)
                 }
             };
             armor_runtime::fs::write_atomically(&output, written.as_bytes())
                 .with_context(|| format!("cannot write {}", output.display()))?;
-            println!(
-                "{}: {} written",
-                output.display(),
-                if pnml { "PNML" } else { "GPX" }
-            );
+            let format = match (pnml, gpx, qgc) {
+                (true, _, _) => "PNML",
+                (_, true, _) => "GPX",
+                (_, _, true) => "QGC plan",
+                _ => "KML",
+            };
+            println!("{}: {format} written", output.display());
             Ok(ExitCode::SUCCESS)
         }
         Command::Import {
@@ -379,25 +409,52 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             output,
             system,
             world,
+            start,
         } => {
             let text = read_text(&file)?;
             let is_gpx = armor_module_api::xml::parse(&text)
                 .is_ok_and(|root| root.name.rsplit(':').next() == Some("gpx"));
-            let (written, summary) = if is_gpx {
+            // A QGC plan is JSON: an object, or a file named `.plan` whatever it holds.
+            let is_qgc = text.trim_start().starts_with('{')
+                || file.extension().is_some_and(|ext| ext == "plan");
+            let start_unix_secs = start
+                .map(|date| armor_model::net::parse_rfc3339(&date))
+                .transpose()
+                .map_err(|err| anyhow::anyhow!("--start: {err}"))?;
+            let (written, summary) = if is_gpx || is_qgc {
                 let name = output
                     .file_stem()
                     .map(|stem| stem.to_string_lossy().into_owned())
                     .unwrap_or_else(|| "plan".into());
-                let mut plan = match armor_model::plan::gpx::import(&text, &name, &system) {
+                let imported = if is_gpx {
+                    armor_model::plan::gpx::import(&text, &name, &system)
+                } else {
+                    armor_model::plan::qgc::import(&text, &name, &system, start_unix_secs).map(
+                        |imported| {
+                            print_warnings(&file, &imported.warnings);
+                            imported.plan
+                        },
+                    )
+                };
+                let mut plan = match imported {
                     Ok(plan) => plan,
                     Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
                 };
                 plan.world = world.unwrap_or_default();
+                plan.start_unix_secs = plan.start_unix_secs.or(start_unix_secs);
+                let areas = plan
+                    .graphics
+                    .iter()
+                    .filter(|graphic| {
+                        matches!(graphic.kind, armor_model::plan::GraphicKind::Area(_))
+                    })
+                    .count();
                 let summary = format!(
-                    "plan `{}` written ({}, {})",
+                    "plan `{}` written ({}, {}, {})",
                     plan.name,
                     plural(plan.waypoints.len(), "waypoint"),
-                    plural(plan.legs.len(), "leg")
+                    plural(plan.legs.len(), "leg"),
+                    plural(areas, "area")
                 );
                 (plan.to_xml(), summary)
             } else {

@@ -188,12 +188,12 @@ fn local(name: &str) -> &str {
 
 /// Identifiers made from free text, each given once.
 #[derive(Default)]
-struct Names {
+pub(super) struct Names {
     used: BTreeSet<String>,
 }
 
 impl Names {
-    fn identifier(&mut self, text: &str, fallback: &str) -> String {
+    pub(super) fn identifier(&mut self, text: &str, fallback: &str) -> String {
         let mut base: String = text
             .trim()
             .chars()
@@ -255,13 +255,10 @@ pub fn export(plan: &Plan) -> String {
     for waypoint in &plan.waypoints {
         write_point(&mut out, "wpt", waypoint, "  ");
     }
-    if let Some(first) = plan.legs.first() {
+    if !plan.legs.is_empty() {
         let _ = writeln!(out, "  <rte>\n    <name>{}</name>", escape(&plan.name));
-        let stops = std::iter::once(&first.from).chain(plan.legs.iter().map(|leg| &leg.to));
-        for stop in stops {
-            if let Some(waypoint) = plan.waypoint(stop) {
-                write_point(&mut out, "rtept", waypoint, "    ");
-            }
+        for waypoint in plan.route() {
+            write_point(&mut out, "rtept", waypoint, "    ");
         }
         out.push_str("  </rte>\n");
     }

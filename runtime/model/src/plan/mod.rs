@@ -30,8 +30,9 @@
 //! `blocked`, a module `failed`, or the robot is `late`: `skip` the rest of the leg, `hold` for
 //! the operator (who may retry or skip), `return` to a waypoint and end there, or (`late` only)
 //! `continue`. An action `throughout` runs from start to end (a recorder). The schema is
-//! `assets/schema/plan.xsd`; [`compile`] makes the net and [`gpx`] exchanges waypoints and
-//! routes with GIS tools.
+//! `assets/schema/plan.xsd`; [`compile`] makes the net, [`gpx`] exchanges waypoints and
+//! routes with GIS tools, [`qgc`] plans with ground stations (QGroundControl's plan files) and
+//! [`kml`] writes the plan for Google Earth and ATAK (what each carries: `docs/interchange.md`).
 //!
 //! Every leg is planned on the world ([`crate::planner`]): the robot, a disc of
 //! `robot_radius_m` (the system's simulator's or avoider's `robot_radius_m` unless the plan
@@ -43,6 +44,8 @@ use armor_module_api::xml::Pos;
 
 mod compile;
 pub mod gpx;
+pub mod kml;
+pub mod qgc;
 mod xml;
 
 pub use crate::geo::LatLon;
@@ -300,6 +303,25 @@ impl Plan {
         self.waypoints.iter().find(|waypoint| waypoint.name == name)
     }
 
+    /// The waypoints the route passes, in order: the first leg's start, then each leg's end
+    /// (for a plan [`Plan::parse`] accepts, one more than its legs); none without legs. The
+    /// names are looked up in a map: a plan of 10,000 legs takes no longer than its size.
+    pub fn route(&self) -> Vec<&Waypoint> {
+        let Some(first) = self.legs.first() else {
+            return Vec::new();
+        };
+        let mut by_name: std::collections::HashMap<&str, &Waypoint> =
+            std::collections::HashMap::with_capacity(self.waypoints.len());
+        for waypoint in &self.waypoints {
+            // The first of a name, as `waypoint` finds it.
+            by_name.entry(waypoint.name.as_str()).or_insert(waypoint);
+        }
+        std::iter::once(&first.from)
+            .chain(self.legs.iter().map(|leg| &leg.to))
+            .filter_map(|name| by_name.get(name.as_str()).copied())
+            .collect()
+    }
+
     /// The no-go areas.
     pub fn no_go_areas(&self) -> impl Iterator<Item = &Graphic> {
         self.graphics
@@ -315,12 +337,17 @@ impl Plan {
             .find(|contingency| &contingency.trigger == trigger)
     }
 
+    /// The plan's contingencies, then each leg's.
+    pub fn every_contingency(&self) -> impl Iterator<Item = &Contingency> {
+        self.contingencies
+            .iter()
+            .chain(self.legs.iter().flat_map(|leg| &leg.contingencies))
+    }
+
     /// Every module whose failure some contingency handles, sorted, once each.
     pub fn failure_modules(&self) -> Vec<String> {
         let mut modules: Vec<String> = self
-            .contingencies
-            .iter()
-            .chain(self.legs.iter().flat_map(|leg| &leg.contingencies))
+            .every_contingency()
             .filter_map(|contingency| match &contingency.trigger {
                 Trigger::Failed { module } => Some(module.clone()),
                 _ => None,
