@@ -530,7 +530,7 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     wait_until("the run's processes to end", PATIENCE, || {
         armor_tests::children_of(studio.pid()).is_empty()
     });
-    let modules = "300x700+0+45";
+    let modules = "300x745+0+45";
     let text = ocr_until(
         display,
         "4-stopped",
