@@ -179,3 +179,66 @@ fn a_plan_run_shows_its_progress_ends_with_its_legs_and_leaves_a_folder() {
     );
     assert!(made[1].join("yard-recon.mcap").is_file());
 }
+
+/// What a terminal showed of `armor ARGS…` (run under `script` with the workspace's modules).
+fn on_a_terminal(args: &str, typescript: &Path) -> (std::process::ExitStatus, Vec<String>) {
+    let command = format!("stty rows 50 cols 200; {} {args}", bin("armor").display());
+    let mut run = Proc::start(
+        Command::new("script")
+            .args(["-qfec", &command])
+            .arg(typescript)
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .current_dir(workspace_root()),
+    );
+    let status = run.wait_exit(Duration::from_secs(60));
+    (status, screen_lines(typescript))
+}
+
+#[test]
+fn long_commands_say_what_they_do_on_a_terminal_and_print_only_their_result_when_piped() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan = workspace_root().join("missions/robot/plan-warehouse.xml");
+    let (status, screen) = on_a_terminal(
+        &format!("check {}", plan.display()),
+        &dir.path().join("check"),
+    );
+    assert!(status.success(), "{}", screen.join("\n"));
+    assert!(
+        screen
+            .iter()
+            .any(|line| line.contains("checking ") && line.contains("planning each leg")),
+        "{}",
+        screen.join("\n")
+    );
+    assert!(screen.iter().any(|line| line.ends_with("reachable)")));
+
+    let modules = bin_dir();
+    let (status, screen) = on_a_terminal(
+        &format!("probe --no-cache {}", modules.display()),
+        &dir.path().join("probe"),
+    );
+    assert!(status.success(), "{}", screen.join("\n"));
+    let count = armor_runtime::probe::list_modules(std::slice::from_ref(&modules)).len();
+    assert!(
+        screen
+            .iter()
+            .any(|line| line.contains(&format!("describing {count} module binaries"))),
+        "{}",
+        screen.join("\n")
+    );
+
+    // Piped, only the result.
+    let mut piped = Proc::start(
+        Command::new(bin("armor"))
+            .arg("check")
+            .arg(&plan)
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .current_dir(workspace_root()),
+    );
+    assert!(piped.wait_exit(Duration::from_secs(60)).success());
+    let lines = piped.lines();
+    assert!(
+        !lines.iter().any(|line| line.contains("checking ")),
+        "{lines:?}"
+    );
+}

@@ -212,8 +212,24 @@ pub fn run_benches(
     }
     let mut stdout = std::io::stdout().lock();
     let mut failed = 0;
+    // Which benchmark runs, on standard error when it is a terminal (the figures go to
+    // standard output, one JSON line each).
+    let progress = indicatif::ProgressBar::with_draw_target(
+        Some(selected.len() as u64),
+        indicatif::ProgressDrawTarget::stderr_with_hz(4),
+    );
+    progress.set_style(
+        indicatif::ProgressStyle::with_template("{pos}/{len} {msg} ({elapsed})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    if !progress.is_hidden() {
+        progress.enable_steady_tick(std::time::Duration::from_millis(250));
+    }
     for bench in selected {
-        match (bench.run)(&settings) {
+        progress.set_message(bench.name);
+        let outcome = (bench.run)(&settings);
+        progress.inc(1);
+        progress.suspend(|| match outcome {
             Ok(report) => {
                 let line = serde_json::to_string(&report).unwrap_or_default();
                 let _ = writeln!(stdout, "{line}");
@@ -223,8 +239,9 @@ pub fn run_benches(
                 eprintln!("error: benchmark {}: {err:#}", bench.name);
                 failed += 1;
             }
-        }
+        });
     }
+    progress.finish_and_clear();
     if failed > 0 {
         eprintln!("error: {failed} benchmark(s) failed");
         return ExitCode::FAILURE;

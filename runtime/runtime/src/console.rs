@@ -115,3 +115,37 @@ impl Drop for EventWriter {
         }
     }
 }
+
+/// A spinner on standard error while long work goes on (only on a terminal), with what is
+/// being done and the time it has taken; log lines are written above it. Cleared when dropped.
+pub struct Spinner(indicatif::ProgressBar);
+
+impl Spinner {
+    pub fn start(message: impl Into<std::borrow::Cow<'static, str>>) -> Spinner {
+        let bar =
+            ProgressBar::with_draw_target(None, indicatif::ProgressDrawTarget::stderr_with_hz(10));
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+        );
+        bar.set_message(message);
+        if !bar.is_hidden() {
+            bar.tick();
+            bar.enable_steady_tick(std::time::Duration::from_millis(100));
+            show_bar(Some(bar.clone()));
+        }
+        Spinner(bar)
+    }
+
+    /// Says what is being done now.
+    pub fn set(&self, message: impl Into<std::borrow::Cow<'static, str>>) {
+        self.0.set_message(message);
+    }
+}
+
+impl Drop for Spinner {
+    fn drop(&mut self) {
+        show_bar(None);
+        self.0.finish_and_clear();
+    }
+}

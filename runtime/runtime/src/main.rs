@@ -562,29 +562,41 @@ fn print_warnings(file: &std::path::Path, warnings: &[armor_module_api::xml::Loc
 
 fn check(file: &std::path::Path) -> ExitCode {
     let module_path = probe::module_path();
+    // A large plan takes a while: every leg is planned and the net's states explored.
+    let spinner = armor_runtime::console::Spinner::start(format!(
+        "checking {}: describing the modules, planning each leg, exploring the net",
+        file.display()
+    ));
     let summary = match mission::document_kind(file) {
         Ok(mission::DocumentKind::System) => load::load_system(file, &module_path).map(|loaded| {
-            format!(
-                "system `{}`: {}, {}",
-                loaded.system.name,
-                plural(loaded.system.modules.len(), "module"),
-                plural(loaded.system.links.len(), "link")
+            (
+                format!(
+                    "system `{}`: {}, {}",
+                    loaded.system.name,
+                    plural(loaded.system.modules.len(), "module"),
+                    plural(loaded.system.links.len(), "link")
+                ),
+                Vec::new(),
             )
         }),
         Ok(_) => mission::load_mission(file, &module_path).map(|mission| {
-            print_warnings(file, mission.warnings());
-            format!(
-                "mission `{}`: {}, {}, {} reachable",
-                mission.net.name,
-                plural(mission.net.places.len(), "place"),
-                plural(mission.net.transitions.len(), "transition"),
-                plural(mission.states, "marking")
+            (
+                format!(
+                    "mission `{}`: {}, {}, {} reachable",
+                    mission.net.name,
+                    plural(mission.net.places.len(), "place"),
+                    plural(mission.net.transitions.len(), "transition"),
+                    plural(mission.states, "marking")
+                ),
+                mission.warnings().to_vec(),
             )
         }),
         Err(diagnostics) => Err(diagnostics),
     };
+    drop(spinner);
     match summary {
-        Ok(summary) => {
+        Ok((summary, warnings)) => {
+            print_warnings(file, &warnings);
             println!("{}: ok ({summary})", file.display());
             ExitCode::SUCCESS
         }
@@ -618,11 +630,22 @@ fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration, cached: bool
         return ExitCode::FAILURE;
     }
     let mut failed = false;
+    let spinner = armor_runtime::console::Spinner::start(format!(
+        "describing {} module {} (each answers within {} s)",
+        binaries.len(),
+        if binaries.len() == 1 {
+            "binary"
+        } else {
+            "binaries"
+        },
+        timeout.as_secs_f64()
+    ));
     let results = if cached {
         probe::probe_all_cached(&binaries, timeout)
     } else {
         probe::probe_all(&binaries, timeout)
     };
+    drop(spinner);
     for (binary, result) in results {
         match result {
             Ok(description) if xml => print!("{}", description.to_xml()),
