@@ -36,12 +36,17 @@ pub fn spec() -> ModuleSpec {
         "image",
         "the view, stamped with the run time it shows, in the encoding chosen",
     )
-    .param(ParamSpec::new(
-        "world",
-        ParamType::String,
-        "the world file, found as the sim finds it (give the sim's): tried as given, then as \
-         assets/worlds/WORLD under the current directory, adding `.world` if it has no extension",
-    ))
+    .param(
+        ParamSpec::new(
+            "world",
+            ParamType::String,
+            "the world file, found as the sim finds it (give the sim's): armor run hands the \
+             module the file found next to the system file, in the module path or under \
+             assets/worlds/; run alone, tried as given, then under assets/worlds/ of the current \
+             directory, adding `.world` if it has no extension",
+        )
+        .file("worlds"),
+    )
     .param(
         ParamSpec::new(
             "obstacles",
