@@ -19,6 +19,7 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use crate::behaviour::{self, Behaviours};
 use armor_module_api::auth::{Admit, Listen, Secret};
 use armor_module_api::protocol::{FromSupervisor, ModuleConfig, NodeStats, ToSupervisor};
 use armor_module_api::wire::blocking::{SecureStream, SecureWriter};
@@ -93,6 +94,8 @@ struct State {
     overrides: BTreeMap<String, bool>,
     /// What each module last said of its work (with its answers to pings).
     stats: HashMap<String, NodeStats>,
+    /// What behaviours and arbiters said, the states that follow and their time line.
+    behaviours: Behaviours,
 }
 
 impl State {
@@ -115,6 +118,31 @@ impl State {
                 .copied()
                 .unwrap_or(!self.control.inactive.contains(module));
         Some(config)
+    }
+
+    /// A behaviour's or an arbiter's word (`Applicable`, `Winner`, or either in a pong's
+    /// stats), and the states that follow.
+    fn note_behaviour(&mut self, module: &str, applicable: Option<bool>, winner: Option<Winner>) {
+        if let Some(applicable) = applicable {
+            self.behaviours.set_applicable(module, applicable);
+        }
+        if let Some(winner) = winner {
+            let publisher = winner.and_then(|input| {
+                let conn = self.conns.get(module)?;
+                Some(behaviour::publisher(conn.sent.inputs.get(&input)?).to_owned())
+            });
+            self.behaviours.set_winner(module, publisher);
+        }
+        self.update_behaviours();
+    }
+
+    fn update_behaviours(&mut self) {
+        let active = self
+            .conns
+            .iter()
+            .map(|(name, conn)| (name.clone(), conn.sent.active))
+            .collect();
+        self.behaviours.update(&active, Instant::now());
     }
 
     /// Sends every connected module whose configuration changed its new one (and a start or
@@ -170,9 +198,13 @@ impl State {
             conn.sent = config;
         }
         updated.sort();
+        self.update_behaviours();
         updated
     }
 }
+
+/// An arbiter's winning input, as said (`Some(None)`: none wins).
+type Winner = Option<String>;
 
 #[derive(Clone)]
 pub struct ConfigServer {
@@ -202,6 +234,7 @@ impl ConfigServer {
                 next_conn_id: 0,
                 overrides: BTreeMap::new(),
                 stats: HashMap::new(),
+                behaviours: Behaviours::default(),
             })),
             events,
             addr: listener.local_addr()?,
@@ -310,6 +343,8 @@ impl ConfigServer {
             {
                 state.conns.remove(&module);
                 state.stats.remove(&module);
+                state.behaviours.forget(&module);
+                state.update_behaviours();
                 drop(state);
                 let _ = self.events.send(ServerEvent::Disconnected { module });
             }
@@ -379,8 +414,19 @@ impl ConfigServer {
                 },
                 ToSupervisor::Pong { stats } => {
                     if let Some(stats) = stats {
-                        self.lock().stats.insert(name.clone(), stats);
+                        let mut state = self.lock();
+                        let winner = stats.winner.clone().map(Some);
+                        state.note_behaviour(&name, stats.applicable, winner);
+                        state.stats.insert(name.clone(), stats);
                     }
+                    continue;
+                }
+                ToSupervisor::Applicable { applicable } => {
+                    self.lock().note_behaviour(&name, Some(applicable), None);
+                    continue;
+                }
+                ToSupervisor::Winner { input } => {
+                    self.lock().note_behaviour(&name, None, Some(input));
                     continue;
                 }
                 ToSupervisor::Hello { .. } => continue,
@@ -454,6 +500,11 @@ impl ConfigServer {
                 )
             })
             .collect()
+    }
+
+    /// Behaviour states, arbiters' winners and the time line of state changes.
+    pub fn behaviours(&self) -> Behaviours {
+        self.lock().behaviours.clone()
     }
 
     /// What each module last said of its work.

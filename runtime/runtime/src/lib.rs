@@ -5,6 +5,7 @@
 //! these. Nothing here knows egui.
 
 pub mod agent;
+pub mod behaviour;
 pub mod config_server;
 pub mod control;
 pub mod controller;

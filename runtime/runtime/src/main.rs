@@ -579,6 +579,12 @@ fn status_text(status: &control::Status) -> String {
         if let Some(exit) = &module.last_exit {
             let _ = write!(out, " (last {exit})");
         }
+        if let Some(behaviour) = module.behaviour {
+            let _ = write!(out, ", behaviour {}", behaviour.as_str());
+        }
+        if let Some(winner) = &module.winner {
+            let _ = write!(out, ", in control: {winner}");
+        }
         out.push('\n');
     }
     if let Some(mission) = &status.mission {

@@ -445,6 +445,7 @@ fn run_status(
     let loaded = server.loaded();
     let activity = server.activity();
     let mut stats = server.stats();
+    let behaviours = server.behaviours();
     let modules = modules
         .values()
         .map(|module| {
@@ -473,7 +474,17 @@ fn run_status(
                 restarts: module.restarts,
                 last_exit: module.last_exit.clone(),
                 stats: stats.remove(&module.name),
+                behaviour: behaviours.states().get(&module.name).copied(),
+                winner: behaviours.winners().get(&module.name).cloned(),
             }
+        })
+        .collect();
+    let behaviour_changes = behaviours
+        .changes()
+        .map(|change| control::BehaviourChange {
+            run_secs: clock.at(change.at),
+            module: change.module.clone(),
+            state: change.state,
         })
         .collect();
     control::Status {
@@ -483,6 +494,7 @@ fn run_status(
         agent: env.agent_addr.to_string(),
         modules,
         mission: controller.map(Controller::status),
+        behaviour_changes,
     }
 }
 
