@@ -250,6 +250,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     follower.world = world;
     let mut next_tick = node.timestamp() + TICK_SECS;
     let mut path_sent = f64::NEG_INFINITY;
+    let mut applicable = true;
     loop {
         let event = if node.is_active() {
             let deadline = node.clock().instant_at(next_tick);
@@ -268,7 +269,14 @@ pub fn body(node: &mut Node) -> BodyResult {
                         send_path(node, &path_output, &follower)?;
                         path_sent = node.timestamp();
                     }
-                    node.send(&output, &control.twist)?;
+                    // A behaviour proposes only while it applies (until the goal is reached),
+                    // and says so; its last proposal is the zero of arrival.
+                    let applied = applicable;
+                    applicable = !follower.reached;
+                    node.set_applicable(applicable);
+                    if applicable || applied {
+                        node.send(&output, &control.twist)?;
+                    }
                     if let Some(event) = control.report {
                         node.report(event)?;
                     }
@@ -293,6 +301,7 @@ pub fn body(node: &mut Node) -> BodyResult {
             Event::Start => {
                 tracing::info!("active: heading for the goal");
                 follower.restart(node.timestamp());
+                applicable = true;
                 next_tick = node.timestamp() + TICK_SECS;
                 send_path(node, &path_output, &follower)?;
                 path_sent = node.timestamp();
@@ -1083,15 +1092,16 @@ mod tests {
         ]);
         body(bench.node()).expect("body");
         let sent = sent(&bench);
-        assert_eq!(sent.len(), 5);
+        assert_eq!(sent.len(), 3, "nothing proposed once the goal is reached");
         assert!((sent[0].linear_mps - 0.6).abs() < 1e-9, "{:?}", sent[0]);
         assert!(sent[0].angular_radps.abs() < 1e-9);
         assert!(
             sent[1].linear_mps > 0.0 && sent[1].linear_mps < sent[0].linear_mps,
             "slows down near the goal: {sent:?}"
         );
-        assert_eq!(sent[2..], [Twist::default(); 3]);
+        assert_eq!(sent[2], Twist::default());
         assert_eq!(bench.reported(), ["goal_reached"]);
+        assert_eq!(bench.behaviour(), ["applicable", "not applicable"]);
     }
 
     #[test]
@@ -1134,9 +1144,10 @@ mod tests {
         ]);
         body(bench.node()).expect("body");
         let sent = sent(&bench);
-        assert_eq!(sent[..2], [Twist::default(); 2]);
-        assert!(sent[2].linear_mps > 0.5, "drives to the new goal: {sent:?}");
-        assert_eq!(sent[3], Twist::default());
+        // Arrived at once: one zero, then nothing proposed until the new goal.
+        assert_eq!(sent[0], Twist::default());
+        assert!(sent[1].linear_mps > 0.5, "drives to the new goal: {sent:?}");
+        assert_eq!(sent[2..], [Twist::default()]);
         assert_eq!(bench.reported(), ["goal_reached", "goal_reached"]);
     }
 
@@ -1149,7 +1160,7 @@ mod tests {
             at(1.9, 0.0, 0.0),
         ]);
         body(bench.node()).expect("a bad value does not end the module");
-        assert_eq!(sent(&bench), [Twist::default(); 2]);
+        assert_eq!(sent(&bench), [Twist::default()], "nothing once arrived");
         assert_eq!(bench.reported(), ["goal_reached"]);
     }
 
