@@ -30,10 +30,10 @@
 
 pub mod avoider;
 pub mod follower;
-pub mod stop;
-pub mod vff;
 pub(crate) mod pursuit;
 pub(crate) mod replan;
+pub mod stop;
+pub mod vff;
 
 use armor_module_api::types::Twist;
 

@@ -15,7 +15,10 @@ pub fn spec() -> ModuleSpec {
     )
     .category(armor_module_api::Category::Navigation)
     .version(env!("CARGO_PKG_VERSION"))
-    .output::<Twist>("cmd_vel", "zero, rate_hz times per second of run time while active")
+    .output::<Twist>(
+        "cmd_vel",
+        "zero, rate_hz times per second of run time while active",
+    )
     .param(
         ParamSpec::new(
             "rate_hz",
@@ -65,7 +68,12 @@ mod tests {
     #[test]
     fn always_applies_while_active_and_proposes_zero() {
         let mut bench = TestBench::new(&spec(), &[]).expect("bench");
-        bench.script([Step::Timeouts(3), Step::Active(false), Step::Active(true), Step::Timeouts(1)]);
+        bench.script([
+            Step::Timeouts(3),
+            Step::Active(false),
+            Step::Active(true),
+            Step::Timeouts(1),
+        ]);
         body(bench.node()).expect("body");
         assert_eq!(
             bench.sent::<Twist>("cmd_vel").expect("sent"),

@@ -248,9 +248,15 @@ impl Vff {
                 SECTOR_RGBA,
                 [
                     (0.0, 0.0),
-                    (settings.enter_m * FRONT_RAD.cos(), settings.enter_m * FRONT_RAD.sin()),
+                    (
+                        settings.enter_m * FRONT_RAD.cos(),
+                        settings.enter_m * FRONT_RAD.sin(),
+                    ),
                     (settings.enter_m, 0.0),
-                    (settings.enter_m * FRONT_RAD.cos(), -settings.enter_m * FRONT_RAD.sin()),
+                    (
+                        settings.enter_m * FRONT_RAD.cos(),
+                        -settings.enter_m * FRONT_RAD.sin(),
+                    ),
                 ],
             )
             .with_text("vff front"),

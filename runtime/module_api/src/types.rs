@@ -288,8 +288,13 @@ mod tests {
     fn markers_encode_as_docs_protocol_md_says() {
         let markers = Markers {
             markers: vec![
-                Marker::new(Shape::Arrows, Frame::Robot, [255, 0, 0, 128], [(0.0, 0.0), (1.5, -0.5)])
-                    .with_text("f"),
+                Marker::new(
+                    Shape::Arrows,
+                    Frame::Robot,
+                    [255, 0, 0, 128],
+                    [(0.0, 0.0), (1.5, -0.5)],
+                )
+                .with_text("f"),
             ],
         };
         let mut out = Vec::new();

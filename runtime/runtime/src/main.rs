@@ -281,7 +281,12 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 CtlCommand::Fire { transition } => control::Request::Fire { transition },
             };
             let reply = control::request(addr, &request, secret.as_ref())?;
-            println!("{}", reply.message);
+            // With --json, stdout is the JSON alone (for jq and scripts).
+            if json {
+                eprintln!("{}", reply.message);
+            } else {
+                println!("{}", reply.message);
+            }
             match reply.status {
                 Some(status) if json => println!("{}", serde_json::to_string_pretty(&status)?),
                 Some(status) => print!("{}", status_text(&status)),
