@@ -13,9 +13,11 @@ use std::time::Duration;
 
 use armor_model::SystemConfig;
 use armor_model::world::Point;
-use armor_module_api::types::{LaserScan, OccupancyGrid, Odometry, Pose2D, Text};
+use armor_module_api::types::{LaserScan, Markers, OccupancyGrid, Odometry, Pose2D, Text};
 use armor_module_api::{Datum, Event, ModuleDescription, ModuleSpec, Node, Standalone};
 
+use super::inspector::Outputs;
+use super::markers::Layers;
 use super::untrusted::{self, Refused, Timeline};
 
 /// The studio node's name, as the agent and the providers' logs show it.
@@ -41,6 +43,8 @@ pub struct Sources {
     pub grid: Option<String>,
     /// The path the navigation follows (the follower's `path` output, `Text`).
     pub path: Option<String>,
+    /// Every output (data name, data type), for the inspector and the markers' layers.
+    pub outputs: Vec<(String, String)>,
 }
 
 impl Sources {
@@ -79,11 +83,16 @@ impl Sources {
             path: find(&|module_type, name, data_type| {
                 module_type == "follower" && data_type == "Text" && name.ends_with(".path")
             }),
+            outputs: outputs
+                .into_iter()
+                .map(|(_, name, data_type)| (name, data_type))
+                .collect(),
         }
     }
 
+    /// Every data name to subscribe to, once each.
     fn names(&self) -> impl Iterator<Item = &String> {
-        [
+        let mut names: Vec<&String> = [
             &self.estimated,
             &self.truth,
             &self.scan,
@@ -92,6 +101,19 @@ impl Sources {
         ]
         .into_iter()
         .flatten()
+        .chain(self.outputs.iter().map(|(name, _)| name))
+        .collect();
+        names.sort();
+        names.dedup();
+        names.into_iter()
+    }
+
+    /// The data type of an output, as the system declares it.
+    fn data_type(&self, data_name: &str) -> Option<&str> {
+        self.outputs
+            .iter()
+            .find(|(name, _)| name == data_name)
+            .map(|(_, data_type)| data_type.as_str())
     }
 }
 
@@ -113,6 +135,10 @@ pub struct LiveData {
     /// The last sample that was not taken, and why (`mapper.grid: …`); the view keeps showing
     /// the last good one of that source.
     pub refused: Option<String>,
+    /// Every output's recent samples, for the inspector.
+    pub outputs: Outputs,
+    /// Each module's latest markers.
+    pub markers: Layers,
 }
 
 impl LiveData {
@@ -123,7 +149,15 @@ impl LiveData {
     pub fn take(&mut self, sources: &Sources, data_name: &str, payload: &[u8]) {
         let is = |source: &Option<String>| source.as_deref() == Some(data_name);
         self.samples += 1;
-        let taken = if is(&sources.truth) {
+        let data_type = sources.data_type(data_name);
+        if let Some(data_type) = data_type {
+            self.outputs.take(data_name, data_type, payload);
+        }
+        let taken = if data_type == Some(Markers::TYPE) {
+            Markers::decode(payload)
+                .map_err(|err| err.to_string())
+                .and_then(|markers| self.markers.take(data_name, markers))
+        } else if is(&sources.truth) {
             checked(Pose2D::decode(payload), untrusted::check_pose).map(|pose| {
                 self.trail_to(&pose);
                 self.truth = Some(pose);
@@ -349,6 +383,15 @@ impl Recording {
             scan: first_of(&|m| m.data_type == "LaserScan"),
             grid: first_of(&|m| m.data_type == "OccupancyGrid"),
             path: first_of(&|m| m.data_type == "Text" && m.data_name.ends_with(".path")),
+            outputs: {
+                let mut channels: Vec<(String, String)> = messages
+                    .iter()
+                    .map(|m| (m.data_name.clone(), m.data_type.clone()))
+                    .collect();
+                channels.sort();
+                channels.dedup();
+                channels
+            },
         };
         let mut recording = Recording {
             file: file.to_path_buf(),

@@ -9,12 +9,14 @@
 //! filterable. A recording of the recorder opens into the same map.
 
 pub mod followed;
+pub mod inspector;
 pub mod live;
+pub mod markers;
 pub mod monitor;
 pub mod session;
 pub mod untrusted;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -94,6 +96,10 @@ pub struct RunView {
     max_replans: Option<u32>,
     /// The follower's paths of the current leg, as drawn at the last frame.
     followed: FollowedLeg,
+    /// Modules whose markers' layer the user switched off.
+    pub hidden_markers: BTreeSet<String>,
+    /// The output the inspector shows.
+    pub inspected: Option<String>,
 }
 
 impl RunView {
@@ -121,6 +127,8 @@ impl RunView {
             messages: Vec::new(),
             max_replans: None,
             followed: FollowedLeg::default(),
+            hidden_markers: BTreeSet::new(),
+            inspected: None,
         }
     }
 
@@ -407,7 +415,10 @@ impl RunView {
                     .show(ui, |ui| self.teleop_ui(ui));
                 egui::ScrollArea::vertical()
                     .id_salt("run-mission-scroll")
-                    .show(ui, |ui| self.mission_ui(ui, status.as_ref()));
+                    .show(ui, |ui| {
+                        self.mission_ui(ui, status.as_ref());
+                        self.views_ui(ui);
+                    });
             });
         egui::Panel::bottom("run-logs")
             .resizable(true)
@@ -542,6 +553,17 @@ impl RunView {
         for request in requests {
             self.request(request);
         }
+    }
+
+    /// Each module's own view: the switches of the markers' layers, and the inspector.
+    fn views_ui(&mut self, ui: &mut Ui) {
+        let live = self.live();
+        ui.separator();
+        ui.heading("Markers");
+        markers::toggles_ui(ui, &live.markers, &mut self.hidden_markers);
+        ui.separator();
+        ui.heading("Inspect an output");
+        inspector::inspector_ui(ui, &live.outputs, &mut self.inspected);
     }
 
     fn mission_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {
@@ -811,6 +833,7 @@ impl RunView {
         let fit = std::mem::take(&mut self.fit_pending) || net_appeared;
         let follow = self.follow;
         let max_replans = self.max_replans;
+        let hidden = self.hidden_markers.clone();
         let watching = self.is_running() || self.recording.is_some();
         let mission = match (
             self.session.as_ref().map(|s| s.options.target.clone()),
@@ -869,6 +892,7 @@ impl RunView {
         }
         mission.watch_ui(ui, current_leg, |painter, project| {
             monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
+            markers::paint(painter, project, &live.markers, &hidden, live.scan_pose());
         });
         self.followed = followed;
     }

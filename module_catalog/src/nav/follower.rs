@@ -24,7 +24,9 @@
 use armor_model::geo::{self, Polygon};
 use armor_model::planner::{self, Keepout, Path, Robot};
 use armor_model::world::Point;
-use armor_module_api::types::{LaserScan, Odometry, Pose2D, Text, Twist};
+use armor_module_api::types::{
+    Frame, LaserScan, Marker, Markers, Odometry, Pose2D, Shape, Text, Twist,
+};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use super::pursuit::{Limits, Pursuit};
@@ -74,6 +76,11 @@ pub fn spec() -> ModuleSpec {
         "the path being followed, `X,Y X,Y ...` in metres: the planned one at each activation, \
          each new one after a replan, and the same again every second of run time while \
          active (for a display that subscribes late)",
+    )
+    .output::<Markers>(
+        "markers",
+        "what it follows, for the Run view's map: the path ahead (or the line to the goal or \
+         the next corner round a no-go area) and the goal, ten times a second of run time",
     )
     .output::<Twist>(
         "cmd_desired",
@@ -238,6 +245,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let scan = node.input::<LaserScan>("scan")?;
     let path_output = node.output::<Text>("path")?;
     let output = node.output::<Twist>("cmd_desired")?;
+    let markers_output = node.output::<Markers>("markers")?;
     let settings = Settings::read(node)?;
     let world = load_world(&settings.world)?;
     tracing::info!(
@@ -297,6 +305,7 @@ pub fn body(node: &mut Node) -> BodyResult {
                 if let Some(event) = follower.on_tick(now) {
                     node.report(event)?;
                 }
+                node.send(&markers_output, &follower.markers())?;
             }
             Event::Start => {
                 tracing::info!("active: heading for the goal");
@@ -557,6 +566,36 @@ impl Follower {
         self.blocked = false;
         self.best_distance_m = f64::INFINITY;
         self.last_progress = now;
+    }
+
+    /// What the follower follows, drawn: the path ahead of the robot (or the line to the
+    /// corner round a no-go area it heads for, then to the goal) and the goal.
+    fn markers(&self) -> Markers {
+        const PATH_RGBA: [u8; 4] = [30, 140, 60, 230];
+        const GOAL_RGBA: [u8; 4] = [30, 140, 60, 255];
+        let goal = self.settings.goal();
+        let mut markers = vec![
+            Marker::new(Shape::Points, Frame::World, GOAL_RGBA, [(goal.x, goal.y)]),
+            Marker::new(Shape::Text, Frame::World, GOAL_RGBA, [(goal.x, goal.y)])
+                .with_text(if self.reached { "goal (reached)" } else { "goal" }),
+        ];
+        if let Some(pose) = self.pose.filter(|_| !self.reached) {
+            let here = Point::new(pose.x_m, pose.y_m);
+            let ahead = match &self.pursuit {
+                Some(pursuit) => pursuit.ahead(here),
+                None => [Some(here), self.via, Some(goal)].into_iter().flatten().collect(),
+            };
+            let mut line = Marker::new(
+                Shape::Polyline,
+                Frame::World,
+                PATH_RGBA,
+                ahead.iter().map(|p| (p.x, p.y)),
+            )
+            .with_text("path ahead");
+            line.size_px = 3.0;
+            markers.push(line);
+        }
+        Markers { markers }
     }
 
     fn retune(&mut self, settings: Settings, now: f64) {
