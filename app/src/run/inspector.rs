@@ -79,7 +79,10 @@ impl Output {
             }
             "Pose2D" => {
                 let pose = Pose2D::decode(payload).map_err(err)?;
-                self.numbers(&["x m", "y m", "θ rad"], vec![pose.x_m, pose.y_m, pose.theta_rad]);
+                self.numbers(
+                    &["x m", "y m", "θ rad"],
+                    vec![pose.x_m, pose.y_m, pose.theta_rad],
+                );
             }
             "Odometry" => {
                 let odometry = Odometry::decode(payload).map_err(err)?;
@@ -131,7 +134,11 @@ impl Output {
                 self.summary = format!("{} markers: {}", markers.markers.len(), list.join(", "));
             }
             _ => {
-                let head: Vec<String> = payload.iter().take(16).map(|b| format!("{b:02x}")).collect();
+                let head: Vec<String> = payload
+                    .iter()
+                    .take(16)
+                    .map(|b| format!("{b:02x}"))
+                    .collect();
                 self.summary = format!("{} bytes: {}", payload.len(), head.join(" "));
             }
         }
@@ -171,7 +178,7 @@ fn grid_summary(payload: &[u8]) -> Result<String, String> {
 /// The list of outputs and the picked one, shown.
 pub fn inspector_ui(ui: &mut Ui, outputs: &Outputs, picked: &mut Option<String>) {
     let text = picked.as_deref().unwrap_or("pick an output");
-    egui::ComboBox::from_id_salt("inspect-output")
+    egui::ComboBox::from_label("output")
         .selected_text(text)
         .width(ui.available_width() - 8.0)
         .show_ui(ui, |ui| {
@@ -283,6 +290,9 @@ mod tests {
         for _ in 0..MAX_HISTORY + 5 {
             outputs.take("arbiter.cmd_vel", "Twist", &encoded(&twist));
         }
-        assert_eq!(outputs.by_name["arbiter.cmd_vel"].numbers.len(), MAX_HISTORY);
+        assert_eq!(
+            outputs.by_name["arbiter.cmd_vel"].numbers.len(),
+            MAX_HISTORY
+        );
     }
 }

@@ -28,7 +28,9 @@ impl Layers {
     /// coordinate that is not a number or lies beyond the Earth, refuse it whole.
     pub fn take(&mut self, data_name: &str, markers: Markers) -> Result<(), String> {
         check(&markers)?;
-        let module = data_name.split_once('.').map_or(data_name, |(module, _)| module);
+        let module = data_name
+            .split_once('.')
+            .map_or(data_name, |(module, _)| module);
         self.by_module.insert(module.to_owned(), Arc::new(markers));
         Ok(())
     }
@@ -56,20 +58,25 @@ fn check(markers: &Markers) -> Result<(), String> {
     Ok(())
 }
 
-/// Paints every layer not in `hidden`.
+/// Paints every layer not in `hidden`; returns how many markers of each module were drawn.
 pub fn paint(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     layers: &Layers,
     hidden: &BTreeSet<String>,
     robot: Option<&Pose2D>,
-) {
+) -> BTreeMap<String, usize> {
+    let mut drawn = BTreeMap::new();
     for (module, markers) in &layers.by_module {
         if hidden.contains(module) {
             continue;
         }
-        paint_markers(painter, project, markers, robot);
+        drawn.insert(
+            module.clone(),
+            paint_markers(painter, project, markers, robot),
+        );
     }
+    drawn
 }
 
 fn paint_markers(
@@ -77,7 +84,8 @@ fn paint_markers(
     project: &dyn Fn(Point) -> Pos2,
     markers: &Markers,
     robot: Option<&Pose2D>,
-) {
+) -> usize {
+    let mut drawn = 0;
     for marker in &markers.markers {
         let to_screen = |x: f32, y: f32| -> Option<Pos2> {
             let (x, y) = (f64::from(x), f64::from(y));
@@ -101,6 +109,7 @@ fn paint_markers(
         else {
             continue; // robot-frame markers before any pose
         };
+        drawn += 1;
         let [r, g, b, a] = marker.rgba;
         let colour = Color32::from_rgba_unmultiplied(r, g, b, a);
         let width = marker.size_px.clamp(0.5, 12.0);
@@ -141,6 +150,7 @@ fn paint_markers(
             }
         }
     }
+    drawn
 }
 
 /// The switch of each module's layer (checked: drawn), with how many markers it holds.
@@ -170,9 +180,19 @@ mod tests {
     #[test]
     fn layers_are_per_module_and_bad_samples_are_refused_whole() {
         let mut layers = Layers::default();
-        let line = Marker::new(Shape::Polyline, Frame::World, [1, 2, 3, 255], [(0.0, 0.0), (1.0, 1.0)]);
+        let line = Marker::new(
+            Shape::Polyline,
+            Frame::World,
+            [1, 2, 3, 255],
+            [(0.0, 0.0), (1.0, 1.0)],
+        );
         layers
-            .take("follower.markers", Markers { markers: vec![line.clone()] })
+            .take(
+                "follower.markers",
+                Markers {
+                    markers: vec![line.clone()],
+                },
+            )
             .unwrap();
         let mut bad = line.clone();
         bad.points.push(MarkerPoint {
@@ -189,7 +209,16 @@ mod tests {
             [0; 4],
             (0..=MAX_MARKER_POINTS).map(|i| (i as f64, 0.0)),
         );
-        assert!(layers.take("vff.markers", Markers { markers: vec![many] }).is_err());
+        assert!(
+            layers
+                .take(
+                    "vff.markers",
+                    Markers {
+                        markers: vec![many]
+                    }
+                )
+                .is_err()
+        );
         assert_eq!(layers.by_module.keys().collect::<Vec<_>>(), ["follower"]);
     }
 }

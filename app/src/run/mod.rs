@@ -13,6 +13,7 @@ pub mod inspector;
 pub mod live;
 pub mod markers;
 pub mod monitor;
+pub mod oscilloscope;
 pub mod session;
 pub mod untrusted;
 
@@ -100,6 +101,10 @@ pub struct RunView {
     pub hidden_markers: BTreeSet<String>,
     /// The output the inspector shows.
     pub inspected: Option<String>,
+    /// The moment the oscilloscope's time line is scrubbed to (`None`: now).
+    pub timeline_at: Option<f64>,
+    /// How many markers of each module the live map drew at the last frame (for tests).
+    pub markers_drawn: BTreeMap<String, usize>,
 }
 
 impl RunView {
@@ -129,6 +134,8 @@ impl RunView {
             followed: FollowedLeg::default(),
             hidden_markers: BTreeSet::new(),
             inspected: None,
+            timeline_at: None,
+            markers_drawn: BTreeMap::new(),
         }
     }
 
@@ -542,13 +549,9 @@ impl RunView {
         egui::ScrollArea::vertical()
             .id_salt("run-modules-scroll")
             .show(ui, |ui| {
-                for module in &status.modules {
-                    let samples = history.get(&module.name);
-                    if let Some(request) = monitor::module_row(ui, module, samples, running) {
-                        requests.push(request);
-                    }
-                    ui.separator();
-                }
+                requests = oscilloscope::tree_ui(ui, status, &history, running);
+                ui.heading("State changes");
+                oscilloscope::timeline_ui(ui, status, &mut self.timeline_at);
             });
         for request in requests {
             self.request(request);
@@ -890,10 +893,12 @@ impl RunView {
                 }
             });
         }
+        let mut drawn = BTreeMap::new();
         mission.watch_ui(ui, current_leg, |painter, project| {
             monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
-            markers::paint(painter, project, &live.markers, &hidden, live.scan_pose());
+            drawn = markers::paint(painter, project, &live.markers, &hidden, live.scan_pose());
         });
+        self.markers_drawn = drawn;
         self.followed = followed;
     }
 

@@ -576,14 +576,22 @@ impl Follower {
         let goal = self.settings.goal();
         let mut markers = vec![
             Marker::new(Shape::Points, Frame::World, GOAL_RGBA, [(goal.x, goal.y)]),
-            Marker::new(Shape::Text, Frame::World, GOAL_RGBA, [(goal.x, goal.y)])
-                .with_text(if self.reached { "goal (reached)" } else { "goal" }),
+            Marker::new(Shape::Text, Frame::World, GOAL_RGBA, [(goal.x, goal.y)]).with_text(
+                if self.reached {
+                    "goal (reached)"
+                } else {
+                    "goal"
+                },
+            ),
         ];
         if let Some(pose) = self.pose.filter(|_| !self.reached) {
             let here = Point::new(pose.x_m, pose.y_m);
             let ahead = match &self.pursuit {
                 Some(pursuit) => pursuit.ahead(here),
-                None => [Some(here), self.via, Some(goal)].into_iter().flatten().collect(),
+                None => [Some(here), self.via, Some(goal)]
+                    .into_iter()
+                    .flatten()
+                    .collect(),
             };
             let mut line = Marker::new(
                 Shape::Polyline,

@@ -2,12 +2,16 @@
 //! a candidate of the [`arbiter`](crate::arbiter).
 //!
 //! It applies while an obstacle is close in front: a laser point nearer than `enter_m` within
-//! [`FRONT_RAD`] of straight ahead makes it applicable, and it stays so until every such point
-//! is farther than `leave_m` (hysteresis: `leave_m` > `enter_m`). While it applies it proposes,
+//! [`FRONT_RAD`] of straight ahead makes it applicable, and it stays so until every point of the
+//! front half (beside the robot too, as it goes round) is farther than `leave_m` (hysteresis:
+//! `leave_m` > `enter_m`). While it applies it proposes,
 //! at each scan, a virtual force field command: the direction the go-to-goal behaviour wants
 //! (its latest proposal on `cmd_goal`, or straight ahead without a fresh one) plus `gain` times
-//! the repulsion of every point within `influence_m`; it turns towards the result and moves at
-//! up to `max_speed_mps`, slower the farther off ahead. Its `markers` show each repulsive force
+//! the repulsion of every point within `influence_m`, half of it pushing away and the rest turned
+//! a quarter towards the attraction's side, so that the robot goes round an obstacle square
+//! across its way instead of stopping where the forces cancel (the side is kept until the
+//! behaviour stops applying); it turns towards the result and
+//! moves at up to `max_speed_mps`, slower the farther off ahead. Its `markers` show each repulsive force
 //! (an arrow per sector), the resulting direction and the front sector, in the robot's frame.
 //!
 //! Unlike the avoider, a safety layer that bends every command, this one only proposes: the
@@ -186,6 +190,8 @@ pub struct Proposal {
 pub struct Vff {
     pub applies: bool,
     goal: Option<(Twist, f64)>,
+    /// The side the robot goes round by while the behaviour applies (1 left, -1 right).
+    side: Option<f64>,
 }
 
 const FORCE_RGBA: [u8; 4] = [230, 60, 40, 220];
@@ -195,6 +201,7 @@ const SECTOR_RGBA: [u8; 4] = [230, 150, 40, 90];
 impl Vff {
     pub fn on_scan(&mut self, settings: &Settings, scan: &LaserScan, now: f64) -> Proposal {
         let mut closest_ahead = f64::INFINITY;
+        let mut closest_in_front_half = f64::INFINITY;
         let mut sectors = [(0.0, 0.0); FORCE_SECTORS];
         let mut repulsion = (0.0, 0.0);
         for (index, &range) in scan.ranges_m.iter().enumerate() {
@@ -205,6 +212,9 @@ impl Vff {
             }
             if angle.abs() <= FRONT_RAD {
                 closest_ahead = closest_ahead.min(range);
+            }
+            if angle.abs() <= std::f64::consts::FRAC_PI_2 {
+                closest_in_front_half = closest_in_front_half.min(range);
             }
             if range < settings.influence_m && angle.abs() <= std::f64::consts::FRAC_PI_2 {
                 let push = (settings.influence_m - range)
@@ -223,7 +233,7 @@ impl Vff {
         let beams = scan.ranges_m.len().max(1) as f64;
         let scale = 30.0 / beams;
         self.applies = if self.applies {
-            closest_ahead <= settings.leave_m
+            closest_in_front_half <= settings.leave_m
         } else {
             closest_ahead < settings.enter_m
         };
@@ -234,8 +244,24 @@ impl Vff {
             }
             _ => (1.0, 0.0),
         };
-        let x = attraction.0 + settings.gain * repulsion.0 * scale;
-        let y = attraction.1 + settings.gain * repulsion.1 * scale;
+        // A pure field stops the robot where attraction and repulsion cancel (an obstacle
+        // square across the way): the repulsion turned a quarter towards the attraction's side
+        // (left on a tie) takes it round instead.
+        // The side is chosen once per episode: re-chosen at every scan, it flips with the
+        // noise when the obstacle is square across the way, and the robot turns to and fro.
+        let side = *self.side.get_or_insert(
+            if attraction.0 * -repulsion.1 + attraction.1 * repulsion.0 >= 0.0 {
+                1.0
+            } else {
+                -1.0
+            },
+        );
+        if !self.applies {
+            self.side = None;
+        }
+        let tangent = (-repulsion.1 * side, repulsion.0 * side);
+        let x = attraction.0 + settings.gain * (repulsion.0 * 0.5 + tangent.0) * scale;
+        let y = attraction.1 + settings.gain * (repulsion.1 * 0.5 + tangent.1) * scale;
         let heading = y.atan2(x);
         let twist = Twist {
             linear_mps: settings.max_speed_mps * heading.cos().max(0.0),
