@@ -49,7 +49,7 @@ fn an_obstacle_makes_avoidance_win_and_then_give_control_back() {
     let addr = field(&line, "addr").unwrap().to_owned();
 
     let started = Instant::now();
-    let status = loop {
+    loop {
         assert!(
             started.elapsed() < DEADLINE,
             "vff never won and lost; the run said:\n{}",
@@ -68,11 +68,11 @@ fn an_obstacle_makes_avoidance_win_and_then_give_control_back() {
                 .iter()
                 .any(|c| c.module == "follower" && c.state == Some(BehaviourState::Winner));
             if back {
-                break status;
+                break;
             }
         }
         std::thread::sleep(Duration::from_millis(200));
-    };
+    }
     // Past the crate the follower drives on to the goal, and once there no longer applies:
     // stop, the last resort, takes control.
     let status = loop {
