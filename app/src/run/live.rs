@@ -359,7 +359,7 @@ impl Recording {
     }
 
     /// A recording of `messages`, read from `file`, shown at its end.
-    fn of(
+    pub(crate) fn of(
         file: &Path,
         mut messages: Vec<armor_runtime::replay::Recorded>,
     ) -> anyhow::Result<Recording> {

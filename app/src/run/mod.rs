@@ -1,12 +1,15 @@
 //! The Run view: start the current system or plan with the runtime of `armor run` and watch it.
-//! The module monitor lists every module with its state, cycle time, rates and restarts, with
-//! switches to start and stop it by hand; the mission monitor shows the net with its live
-//! marking, what the enabled transitions wait for, the firings so far, and the operator's
-//! buttons; the live map shows the robot (estimated and true pose), its laser scan and the
-//! mapper's grid over the plan, the current leg highlighted, the path the follower follows and
-//! the ones it replaced by replanning ([`followed`]); the operator drives through the
-//! teleop module from the keyboard or the on-screen pad; each module's log is kept and
-//! filterable. A recording of the recorder opens into the same map.
+//! The hierarchy oscilloscope ([`oscilloscope`]) lists every module in a tree, each arbiter with
+//! its behaviours and their states, with its state, cycle time, rates and restarts and switches
+//! to start and stop it by hand, over a time line of the behaviours' state changes; the mission
+//! monitor shows the net with its live marking, what the enabled transitions wait for, the
+//! firings so far, and the operator's buttons; the live map shows the robot (estimated and true
+//! pose), its laser scan and the mapper's grid over the plan, the current leg highlighted, the
+//! path the follower follows and the ones it replaced by replanning ([`followed`]), and each
+//! module's markers in a layer with its switch ([`markers`]); any output can be inspected
+//! ([`inspector`]); the operator drives through the teleop module from the keyboard or the
+//! on-screen pad; each module's log is kept and filterable. A recording of the recorder opens
+//! into the same map.
 
 pub mod followed;
 pub mod inspector;
