@@ -669,6 +669,21 @@ fn behaviours_take_and_give_up_control_in_the_oscilloscope_and_markers_are_switc
     harness.get_by_label_contains("Twist: ");
     harness.get_by_label_contains("linear m/s ");
 
+    // Sensors and motors: the laser, and every command — each candidate's, the one in control
+    // starred, the robot's.
+    harness.get_by_label("Sensors and motors").click();
+    harness.run_ok();
+    assert!(harness.query_all_by_label("sim.scan").next().is_some());
+    for command in ["vff.cmd_vel", "stop.cmd_vel", "mux.cmd_vel"] {
+        assert!(
+            harness
+                .query_all_by_label_contains(command)
+                .next()
+                .is_some(),
+            "{command} listed"
+        );
+    }
+
     harness.get_by_label("■ Stop").click();
     step_until(&mut harness, "the run to stop", PATIENCE, |app| {
         !app.run().is_running()

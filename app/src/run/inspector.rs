@@ -226,26 +226,31 @@ pub fn inspector_ui(ui: &mut Ui, outputs: &Outputs, picked: &mut Option<String>)
         ui.label(RichText::new(line).monospace().small());
     }
     if let Some(scan) = &output.scan {
-        Plot::new(("inspect-scan", picked.as_deref()))
-            .height(120.0)
-            .allow_scroll(false)
-            .include_y(0.0)
-            .show(ui, |plot| {
-                let points: Vec<[f64; 2]> = scan
-                    .ranges_m
-                    .iter()
-                    .enumerate()
-                    .map(|(i, r)| {
-                        let angle = scan.angle_min_rad + i as f64 * scan.angle_increment_rad;
-                        [angle.to_degrees(), f64::from(*r).min(scan.range_max_m)]
-                    })
-                    .collect();
-                plot.line(Line::new("range m by angle °", points));
-            });
+        scan_range_ui(ui, ("inspect-scan", picked.as_deref()), scan);
     }
     if !output.summary.is_empty() {
         ui.label(&output.summary);
     }
+}
+
+/// A scan's ranges by beam angle.
+pub fn scan_range_ui(ui: &mut Ui, id: impl std::hash::Hash + std::fmt::Debug, scan: &LaserScan) {
+    Plot::new(id)
+        .height(120.0)
+        .allow_scroll(false)
+        .include_y(0.0)
+        .show(ui, |plot| {
+            let points: Vec<[f64; 2]> = scan
+                .ranges_m
+                .iter()
+                .enumerate()
+                .map(|(i, r)| {
+                    let angle = scan.angle_min_rad + i as f64 * scan.angle_increment_rad;
+                    [angle.to_degrees(), f64::from(*r).min(scan.range_max_m)]
+                })
+                .collect();
+            plot.line(Line::new("range m by angle °", points));
+        });
 }
 
 #[cfg(test)]

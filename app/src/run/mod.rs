@@ -17,6 +17,7 @@ pub mod live;
 pub mod markers;
 pub mod monitor;
 pub mod oscilloscope;
+pub mod sensors_motors;
 pub mod session;
 pub mod untrusted;
 
@@ -427,7 +428,7 @@ impl RunView {
                     .id_salt("run-mission-scroll")
                     .show(ui, |ui| {
                         self.mission_ui(ui, status.as_ref());
-                        self.views_ui(ui);
+                        self.views_ui(ui, status.as_ref());
                     });
             });
         egui::Panel::bottom("run-logs")
@@ -561,8 +562,9 @@ impl RunView {
         }
     }
 
-    /// Each module's own view: the switches of the markers' layers, and the inspector.
-    fn views_ui(&mut self, ui: &mut Ui) {
+    /// Each module's own view: the switches of the markers' layers, and the inspector; the
+    /// robot's sensors and motors.
+    fn views_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {
         let live = self.live();
         ui.separator();
         ui.heading("Markers");
@@ -570,6 +572,10 @@ impl RunView {
         ui.separator();
         ui.heading("Inspect an output");
         inspector::inspector_ui(ui, &live.outputs, &mut self.inspected);
+        ui.separator();
+        egui::CollapsingHeader::new("Sensors and motors")
+            .id_salt("run-sensors-motors")
+            .show(ui, |ui| sensors_motors::panel_ui(ui, &live.outputs, status));
     }
 
     fn mission_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {

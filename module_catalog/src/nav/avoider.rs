@@ -916,6 +916,10 @@ mod tests {
             "pushed back and to the right by an obstacle ahead on the left: {force:?}"
         );
         assert_eq!(drawn[0].markers[0].rgba[0], 120, "free");
-        assert_eq!(drawn[1].markers[0].rgba, [220, 40, 40, 200], "held by the stop");
+        assert_eq!(
+            drawn[1].markers[0].rgba,
+            [220, 40, 40, 200],
+            "held by the stop"
+        );
     }
 }
