@@ -180,7 +180,7 @@ pub fn inspector_ui(ui: &mut Ui, outputs: &Outputs, picked: &mut Option<String>)
     let text = picked.as_deref().unwrap_or("pick an output");
     egui::ComboBox::from_label("output")
         .selected_text(text)
-        .width(ui.available_width() - 8.0)
+        .width(220.0)
         .show_ui(ui, |ui| {
             for (name, output) in &outputs.by_name {
                 let label = format!("{name} ({})", output.data_type);
@@ -260,7 +260,7 @@ mod tests {
 
     fn encoded<T: Datum>(value: &T) -> Vec<u8> {
         let mut out = Vec::new();
-        value.encode(&mut out).unwrap();
+        value.encode(&mut out).expect("encodes");
         out
     }
 

@@ -193,7 +193,7 @@ mod tests {
                     markers: vec![line.clone()],
                 },
             )
-            .unwrap();
+            .expect("taken");
         let mut bad = line.clone();
         bad.points.push(MarkerPoint {
             x_m: f32::NAN,
@@ -201,7 +201,7 @@ mod tests {
         });
         let err = layers
             .take("vff.markers", Markers { markers: vec![bad] })
-            .unwrap_err();
+            .expect_err("refused");
         assert!(err.contains("NaN"), "{err}");
         let many = Marker::new(
             Shape::Points,

@@ -97,7 +97,7 @@ pub fn tree_ui(
             let others = status
                 .modules
                 .iter()
-                .filter(|m| !is_arbiter(m) && !(has_arbiter && m.behaviour.is_some()));
+                .filter(|m| !(is_arbiter(m) || has_arbiter && m.behaviour.is_some()));
             egui::CollapsingHeader::new("modules")
                 .id_salt("osc-others")
                 .default_open(true)
