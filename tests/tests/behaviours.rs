@@ -1,8 +1,10 @@
-//! Competing behaviours in a real run of the bundled system (`missions/robot/system-behaviours.xml`):
+//! Competing behaviours in a real run of the bundled mission over them
+//! (`missions/robot/mission-behaviours.xml`, on `system-behaviours.xml`):
 //! a crate the sim has and the world file does not makes the obstacle-avoidance behaviour (`vff`)
 //! win control from go-to-goal (the follower) as the robot comes near, and give it back once
-//! past, and stop wins once the goal is reached; `armor ctl status --json` shows every state and its time line, the text form each
-//! module's behaviour.
+//! past, and stop wins once the goal is reached (the others asleep in the mission's last
+//! place); `armor ctl status --json` shows every state and its time line, the text form each
+//! module's behaviour, and the mission's report the same time line.
 #![allow(clippy::unwrap_used)]
 
 use std::process::Command;
@@ -35,11 +37,14 @@ fn state_of(status: &Status, module: &str) -> Option<BehaviourState> {
 
 #[test]
 fn an_obstacle_makes_avoidance_win_and_then_give_control_back() {
-    let run = Proc::start(
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.json");
+    let mut run = Proc::start(
         Command::new(bin("armor"))
             .arg("run")
-            .arg("missions/robot/system-behaviours.xml")
-            .args(["--time-scale", "2"])
+            .arg("missions/robot/mission-behaviours.xml")
+            .args(["--time-scale", "2", "--report"])
+            .arg(&report)
             .env("ARMOR_MODULE_PATH", bin_dir())
             .current_dir(workspace_root()),
     );
@@ -73,8 +78,16 @@ fn an_obstacle_makes_avoidance_win_and_then_give_control_back() {
         }
         std::thread::sleep(Duration::from_millis(200));
     }
-    // Past the crate the follower drives on to the goal, and once there no longer applies:
-    // stop, the last resort, takes control.
+    // The text form names each behaviour's state.
+    let text = ctl_status(&addr, false);
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("  vff (vff): running, behaviour ")),
+        "{text}"
+    );
+    assert!(text.contains("arbiter (arbiter): running"), "{text}");
+    // Past the crate the follower drives on to the goal, and once there the mission puts it
+    // and vff to sleep: stop, the last resort, takes control.
     let status = loop {
         assert!(
             started.elapsed() < DEADLINE,
@@ -83,7 +96,8 @@ fn an_obstacle_makes_avoidance_win_and_then_give_control_back() {
         );
         let status: Status = serde_json::from_str(&ctl_status(&addr, true)).unwrap();
         if state_of(&status, "stop") == Some(BehaviourState::Winner)
-            && state_of(&status, "follower") == Some(BehaviourState::Checking)
+            && state_of(&status, "follower") == Some(BehaviourState::Slept)
+            && state_of(&status, "vff") == Some(BehaviourState::Slept)
         {
             break status;
         }
@@ -121,14 +135,6 @@ fn an_obstacle_makes_avoidance_win_and_then_give_control_back() {
         "the arbiter is no behaviour: it never says whether it applies"
     );
 
-    // The text form names each behaviour's state.
-    let text = ctl_status(&addr, false);
-    assert!(
-        text.lines()
-            .any(|l| l.starts_with("  vff (vff): running, behaviour ")),
-        "{text}"
-    );
-    assert!(text.contains("arbiter (arbiter): running"), "{text}");
     // And the arbiter's own log and events tell the same story.
     let lines = run.lines();
     assert!(
@@ -141,4 +147,34 @@ fn an_obstacle_makes_avoidance_win_and_then_give_control_back() {
             .iter()
             .any(|l| l.contains("event arbiter.winner_changed"))
     );
+
+    // The mission ends five seconds later, and its report has the same time line.
+    let status = run.wait_exit(DEADLINE);
+    assert!(status.success(), "{}", run.lines().join("\n"));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(report["outcome"], "complete");
+    let changes: Vec<(String, String)> = report["behaviour_changes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            (
+                c["module"].as_str().unwrap().to_owned(),
+                c["state"].as_str().unwrap_or("gone").to_owned(),
+            )
+        })
+        .collect();
+    let at = |module: &str, state: &str| {
+        changes
+            .iter()
+            .position(|c| c.0 == module && c.1 == state)
+            .unwrap_or_else(|| panic!("no {module} {state} in the report: {changes:?}"))
+    };
+    let last_stop_win = changes
+        .iter()
+        .rposition(|c| c.0 == "stop" && c.1 == "winner")
+        .unwrap();
+    assert!(last_stop_win > at("vff", "winner"), "{changes:?}");
+    assert!(at("follower", "slept") > at("vff", "winner"), "{changes:?}");
 }

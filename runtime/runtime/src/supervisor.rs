@@ -412,7 +412,8 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         );
     }
     if let (Some(controller), Some(report)) = (&controller, &options.report) {
-        match controller.write_report(report) {
+        let behaviour_changes = behaviour_changes(&server.behaviours(), &clock);
+        match controller.write_report(report, &behaviour_changes) {
             Ok(()) => tracing::info!(file = %report.display(), "mission report written"),
             Err(err) => tracing::error!("cannot write the report {}: {err}", report.display()),
         }
@@ -432,6 +433,21 @@ fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (b
         ),
         Err(message) => (false, message),
     }
+}
+
+/// The time line of behaviour states, on the run clock.
+fn behaviour_changes(
+    behaviours: &crate::behaviour::Behaviours,
+    clock: &Clock,
+) -> Vec<control::BehaviourChange> {
+    behaviours
+        .changes()
+        .map(|change| control::BehaviourChange {
+            run_secs: clock.at(change.at),
+            module: change.module.clone(),
+            state: change.state,
+        })
+        .collect()
 }
 
 /// The whole run as the control interface reports it.
@@ -479,14 +495,7 @@ fn run_status(
             }
         })
         .collect();
-    let behaviour_changes = behaviours
-        .changes()
-        .map(|change| control::BehaviourChange {
-            run_secs: clock.at(change.at),
-            module: change.module.clone(),
-            state: change.state,
-        })
-        .collect();
+    let behaviour_changes = behaviour_changes(&behaviours, clock);
     control::Status {
         system: loaded.system.name.clone(),
         run_secs: clock.now_secs(),
