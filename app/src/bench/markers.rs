@@ -25,10 +25,12 @@ const RATE_HZ: f64 = 10.0;
 const SECONDS: usize = 3;
 const FRAME_SECS: f64 = 1.0 / 60.0;
 
+/// A robot in a 50 m × 20 m world, which the Run view's map frames: every marker is in view.
 const SYSTEM: &str = r#"<system name="bench-markers">
-  <module name="follower" type="follower"/>
+  <module name="sim" type="sim"><param name="world" value="bench-markers.world"/></module>
 </system>
 "#;
+const WORLD: &str = "name Bench\norigin 43.5 1.4\nstart 10 5 0\nboundary 0,0 50,0 50,20 0,20 0,0\n";
 
 /// One module's markers at step `step`: a mix of every shape, half in the robot's frame.
 fn markers(module: usize, step: usize) -> Markers {
@@ -51,6 +53,11 @@ fn markers(module: usize, step: usize) -> Markers {
                 (module * 2) as f64 + (i % 25) as f64 * 0.1,
                 (i / 25) as f64 * 0.5 + step as f64 * 0.01,
             );
+            // Robot-frame markers stay within a few metres of the robot.
+            let (x, y) = match frame {
+                Frame::World => (x, y),
+                Frame::Robot => (x * 0.1, y * 0.3),
+            };
             let points = [(x, y), (x + 0.3, y), (x + 0.3, y + 0.2), (x, y + 0.2)];
             Marker::new(shape, frame, [200, 60, (module * 12) as u8, 200], points).with_text("m")
         })
@@ -108,6 +115,8 @@ pub fn run(dir: &Path, rounds: usize) -> anyhow::Result<String> {
     let system = dir.join("bench-markers.xml");
     std::fs::write(&system, SYSTEM)
         .with_context(|| format!("cannot write {}", system.display()))?;
+    let world = dir.join("bench-markers.world");
+    std::fs::write(&world, WORLD).with_context(|| format!("cannot write {}", world.display()))?;
     let mut options = Options::new(Home::new(dir.join("home")));
     options.file = Some(system.clone());
     let mut app = StudioApp::new(options);
@@ -115,6 +124,7 @@ pub fn run(dir: &Path, rounds: usize) -> anyhow::Result<String> {
     let mut recording = recording(&dir.join("markers.mcap"))?;
     recording.seek(0.0);
     app.run_mut().recording = Some(recording);
+    app.run_mut().request_fit();
     let ctx = egui::Context::default();
     frames(&ctx, &mut app, 5);
     let shown = frames(&ctx, &mut app, rounds);

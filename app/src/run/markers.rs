@@ -14,8 +14,10 @@ use super::untrusted::MAX_COORDINATE_M;
 
 /// Points of all the markers of one sample, at most: 50 markers of 2,000 points each.
 pub const MAX_MARKER_POINTS: usize = 100_000;
-/// A text marker's words, at most (in bytes).
-const MAX_TEXT_BYTES: usize = 200;
+/// How far beyond its point a marker may paint (a text's width), for culling.
+const TEXT_REACH_PX: f32 = 200.0;
+/// A text marker's words, at most (in characters).
+const MAX_TEXT_CHARS: usize = 200;
 
 /// The latest markers of each module (by the module's name).
 #[derive(Clone, Debug, Default)]
@@ -58,7 +60,8 @@ fn check(markers: &Markers) -> Result<(), String> {
     Ok(())
 }
 
-/// Paints every layer not in `hidden`; returns how many markers of each module were drawn.
+/// Paints every layer not in `hidden`; returns how many markers of each module were drawn
+/// (those out of view are not).
 pub fn paint(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
@@ -86,6 +89,7 @@ fn paint_markers(
     robot: Option<&Pose2D>,
 ) -> usize {
     let mut drawn = 0;
+    let clip = painter.clip_rect();
     for marker in &markers.markers {
         let to_screen = |x: f32, y: f32| -> Option<Pos2> {
             let (x, y) = (f64::from(x), f64::from(y));
@@ -109,6 +113,10 @@ fn paint_markers(
         else {
             continue; // robot-frame markers before any pose
         };
+        // Out of view: nothing to paint (texts reach a little beyond their point).
+        if !clip.intersects(egui::Rect::from_points(&points).expand(TEXT_REACH_PX)) {
+            continue;
+        }
         drawn += 1;
         let [r, g, b, a] = marker.rgba;
         let colour = Color32::from_rgba_unmultiplied(r, g, b, a);
@@ -138,7 +146,7 @@ fn paint_markers(
             }
             Shape::Text => {
                 if let Some(at) = points.first() {
-                    let text: String = marker.text.chars().take(MAX_TEXT_BYTES).collect();
+                    let text: String = marker.text.chars().take(MAX_TEXT_CHARS).collect();
                     painter.text(
                         *at,
                         egui::Align2::LEFT_BOTTOM,
