@@ -8,6 +8,7 @@
 //!   at 1:1 around the first blocks (`one_to_one_ms`), and at the smallest zoom that still
 //!   draws blocks as widgets (`half_scale_ms`, the worst case). The reference is the goal: a
 //!   60 Hz frame budget.
+//! - `markers_frame_ms` ([`markers`]): the Run view's frame with 20 modules' markers, 500 each.
 //! - `studio_load_ms_1000_blocks`: opening that file (read, parse into the diagram, check it as
 //!   the validation panel does); the reference is the bare parse by `SystemConfig::parse`.
 //! - `studio_vs_bare_snarl_1000`: our diagram's frame against a bare egui-snarl viewer (titles
@@ -18,6 +19,8 @@
 //!   500 waypoints and their legs with labels, 40 unit symbols, phase lines and areas, the
 //!   inspector and the net beside the map) with the whole plan in view; the reference is the
 //!   60 Hz frame budget.
+
+mod markers;
 
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -318,6 +321,9 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
                 })
             )
         );
+    }
+    if wants(markers::NAME) || wants("markers") {
+        println!("{}", markers::run(&dir, rounds.max(15))?);
     }
     if wants(LAYOUT) || wants("layout") {
         let relay = relay();

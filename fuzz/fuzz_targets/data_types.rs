@@ -1,13 +1,14 @@
 //! The module API's data types: the first byte picks one (Counter, Text, Blob, Pose2D, Twist,
-//! Odometry, LaserScan, OccupancyGrid, Image), the rest is decoded as a payload from a peer would be.
-//! Decoding never panics, never allocates more than four bytes per byte of input whatever length
-//! a sequence announces, and what it accepts encodes to bytes that decode and encode to themselves.
+//! Odometry, LaserScan, OccupancyGrid, Image, Markers), the rest is decoded as a payload from a
+//! peer would be. Decoding never panics, never allocates more than four bytes per byte of input
+//! (a marker's size in memory per byte for `Markers`) whatever length a sequence announces, and
+//! what it accepts encodes to bytes that decode and encode to themselves.
 #![no_main]
 
 use armor_fuzz::counting::{Counting, measure};
 use armor_module_api::Datum;
 use armor_module_api::types::{
-    Blob, Counter, Image, LaserScan, OccupancyGrid, Odometry, Pose2D, Text, Twist,
+    Blob, Counter, Image, LaserScan, Marker, Markers, OccupancyGrid, Odometry, Pose2D, Text, Twist,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -15,12 +16,18 @@ use libfuzzer_sys::fuzz_target;
 static ALLOCATOR: Counting = Counting;
 
 fn check<T: Datum>(bytes: &[u8]) {
+    check_within::<T>(bytes, 4);
+}
+
+/// `per_byte`: the most bytes decoding may allocate at once per byte of input.
+fn check_within<T: Datum>(bytes: &[u8], per_byte: usize) {
     let (decoded, largest) = measure(|| T::decode(bytes));
     // Postcard hints a sequence's length to serde only when at least that many bytes are left
     // (elements against bytes), and serde preallocates what it is hinted, up to 1 MiB: the
     // largest element in memory, an f32, takes four bytes, so at most four bytes per byte of
-    // input. Without a hint, a vector grows by doubling to what the bytes hold.
-    let bound = 4 * bytes.len() + 64;
+    // input. Without a hint, a vector grows by doubling to what the bytes hold. A sequence of
+    // markers is hinted as many elements as bytes left, each a `Marker` in memory.
+    let bound = per_byte * bytes.len() + 64;
     assert!(
         largest <= bound,
         "decoding {} bytes as {} allocated {largest} bytes at once",
@@ -56,7 +63,7 @@ fuzz_target!(|data: &[u8]| {
     let Some((&which, payload)) = data.split_first() else {
         return;
     };
-    match which % 9 {
+    match which % 10 {
         0 => check::<Counter>(payload),
         1 => check::<Text>(payload),
         2 => check::<Blob>(payload),
@@ -65,6 +72,7 @@ fuzz_target!(|data: &[u8]| {
         5 => check::<Odometry>(payload),
         6 => check::<LaserScan>(payload),
         7 => check::<OccupancyGrid>(payload),
-        _ => check::<Image>(payload),
+        8 => check::<Image>(payload),
+        _ => check_within::<Markers>(payload, std::mem::size_of::<Marker>()),
     }
 });

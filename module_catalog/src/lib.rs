@@ -2,6 +2,8 @@
 //! module's [`ModuleSpec`](armor_module_api::ModuleSpec) and body live here so the unit tests drive
 //! the very body the binary runs, on a [`TestBench`](armor_module_api::testing::TestBench):
 //!
+//! - [`arbiter`]: chooses among competing behaviours: the fresh candidate of highest priority
+//!   (set per candidate in the system file) wins, with hysteresis; reports `winner_changed`.
 //! - [`counter`]: publishes 1, 2, 3, … on `count` every `period_secs` while active, and reports
 //!   `done` after `limit` values.
 //! - [`checker`]: reads a `Counter` stream reliably, reports `out_of_order` and `restarted`, logs
@@ -35,6 +37,7 @@
 //! - [`recorder`]: records every sample of the data names in `record`, with stamp and type,
 //!   into an MCAP file while active (JSON for the built-in types); `armor replay` plays it back.
 
+pub mod arbiter;
 pub mod camera;
 pub mod checker;
 pub mod counter;

@@ -6,7 +6,7 @@
 //! right and a jolt backwards counts against it. One command is published per pose received.
 //! Each start (activation) begins a new turn from wherever the robot is heading.
 
-use armor_module_api::types::{Odometry, Twist};
+use armor_module_api::types::{Frame, Marker, Markers, Odometry, Shape, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
@@ -26,6 +26,11 @@ pub fn spec() -> ModuleSpec {
     .input::<Odometry>(
         "odometry",
         "the robot's pose: its heading tells how far the robot has turned",
+    )
+    .output::<Markers>(
+        "markers",
+        "the sector, ten times a second of run time while turning: the arc turned so far and \
+         the arc left, a metre round the robot (robot frame)",
     )
     .output::<Twist>(
         "cmd_vel",
@@ -61,8 +66,10 @@ pub fn spec() -> ModuleSpec {
 pub fn body(node: &mut Node) -> BodyResult {
     let odometry = node.input::<Odometry>("odometry")?;
     let output = node.output::<Twist>("cmd_vel")?;
+    let markers = node.output::<Markers>("markers")?;
     let mut settings = Settings::read(node)?;
     let mut turn = Turn::default();
+    let mut markers_sent = f64::NEG_INFINITY;
     loop {
         match node.next_event(None)? {
             Event::Input(port) if port == odometry.id() => {
@@ -73,6 +80,10 @@ pub fn body(node: &mut Node) -> BodyResult {
                     let (twist, done) =
                         turn.on_heading(sample.value.pose_in_odom.theta_rad, &settings);
                     node.send(&output, &twist)?;
+                    if done || node.timestamp() - markers_sent >= MARKERS_EVERY_SECS {
+                        markers_sent = node.timestamp();
+                        node.send(&markers, &turn.markers(&settings))?;
+                    }
                     if done {
                         tracing::info!("turned through {} degrees", settings.sector_deg);
                         node.report("observation_done")?;
@@ -113,6 +124,11 @@ impl Settings {
     }
 }
 
+/// How often, in run time, the sector is drawn again while turning.
+const MARKERS_EVERY_SECS: f64 = 0.1;
+/// The arcs' radius round the robot.
+const ARC_M: f64 = 1.0;
+
 /// One turn through the sector.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Turn {
@@ -123,6 +139,55 @@ struct Turn {
 }
 
 impl Turn {
+    /// The arc turned so far (behind the heading) and the arc left (ahead of it), in the
+    /// robot's frame, with how far it has come.
+    fn markers(&self, settings: &Settings) -> Markers {
+        let sign = settings.turn_radps.signum();
+        let sector_rad = settings.sector_deg.to_radians();
+        let turned = self
+            .turned_rad
+            .clamp(0.0, sector_rad)
+            .min(std::f64::consts::TAU);
+        let left = (sector_rad - self.turned_rad).clamp(0.0, std::f64::consts::TAU);
+        let arc = |from_rad: f64, to_rad: f64| {
+            let steps = ((to_rad - from_rad).abs() / 0.1).ceil().max(1.0) as usize;
+            (0..=steps).map(move |i| {
+                let angle = from_rad + (to_rad - from_rad) * i as f64 / steps as f64;
+                (ARC_M * angle.cos(), ARC_M * angle.sin())
+            })
+        };
+        let mut done = Marker::new(
+            Shape::Polyline,
+            Frame::Robot,
+            [40, 160, 90, 230],
+            arc(-turned * sign, 0.0),
+        );
+        done.size_px = 4.0;
+        Markers {
+            markers: vec![
+                done.with_text("observed"),
+                Marker::new(
+                    Shape::Polyline,
+                    Frame::Robot,
+                    [40, 160, 90, 110],
+                    arc(0.0, left * sign),
+                )
+                .with_text("left to observe"),
+                Marker::new(
+                    Shape::Text,
+                    Frame::Robot,
+                    [40, 160, 90, 255],
+                    [(ARC_M, 0.0)],
+                )
+                .with_text(&format!(
+                    "{:.0}° of {:.0}°",
+                    turned.to_degrees(),
+                    settings.sector_deg
+                )),
+            ],
+        }
+    }
+
     /// The command for a new heading, and whether the sector was covered just now.
     fn on_heading(&mut self, heading_rad: f64, settings: &Settings) -> (Twist, bool) {
         if self.done {
@@ -234,5 +299,25 @@ mod tests {
         let bench = run(&[], [heading(0.0), heading(f64::NAN), heading(0.5)]);
         let sent = bench.sent::<Twist>("cmd_vel").expect("sent");
         assert_eq!(sent, [turning(0.6), Twist::default(), turning(0.6)]);
+    }
+
+    #[test]
+    fn draws_the_arc_turned_and_the_arc_left() {
+        let settings = Settings {
+            sector_deg: 180.0,
+            turn_radps: -0.6,
+        };
+        let mut turn = Turn::default();
+        for heading in [0.0, -0.5, -1.0] {
+            turn.on_heading(heading, &settings);
+        }
+        let markers = turn.markers(&settings);
+        let [observed, left, text] = &markers.markers[..] else {
+            panic!("{markers:?}");
+        };
+        // Clockwise: what was turned lies to the robot's left, what is left to its right.
+        assert!(observed.points[0].y_m > 0.0, "{observed:?}");
+        assert!(left.points.last().expect("points").y_m < 0.0, "{left:?}");
+        assert_eq!(text.text, "57° of 180°");
     }
 }

@@ -2,7 +2,8 @@
 """An ArMoR module in Python, written from docs/protocol.md alone.
 
 Type `pyecho`: republishes on its output `output` every Counter that arrives on its input
-`input`. It speaks the whole contract a module needs: the environment and `--describe`
+`input`, and draws the latest on `markers` (a point and a text, section 3's `Markers`). It is a
+behaviour (section 4.2): it applies once it has received a value, and says so. It speaks the whole contract a module needs: the environment and `--describe`
 (sections 1 and 5), framing (2), the Noise handshake and encrypted records when the run has a
 secret (2.5), the agent (4.1), the config server (4.2), and both sides of a data link (4.3).
 
@@ -28,6 +29,7 @@ DESCRIPTION = """\
   <doc>Republishes every Counter it receives (a module in Python, from docs/protocol.md).</doc>
   <input name="input" type="Counter" doc="the values to republish"/>
   <output name="output" type="Counter" doc="the same values, in the order they came"/>
+  <output name="markers" type="Markers" doc="the latest value, drawn at (value, 0) in the world"/>
 </module>
 """
 
@@ -43,7 +45,9 @@ NOISE_NAME = b"Noise_NNpsk0_25519_AESGCM_SHA256"
 PROLOGUE = b"ARMOR/1 "
 MAX_RECORD_PLAINTEXT = 65535 - 16
 
-INPUT, OUTPUT, DATA_TYPE = "input", "output", "Counter"
+INPUT, DATA_TYPE = "input", "Counter"
+# Each output and its data type.
+OUTPUTS = {"output": "Counter", "markers": "Markers"}
 
 
 def log(level, text):
@@ -92,6 +96,22 @@ def encode_varint(value):
         else:
             out.append(byte)
             return bytes(out)
+
+
+def encode_markers(value):
+    """Markers (section 3): a sequence of Marker, each shape and frame as varint indices, rgba
+    as four bytes, size_px as f32, points as a sequence of (f32, f32), then a string."""
+    def marker(shape, rgba, points, text):
+        out = encode_varint(shape) + encode_varint(0)  # frame 0: the world
+        out += bytes(rgba) + struct.pack("<f", 4.0)
+        out += encode_varint(len(points)) + b"".join(struct.pack("<ff", x, y) for x, y in points)
+        text = text.encode()
+        return out + encode_varint(len(text)) + text
+
+    point = (float(value), 0.0)
+    markers = [marker(0, (200, 40, 160, 255), [point], "value"),
+               marker(4, (200, 40, 160, 255), [point], f"pyecho {value}")]
+    return encode_varint(len(markers)) + b"".join(markers)
 
 
 def decode_varint(data):
@@ -299,6 +319,7 @@ def describe_link(link):
 class Subscriber:
     def __init__(self, link, message):
         self.link = link
+        self.data_name = message.get("data_name")
         self.pull = bool(message.get("pull", False))
         rate = message.get("max_rate_hz")
         self.min_gap = 1.0 / rate if rate and not message.get("reliable") else 0.0
@@ -322,16 +343,17 @@ class Module:
         self.active = True
         self.listener = None
         self.data_addr = None
-        self.output_name = None
+        self.output_names = {}  # output → its data name
         self.agent = None
         self.source = None  # the data name feeding the input
         self.input_link = None
         self.input_state = "unlinked"  # unlinked, looking, dialing, linked
         self.input_generation = 0
         self.subscribers = []
-        self.seq = 0
-        self.latest = None
-        self.stats = {"cycles": 0, "busy_us": 0, "sent": 0, "received": 0}
+        self.seq = {}  # data name → the last sequence number sent
+        self.latest = {}  # data name → the last sample
+        self.applicable = None
+        self.stats = {"cycles": 0, "busy_us": 0, "sent": {}, "received": 0}
 
     # --- plumbing --------------------------------------------------------------------------
 
@@ -419,8 +441,9 @@ class Module:
                     "stats": {
                         "cycles": self.stats["cycles"],
                         "busy_us": self.stats["busy_us"],
-                        "sent": {self.output_name: self.stats["sent"]} if self.output_name else {},
+                        "sent": dict(self.stats["sent"]),
                         "received": {INPUT: self.stats["received"]},
+                        **({} if self.applicable is None else {"applicable": self.applicable}),
                     },
                 }
             )
@@ -450,9 +473,9 @@ class Module:
             self.data_addr = f"{host}:{port}"
             self.spawn(self.accept_loop)
             log("INFO", f"accepting subscribers on {self.data_addr}")
-        output_name = config["outputs"].get(OUTPUT)
-        if output_name != self.output_name:
-            self.output_name = output_name
+        output_names = {port: config["outputs"][port] for port in OUTPUTS if port in config["outputs"]}
+        if output_names != self.output_names:
+            self.output_names = output_names
             self.register()
         source = config["inputs"].get(INPUT)
         if source != self.source:
@@ -487,9 +510,12 @@ class Module:
                 pass  # its reader reports the close
 
     def register(self):
-        if self.output_name and self.data_addr:
-            advert = {"data_name": self.output_name, "data_type": DATA_TYPE, "addr": self.data_addr}
-            self.send_to_agent({"type": "register", "module": self.name, "outputs": [advert]})
+        if self.output_names and self.data_addr:
+            adverts = [
+                {"data_name": name, "data_type": OUTPUTS[port], "addr": self.data_addr}
+                for port, name in self.output_names.items()
+            ]
+            self.send_to_agent({"type": "register", "module": self.name, "outputs": adverts})
 
     def lookup(self):
         if self.input_state == "looking" and self.source:
@@ -498,7 +524,7 @@ class Module:
     def on_agent(self, link, message):
         kind = message["type"]
         if kind == "registered":
-            log("INFO", f"registered {self.output_name} at {self.data_addr}")
+            log("INFO", f"registered {', '.join(self.output_names.values())} at {self.data_addr}")
         elif kind == "error":
             log("ERROR", f"agent: {message.get('message')}")
         elif kind == "unknown" and message.get("data_name") == self.source:
@@ -572,7 +598,11 @@ class Module:
         if self.stats["received"] % 10 == 0:
             log("INFO", f"republished {self.stats['received']} values, last {value}")
         if self.active:
-            self.publish(value)
+            if self.applicable is not True:
+                self.applicable = True
+                self.send_to_supervisor({"type": "applicable", "applicable": True})
+            self.publish("output", encode_varint(value))
+            self.publish("markers", encode_markers(value))
 
     # --- our output: provider side of section 4.3 ------------------------------------------
 
@@ -597,10 +627,12 @@ class Module:
         current = next((sub for sub in self.subscribers if sub.link is link), None)
         if kind == "subscribe" and current is None:
             reason = None
-            if message.get("data_name") != self.output_name:
-                reason = f"no output `{message.get('data_name')}` here"
-            elif message.get("data_type") != DATA_TYPE:
-                reason = f"`{self.output_name}` carries {DATA_TYPE}"
+            data_name = message.get("data_name")
+            port = next((p for p, name in self.output_names.items() if name == data_name), None)
+            if port is None:
+                reason = f"no output `{data_name}` here"
+            elif message.get("data_type") != OUTPUTS[port]:
+                reason = f"`{data_name}` carries {OUTPUTS[port]}"
             elif identity is not None and not str(message.get("subscriber", "")).startswith(
                 identity + "."
             ):
@@ -612,12 +644,12 @@ class Module:
             self.subscribers.append(Subscriber(link, message))
             link.send_message({"type": "subscribed"})
             name = message.get("subscriber")
-            log("INFO", f"{name} subscribed to {self.output_name}{describe_link(link)}")
+            log("INFO", f"{name} subscribed to {data_name}{describe_link(link)}")
         elif kind == "pull" and current is not None:
-            if self.latest is None:
+            if current.data_name not in self.latest:
                 current.pulls_waiting += 1
             else:
-                self.send_to(current, self.latest)
+                self.send_to(current, self.latest[current.data_name])
         elif kind == "unsubscribe" and current is not None:
             self.subscribers.remove(current)
             link.send_message({"type": "unsubscribed"})
@@ -628,19 +660,24 @@ class Module:
     def on_subscriber_closed(self, link, _identity, reason):
         self.subscribers = [sub for sub in self.subscribers if sub.link is not link]
 
-    def publish(self, value):
-        self.seq += 1
-        self.latest = struct.pack("<QQ", self.seq, self.run_time_ns()) + encode_varint(value)
-        self.stats["sent"] += 1
+    def publish(self, port, encoded):
+        """Sends one sample of output `port` (its encoding given) to its subscribers."""
+        data_name = self.output_names.get(port)
+        if data_name is None:
+            return
+        self.seq[data_name] = self.seq.get(data_name, 0) + 1
+        sample = struct.pack("<QQ", self.seq[data_name], self.run_time_ns()) + encoded
+        self.latest[data_name] = sample
+        self.stats["sent"][data_name] = self.stats["sent"].get(data_name, 0) + 1
         now = time.monotonic()
-        for sub in list(self.subscribers):
+        for sub in [sub for sub in self.subscribers if sub.data_name == data_name]:
             if sub.pull:
                 if sub.pulls_waiting:
                     sub.pulls_waiting -= 1
-                    self.send_to(sub, self.latest)
+                    self.send_to(sub, sample)
             elif now - sub.last_sent >= sub.min_gap:
                 sub.last_sent = now
-                self.send_to(sub, self.latest)
+                self.send_to(sub, sample)
 
     def send_to(self, sub, payload):
         try:

@@ -266,3 +266,52 @@ fn subscribe(data_name: &str, subscriber: &str) -> ToProvider {
         subscriber_addr: None,
     }
 }
+
+#[test]
+fn the_python_module_says_it_applies_and_its_markers_decode_as_the_protocol_says() {
+    use armor_module_api::types::{Frame, Markers, Shape};
+    use armor_module_api::{Event, ModuleSpec};
+    use armor_runtime::control::{BehaviourState, Status};
+    let setup = Setup::new();
+    let (run, agent) = setup.run(&[]);
+    let line = run.wait_for("the control address", PATIENCE, |line| {
+        line.contains("control interface listening")
+    });
+    let addr = field(&line, "addr").unwrap().to_owned();
+    // A behaviour with no arbiter over it: applicable, so `ready`.
+    armor_tests::wait_until("the Python module's behaviour state", PATIENCE, || {
+        let output = setup
+            .armor(&["ctl", "--addr", &addr, "status", "--json"])
+            .output()
+            .unwrap();
+        let status: Status = serde_json::from_slice(&output.stdout).unwrap();
+        status
+            .modules
+            .iter()
+            .any(|m| m.name == "echo" && m.behaviour == Some(BehaviourState::Ready))
+    });
+    // Its markers, read by a Rust node: a point at (value, 0) and the value as text.
+    let spec = ModuleSpec::new("markers_reader", "reads the Python module's markers")
+        .input::<Markers>("markers", "");
+    let mut node = armor_tests::test_node(spec, agent, &[("markers", "echo.markers")]);
+    let input = node.input::<Markers>("markers").unwrap();
+    let deadline = std::time::Instant::now() + PATIENCE;
+    let markers = loop {
+        assert!(std::time::Instant::now() < deadline, "no markers from echo");
+        if let Event::Input(_) = node
+            .next_event(Some(std::time::Duration::from_millis(200)))
+            .unwrap()
+            && let Some(sample) = node.take(&input).unwrap()
+        {
+            break sample.value;
+        }
+    };
+    assert_eq!(markers.markers.len(), 2);
+    let (point, text) = (&markers.markers[0], &markers.markers[1]);
+    assert_eq!((point.shape, point.frame), (Shape::Points, Frame::World));
+    assert_eq!(text.shape, Shape::Text);
+    assert_eq!(point.rgba, [200, 40, 160, 255]);
+    let value = point.points[0].x_m;
+    assert!(value >= 1.0 && value.fract() == 0.0, "{value}");
+    assert_eq!(text.text, format!("pyecho {value}"));
+}

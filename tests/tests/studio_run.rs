@@ -644,3 +644,118 @@ fn the_robot_is_driven_by_its_camera_and_the_video_is_recorded() {
     assert_eq!((frame.image.width, frame.image.height), (320, 240));
     harness.get_by_label_contains("320 × 240 jpeg · camera · age");
 }
+
+/// The bundled system of competing behaviours (`missions/robot/system-behaviours.xml`), its
+/// world given by its full path since the run works in `dir`.
+fn behaviours_system(dir: &Path) -> PathBuf {
+    let world = workspace_root().join("assets/worlds/yard.world");
+    let text =
+        std::fs::read_to_string(workspace_root().join("missions/robot/system-behaviours.xml"))
+            .unwrap()
+            .replace(
+                r#"value="yard.world""#,
+                &format!(r#"value="{}""#, world.display()),
+            );
+    let file = dir.join("system.xml");
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
+#[test]
+fn behaviours_take_and_give_up_control_in_the_oscilloscope_and_markers_are_switched_per_module() {
+    use armor_runtime::control::BehaviourState;
+    let dir = tempfile::tempdir().unwrap();
+    let system = behaviours_system(dir.path());
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &system, 2.0);
+
+    // The crate makes vff win, and the follower wins again once past it: the time line says so.
+    step_until(
+        &mut harness,
+        "vff to win and give control back to the follower",
+        Duration::from_secs(90),
+        |app| {
+            let changes = status(app).behaviour_changes;
+            changes
+                .iter()
+                .position(|c| c.module == "vff" && c.state == Some(BehaviourState::Winner))
+                .is_some_and(|won| {
+                    changes[won..]
+                        .iter()
+                        .any(|c| c.module == "follower" && c.state == Some(BehaviourState::Winner))
+                })
+        },
+    );
+    // The tree: the arbiter with who is in control, its behaviours coloured by state.
+    harness.run_ok();
+    harness.get_by_label_contains("⚖ arbiter — in control: ");
+    assert!(
+        harness.query_all_by_label_contains("★ ").count() <= 1,
+        "one winner highlighted at most"
+    );
+    harness.get_by_label("State changes");
+    for module in ["vff", "stop"] {
+        assert!(
+            harness
+                .query_all_by_label_contains(&format!("{module}: "))
+                .next()
+                .is_some(),
+            "{module}'s state shown"
+        );
+    }
+
+    // Each module's markers in its layer; switching one off hides that module's only.
+    step_until(
+        &mut harness,
+        "vff's and the follower's markers drawn",
+        PATIENCE,
+        |app| {
+            let drawn = &app.run().markers_drawn;
+            drawn.get("vff").is_some_and(|n| *n > 0)
+                && drawn.get("follower").is_some_and(|n| *n > 0)
+        },
+    );
+    harness.get_by_label_contains("vff (").click();
+    harness.run_ok();
+    step_until(&mut harness, "vff's markers hidden", PATIENCE, |app| {
+        !app.run().markers_drawn.contains_key("vff")
+            && app.run().markers_drawn.contains_key("follower")
+    });
+    assert!(harness.state().run().hidden_markers.contains("vff"));
+    harness.get_by_label_contains("vff (").click();
+    step_until(&mut harness, "vff's markers shown again", PATIENCE, |app| {
+        app.run().markers_drawn.contains_key("vff")
+    });
+
+    // Any output inspected: the arbiter's command, picked in the list, plotted.
+    harness.get_by_label("output").click();
+    harness.run_ok();
+    harness.get_by_label("arbiter.cmd_vel (Twist)").click();
+    harness.run_ok();
+    assert_eq!(
+        harness.state().run().inspected.as_deref(),
+        Some("arbiter.cmd_vel")
+    );
+    harness.get_by_label_contains("Twist: ");
+    harness.get_by_label_contains("linear m/s ");
+
+    // Sensors and motors: the laser, and every command — each candidate's, the one in control
+    // starred, the robot's.
+    harness.get_by_label("Sensors and motors").click();
+    harness.run_ok();
+    assert!(harness.query_all_by_label("sim.scan").next().is_some());
+    for command in ["vff.cmd_vel", "stop.cmd_vel", "mux.cmd_vel"] {
+        assert!(
+            harness
+                .query_all_by_label_contains(command)
+                .next()
+                .is_some(),
+            "{command} listed"
+        );
+    }
+
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+}

@@ -13,9 +13,11 @@ use std::time::Duration;
 
 use armor_model::SystemConfig;
 use armor_model::world::Point;
-use armor_module_api::types::{LaserScan, OccupancyGrid, Odometry, Pose2D, Text};
+use armor_module_api::types::{LaserScan, Markers, OccupancyGrid, Odometry, Pose2D, Text};
 use armor_module_api::{Datum, Event, ModuleDescription, ModuleSpec, Node, Standalone};
 
+use super::inspector::Outputs;
+use super::markers::Layers;
 use super::untrusted::{self, Refused, Timeline};
 
 /// The studio node's name, as the agent and the providers' logs show it.
@@ -43,6 +45,8 @@ pub struct Sources {
     pub path: Option<String>,
     /// Every `Image` output, for the video panel to pick from.
     pub images: Vec<String>,
+    /// Every output (data name, data type), for the inspector and the markers' layers.
+    pub outputs: Vec<(String, String)>,
 }
 
 impl Sources {
@@ -86,11 +90,16 @@ impl Sources {
                 .filter(|(_, _, data_type)| data_type == "Image")
                 .map(|(_, name, _)| name.clone())
                 .collect(),
+            outputs: outputs
+                .into_iter()
+                .map(|(_, name, data_type)| (name, data_type))
+                .collect(),
         }
     }
 
+    /// Every data name to subscribe to, once each.
     fn names(&self) -> impl Iterator<Item = &String> {
-        [
+        let mut names: Vec<&String> = [
             &self.estimated,
             &self.truth,
             &self.scan,
@@ -100,6 +109,19 @@ impl Sources {
         .into_iter()
         .flatten()
         .chain(&self.images)
+        .chain(self.outputs.iter().map(|(name, _)| name))
+        .collect();
+        names.sort();
+        names.dedup();
+        names.into_iter()
+    }
+
+    /// The data type of an output, as the system declares it.
+    fn data_type(&self, data_name: &str) -> Option<&str> {
+        self.outputs
+            .iter()
+            .find(|(name, _)| name == data_name)
+            .map(|(_, data_type)| data_type.as_str())
     }
 }
 
@@ -123,6 +145,10 @@ pub struct LiveData {
     /// The last sample that was not taken, and why (`mapper.grid: …`); the view keeps showing
     /// the last good one of that source.
     pub refused: Option<String>,
+    /// Every output's recent samples, for the inspector.
+    pub outputs: Outputs,
+    /// Each module's latest markers.
+    pub markers: Layers,
 }
 
 impl LiveData {
@@ -133,7 +159,15 @@ impl LiveData {
     pub fn take(&mut self, sources: &Sources, data_name: &str, payload: &[u8]) {
         let is = |source: &Option<String>| source.as_deref() == Some(data_name);
         self.samples += 1;
-        let taken = if is(&sources.truth) {
+        let data_type = sources.data_type(data_name);
+        if let Some(data_type) = data_type {
+            self.outputs.take(data_name, data_type, payload);
+        }
+        let taken = if data_type == Some(Markers::TYPE) {
+            Markers::decode(payload)
+                .map_err(|err| err.to_string())
+                .and_then(|markers| self.markers.take(data_name, markers))
+        } else if is(&sources.truth) {
             checked(Pose2D::decode(payload), untrusted::check_pose).map(|pose| {
                 self.trail_to(&pose);
                 self.truth = Some(pose);
@@ -337,7 +371,7 @@ impl Recording {
     }
 
     /// A recording of `messages`, read from `file`, shown at its end.
-    fn of(
+    pub(crate) fn of(
         file: &Path,
         mut messages: Vec<armor_runtime::replay::Recorded>,
     ) -> anyhow::Result<Recording> {
@@ -370,6 +404,15 @@ impl Recording {
                     }
                     names
                 }),
+            outputs: {
+                let mut channels: Vec<(String, String)> = messages
+                    .iter()
+                    .map(|m| (m.data_name.clone(), m.data_type.clone()))
+                    .collect();
+                channels.sort();
+                channels.dedup();
+                channels
+            },
         };
         let mut recording = Recording {
             file: file.to_path_buf(),

@@ -1,21 +1,28 @@
 //! The Run view: start the current system or plan with the runtime of `armor run` and watch it.
-//! The module monitor lists every module with its state, cycle time, rates and restarts, with
-//! switches to start and stop it by hand; the mission monitor shows the net with its live
-//! marking, what the enabled transitions wait for, the firings so far, and the operator's
-//! buttons; the live map shows the robot (estimated and true pose), its laser scan and the
-//! mapper's grid over the plan, the current leg highlighted, the path the follower follows and
-//! the ones it replaced by replanning ([`followed`]); the operator drives through the
-//! teleop module from the keyboard or the on-screen pad; each module's log is kept and
-//! filterable. A recording of the recorder opens into the same map.
+//! The hierarchy oscilloscope ([`oscilloscope`]) lists every module in a tree, each arbiter with
+//! its behaviours and their states, with its state, cycle time, rates and restarts and switches
+//! to start and stop it by hand, over a time line of the behaviours' state changes; the mission
+//! monitor shows the net with its live marking, what the enabled transitions wait for, the
+//! firings so far, and the operator's buttons; the live map shows the robot (estimated and true
+//! pose), its laser scan and the mapper's grid over the plan, the current leg highlighted, the
+//! path the follower follows and the ones it replaced by replanning ([`followed`]), and each
+//! module's markers in a layer with its switch ([`markers`]); any output can be inspected
+//! ([`inspector`]); the operator drives through the teleop module from the keyboard or the
+//! on-screen pad; each module's log is kept and filterable. A recording of the recorder opens
+//! into the same map.
 
 pub mod followed;
+pub mod inspector;
 pub mod live;
+pub mod markers;
 pub mod monitor;
+pub mod oscilloscope;
+pub mod sensors_motors;
 pub mod session;
 pub mod untrusted;
 pub mod video;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -96,6 +103,14 @@ pub struct RunView {
     /// The follower's paths of the current leg, as drawn at the last frame.
     followed: FollowedLeg,
     pub video: video::VideoPanel,
+    /// Modules whose markers' layer the user switched off.
+    pub hidden_markers: BTreeSet<String>,
+    /// The output the inspector shows.
+    pub inspected: Option<String>,
+    /// The moment the oscilloscope's time line is scrubbed to (`None`: now).
+    pub timeline_at: Option<f64>,
+    /// How many markers of each module the live map drew at the last frame (for tests).
+    pub markers_drawn: BTreeMap<String, usize>,
 }
 
 impl RunView {
@@ -124,6 +139,10 @@ impl RunView {
             max_replans: None,
             followed: FollowedLeg::default(),
             video: video::VideoPanel::default(),
+            hidden_markers: BTreeSet::new(),
+            inspected: None,
+            timeline_at: None,
+            markers_drawn: BTreeMap::new(),
         }
     }
 
@@ -410,7 +429,10 @@ impl RunView {
                     .show(ui, |ui| self.teleop_ui(ui));
                 egui::ScrollArea::vertical()
                     .id_salt("run-mission-scroll")
-                    .show(ui, |ui| self.mission_ui(ui, status.as_ref()));
+                    .show(ui, |ui| {
+                        self.mission_ui(ui, status.as_ref());
+                        self.views_ui(ui, status.as_ref());
+                    });
             });
         egui::Panel::bottom("run-logs")
             .resizable(true)
@@ -534,17 +556,29 @@ impl RunView {
         egui::ScrollArea::vertical()
             .id_salt("run-modules-scroll")
             .show(ui, |ui| {
-                for module in &status.modules {
-                    let samples = history.get(&module.name);
-                    if let Some(request) = monitor::module_row(ui, module, samples, running) {
-                        requests.push(request);
-                    }
-                    ui.separator();
-                }
+                requests = oscilloscope::tree_ui(ui, status, &history, running);
+                ui.heading("State changes");
+                oscilloscope::timeline_ui(ui, status, &mut self.timeline_at);
             });
         for request in requests {
             self.request(request);
         }
+    }
+
+    /// Each module's own view: the switches of the markers' layers, and the inspector; the
+    /// robot's sensors and motors.
+    fn views_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {
+        let live = self.live();
+        ui.separator();
+        ui.heading("Markers");
+        markers::toggles_ui(ui, &live.markers, &mut self.hidden_markers);
+        ui.separator();
+        ui.heading("Inspect an output");
+        inspector::inspector_ui(ui, &live.outputs, &mut self.inspected);
+        ui.separator();
+        egui::CollapsingHeader::new("Sensors and motors")
+            .id_salt("run-sensors-motors")
+            .show(ui, |ui| sensors_motors::panel_ui(ui, &live.outputs, status));
     }
 
     fn mission_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {
@@ -815,6 +849,7 @@ impl RunView {
         let fit = std::mem::take(&mut self.fit_pending) || net_appeared;
         let follow = self.follow;
         let max_replans = self.max_replans;
+        let hidden = self.hidden_markers.clone();
         let watching = self.is_running() || self.recording.is_some();
         // The camera beside the map.
         let images = self
@@ -886,9 +921,12 @@ impl RunView {
                 }
             });
         }
+        let mut drawn = BTreeMap::new();
         mission.watch_ui(ui, current_leg, |painter, project| {
             monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
+            drawn = markers::paint(painter, project, &live.markers, &hidden, live.scan_pose());
         });
+        self.markers_drawn = drawn;
         self.followed = followed;
     }
 

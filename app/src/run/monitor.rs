@@ -406,6 +406,7 @@ mod tests {
                 busy_us,
                 sent: [("sim.odometry".to_owned(), sent)].into(),
                 received: Default::default(),
+                ..Default::default()
             },
         }
     }

@@ -13,6 +13,7 @@
 //! through a symlink named `armor-mod-benchprobe`, it is the module `event_to_start_ms` runs
 //! under `armor run` (see `benchprobe.rs`).
 
+mod arbiter_switch;
 mod benchprobe;
 mod camera_sim;
 mod compile_plan;
@@ -269,6 +270,12 @@ const BENCHES: &[Bench] = &[
         run: mapper_scan::run,
     },
     Bench {
+        name: arbiter_switch::NAME,
+        about: "from a higher-priority behaviour's first proposal to its command out of \
+                armor-mod-arbiter vs out of armor-mod-mux at 1000 Hz (ms; goal ratio <= 1.1)",
+        run: arbiter_switch::run,
+    },
+    Bench {
         name: studio::NAME_FRAME,
         about: "one UI frame of armor-studio (headless) on a 1,000-block, 1,500-link diagram vs \
                 a 60 Hz frame budget (ms; goal < 16)",
@@ -302,6 +309,12 @@ const BENCHES: &[Bench] = &[
         about: "armor-studio's File → Arrange (layered layout) on 200 blocks and 300 links wired \
                 at random, some backwards (ms; goal < 100)",
         run: studio::run_layout,
+    },
+    Bench {
+        name: studio::NAME_MARKERS,
+        about: "one frame of armor-studio's Run view with 20 modules' markers, 500 each, \
+                played at 10 Hz, every layer shown, vs a 60 Hz frame budget (ms; goal < 16)",
+        run: studio::run_markers,
     },
     Bench {
         name: fuzz::NAME,

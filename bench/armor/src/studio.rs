@@ -20,6 +20,7 @@ pub const NAME_MAP: &str = "map_frame_ms_500_waypoints";
 pub const NAME_LABELS: &str = "label_place_ms_500_waypoints";
 pub const NAME_VS_SNARL: &str = "studio_vs_bare_snarl_1000";
 pub const NAME_LAYOUT: &str = "layout_ms_200_blocks";
+pub const NAME_MARKERS: &str = "markers_frame_ms";
 
 pub fn run_frame(settings: &Settings) -> anyhow::Result<Report> {
     relay(NAME_FRAME, settings)
@@ -39,6 +40,10 @@ pub fn run_labels(settings: &Settings) -> anyhow::Result<Report> {
 
 pub fn run_layout(settings: &Settings) -> anyhow::Result<Report> {
     relay(NAME_LAYOUT, settings)
+}
+
+pub fn run_markers(settings: &Settings) -> anyhow::Result<Report> {
+    relay(NAME_MARKERS, settings)
 }
 
 pub fn run_vs_snarl(settings: &Settings) -> anyhow::Result<Report> {

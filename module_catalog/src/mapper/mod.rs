@@ -27,7 +27,9 @@ pub mod matcher;
 
 use std::time::Instant;
 
-use armor_module_api::types::{LaserScan, OccupancyGrid, Odometry, Pose2D};
+use armor_module_api::types::{
+    Frame, LaserScan, Marker, Markers, OccupancyGrid, Odometry, Pose2D, Shape,
+};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
@@ -76,6 +78,11 @@ pub fn spec() -> ModuleSpec {
          scan: a drop-in replacement for odometry",
     )
     .output::<Pose2D>("pose_map", "the same corrected pose, for display")
+    .output::<Markers>(
+        "markers",
+        "the last scan placed, drawn from the corrected pose (the map's frame), five times a \
+         second of run time",
+    )
     .param(
         ParamSpec::new(
             "resolution_m",
@@ -445,12 +452,38 @@ fn check_finite(scan: &LaserScan, pose: Pose2D) -> Result<(), String> {
     }
 }
 
+/// How often, in run time, the last scan placed is drawn again.
+const MARKERS_EVERY_SECS: f64 = 0.2;
+
+/// The echoes of `scan` seen from `pose`, in the map's frame: where the matcher placed them.
+fn placed_scan(scan: &LaserScan, pose: Pose2D) -> Markers {
+    let hits = scan.ranges_m.iter().enumerate().filter_map(|(i, &range)| {
+        let range = f64::from(range);
+        if !range.is_finite() || range <= 0.0 || range >= scan.range_max_m {
+            return None;
+        }
+        let angle = pose.theta_rad + scan.angle_min_rad + i as f64 * scan.angle_increment_rad;
+        Some((
+            pose.x_m + range * angle.cos(),
+            pose.y_m + range * angle.sin(),
+        ))
+    });
+    let mut points = Marker::new(Shape::Points, Frame::World, [20, 170, 190, 220], hits)
+        .with_text("last scan placed");
+    points.size_px = 1.5;
+    Markers {
+        markers: vec![points],
+    }
+}
+
 pub fn body(node: &mut Node) -> BodyResult {
     let scan_input = node.input::<LaserScan>("scan")?;
     let odometry_input = node.input::<Odometry>("odometry")?;
     let map_output = node.output::<OccupancyGrid>("map")?;
     let pose_output = node.output::<Odometry>("pose")?;
     let pose_map_output = node.output::<Pose2D>("pose_map")?;
+    let markers_output = node.output::<Markers>("markers")?;
+    let mut markers_sent = f64::NEG_INFINITY;
     let mut mapper = Mapper::new(Settings::read(node)?)?;
     let settings = mapper.settings();
     tracing::info!(
@@ -495,6 +528,10 @@ pub fn body(node: &mut Node) -> BodyResult {
                         };
                         node.send(&pose_output, &corrected)?;
                         node.send(&pose_map_output, &pose)?;
+                        if node.timestamp() - markers_sent >= MARKERS_EVERY_SECS {
+                            markers_sent = node.timestamp();
+                            node.send(&markers_output, &placed_scan(&sample.value, pose))?;
+                        }
                     }
                     Err(why) => tracing::warn!("{why}"),
                 }

@@ -377,3 +377,34 @@ fn the_mapper_beats_odometry_round_the_building() {
         run.known_iou
     );
 }
+
+#[test]
+fn the_last_scan_placed_is_drawn_from_the_corrected_pose() {
+    use armor_module_api::types::{Frame, Shape};
+    let scan = LaserScan {
+        angle_min_rad: 0.0,
+        angle_increment_rad: std::f64::consts::FRAC_PI_2,
+        range_max_m: 10.0,
+        ranges_m: vec![2.0, 10.0, f32::NAN, 1.0],
+    };
+    let pose = Pose2D {
+        x_m: 1.0,
+        y_m: 1.0,
+        theta_rad: std::f64::consts::FRAC_PI_2,
+    };
+    let markers = super::placed_scan(&scan, pose);
+    let marker = &markers.markers[0];
+    assert_eq!((marker.shape, marker.frame), (Shape::Points, Frame::World));
+    // Ahead (north) 2 m, and to the robot's right (east) 1 m; no echo and NaN left out.
+    let points: Vec<(f32, f32)> = marker
+        .points
+        .iter()
+        .map(|p| {
+            (
+                (p.x_m * 100.0).round() / 100.0,
+                (p.y_m * 100.0).round() / 100.0,
+            )
+        })
+        .collect();
+    assert_eq!(points, [(1.0, 3.0), (2.0, 1.0)]);
+}

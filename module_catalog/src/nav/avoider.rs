@@ -13,7 +13,7 @@
 
 use std::f64::consts::FRAC_PI_2;
 
-use armor_module_api::types::{LaserScan, Twist};
+use armor_module_api::types::{Frame, LaserScan, Marker, Markers, Shape, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use super::{finite_or_zero, sanitized, wrap_angle};
@@ -63,6 +63,11 @@ pub fn spec() -> ModuleSpec {
         "cmd_desired",
         "the command to follow when the way is free (without one for 0.5 s of run time the \
          avoider commands zero)",
+    )
+    .output::<Markers>(
+        "markers",
+        "its view, ten times a second of run time: the total repulsive force and the robot's \
+         path ahead up to the nearest obstacle in it, red while the stop holds (robot frame)",
     )
     .output::<Twist>(
         "cmd_vel",
@@ -122,6 +127,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let scan_input = node.input::<LaserScan>("scan")?;
     let desired_input = node.input::<Twist>("cmd_desired")?;
     let output = node.output::<Twist>("cmd_vel")?;
+    let markers = node.output::<Markers>("markers")?;
     let mut avoider = Avoider::new(Settings::read(node)?);
     let mut next_tick = node.timestamp() + TICK_SECS;
     loop {
@@ -157,6 +163,9 @@ pub fn body(node: &mut Node) -> BodyResult {
                     if let Some(event) = output_now.report {
                         node.report(event)?;
                     }
+                }
+                if let Some(drawn) = avoider.markers(now) {
+                    node.send(&markers, &drawn)?;
                 }
             }
             Event::Start => {
@@ -264,6 +273,45 @@ impl Avoider {
             stops: Stops::default(),
             stale_published: false,
         }
+    }
+
+    /// Its view of the latest fresh scan: the total repulsion (an arrow from the robot, one
+    /// metre per unit of force) and the corridor ahead up to the nearest obstacle in it.
+    fn markers(&self, now: f64) -> Option<Markers> {
+        let (scan, _) = self.scan.as_ref().filter(|_| self.scan_is_fresh(now))?;
+        let around = survey(&self.settings, scan)?;
+        let held = self.stops.ahead || self.stops.behind;
+        let corridor_rgba = if held {
+            [220, 40, 40, 200]
+        } else {
+            [120, 120, 200, 120]
+        };
+        let radius = self.settings.robot_radius_m;
+        let length = around.clearance_ahead_m.min(self.settings.influence_m);
+        let (x, y) = around.repulsion;
+        Some(Markers {
+            markers: vec![
+                Marker::new(
+                    Shape::Polygon,
+                    Frame::Robot,
+                    corridor_rgba,
+                    [
+                        (0.0, -radius),
+                        (length, -radius),
+                        (length, radius),
+                        (0.0, radius),
+                    ],
+                )
+                .with_text("path ahead"),
+                Marker::new(
+                    Shape::Arrows,
+                    Frame::Robot,
+                    [220, 40, 200, 230],
+                    [(0.0, 0.0), (x, y)],
+                )
+                .with_text("repulsion"),
+            ],
+        })
     }
 
     fn on_scan(&mut self, scan: LaserScan, now: f64) {
@@ -846,6 +894,32 @@ mod tests {
             err.to_string()
                 .contains("`influence_m` must be greater than stop_m"),
             "{err}"
+        );
+    }
+
+    #[test]
+    fn draws_the_repulsion_away_from_an_obstacle_and_the_path_red_while_stopped() {
+        let bench = run([
+            scan_step(&scan_with_obstacle(30.0, 10.0, 0.6)),
+            Step::Timeouts(1),
+            scan_step(&scan_with_obstacle(0.0, 10.0, 0.2)),
+            desired(0.3, 0.0),
+            Step::Timeouts(1),
+        ]);
+        let drawn = bench.sent::<Markers>("markers").expect("markers");
+        assert_eq!(drawn.len(), 2, "one per tick with a fresh scan");
+        let arrow = &drawn[0].markers[1];
+        assert_eq!((arrow.shape, arrow.frame), (Shape::Arrows, Frame::Robot));
+        let force = arrow.points[1];
+        assert!(
+            force.x_m < 0.0 && force.y_m < 0.0,
+            "pushed back and to the right by an obstacle ahead on the left: {force:?}"
+        );
+        assert_eq!(drawn[0].markers[0].rgba[0], 120, "free");
+        assert_eq!(
+            drawn[1].markers[0].rgba,
+            [220, 40, 40, 200],
+            "held by the stop"
         );
     }
 }

@@ -24,7 +24,9 @@
 use armor_model::geo::{self, Polygon};
 use armor_model::planner::{self, Keepout, Path, Robot};
 use armor_model::world::Point;
-use armor_module_api::types::{LaserScan, Odometry, Pose2D, Text, Twist};
+use armor_module_api::types::{
+    Frame, LaserScan, Marker, Markers, Odometry, Pose2D, Shape, Text, Twist,
+};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use super::pursuit::{Limits, Pursuit};
@@ -74,6 +76,11 @@ pub fn spec() -> ModuleSpec {
         "the path being followed, `X,Y X,Y ...` in metres: the planned one at each activation, \
          each new one after a replan, and the same again every second of run time while \
          active (for a display that subscribes late)",
+    )
+    .output::<Markers>(
+        "markers",
+        "what it follows, for the Run view's map: the path ahead (or the line to the goal or \
+         the next corner round a no-go area) and the goal, ten times a second of run time",
     )
     .output::<Twist>(
         "cmd_desired",
@@ -239,6 +246,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let scan = node.input::<LaserScan>("scan")?;
     let path_output = node.output::<Text>("path")?;
     let output = node.output::<Twist>("cmd_desired")?;
+    let markers_output = node.output::<Markers>("markers")?;
     let settings = Settings::read(node)?;
     let world = load_world(&settings.world)?;
     tracing::info!(
@@ -251,6 +259,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     follower.world = world;
     let mut next_tick = node.timestamp() + TICK_SECS;
     let mut path_sent = f64::NEG_INFINITY;
+    let mut applicable = true;
     loop {
         let event = if node.is_active() {
             let deadline = node.clock().instant_at(next_tick);
@@ -269,7 +278,14 @@ pub fn body(node: &mut Node) -> BodyResult {
                         send_path(node, &path_output, &follower)?;
                         path_sent = node.timestamp();
                     }
-                    node.send(&output, &control.twist)?;
+                    // A behaviour proposes only while it applies (until the goal is reached),
+                    // and says so; its last proposal is the zero of arrival.
+                    let applied = applicable;
+                    applicable = !follower.reached;
+                    node.set_applicable(applicable);
+                    if applicable || applied {
+                        node.send(&output, &control.twist)?;
+                    }
                     if let Some(event) = control.report {
                         node.report(event)?;
                     }
@@ -290,10 +306,12 @@ pub fn body(node: &mut Node) -> BodyResult {
                 if let Some(event) = follower.on_tick(now) {
                     node.report(event)?;
                 }
+                node.send(&markers_output, &follower.markers())?;
             }
             Event::Start => {
                 tracing::info!("active: heading for the goal");
                 follower.restart(node.timestamp());
+                applicable = true;
                 next_tick = node.timestamp() + TICK_SECS;
                 send_path(node, &path_output, &follower)?;
                 path_sent = node.timestamp();
@@ -551,6 +569,44 @@ impl Follower {
         self.blocked = false;
         self.best_distance_m = f64::INFINITY;
         self.last_progress = now;
+    }
+
+    /// What the follower follows, drawn: the path ahead of the robot (or the line to the
+    /// corner round a no-go area it heads for, then to the goal) and the goal.
+    fn markers(&self) -> Markers {
+        const PATH_RGBA: [u8; 4] = [30, 140, 60, 230];
+        const GOAL_RGBA: [u8; 4] = [30, 140, 60, 255];
+        let goal = self.settings.goal();
+        let mut markers = vec![
+            Marker::new(Shape::Points, Frame::World, GOAL_RGBA, [(goal.x, goal.y)]),
+            Marker::new(Shape::Text, Frame::World, GOAL_RGBA, [(goal.x, goal.y)]).with_text(
+                if self.reached {
+                    "goal (reached)"
+                } else {
+                    "goal"
+                },
+            ),
+        ];
+        if let Some(pose) = self.pose.filter(|_| !self.reached) {
+            let here = Point::new(pose.x_m, pose.y_m);
+            let ahead = match &self.pursuit {
+                Some(pursuit) => pursuit.ahead(here),
+                None => [Some(here), self.via, Some(goal)]
+                    .into_iter()
+                    .flatten()
+                    .collect(),
+            };
+            let mut line = Marker::new(
+                Shape::Polyline,
+                Frame::World,
+                PATH_RGBA,
+                ahead.iter().map(|p| (p.x, p.y)),
+            )
+            .with_text("path ahead");
+            line.size_px = 3.0;
+            markers.push(line);
+        }
+        Markers { markers }
     }
 
     fn retune(&mut self, settings: Settings, now: f64) {
@@ -1086,15 +1142,16 @@ mod tests {
         ]);
         body(bench.node()).expect("body");
         let sent = sent(&bench);
-        assert_eq!(sent.len(), 5);
+        assert_eq!(sent.len(), 3, "nothing proposed once the goal is reached");
         assert!((sent[0].linear_mps - 0.6).abs() < 1e-9, "{:?}", sent[0]);
         assert!(sent[0].angular_radps.abs() < 1e-9);
         assert!(
             sent[1].linear_mps > 0.0 && sent[1].linear_mps < sent[0].linear_mps,
             "slows down near the goal: {sent:?}"
         );
-        assert_eq!(sent[2..], [Twist::default(); 3]);
+        assert_eq!(sent[2], Twist::default());
         assert_eq!(bench.reported(), ["goal_reached"]);
+        assert_eq!(bench.behaviour(), ["applicable", "not applicable"]);
     }
 
     #[test]
@@ -1137,9 +1194,10 @@ mod tests {
         ]);
         body(bench.node()).expect("body");
         let sent = sent(&bench);
-        assert_eq!(sent[..2], [Twist::default(); 2]);
-        assert!(sent[2].linear_mps > 0.5, "drives to the new goal: {sent:?}");
-        assert_eq!(sent[3], Twist::default());
+        // Arrived at once: one zero, then nothing proposed until the new goal.
+        assert_eq!(sent[0], Twist::default());
+        assert!(sent[1].linear_mps > 0.5, "drives to the new goal: {sent:?}");
+        assert_eq!(sent[2..], [Twist::default()]);
         assert_eq!(bench.reported(), ["goal_reached", "goal_reached"]);
     }
 
@@ -1152,7 +1210,7 @@ mod tests {
             at(1.9, 0.0, 0.0),
         ]);
         body(bench.node()).expect("a bad value does not end the module");
-        assert_eq!(sent(&bench), [Twist::default(); 2]);
+        assert_eq!(sent(&bench), [Twist::default()], "nothing once arrived");
         assert_eq!(bench.reported(), ["goal_reached"]);
     }
 

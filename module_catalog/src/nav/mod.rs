@@ -13,13 +13,27 @@
 //!   down before obstacles, stops forward motion when one is too close, and stops altogether
 //!   without fresh scans.
 //!
-//! Both publish nothing while inactive, after one zero command when stopped so that the robot
+//! Navigation as competing behaviours (JDE's motor schemas), chosen by the
+//! [`arbiter`](crate::arbiter), with the avoider still under the winner as the safety layer:
+//!
+//! ```text
+//! follower (go-to-goal) ─┐
+//! vff (obstacle avoidance) ─┼─▶ arbiter ──▶ avoider ──▶ robot
+//! stop ──────────────────┘
+//! ```
+//!
+//! - [`vff`]: applies while an obstacle is close ahead and proposes a way round it.
+//! - [`stop`]: always applies, proposes zero; the lowest priority.
+//!
+//! The follower, the avoider and vff publish nothing while inactive, after one zero command when stopped so that the robot
 //! does not keep the last motion command.
 
 pub mod avoider;
 pub mod follower;
 pub(crate) mod pursuit;
 pub(crate) mod replan;
+pub mod stop;
+pub mod vff;
 
 use armor_module_api::types::Twist;
 

@@ -175,6 +175,10 @@ pub(crate) struct Core {
     pub busy: Duration,
     /// When the module last took an event (its code has been running since).
     pub took_event_at: Option<Instant>,
+    /// A behaviour's preconditions as it last set them (`None`: it never did).
+    pub applicable: Option<bool>,
+    /// An arbiter's input in control as it last set it.
+    pub winner: Option<String>,
 }
 
 impl Core {
@@ -230,6 +234,8 @@ impl Core {
             cycles: 0,
             busy: Duration::ZERO,
             took_event_at: None,
+            applicable: None,
+            winner: None,
         }
     }
 
@@ -248,6 +254,8 @@ impl Core {
                 .iter()
                 .map(|slot| (slot.name.clone(), slot.received))
                 .collect(),
+            applicable: self.applicable,
+            winner: self.winner.clone(),
         }
     }
 

@@ -610,14 +610,41 @@ impl Node {
             return Err(ApiError::UnknownEvent(event.to_owned()));
         }
         tracing::info!(event, "reporting event");
-        let message = ToSupervisor::Event {
+        self.tell_supervisor(ToSupervisor::Event {
             name: event.to_owned(),
-        };
+        });
+        Ok(())
+    }
+
+    /// Says whether this behaviour's preconditions hold now (JDE's schemas: a behaviour that is
+    /// active but not applicable is `checking`; an applicable one is `ready`, or `winner` when an
+    /// arbiter gives it control). Sent to the supervisor only when it changes, so it may be
+    /// called at every cycle. A behaviour proposes commands only while applicable: an arbiter
+    /// counts a candidate whose proposals are fresh.
+    pub fn set_applicable(&mut self, applicable: bool) {
+        if self.core.applicable == Some(applicable) {
+            return;
+        }
+        self.core.applicable = Some(applicable);
+        self.tell_supervisor(ToSupervisor::Applicable { applicable });
+    }
+
+    /// An arbiter says which of its inputs is in control now (`None`: none), when it changes.
+    pub fn set_winner(&mut self, input: Option<&str>) {
+        if self.core.winner.as_deref() == input {
+            return;
+        }
+        self.core.winner = input.map(str::to_owned);
+        self.tell_supervisor(ToSupervisor::Winner {
+            input: input.map(str::to_owned),
+        });
+    }
+
+    fn tell_supervisor(&mut self, message: ToSupervisor) {
         match &mut self.transport {
             Transport::Net(net) => net.tell_supervisor(&message),
             Transport::Test(test) => test.reports.push(message),
         }
-        Ok(())
     }
 
     /// Waits for the next event, at most `timeout` (forever with `None`).

@@ -74,6 +74,18 @@ pub enum ToSupervisor {
     Event {
         name: String,
     },
+    /// A behaviour's preconditions hold (`true`) or not: sent when that changes. With the
+    /// module's activity it makes the states a user sees (`slept`, `checking`, `ready`,
+    /// `winner`; see `docs/protocol.md`, section 4.2).
+    Applicable {
+        applicable: bool,
+    },
+    /// From an arbiter: the input whose command is in control now (`None`: no candidate is),
+    /// sent when that changes.
+    Winner {
+        #[serde(default)]
+        input: Option<String>,
+    },
     /// The answer to a ping, with what the module did so far (absent from modules that do not
     /// count: `{"type":"pong"}` is a valid answer).
     Pong {
@@ -95,6 +107,13 @@ pub struct NodeStats {
     pub sent: BTreeMap<String, u64>,
     /// Samples received, per input name.
     pub received: BTreeMap<String, u64>,
+    /// A behaviour's latest [`ToSupervisor::Applicable`] (absent from other modules), repeated
+    /// here so that a config server that reconnects learns it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub applicable: Option<bool>,
+    /// An arbiter's latest [`ToSupervisor::Winner`], repeated for the same reason.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub winner: Option<String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]

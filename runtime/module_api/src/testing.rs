@@ -149,6 +149,27 @@ impl TestBench {
     }
 }
 
+impl TestBench {
+    /// What the module said of its behaviour, in order: each [`Node::set_applicable`] as
+    /// `applicable`/`not applicable`, each [`Node::set_winner`] as `winner INPUT`/`winner none`.
+    pub fn behaviour(&self) -> Vec<String> {
+        let Transport::Test(test) = &self.node.transport else {
+            return Vec::new();
+        };
+        test.reports
+            .iter()
+            .filter_map(|report| match report {
+                ToSupervisor::Applicable { applicable: true } => Some("applicable".to_owned()),
+                ToSupervisor::Applicable { applicable: false } => Some("not applicable".to_owned()),
+                ToSupervisor::Winner { input } => {
+                    Some(format!("winner {}", input.as_deref().unwrap_or("none")))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -176,6 +176,92 @@ pub struct Health {
     pub at_ns: u64,
 }
 postcard_datum!(Health, "Health");
+/// What a module draws of its own view on the Run view's map: points, polylines, polygons,
+/// arrows and text, each in the world frame or the robot's, with its colour. By convention a
+/// module publishes them on an output named `markers`; the map draws each module's in a layer
+/// of its own.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Markers {
+    pub markers: Vec<Marker>,
+}
+postcard_datum!(Markers, "Markers");
+
+/// One drawing: its `points` read as [`Shape`] says, in `frame`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Marker {
+    pub shape: Shape,
+    pub frame: Frame,
+    /// Red, green, blue, opacity.
+    pub rgba: [u8; 4],
+    /// Line width, or a point's diameter, in screen points.
+    pub size_px: f32,
+    pub points: Vec<MarkerPoint>,
+    /// What a [`Shape::Text`] says (drawn at its first point); a label for the others.
+    pub text: String,
+}
+
+/// A point of a marker, in metres in its frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MarkerPoint {
+    pub x_m: f32,
+    pub y_m: f32,
+}
+
+/// How a marker's points are drawn (encoded as its index: 0 points … 4 text).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Shape {
+    /// Each point a dot.
+    #[default]
+    Points,
+    /// The points joined in order.
+    Polyline,
+    /// The points joined and closed, filled faintly.
+    Polygon,
+    /// Each pair of points an arrow from the first to the second.
+    Arrows,
+    /// `text` at the first point.
+    Text,
+}
+
+/// The frame a marker's points are in (encoded as its index: 0 world, 1 robot).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Frame {
+    /// The world (the map's) frame.
+    #[default]
+    World,
+    /// The robot's: x ahead, y to its left, drawn from the robot's pose.
+    Robot,
+}
+
+impl Marker {
+    /// A marker of `shape` in `frame` through `points` (x, y in metres).
+    pub fn new(
+        shape: Shape,
+        frame: Frame,
+        rgba: [u8; 4],
+        points: impl IntoIterator<Item = (f64, f64)>,
+    ) -> Self {
+        Self {
+            shape,
+            frame,
+            rgba,
+            size_px: 2.0,
+            points: points
+                .into_iter()
+                .map(|(x, y)| MarkerPoint {
+                    x_m: x as f32,
+                    y_m: y as f32,
+                })
+                .collect(),
+            text: String::new(),
+        }
+    }
+
+    pub fn with_text(mut self, text: &str) -> Self {
+        self.text = text.to_owned();
+        self
+    }
+}
 
 #[cfg(test)]
 mod tests {
@@ -216,5 +302,32 @@ mod tests {
         scan.extend([0; 64]);
         assert!(LaserScan::decode(&scan).is_err());
         assert!(Text::decode(&huge_len).is_err());
+    }
+
+    #[test]
+    fn markers_encode_as_docs_protocol_md_says() {
+        let markers = Markers {
+            markers: vec![
+                Marker::new(
+                    Shape::Arrows,
+                    Frame::Robot,
+                    [255, 0, 0, 128],
+                    [(0.0, 0.0), (1.5, -0.5)],
+                )
+                .with_text("f"),
+            ],
+        };
+        let mut out = Vec::new();
+        markers.encode(&mut out).expect("encode");
+        let mut expected = vec![1, 3, 1, 255, 0, 0, 128];
+        expected.extend(2.0f32.to_le_bytes());
+        expected.push(2);
+        for value in [0.0f32, 0.0, 1.5, -0.5] {
+            expected.extend(value.to_le_bytes());
+        }
+        expected.extend([1, b'f']);
+        assert_eq!(out, expected);
+        assert_eq!(Markers::decode(&out).expect("decode"), markers);
+        assert!(Markers::decode(&out[..out.len() - 1]).is_err());
     }
 }

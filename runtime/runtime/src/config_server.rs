@@ -19,6 +19,7 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use crate::behaviour::{self, Behaviours};
 use armor_model::system::{Reason, demand};
 use armor_model::{Endpoint, ModuleInstance};
 use armor_module_api::Clock;
@@ -110,6 +111,8 @@ struct State {
     demand: BTreeMap<String, Reason>,
     /// The run's health: which modules are down, which sources inputs take.
     health: HealthBook,
+    /// What behaviours and arbiters said, the states that follow and their time line.
+    behaviours: Behaviours,
 }
 
 impl State {
@@ -170,6 +173,31 @@ impl State {
                 .is_none_or(|description| description.controllable)
         };
         demand(system, controllable, &wanted, &held)
+    }
+
+    /// A behaviour's or an arbiter's word (`Applicable`, `Winner`, or either in a pong's
+    /// stats), and the states that follow.
+    fn note_behaviour(&mut self, module: &str, applicable: Option<bool>, winner: Option<Winner>) {
+        if let Some(applicable) = applicable {
+            self.behaviours.set_applicable(module, applicable);
+        }
+        if let Some(winner) = winner {
+            let publisher = winner.and_then(|input| {
+                let conn = self.conns.get(module)?;
+                Some(behaviour::publisher(conn.sent.inputs.get(&input)?).to_owned())
+            });
+            self.behaviours.set_winner(module, publisher);
+        }
+        self.update_behaviours();
+    }
+
+    fn update_behaviours(&mut self) {
+        let active = self
+            .conns
+            .iter()
+            .map(|(name, conn)| (name.clone(), conn.sent.active))
+            .collect();
+        self.behaviours.update(&active, Instant::now());
     }
 
     /// Sends every connected module whose configuration changed its new one (and a start or
@@ -237,9 +265,13 @@ impl State {
         for (module, reason) in switched {
             self.report_health(&module, "switched", &reason);
         }
+        self.update_behaviours();
         updated
     }
 }
+
+/// An arbiter's winning input, as said (`Some(None)`: none wins).
+type Winner = Option<String>;
 
 #[derive(Clone)]
 pub struct ConfigServer {
@@ -271,6 +303,7 @@ impl ConfigServer {
             stats: HashMap::new(),
             demand: BTreeMap::new(),
             health: HealthBook::new(clock),
+            behaviours: Behaviours::default(),
         };
         state.demand = state.compute_demand();
         let server = Self {
@@ -396,6 +429,8 @@ impl ConfigServer {
                 if state.health.closed_is_failure(&module) {
                     state.report_health(&module, "failed", "its connection closed");
                 }
+                state.behaviours.forget(&module);
+                state.update_behaviours();
                 drop(state);
                 let _ = self.events.send(ServerEvent::Disconnected { module });
             }
@@ -473,8 +508,19 @@ impl ConfigServer {
                 },
                 ToSupervisor::Pong { stats } => {
                     if let Some(stats) = stats {
-                        self.lock().stats.insert(name.clone(), stats);
+                        let mut state = self.lock();
+                        let winner = stats.winner.clone().map(Some);
+                        state.note_behaviour(&name, stats.applicable, winner);
+                        state.stats.insert(name.clone(), stats);
                     }
+                    continue;
+                }
+                ToSupervisor::Applicable { applicable } => {
+                    self.lock().note_behaviour(&name, Some(applicable), None);
+                    continue;
+                }
+                ToSupervisor::Winner { input } => {
+                    self.lock().note_behaviour(&name, None, Some(input));
                     continue;
                 }
                 ToSupervisor::Hello { .. } => continue,
@@ -559,6 +605,11 @@ impl ConfigServer {
     /// Why each module runs (those that idle are absent).
     pub fn demand(&self) -> BTreeMap<String, Reason> {
         self.lock().demand.clone()
+    }
+
+    /// Behaviour states, arbiters' winners and the time line of state changes.
+    pub fn behaviours(&self) -> Behaviours {
+        self.lock().behaviours.clone()
     }
 
     /// What each module last said of its work.

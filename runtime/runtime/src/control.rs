@@ -23,6 +23,8 @@ use std::sync::mpsc::{self, Sender};
 use std::time::Duration;
 
 use armor_model::net::Marking;
+
+pub use crate::behaviour::BehaviourState;
 use armor_module_api::auth::{Admit, Dial, Dialer, Key, Listen, Listener, Secret};
 use armor_module_api::protocol::NodeStats;
 use serde::{Deserialize, Serialize};
@@ -66,6 +68,18 @@ pub struct Status {
     pub agent: String,
     pub modules: Vec<ModuleStatus>,
     pub mission: Option<MissionStatus>,
+    /// The latest changes of behaviour states, oldest first (at most
+    /// [`crate::behaviour::MAX_CHANGES`]).
+    #[serde(default)]
+    pub behaviour_changes: Vec<BehaviourChange>,
+}
+
+/// A module's behaviour state changed (`state` none: it went away).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BehaviourChange {
+    pub run_secs: f64,
+    pub module: String,
+    pub state: Option<BehaviourState>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -167,6 +181,13 @@ pub struct ModuleStatus {
     /// `None` when nothing needs it and it idles.
     #[serde(default)]
     pub why: Option<String>,
+    /// A behaviour's state (`slept`, `checking`, `ready`, `winner`); none for a module that
+    /// never said whether it applies.
+    #[serde(default)]
+    pub behaviour: Option<BehaviourState>,
+    /// An arbiter's winner: the module whose command is in control.
+    #[serde(default)]
+    pub winner: Option<String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

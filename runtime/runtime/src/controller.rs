@@ -476,12 +476,19 @@ impl Controller {
     }
 
     /// Writes the timeline as JSON.
-    pub fn write_report(&self, file: &Path) -> std::io::Result<()> {
+    /// Writes the report: the outcome, the timeline, and the behaviours' state changes (as the
+    /// control interface gives them).
+    pub fn write_report(
+        &self,
+        file: &Path,
+        behaviour_changes: &[crate::control::BehaviourChange],
+    ) -> std::io::Result<()> {
         let report = json!({
             "mission": self.net.name,
             "outcome": self.outcome.as_ref().map_or("unfinished", Outcome::as_str),
             "timeline": self.timeline.as_deref().unwrap_or_default(),
             "timeline_dropped": self.timeline_dropped,
+            "behaviour_changes": behaviour_changes,
         });
         let text = serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?;
         crate::fs::write_atomically(file, text.as_bytes())

@@ -6,6 +6,7 @@
 
 pub mod agent;
 pub mod basemap;
+pub mod behaviour;
 pub mod config_server;
 pub mod console;
 pub mod control;

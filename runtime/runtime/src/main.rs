@@ -308,7 +308,12 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 CtlCommand::Fire { transition } => control::Request::Fire { transition },
             };
             let reply = control::request(addr, &request, secret.as_ref())?;
-            println!("{}", reply.message);
+            // With --json, stdout is the JSON alone (for jq and scripts).
+            if json {
+                eprintln!("{}", reply.message);
+            } else {
+                println!("{}", reply.message);
+            }
             match reply.status {
                 Some(status) if json => println!("{}", serde_json::to_string_pretty(&status)?),
                 Some(status) => print!("{}", status_text(&status)),
@@ -691,6 +696,12 @@ fn status_text(status: &control::Status) -> String {
         }
         if let Some(exit) = &module.last_exit {
             let _ = write!(out, " (last {exit})");
+        }
+        if let Some(behaviour) = module.behaviour {
+            let _ = write!(out, ", behaviour {}", behaviour.as_str());
+        }
+        if let Some(winner) = &module.winner {
+            let _ = write!(out, ", in control: {winner}");
         }
         out.push('\n');
     }

@@ -481,13 +481,14 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         }
     }
     if let Some(controller) = &controller {
+        let behaviour_changes = behaviour_changes(&server.behaviours(), &clock);
         let reports = options
             .report
             .iter()
             .cloned()
             .chain(run_folder.as_ref().map(|dir| dir.join(run_dir::REPORT)));
         for report in reports {
-            match controller.write_report(&report) {
+            match controller.write_report(&report, &behaviour_changes) {
                 Ok(()) => tracing::info!(file = %report.display(), "mission report written"),
                 Err(err) => tracing::error!("cannot write the report {}: {err}", report.display()),
             }
@@ -538,6 +539,21 @@ fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (b
     }
 }
 
+/// The time line of behaviour states, on the run clock.
+fn behaviour_changes(
+    behaviours: &crate::behaviour::Behaviours,
+    clock: &Clock,
+) -> Vec<control::BehaviourChange> {
+    behaviours
+        .changes()
+        .map(|change| control::BehaviourChange {
+            run_secs: clock.at(change.at),
+            module: change.module.clone(),
+            state: change.state,
+        })
+        .collect()
+}
+
 /// The whole run as the control interface reports it.
 fn run_status(
     modules: &BTreeMap<String, ModuleProc>,
@@ -550,6 +566,7 @@ fn run_status(
     let activity = server.activity();
     let demand = server.demand();
     let mut stats = server.stats();
+    let behaviours = server.behaviours();
     let modules = modules
         .values()
         .map(|module| {
@@ -579,9 +596,12 @@ fn run_status(
                 last_exit: module.last_exit.clone(),
                 stats: stats.remove(&module.name),
                 why: demand.get(&module.name).map(ToString::to_string),
+                behaviour: behaviours.states().get(&module.name).copied(),
+                winner: behaviours.winners().get(&module.name).cloned(),
             }
         })
         .collect();
+    let behaviour_changes = behaviour_changes(&behaviours, clock);
     control::Status {
         system: loaded.system.name.clone(),
         run_secs: clock.now_secs(),
@@ -589,6 +609,7 @@ fn run_status(
         agent: env.agent_addr.to_string(),
         modules,
         mission: controller.map(Controller::status),
+        behaviour_changes,
     }
 }
 

@@ -1,0 +1,232 @@
+//! Each module's own view on the live map: the `Markers` it publishes (on an output named
+//! `markers` by convention, though any output of type `Markers` counts), one layer per module,
+//! each with a switch. Markers in the robot's frame are drawn from the robot's pose (the truth
+//! in simulation, else the estimate, as the scan is).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::Arc;
+
+use armor_model::world::Point;
+use armor_module_api::types::{Frame, Markers, Pose2D, Shape};
+use egui::{Color32, Pos2, Shape as EguiShape, Stroke, Ui};
+
+use super::untrusted::MAX_COORDINATE_M;
+
+/// Points of all the markers of one sample, at most: 50 markers of 2,000 points each.
+pub const MAX_MARKER_POINTS: usize = 100_000;
+/// How far beyond its point a marker may paint (a text's width), for culling.
+const TEXT_REACH_PX: f32 = 200.0;
+/// A text marker's words, at most (in characters).
+const MAX_TEXT_CHARS: usize = 200;
+
+/// The latest markers of each module (by the module's name).
+#[derive(Clone, Debug, Default)]
+pub struct Layers {
+    pub by_module: BTreeMap<String, Arc<Markers>>,
+}
+
+impl Layers {
+    /// Takes a sample of `data_name` (`module.output`), checked: too many points, or a
+    /// coordinate that is not a number or lies beyond the Earth, refuse it whole.
+    pub fn take(&mut self, data_name: &str, markers: Markers) -> Result<(), String> {
+        check(&markers)?;
+        let module = data_name
+            .split_once('.')
+            .map_or(data_name, |(module, _)| module);
+        self.by_module.insert(module.to_owned(), Arc::new(markers));
+        Ok(())
+    }
+}
+
+fn check(markers: &Markers) -> Result<(), String> {
+    let points: usize = markers.markers.iter().map(|m| m.points.len()).sum();
+    if points > MAX_MARKER_POINTS {
+        return Err(format!(
+            "{points} marker points, more than the {MAX_MARKER_POINTS} drawn"
+        ));
+    }
+    for marker in &markers.markers {
+        for point in &marker.points {
+            for value in [point.x_m, point.y_m] {
+                if !value.is_finite() || f64::from(value).abs() > MAX_COORDINATE_M {
+                    return Err(format!("a marker point at {value} m"));
+                }
+            }
+        }
+        if !marker.size_px.is_finite() {
+            return Err("a marker of size NaN".to_owned());
+        }
+    }
+    Ok(())
+}
+
+/// Paints every layer not in `hidden`; returns how many markers of each module were drawn
+/// (those out of view are not).
+pub fn paint(
+    painter: &egui::Painter,
+    project: &dyn Fn(Point) -> Pos2,
+    layers: &Layers,
+    hidden: &BTreeSet<String>,
+    robot: Option<&Pose2D>,
+) -> BTreeMap<String, usize> {
+    let mut drawn = BTreeMap::new();
+    for (module, markers) in &layers.by_module {
+        if hidden.contains(module) {
+            continue;
+        }
+        drawn.insert(
+            module.clone(),
+            paint_markers(painter, project, markers, robot),
+        );
+    }
+    drawn
+}
+
+fn paint_markers(
+    painter: &egui::Painter,
+    project: &dyn Fn(Point) -> Pos2,
+    markers: &Markers,
+    robot: Option<&Pose2D>,
+) -> usize {
+    let mut drawn = 0;
+    let clip = painter.clip_rect();
+    for marker in &markers.markers {
+        let to_screen = |x: f32, y: f32| -> Option<Pos2> {
+            let (x, y) = (f64::from(x), f64::from(y));
+            match marker.frame {
+                Frame::World => Some(project(Point::new(x, y))),
+                Frame::Robot => {
+                    let pose = robot?;
+                    let (sin, cos) = pose.theta_rad.sin_cos();
+                    Some(project(Point::new(
+                        pose.x_m + x * cos - y * sin,
+                        pose.y_m + x * sin + y * cos,
+                    )))
+                }
+            }
+        };
+        let Some(points) = marker
+            .points
+            .iter()
+            .map(|p| to_screen(p.x_m, p.y_m))
+            .collect::<Option<Vec<Pos2>>>()
+        else {
+            continue; // robot-frame markers before any pose
+        };
+        // Out of view: nothing to paint (texts reach a little beyond their point).
+        if !clip.intersects(egui::Rect::from_points(&points).expand(TEXT_REACH_PX)) {
+            continue;
+        }
+        drawn += 1;
+        let [r, g, b, a] = marker.rgba;
+        let colour = Color32::from_rgba_unmultiplied(r, g, b, a);
+        let width = marker.size_px.clamp(0.5, 12.0);
+        let stroke = Stroke::new(width, colour);
+        match marker.shape {
+            Shape::Points => {
+                for point in points {
+                    painter.circle_filled(point, width, colour);
+                }
+            }
+            Shape::Polyline => {
+                painter.add(EguiShape::line(points, stroke));
+            }
+            Shape::Polygon if points.len() >= 3 => {
+                painter.add(EguiShape::convex_polygon(
+                    points,
+                    colour.gamma_multiply(0.35),
+                    stroke,
+                ));
+            }
+            Shape::Polygon => {}
+            Shape::Arrows => {
+                for pair in points.chunks_exact(2) {
+                    painter.arrow(pair[0], pair[1] - pair[0], stroke);
+                }
+            }
+            Shape::Text => {
+                if let Some(at) = points.first() {
+                    let text: String = marker.text.chars().take(MAX_TEXT_CHARS).collect();
+                    painter.text(
+                        *at,
+                        egui::Align2::LEFT_BOTTOM,
+                        text,
+                        egui::FontId::proportional(12.0 * width.max(1.0) / 2.0 + 6.0),
+                        colour,
+                    );
+                }
+            }
+        }
+    }
+    drawn
+}
+
+/// The switch of each module's layer (checked: drawn), with how many markers it holds.
+pub fn toggles_ui(ui: &mut Ui, layers: &Layers, hidden: &mut BTreeSet<String>) {
+    if layers.by_module.is_empty() {
+        ui.label("No module publishes markers yet.");
+        return;
+    }
+    for (module, markers) in &layers.by_module {
+        let mut shown = !hidden.contains(module);
+        let label = format!("{module} ({} markers)", markers.markers.len());
+        if ui.checkbox(&mut shown, label).changed() {
+            if shown {
+                hidden.remove(module);
+            } else {
+                hidden.insert(module.clone());
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use armor_module_api::types::{Marker, MarkerPoint};
+
+    #[test]
+    fn layers_are_per_module_and_bad_samples_are_refused_whole() {
+        let mut layers = Layers::default();
+        let line = Marker::new(
+            Shape::Polyline,
+            Frame::World,
+            [1, 2, 3, 255],
+            [(0.0, 0.0), (1.0, 1.0)],
+        );
+        layers
+            .take(
+                "follower.markers",
+                Markers {
+                    markers: vec![line.clone()],
+                },
+            )
+            .expect("taken");
+        let mut bad = line.clone();
+        bad.points.push(MarkerPoint {
+            x_m: f32::NAN,
+            y_m: 0.0,
+        });
+        let err = layers
+            .take("vff.markers", Markers { markers: vec![bad] })
+            .expect_err("refused");
+        assert!(err.contains("NaN"), "{err}");
+        let many = Marker::new(
+            Shape::Points,
+            Frame::World,
+            [0; 4],
+            (0..=MAX_MARKER_POINTS).map(|i| (i as f64, 0.0)),
+        );
+        assert!(
+            layers
+                .take(
+                    "vff.markers",
+                    Markers {
+                        markers: vec![many]
+                    }
+                )
+                .is_err()
+        );
+        assert_eq!(layers.by_module.keys().collect::<Vec<_>>(), ["follower"]);
+    }
+}

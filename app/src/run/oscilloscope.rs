@@ -1,0 +1,226 @@
+//! The hierarchy oscilloscope (after JDE's): the run's modules as a tree — the system (and
+//! the mission's place), each arbiter with the behaviours that compete under it, then the other
+//! modules — each with its state coloured (a behaviour's `slept`, `checking`, `ready`,
+//! `winner`, the arbiter's winner marked), its cycle time and rates and its on/off switch
+//! ([`monitor::module_row`]); and a time line of the behaviours' state changes, one lane per
+//! module, scrubbed with a slider that says every state at the chosen moment.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use armor_runtime::control::{BehaviourChange, BehaviourState, ModuleStatus, Request, Status};
+use egui::{Color32, RichText, Stroke, Ui};
+use egui_plot::{Line, Plot, VLine};
+
+use super::monitor;
+use super::session::Sample;
+
+pub fn behaviour_colour(state: BehaviourState) -> Color32 {
+    match state {
+        BehaviourState::Slept => Color32::from_rgb(130, 130, 130),
+        BehaviourState::Checking => Color32::from_rgb(215, 150, 30),
+        BehaviourState::Ready => Color32::from_rgb(60, 120, 215),
+        BehaviourState::Winner => Color32::from_rgb(40, 170, 70),
+    }
+}
+
+/// Whether a module arbitrates (says who is in control).
+fn is_arbiter(module: &ModuleStatus) -> bool {
+    module.winner.is_some() || module.module_type == "arbiter"
+}
+
+/// The tree. Returns what the operator asked of the modules.
+pub fn tree_ui(
+    ui: &mut Ui,
+    status: &Status,
+    history: &BTreeMap<String, VecDeque<Sample>>,
+    running: bool,
+) -> Vec<Request> {
+    let mut requests = Vec::new();
+    let mut row = |ui: &mut Ui, module: &ModuleStatus| {
+        if let Some(state) = module.behaviour {
+            let winner = state == BehaviourState::Winner;
+            let text = if winner {
+                format!("★ {} in control", module.name)
+            } else {
+                format!("{}: {}", module.name, state.as_str())
+            };
+            let mut label = RichText::new(text).color(behaviour_colour(state));
+            if winner {
+                label = label.strong();
+            }
+            ui.label(label);
+        }
+        if let Some(request) = monitor::module_row(ui, module, history.get(&module.name), running) {
+            requests.push(request);
+        }
+        ui.separator();
+    };
+    let place = status.mission.as_ref().map(|mission| {
+        let places: Vec<&String> = mission.marking.keys().collect();
+        format!(
+            " · place {}",
+            places
+                .iter()
+                .map(|p| p.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    });
+    let root = format!("system {}{}", status.system, place.unwrap_or_default());
+    egui::CollapsingHeader::new(root)
+        .id_salt("osc-root")
+        .default_open(true)
+        .show(ui, |ui| {
+            let behaviours: Vec<&ModuleStatus> = status
+                .modules
+                .iter()
+                .filter(|m| m.behaviour.is_some())
+                .collect();
+            for arbiter in status.modules.iter().filter(|m| is_arbiter(m)) {
+                let title = format!(
+                    "⚖ {} — in control: {}",
+                    arbiter.name,
+                    arbiter.winner.as_deref().unwrap_or("none")
+                );
+                egui::CollapsingHeader::new(title)
+                    .id_salt(("osc-arbiter", &arbiter.name))
+                    .default_open(true)
+                    .show(ui, |ui| {
+                        row(ui, arbiter);
+                        for behaviour in &behaviours {
+                            row(ui, behaviour);
+                        }
+                    });
+            }
+            let has_arbiter = status.modules.iter().any(is_arbiter);
+            // Behaviours are listed under their arbiter when there is one.
+            let others = status
+                .modules
+                .iter()
+                .filter(|m| !(is_arbiter(m) || has_arbiter && m.behaviour.is_some()));
+            egui::CollapsingHeader::new("modules")
+                .id_salt("osc-others")
+                .default_open(true)
+                .show(ui, |ui| {
+                    for module in others {
+                        row(ui, module);
+                    }
+                });
+        });
+    requests
+}
+
+/// Each module's state at `at_secs`, from the time line (the last change at or before it).
+pub fn states_at(
+    changes: &[BehaviourChange],
+    at_secs: f64,
+) -> BTreeMap<String, Option<BehaviourState>> {
+    let mut states = BTreeMap::new();
+    for change in changes.iter().filter(|c| c.run_secs <= at_secs) {
+        states.insert(change.module.clone(), change.state);
+    }
+    states
+}
+
+/// The time line of state changes, one lane per module, and the scrubber; `at_secs` is the
+/// moment picked (`None`: now).
+pub fn timeline_ui(ui: &mut Ui, status: &Status, at_secs: &mut Option<f64>) {
+    let changes = &status.behaviour_changes;
+    if changes.is_empty() {
+        ui.label(RichText::new("no behaviour has said whether it applies yet").weak());
+        return;
+    }
+    let mut lanes: Vec<&str> = changes.iter().map(|c| c.module.as_str()).collect();
+    lanes.sort_unstable();
+    lanes.dedup();
+    let first = changes.first().map_or(0.0, |c| c.run_secs);
+    let end = status.run_secs.max(first);
+    Plot::new("osc-timeline")
+        .height(24.0 * lanes.len() as f32 + 30.0)
+        .allow_scroll(false)
+        .allow_zoom([true, false])
+        .show_axes([true, false])
+        .show(ui, |plot| {
+            for (lane, module) in lanes.iter().enumerate() {
+                let y = lane as f64;
+                let mine: Vec<&BehaviourChange> =
+                    changes.iter().filter(|c| c.module == *module).collect();
+                for (index, change) in mine.iter().enumerate() {
+                    let Some(state) = change.state else { continue };
+                    let until = mine.get(index + 1).map_or(end, |next| next.run_secs);
+                    plot.line(
+                        Line::new(
+                            format!("{module} {}", state.as_str()),
+                            vec![[change.run_secs, y], [until, y]],
+                        )
+                        .stroke(Stroke::new(8.0, behaviour_colour(state))),
+                    );
+                }
+                plot.text(egui_plot::Text::new(
+                    *module,
+                    [first, y + 0.35].into(),
+                    RichText::new(*module).small(),
+                ));
+            }
+            if let Some(at) = at_secs {
+                plot.vline(VLine::new("scrubbed", *at).color(Color32::WHITE));
+            }
+        });
+    ui.horizontal(|ui| {
+        let mut now = at_secs.is_none();
+        if ui.checkbox(&mut now, "now").changed() {
+            *at_secs = if now { None } else { Some(end) };
+        }
+        let mut at = at_secs.unwrap_or(end);
+        let slider = ui.add_enabled(
+            at_secs.is_some(),
+            egui::Slider::new(&mut at, first..=end).text("s of run time"),
+        );
+        if slider.changed() {
+            *at_secs = Some(at);
+        }
+    });
+    let shown = at_secs.unwrap_or(end);
+    ui.horizontal_wrapped(|ui| {
+        for (module, state) in states_at(changes, shown) {
+            let (text, colour) = match state {
+                Some(state) => (
+                    format!("{module}: {}", state.as_str()),
+                    behaviour_colour(state),
+                ),
+                None => (format!("{module}: gone"), Color32::GRAY),
+            };
+            ui.label(RichText::new(text).color(colour));
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_states_at_a_moment_are_the_last_changes_before_it() {
+        let change = |run_secs: f64, module: &str, state: BehaviourState| BehaviourChange {
+            run_secs,
+            module: module.into(),
+            state: Some(state),
+        };
+        let changes = [
+            change(1.0, "follower", BehaviourState::Winner),
+            change(1.0, "vff", BehaviourState::Checking),
+            change(5.0, "vff", BehaviourState::Winner),
+            change(5.0, "follower", BehaviourState::Ready),
+            change(7.5, "vff", BehaviourState::Checking),
+        ];
+        let at = |secs| {
+            states_at(&changes, secs)
+                .into_iter()
+                .map(|(m, s)| format!("{m} {}", s.map_or("gone", BehaviourState::as_str)))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(at(0.5), Vec::<String>::new());
+        assert_eq!(at(6.0), ["follower ready", "vff winner"]);
+        assert_eq!(at(8.0), ["follower ready", "vff checking"]);
+    }
+}
