@@ -39,7 +39,8 @@ fn the_mapper_describes_its_ports_and_params() {
         [
             ("map", "OccupancyGrid"),
             ("pose", "Odometry"),
-            ("pose_map", "Pose2D")
+            ("pose_map", "Pose2D"),
+            ("markers", "Markers"),
         ]
     );
     for (name, unit, default) in [

@@ -51,7 +51,11 @@ const MODULES: &[Expected] = &[
         module_type: "follower",
         controllable: true,
         inputs: &[("odometry", "Odometry"), ("scan", "LaserScan")],
-        outputs: &[("path", "Text"), ("cmd_desired", "Twist")],
+        outputs: &[
+            ("path", "Text"),
+            ("markers", "Markers"),
+            ("cmd_desired", "Twist"),
+        ],
         events: &["goal_reached", "blocked"],
     },
     Expected {
@@ -59,7 +63,7 @@ const MODULES: &[Expected] = &[
         module_type: "avoider",
         controllable: true,
         inputs: &[("scan", "LaserScan"), ("cmd_desired", "Twist")],
-        outputs: &[("cmd_vel", "Twist")],
+        outputs: &[("markers", "Markers"), ("cmd_vel", "Twist")],
         events: &["safety_stop"],
     },
     Expected {
@@ -67,7 +71,7 @@ const MODULES: &[Expected] = &[
         module_type: "observer",
         controllable: true,
         inputs: &[("odometry", "Odometry")],
-        outputs: &[("cmd_vel", "Twist")],
+        outputs: &[("markers", "Markers"), ("cmd_vel", "Twist")],
         events: &["observation_done"],
     },
     Expected {

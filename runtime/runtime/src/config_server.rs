@@ -136,6 +136,12 @@ impl State {
     /// Notes a health report, sends it to every connected module, then moves the inputs whose
     /// sources it changed.
     fn report_health(&mut self, module: &str, kind: &str, reason: &str) {
+        // The supervisor may see a process end before this server sees its connection close:
+        // the failure is told first all the same, once.
+        if matches!(kind, "restarting" | "gave_up") && !self.health.failure_reported(module) {
+            let how = reason.split(';').next().unwrap_or(reason);
+            self.report_health(module, "failed", how);
+        }
         let (seq, health) = self.health.report(module, kind, reason);
         let message = FromSupervisor::Health { seq, health };
         for conn in self.conns.values_mut() {
@@ -426,7 +432,9 @@ impl ConfigServer {
             {
                 state.conns.remove(&module);
                 state.stats.remove(&module);
-                if state.health.closed_is_failure(&module) {
+                if state.health.closed_is_failure(&module)
+                    && !state.health.failure_reported(&module)
+                {
                     state.report_health(&module, "failed", "its connection closed");
                 }
                 state.behaviours.forget(&module);

@@ -58,6 +58,11 @@ impl HealthBook {
         (self.seq, health)
     }
 
+    /// Whether `module`'s failure was reported since it last recovered.
+    pub fn failure_reported(&self, module: &str) -> bool {
+        self.down.get(module).is_some_and(|kind| kind == "failed")
+    }
+
     pub fn is_down(&self, module: &str) -> bool {
         self.down.contains_key(module)
     }
@@ -128,6 +133,23 @@ mod tests {
         assert_eq!(source(&book), "sim.odometry");
         book.report("mapper", "recovered", "configured again");
         assert_eq!(source(&book), "mapper.pose", "back to the source");
+    }
+
+    #[test]
+    fn a_failure_is_reported_once_until_recovered() {
+        let mut book = HealthBook::new(Clock::real_time());
+        assert!(!book.failure_reported("mapper"));
+        book.report("mapper", "stalled", "no answer");
+        assert!(!book.failure_reported("mapper"), "stalled is not failed");
+        book.report("mapper", "failed", "its connection closed");
+        assert!(book.failure_reported("mapper"));
+        book.report("mapper", "restarting", "in 100 ms");
+        assert!(
+            book.failure_reported("mapper"),
+            "still down while restarting"
+        );
+        book.report("mapper", "recovered", "configured again");
+        assert!(!book.failure_reported("mapper"));
     }
 
     #[test]
