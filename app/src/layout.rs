@@ -1,7 +1,9 @@
 //! Layered (Sugiyama-style) layout of a graph drawn left to right: cycles broken by reversing
 //! the edges a depth-first search finds going back, layers by longest path from the sources,
 //! crossings reduced by barycentre sweeps, then columns and rows packed from the boxes' sizes.
-//! Pure: no egui, no diagram; `Diagram::arrange` feeds it blocks and links.
+//! A long chain of layers is folded into bands, one under the other, each about as wide, so that
+//! the whole opens on a screen at a zoom where names read rather than as a strip cut off at both
+//! ends. Pure: no egui, no diagram; `Diagram::arrange` feeds it blocks and links.
 //!
 //! Written here rather than taken from crates.io: `layout-rs` lays out for its own SVG/DOT
 //! output with its own node shapes (no per-node sizes in, positions out), and `rust-sugiyama`
@@ -11,13 +13,28 @@
 /// Gap between columns (where the wires run) and between boxes of one column, in canvas units.
 pub const COLUMN_GAP: f32 = 90.0;
 pub const ROW_GAP: f32 = 36.0;
+/// The widest a band of columns is made before the next columns go into a band below: what a
+/// 1280-point window's canvas shows at the fit's floor (`viewer::FIT_FLOOR`), with a margin.
+pub const FOLD_WIDTH: f32 = 1500.0;
+/// Between bands, where the wires from one band's end to the next one's start run back.
+pub const BAND_GAP: f32 = 110.0;
 /// Barycentre sweeps (each one down and back up): a few are enough on systems this size.
 const SWEEPS: usize = 6;
 
 /// Top-left corners for boxes of `sizes` (`[width, height]`), with `edges` (from, to) between
-/// indices into `sizes`, laid out left to right from `origin`. Edges to unknown indices and
-/// self-loops are ignored.
+/// indices into `sizes`, laid out left to right from `origin`, in bands of at most
+/// [`FOLD_WIDTH`]. Edges to unknown indices and self-loops are ignored.
 pub fn layered(sizes: &[[f32; 2]], edges: &[(usize, usize)], origin: [f32; 2]) -> Vec<[f32; 2]> {
+    layered_within(sizes, edges, origin, FOLD_WIDTH)
+}
+
+/// [`layered`] with bands at most `fold_width` wide (one column at least; infinite: one band).
+pub fn layered_within(
+    sizes: &[[f32; 2]],
+    edges: &[(usize, usize)],
+    origin: [f32; 2],
+    fold_width: f32,
+) -> Vec<[f32; 2]> {
     let count = sizes.len();
     let edges: Vec<(usize, usize)> = edges
         .iter()
@@ -27,7 +44,7 @@ pub fn layered(sizes: &[[f32; 2]], edges: &[(usize, usize)], origin: [f32; 2]) -
     let edges = acyclic(count, &edges);
     let layers = longest_path_layers(count, &edges);
     let order = reduce_crossings(count, &edges, &layers);
-    place(sizes, &order, origin)
+    place(sizes, &order, origin, fold_width)
 }
 
 /// The edges with those that close a cycle reversed (found going back in a depth-first search
@@ -197,9 +214,15 @@ fn crossings(order: &[Vec<usize>], down: &[Vec<usize>], rank: &[f32]) -> usize {
     total
 }
 
-/// Columns as wide as their widest box, boxes stacked in each column and the columns centred on
-/// one another vertically.
-fn place(sizes: &[[f32; 2]], order: &[Vec<usize>], origin: [f32; 2]) -> Vec<[f32; 2]> {
+/// Columns as wide as their widest box, boxes stacked in each column, the columns centred on one
+/// another vertically within their band; the bands (runs of consecutive columns, as many as
+/// `fold_width` asks for and about equally wide) one under the other.
+fn place(
+    sizes: &[[f32; 2]],
+    order: &[Vec<usize>],
+    origin: [f32; 2],
+    fold_width: f32,
+) -> Vec<[f32; 2]> {
     let mut positions = vec![origin; sizes.len()];
     let heights: Vec<f32> = order
         .iter()
@@ -208,19 +231,66 @@ fn place(sizes: &[[f32; 2]], order: &[Vec<usize>], origin: [f32; 2]) -> Vec<[f32
             boxes + ROW_GAP * layer.len().saturating_sub(1) as f32
         })
         .collect();
-    let tallest = heights.iter().copied().fold(0.0, f32::max);
-    let mut x = origin[0];
-    for (layer, height) in order.iter().zip(heights) {
-        let mut y = origin[1] + (tallest - height) / 2.0;
-        let mut width: f32 = 0.0;
-        for &node in layer {
-            positions[node] = [x, y];
-            y += sizes[node][1] + ROW_GAP;
-            width = width.max(sizes[node][0]);
+    let widths: Vec<f32> = order
+        .iter()
+        .map(|layer| layer.iter().map(|&node| sizes[node][0]).fold(0.0, f32::max))
+        .collect();
+    let mut y_band = origin[1];
+    for band in bands(&widths, fold_width) {
+        let tallest = heights[band.clone()].iter().copied().fold(0.0, f32::max);
+        let mut x = origin[0];
+        for column in band {
+            let mut y = y_band + (tallest - heights[column]) / 2.0;
+            for &node in &order[column] {
+                positions[node] = [x, y];
+                y += sizes[node][1] + ROW_GAP;
+            }
+            x += widths[column] + COLUMN_GAP;
         }
-        x += width + COLUMN_GAP;
+        y_band += tallest + BAND_GAP;
     }
     positions
+}
+
+/// Consecutive runs of columns of `widths`: as few as keep each within `fold_width` when
+/// packed, and the breaks placed so that the bands come out about equally wide.
+fn bands(widths: &[f32], fold_width: f32) -> Vec<std::ops::Range<usize>> {
+    let span = |columns: &[f32]| {
+        columns.iter().sum::<f32>() + COLUMN_GAP * columns.len().saturating_sub(1) as f32
+    };
+    let total = span(widths);
+    if widths.is_empty() || total <= fold_width {
+        return vec![0..widths.len()];
+    }
+    // Each column goes to the band its middle falls in when the unfolded width is cut in
+    // `count` equal parts; the fewest parts whose bands all fit.
+    let mut middles = Vec::with_capacity(widths.len());
+    let mut x = 0.0;
+    for width in widths {
+        middles.push(x + width / 2.0);
+        x += width + COLUMN_GAP;
+    }
+    let mut count = (total / fold_width).ceil() as usize;
+    loop {
+        let mut found: Vec<std::ops::Range<usize>> = Vec::new();
+        for (column, middle) in middles.iter().enumerate() {
+            let band = ((middle / total * count as f32) as usize).min(count - 1);
+            if found.len() > band {
+                if let Some(last) = found.last_mut() {
+                    last.end = column + 1;
+                }
+            } else {
+                found.push(column..column + 1);
+            }
+        }
+        let fits = found
+            .iter()
+            .all(|band| band.len() == 1 || span(&widths[band.clone()]) <= fold_width);
+        if fits || count >= widths.len() {
+            return found;
+        }
+        count += 1;
+    }
 }
 
 #[cfg(test)]
@@ -259,7 +329,7 @@ mod tests {
         // One cycle: its back edge is the only one allowed to go right to left.
         edges.push((count - 1, 0));
         let acyclic_edges = acyclic(count, &edges);
-        let positions = layered(&sizes, &edges, [40.0, 40.0]);
+        let positions = layered_within(&sizes, &edges, [40.0, 40.0], f32::INFINITY);
         for i in 0..count {
             for j in i + 1..count {
                 let (a, b) = (positions[i], positions[j]);
@@ -290,5 +360,59 @@ mod tests {
         let positions = layered(&sizes, &[(0, 3), (1, 2)], [0.0, 0.0]);
         let goes_down = positions[0][1] < positions[1][1];
         assert_eq!(goes_down, positions[3][1] < positions[2][1]);
+    }
+
+    #[test]
+    fn a_long_chain_is_folded_into_bands_that_fit_without_overlaps() {
+        // A chain of twelve blocks, as a robot's loop through sensors, behaviours and motors.
+        let sizes: Vec<[f32; 2]> = (0..12)
+            .map(|i| [180.0 + 20.0 * (i % 3) as f32, 60.0 + 15.0 * (i % 4) as f32])
+            .collect();
+        let edges: Vec<(usize, usize)> = (0..11).map(|i| (i, i + 1)).collect();
+        let positions = layered(&sizes, &edges, [0.0, 0.0]);
+        let right = |i: usize| positions[i][0] + sizes[i][0];
+        let bottom = |i: usize| positions[i][1] + sizes[i][1];
+        let width = (0..12).map(right).fold(0.0, f32::max);
+        assert!(width <= FOLD_WIDTH, "{width} wide");
+        let height = (0..12).map(bottom).fold(0.0, f32::max);
+        assert!(width / height < 4.0, "{width} × {height}: still a strip");
+        let mut bands = 1;
+        for (from, to) in edges {
+            if positions[to][0] > right(from) {
+                continue;
+            }
+            // A fold: the chain goes on at the left of the band below.
+            bands += 1;
+            assert!(positions[to][1] > bottom(from), "{to} under {from}");
+        }
+        assert!(bands >= 2, "folded");
+        for i in 0..12 {
+            for j in i + 1..12 {
+                let apart = right(i) <= positions[j][0]
+                    || right(j) <= positions[i][0]
+                    || bottom(i) <= positions[j][1]
+                    || bottom(j) <= positions[i][1];
+                assert!(apart, "blocks {i} and {j} overlap");
+            }
+        }
+    }
+
+    #[test]
+    fn bands_are_about_equal_and_within_the_width() {
+        let widths = [200.0; 10];
+        let found = bands(&widths, 1000.0);
+        // 10 columns of 200 with gaps of 90: 2810 wide, and at most 3 columns fit in 1000: four
+        // bands of 2 or 3 columns.
+        assert_eq!(found.len(), 4, "{found:?}");
+        assert!(
+            found.iter().all(|band| (2..=3).contains(&band.len())),
+            "{found:?}"
+        );
+        assert_eq!(bands(&widths, f32::INFINITY), [0..10]);
+        assert_eq!(
+            bands(&[5000.0, 5000.0], 1000.0),
+            [0..1, 1..2],
+            "a column wider alone"
+        );
     }
 }

@@ -292,7 +292,8 @@ impl Canvas {
             .max()
     }
 
-    /// The bounding box of the blocks, in canvas coordinates.
+    /// The bounding box of the blocks (and of the links routed round them, for the whole diagram),
+    /// in canvas coordinates.
     pub fn bounds(&self, diagram: &Diagram, only: Option<&BTreeSet<BlockId>>) -> Option<Rect> {
         let mut bounds = Rect::NOTHING;
         for (id, block) in diagram.blocks() {
@@ -307,6 +308,16 @@ impl Canvas {
                 .map_or(Vec2::new(200.0, 100.0), |rect| rect.size());
             let rect = Rect::from_min_size(Pos2::new(block.pos[0], block.pos[1]), size);
             bounds = bounds.union(rect);
+        }
+        if only.is_none() && !self.routed.is_empty() {
+            // The routed links run round the blocks, each in its lane: the whole diagram is
+            // theirs too.
+            let reach =
+                ROUTE_STUB + ROUTE_LANE * self.routed.len() as f32 + ARROW_LENGTH + PIN_SIZE;
+            bounds = Rect::from_min_max(
+                bounds.min - Vec2::new(reach, 0.0),
+                bounds.max + Vec2::splat(reach),
+            );
         }
         bounds.is_finite().then_some(bounds)
     }
@@ -392,24 +403,32 @@ impl Canvas {
             .blocks()
             .map(|(id, _)| self.rect_of(diagram, catalog, id))
             .collect();
+        let mut ends: Vec<(&Link, Pos2, Pos2)> = self
+            .routed
+            .iter()
+            .filter_map(|link| {
+                let from = pin(&link.from, PinSide::Output)?;
+                let to = pin(&link.to, PinSide::Input)?;
+                Some((link, from, to))
+            })
+            .collect();
+        // Each route in a lane of its own, so that two never share a line: the lowest input
+        // innermost, so that the routes into one block nest without crossing.
+        ends.sort_by(|a, b| b.2.y.total_cmp(&a.2.y));
         let mut routes = Vec::new();
-        for link in &self.routed {
-            let (Some(from), Some(to)) = (
-                pin(&link.from, PinSide::Output),
-                pin(&link.to, PinSide::Input),
-            ) else {
-                continue;
-            };
-            let right = from.x + ROUTE_STUB;
+        for (lane, (link, from, to)) in ends.into_iter().enumerate() {
+            let offset = ROUTE_LANE * lane as f32;
+            let right = from.x + ROUTE_STUB + offset;
             // Clear of the arrowhead, whose tip is at the pin's edge (half the pin's size in).
-            let left = to.x - PIN_SIZE / 2.0 - ARROW_LENGTH - ROUTE_STUB / 2.0;
+            let left = to.x - PIN_SIZE / 2.0 - ARROW_LENGTH - ROUTE_STUB / 2.0 - offset;
             let (low, high) = (left.min(right), left.max(right));
             let below = blocks
                 .iter()
                 .filter(|rect| rect.right() >= low && rect.left() <= high)
                 .map(|rect| rect.bottom())
                 .fold(from.y.max(to.y), f32::max)
-                + ROUTE_STUB;
+                + ROUTE_STUB
+                + offset;
             let points = vec![
                 from,
                 Pos2::new(right, from.y),
@@ -1148,6 +1167,8 @@ const PIN_SIZE: f32 = 10.0;
 /// How far a routed link runs straight out of its pins and below the blocks, in canvas points.
 /// Small enough that a route stays within the margin fit leaves round the blocks.
 const ROUTE_STUB: f32 = 16.0;
+/// How far apart routed links run beside one another (each in its own lane).
+const ROUTE_LANE: f32 = 6.0;
 /// A link whose input is left of its output plus this is routed (see [`Canvas::routed`]).
 const BACK_GAP: f32 = 40.0;
 

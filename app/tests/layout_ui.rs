@@ -52,6 +52,78 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
     }
 }
 
+/// The modules of the behaviours' system, as their binaries describe themselves.
+fn behaviours_palette() -> armor_studio::palette::Palette {
+    use armor_module_catalog as catalog;
+    let specs = [
+        catalog::sim::spec(),
+        catalog::nav::follower::spec(),
+        catalog::nav::vff::spec(),
+        catalog::nav::stop::spec(),
+        catalog::arbiter::spec(),
+        catalog::nav::avoider::spec(),
+        catalog::teleop::spec(),
+        catalog::mux::spec(),
+    ];
+    armor_studio::palette::Palette::from_descriptions(specs.iter().map(|spec| {
+        armor_module_api::describe::ModuleDescription::from_xml(&spec.description().to_xml())
+            .unwrap()
+    }))
+}
+
+/// A system of competing behaviours saved without positions (as another tool writes one) opens
+/// whole: its loop through sensors, behaviours, arbiter and motors is seven layers long, too
+/// long for one row at a readable zoom, so the layout folds it into bands, and every block and
+/// every link routed round them is on the canvas at the first frames, blocks apart.
+#[test]
+fn a_long_loop_opens_whole_folded_into_bands() {
+    let dir = tempfile::tempdir().unwrap();
+    let file =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../missions/robot/system-behaviours.xml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(
+        !text.contains("armor-studio layout"),
+        "saved without positions"
+    );
+    let mut options = options(&dir.path().join("home"), Some(file));
+    options.palette = Some(behaviours_palette());
+    let harness = harness(options);
+    let app = harness.state();
+    let names: Vec<String> = app
+        .editor()
+        .diagram
+        .blocks()
+        .map(|(_, block)| block.name.clone())
+        .collect();
+    assert_eq!(names.len(), 8, "{names:?}");
+    let scale = app.canvas_transform().scaling;
+    assert!(scale >= DETAIL_SCALE, "fitted at {scale}");
+    let canvas = app.canvas_rect();
+    let rects: Vec<(String, egui::Rect)> = names
+        .iter()
+        .map(|name| (name.clone(), app.block_screen_rect(name).unwrap()))
+        .collect();
+    for (i, (name, rect)) in rects.iter().enumerate() {
+        assert!(
+            canvas.contains_rect(*rect),
+            "`{name}` at {rect:?} is cut off by {canvas:?}"
+        );
+        for (other, other_rect) in &rects[i + 1..] {
+            assert!(!rect.intersects(*other_rect), "`{name}` overlaps `{other}`");
+        }
+    }
+    let routes = app.routes();
+    assert!(!routes.is_empty(), "the loop back to the sim is routed");
+    for (link, points) in routes {
+        for point in points {
+            assert!(
+                canvas.contains(point),
+                "{link} runs out of the canvas at {point:?}"
+            );
+        }
+    }
+}
+
 #[test]
 fn arrange_is_one_undo_step() {
     let dir = tempfile::tempdir().unwrap();
