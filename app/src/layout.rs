@@ -408,7 +408,11 @@ mod tests {
             found.iter().all(|band| (2..=3).contains(&band.len())),
             "{found:?}"
         );
-        assert_eq!(bands(&widths, f32::INFINITY).len(), 1, "one band when it fits");
+        assert_eq!(
+            bands(&widths, f32::INFINITY).len(),
+            1,
+            "one band when it fits"
+        );
         assert_eq!(
             bands(&[5000.0, 5000.0], 1000.0),
             [0..1, 1..2],

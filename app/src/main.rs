@@ -6,6 +6,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    // A frame's shapes and meshes are large and freed at every frame: kept, the next frame
+    // reuses their pages rather than faulting them in again (`markers_frame_ms`).
+    armor_module_api::memory::keep_freed_heap();
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use armor_model::world::Point;
 use armor_module_api::types::{Frame, Markers, Pose2D, Shape};
-use egui::{Color32, Pos2, Shape as EguiShape, Stroke, Ui};
+use egui::{Color32, Pos2, Shape as EguiShape, Stroke, Ui, Vec2};
 
 use super::untrusted::MAX_COORDINATE_M;
 
@@ -70,35 +70,70 @@ pub fn paint(
     robot: Option<&Pose2D>,
 ) -> BTreeMap<String, usize> {
     let mut drawn = BTreeMap::new();
+    let origin = robot.map_or(Point::new(0.0, 0.0), |pose| Point::new(pose.x_m, pose.y_m));
+    let near = Affine::near(project, origin);
     for (module, markers) in &layers.by_module {
         if hidden.contains(module) {
             continue;
         }
         drawn.insert(
             module.clone(),
-            paint_markers(painter, project, markers, robot),
+            paint_markers(painter, &near, markers, robot),
         );
     }
     drawn
 }
 
+/// The map's projection about a point, as an affine map: three projections a frame instead of
+/// one (a logarithm and a tangent) for each of tens of thousands of points. Web Mercator's scale
+/// changes by tan(latitude) per radian of latitude, about 1.5e-7 of itself per metre at 45°,
+/// so within a kilometre of the point the affine map is off by less than a point on a map
+/// where that kilometre fills the screen.
+struct Affine {
+    origin: Point,
+    at: Pos2,
+    per_x: Vec2,
+    per_y: Vec2,
+}
+
+impl Affine {
+    fn near(project: &dyn Fn(Point) -> Pos2, origin: Point) -> Self {
+        // Measured over a hundred metres, so that the screen's f32 rounding is a hundredth as
+        // large against it.
+        const BASE_M: f64 = 100.0;
+        let at = project(origin);
+        Self {
+            origin,
+            at,
+            per_x: (project(Point::new(origin.x + BASE_M, origin.y)) - at) / BASE_M as f32,
+            per_y: (project(Point::new(origin.x, origin.y + BASE_M)) - at) / BASE_M as f32,
+        }
+    }
+
+    fn project(&self, point: Point) -> Pos2 {
+        self.at
+            + self.per_x * (point.x - self.origin.x) as f32
+            + self.per_y * (point.y - self.origin.y) as f32
+    }
+}
+
 fn paint_markers(
     painter: &egui::Painter,
-    project: &dyn Fn(Point) -> Pos2,
+    near: &Affine,
     markers: &Markers,
     robot: Option<&Pose2D>,
 ) -> usize {
     let mut drawn = 0;
     let clip = painter.clip_rect();
+    let robot = robot.map(|pose| (pose, pose.theta_rad.sin_cos()));
     for marker in &markers.markers {
         let to_screen = |x: f32, y: f32| -> Option<Pos2> {
             let (x, y) = (f64::from(x), f64::from(y));
             match marker.frame {
-                Frame::World => Some(project(Point::new(x, y))),
+                Frame::World => Some(near.project(Point::new(x, y))),
                 Frame::Robot => {
-                    let pose = robot?;
-                    let (sin, cos) = pose.theta_rad.sin_cos();
-                    Some(project(Point::new(
+                    let (pose, (sin, cos)) = robot?;
+                    Some(near.project(Point::new(
                         pose.x_m + x * cos - y * sin,
                         pose.y_m + x * sin + y * cos,
                     )))
@@ -184,6 +219,35 @@ pub fn toggles_ui(ui: &mut Ui, layers: &Layers, hidden: &mut BTreeSet<String>) {
 mod tests {
     use super::*;
     use armor_module_api::types::{Marker, MarkerPoint};
+
+    #[test]
+    fn the_affine_map_stays_within_a_point_of_web_mercator_over_a_kilometre() {
+        // Web Mercator about 45° north, zoomed so that a kilometre is 1,000 points wide.
+        const EARTH_M: f64 = 6_371_000.0;
+        let latitude = 45f64.to_radians();
+        let scale = 1000.0 / 1000.0 * EARTH_M;
+        // As the map does: on the screen, about the view's centre (here the world's origin).
+        let global = |point: Point| {
+            let phi = latitude + point.y / EARTH_M;
+            let lambda = point.x / (EARTH_M * latitude.cos());
+            let y = (std::f64::consts::FRAC_PI_4 + phi / 2.0).tan().ln();
+            (lambda * scale, -y * scale)
+        };
+        let centre = global(Point::new(0.0, 0.0));
+        let mercator = |point: Point| {
+            let (x, y) = global(point);
+            Pos2::new((x - centre.0) as f32 + 640.0, (y - centre.1) as f32 + 400.0)
+        };
+        let origin = Point::new(120.0, -40.0);
+        let near = Affine::near(&mercator, origin);
+        let mut worst: f32 = 0.0;
+        for (dx, dy) in [(1000.0, 0.0), (0.0, 1000.0), (-700.0, 700.0), (3.0, -2.0)] {
+            let point = Point::new(origin.x + dx, origin.y + dy);
+            worst = worst.max((near.project(point) - mercator(point)).length());
+        }
+        assert!(worst < 1.0, "off by {worst} points");
+        assert!(worst > 0.0, "the test's projection is not affine");
+    }
 
     #[test]
     fn layers_are_per_module_and_bad_samples_are_refused_whole() {

@@ -15,7 +15,7 @@ pub mod auth;
 pub mod clock;
 mod core;
 pub mod describe;
-mod memory;
+pub mod memory;
 mod module;
 mod net;
 mod node;
