@@ -181,7 +181,77 @@ pub struct Action {
     pub modules: Vec<ActionModule>,
     pub until: Option<String>,
     pub for_secs: Option<f64>,
+    /// Other ways of doing the same (a leg's `<during>` or `<arrival>` only), in the order they
+    /// are tried when a module that the way in force depends on fails for good.
+    pub alternatives: Vec<Alternative>,
     pub pos: Pos,
+}
+
+/// Another set of modules for an action (`<alternative>`): what runs instead of the action's
+/// own modules, or of the alternative before it, once one of the modules it answers has failed
+/// for good (the runtime's `module.ID.failed`: its supervisor gave up on it).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Alternative {
+    /// The name its places take after the action's (`leg1_drive_odometry`); `alt1`, `alt2`, …
+    /// (its rank among the action's alternatives) when the plan gives none.
+    pub name: String,
+    /// The modules whose failure it answers, as written (`on="mapper sim"`); empty: those the
+    /// way before it names and it does not ([`Alternative::answers`]).
+    pub on: Vec<String>,
+    /// What runs instead; none: the leg is driven, or the arrival waited, without them.
+    pub modules: Vec<ActionModule>,
+    pub pos: Pos,
+}
+
+impl Alternative {
+    /// The name an alternative at `index` (from 0) takes when the plan gives none.
+    pub fn default_name(index: usize) -> String {
+        format!("alt{}", index + 1)
+    }
+
+    /// The modules whose failure it answers: its `on`, else the modules of `before` (the way
+    /// tried before it) that it does without, in the order `before` names them.
+    pub fn answers(&self, before: &[ActionModule]) -> Vec<String> {
+        if !self.on.is_empty() {
+            return self.on.clone();
+        }
+        before
+            .iter()
+            .filter(|module| !self.modules.iter().any(|own| own.name == module.name))
+            .map(|module| module.name.clone())
+            .collect()
+    }
+}
+
+impl Action {
+    /// Each way of doing the action in the order tried: its own modules, then each
+    /// alternative's, with the modules whose failure leads to it (none for the first).
+    pub fn strategies(&self) -> Vec<Strategy<'_>> {
+        let mut ways = vec![Strategy {
+            name: None,
+            modules: &self.modules,
+            answers: Vec::new(),
+        }];
+        for alternative in &self.alternatives {
+            let before = ways.last().map_or(&[][..], |way| way.modules);
+            ways.push(Strategy {
+                name: Some(&alternative.name),
+                modules: &alternative.modules,
+                answers: alternative.answers(before),
+            });
+        }
+        ways
+    }
+}
+
+/// One way of doing an action: [`Action::strategies`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Strategy<'a> {
+    /// `None` for the action's own modules, else the alternative's name.
+    pub name: Option<&'a str>,
+    pub modules: &'a [ActionModule],
+    /// The modules whose failure, in a way tried before, leads here.
+    pub answers: Vec<String>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]
