@@ -17,6 +17,11 @@
 //! `continue` (late only) drives on in `L_drive_late`. Without a contingency a blocked robot
 //! holds, a late one continues, and a failure is left to the runtime (the mission fails).
 //! The modules of `throughout` run in every place, the final ones too.
+//!
+//! An action with alternatives has a place per way (`L_drive`, `L_drive_ALT`, …; `L_arrival`,
+//! `L_arrival_ALT`; late drives alike), each with the action's exits. From each way, the
+//! failure of a module that a later way answers (`module.M.failed`) fires `PLACE_M_failed` into
+//! the first such way; a failure that no later way answers is the contingency's, as above.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -58,6 +63,19 @@ pub struct Compiled {
     /// The places and transitions of the actions' alternative ways, and the switches to them
     /// (drawn apart in the studio's net view).
     pub alternatives: BTreeSet<String>,
+    /// The switches to alternatives, by transition name (what a run's summary reports).
+    pub switches: BTreeMap<String, Switch>,
+}
+
+/// A transition that switches a leg's action to one of its alternatives.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Switch {
+    /// The leg's index.
+    pub leg: usize,
+    /// The alternative switched to.
+    pub to: String,
+    /// The module whose failure for good switches.
+    pub module: String,
 }
 
 /// Where a net element comes from.
@@ -143,6 +161,13 @@ pub fn compile_for(
             ));
         }
     }
+    for leg in &plan.legs {
+        for (tag, action) in [("during", &leg.during), ("arrival", &leg.arrival)] {
+            if let Some(action) = action {
+                problems.extend(action.alternative_problems(tag));
+            }
+        }
+    }
     let throughout: Vec<&str> = plan
         .throughout
         .iter()
@@ -202,6 +227,7 @@ pub fn compile_for(
         net,
         trace,
         alternatives,
+        switches,
         ..
     } = builder;
     Ok(Compiled {
@@ -212,6 +238,7 @@ pub fn compile_for(
         robot: *robot,
         warnings,
         alternatives,
+        switches,
     })
 }
 
@@ -600,6 +627,7 @@ struct Builder<'a> {
     alternatives: BTreeSet<String>,
     /// (place, module): the failure of the module in the place switches to an alternative.
     switched: BTreeSet<(String, String)>,
+    switches: BTreeMap<String, Switch>,
 }
 
 impl<'a> Builder<'a> {
@@ -642,6 +670,7 @@ impl<'a> Builder<'a> {
             failure_modules: plan.failure_modules(),
             alternatives: BTreeSet::new(),
             switched: BTreeSet::new(),
+            switches: BTreeMap::new(),
         }
     }
 
@@ -878,6 +907,14 @@ impl<'a> Builder<'a> {
                         },
                         place,
                         &places[to],
+                    );
+                    self.switches.insert(
+                        transition.clone(),
+                        Switch {
+                            leg: index,
+                            to: way.name.unwrap_or_default().to_owned(),
+                            module: module.clone(),
+                        },
                     );
                     self.alternatives.insert(transition);
                     self.switched.insert((place.clone(), module.clone()));

@@ -9,6 +9,10 @@
 //!   <waypoint name="home" lat="43.561536" lon="1.469049"/>
 //!   <waypoint name="gate" lat="43.561590" lon="1.469250" symbol="SFGPUCR----"/>
 //!   <leg from="home" to="gate" arrive_by="2026-11-23T08:05:00Z" wait_secs="10">
+//!     <during>
+//!       <module name="mapper"/>
+//!       <alternative name="odometry"/>
+//!     </during>
 //!     <arrival until="observer.observation_done" for_secs="60">
 //!       <module name="observer"><param name="sector_deg" value="360"/></module>
 //!     </arrival>
@@ -29,7 +33,10 @@
 //! `wait_secs` (stay at the destination). Contingencies say what to do when the robot is
 //! `blocked`, a module `failed`, or the robot is `late`: `skip` the rest of the leg, `hold` for
 //! the operator (who may retry or skip), `return` to a waypoint and end there, or (`late` only)
-//! `continue`. An action `throughout` runs from start to end (a recorder). The schema is
+//! `continue`. A leg's action may list `<alternative>`s: other sets of modules, tried in order
+//! when a module the way in force depends on fails for good (its `on` modules, or those it does
+//! without); once they are spent, the contingencies apply (`docs/plans.md`). An action
+//! `throughout` runs from start to end (a recorder). The schema is
 //! `assets/schema/plan.xsd`; [`compile`] makes the net, [`gpx`] exchanges waypoints and
 //! routes with GIS tools, [`qgc`] plans with ground stations (QGroundControl's plan files) and
 //! [`kml`] writes the plan for Google Earth and ATAK (what each carries: `docs/interchange.md`).
@@ -40,7 +47,7 @@
 //! with no way through is an error that says where the way is cut; the navigation module gets
 //! the path in its `path` parameter, and the time constraints are checked along it.
 
-use armor_module_api::xml::Pos;
+use armor_module_api::xml::{Located, Pos};
 
 mod compile;
 pub mod gpx;
@@ -50,7 +57,7 @@ mod xml;
 
 pub use crate::geo::LatLon;
 pub use compile::{
-    CLEARANCE_M, Compiled, LegPaths, Origin, compile, compile_for, plan_legs, robot,
+    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, robot,
 };
 
 /// A whole plan.
@@ -241,6 +248,57 @@ impl Action {
             });
         }
         ways
+    }
+}
+
+/// The names an alternative cannot take: its places and transitions, named after the action's
+/// with `_NAME`, would take those of the leg's late drive and of the arrival's end.
+const RESERVED_WAY_NAMES: [&str; 3] = ["late", "done", "timeout"];
+
+impl Action {
+    /// What is wrong with the action's alternatives (`tag`: the element that holds them, for
+    /// the messages): a name given twice or taken by the leg's own places, an alternative that
+    /// answers no failure.
+    pub fn alternative_problems(&self, tag: &str) -> Vec<Located> {
+        let mut problems = Vec::new();
+        let mut names: std::collections::BTreeMap<&str, Pos> = std::collections::BTreeMap::new();
+        let mut before = &self.modules;
+        for alternative in &self.alternatives {
+            let name = alternative.name.as_str();
+            if RESERVED_WAY_NAMES.contains(&name) || name.ends_with("_failed") {
+                problems.push(Located::new(
+                    alternative.pos,
+                    format!(
+                        "alternative `{name}`: its places would take the names of the leg's own \
+                         (`late`, `done`, `timeout` and names ending in `_failed` are taken); \
+                         choose another name"
+                    ),
+                ));
+            }
+            if let Some(first) = names.get(name) {
+                problems.push(Located::new(
+                    alternative.pos,
+                    format!(
+                        "<{tag}> already has an alternative named `{name}` (line {})",
+                        first.line
+                    ),
+                ));
+            } else {
+                names.insert(name, alternative.pos);
+            }
+            if alternative.answers(before).is_empty() {
+                problems.push(Located::new(
+                    alternative.pos,
+                    format!(
+                        "alternative `{name}` answers no failure: it runs every module the way \
+                         before it runs; say which failures lead to it with on=\"MODULE\" (a \
+                         provider such as the mapper), or leave out the module it does without"
+                    ),
+                ));
+            }
+            before = &alternative.modules;
+        }
+        problems
     }
 }
 

@@ -669,14 +669,9 @@ fn read_action(element: &Element, p: &mut Vec<Located>) -> Action {
     action
 }
 
-/// The names an alternative cannot take: its places and transitions, named after the action's
-/// with `_NAME`, would take those of the leg's late drive and of the arrival's end.
-const RESERVED_WAY_NAMES: [&str; 3] = ["late", "done", "timeout"];
-
 /// The `<alternative>`s of an action, after its own modules: each named once, each answering
 /// some failure.
 fn read_alternatives(element: &Element, action: &mut Action, p: &mut Vec<Located>) {
-    let mut names: BTreeMap<String, Pos> = BTreeMap::new();
     for (index, child) in element.children_named("alternative").enumerate() {
         p.extend(child.unknown_attrs(&["name", "on"]));
         p.extend(child.unknown_children(&["module"]));
@@ -685,26 +680,6 @@ fn read_alternatives(element: &Element, action: &mut Action, p: &mut Vec<Located
             Some(_) => identifier(child, "name", "name", p).unwrap_or_default(),
             None => Alternative::default_name(index),
         };
-        if RESERVED_WAY_NAMES.contains(&name.as_str()) || name.ends_with("_failed") {
-            p.push(Located::new(
-                child.pos,
-                format!(
-                    "alternative `{name}`: its places would take the names of the leg's own \
-                     (`late`, `done`, `timeout` and names ending in `_failed` are taken); \
-                     choose another name"
-                ),
-            ));
-        }
-        if let Some(first) = names.get(&name) {
-            p.push(Located::new(
-                child.pos,
-                format!(
-                    "<{}> already has an alternative named `{name}` (line {})",
-                    element.name, first.line
-                ),
-            ));
-        }
-        names.insert(name.clone(), child.pos);
         let mut on: Vec<String> = Vec::new();
         if let Some(field) = child.attr("on") {
             let words: Vec<&str> = field.value.split_whitespace().collect();
@@ -737,23 +712,9 @@ fn read_alternatives(element: &Element, action: &mut Action, p: &mut Vec<Located
             modules: read_modules(child, p),
             pos: child.pos,
         };
-        let before = action
-            .alternatives
-            .last()
-            .map_or(&action.modules, |previous| &previous.modules);
-        if alternative.answers(before).is_empty() && alternative.on.is_empty() {
-            p.push(Located::new(
-                child.pos,
-                format!(
-                    "alternative `{}` answers no failure: it runs every module the way before it \
-                     runs; say which failures lead to it with on=\"MODULE\" (a provider such \
-                     as the mapper), or leave out the module it does without",
-                    alternative.name
-                ),
-            ));
-        }
         action.alternatives.push(alternative);
     }
+    p.extend(action.alternative_problems(&element.name));
 }
 
 /// The `<module>`s of an action or an alternative, each with its `<param>`s.
