@@ -10,8 +10,8 @@
 //!   <waypoint name="gate" lat="43.561590" lon="1.469250" symbol="SFGPUCR----"/>
 //!   <leg from="home" to="gate" arrive_by="2026-11-23T08:05:00Z" wait_secs="10">
 //!     <during>
-//!       <module name="mapper"/>
-//!       <alternative name="odometry"/>
+//!       <module name="map_recorder"/>
+//!       <alternative name="odometry" on="mapper"><module name="odometry_recorder"/></alternative>
 //!     </during>
 //!     <arrival until="observer.observation_done" for_secs="60">
 //!       <module name="observer"><param name="sector_deg" value="360"/></module>
