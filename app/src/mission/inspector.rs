@@ -770,8 +770,8 @@ fn response_ui(
     (choice != current).then_some(choice)
 }
 
-/// An action's modules and their parameters; on arrival, also what ends it; then its
-/// alternatives. Returns the new action (`None` inside: no action) when it changed.
+/// An action's modules and their parameters; on arrival, also what ends it; then, for a leg's
+/// (any `key` but `throughout`), its alternatives. Returns the new action (`None` inside: no action) when it changed.
 #[allow(clippy::too_many_arguments)]
 fn action_ui(
     ui: &mut Ui,
@@ -821,7 +821,8 @@ fn action_ui(
             edited.for_secs = secs;
         }
     }
-    if !edited.modules.is_empty() {
+    // What runs throughout the mission has no leg to switch within.
+    if !edited.modules.is_empty() && key != "throughout" {
         alternatives_ui(ui, drafts, key, &mut edited, modules, param_names);
     }
     if edited == before {
