@@ -393,7 +393,7 @@ fn header_ui(ui: &mut Ui, state: &mut NetViewState) {
             state.enlarged = !state.enlarged;
         }
         // Only where it leaves the legend its room (not in the Run view's narrower column).
-        if ui.available_width() > 800.0 {
+        if ui.available_width() > 900.0 {
             ui.weak("wheel: zoom · drag: pan · click: select");
         }
         ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
