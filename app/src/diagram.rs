@@ -353,11 +353,7 @@ impl Diagram {
                 }
             ));
         }
-        link.fallback = feeding
-            .iter()
-            .map(|l| l.fallback + 1)
-            .max()
-            .unwrap_or(0);
+        link.fallback = feeding.iter().map(|l| l.fallback + 1).max().unwrap_or(0);
         let rank = link.fallback;
         self.links.insert(link);
         Ok(rank)

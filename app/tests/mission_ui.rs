@@ -700,7 +700,9 @@ fn an_action_s_alternatives_are_added_ordered_given_modules_removed_and_drawn_in
             compiled.alternatives
         );
         assert!(
-            mission.net_layout().is_some_and(|l| l.nodes.contains_key(&name)),
+            mission
+                .net_layout()
+                .is_some_and(|l| l.nodes.contains_key(&name)),
             "{name} laid out"
         );
     }

@@ -126,7 +126,10 @@ fn a_leg_switches_to_its_alternative_when_the_mapper_is_given_up_and_the_mission
         .find(|entry| entry["kind"] == "failed")
         .unwrap_or_else(|| panic!("no failure in {report:#}"));
     assert_eq!(failed["module"], "mapper");
-    assert_eq!(failed["latched_by"], serde_json::json!(["out_drive_mapper_failed"]));
+    assert_eq!(
+        failed["latched_by"],
+        serde_json::json!(["out_drive_mapper_failed"])
+    );
     let fired: Vec<&str> = timeline
         .iter()
         .filter(|entry| entry["kind"] == "fired")
@@ -168,7 +171,11 @@ fn a_leg_switches_to_its_alternative_when_the_mapper_is_given_up_and_the_mission
         .unwrap_or_else(|| panic!("no summary.txt under {}", runs.display()));
     let summary = std::fs::read_to_string(folder.join("summary.txt")).unwrap();
     for file in ["map.mcap", "odometry.mcap"] {
-        assert!(folder.join(file).exists(), "no {file} in {}", folder.display());
+        assert!(
+            folder.join(file).exists(),
+            "no {file} in {}",
+            folder.display()
+        );
     }
     assert!(summary.contains("complete"), "{summary}");
     assert!(

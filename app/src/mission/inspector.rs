@@ -8,8 +8,8 @@ use std::collections::BTreeMap;
 use armor_model::geo::LatLon;
 use armor_model::net::{format_rfc3339, parse_rfc3339};
 use armor_model::plan::{
-    Action, ActionModule, ActionParam, Alternative, AreaKind, Contingency, GraphicKind, Leg, Plan, Response,
-    Trigger,
+    Action, ActionModule, ActionParam, Alternative, AreaKind, Contingency, GraphicKind, Leg, Plan,
+    Response, Trigger,
 };
 use armor_model::world::Point;
 use armor_module_api::describe::is_identifier;

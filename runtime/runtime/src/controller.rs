@@ -325,11 +325,10 @@ impl Controller {
             // A switch on a failure (a plan's alternative, `module.ID.failed`) is no new step
             // of the work: a module that both sides run alike goes on where it is (the
             // follower keeps driving the same leg rather than start its path again).
-            let on_failure = transition
-                .condition
-                .event
-                .as_deref()
-                .is_some_and(|event| event.starts_with("module.") && event.ends_with(".failed"));
+            let on_failure =
+                transition.condition.event.as_deref().is_some_and(|event| {
+                    event.starts_with("module.") && event.ends_with(".failed")
+                });
             let left: Vec<&Place> = transition
                 .inputs
                 .iter()

@@ -63,10 +63,7 @@ pub fn leg_plans(plan: &Plan, compiled: &Compiled, start_unix_secs: f64) -> Vec<
                 .map(|(transition, switch)| {
                     (
                         transition.clone(),
-                        format!(
-                            "switched to `{}`: `{}` failed",
-                            switch.to, switch.module
-                        ),
+                        format!("switched to `{}`: `{}` failed", switch.to, switch.module),
                     )
                 })
                 .collect(),

@@ -9,12 +9,12 @@ use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
 use super::{
-    Action, ActionModule, ActionParam, Alternative, AreaKind, Basemap, Contingency, Graphic, GraphicKind,
-    LatLon, Leg, Navigation, Plan, Response, Trigger, Unit, Waypoint, check_sidc,
+    Action, ActionModule, ActionParam, Alternative, AreaKind, Basemap, Contingency, Graphic,
+    GraphicKind, LatLon, Leg, Navigation, Plan, Response, Trigger, Unit, Waypoint, check_sidc,
 };
 use crate::fields::{
-    Field, NAME_RULE, escape, finish, identifier, is_decimal, no_children, no_text, optional, read_identifier,
-    required,
+    Field, NAME_RULE, escape, finish, identifier, is_decimal, no_children, no_text, optional,
+    read_identifier, required,
 };
 use crate::net::{format_date, read_date, read_event};
 
@@ -1256,7 +1256,10 @@ mod tests {
         );
         let written = plan.to_xml();
         // A default name is not written; a given one is, even when it is the default's.
-        assert!(written.contains("<alternative on=\"sim camera\"/>"), "{written}");
+        assert!(
+            written.contains("<alternative on=\"sim camera\"/>"),
+            "{written}"
+        );
         assert!(written.contains("<alternative on=\"camera\">"), "{written}");
         let again = Plan::parse(&written).unwrap_or_else(|p| panic!("{p:?}"));
         assert_eq!(strip(again.clone()), strip(plan));

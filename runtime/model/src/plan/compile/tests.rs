@@ -722,7 +722,12 @@ leg1_arrival_alt1_recorder_failed: leg1_arrival_alt1 -> leg1_hold module.recorde
     ] {
         assert!(compiled.alternatives.contains(name), "{name}");
     }
-    for name in ["leg1_drive", "leg1_arrived", "leg1_hold", "leg1_arrival_done"] {
+    for name in [
+        "leg1_drive",
+        "leg1_arrived",
+        "leg1_hold",
+        "leg1_arrival_done",
+    ] {
         assert!(!compiled.alternatives.contains(name), "{name}");
     }
     let analysis = analyse(&compiled.net, 100_000);
