@@ -750,7 +750,7 @@ impl<'a> Builder<'a> {
             leg_places.push(place.clone());
             drives.push(place);
         }
-        self.switches(index, leg, &drives, &ways);
+        self.switches(index, &drives, &ways);
         if let Some(deadline) = leg.arrive_by_unix_secs {
             let late = Condition {
                 at_unix_secs: Some(deadline),
@@ -788,7 +788,7 @@ impl<'a> Builder<'a> {
                 self.mark_alternative(way.name, &transition);
             }
             if lates.len() == ways.len() {
-                self.switches(index, leg, &lates, &ways);
+                self.switches(index, &lates, &ways);
             }
         }
         if let Some(arrival) = &leg.arrival {
@@ -836,7 +836,7 @@ impl<'a> Builder<'a> {
                 leg_places.push(place.clone());
                 places.push(place);
             }
-            self.switches(index, leg, &places, &ways);
+            self.switches(index, &places, &ways);
         }
         if let Some(wait) = leg.wait_secs {
             let place = format!("{name}_wait");
@@ -887,7 +887,7 @@ impl<'a> Builder<'a> {
     /// from each way, the failure for good of a module that a later way answers leads to the
     /// first such way (`PLACE_MODULE_failed`). A failure that no later way answers is left to
     /// the contingencies.
-    fn switches(&mut self, index: usize, leg: &Leg, places: &[String], ways: &[Strategy<'_>]) {
+    fn switches(&mut self, index: usize, places: &[String], ways: &[Strategy<'_>]) {
         for (from, place) in places.iter().enumerate() {
             let mut answered: Vec<&str> = Vec::new();
             for (to, way) in ways.iter().enumerate().skip(from + 1) {
@@ -900,7 +900,7 @@ impl<'a> Builder<'a> {
                     self.transition(
                         &transition,
                         Origin::Leg(index),
-                        leg.pos,
+                        way.pos,
                         Condition {
                             event: Some(format!("module.{module}.failed")),
                             ..Condition::default()

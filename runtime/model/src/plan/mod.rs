@@ -238,6 +238,7 @@ impl Action {
             name: None,
             modules: &self.modules,
             answers: Vec::new(),
+            pos: self.pos,
         }];
         for alternative in &self.alternatives {
             let before = ways.last().map_or(&[][..], |way| way.modules);
@@ -245,6 +246,7 @@ impl Action {
                 name: Some(&alternative.name),
                 modules: &alternative.modules,
                 answers: alternative.answers(before),
+                pos: alternative.pos,
             });
         }
         ways
@@ -310,6 +312,8 @@ pub struct Strategy<'a> {
     pub modules: &'a [ActionModule],
     /// The modules whose failure, in a way tried before, leads here.
     pub answers: Vec<String>,
+    /// Where the plan writes it (the action, or the alternative).
+    pub pos: Pos,
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -709,6 +709,26 @@ leg1_drive_late_alt2_recorder_failed: leg1_drive_late_alt2 -> leg1_hold module.r
 leg1_arrival_recorder_failed: leg1_arrival -> leg1_hold module.recorder.failed
 leg1_arrival_alt1_recorder_failed: leg1_arrival_alt1 -> leg1_hold module.recorder.failed"
     );
+    // A switch is where its alternative is written (`armor check` points there).
+    let switch = compiled
+        .net
+        .transition("leg1_drive_mapper_failed")
+        .expect("switch");
+    let leg = compiled.net.transition("leg1_arrived").expect("arrived");
+    assert!(
+        switch.pos.line > leg.pos.line,
+        "{:?} {:?}",
+        switch.pos,
+        leg.pos
+    );
+    assert_eq!(
+        compiled.switches["leg1_drive_odometry_recorder_failed"],
+        Switch {
+            leg: 0,
+            to: "alt2".to_owned(),
+            module: "recorder".to_owned()
+        }
+    );
     // The alternative ways keep the parameters of the modules they run.
     let mapper = &compiled.net.place("leg1_drive").expect("drive").params;
     assert!(mapper.iter().any(|p| p.module == "mapper"), "{mapper:?}");
