@@ -335,6 +335,30 @@ impl Diagram {
         Ok(replaced)
     }
 
+    /// Adds a link checked by [`Diagram::link_between`] as the input's next fallback source
+    /// (rank one above its last), or as its source when it has none; returns the rank given.
+    /// An output that already feeds the input, as its source or a fallback, is refused.
+    pub fn connect_fallback(&mut self, catalog: &Catalog, a: &Pin, b: &Pin) -> Result<u32, String> {
+        let mut link = self.link_between(catalog, a, b)?;
+        let feeding: Vec<&Link> = self.links.iter().filter(|l| l.to == link.to).collect();
+        if let Some(same) = feeding.iter().find(|l| l.from == link.from) {
+            return Err(format!(
+                "{} already feeds {}{}",
+                self.port_label(&link.from),
+                self.port_label(&link.to),
+                if same.fallback > 0 {
+                    format!(" (fallback {})", same.fallback)
+                } else {
+                    String::new()
+                }
+            ));
+        }
+        link.fallback = feeding.iter().map(|l| l.fallback + 1).max().unwrap_or(0);
+        let rank = link.fallback;
+        self.links.insert(link);
+        Ok(rank)
+    }
+
     /// `block.port`, as the user reads it.
     pub fn port_label(&self, port: &PortRef) -> String {
         let block = self
@@ -841,6 +865,34 @@ mod tests {
             "removed whatever its rank"
         );
         assert_eq!(diagram.links().count(), 0);
+    }
+
+    #[test]
+    fn a_wire_dropped_as_a_fallback_takes_the_next_rank_and_reads_back() {
+        let catalog = catalog();
+        let xml = "<system name=\"s\">\n<module name=\"a\" type=\"counter\"/>\n<module name=\"b\" type=\"counter\"/>\n<module name=\"c\" type=\"counter\"/>\n<module name=\"k\" type=\"checker\"/>\n</system>";
+        let mut diagram = Diagram::from_xml(xml).unwrap();
+        let [a, b, c, k] = ["a", "b", "c", "k"].map(|name| diagram.block_named(name).unwrap());
+        let input = pin(PinSide::Input, k, "input");
+        let count = |block| pin(PinSide::Output, block, "count");
+        // Into an input with no source, it is the source.
+        assert_eq!(diagram.connect_fallback(&catalog, &count(a), &input), Ok(0));
+        assert_eq!(diagram.connect_fallback(&catalog, &input, &count(b)), Ok(1));
+        assert_eq!(diagram.connect_fallback(&catalog, &count(c), &input), Ok(2));
+        let again = diagram.connect_fallback(&catalog, &count(b), &input);
+        assert_eq!(
+            again,
+            Err("`b.count` already feeds `k.input` (fallback 1)".to_owned())
+        );
+        let written = diagram.to_xml();
+        for line in [
+            r#"<link from="a.count" to="k.input"/>"#,
+            r#"<link from="b.count" to="k.input" fallback="1"/>"#,
+            r#"<link from="c.count" to="k.input" fallback="2"/>"#,
+        ] {
+            assert!(written.contains(line), "{written}");
+        }
+        assert!(SystemConfig::parse(&written).is_ok(), "{written}");
     }
 
     #[test]

@@ -78,10 +78,12 @@ pub enum Command {
         module_type: String,
         pos: [f32; 2],
     },
-    /// A wire dropped from one pin on another.
+    /// A wire dropped from one pin on another; with `fallback` (Shift held), into an input
+    /// that has a source, as its next fallback source.
     Connect {
         from: Pin,
         to: Pin,
+        fallback: bool,
     },
     RemoveLink(Link),
     DisconnectInput(PortRef),
@@ -175,7 +177,22 @@ impl Editor {
                 let name = self.block_name(id);
                 Outcome::Done(format!("added `{name}`"))
             }
-            Command::Connect { from, to } => match self.diagram.connect(catalog, &from, &to) {
+            Command::Connect {
+                from,
+                to,
+                fallback: true,
+            } => match self.diagram.connect_fallback(catalog, &from, &to) {
+                Ok(0) => {
+                    self.changed(before);
+                    Outcome::Done("linked".to_owned())
+                }
+                Ok(rank) => {
+                    self.changed(before);
+                    Outcome::Done(format!("linked as fallback {rank}"))
+                }
+                Err(reason) => Outcome::Refused(reason),
+            },
+            Command::Connect { from, to, .. } => match self.diagram.connect(catalog, &from, &to) {
                 Ok(replaced) => {
                     if self.diagram == before {
                         return Outcome::Nothing;

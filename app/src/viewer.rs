@@ -507,6 +507,8 @@ pub struct DiagramViewer<'a> {
     pub live: &'a BTreeMap<String, ModuleState>,
     /// The wheel's zoom this frame, which replaces egui-snarl's own handling of the wheel.
     pub wheel: Option<WheelZoom>,
+    /// Shift is held: a wire dropped into an input that has a source becomes a fallback.
+    pub shift: bool,
 }
 
 /// A zoom by the wheel: `factor` about the screen point `about`, from the transform `from` of
@@ -1027,7 +1029,11 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
             self.pin(snarl, from.id.node, from.id.output, PinSide::Output),
             self.pin(snarl, to.id.node, to.id.input, PinSide::Input),
         ) {
-            self.commands.push(Command::Connect { from, to });
+            self.commands.push(Command::Connect {
+                from,
+                to,
+                fallback: self.shift,
+            });
         }
     }
 

@@ -516,3 +516,49 @@ fn menu_entries_show_their_keys_and_keep_their_names() {
         Some("Ctrl+S")
     );
 }
+
+/// A wire dropped with Shift held into an input that has a source is added as its fallback,
+/// drawn dashed and written with its rank; without Shift it would replace the source.
+#[test]
+fn a_wire_dropped_with_shift_adds_a_fallback_source() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = dir.path().join("system.xml");
+    let robot = std::fs::read_to_string(robot_system()).unwrap();
+    let with_mapper = robot.replace(
+        r#"<link from="sim.odometry" to="observer.odometry"/>"#,
+        r#"<link from="sim.odometry" to="observer.odometry"/>
+  <module name="mapper" type="mapper"/>
+  <link from="sim.scan" to="mapper.scan"/>"#,
+    );
+    assert_ne!(with_mapper, robot);
+    std::fs::write(&system, &with_mapper).unwrap();
+    let mut options = options(&dir.path().join("home"), Some(system));
+    options.palette = Some(bundled_palette());
+    let mut harness = harness(options);
+    let from = pin(&harness, "mapper", "pose", PinSide::Output);
+    let to = pin(&harness, "observer", "odometry", PinSide::Input);
+    harness.event(egui::Event::ModifiersChanged(Modifiers::SHIFT));
+    drag(&mut harness, from, to);
+    harness.event(egui::Event::ModifiersChanged(Modifiers::NONE));
+    harness.run();
+    let saved = harness.state().editor().diagram.to_xml();
+    assert!(
+        saved.contains(r#"<link from="sim.odometry" to="observer.odometry"/>"#),
+        "{saved}"
+    );
+    assert!(
+        saved.contains(r#"<link from="mapper.pose" to="observer.odometry" fallback="1"/>"#),
+        "{saved}"
+    );
+    let routes: Vec<String> = harness
+        .state()
+        .routes()
+        .into_iter()
+        .map(|(link, _)| link)
+        .collect();
+    assert!(
+        routes.contains(&"mapper.pose -> observer.odometry (fallback 1)".to_owned()),
+        "{routes:?}"
+    );
+    harness.get_by_label_contains("linked as fallback 1");
+}

@@ -610,3 +610,119 @@ fn the_net_has_a_legend_and_enlarges_to_most_of_the_window() {
         "{small:?} → {back:?}"
     );
 }
+
+/// The centre of the `index`th widget labelled `label`, in the order they are drawn.
+fn nth(harness: &Harness<'_, StudioApp>, label: &str, index: usize) -> egui::Pos2 {
+    harness
+        .get_all_by_label(label)
+        .nth(index)
+        .unwrap_or_else(|| panic!("no {index}th `{label}`"))
+        .rect()
+        .center()
+}
+
+/// The centre of the `index`th "add a module…" list (a combo box: its text is its value).
+fn add_module(harness: &Harness<'_, StudioApp>, index: usize) -> egui::Pos2 {
+    harness
+        .get_all(egui_kittest::kittest::by().value("add a module…"))
+        .nth(index)
+        .unwrap_or_else(|| panic!("no {index}th module list"))
+        .rect()
+        .center()
+}
+
+fn during(harness: &Harness<'_, StudioApp>) -> armor_model::plan::Action {
+    let plan = harness.state().mission().unwrap().plan();
+    plan.legs[0].during.clone().unwrap_or_default()
+}
+
+#[test]
+fn an_action_s_alternatives_are_added_ordered_given_modules_removed_and_drawn_in_the_net() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    harness.key_press(Key::W);
+    harness.run();
+    for (x, y) in [(4.0, 4.0), (16.0, 4.0)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    harness.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
+    harness.run();
+    // The recorder beside the drive, picked from the system's modules.
+    let add = add_module(&harness, 0);
+    tap(&mut harness, add);
+    harness.run();
+    harness.get_by_label("recorder").click();
+    harness.run();
+    assert_eq!(during(&harness).modules[0].name, "recorder");
+    // An alternative: at first it runs none of the action's modules, so it answers the
+    // recorder's failure.
+    harness.get_by_label("add an alternative").click();
+    harness.run();
+    let action = during(&harness);
+    assert_eq!(action.alternatives.len(), 1);
+    assert_eq!(action.alternatives[0].name, "alt1");
+    harness.get_by_label_contains("taken when `recorder` fails for good");
+    // Given the observer, and the camera's failure to answer.
+    let add = add_module(&harness, 1);
+    tap(&mut harness, add);
+    harness.run();
+    harness.get_by_label("observer").click();
+    harness.run();
+    harness.get_by_label("On failure of").click();
+    harness.run();
+    harness.get_by_label("On failure of").type_text("camera");
+    harness.run();
+    let action = during(&harness);
+    assert_eq!(action.alternatives[0].modules[0].name, "observer");
+    assert_eq!(action.alternatives[0].on, ["camera"]);
+    // A second one, moved before the first.
+    harness.get_by_label("add an alternative").click();
+    harness.run();
+    let earlier = nth(&harness, "earlier", 1);
+    tap(&mut harness, earlier);
+    harness.run();
+    let names: Vec<String> = during(&harness)
+        .alternatives
+        .iter()
+        .map(|a| a.name.clone())
+        .collect();
+    assert_eq!(names, ["alt2", "alt1"]);
+    // The net has a branch for each, its places and switches known as the alternatives'.
+    let mission = harness.state().mission().unwrap();
+    let compiled = mission.checked().compiled.as_ref().expect("compiled");
+    let leg = &mission.plan().legs[0].name;
+    for way in ["alt1", "alt2", "camera_failed", "recorder_failed"] {
+        let name = format!("{leg}_drive_{way}");
+        assert!(
+            compiled.alternatives.contains(&name),
+            "{name} in {:?}",
+            compiled.alternatives
+        );
+        assert!(
+            mission
+                .net_layout()
+                .is_some_and(|l| l.nodes.contains_key(&name)),
+            "{name} laid out"
+        );
+    }
+    // The first alternative removed (the remove after the recorder's): one is left.
+    let remove = nth(&harness, "remove", 1);
+    tap(&mut harness, remove);
+    harness.run();
+    let names: Vec<String> = during(&harness)
+        .alternatives
+        .iter()
+        .map(|a| a.name.clone())
+        .collect();
+    assert_eq!(names, ["alt1"]);
+    // What the inspector made is a plan that reads back as written.
+    let plan = harness.state().mission().unwrap().plan().clone();
+    let again = armor_model::plan::Plan::parse(&plan.to_xml()).expect("reads back");
+    assert_eq!(again.to_xml(), plan.to_xml());
+    assert!(
+        plan.to_xml().contains("<alternative on=\"camera\">"),
+        "{}",
+        plan.to_xml()
+    );
+}

@@ -8,8 +8,8 @@ use std::collections::BTreeMap;
 use armor_model::geo::LatLon;
 use armor_model::net::{format_rfc3339, parse_rfc3339};
 use armor_model::plan::{
-    Action, ActionModule, ActionParam, AreaKind, Contingency, GraphicKind, Leg, Plan, Response,
-    Trigger,
+    Action, ActionModule, ActionParam, Alternative, AreaKind, Contingency, GraphicKind, Leg, Plan,
+    Response, Trigger,
 };
 use armor_model::world::Point;
 use armor_module_api::describe::is_identifier;
@@ -770,8 +770,8 @@ fn response_ui(
     (choice != current).then_some(choice)
 }
 
-/// An action's modules and their parameters; on arrival, also what ends it. Returns the new
-/// action (`None` inside: no action) when it changed.
+/// An action's modules and their parameters; on arrival, also what ends it; then, for a leg's
+/// (any `key` but `throughout`), its alternatives. Returns the new action (`None` inside: no action) when it changed.
 #[allow(clippy::too_many_arguments)]
 fn action_ui(
     ui: &mut Ui,
@@ -786,8 +786,61 @@ fn action_ui(
     let mut edited = action.cloned().unwrap_or_default();
     let before = edited.clone();
     ui.label(RichText::new(title).strong());
+    modules_ui(ui, key, &mut edited.modules, modules, param_names);
+    if arrival && !edited.modules.is_empty() {
+        if let Some(until) = parsed_field(
+            ui,
+            drafts,
+            "Until event",
+            &format!("{key}-until"),
+            edited.until.clone().unwrap_or_default(),
+            "MODULE.EVENT",
+            |t| match t {
+                "" => Ok(None),
+                event
+                    if event
+                        .split_once('.')
+                        .is_some_and(|(m, e)| is_identifier(m) && is_identifier(e)) =>
+                {
+                    Ok(Some(event.to_owned()))
+                }
+                _ => Err("an event is MODULE.EVENT".to_owned()),
+            },
+        ) {
+            edited.until = until;
+        }
+        if let Some(secs) = parsed_field(
+            ui,
+            drafts,
+            "For at most (s)",
+            &format!("{key}-for"),
+            show_secs(edited.for_secs),
+            "",
+            optional_secs,
+        ) {
+            edited.for_secs = secs;
+        }
+    }
+    // What runs throughout the mission has no leg to switch within.
+    if !edited.modules.is_empty() && key != "throughout" {
+        alternatives_ui(ui, drafts, key, &mut edited, modules, param_names);
+    }
+    if edited == before {
+        return None;
+    }
+    Some((!edited.modules.is_empty()).then_some(edited))
+}
+
+/// A list of modules with their parameters: each removed or given a parameter, others added.
+fn modules_ui(
+    ui: &mut Ui,
+    key: &str,
+    list: &mut Vec<ActionModule>,
+    modules: &[String],
+    param_names: &dyn Fn(&str) -> Vec<String>,
+) {
     let mut remove = None;
-    for (m, module) in edited.modules.iter_mut().enumerate() {
+    for (m, module) in list.iter_mut().enumerate() {
         ui.horizontal(|ui| {
             ui.label(RichText::new(&module.name).monospace());
             if ui.small_button("remove").clicked() {
@@ -832,62 +885,159 @@ fn action_ui(
         }
     }
     if let Some(m) = remove {
-        edited.modules.remove(m);
+        list.remove(m);
     }
     let addable: Vec<&String> = modules
         .iter()
-        .filter(|name| !edited.modules.iter().any(|m| &&m.name == name))
+        .filter(|name| !list.iter().any(|m| &&m.name == name))
         .collect();
     egui::ComboBox::new((key, "add"), "")
         .selected_text("add a module…")
         .show_ui(ui, |ui| {
             for name in addable {
                 if ui.selectable_label(false, name.as_str()).clicked() {
-                    edited.modules.push(ActionModule {
+                    list.push(ActionModule {
                         name: name.clone(),
                         ..ActionModule::default()
                     });
                 }
             }
         });
-    if arrival && !edited.modules.is_empty() {
-        if let Some(until) = parsed_field(
+}
+
+/// What an `on` field reads as: module names between spaces, each once; empty: the default.
+fn parse_on(text: &str) -> Result<Vec<String>, String> {
+    let mut names: Vec<String> = Vec::new();
+    for word in text.split_whitespace() {
+        if !is_identifier(word) {
+            return Err(format!("`{word}` is not a module name"));
+        }
+        if !names.iter().any(|name| name == word) {
+            names.push(word.to_owned());
+        }
+    }
+    Ok(names)
+}
+
+/// An action's alternatives, in the order they are tried: each named, with the failures it
+/// answers and its modules; moved earlier or later, removed, or added.
+fn alternatives_ui(
+    ui: &mut Ui,
+    drafts: &mut BTreeMap<String, String>,
+    key: &str,
+    action: &mut Action,
+    modules: &[String],
+    param_names: &dyn Fn(&str) -> Vec<String>,
+) {
+    let answers: Vec<Vec<String>> = action
+        .strategies()
+        .into_iter()
+        .skip(1)
+        .map(|way| way.answers)
+        .collect();
+    let count = action.alternatives.len();
+    let mut moved = None;
+    let mut removed = None;
+    for (i, alternative) in action.alternatives.iter_mut().enumerate() {
+        let alt_key = format!("{key}-alt{i}");
+        ui.add_space(4.0);
+        ui.horizontal(|ui| {
+            ui.label(RichText::new(format!("Alternative {}", i + 1)).strong());
+            if ui
+                .add_enabled(i > 0, egui::Button::new("earlier").small())
+                .on_hover_text("Try it before the alternative above it")
+                .clicked()
+            {
+                moved = Some((i, i - 1));
+            }
+            if ui
+                .add_enabled(i + 1 < count, egui::Button::new("later").small())
+                .on_hover_text("Try it after the alternative below it")
+                .clicked()
+            {
+                moved = Some((i, i + 1));
+            }
+            if ui.small_button("remove").clicked() {
+                removed = Some(i);
+            }
+        });
+        if let Some(name) = parsed_field(
             ui,
             drafts,
-            "Until event",
-            &format!("{key}-until"),
-            edited.until.clone().unwrap_or_default(),
-            "MODULE.EVENT",
-            |t| match t {
-                "" => Ok(None),
-                event
-                    if event
-                        .split_once('.')
-                        .is_some_and(|(m, e)| is_identifier(m) && is_identifier(e)) =>
-                {
-                    Ok(Some(event.to_owned()))
+            "Name",
+            &format!("{alt_key}-name"),
+            alternative.name.clone(),
+            "alt1",
+            |t| {
+                if is_identifier(t) {
+                    Ok(t.to_owned())
+                } else {
+                    Err("a name of letters, digits, `_` or `-`".to_owned())
                 }
-                _ => Err("an event is MODULE.EVENT".to_owned()),
             },
         ) {
-            edited.until = until;
+            alternative.name = name;
         }
-        if let Some(secs) = parsed_field(
+        let answered = answers.get(i).cloned().unwrap_or_default();
+        if let Some(on) = parsed_field(
             ui,
             drafts,
-            "For at most (s)",
-            &format!("{key}-for"),
-            show_secs(edited.for_secs),
-            "",
-            optional_secs,
+            "On failure of",
+            &format!("{alt_key}-on"),
+            alternative.on.join(" "),
+            &answered.join(" "),
+            parse_on,
         ) {
-            edited.for_secs = secs;
+            alternative.on = on;
+        }
+        if answered.is_empty() {
+            ui.colored_label(
+                ERROR,
+                "answers no failure: name modules above, or remove a module it does without",
+            );
+        } else {
+            ui.weak(format!(
+                "taken when {} fails for good",
+                answered
+                    .iter()
+                    .map(|name| format!("`{name}`"))
+                    .collect::<Vec<_>>()
+                    .join(" or ")
+            ));
+        }
+        modules_ui(ui, &alt_key, &mut alternative.modules, modules, param_names);
+        if alternative.modules.is_empty() {
+            ui.weak("runs none of the action's modules");
         }
     }
-    if edited == before {
-        return None;
+    let mut forget_drafts = || drafts.retain(|field, _| !field.starts_with(&format!("{key}-alt")));
+    if let Some((from, to)) = moved {
+        action.alternatives.swap(from, to);
+        forget_drafts();
     }
-    Some((!edited.modules.is_empty()).then_some(edited))
+    if let Some(i) = removed {
+        action.alternatives.remove(i);
+        forget_drafts();
+    }
+    ui.add_space(2.0);
+    if ui
+        .button("add an alternative")
+        .on_hover_text(
+            "Another way of doing it, tried when a module the way before it depends on fails \
+             for good",
+        )
+        .clicked()
+    {
+        let taken = |name: &str| action.alternatives.iter().any(|a| a.name == name);
+        let mut index = action.alternatives.len();
+        while taken(&Alternative::default_name(index)) {
+            index += 1;
+        }
+        action.alternatives.push(Alternative {
+            name: Alternative::default_name(index),
+            ..Alternative::default()
+        });
+    }
 }
 
 #[cfg(test)]

@@ -753,10 +753,12 @@ impl MissionView {
             .filter(|(_, origin)| matches!(origin, Origin::Leg(index) if current.contains(index)))
             .map(|(name, _)| name.clone())
             .collect();
+        let alternatives = self.alternatives();
         let style = net_view::NetStyle {
             highlighted: &highlighted,
             marking: Some(marking),
             scroll_to_highlight: self.net_scrolled_for_marking.as_ref() != Some(marking),
+            alternatives: &alternatives,
         };
         self.net_scrolled_for_marking = Some(marking.clone());
         let layout = self
@@ -788,6 +790,15 @@ impl MissionView {
         panel.show(ui, |ui| contents(self, ui));
     }
 
+    /// The net's elements that only the actions' alternatives have (drawn dashed).
+    fn alternatives(&self) -> BTreeSet<String> {
+        self.checked
+            .compiled
+            .as_ref()
+            .map(|compiled| compiled.alternatives.clone())
+            .unwrap_or_default()
+    }
+
     /// The net view's zoom, pan and last frame's names, for the tests.
     pub fn net_view(&self) -> &net_view::NetViewState {
         &self.net_view
@@ -807,10 +818,12 @@ impl MissionView {
         };
         let scroll = self.net_scrolled_for.as_ref() != Some(&self.editor.selection);
         self.net_scrolled_for = Some(self.editor.selection.clone());
+        let alternatives = self.alternatives();
         let style = net_view::NetStyle {
             highlighted: &highlighted,
             marking: None,
             scroll_to_highlight: scroll && !highlighted.is_empty(),
+            alternatives: &alternatives,
         };
         let layout = self
             .net_layout

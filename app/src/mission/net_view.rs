@@ -352,6 +352,9 @@ pub struct NetStyle<'a> {
     pub marking: Option<&'a Marking>,
     /// Bring the highlighted elements into view (once, after the selection changed).
     pub scroll_to_highlight: bool,
+    /// The elements of the actions' alternative ways and the switches to them: their places
+    /// and arcs are drawn dashed.
+    pub alternatives: &'a BTreeSet<String>,
 }
 
 /// The kinds of transition, each drawn in its colour (as the legend says).
@@ -390,12 +393,13 @@ fn header_ui(ui: &mut Ui, state: &mut NetViewState) {
             state.enlarged = !state.enlarged;
         }
         // Only where it leaves the legend its room (not in the Run view's narrower column).
-        if ui.available_width() > 800.0 {
+        if ui.available_width() > 900.0 {
             ui.weak("wheel: zoom · drag: pan · click: select");
         }
         ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
             // Right to left: the last item is drawn first, so the list is reversed.
-            let items: [(&str, Glyph); 6] = [
+            let items: [(&str, Glyph); 7] = [
+                ("alternative", Glyph::Alternative),
                 ("operator-fired", Glyph::Bar(OPERATOR)),
                 ("timed", Glyph::Bar(TIMED)),
                 ("event", Glyph::Bar(EVENT)),
@@ -416,6 +420,19 @@ enum Glyph {
     Bar(Color32),
     Marked,
     Final,
+    Alternative,
+}
+
+/// A place's outline drawn dashed: a place of an alternative way.
+fn dashed_circle(painter: &egui::Painter, at: Pos2, radius: f32, stroke: Stroke) {
+    let points: Vec<Pos2> = (0..=32)
+        .map(|i| {
+            let angle = i as f32 / 32.0 * std::f32::consts::TAU;
+            at + vec2(angle.cos(), angle.sin()) * radius
+        })
+        .collect();
+    let dash = (radius * 0.4).max(1.5);
+    painter.extend(egui::Shape::dashed_line(&points, stroke, dash, dash * 0.7));
 }
 
 impl Glyph {
@@ -433,6 +450,10 @@ impl Glyph {
             Glyph::Final => {
                 painter.circle(at, 6.5, Color32::WHITE, Stroke::new(1.5, FINAL));
                 painter.circle_stroke(at, 4.0, Stroke::new(1.0, FINAL));
+            }
+            Glyph::Alternative => {
+                painter.circle_filled(at, 6.5, Color32::WHITE);
+                dashed_circle(painter, at, 6.5, Stroke::new(1.5, INK));
             }
         }
     }
@@ -532,14 +553,15 @@ pub fn net_ui(
         };
         let lit = style.highlighted.contains(&transition.name);
         let colour = if lit { HIGHLIGHT } else { Color32::GRAY };
+        let dashed = style.alternatives.contains(&transition.name);
         for arc in &transition.inputs {
             if let Some(p) = at(&arc.place) {
-                arrow(&painter, p, t, colour, visible, zoom);
+                arrow(&painter, p, t, colour, visible, zoom, dashed);
             }
         }
         for arc in &transition.outputs {
             if let Some(p) = at(&arc.place) {
-                arrow(&painter, t, p, colour, visible, zoom);
+                arrow(&painter, t, p, colour, visible, zoom, dashed);
             }
         }
     }
@@ -567,12 +589,13 @@ pub fn net_ui(
             (false, false) => INK,
         };
         let radius = PLACE_RADIUS * zoom;
-        painter.circle(
-            p,
-            radius,
-            Color32::WHITE,
-            Stroke::new(2.0 * zoom.min(1.0), outline),
-        );
+        let stroke = Stroke::new(2.0 * zoom.min(1.0), outline);
+        if style.alternatives.contains(&place.name) {
+            painter.circle_filled(p, radius, Color32::WHITE);
+            dashed_circle(&painter, p, radius, stroke);
+        } else {
+            painter.circle(p, radius, Color32::WHITE, stroke);
+        }
         if place.is_final {
             painter.circle_stroke(p, radius * 0.72, Stroke::new(1.0, FINAL));
         }
@@ -651,25 +674,38 @@ pub fn net_ui(
 /// An arc from `a` to `b` with its head at the target's edge; arcs going back (to the left)
 /// go down, across below the lower of their ends and up, so they do not run over the nodes
 /// between.
-fn arrow(painter: &egui::Painter, a: Pos2, b: Pos2, colour: Color32, visible: Rect, zoom: f32) {
+#[allow(clippy::too_many_arguments)]
+fn arrow(
+    painter: &egui::Painter,
+    a: Pos2,
+    b: Pos2,
+    colour: Color32,
+    visible: Rect,
+    zoom: f32,
+    dashed: bool,
+) {
     if !visible.intersects(Rect::from_two_pos(a, b)) {
         return;
     }
     let stroke = Stroke::new(1.2, colour);
+    let line = |points: &[Pos2]| {
+        if dashed {
+            painter.extend(egui::Shape::dashed_line(points, stroke, 5.0, 3.0));
+        } else {
+            painter.line(points.to_vec(), stroke);
+        }
+    };
     let head_at;
     let direction;
     if b.x >= a.x {
         direction = (b - a).normalized();
         head_at = b - direction * (PLACE_RADIUS + 1.0) * zoom;
-        painter.line_segment([a, head_at], stroke);
+        line(&[a, head_at]);
     } else {
         // Level below the lower end, so that the way back reads as a loop and not as one
         // more diagonal through the layers between.
         let bottom = a.y.max(b.y) + ROW_STEP * 0.45 * zoom;
-        let points = [a, pos2(a.x, bottom), pos2(b.x, bottom), b];
-        for pair in points.windows(2) {
-            painter.line_segment([pair[0], pair[1]], stroke);
-        }
+        line(&[a, pos2(a.x, bottom), pos2(b.x, bottom), b]);
         direction = vec2(0.0, -1.0);
         head_at = b + vec2(0.0, (PLACE_RADIUS + 1.0) * zoom);
     }

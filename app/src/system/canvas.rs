@@ -105,6 +105,7 @@ impl SystemView {
             canvas: &canvas,
             live,
             wheel,
+            shift: ctx.input(|input| input.modifiers.shift),
         };
         // The id given, not a salt, so that its layer is known: the wires' ends are painted on it.
         let snarl_id = ui.id().with(CANVAS_ID);

@@ -67,16 +67,6 @@ fn steady_modules(net: &MissionNet) -> BTreeSet<String> {
     let Some((first, rest)) = net.places.split_first() else {
         return BTreeSet::new();
     };
-    fn params_of<'a>(place: &'a Place, module: &str) -> Vec<(&'a str, &'a str)> {
-        let mut params: Vec<(&str, &str)> = place
-            .params
-            .iter()
-            .filter(|param| param.module == module)
-            .map(|param| (param.name.as_str(), param.value.as_str()))
-            .collect();
-        params.sort_unstable();
-        params
-    }
     first
         .modules
         .iter()
@@ -87,6 +77,18 @@ fn steady_modules(net: &MissionNet) -> BTreeSet<String> {
         })
         .cloned()
         .collect()
+}
+
+/// The parameters a place gives a module, sorted.
+fn params_of<'a>(place: &'a Place, module: &str) -> Vec<(&'a str, &'a str)> {
+    let mut params: Vec<(&str, &str)> = place
+        .params
+        .iter()
+        .filter(|param| param.module == module)
+        .map(|param| (param.name.as_str(), param.value.as_str()))
+        .collect();
+    params.sort_unstable();
+    params
 }
 
 /// The most firings a status carries (the latest).
@@ -306,7 +308,8 @@ impl Controller {
     /// `goal_reached`. The config server sends a module only what changed for it, so a second
     /// leg with the same goal would otherwise reach the follower as nothing at all, and the
     /// mission would wait for ever. Such modules are stopped, then started again. A module that
-    /// every place runs alike (see [`steady_modules`]) goes on.
+    /// every place runs alike (see [`steady_modules`]) goes on, and so does one that a switch on
+    /// a module's failure (`module.ID.failed`) leaves and enters with the same parameters.
     fn apply_firings(
         &mut self,
         server: &ConfigServer,
@@ -314,20 +317,45 @@ impl Controller {
         firings: &[Firing],
     ) {
         let after = self.engine.active_modules();
-        let entered_again: BTreeSet<String> = firings
+        let mut entered_again = BTreeSet::new();
+        for transition in firings
             .iter()
             .filter_map(|firing| self.net.transition(&firing.transition))
-            .flat_map(|transition| &transition.outputs)
-            .filter_map(|arc| self.net.place(&arc.place))
-            .flat_map(|place| &place.modules)
-            .filter(|module| {
-                self.controllable.contains(*module)
-                    && before.contains(*module)
-                    && after.contains(*module)
-                    && !self.steady.contains(*module)
-            })
-            .cloned()
-            .collect();
+        {
+            // A switch on a failure (a plan's alternative, `module.ID.failed`) is no new step
+            // of the work: a module that both sides run alike goes on where it is (the
+            // follower keeps driving the same leg rather than start its path again).
+            let on_failure =
+                transition.condition.event.as_deref().is_some_and(|event| {
+                    event.starts_with("module.") && event.ends_with(".failed")
+                });
+            let left: Vec<&Place> = transition
+                .inputs
+                .iter()
+                .filter_map(|arc| self.net.place(&arc.place))
+                .collect();
+            for place in transition
+                .outputs
+                .iter()
+                .filter_map(|arc| self.net.place(&arc.place))
+            {
+                for module in &place.modules {
+                    let goes_on = on_failure
+                        && left.iter().any(|from| {
+                            from.modules.contains(module)
+                                && params_of(from, module) == params_of(place, module)
+                        });
+                    if self.controllable.contains(module)
+                        && before.contains(module)
+                        && after.contains(module)
+                        && !self.steady.contains(module)
+                        && !goes_on
+                    {
+                        entered_again.insert(module.clone());
+                    }
+                }
+            }
+        }
         if !entered_again.is_empty() {
             tracing::info!(modules = ?entered_again, "restarting the modules of a place entered");
             let mut control = self.control();

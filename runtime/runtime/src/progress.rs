@@ -38,6 +38,9 @@ pub struct LegPlan {
     pub not_before_secs: Option<f64>,
     /// Its deadline: to arrive by.
     pub deadline_secs: Option<f64>,
+    /// The transitions that switch its actions to an alternative, each with what it says
+    /// (`switched to `odometry`: `mapper` failed`).
+    pub switches: Vec<(String, String)>,
 }
 
 /// The legs of `plan` with the routes `compiled` planned, `start_unix_secs` being the date the
@@ -53,6 +56,17 @@ pub fn leg_plans(plan: &Plan, compiled: &Compiled, start_unix_secs: f64) -> Vec<
             route: compiled.routes.get(index).cloned().unwrap_or_default(),
             not_before_secs: leg.not_before_unix_secs.map(|at| at - start_unix_secs),
             deadline_secs: leg.arrive_by_unix_secs.map(|at| at - start_unix_secs),
+            switches: compiled
+                .switches
+                .iter()
+                .filter(|(_, switch)| switch.leg == index)
+                .map(|(transition, switch)| {
+                    (
+                        transition.clone(),
+                        format!("switched to `{}`: `{}` failed", switch.to, switch.module),
+                    )
+                })
+                .collect(),
         })
         .collect()
 }
@@ -411,6 +425,7 @@ mod tests {
             route: route.iter().map(|&(x, y)| Point::new(x, y)).collect(),
             not_before_secs: not_before,
             deadline_secs: deadline,
+            switches: Vec::new(),
         }
     }
 

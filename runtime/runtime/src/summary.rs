@@ -29,6 +29,8 @@ pub struct LegRun {
     pub deadline_secs: Option<f64>,
     /// The events modules reported while it was under way.
     pub events: Vec<String>,
+    /// Its actions' switches to alternatives, in the order they happened.
+    pub switches: Vec<String>,
 }
 
 /// Each leg as the run went.
@@ -59,6 +61,17 @@ pub fn legs(
                     .reduce(f64::min),
                 deadline_secs: leg.deadline_secs,
                 events: extras.events,
+                switches: {
+                    let mut fired: Vec<(f64, &String)> = leg
+                        .switches
+                        .iter()
+                        .filter_map(|(transition, text)| {
+                            Some((*first_fired.get(transition)?, text))
+                        })
+                        .collect();
+                    fired.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    fired.into_iter().map(|(_, text)| text.clone()).collect()
+                },
             }
         })
         .collect()
@@ -143,6 +156,10 @@ pub fn table(legs: &[LegRun]) -> String {
             secs(leg.deadline_secs),
             events_text(&leg.events),
         );
+        // What the leg switched to goes below it: the events' column is already wide.
+        for switch in &leg.switches {
+            let _ = writeln!(out, "{:name_width$}  {switch}", "");
+        }
     }
     out
 }
@@ -150,6 +167,48 @@ pub fn table(legs: &[LegRun]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_switches_that_fired_go_under_their_leg_in_order() {
+        let plan = LegPlan {
+            name: "out".to_owned(),
+            from: "home".to_owned(),
+            to: "east".to_owned(),
+            route: Vec::new(),
+            not_before_secs: None,
+            deadline_secs: None,
+            switches: vec![
+                (
+                    "out_drive_mapper_failed".to_owned(),
+                    "switched to `odometry`: `mapper` failed".to_owned(),
+                ),
+                (
+                    "out_drive_odometry_sim_failed".to_owned(),
+                    "switched to `alt2`: `sim` failed".to_owned(),
+                ),
+                (
+                    "out_drive_camera_failed".to_owned(),
+                    "switched to `alt3`: `camera` failed".to_owned(),
+                ),
+            ],
+        };
+        let fired = BTreeMap::from([
+            ("out_drive_odometry_sim_failed".to_owned(), 9.0),
+            ("out_drive_mapper_failed".to_owned(), 4.5),
+        ]);
+        let legs = legs(&[plan], &fired, &BTreeMap::new(), &[]);
+        assert_eq!(
+            legs[0].switches,
+            [
+                "switched to `odometry`: `mapper` failed",
+                "switched to `alt2`: `sim` failed"
+            ]
+        );
+        let table = table(&legs);
+        let lines: Vec<&str> = table.lines().collect();
+        assert_eq!(lines.len(), 4, "{table}");
+        assert_eq!(lines[2].trim(), "switched to `odometry`: `mapper` failed");
+    }
 
     #[test]
     fn the_table_says_early_late_and_not_reached() {
@@ -168,6 +227,7 @@ mod tests {
                 "follower.replanned".to_owned(),
                 "follower.arrived".to_owned(),
             ],
+            switches: Vec::new(),
         };
         let mut waited = leg("cross", Some(70.0), Some(65.5));
         waited.not_before_secs = Some(60.0);

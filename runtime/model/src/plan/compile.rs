@@ -17,13 +17,18 @@
 //! `continue` (late only) drives on in `L_drive_late`. Without a contingency a blocked robot
 //! holds, a late one continues, and a failure is left to the runtime (the mission fails).
 //! The modules of `throughout` run in every place, the final ones too.
+//!
+//! An action with alternatives has a place per way (`L_drive`, `L_drive_ALT`, …; `L_arrival`,
+//! `L_arrival_ALT`; late drives alike), each with the action's exits. From each way, the
+//! failure of a module that a later way answers (`module.M.failed`) fires `PLACE_M_failed` into
+//! the first such way; a failure that no later way answers is the contingency's, as above.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use armor_module_api::ModuleDescription;
 use armor_module_api::xml::{Located, Pos};
 
-use super::{Action, Leg, Plan, Response, Trigger};
+use super::{Action, ActionModule, Leg, Plan, Response, Strategy, Trigger};
 use crate::SystemConfig;
 use crate::geo::{self, LatLon, Polygon};
 use crate::net::{Arc, Condition, MissionNet, Place, PlaceParam, Transition, format_date};
@@ -55,6 +60,22 @@ pub struct Compiled {
     /// What may keep the plan from going as drawn without stopping it: time constraints that
     /// cannot all be met, with the numbers.
     pub warnings: Vec<Located>,
+    /// The places and transitions of the actions' alternative ways, and the switches to them
+    /// (drawn apart in the studio's net view).
+    pub alternatives: BTreeSet<String>,
+    /// The switches to alternatives, by transition name (what a run's summary reports).
+    pub switches: BTreeMap<String, Switch>,
+}
+
+/// A transition that switches a leg's action to one of its alternatives.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Switch {
+    /// The leg's index.
+    pub leg: usize,
+    /// The alternative switched to.
+    pub to: String,
+    /// The module whose failure for good switches.
+    pub module: String,
 }
 
 /// Where a net element comes from.
@@ -140,6 +161,13 @@ pub fn compile_for(
             ));
         }
     }
+    for leg in &plan.legs {
+        for (tag, action) in [("during", &leg.during), ("arrival", &leg.arrival)] {
+            if let Some(action) = action {
+                problems.extend(action.alternative_problems(tag));
+            }
+        }
+    }
     let throughout: Vec<&str> = plan
         .throughout
         .iter()
@@ -195,13 +223,22 @@ pub fn compile_for(
     let warnings = time_warnings(plan, &routes);
     let mut builder = Builder::new(plan, &legs.positions, &legs.keepouts, &paths, robot);
     builder.build();
+    let Builder {
+        net,
+        trace,
+        alternatives,
+        switches,
+        ..
+    } = builder;
     Ok(Compiled {
-        net: builder.net,
-        trace: builder.trace,
+        net,
+        trace,
         routes,
         positions: legs.positions,
         robot: *robot,
         warnings,
+        alternatives,
+        switches,
     })
 }
 
@@ -487,11 +524,19 @@ fn keepouts(plan: &Plan, origin: Option<LatLon>, problems: &mut Vec<Located>) ->
     keepouts
 }
 
+/// The modules of the legs' actions and of their alternatives.
 fn action_modules(plan: &Plan) -> Vec<(String, Pos)> {
     plan.legs
         .iter()
         .flat_map(|leg| leg.during.iter().chain(&leg.arrival))
-        .flat_map(|action| &action.modules)
+        .flat_map(|action| {
+            action.modules.iter().chain(
+                action
+                    .alternatives
+                    .iter()
+                    .flat_map(|alternative| &alternative.modules),
+            )
+        })
         .map(|module| (module.name.clone(), module.pos))
         .collect()
 }
@@ -577,6 +622,12 @@ struct Builder<'a> {
     trace: BTreeMap<String, Origin>,
     /// The modules whose failure some contingency handles.
     failure_modules: Vec<String>,
+    /// The places and transitions that only an alternative way of an action has, and the
+    /// switches to them.
+    alternatives: BTreeSet<String>,
+    /// (place, module): the failure of the module in the place switches to an alternative.
+    switched: BTreeSet<(String, String)>,
+    switches: BTreeMap<String, Switch>,
 }
 
 impl<'a> Builder<'a> {
@@ -617,6 +668,9 @@ impl<'a> Builder<'a> {
             },
             trace: BTreeMap::new(),
             failure_modules: plan.failure_modules(),
+            alternatives: BTreeSet::new(),
+            switched: BTreeSet::new(),
+            switches: BTreeMap::new(),
         }
     }
 
@@ -679,68 +733,110 @@ impl<'a> Builder<'a> {
             leg_places.push(depart);
         }
         let path = self.paths.get(index);
-        let (modules, params) = self.drive_action(&leg.to, leg.during.as_ref(), leg.pos, path);
-        self.place(&drive, origin(), leg.pos, modules.clone(), params.clone());
-        leg_places.push(drive.clone());
-        self.drive_exits(index, leg, &drive, "", &after_drive);
+        // Each way of driving the leg (the action beside the drive and its alternatives), each
+        // in a place of its own: `L_drive`, then `L_drive_ALT`.
+        let during = leg.during.clone().unwrap_or_default();
+        let ways = during.strategies();
+        let mut drives = Vec::with_capacity(ways.len());
+        for way in &ways {
+            let suffix = way_suffix(way.name);
+            let place = format!("{drive}{suffix}");
+            let (modules, params) = self.drive_action(&leg.to, way.modules, leg.pos, path);
+            self.place(&place, origin(), leg.pos, modules, params);
+            self.drive_exits(index, leg, &place, &suffix, &after_drive);
+            self.mark_alternative(way.name, &place);
+            self.mark_alternative(way.name, &format!("{name}_arrived{suffix}"));
+            self.mark_alternative(way.name, &format!("{name}_blocked{suffix}"));
+            leg_places.push(place.clone());
+            drives.push(place);
+        }
+        self.switches(index, &drives, &ways);
         if let Some(deadline) = leg.arrive_by_unix_secs {
             let late = Condition {
                 at_unix_secs: Some(deadline),
                 ..Condition::default()
             };
-            let target = match self.response(leg, &Trigger::Late) {
-                Some(Response::Continue) | None => {
-                    let drive_late = format!("{name}_drive_late");
-                    self.place(&drive_late, origin(), leg.pos, modules, params);
-                    self.drive_exits(index, leg, &drive_late, "_late", &after_drive);
-                    leg_places.push(drive_late.clone());
-                    drive_late
-                }
-                Some(response) => self.respond(index, leg, &response),
-            };
-            self.transition(
-                &format!("{name}_late"),
-                origin(),
-                leg.pos,
-                late,
-                &drive,
-                &target,
-            );
+            let response = self.response(leg, &Trigger::Late);
+            let mut lates = Vec::with_capacity(ways.len());
+            for (way, drive) in ways.iter().zip(&drives) {
+                let suffix = way_suffix(way.name);
+                let target = match &response {
+                    Some(Response::Continue) | None => {
+                        // Late, the robot drives on the same way.
+                        let drive_late = format!("{name}_drive_late{suffix}");
+                        let (modules, params) =
+                            self.drive_action(&leg.to, way.modules, leg.pos, path);
+                        self.place(&drive_late, origin(), leg.pos, modules, params);
+                        self.drive_exits(
+                            index,
+                            leg,
+                            &drive_late,
+                            &format!("_late{suffix}"),
+                            &after_drive,
+                        );
+                        self.mark_alternative(way.name, &drive_late);
+                        self.mark_alternative(way.name, &format!("{name}_arrived_late{suffix}"));
+                        self.mark_alternative(way.name, &format!("{name}_blocked_late{suffix}"));
+                        leg_places.push(drive_late.clone());
+                        lates.push(drive_late.clone());
+                        drive_late
+                    }
+                    Some(response) => self.respond(index, leg, response),
+                };
+                let transition = format!("{name}_late{suffix}");
+                self.transition(&transition, origin(), leg.pos, late.clone(), drive, &target);
+                self.mark_alternative(way.name, &transition);
+            }
+            if lates.len() == ways.len() {
+                self.switches(index, &lates, &ways);
+            }
         }
         if let Some(arrival) = &leg.arrival {
-            let place = format!("{name}_arrival");
-            let (modules, params) = action_parts(arrival);
-            self.place(&place, origin(), arrival.pos, modules, params);
-            let until = arrival.until.clone();
-            let mut done = Condition {
-                event: until.clone(),
-                ..Condition::default()
-            };
-            if until.is_none() {
-                done.delay_secs = arrival.for_secs;
-            }
-            self.transition(
-                &format!("{name}_arrival_done"),
-                origin(),
-                arrival.pos,
-                done,
-                &place,
-                &after_arrival,
-            );
-            if let (Some(_), Some(secs)) = (&until, arrival.for_secs) {
+            let ways = arrival.strategies();
+            let mut places = Vec::with_capacity(ways.len());
+            for way in &ways {
+                let suffix = way_suffix(way.name);
+                let place = format!("{name}_arrival{suffix}");
+                let (modules, params) = modules_and_params(way.modules);
+                self.place(&place, origin(), arrival.pos, modules, params);
+                let until = arrival.until.clone();
+                let mut done = Condition {
+                    event: until.clone(),
+                    ..Condition::default()
+                };
+                if until.is_none() {
+                    done.delay_secs = arrival.for_secs;
+                }
+                let transition = format!("{name}_arrival_done{suffix}");
                 self.transition(
-                    &format!("{name}_arrival_timeout"),
+                    &transition,
                     origin(),
                     arrival.pos,
-                    Condition {
-                        delay_secs: Some(secs),
-                        ..Condition::default()
-                    },
+                    done,
                     &place,
                     &after_arrival,
                 );
+                self.mark_alternative(way.name, &transition);
+                if let (Some(_), Some(secs)) = (&until, arrival.for_secs) {
+                    let transition = format!("{name}_arrival_timeout{suffix}");
+                    self.transition(
+                        &transition,
+                        origin(),
+                        arrival.pos,
+                        Condition {
+                            delay_secs: Some(secs),
+                            ..Condition::default()
+                        },
+                        &place,
+                        &after_arrival,
+                    );
+                    self.mark_alternative(way.name, &transition);
+                }
+                self.mark_alternative(way.name, &place);
+                leg_places.push(place.clone());
+                places.push(place);
             }
-            leg_places.push(place);
+            self.switches(index, &places, &ways);
         }
         if let Some(wait) = leg.wait_secs {
             let place = format!("{name}_wait");
@@ -767,6 +863,11 @@ impl<'a> Builder<'a> {
             };
             let target = self.respond(index, leg, &response);
             for place in &leg_places {
+                // In a way that has an alternative for this failure, the alternative answers it;
+                // the contingency, only once they are all spent.
+                if self.switched.contains(&(place.clone(), module.clone())) {
+                    continue;
+                }
                 self.transition(
                     &format!("{place}_{module}_failed"),
                     origin(),
@@ -779,6 +880,53 @@ impl<'a> Builder<'a> {
                     &target,
                 );
             }
+        }
+    }
+
+    /// The switches between the ways of doing a part of a leg, `places[k]` doing `ways[k]`:
+    /// from each way, the failure for good of a module that a later way answers leads to the
+    /// first such way (`PLACE_MODULE_failed`). A failure that no later way answers is left to
+    /// the contingencies.
+    fn switches(&mut self, index: usize, places: &[String], ways: &[Strategy<'_>]) {
+        for (from, place) in places.iter().enumerate() {
+            let mut answered: Vec<&str> = Vec::new();
+            for (to, way) in ways.iter().enumerate().skip(from + 1) {
+                for module in &way.answers {
+                    if answered.contains(&module.as_str()) {
+                        continue;
+                    }
+                    answered.push(module);
+                    let transition = format!("{place}_{module}_failed");
+                    self.transition(
+                        &transition,
+                        Origin::Leg(index),
+                        way.pos,
+                        Condition {
+                            event: Some(format!("module.{module}.failed")),
+                            ..Condition::default()
+                        },
+                        place,
+                        &places[to],
+                    );
+                    self.switches.insert(
+                        transition.clone(),
+                        Switch {
+                            leg: index,
+                            to: way.name.unwrap_or_default().to_owned(),
+                            module: module.clone(),
+                        },
+                    );
+                    self.alternatives.insert(transition);
+                    self.switched.insert((place.clone(), module.clone()));
+                }
+            }
+        }
+    }
+
+    /// Notes a net element that only an alternative's way (`way`, its name) has.
+    fn mark_alternative(&mut self, way: Option<&str>, element: &str) {
+        if way.is_some() {
+            self.alternatives.insert(element.to_owned());
         }
     }
 
@@ -859,7 +1007,7 @@ impl<'a> Builder<'a> {
                 let drive = format!("{name}_return");
                 if !self.trace.contains_key(&drive) {
                     // Where the robot will be when it turns back is not known: no path.
-                    let (modules, params) = self.drive_action(waypoint, None, leg.pos, None);
+                    let (modules, params) = self.drive_action(waypoint, &[], leg.pos, None);
                     self.place(&drive, origin(), leg.pos, modules, params);
                     let end = format!("returned_{waypoint}");
                     if !self.trace.contains_key(&end) {
@@ -923,7 +1071,7 @@ impl<'a> Builder<'a> {
     fn drive_action(
         &self,
         waypoint: &str,
-        during: Option<&Action>,
+        beside: &[ActionModule],
         pos: Pos,
         path: Option<&Path>,
     ) -> (Vec<String>, Vec<PlaceParam>) {
@@ -971,11 +1119,9 @@ impl<'a> Builder<'a> {
         {
             params.push(param(&nav.path_param, path.format()));
         }
-        if let Some(action) = during {
-            let (more_modules, more_params) = action_parts(action);
-            modules.extend(more_modules);
-            params.extend(more_params);
-        }
+        let (more_modules, more_params) = modules_and_params(beside);
+        modules.extend(more_modules);
+        params.extend(more_params);
         (modules, params)
     }
 
@@ -1030,9 +1176,12 @@ impl<'a> Builder<'a> {
 }
 
 fn action_parts(action: &Action) -> (Vec<String>, Vec<PlaceParam>) {
-    let modules = action.modules.iter().map(|m| m.name.clone()).collect();
-    let params = action
-        .modules
+    modules_and_params(&action.modules)
+}
+
+fn modules_and_params(modules: &[ActionModule]) -> (Vec<String>, Vec<PlaceParam>) {
+    let names = modules.iter().map(|m| m.name.clone()).collect();
+    let params = modules
         .iter()
         .flat_map(|module| {
             module.params.iter().map(|param| PlaceParam {
@@ -1043,7 +1192,12 @@ fn action_parts(action: &Action) -> (Vec<String>, Vec<PlaceParam>) {
             })
         })
         .collect();
-    (modules, params)
+    (names, params)
+}
+
+/// What the places of a way are named with after the action's own: `_ALT`, or nothing.
+fn way_suffix(name: Option<&str>) -> String {
+    name.map_or_else(String::new, |name| format!("_{name}"))
 }
 
 #[cfg(test)]

@@ -9,6 +9,10 @@
 //!   <waypoint name="home" lat="43.561536" lon="1.469049"/>
 //!   <waypoint name="gate" lat="43.561590" lon="1.469250" symbol="SFGPUCR----"/>
 //!   <leg from="home" to="gate" arrive_by="2026-11-23T08:05:00Z" wait_secs="10">
+//!     <during>
+//!       <module name="map_recorder"/>
+//!       <alternative name="odometry" on="mapper"><module name="odometry_recorder"/></alternative>
+//!     </during>
 //!     <arrival until="observer.observation_done" for_secs="60">
 //!       <module name="observer"><param name="sector_deg" value="360"/></module>
 //!     </arrival>
@@ -29,7 +33,10 @@
 //! `wait_secs` (stay at the destination). Contingencies say what to do when the robot is
 //! `blocked`, a module `failed`, or the robot is `late`: `skip` the rest of the leg, `hold` for
 //! the operator (who may retry or skip), `return` to a waypoint and end there, or (`late` only)
-//! `continue`. An action `throughout` runs from start to end (a recorder). The schema is
+//! `continue`. A leg's action may list `<alternative>`s: other sets of modules, tried in order
+//! when a module the way in force depends on fails for good (its `on` modules, or those it does
+//! without); once they are spent, the contingencies apply (`docs/plans.md`). An action
+//! `throughout` runs from start to end (a recorder). The schema is
 //! `assets/schema/plan.xsd`; [`compile`] makes the net, [`gpx`] exchanges waypoints and
 //! routes with GIS tools, [`qgc`] plans with ground stations (QGroundControl's plan files) and
 //! [`kml`] writes the plan for Google Earth and ATAK (what each carries: `docs/interchange.md`).
@@ -40,7 +47,7 @@
 //! with no way through is an error that says where the way is cut; the navigation module gets
 //! the path in its `path` parameter, and the time constraints are checked along it.
 
-use armor_module_api::xml::Pos;
+use armor_module_api::xml::{Located, Pos};
 
 mod compile;
 pub mod gpx;
@@ -50,7 +57,7 @@ mod xml;
 
 pub use crate::geo::LatLon;
 pub use compile::{
-    CLEARANCE_M, Compiled, LegPaths, Origin, compile, compile_for, plan_legs, robot,
+    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, robot,
 };
 
 /// A whole plan.
@@ -181,6 +188,131 @@ pub struct Action {
     pub modules: Vec<ActionModule>,
     pub until: Option<String>,
     pub for_secs: Option<f64>,
+    /// Other ways of doing the same (a leg's `<during>` or `<arrival>` only), in the order they
+    /// are tried when a module that the way in force depends on fails for good.
+    pub alternatives: Vec<Alternative>,
+    pub pos: Pos,
+}
+
+/// Another set of modules for an action (`<alternative>`): what runs instead of the action's
+/// own modules, or of the alternative before it, once one of the modules it answers has failed
+/// for good (the runtime's `module.ID.failed`: its supervisor gave up on it).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Alternative {
+    /// The name its places take after the action's (`leg1_drive_odometry`); `alt1`, `alt2`, …
+    /// (its rank among the action's alternatives) when the plan gives none.
+    pub name: String,
+    /// The modules whose failure it answers, as written (`on="mapper sim"`); empty: those the
+    /// way before it names and it does not ([`Alternative::answers`]).
+    pub on: Vec<String>,
+    /// What runs instead; none: the leg is driven, or the arrival waited, without them.
+    pub modules: Vec<ActionModule>,
+    pub pos: Pos,
+}
+
+impl Alternative {
+    /// The name an alternative at `index` (from 0) takes when the plan gives none.
+    pub fn default_name(index: usize) -> String {
+        format!("alt{}", index + 1)
+    }
+
+    /// The modules whose failure it answers: its `on`, else the modules of `before` (the way
+    /// tried before it) that it does without, in the order `before` names them.
+    pub fn answers(&self, before: &[ActionModule]) -> Vec<String> {
+        if !self.on.is_empty() {
+            return self.on.clone();
+        }
+        before
+            .iter()
+            .filter(|module| !self.modules.iter().any(|own| own.name == module.name))
+            .map(|module| module.name.clone())
+            .collect()
+    }
+}
+
+impl Action {
+    /// Each way of doing the action in the order tried: its own modules, then each
+    /// alternative's, with the modules whose failure leads to it (none for the first).
+    pub fn strategies(&self) -> Vec<Strategy<'_>> {
+        let mut ways = vec![Strategy {
+            name: None,
+            modules: &self.modules,
+            answers: Vec::new(),
+            pos: self.pos,
+        }];
+        for alternative in &self.alternatives {
+            let before = ways.last().map_or(&[][..], |way| way.modules);
+            ways.push(Strategy {
+                name: Some(&alternative.name),
+                modules: &alternative.modules,
+                answers: alternative.answers(before),
+                pos: alternative.pos,
+            });
+        }
+        ways
+    }
+}
+
+/// The names an alternative cannot take: its places and transitions, named after the action's
+/// with `_NAME`, would take those of the leg's late drive and of the arrival's end.
+const RESERVED_WAY_NAMES: [&str; 3] = ["late", "done", "timeout"];
+
+impl Action {
+    /// What is wrong with the action's alternatives (`tag`: the element that holds them, for
+    /// the messages): a name given twice or taken by the leg's own places, an alternative that
+    /// answers no failure.
+    pub fn alternative_problems(&self, tag: &str) -> Vec<Located> {
+        let mut problems = Vec::new();
+        let mut names: std::collections::BTreeMap<&str, Pos> = std::collections::BTreeMap::new();
+        let mut before = &self.modules;
+        for alternative in &self.alternatives {
+            let name = alternative.name.as_str();
+            if RESERVED_WAY_NAMES.contains(&name) || name.ends_with("_failed") {
+                problems.push(Located::new(
+                    alternative.pos,
+                    format!(
+                        "alternative `{name}`: its places would take the names of the leg's own \
+                         (`late`, `done`, `timeout` and names ending in `_failed` are taken); \
+                         choose another name"
+                    ),
+                ));
+            }
+            if let Some(first) = names.get(name) {
+                problems.push(Located::new(
+                    alternative.pos,
+                    format!(
+                        "<{tag}> already has an alternative named `{name}` (line {})",
+                        first.line
+                    ),
+                ));
+            } else {
+                names.insert(name, alternative.pos);
+            }
+            if alternative.answers(before).is_empty() {
+                problems.push(Located::new(
+                    alternative.pos,
+                    format!(
+                        "alternative `{name}` answers no failure: it runs every module the way \
+                         before it runs; say which failures lead to it with on=\"MODULE\" (a \
+                         provider such as the mapper), or leave out the module it does without"
+                    ),
+                ));
+            }
+            before = &alternative.modules;
+        }
+        problems
+    }
+}
+
+/// One way of doing an action: [`Action::strategies`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Strategy<'a> {
+    /// `None` for the action's own modules, else the alternative's name.
+    pub name: Option<&'a str>,
+    pub modules: &'a [ActionModule],
+    /// The modules whose failure, in a way tried before, leads here.
+    pub answers: Vec<String>,
+    /// Where the plan writes it (the action, or the alternative).
     pub pos: Pos,
 }
 

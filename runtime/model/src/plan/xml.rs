@@ -5,15 +5,16 @@ use std::collections::hash_map::Entry;
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
 
+use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
 use super::{
-    Action, ActionModule, ActionParam, AreaKind, Basemap, Contingency, Graphic, GraphicKind,
-    LatLon, Leg, Navigation, Plan, Response, Trigger, Unit, Waypoint, check_sidc,
+    Action, ActionModule, ActionParam, Alternative, AreaKind, Basemap, Contingency, Graphic,
+    GraphicKind, LatLon, Leg, Navigation, Plan, Response, Trigger, Unit, Waypoint, check_sidc,
 };
 use crate::fields::{
-    Field, escape, finish, identifier, is_decimal, no_children, no_text, optional, read_identifier,
-    required,
+    Field, NAME_RULE, escape, finish, identifier, is_decimal, no_children, no_text, optional,
+    read_identifier, required,
 };
 use crate::net::{format_date, read_date, read_event};
 
@@ -321,8 +322,30 @@ fn write_action(out: &mut String, indent: &str, tag: &str, action: &Action) {
         let _ = write!(out, " for_secs=\"{secs}\"");
     }
     out.push_str(">\n");
-    for module in &action.modules {
-        let _ = write!(out, "{indent}  <module name=\"{}\"", escape(&module.name));
+    let inner = format!("{indent}  ");
+    write_modules(out, &inner, &action.modules);
+    for (index, alternative) in action.alternatives.iter().enumerate() {
+        let _ = write!(out, "{inner}<alternative");
+        if alternative.name != Alternative::default_name(index) {
+            let _ = write!(out, " name=\"{}\"", escape(&alternative.name));
+        }
+        if !alternative.on.is_empty() {
+            let _ = write!(out, " on=\"{}\"", escape(&alternative.on.join(" ")));
+        }
+        if alternative.modules.is_empty() {
+            out.push_str("/>\n");
+            continue;
+        }
+        out.push_str(">\n");
+        write_modules(out, &format!("{inner}  "), &alternative.modules);
+        let _ = writeln!(out, "{inner}</alternative>");
+    }
+    let _ = writeln!(out, "{indent}</{tag}>");
+}
+
+fn write_modules(out: &mut String, indent: &str, modules: &[ActionModule]) {
+    for module in modules {
+        let _ = write!(out, "{indent}<module name=\"{}\"", escape(&module.name));
         if module.params.is_empty() {
             out.push_str("/>\n");
             continue;
@@ -331,14 +354,13 @@ fn write_action(out: &mut String, indent: &str, tag: &str, action: &Action) {
         for param in &module.params {
             let _ = writeln!(
                 out,
-                "{indent}    <param name=\"{}\" value=\"{}\"/>",
+                "{indent}  <param name=\"{}\" value=\"{}\"/>",
                 escape(&param.name),
                 escape(&param.value)
             );
         }
-        let _ = writeln!(out, "{indent}  </module>");
+        let _ = writeln!(out, "{indent}</module>");
     }
-    let _ = writeln!(out, "{indent}</{tag}>");
 }
 
 fn write_contingency(out: &mut String, indent: &str, contingency: &Contingency) {
@@ -602,7 +624,21 @@ fn read_action(element: &Element, p: &mut Vec<Located>) -> Action {
     } else {
         p.extend(element.unknown_attrs(&[]));
     }
-    p.extend(element.unknown_children(&["module"]));
+    // A leg's action may have other ways of doing it; what runs throughout has no leg to
+    // switch within.
+    let in_leg = element.name != "throughout";
+    if in_leg {
+        p.extend(element.unknown_children(&["module", "alternative"]));
+    } else {
+        for child in element.children_named("alternative") {
+            p.push(Located::new(
+                child.pos,
+                "<alternative> is for a leg's <during> or <arrival>: what runs throughout the \
+                 mission has no leg to switch within",
+            ));
+        }
+        p.extend(element.unknown_children(&["module", "alternative"]));
+    }
     no_text(element, p);
     let mut action = Action {
         until: optional(element, "until", read_event, p),
@@ -617,6 +653,73 @@ fn read_action(element: &Element, p: &mut Vec<Located>) -> Action {
              `for_secs`, or both",
         ));
     }
+    action.modules = read_modules(element, p);
+    if action.modules.is_empty() {
+        p.push(Located::new(
+            element.pos,
+            format!(
+                "<{}> runs no module (add <module name=\"...\"/>)",
+                element.name
+            ),
+        ));
+    }
+    if in_leg {
+        read_alternatives(element, &mut action, p);
+    }
+    action
+}
+
+/// The `<alternative>`s of an action, after its own modules: each named once, each answering
+/// some failure.
+fn read_alternatives(element: &Element, action: &mut Action, p: &mut Vec<Located>) {
+    for (index, child) in element.children_named("alternative").enumerate() {
+        p.extend(child.unknown_attrs(&["name", "on"]));
+        p.extend(child.unknown_children(&["module"]));
+        no_text(child, p);
+        let name = match child.attr("name") {
+            Some(_) => identifier(child, "name", "name", p).unwrap_or_default(),
+            None => Alternative::default_name(index),
+        };
+        let mut on: Vec<String> = Vec::new();
+        if let Some(field) = child.attr("on") {
+            let words: Vec<&str> = field.value.split_whitespace().collect();
+            if words.is_empty() {
+                p.push(Located::new(
+                    field.pos,
+                    "`on` names the modules whose failure the alternative answers, like \
+                     on=\"mapper\"; leave it out to answer those it does without",
+                ));
+            }
+            for word in words {
+                if !is_identifier(word) {
+                    p.push(Located::new(
+                        field.pos,
+                        format!("`on`: module name `{word}` is not valid ({NAME_RULE})"),
+                    ));
+                } else if on.iter().any(|seen| seen == word) {
+                    p.push(Located::new(
+                        field.pos,
+                        format!("`on` names module `{word}` twice"),
+                    ));
+                } else {
+                    on.push(word.to_owned());
+                }
+            }
+        }
+        let alternative = Alternative {
+            name,
+            on,
+            modules: read_modules(child, p),
+            pos: child.pos,
+        };
+        action.alternatives.push(alternative);
+    }
+    p.extend(action.alternative_problems(&element.name));
+}
+
+/// The `<module>`s of an action or an alternative, each with its `<param>`s.
+fn read_modules(element: &Element, p: &mut Vec<Located>) -> Vec<ActionModule> {
+    let mut modules: Vec<ActionModule> = Vec::new();
     let mut seen: BTreeMap<String, Pos> = BTreeMap::new();
     for child in element.children_named("module") {
         p.extend(child.unknown_attrs(&["name"]));
@@ -670,18 +773,9 @@ fn read_action(element: &Element, p: &mut Vec<Located>) -> Action {
                 pos: param.pos,
             });
         }
-        action.modules.push(module);
+        modules.push(module);
     }
-    if action.modules.is_empty() {
-        p.push(Located::new(
-            element.pos,
-            format!(
-                "<{}> runs no module (add <module name=\"...\"/>)",
-                element.name
-            ),
-        ));
-    }
-    action
+    modules
 }
 
 fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingency> {
@@ -1109,10 +1203,113 @@ mod tests {
     fn strip_action(action: &mut Action) {
         let zero = Pos::default();
         action.pos = zero;
-        for module in &mut action.modules {
+        let alternatives = action.alternatives.iter_mut().flat_map(|alternative| {
+            alternative.pos = zero;
+            &mut alternative.modules
+        });
+        for module in action.modules.iter_mut().chain(alternatives) {
             module.pos = zero;
             module.params.iter_mut().for_each(|p| p.pos = zero);
         }
+    }
+
+    #[test]
+    fn alternatives_are_read_and_written_back_the_same() {
+        let text = r#"<plan name="p" system="s.xml">
+  <waypoint name="a" lat="1" lon="2"/>
+  <waypoint name="b" lat="1" lon="2.001"/>
+  <leg from="a" to="b">
+    <during>
+      <module name="mapper"/>
+      <module name="recorder"><param name="file" value="a.mcap"/></module>
+      <alternative name="odometry">
+        <module name="recorder"><param name="file" value="b.mcap"/></module>
+      </alternative>
+      <alternative on="sim camera"/>
+    </during>
+    <arrival for_secs="5">
+      <module name="observer"/>
+      <alternative name="alt1" on="camera"><module name="observer"/></alternative>
+    </arrival>
+  </leg>
+</plan>"#;
+        let plan = Plan::parse(text).unwrap_or_else(|p| panic!("{p:?}"));
+        let during = plan.legs[0].during.as_ref().expect("during");
+        assert_eq!(during.alternatives.len(), 2);
+        assert_eq!(during.alternatives[0].name, "odometry");
+        assert_eq!(during.alternatives[0].answers(&during.modules), ["mapper"]);
+        assert_eq!(during.alternatives[0].modules[0].params[0].value, "b.mcap");
+        assert_eq!(during.alternatives[1].name, "alt2");
+        assert_eq!(during.alternatives[1].on, ["sim", "camera"]);
+        let ways: Vec<(Option<&str>, Vec<String>)> = during
+            .strategies()
+            .into_iter()
+            .map(|way| (way.name, way.answers))
+            .collect();
+        assert_eq!(
+            ways,
+            [
+                (None, vec![]),
+                (Some("odometry"), vec!["mapper".to_owned()]),
+                (Some("alt2"), vec!["sim".to_owned(), "camera".to_owned()]),
+            ]
+        );
+        let written = plan.to_xml();
+        // A default name is not written; a given one is, even when it is the default's.
+        assert!(
+            written.contains("<alternative on=\"sim camera\"/>"),
+            "{written}"
+        );
+        assert!(written.contains("<alternative on=\"camera\">"), "{written}");
+        let again = Plan::parse(&written).unwrap_or_else(|p| panic!("{p:?}"));
+        assert_eq!(strip(again.clone()), strip(plan));
+        assert_eq!(again.to_xml(), written);
+    }
+
+    #[test]
+    fn bad_alternatives_are_named_with_their_lines() {
+        let text = r#"<plan name="p" system="s.xml">
+  <throughout>
+    <module name="recorder"/>
+    <alternative on="sim"/>
+  </throughout>
+  <waypoint name="a" lat="1" lon="2"/>
+  <waypoint name="b" lat="1" lon="2.001"/>
+  <leg from="a" to="b">
+    <during>
+      <module name="mapper"/>
+      <alternative><module name="mapper"/></alternative>
+      <alternative name="x" on="9lives mapper mapper" when="now"/>
+      <alternative name="x" on=" "><module name="a"/><module name="a"/><bogus/></alternative>
+      <alternative name="late" on="mapper"/>
+    </during>
+  </leg>
+</plan>"#;
+        assert_eq!(
+            problems(text),
+            [
+                "4:5: <alternative> is for a leg's <during> or <arrival>: what runs throughout \
+                 the mission has no leg to switch within",
+                "11:7: alternative `alt1` answers no failure: it runs every module the way \
+                 before it runs; say which failures lead to it with on=\"MODULE\" (a provider \
+                 such as the mapper), or leave out the module it does without",
+                "12:29: `on`: module name `9lives` is not valid (use letters, digits, `_` or \
+                 `-`, starting with a letter or `_`)",
+                "12:29: `on` names module `mapper` twice",
+                "12:55: unknown attribute `when` on <alternative> (expected one of: name, on)",
+                "13:7: <during> already has an alternative named `x` (line 12)",
+                "13:7: alternative `x` answers no failure: it runs every module the way before \
+                 it runs; say which failures lead to it with on=\"MODULE\" (a provider such as \
+                 the mapper), or leave out the module it does without",
+                "13:29: `on` names the modules whose failure the alternative answers, like \
+                 on=\"mapper\"; leave it out to answer those it does without",
+                "13:54: <alternative> already runs module `a` (line 13)",
+                "13:72: unknown element <bogus> inside <alternative> (expected one of: module)",
+                "14:7: alternative `late`: its places would take the names of the leg's own \
+                 (`late`, `done`, `timeout` and names ending in `_failed` are taken); choose \
+                 another name",
+            ]
+        );
     }
 
     #[test]

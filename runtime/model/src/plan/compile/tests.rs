@@ -648,3 +648,125 @@ fn without_a_world_legs_go_round_the_areas_only() {
         assert!(!lake.blocks(pair[0], pair[1], 0.99), "{route:?}");
     }
 }
+
+#[test]
+fn alternatives_are_branches_taken_on_failures_then_the_contingency() {
+    let compiled = compiled(
+        r#"<leg from="home" to="gate" arrive_by="2026-11-23T08:10:00Z">
+  <during>
+    <module name="mapper"><param name="resolution_m" value="0.05"/></module>
+    <module name="recorder"/>
+    <alternative name="odometry"><module name="recorder"/></alternative>
+    <alternative on="recorder"/>
+  </during>
+  <arrival for_secs="30">
+    <module name="observer"/>
+    <alternative on="camera"><module name="observer"/></alternative>
+  </arrival>
+  <contingency on="failed" module="recorder" do="hold"/>
+</leg>"#,
+    );
+    assert_eq!(
+        picture(&compiled.net),
+        "place leg1_drive (1) [follower avoider mapper recorder]
+place leg1_hold
+place leg1_drive_odometry [follower avoider recorder]
+place leg1_drive_alt2 [follower avoider]
+place leg1_drive_late [follower avoider mapper recorder]
+place leg1_drive_late_odometry [follower avoider recorder]
+place leg1_drive_late_alt2 [follower avoider]
+place leg1_arrival [observer]
+place leg1_arrival_alt1 [observer]
+place done final
+leg1_arrived: leg1_drive -> leg1_arrival follower.goal_reached
+leg1_retry: leg1_hold -> leg1_drive operator
+leg1_skip: leg1_hold -> done operator
+leg1_blocked: leg1_drive -> leg1_hold follower.blocked
+leg1_arrived_odometry: leg1_drive_odometry -> leg1_arrival follower.goal_reached
+leg1_blocked_odometry: leg1_drive_odometry -> leg1_hold follower.blocked
+leg1_arrived_alt2: leg1_drive_alt2 -> leg1_arrival follower.goal_reached
+leg1_blocked_alt2: leg1_drive_alt2 -> leg1_hold follower.blocked
+leg1_drive_mapper_failed: leg1_drive -> leg1_drive_odometry module.mapper.failed
+leg1_drive_recorder_failed: leg1_drive -> leg1_drive_alt2 module.recorder.failed
+leg1_drive_odometry_recorder_failed: leg1_drive_odometry -> leg1_drive_alt2 module.recorder.failed
+leg1_arrived_late: leg1_drive_late -> leg1_arrival follower.goal_reached
+leg1_blocked_late: leg1_drive_late -> leg1_hold follower.blocked
+leg1_late: leg1_drive -> leg1_drive_late 2026-11-23T08:10:00Z
+leg1_arrived_late_odometry: leg1_drive_late_odometry -> leg1_arrival follower.goal_reached
+leg1_blocked_late_odometry: leg1_drive_late_odometry -> leg1_hold follower.blocked
+leg1_late_odometry: leg1_drive_odometry -> leg1_drive_late_odometry 2026-11-23T08:10:00Z
+leg1_arrived_late_alt2: leg1_drive_late_alt2 -> leg1_arrival follower.goal_reached
+leg1_blocked_late_alt2: leg1_drive_late_alt2 -> leg1_hold follower.blocked
+leg1_late_alt2: leg1_drive_alt2 -> leg1_drive_late_alt2 2026-11-23T08:10:00Z
+leg1_drive_late_mapper_failed: leg1_drive_late -> leg1_drive_late_odometry module.mapper.failed
+leg1_drive_late_recorder_failed: leg1_drive_late -> leg1_drive_late_alt2 module.recorder.failed
+leg1_drive_late_odometry_recorder_failed: leg1_drive_late_odometry -> leg1_drive_late_alt2 module.recorder.failed
+leg1_arrival_done: leg1_arrival -> done 30 s
+leg1_arrival_done_alt1: leg1_arrival_alt1 -> done 30 s
+leg1_arrival_camera_failed: leg1_arrival -> leg1_arrival_alt1 module.camera.failed
+leg1_drive_alt2_recorder_failed: leg1_drive_alt2 -> leg1_hold module.recorder.failed
+leg1_drive_late_alt2_recorder_failed: leg1_drive_late_alt2 -> leg1_hold module.recorder.failed
+leg1_arrival_recorder_failed: leg1_arrival -> leg1_hold module.recorder.failed
+leg1_arrival_alt1_recorder_failed: leg1_arrival_alt1 -> leg1_hold module.recorder.failed"
+    );
+    // A switch is where its alternative is written (`armor check` points there).
+    let switch = compiled
+        .net
+        .transition("leg1_drive_mapper_failed")
+        .expect("switch");
+    let leg = compiled.net.transition("leg1_arrived").expect("arrived");
+    assert!(
+        switch.pos.line > leg.pos.line,
+        "{:?} {:?}",
+        switch.pos,
+        leg.pos
+    );
+    assert_eq!(
+        compiled.switches["leg1_drive_odometry_recorder_failed"],
+        Switch {
+            leg: 0,
+            to: "alt2".to_owned(),
+            module: "recorder".to_owned()
+        }
+    );
+    // The alternative ways keep the parameters of the modules they run.
+    let mapper = &compiled.net.place("leg1_drive").expect("drive").params;
+    assert!(mapper.iter().any(|p| p.module == "mapper"), "{mapper:?}");
+    // What only the alternatives have is known, for the studio to draw apart.
+    for name in [
+        "leg1_drive_odometry",
+        "leg1_drive_mapper_failed",
+        "leg1_arrived_alt2",
+        "leg1_arrival_alt1",
+        "leg1_arrival_done_alt1",
+    ] {
+        assert!(compiled.alternatives.contains(name), "{name}");
+    }
+    for name in [
+        "leg1_drive",
+        "leg1_arrived",
+        "leg1_hold",
+        "leg1_arrival_done",
+    ] {
+        assert!(!compiled.alternatives.contains(name), "{name}");
+    }
+    let analysis = analyse(&compiled.net, 100_000);
+    assert_eq!(analysis.problems(&compiled.net), []);
+    let again = MissionNet::parse(&compiled.net.to_xml()).expect("reads back");
+    assert_eq!(again.without_positions(), compiled.net.without_positions());
+}
+
+#[test]
+fn an_alternative_cannot_run_what_drives_or_runs_throughout() {
+    assert_eq!(
+        errors(
+            r#"<leg from="home" to="gate">
+  <during><module name="mapper"/><alternative><module name="avoider"/></alternative></during>
+</leg>"#
+        ),
+        [
+            "module `avoider` drives every leg (<navigation>); an action cannot run it with \
+             other parameters"
+        ]
+    );
+}
