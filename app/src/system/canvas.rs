@@ -10,7 +10,7 @@ use egui_snarl::ui::SnarlWidget;
 
 use super::SystemView;
 use crate::command::UiCommand;
-use crate::diagram::{BlockId, Catalog};
+use crate::diagram::{BlockId, Catalog, GROUP_TYPE_PREFIX};
 use crate::editor::Command;
 use crate::viewer::{self, CanvasEvents, DiagramViewer};
 
@@ -41,7 +41,60 @@ impl SystemView {
         })
     }
 
+    /// The canvas. With subsystems, it draws one level (see `diagram/groups.rs`): the
+    /// document is swapped for the level's diagram for the frame, so that everything the
+    /// canvas does reads what it draws, and what moved is copied back after.
     pub(super) fn canvas_ui(
+        &mut self,
+        ui: &mut Ui,
+        catalog: &Catalog,
+        started: bool,
+        live: &BTreeMap<String, ModuleState>,
+    ) {
+        let level = self.editor.level;
+        if level.is_none() && self.editor.diagram.groups().next().is_none() {
+            self.canvas_body(ui, catalog, started, live);
+            return;
+        }
+        let (view, view_catalog) = self.editor.diagram.at_level(level, catalog);
+        let real = std::mem::replace(&mut self.editor.diagram, view);
+        let had_before = self.canvas.move_before.is_some();
+        let queued = self.commands.len();
+        self.drawing_level = true;
+        self.canvas_body(ui, &view_catalog, started, live);
+        self.drawing_level = false;
+        let view = std::mem::replace(&mut self.editor.diagram, real.clone());
+        for (id, block) in view.blocks() {
+            let moved = match self.editor.diagram.block(id) {
+                Some(real) => real.pos != block.pos,
+                None => self
+                    .editor
+                    .diagram
+                    .group(id)
+                    .is_some_and(|group| group.pos != block.pos),
+            };
+            if moved {
+                self.editor.diagram.move_block(id, block.pos);
+            }
+        }
+        // An undo step of a move restores the document, not the level's diagram.
+        if !had_before && self.canvas.move_before.is_some() {
+            self.canvas.move_before = Some(real.clone());
+        }
+        for command in &mut self.commands[queued..] {
+            if let Command::Moved { before } = command
+                && !had_before
+            {
+                **before = real.clone();
+            }
+        }
+        // A double click on a group (or its menu's Parameters) opens it.
+        if let Some(block) = self.opened_group.take() {
+            self.commands.push(Command::Open(Some(block)));
+        }
+    }
+
+    fn canvas_body(
         &mut self,
         ui: &mut Ui,
         catalog: &Catalog,
@@ -144,7 +197,16 @@ impl SystemView {
         }
         self.canvas.overview_names = std::mem::take(&mut events.overview_names);
         if let Some(block) = events.open_params {
-            self.open_params(block);
+            let group = self
+                .editor
+                .diagram
+                .block(block)
+                .is_some_and(|b| b.module_type.starts_with(GROUP_TYPE_PREFIX));
+            if group {
+                self.opened_group = Some(block);
+            } else {
+                self.open_params(block);
+            }
         }
 
         // A wire dropped on a pin of the same side: egui-snarl ignores it silently; say why.

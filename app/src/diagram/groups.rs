@@ -1,0 +1,511 @@
+//! Subsystems in the diagram: blocks grouped under a name (the system file's `<subsystem>`),
+//! drawn as one block whose pins are the ports it exposes, and opened to show its members.
+//!
+//! A group's id is a [`BlockId`] from the same counter as the blocks' (never a block's), so
+//! that the editor's selection and the canvas hold blocks and groups alike. The canvas draws
+//! one *level* at a time (the top, or the inside of a group): [`Diagram::at_level`] makes the
+//! diagram of that level, each group in it a block of a made-up type (`subsystem NAME`, not an
+//! identifier, so never a module type) whose inputs and outputs are the group's exposed ports;
+//! links into a group end on its port. What the user does there comes back to the document
+//! through [`Diagram::resolve`] (a group's port is the member's port it exposes).
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use armor_model::system::{Endpoint, ExposedPort, Member, Subsystem};
+use armor_module_api::ModuleDescription;
+use armor_module_api::describe::{PortSpec, is_identifier};
+
+use super::{Block, BlockId, Catalog, Diagram, Link, PinSide, PortRef, new_instance};
+
+/// The prefix of a group's made-up module type in [`Diagram::at_level`]'s catalog.
+pub const GROUP_TYPE_PREFIX: &str = "subsystem ";
+
+/// A named group of blocks (and of groups).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Group {
+    pub name: String,
+    /// The group it is in; `None` at the top.
+    pub parent: Option<BlockId>,
+    /// The blocks directly in it.
+    pub members: BTreeSet<BlockId>,
+    /// Its block's top-left corner, at its parent's level.
+    pub pos: [f32; 2],
+    /// The ports on its border: a name, and the member's port (at any depth) it stands for.
+    pub ports: Vec<(String, PortRef)>,
+}
+
+impl Diagram {
+    pub fn groups(&self) -> impl Iterator<Item = (BlockId, &Group)> {
+        self.groups.iter().map(|(id, group)| (*id, group))
+    }
+
+    pub fn group(&self, id: BlockId) -> Option<&Group> {
+        self.groups.get(&id)
+    }
+
+    pub fn is_group(&self, id: BlockId) -> bool {
+        self.groups.contains_key(&id)
+    }
+
+    pub fn group_named(&self, name: &str) -> Option<BlockId> {
+        self.groups
+            .iter()
+            .find(|(_, group)| group.name == name)
+            .map(|(id, _)| *id)
+    }
+
+    /// The group a block or a group is directly in (`None`: the top).
+    pub fn level_of(&self, id: BlockId) -> Option<BlockId> {
+        if let Some(group) = self.groups.get(&id) {
+            return group.parent;
+        }
+        self.groups
+            .iter()
+            .find(|(_, group)| group.members.contains(&id))
+            .map(|(group, _)| *group)
+    }
+
+    /// The groups from the top down to `level` (empty at the top).
+    pub fn path_to(&self, level: Option<BlockId>) -> Vec<BlockId> {
+        let mut path = Vec::new();
+        let mut at = level;
+        while let Some(id) = at {
+            if path.contains(&id) || !self.is_group(id) {
+                break;
+            }
+            path.insert(0, id);
+            at = self.level_of(id);
+        }
+        path
+    }
+
+    /// The item drawn at `level` that holds `id` (itself, or the group in `level` it is in);
+    /// `None` when `id` is not inside `level`.
+    pub fn shown_at(&self, id: BlockId, level: Option<BlockId>) -> Option<BlockId> {
+        let mut item = id;
+        loop {
+            let parent = self.level_of(item);
+            if parent == level {
+                return Some(item);
+            }
+            item = parent?;
+        }
+    }
+
+    /// Every block in a group, nested groups' too.
+    pub fn blocks_in(&self, group: BlockId) -> BTreeSet<BlockId> {
+        self.blocks
+            .keys()
+            .copied()
+            .filter(|block| {
+                let mut at = self.level_of(*block);
+                while let Some(id) = at {
+                    if id == group {
+                        return true;
+                    }
+                    at = self.level_of(id);
+                }
+                false
+            })
+            .collect()
+    }
+
+    /// The blocks that `ids` stand for: blocks as they are, groups by every block in them.
+    pub fn expand(&self, ids: &BTreeSet<BlockId>) -> BTreeSet<BlockId> {
+        let mut blocks = BTreeSet::new();
+        for id in ids {
+            if self.is_group(*id) {
+                blocks.extend(self.blocks_in(*id));
+            } else if self.blocks.contains_key(id) {
+                blocks.insert(*id);
+            }
+        }
+        blocks
+    }
+
+    /// A port as the document has it: a group's port is the member's port it exposes.
+    pub fn resolve(&self, port: &PortRef) -> PortRef {
+        match self.groups.get(&port.block) {
+            Some(group) => group
+                .ports
+                .iter()
+                .find(|(name, _)| *name == port.port)
+                .map_or_else(|| port.clone(), |(_, of)| of.clone()),
+            None => port.clone(),
+        }
+    }
+
+    /// Groups `items` (blocks and groups, all at one level) under a new group, named `name`
+    /// or `subsystem`, `subsystem_2`, …; its ports are the members' ports that links join to
+    /// blocks outside it. Returns the group's id.
+    pub fn group_items(
+        &mut self,
+        items: &BTreeSet<BlockId>,
+        name: Option<&str>,
+    ) -> Result<BlockId, String> {
+        let items: BTreeSet<BlockId> = items
+            .iter()
+            .copied()
+            .filter(|id| self.blocks.contains_key(id) || self.is_group(*id))
+            .collect();
+        let Some(first) = items.first() else {
+            return Err("select the blocks to group first".to_owned());
+        };
+        let level = self.level_of(*first);
+        if items.iter().any(|id| self.level_of(*id) != level) {
+            return Err("the blocks to group must be at one level".to_owned());
+        }
+        let name = match name {
+            Some(name) => {
+                self.check_name(name, None)?;
+                name.to_owned()
+            }
+            None => self.unique_name("subsystem"),
+        };
+        let positions: Vec<[f32; 2]> = items
+            .iter()
+            .filter_map(|id| self.item_pos(*id))
+            .collect();
+        let pos = [
+            positions.iter().map(|p| p[0]).fold(f32::INFINITY, f32::min),
+            positions.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min),
+        ];
+        let id = BlockId(self.next_id);
+        self.next_id += 1;
+        if let Some(parent) = level.and_then(|level| self.groups.get_mut(&level)) {
+            parent.members.retain(|member| !items.contains(member));
+        }
+        for item in &items {
+            if let Some(group) = self.groups.get_mut(item) {
+                group.parent = Some(id);
+            }
+        }
+        self.groups.insert(
+            id,
+            Group {
+                name,
+                parent: level,
+                members: items
+                    .iter()
+                    .copied()
+                    .filter(|id| self.blocks.contains_key(id))
+                    .collect(),
+                pos: if pos[0].is_finite() { pos } else { [40.0, 40.0] },
+                ports: Vec::new(),
+            },
+        );
+        self.refresh_ports();
+        Ok(id)
+    }
+
+    /// Puts a group's members back at its level and removes it.
+    pub fn ungroup(&mut self, id: BlockId) -> Result<(), String> {
+        let group = self
+            .groups
+            .remove(&id)
+            .ok_or_else(|| "that is not a subsystem".to_owned())?;
+        if let Some(parent) = group.parent.and_then(|parent| self.groups.get_mut(&parent)) {
+            parent.members.extend(group.members.iter().copied());
+        }
+        for inner in self.groups.values_mut() {
+            if inner.parent == Some(id) {
+                inner.parent = group.parent;
+            }
+        }
+        Ok(())
+    }
+
+    /// Renames a group; the name must be an identifier no block or other group has.
+    pub fn rename_group(&mut self, id: BlockId, name: &str) -> Result<(), String> {
+        self.check_name(name, Some(id))?;
+        let group = self
+            .groups
+            .get_mut(&id)
+            .ok_or_else(|| "the subsystem no longer exists".to_owned())?;
+        group.name = name.to_owned();
+        Ok(())
+    }
+
+    pub(super) fn check_name(&self, name: &str, renamed: Option<BlockId>) -> Result<(), String> {
+        if !is_identifier(name) {
+            return Err(format!(
+                "`{name}` is not a valid name: use letters, digits and `_`, starting with a letter"
+            ));
+        }
+        let taken = self
+            .block_named(name)
+            .or_else(|| self.group_named(name))
+            .is_some_and(|other| Some(other) != renamed);
+        if taken {
+            return Err(format!("another block is already called `{name}`"));
+        }
+        Ok(())
+    }
+
+    /// Puts blocks at the top into the group `level` (new blocks made while it is open).
+    pub fn put_in(&mut self, level: Option<BlockId>, blocks: &[BlockId]) {
+        let Some(group) = level.and_then(|level| self.groups.get_mut(&level)) else {
+            return;
+        };
+        group.members.extend(blocks.iter().copied());
+        self.refresh_ports();
+    }
+
+    fn item_pos(&self, id: BlockId) -> Option<[f32; 2]> {
+        self.blocks
+            .get(&id)
+            .map(|block| block.pos)
+            .or_else(|| self.groups.get(&id).map(|group| group.pos))
+    }
+
+    /// Keeps groups in step with the blocks: members and ports of removed blocks go, groups
+    /// left empty go, and every member's port that a link joins to a block outside the group
+    /// is exposed (under the port's name, or `block_port` when that is taken).
+    pub(super) fn refresh_ports(&mut self) {
+        let blocks = &self.blocks;
+        for group in self.groups.values_mut() {
+            group.members.retain(|member| blocks.contains_key(member));
+            group.ports.retain(|(_, of)| blocks.contains_key(&of.block));
+        }
+        loop {
+            let empty: Vec<BlockId> = self
+                .groups
+                .iter()
+                .filter(|(id, group)| {
+                    group.members.is_empty()
+                        && !self.groups.values().any(|inner| inner.parent == Some(**id))
+                })
+                .map(|(id, _)| *id)
+                .collect();
+            if empty.is_empty() {
+                break;
+            }
+            for id in empty {
+                self.groups.remove(&id);
+            }
+        }
+        let ids: Vec<BlockId> = self.groups.keys().copied().collect();
+        for id in ids {
+            let inside = self.blocks_in(id);
+            let mut crossing: Vec<PortRef> = Vec::new();
+            for link in &self.links {
+                for (end, other) in [(&link.from, &link.to), (&link.to, &link.from)] {
+                    if inside.contains(&end.block)
+                        && !inside.contains(&other.block)
+                        && !crossing.contains(end)
+                    {
+                        crossing.push(end.clone());
+                    }
+                }
+            }
+            let Some(group) = self.groups.get(&id) else {
+                continue;
+            };
+            let mut ports = group.ports.clone();
+            ports.retain(|(_, of)| inside.contains(&of.block));
+            for end in crossing {
+                if ports.iter().any(|(_, of)| *of == end) {
+                    continue;
+                }
+                let block = self.blocks.get(&end.block).map_or("", |b| b.name.as_str());
+                let name = if ports.iter().any(|(name, _)| *name == end.port) {
+                    format!("{block}_{}", end.port)
+                } else {
+                    end.port.clone()
+                };
+                ports.push((name, end));
+            }
+            if let Some(group) = self.groups.get_mut(&id) {
+                group.ports = ports;
+            }
+        }
+    }
+
+    /// Which side a block's port is on: from its type's description, else from the links.
+    fn port_side(&self, catalog: &Catalog, port: &PortRef) -> Option<(PinSide, String)> {
+        let block = self.blocks.get(&port.block)?;
+        if let Some(description) = catalog.get(&block.module_type) {
+            if let Some(spec) = description.input(&port.port) {
+                return Some((PinSide::Input, spec.data_type.clone()));
+            }
+            if let Some(spec) = description.output(&port.port) {
+                return Some((PinSide::Output, spec.data_type.clone()));
+            }
+        }
+        if self.links.iter().any(|link| link.to == *port) {
+            return Some((PinSide::Input, "?".to_owned()));
+        }
+        if self.links.iter().any(|link| link.from == *port) {
+            return Some((PinSide::Output, "?".to_owned()));
+        }
+        None
+    }
+
+    /// The diagram drawn at `level` (the top, or inside a group), with the catalog it is drawn
+    /// with: the blocks directly at that level as they are (same ids), each group at that level
+    /// a block of the made-up type `subsystem NAME` whose inputs and outputs are its ports, and
+    /// the links between what is drawn (a link into a group ends on the port that exposes its
+    /// end; links to blocks outside `level` are not drawn).
+    pub fn at_level(&self, level: Option<BlockId>, catalog: &Catalog) -> (Diagram, Catalog) {
+        let mut view = Diagram::new(&self.name);
+        view.host.clone_from(&self.host);
+        view.next_id = self.next_id;
+        let mut catalog = catalog.clone();
+        for (id, block) in &self.blocks {
+            if self.level_of(*id) == level {
+                view.blocks.insert(*id, block.clone());
+            }
+        }
+        for (id, group) in &self.groups {
+            if group.parent != level {
+                continue;
+            }
+            let module_type = format!("{GROUP_TYPE_PREFIX}{}", group.name);
+            let mut description = ModuleDescription::new(
+                &module_type,
+                &format!("subsystem of {} modules", self.blocks_in(*id).len()),
+            );
+            for (name, of) in &group.ports {
+                let Some((side, data_type)) = self.port_side(&catalog, of) else {
+                    continue;
+                };
+                let spec = PortSpec {
+                    name: name.clone(),
+                    data_type,
+                    doc: format!("{}.{}", self.block_name(of.block), of.port),
+                };
+                match side {
+                    PinSide::Input => description.inputs.push(spec),
+                    PinSide::Output => description.outputs.push(spec),
+                }
+            }
+            catalog.insert(module_type.clone(), description);
+            view.blocks.insert(
+                *id,
+                Block {
+                    instance: new_instance(&group.name, "subsystem"),
+                    name: group.name.clone(),
+                    module_type,
+                    params: BTreeMap::new(),
+                    pos: group.pos,
+                },
+            );
+        }
+        let shown = |end: &PortRef| -> Option<PortRef> {
+            let item = self.shown_at(end.block, level)?;
+            if item == end.block {
+                return Some(end.clone());
+            }
+            let group = self.groups.get(&item)?;
+            let (name, _) = group.ports.iter().find(|(_, of)| of == end)?;
+            Some(PortRef {
+                block: item,
+                port: name.clone(),
+            })
+        };
+        for link in &self.links {
+            if let (Some(from), Some(to)) = (shown(&link.from), shown(&link.to))
+                && from.block != to.block
+            {
+                view.links.insert(Link {
+                    from,
+                    to,
+                    fallback: link.fallback,
+                });
+            }
+        }
+        (view, catalog)
+    }
+
+    fn block_name(&self, id: BlockId) -> &str {
+        self.blocks.get(&id).map_or("?", |block| block.name.as_str())
+    }
+
+    /// The groups as the system file's subsystems (nested under their parents).
+    pub(super) fn subsystems(&self) -> Vec<Subsystem> {
+        self.subsystems_in(None)
+    }
+
+    fn subsystems_in(&self, parent: Option<BlockId>) -> Vec<Subsystem> {
+        self.groups
+            .iter()
+            .filter(|(_, group)| group.parent == parent)
+            .map(|(id, group)| {
+                let mut subsystem = Subsystem::new(&group.name);
+                subsystem.members = group
+                    .members
+                    .iter()
+                    .map(|member| Member {
+                        module: self.block_name(*member).to_owned(),
+                        pos: Default::default(),
+                    })
+                    .collect();
+                subsystem.subsystems = self.subsystems_in(Some(*id));
+                subsystem.ports = group
+                    .ports
+                    .iter()
+                    .map(|(name, of)| ExposedPort {
+                        name: name.clone(),
+                        of: Endpoint::new(self.block_name(of.block), &of.port),
+                        pos: Default::default(),
+                        of_pos: Default::default(),
+                    })
+                    .collect();
+                subsystem
+            })
+            .collect()
+    }
+
+    /// Adds the system file's subsystems as groups, the blocks found by name (`by_name`); a
+    /// member that names no block is left out (`check` reports it).
+    pub(super) fn add_subsystems(
+        &mut self,
+        subsystems: &[Subsystem],
+        parent: Option<BlockId>,
+        by_name: &BTreeMap<String, BlockId>,
+        layout: &BTreeMap<&str, [f32; 2]>,
+    ) {
+        for subsystem in subsystems {
+            let id = BlockId(self.next_id);
+            self.next_id += 1;
+            let members: BTreeSet<BlockId> = subsystem
+                .members
+                .iter()
+                .filter_map(|member| by_name.get(&member.module).copied())
+                .filter(|block| self.level_of(*block).is_none())
+                .collect();
+            let inner_pos = members
+                .iter()
+                .filter_map(|member| self.blocks.get(member).map(|block| block.pos))
+                .next();
+            let ports = subsystem
+                .ports
+                .iter()
+                .filter_map(|port| {
+                    Some((
+                        port.name.clone(),
+                        PortRef {
+                            block: *by_name.get(&port.of.module)?,
+                            port: port.of.port.clone(),
+                        },
+                    ))
+                })
+                .collect();
+            self.groups.insert(
+                id,
+                Group {
+                    name: subsystem.name.clone(),
+                    parent,
+                    members,
+                    pos: layout
+                        .get(subsystem.name.as_str())
+                        .copied()
+                        .or(inner_pos)
+                        .unwrap_or([40.0, 40.0]),
+                    ports,
+                },
+            );
+            self.add_subsystems(&subsystem.subsystems, Some(id), by_name, layout);
+        }
+    }
+}
