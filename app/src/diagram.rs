@@ -16,7 +16,7 @@ use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::Located;
 
 mod groups;
-pub use groups::{GROUP_TYPE_PREFIX, Group};
+pub use groups::{BORDER_TYPE_PREFIX, GROUP_TYPE_PREFIX, Group, border_id, border_of};
 
 /// The module descriptions the studio knows, keyed by module type.
 pub type Catalog = BTreeMap<String, ModuleDescription>;
@@ -544,7 +544,13 @@ impl Diagram {
             .blocks
             .values()
             .map(|block| (&block.name, block.pos))
-            .chain(self.groups.values().map(|group| (&group.name, group.pos)))
+            .map(|(name, pos)| (name.clone(), pos))
+            .chain(self.groups.values().flat_map(|group| {
+                let border = group.border.iter().zip([".in", ".out"]).filter_map(|(pos, side)| {
+                    pos.map(|pos| (format!("{}{side}", group.name), pos))
+                });
+                std::iter::once((group.name.clone(), group.pos)).chain(border)
+            }))
             .map(|(name, pos)| format!("{name}={:.0},{:.0}", pos[0], pos[1]))
             .collect();
         xml.push_str(&format!("<!-- {LAYOUT_TAG} {} -->\n", layout.join(" ")));

@@ -804,10 +804,14 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                         .strong()
                         .color(HEADER_TEXT),
                 )
+                // A double click on it opens the block, it does not select a word.
+                .selectable(false)
                 .extend(),
             );
             let module_type = if block.module_type.starts_with(GROUP_TYPE_PREFIX) {
                 Some("subsystem · double-click to open")
+            } else if block.module_type.starts_with(crate::diagram::BORDER_TYPE_PREFIX) {
+                Some("the subsystem's border")
             } else {
                 (block.module_type != block.name).then_some(block.module_type.as_str())
             };
@@ -972,6 +976,10 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
         snarl: &mut Snarl<BlockId>,
     ) {
         let id = snarl[node];
+        if crate::diagram::border_of(id).is_some() {
+            ui.label("the subsystem's border: its ports, linked inside");
+            return;
+        }
         let group = self
             .diagram
             .block(id)

@@ -83,6 +83,14 @@ fn select_group_open_go_up_save_and_reopen_equal() {
     assert!(!shown(&harness, "counter"));
     harness.get_by_label("›");
     harness.get_by_label_contains("ports on its border: input");
+    // Its border's input, linked to the member's port it exposes.
+    assert!(shown(&harness, "inputs"));
+    assert!(
+        harness
+            .state()
+            .pin_pos("subsystem inputs", "input", PinSide::Output)
+            .is_some()
+    );
 
     // Up by the breadcrumb.
     // (The view's tab is a button called System too; the breadcrumb's is a link.)

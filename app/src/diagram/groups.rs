@@ -19,6 +19,22 @@ use super::{Block, BlockId, Catalog, Diagram, Link, PinSide, PortRef, new_instan
 
 /// The prefix of a group's made-up module type in [`Diagram::at_level`]'s catalog.
 pub const GROUP_TYPE_PREFIX: &str = "subsystem ";
+/// The made-up type of the two blocks that stand, inside a group, for its border: its inputs
+/// (`border in`, whose outputs they are) and its outputs (`border out`).
+pub const BORDER_TYPE_PREFIX: &str = "border ";
+/// Border blocks' ids: `BORDER_BASE + 2 × group` for the inputs, `+ 1` for the outputs.
+const BORDER_BASE: u64 = 1 << 62;
+
+/// The id of a group's border block: its inputs (`false`) or its outputs (`true`).
+pub fn border_id(group: BlockId, outputs: bool) -> BlockId {
+    BlockId(BORDER_BASE + 2 * group.0 + u64::from(outputs))
+}
+
+/// The group and side of a border block's id.
+pub fn border_of(id: BlockId) -> Option<(BlockId, bool)> {
+    let offset = id.0.checked_sub(BORDER_BASE)?;
+    Some((BlockId(offset / 2), offset % 2 == 1))
+}
 
 /// A named group of blocks (and of groups).
 #[derive(Clone, Debug, PartialEq)]
@@ -32,6 +48,8 @@ pub struct Group {
     pub pos: [f32; 2],
     /// The ports on its border: a name, and the member's port (at any depth) it stands for.
     pub ports: Vec<(String, PortRef)>,
+    /// Where its inside draws the blocks of its border (inputs, outputs), once moved there.
+    pub border: [Option<[f32; 2]>; 2],
 }
 
 impl Diagram {
@@ -192,6 +210,7 @@ impl Diagram {
                     .collect(),
                 pos: if pos[0].is_finite() { pos } else { [40.0, 40.0] },
                 ports: Vec::new(),
+                border: [None, None],
             },
         );
         self.refresh_ports();
@@ -391,6 +410,9 @@ impl Diagram {
                 },
             );
         }
+        if let Some(group) = level.and_then(|level| self.groups.get(&level).map(|g| (level, g))) {
+            self.add_border(&mut view, &mut catalog, group);
+        }
         let shown = |end: &PortRef| -> Option<PortRef> {
             let item = self.shown_at(end.block, level)?;
             if item == end.block {
@@ -415,6 +437,131 @@ impl Diagram {
             }
         }
         (view, catalog)
+    }
+
+    /// Inside `group`, the blocks of its border: its input ports as the outputs of one block on
+    /// the left, its output ports as the inputs of one on the right, each linked to the
+    /// members' ports they expose (and those blocks drawn where the user put them last).
+    fn add_border(&self, view: &mut Diagram, catalog: &mut Catalog, (id, group): (BlockId, &Group)) {
+        // Beside what the level holds, a gap as wide as a column's wires away.
+        let items: Vec<([f32; 2], f32)> = view
+            .blocks
+            .keys()
+            .map(|item| {
+                let width = if self.blocks.contains_key(item) {
+                    self.estimated_size(*item, Some(catalog))[0]
+                } else {
+                    240.0
+                };
+                (view.blocks[item].pos, width)
+            })
+            .collect();
+        let left = items.iter().map(|(p, _)| p[0]).fold(f32::INFINITY, f32::min);
+        let right = items
+            .iter()
+            .map(|(p, width)| p[0] + width)
+            .fold(f32::NEG_INFINITY, f32::max);
+        let top = items.iter().map(|(p, _)| p[1]).fold(f32::INFINITY, f32::min);
+        let (left, right, top) = if left.is_finite() {
+            (left - 260.0, right + 40.0, top)
+        } else {
+            (40.0, 600.0, 40.0)
+        };
+        for (outputs, default) in [(false, [left, top]), (true, [right, top])] {
+            let module_type = format!(
+                "{BORDER_TYPE_PREFIX}{} {}",
+                if outputs { "out" } else { "in" },
+                group.name
+            );
+            let mut description = ModuleDescription::new(&module_type, "the subsystem's border");
+            for (name, of) in &group.ports {
+                let Some((side, data_type)) = self.port_side(catalog, of) else {
+                    continue;
+                };
+                let spec = PortSpec {
+                    name: name.clone(),
+                    data_type,
+                    doc: format!("{}.{}", self.block_name(of.block), of.port),
+                };
+                match (side, outputs) {
+                    // An input of the group comes in through an output of its left border.
+                    (PinSide::Input, false) => description.outputs.push(spec),
+                    (PinSide::Output, true) => description.inputs.push(spec),
+                    _ => {}
+                }
+            }
+            if description.inputs.is_empty() && description.outputs.is_empty() {
+                continue;
+            }
+            let border = border_id(id, outputs);
+            catalog.insert(module_type.clone(), description);
+            view.blocks.insert(
+                border,
+                Block {
+                    instance: new_instance("border", "border"),
+                    name: if outputs { "outputs" } else { "inputs" }.to_owned(),
+                    module_type,
+                    params: BTreeMap::new(),
+                    pos: group.border[usize::from(outputs)].unwrap_or(default),
+                },
+            );
+            // The links that cross the border, from (or to) its port.
+            let inside = self.blocks_in(id);
+            for link in &self.links {
+                let (inner, outer) = if outputs {
+                    (&link.from, &link.to)
+                } else {
+                    (&link.to, &link.from)
+                };
+                if !inside.contains(&inner.block) || inside.contains(&outer.block) {
+                    continue;
+                }
+                let Some((name, _)) = group.ports.iter().find(|(_, of)| of == inner) else {
+                    continue;
+                };
+                let Some(item) = self.shown_at(inner.block, Some(id)) else {
+                    continue;
+                };
+                let inner_shown = if item == inner.block {
+                    inner.clone()
+                } else {
+                    let Some((port, _)) = self
+                        .groups
+                        .get(&item)
+                        .and_then(|g| g.ports.iter().find(|(_, of)| of == inner))
+                    else {
+                        continue;
+                    };
+                    PortRef {
+                        block: item,
+                        port: port.clone(),
+                    }
+                };
+                let border_port = PortRef {
+                    block: border,
+                    port: name.clone(),
+                };
+                let (from, to) = if outputs {
+                    (inner_shown, border_port)
+                } else {
+                    (border_port, inner_shown)
+                };
+                view.links.insert(Link {
+                    from,
+                    to,
+                    fallback: link.fallback,
+                });
+            }
+        }
+    }
+
+    /// Moves a border block of a group (where its inside draws it).
+    pub fn move_border(&mut self, id: BlockId, pos: [f32; 2]) {
+        if let Some((group, outputs)) = border_of(id)
+            && let Some(group) = self.groups.get_mut(&group)
+        {
+            group.border[usize::from(outputs)] = Some(pos);
+        }
     }
 
     fn block_name(&self, id: BlockId) -> &str {
@@ -503,6 +650,10 @@ impl Diagram {
                         .or(inner_pos)
                         .unwrap_or([40.0, 40.0]),
                     ports,
+                    border: [
+                        layout.get(format!("{}.in", subsystem.name).as_str()).copied(),
+                        layout.get(format!("{}.out", subsystem.name).as_str()).copied(),
+                    ],
                 },
             );
             self.add_subsystems(&subsystem.subsystems, Some(id), by_name, layout);

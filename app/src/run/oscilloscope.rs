@@ -297,4 +297,55 @@ mod tests {
         assert_eq!(at(6.0), ["follower ready", "vff winner"]);
         assert_eq!(at(8.0), ["follower ready", "vff checking"]);
     }
+
+    /// The tree of a run whose system has subsystems: place → subsystems (nested) → modules,
+    /// the arbiter's winner said on its subsystem, the modules in none after them.
+    #[test]
+    fn the_tree_goes_place_subsystems_modules() {
+        use armor_runtime::control::{MissionStatus, ModuleState};
+        use egui_kittest::kittest::Queryable as _;
+        let module = |name: &str, subsystems: &[&str]| ModuleStatus {
+            name: name.into(),
+            module_type: name.into(),
+            state: ModuleState::Running,
+            controllable: true,
+            subsystems: subsystems.iter().map(|s| (*s).to_owned()).collect(),
+            ..ModuleStatus::default()
+        };
+        let mut arbiter = module("arbiter", &["navigation"]);
+        arbiter.winner = Some("vff".into());
+        let mut vff = module("vff", &["navigation", "behaviours"]);
+        vff.behaviour = Some(BehaviourState::Winner);
+        let mut stop = module("stop", &["navigation", "behaviours"]);
+        stop.behaviour = Some(BehaviourState::Ready);
+        let status = Status {
+            system: "robot".into(),
+            modules: vec![module("sim", &[]), arbiter, vff, stop],
+            mission: Some(MissionStatus {
+                marking: [("drive".to_owned(), 1)].into(),
+                ..MissionStatus::default()
+            }),
+            ..Status::default()
+        };
+        let history = BTreeMap::new();
+        let mut harness = egui_kittest::Harness::new_ui(|ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                tree_ui(ui, &status, &history, true);
+            });
+        });
+        harness.run();
+        harness.get_by_label("system robot · place drive");
+        harness.get_by_label("▣ navigation — in control: vff");
+        harness.get_by_label("⚖ arbiter — in control: vff");
+        harness.get_by_label("▣ behaviours · 2 modules");
+        harness.get_by_label("★ vff in control");
+        harness.get_by_label("stop: ready");
+        harness.get_by_label("modules in no subsystem");
+        // In that order, top to bottom: the place, the subsystem, the one inside, the rest.
+        let top = |label: &str| harness.get_by_label(label).rect().top();
+        assert!(top("system robot · place drive") < top("▣ navigation — in control: vff"));
+        assert!(top("▣ navigation — in control: vff") < top("▣ behaviours · 2 modules"));
+        assert!(top("▣ behaviours · 2 modules") < top("★ vff in control"));
+        assert!(top("★ vff in control") < top("modules in no subsystem"));
+    }
 }

@@ -10,9 +10,22 @@ use egui_snarl::ui::SnarlWidget;
 
 use super::SystemView;
 use crate::command::UiCommand;
-use crate::diagram::{BlockId, Catalog, GROUP_TYPE_PREFIX};
+use crate::diagram::{BlockId, Catalog, Diagram, GROUP_TYPE_PREFIX, border_of};
 use crate::editor::Command;
 use crate::viewer::{self, CanvasEvents, DiagramViewer};
+
+/// Where the level's diagram of `real` draws the block `id` (a group's border block).
+fn real_view_pos(
+    real: &Diagram,
+    level: Option<BlockId>,
+    id: BlockId,
+    catalog: &Catalog,
+) -> Option<[f32; 2]> {
+    real.at_level(level, catalog)
+        .0
+        .block(id)
+        .map(|block| block.pos)
+}
 
 /// The canvas's id: tests and the selection lookup name it.
 const CANVAS_ID: &str = "diagram";
@@ -65,6 +78,17 @@ impl SystemView {
         self.drawing_level = false;
         let view = std::mem::replace(&mut self.editor.diagram, real.clone());
         for (id, block) in view.blocks() {
+            if border_of(id).is_some() {
+                let group = border_of(id).and_then(|(group, outputs)| {
+                    Some(self.editor.diagram.group(group)?.border[usize::from(outputs)])
+                });
+                // Drawn where it was computed until moved: a move is a change from that.
+                let before = real_view_pos(&real, level, id, catalog);
+                if group.is_some() && before != Some(block.pos) {
+                    self.editor.diagram.move_border(id, block.pos);
+                }
+                continue;
+            }
             let moved = match self.editor.diagram.block(id) {
                 Some(real) => real.pos != block.pos,
                 None => self
@@ -204,6 +228,8 @@ impl SystemView {
                 .is_some_and(|b| b.module_type.starts_with(GROUP_TYPE_PREFIX));
             if group {
                 self.opened_group = Some(block);
+            } else if border_of(block).is_some() {
+                // A subsystem's border has no parameters.
             } else {
                 self.open_params(block);
             }

@@ -396,12 +396,19 @@ impl SystemView {
 
     // ----- Where things are on screen (tests and the bench) -----
 
-    /// Where a block's pin is on screen (as drawn last frame): `side` is input or output.
+    /// Where a block's pin is on screen (as drawn last frame): `side` is input or output; a
+    /// subsystem's border inside it is `NAME inputs` or `NAME outputs`.
     pub fn pin_pos(&self, block: &str, port: &str, side: PinSide) -> Option<Pos2> {
         let diagram = &self.editor.diagram;
+        let border = |suffix: &str, outputs: bool| {
+            let group = diagram.group_named(block.strip_suffix(suffix)?)?;
+            Some(crate::diagram::border_id(group, outputs))
+        };
         let block = diagram
             .block_named(block)
-            .or_else(|| diagram.group_named(block))?;
+            .or_else(|| diagram.group_named(block))
+            .or_else(|| border(" inputs", false))
+            .or_else(|| border(" outputs", true))?;
         self.canvas.pin_screen_pos(&Pin {
             side,
             port: crate::diagram::PortRef {
