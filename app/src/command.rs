@@ -195,7 +195,9 @@ impl UiCommand {
             UiCommand::SelectAll => "select all",
             UiCommand::Delete => "delete the selected blocks",
             UiCommand::ClearSelection => "clear the selection",
-            UiCommand::Group => "group the selected blocks into a subsystem (double-click it to open it)",
+            UiCommand::Group => {
+                "group the selected blocks into a subsystem (double-click it to open it)"
+            }
             UiCommand::Ungroup => "put the selected subsystem's blocks back where it is",
             UiCommand::Up => "leave the subsystem shown for the level above",
             UiCommand::ZoomToFit => "zoom to fit",

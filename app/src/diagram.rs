@@ -546,9 +546,13 @@ impl Diagram {
             .map(|block| (&block.name, block.pos))
             .map(|(name, pos)| (name.clone(), pos))
             .chain(self.groups.values().flat_map(|group| {
-                let border = group.border.iter().zip([".in", ".out"]).filter_map(|(pos, side)| {
-                    pos.map(|pos| (format!("{}{side}", group.name), pos))
-                });
+                let border = group
+                    .border
+                    .iter()
+                    .zip([".in", ".out"])
+                    .filter_map(|(pos, side)| {
+                        pos.map(|pos| (format!("{}{side}", group.name), pos))
+                    });
                 std::iter::once((group.name.clone(), group.pos)).chain(border)
             }))
             .map(|(name, pos)| format!("{name}={:.0},{:.0}", pos[0], pos[1]))

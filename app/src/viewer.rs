@@ -15,10 +15,10 @@ use egui_snarl::ui::{PinInfo, PinWireInfo, SnarlPin, SnarlStyle, SnarlViewer};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 
 use crate::diagram::{BlockId, Catalog, Diagram, GROUP_TYPE_PREFIX, Link, Pin, PinSide, PortRef};
-use armor_module_api::describe::is_identifier;
 use crate::editor::Command;
 use crate::run::monitor::state_colour;
 use armor_module_api::Category;
+use armor_module_api::describe::is_identifier;
 use armor_runtime::control::ModuleState;
 
 /// Pins drawn this frame, in canvas coordinates.
@@ -810,7 +810,10 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
             );
             let module_type = if block.module_type.starts_with(GROUP_TYPE_PREFIX) {
                 Some("subsystem · double-click to open")
-            } else if block.module_type.starts_with(crate::diagram::BORDER_TYPE_PREFIX) {
+            } else if block
+                .module_type
+                .starts_with(crate::diagram::BORDER_TYPE_PREFIX)
+            {
                 Some("the subsystem's border")
             } else {
                 (block.module_type != block.name).then_some(block.module_type.as_str())

@@ -58,7 +58,11 @@ fn select_group_open_go_up_save_and_reopen_equal() {
         assert_eq!(group.name, "subsystem");
         assert_eq!(group.members.len(), 2);
         let ports: Vec<&str> = group.ports.iter().map(|(name, _)| name.as_str()).collect();
-        assert_eq!(ports, ["input"], "the link from outside crosses its border there");
+        assert_eq!(
+            ports,
+            ["input"],
+            "the link from outside crosses its border there"
+        );
     }
     // The group is one block; its members are not drawn at the top.
     assert!(shown(&harness, "subsystem"), "{} is drawn", "subsystem");
@@ -113,7 +117,10 @@ fn select_group_open_go_up_save_and_reopen_equal() {
     assert_eq!(subsystem.modules(), ["checker", "follower"]);
     assert_eq!(subsystem.ports[0].of.to_string(), "checker.input");
     assert!(armor_model::system::check(&system, &descriptions()).is_empty());
-    assert!(text.contains("subsystem="), "its place in the layout: {text}");
+    assert!(
+        text.contains("subsystem="),
+        "its place in the layout: {text}"
+    );
 
     // Reopened: the same document.
     let saved = harness.state().editor().diagram.clone();

@@ -133,7 +133,10 @@ fn armor_check_refuses_wrong_subsystems_where_they_are() {
         &["a module has that name"],
     );
     // A syntax error in a subsystem: its line and column.
-    let broken = SYSTEM.replace(r#"<member module="checker"/>"#, r#"<member modul="checker"/>"#);
+    let broken = SYSTEM.replace(
+        r#"<member module="checker"/>"#,
+        r#"<member modul="checker"/>"#,
+    );
     let file = write(dir.path(), "broken.xml", &broken);
     let output = armor(&["check".as_ref(), file.as_os_str()]);
     assert_refused(

@@ -180,10 +180,7 @@ impl Diagram {
             }
             None => self.unique_name("subsystem"),
         };
-        let positions: Vec<[f32; 2]> = items
-            .iter()
-            .filter_map(|id| self.item_pos(*id))
-            .collect();
+        let positions: Vec<[f32; 2]> = items.iter().filter_map(|id| self.item_pos(*id)).collect();
         let pos = [
             positions.iter().map(|p| p[0]).fold(f32::INFINITY, f32::min),
             positions.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min),
@@ -208,7 +205,11 @@ impl Diagram {
                     .copied()
                     .filter(|id| self.blocks.contains_key(id))
                     .collect(),
-                pos: if pos[0].is_finite() { pos } else { [40.0, 40.0] },
+                pos: if pos[0].is_finite() {
+                    pos
+                } else {
+                    [40.0, 40.0]
+                },
                 ports: Vec::new(),
                 border: [None, None],
             },
@@ -442,7 +443,12 @@ impl Diagram {
     /// Inside `group`, the blocks of its border: its input ports as the outputs of one block on
     /// the left, its output ports as the inputs of one on the right, each linked to the
     /// members' ports they expose (and those blocks drawn where the user put them last).
-    fn add_border(&self, view: &mut Diagram, catalog: &mut Catalog, (id, group): (BlockId, &Group)) {
+    fn add_border(
+        &self,
+        view: &mut Diagram,
+        catalog: &mut Catalog,
+        (id, group): (BlockId, &Group),
+    ) {
         // Beside what the level holds, a gap as wide as a column's wires away.
         let items: Vec<([f32; 2], f32)> = view
             .blocks
@@ -456,12 +462,18 @@ impl Diagram {
                 (view.blocks[item].pos, width)
             })
             .collect();
-        let left = items.iter().map(|(p, _)| p[0]).fold(f32::INFINITY, f32::min);
+        let left = items
+            .iter()
+            .map(|(p, _)| p[0])
+            .fold(f32::INFINITY, f32::min);
         let right = items
             .iter()
             .map(|(p, width)| p[0] + width)
             .fold(f32::NEG_INFINITY, f32::max);
-        let top = items.iter().map(|(p, _)| p[1]).fold(f32::INFINITY, f32::min);
+        let top = items
+            .iter()
+            .map(|(p, _)| p[1])
+            .fold(f32::INFINITY, f32::min);
         let (left, right, top) = if left.is_finite() {
             (left - 260.0, right + 40.0, top)
         } else {
@@ -565,7 +577,9 @@ impl Diagram {
     }
 
     fn block_name(&self, id: BlockId) -> &str {
-        self.blocks.get(&id).map_or("?", |block| block.name.as_str())
+        self.blocks
+            .get(&id)
+            .map_or("?", |block| block.name.as_str())
     }
 
     /// The groups as the system file's subsystems (nested under their parents).
@@ -651,8 +665,12 @@ impl Diagram {
                         .unwrap_or([40.0, 40.0]),
                     ports,
                     border: [
-                        layout.get(format!("{}.in", subsystem.name).as_str()).copied(),
-                        layout.get(format!("{}.out", subsystem.name).as_str()).copied(),
+                        layout
+                            .get(format!("{}.in", subsystem.name).as_str())
+                            .copied(),
+                        layout
+                            .get(format!("{}.out", subsystem.name).as_str())
+                            .copied(),
                     ],
                 },
             );

@@ -122,7 +122,11 @@ impl SystemView {
         ui.horizontal_wrapped(|ui| {
             if path.is_empty() {
                 ui.strong("System");
-            } else if ui.link("System").on_hover_text("up to the top (Alt+↑ goes up a level)").clicked() {
+            } else if ui
+                .link("System")
+                .on_hover_text("up to the top (Alt+↑ goes up a level)")
+                .clicked()
+            {
                 open = Some(None);
             }
             for (index, id) in path.iter().enumerate() {
@@ -136,10 +140,15 @@ impl SystemView {
             }
             match path.last().and_then(|id| diagram.group(*id)) {
                 Some(group) => {
-                    let ports: Vec<&str> = group.ports.iter().map(|(name, _)| name.as_str()).collect();
+                    let ports: Vec<&str> =
+                        group.ports.iter().map(|(name, _)| name.as_str()).collect();
                     ui.weak(format!(
                         "   ports on its border: {}",
-                        if ports.is_empty() { "none".to_owned() } else { ports.join(", ") }
+                        if ports.is_empty() {
+                            "none".to_owned()
+                        } else {
+                            ports.join(", ")
+                        }
                     ));
                 }
                 None => {

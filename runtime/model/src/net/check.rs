@@ -379,7 +379,9 @@ mod tests {
             .collect();
         assert_eq!(
             got,
-            ["5:1: place `lost`: no module `wheels` in the system (modules: nav, sim, ui; subsystems: robot, body)"]
+            [
+                "5:1: place `lost`: no module `wheels` in the system (modules: nav, sim, ui; subsystems: robot, body)"
+            ]
         );
         let expanded = net.with_subsystems_expanded(&system);
         assert_eq!(expanded.places[0].modules, ["nav", "ui", "sim"]);
