@@ -1,6 +1,7 @@
 //! Subsystems, as a user meets them: `armor check` refuses wrong ones with their positions,
 //! and `armor run` runs a system that has them (the same modules and links as without) with a
 //! mission whose place names a subsystem for all its modules.
+#![allow(clippy::unwrap_used)]
 
 use std::path::Path;
 use std::time::Duration;
