@@ -678,3 +678,136 @@ impl Diagram {
         }
     }
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    const NESTED: &str = r#"<system name="s">
+  <module name="a" type="counter"/>
+  <module name="b" type="checker"/>
+  <module name="c" type="checker"/>
+  <link from="a.count" to="b.input"/>
+  <link from="a.count" to="c.input"/>
+  <subsystem name="outer">
+    <member module="b"/>
+    <subsystem name="inner">
+      <member module="c"/>
+      <port name="input" of="c.input"/>
+    </subsystem>
+    <port name="input" of="b.input"/>
+    <port name="c_input" of="c.input"/>
+  </subsystem>
+</system>
+<!-- armor-studio layout: a=0,0 b=300,0 c=300,200 outer=300,0 inner=300,200 inner.in=10,20 -->
+"#;
+
+    fn catalog() -> Catalog {
+        let mut counter = ModuleDescription::new("counter", "counts");
+        counter.outputs.push(PortSpec {
+            name: "count".into(),
+            data_type: "Counter".into(),
+            doc: String::new(),
+        });
+        let mut checker = ModuleDescription::new("checker", "checks");
+        checker.inputs.push(PortSpec {
+            name: "input".into(),
+            data_type: "Counter".into(),
+            doc: String::new(),
+        });
+        [counter, checker]
+            .into_iter()
+            .map(|d| (d.module_type.clone(), d))
+            .collect()
+    }
+
+    #[test]
+    fn nested_groups_are_read_written_and_read_back_equal() {
+        let diagram = Diagram::from_xml(NESTED).unwrap();
+        assert_eq!(diagram.groups().count(), 2);
+        let inner = diagram.group_named("inner").unwrap();
+        let outer = diagram.group_named("outer").unwrap();
+        assert_eq!(diagram.level_of(inner), Some(outer));
+        assert_eq!(diagram.group(inner).unwrap().border[0], Some([10.0, 20.0]));
+        let written = diagram.to_xml();
+        let again = Diagram::from_xml(&written).unwrap();
+        assert_eq!(again, diagram, "{written}");
+        assert_eq!(again.to_xml(), written);
+    }
+
+    #[test]
+    fn each_level_draws_its_groups_as_blocks_with_their_ports() {
+        let diagram = Diagram::from_xml(NESTED).unwrap();
+        let catalog = catalog();
+        // The top: a, and outer with its two input ports, each fed by a.
+        let (top, top_catalog) = diagram.at_level(None, &catalog);
+        let names: Vec<&str> = top.blocks().map(|(_, b)| b.name.as_str()).collect();
+        assert_eq!(names, ["a", "outer"]);
+        let outer = diagram.group_named("outer").unwrap();
+        let outer_type = &top.block(outer).unwrap().module_type;
+        let ports: Vec<&str> = top_catalog[outer_type]
+            .inputs
+            .iter()
+            .map(|p| p.name.as_str())
+            .collect();
+        assert_eq!(ports, ["input", "c_input"]);
+        let links: Vec<String> = top
+            .links()
+            .map(|l| format!("{}.{}>{}", l.from.block.0, l.from.port, l.to.port))
+            .collect();
+        assert_eq!(links.len(), 2, "{links:?}");
+        // Inside outer: b, inner (a block), and the border's inputs linked to both.
+        let (inside, _) = diagram.at_level(Some(outer), &catalog);
+        let names: Vec<&str> = inside.blocks().map(|(_, b)| b.name.as_str()).collect();
+        assert_eq!(names, ["b", "inner", "inputs"]);
+        let inner = diagram.group_named("inner").unwrap();
+        let into_inner = inside
+            .links()
+            .find(|l| l.to.block == inner)
+            .expect("a link into inner's port");
+        assert_eq!(into_inner.from.block, border_id(outer, false));
+        assert_eq!(into_inner.from.port, "c_input");
+        // A wire to a group's port is the member's port.
+        assert_eq!(
+            diagram.resolve(&PortRef {
+                block: inner,
+                port: "input".into()
+            }),
+            PortRef {
+                block: diagram.block_named("c").unwrap(),
+                port: "input".into()
+            }
+        );
+    }
+
+    #[test]
+    fn grouping_a_group_nests_it_and_ungrouping_puts_it_back() {
+        let mut diagram = Diagram::from_xml(NESTED).unwrap();
+        let outer = diagram.group_named("outer").unwrap();
+        let a = diagram.block_named("a").unwrap();
+        // Items of two levels do not group.
+        let inner = diagram.group_named("inner").unwrap();
+        assert!(diagram.group_items(&[a, inner].into(), None).is_err());
+        let top = diagram
+            .group_items(&[a, outer].into(), Some("all"))
+            .unwrap();
+        assert_eq!(diagram.level_of(outer), Some(top));
+        assert_eq!(diagram.level_of(a), Some(top));
+        assert!(
+            diagram.group(top).unwrap().ports.is_empty(),
+            "nothing crosses it"
+        );
+        assert_eq!(
+            diagram.group_items(&[a].into(), Some("b")),
+            Err("another block is already called `b`".to_owned())
+        );
+        diagram.ungroup(top).unwrap();
+        assert_eq!(diagram.level_of(outer), None);
+        assert_eq!(diagram.level_of(a), None);
+        // Removing the blocks of a group removes it, and its ports.
+        diagram.remove_blocks(&[outer].into());
+        assert_eq!(diagram.groups().count(), 0);
+        assert_eq!(diagram.len(), 1);
+    }
+}
