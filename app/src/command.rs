@@ -29,6 +29,9 @@ pub enum UiCommand {
     SelectAll,
     Delete,
     ClearSelection,
+    Group,
+    Ungroup,
+    Up,
     ZoomToFit,
     Find,
     Help,
@@ -52,7 +55,7 @@ const fn key(modifiers: Modifiers, key: Key) -> KeyboardShortcut {
 }
 
 impl UiCommand {
-    pub const ALL: [UiCommand; 25] = [
+    pub const ALL: [UiCommand; 28] = [
         UiCommand::Save,
         UiCommand::SaveAs,
         UiCommand::Open,
@@ -65,6 +68,9 @@ impl UiCommand {
         UiCommand::SelectAll,
         UiCommand::Delete,
         UiCommand::ClearSelection,
+        UiCommand::Group,
+        UiCommand::Ungroup,
+        UiCommand::Up,
         UiCommand::ZoomToFit,
         UiCommand::Find,
         UiCommand::Help,
@@ -110,6 +116,9 @@ impl UiCommand {
             UiCommand::SelectAll => "Select all",
             UiCommand::Delete => "Delete",
             UiCommand::ClearSelection => "Clear the selection",
+            UiCommand::Group => "Group",
+            UiCommand::Ungroup => "Ungroup",
+            UiCommand::Up => "Up a level",
             UiCommand::ZoomToFit => "Zoom to fit",
             UiCommand::Find => "Find block…",
             UiCommand::Help => "Keyboard shortcuts",
@@ -140,6 +149,9 @@ impl UiCommand {
                 }
             }
             UiCommand::ClearSelection => const { &[key(Modifiers::NONE, Key::Escape)] },
+            UiCommand::Group => const { &[key(CTRL, Key::G)] },
+            UiCommand::Ungroup => const { &[key(CTRL_SHIFT, Key::G)] },
+            UiCommand::Up => const { &[key(Modifiers::ALT, Key::ArrowUp)] },
             UiCommand::ZoomToFit => {
                 const { &[key(Modifiers::NONE, Key::Home), key(CTRL, Key::Num0)] }
             }
@@ -183,6 +195,11 @@ impl UiCommand {
             UiCommand::SelectAll => "select all",
             UiCommand::Delete => "delete the selected blocks",
             UiCommand::ClearSelection => "clear the selection",
+            UiCommand::Group => {
+                "group the selected blocks into a subsystem (double-click it to open it)"
+            }
+            UiCommand::Ungroup => "put the selected subsystem's blocks back where it is",
+            UiCommand::Up => "leave the subsystem shown for the level above",
             UiCommand::ZoomToFit => "zoom to fit",
             UiCommand::Find => "find a block",
             UiCommand::Help => "this sheet",
@@ -215,6 +232,9 @@ impl UiCommand {
             | UiCommand::Paste
             | UiCommand::Duplicate
             | UiCommand::SelectAll
+            | UiCommand::Group
+            | UiCommand::Ungroup
+            | UiCommand::Up
             | UiCommand::Find => view == View::System,
             UiCommand::New
             | UiCommand::ExportPng
@@ -338,6 +358,10 @@ const SYSTEM_MENUS: &[Menu] = &[
             Item(UiCommand::Duplicate),
             Item(UiCommand::Delete),
             Item(UiCommand::SelectAll),
+            Separator,
+            Item(UiCommand::Group),
+            Item(UiCommand::Ungroup),
+            Item(UiCommand::Up),
         ],
     },
     Menu {
@@ -530,6 +554,10 @@ mod tests {
             "Duplicate",
             "Delete",
             "Select all",
+            "---",
+            "Group",
+            "Ungroup",
+            "Up a level",
         ];
         let mission_file = [
             "New plan",

@@ -15,6 +15,9 @@ use armor_module_api::ModuleDescription;
 use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::Located;
 
+mod groups;
+pub use groups::{BORDER_TYPE_PREFIX, GROUP_TYPE_PREFIX, Group, border_id, border_of};
+
 /// The module descriptions the studio knows, keyed by module type.
 pub type Catalog = BTreeMap<String, ModuleDescription>;
 
@@ -80,6 +83,8 @@ pub struct Diagram {
     /// Ordered by id, which is creation order: the file is written in that order.
     blocks: BTreeMap<BlockId, Block>,
     links: BTreeSet<Link>,
+    /// Subsystems, by an id from the blocks' counter (see `groups.rs`).
+    groups: BTreeMap<BlockId, Group>,
     next_id: u64,
 }
 
@@ -131,6 +136,7 @@ impl Diagram {
             host: None,
             blocks: BTreeMap::new(),
             links: BTreeSet::new(),
+            groups: BTreeMap::new(),
             next_id: 1,
         }
     }
@@ -168,7 +174,12 @@ impl Diagram {
 
     /// `base` if no block has that name, else `base_2`, `base_3`, ...
     pub fn unique_name(&self, base: &str) -> String {
-        let taken: BTreeSet<&str> = self.blocks.values().map(|b| b.name.as_str()).collect();
+        let taken: BTreeSet<&str> = self
+            .blocks
+            .values()
+            .map(|b| b.name.as_str())
+            .chain(self.groups.values().map(|g| g.name.as_str()))
+            .collect();
         let base = if is_identifier(base) { base } else { "block" };
         if !taken.contains(base) {
             return base.to_owned();
@@ -211,16 +222,10 @@ impl Diagram {
 
     /// Renames a block; the name must be an identifier no other block has.
     pub fn rename(&mut self, id: BlockId, name: &str) -> Result<(), String> {
-        if !is_identifier(name) {
-            return Err(format!(
-                "`{name}` is not a valid name: use letters, digits and `_`, starting with a letter"
-            ));
+        if self.is_group(id) {
+            return self.rename_group(id, name);
         }
-        if let Some(other) = self.block_named(name)
-            && other != id
-        {
-            return Err(format!("another block is already called `{name}`"));
-        }
+        self.check_name(name, Some(id))?;
         let block = self
             .blocks
             .get_mut(&id)
@@ -239,21 +244,32 @@ impl Diagram {
         }
     }
 
+    /// Moves a block, or a group's block.
     pub fn move_block(&mut self, id: BlockId, pos: [f32; 2]) {
         if let Some(block) = self.blocks.get_mut(&id) {
             block.pos = pos;
+        } else if let Some(group) = self.groups.get_mut(&id) {
+            group.pos = pos;
         }
     }
 
-    /// Removes blocks and every link that touches them.
+    /// Removes blocks (a group: every block in it) and every link that touches them.
     pub fn remove_blocks(&mut self, ids: &BTreeSet<BlockId>) {
+        let ids = self.expand(ids);
         self.blocks.retain(|id, _| !ids.contains(id));
         self.links
             .retain(|link| !ids.contains(&link.from.block) && !ids.contains(&link.to.block));
+        self.refresh_ports();
     }
 
-    /// Removes the link from `link.from` to `link.to`, whatever its fallback rank.
+    /// Removes the link from `link.from` to `link.to`, whatever its fallback rank (its ends
+    /// may be a group's ports).
     pub fn remove_link(&mut self, link: &Link) -> bool {
+        let link = &Link {
+            from: self.resolve(&link.from),
+            to: self.resolve(&link.to),
+            fallback: link.fallback,
+        };
         let before = self.links.len();
         self.links
             .retain(|kept| !(kept.from == link.from && kept.to == link.to));
@@ -262,6 +278,7 @@ impl Diagram {
 
     /// Removes the links that end at an input; returns how many.
     pub fn disconnect_input(&mut self, input: &PortRef) -> usize {
+        let input = &self.resolve(input);
         let before = self.links.len();
         self.links.retain(|link| &link.to != input);
         before - self.links.len()
@@ -269,6 +286,7 @@ impl Diagram {
 
     /// Removes the links that start at an output; returns how many.
     pub fn disconnect_output(&mut self, output: &PortRef) -> usize {
+        let output = &self.resolve(output);
         let before = self.links.len();
         self.links.retain(|link| &link.from != output);
         before - self.links.len()
@@ -284,6 +302,14 @@ impl Diagram {
     /// Whether a wire dragged from `a` may end on `b` (in either order), and as which link; else
     /// why not, in words for the user.
     pub fn link_between(&self, catalog: &Catalog, a: &Pin, b: &Pin) -> Result<Link, String> {
+        let a = &Pin {
+            side: a.side,
+            port: self.resolve(&a.port),
+        };
+        let b = &Pin {
+            side: b.side,
+            port: self.resolve(&b.port),
+        };
         let (output, input) = match (a.side, b.side) {
             (PinSide::Output, PinSide::Input) => (&a.port, &b.port),
             (PinSide::Input, PinSide::Output) => (&b.port, &a.port),
@@ -332,6 +358,7 @@ impl Diagram {
         // The same output as a fallback of this input becomes its source.
         self.remove_link(&link);
         self.links.insert(link);
+        self.refresh_ports();
         Ok(replaced)
     }
 
@@ -438,6 +465,8 @@ impl Diagram {
 
     /// A copy of the given blocks and of the links among them.
     pub fn copy(&self, ids: &BTreeSet<BlockId>) -> Clip {
+        // A group stands for the blocks in it (its grouping is not copied).
+        let ids = &self.expand(ids);
         Clip {
             blocks: ids
                 .iter()
@@ -528,6 +557,7 @@ impl Diagram {
             host: self.host.clone(),
             modules,
             links,
+            subsystems: self.subsystems(),
         }
     }
 
@@ -537,7 +567,19 @@ impl Diagram {
         let layout: Vec<String> = self
             .blocks
             .values()
-            .map(|block| format!("{}={:.0},{:.0}", block.name, block.pos[0], block.pos[1]))
+            .map(|block| (&block.name, block.pos))
+            .map(|(name, pos)| (name.clone(), pos))
+            .chain(self.groups.values().flat_map(|group| {
+                let border = group
+                    .border
+                    .iter()
+                    .zip([".in", ".out"])
+                    .filter_map(|(pos, side)| {
+                        pos.map(|pos| (format!("{}{side}", group.name), pos))
+                    });
+                std::iter::once((group.name.clone(), group.pos)).chain(border)
+            }))
+            .map(|(name, pos)| format!("{name}={:.0},{:.0}", pos[0], pos[1]))
             .collect();
         xml.push_str(&format!("<!-- {LAYOUT_TAG} {} -->\n", layout.join(" ")));
         xml
@@ -547,22 +589,42 @@ impl Diagram {
     /// with crossings reduced (see [`crate::layout`]). Block sizes come from their ports: from
     /// `catalog` where it describes the block's type, else from the ports the links name.
     pub fn arrange(&mut self, catalog: Option<&Catalog>) {
-        let ids: Vec<BlockId> = self.blocks.keys().copied().collect();
-        let index: BTreeMap<BlockId, usize> =
-            ids.iter().enumerate().map(|(i, id)| (*id, i)).collect();
-        let sizes: Vec<[f32; 2]> = ids
-            .iter()
-            .map(|id| self.estimated_size(*id, catalog))
+        // Each level on its own: the top, and the inside of each group.
+        let levels: Vec<Option<BlockId>> = std::iter::once(None)
+            .chain(self.groups.keys().copied().map(Some))
             .collect();
-        let edges: Vec<(usize, usize)> = self
-            .links
-            .iter()
-            .filter_map(|link| Some((*index.get(&link.from.block)?, *index.get(&link.to.block)?)))
-            .collect();
-        let positions = crate::layout::layered(&sizes, &edges, [40.0, 40.0]);
-        for (id, pos) in ids.into_iter().zip(positions) {
-            if let Some(block) = self.blocks.get_mut(&id) {
-                block.pos = [pos[0].round(), pos[1].round()];
+        for level in levels {
+            let ids: Vec<BlockId> = self
+                .blocks
+                .keys()
+                .chain(self.groups.keys())
+                .copied()
+                .filter(|id| self.level_of(*id) == level)
+                .collect();
+            let index: BTreeMap<BlockId, usize> =
+                ids.iter().enumerate().map(|(i, id)| (*id, i)).collect();
+            let sizes: Vec<[f32; 2]> = ids
+                .iter()
+                .map(|id| match self.groups.get(id) {
+                    Some(group) => [
+                        (group.name.len() as f32 * 9.0 + 160.0).max(220.0),
+                        60.0 + group.ports.len().max(1) as f32 * 26.0,
+                    ],
+                    None => self.estimated_size(*id, catalog),
+                })
+                .collect();
+            let edges: Vec<(usize, usize)> = self
+                .links
+                .iter()
+                .filter_map(|link| {
+                    let from = self.shown_at(link.from.block, level)?;
+                    let to = self.shown_at(link.to.block, level)?;
+                    Some((*index.get(&from)?, *index.get(&to)?))
+                })
+                .collect();
+            let positions = crate::layout::layered(&sizes, &edges, [40.0, 40.0]);
+            for (id, pos) in ids.into_iter().zip(positions) {
+                self.move_block(id, [pos[0].round(), pos[1].round()]);
             }
         }
     }
@@ -658,6 +720,8 @@ impl Diagram {
                 });
             }
         }
+        diagram.add_subsystems(&system.subsystems, None, &by_name, &layout);
+        diagram.refresh_ports();
         if unlaid {
             diagram.arrange(None);
         }

@@ -113,6 +113,12 @@ pub enum Command {
     Duplicate,
     SelectAll,
     Select(BTreeSet<BlockId>),
+    /// Groups the selection into a subsystem (Ctrl+G).
+    Group,
+    /// Puts the selected subsystems' members back at their level (Ctrl+Shift+G).
+    Ungroup,
+    /// Shows the inside of a subsystem on the canvas (`None`: the top).
+    Open(Option<BlockId>),
     Undo,
     Redo,
 }
@@ -131,6 +137,8 @@ pub struct Editor {
     pub history: History,
     pub selection: BTreeSet<BlockId>,
     pub clipboard: Clip,
+    /// The subsystem whose inside the canvas shows (`None`: the top).
+    pub level: Option<BlockId>,
     /// Changes with every change of the document's content, so that views rebuild what they
     /// derive from it only when needed.
     revision: u64,
@@ -153,6 +161,7 @@ impl Editor {
         self.diagram = diagram;
         self.history = History::default();
         self.selection.clear();
+        self.level = None;
         self.revision += 1;
     }
 
@@ -172,6 +181,7 @@ impl Editor {
         match command {
             Command::AddBlock { module_type, pos } => {
                 let id = self.diagram.add_block(&module_type, pos);
+                self.diagram.put_in(self.level, &[id]);
                 self.changed(before);
                 self.selection = [id].into();
                 let name = self.block_name(id);
@@ -300,7 +310,63 @@ impl Editor {
                 self.paste(before, &clip)
             }
             Command::SelectAll => {
-                self.selection = self.diagram.blocks().map(|(id, _)| id).collect();
+                let level = self.level;
+                self.selection = self
+                    .diagram
+                    .blocks()
+                    .map(|(id, _)| id)
+                    .chain(self.diagram.groups().map(|(id, _)| id))
+                    .filter(|id| self.diagram.level_of(*id) == level)
+                    .collect();
+                Outcome::Nothing
+            }
+            Command::Group => match self.diagram.group_items(&self.selection, None) {
+                Ok(id) => {
+                    self.changed(before);
+                    self.selection = [id].into();
+                    let name = self.diagram.group(id).map(|g| g.name.clone());
+                    Outcome::Done(format!(
+                        "grouped into `{}`; double-click it to open it",
+                        name.unwrap_or_default()
+                    ))
+                }
+                Err(reason) => Outcome::Refused(reason),
+            },
+            Command::Ungroup => {
+                let groups: Vec<BlockId> = self
+                    .selection
+                    .iter()
+                    .copied()
+                    .filter(|id| self.diagram.is_group(*id))
+                    .collect();
+                if groups.is_empty() {
+                    return Outcome::Refused("select a subsystem to ungroup".to_owned());
+                }
+                let mut members = BTreeSet::new();
+                for group in &groups {
+                    if let Some(inner) = self.diagram.group(*group) {
+                        members.extend(inner.members.iter().copied());
+                    }
+                    members.extend(
+                        self.diagram
+                            .groups()
+                            .filter(|(_, inner)| inner.parent == Some(*group))
+                            .map(|(id, _)| id),
+                    );
+                    let _ = self.diagram.ungroup(*group);
+                }
+                self.changed(before);
+                self.selection = members;
+                Outcome::Done(format!("ungrouped {}", plural(groups.len(), "subsystem")))
+            }
+            Command::Open(level) => {
+                if level.is_some_and(|id| !self.diagram.is_group(id)) {
+                    return Outcome::Nothing;
+                }
+                self.level = level;
+                self.selection.clear();
+                // The canvas shows another level: what it derived must be made again.
+                self.revision += 1;
                 Outcome::Nothing
             }
             Command::Select(ids) => {
@@ -328,6 +394,7 @@ impl Editor {
 
     fn paste(&mut self, before: Diagram, clip: &Clip) -> Outcome {
         let new = self.diagram.paste(clip, PASTE_OFFSET);
+        self.diagram.put_in(self.level, &new);
         // The next paste of the same clip lands beside this one, not on top of it.
         self.clipboard = self.diagram.copy(&new.iter().copied().collect());
         self.changed(before);
@@ -353,7 +420,11 @@ impl Editor {
     fn after_history_step(&mut self) {
         self.revision += 1;
         let diagram = &self.diagram;
-        self.selection.retain(|id| diagram.block(*id).is_some());
+        self.selection
+            .retain(|id| diagram.block(*id).is_some() || diagram.is_group(*id));
+        if self.level.is_some_and(|id| !self.diagram.is_group(id)) {
+            self.level = None;
+        }
     }
 
     fn block_name(&self, id: BlockId) -> String {

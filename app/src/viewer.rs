@@ -14,10 +14,11 @@ use egui::{Color32, Pos2, Rect, RichText, Stroke, Ui, Vec2};
 use egui_snarl::ui::{PinInfo, PinWireInfo, SnarlPin, SnarlStyle, SnarlViewer};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 
-use crate::diagram::{BlockId, Catalog, Diagram, Link, Pin, PinSide, PortRef};
+use crate::diagram::{BlockId, Catalog, Diagram, GROUP_TYPE_PREFIX, Link, Pin, PinSide, PortRef};
 use crate::editor::Command;
 use crate::run::monitor::state_colour;
 use armor_module_api::Category;
+use armor_module_api::describe::is_identifier;
 use armor_runtime::control::ModuleState;
 
 /// Pins drawn this frame, in canvas coordinates.
@@ -824,10 +825,20 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                         .strong()
                         .color(HEADER_TEXT),
                 )
+                // A double click on it opens the block, it does not select a word.
+                .selectable(false)
                 .extend(),
             );
-            let module_type =
-                (block.module_type != block.name).then_some(block.module_type.as_str());
+            let module_type = if block.module_type.starts_with(GROUP_TYPE_PREFIX) {
+                Some("subsystem · double-click to open")
+            } else if block
+                .module_type
+                .starts_with(crate::diagram::BORDER_TYPE_PREFIX)
+            {
+                Some("the subsystem's border")
+            } else {
+                (block.module_type != block.name).then_some(block.module_type.as_str())
+            };
             if let Some(module_type) = module_type {
                 ui.add(
                     egui::Label::new(RichText::new(module_type).small().color(HEADER_TEXT_WEAK))
@@ -989,7 +1000,25 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
         snarl: &mut Snarl<BlockId>,
     ) {
         let id = snarl[node];
-        if ui.button("Parameters…").clicked() {
+        if crate::diagram::border_of(id).is_some() {
+            ui.label("the subsystem's border: its ports, linked inside");
+            return;
+        }
+        let group = self
+            .diagram
+            .block(id)
+            .is_some_and(|block| block.module_type.starts_with(GROUP_TYPE_PREFIX));
+        if group {
+            if ui.button("Open").clicked() {
+                self.commands.push(Command::Open(Some(id)));
+                ui.close();
+            }
+            if ui.button("Ungroup").clicked() {
+                self.commands.push(Command::Select([id].into()));
+                self.commands.push(Command::Ungroup);
+                ui.close();
+            }
+        } else if ui.button("Parameters…").clicked() {
             self.events.open_params = Some(id);
             ui.close();
         }
@@ -1011,7 +1040,8 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
 
     fn show_graph_menu(&mut self, pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<BlockId>) {
         ui.label("Add a block");
-        for module_type in self.catalog.keys() {
+        // Not a group's made-up type (`subsystem NAME`): only module types.
+        for module_type in self.catalog.keys().filter(|key| is_identifier(key)) {
             if ui.button(module_type).clicked() {
                 self.commands.push(Command::AddBlock {
                     module_type: module_type.clone(),

@@ -689,6 +689,8 @@ fn behaviours_take_and_give_up_control_in_the_oscilloscope_and_markers_are_switc
     // The tree: the arbiter with who is in control, its behaviours coloured by state.
     harness.run_ok();
     harness.get_by_label_contains("⚖ arbiter — in control: ");
+    // Under the subsystem the system file groups them in.
+    harness.get_by_label_contains("▣ navigation — in control: ");
     assert!(
         harness.query_all_by_label_contains("★ ").count() <= 1,
         "one winner highlighted at most"

@@ -1,5 +1,6 @@
 //! The hierarchy oscilloscope (after JDE's): the run's modules as a tree — the system (and
-//! the mission's place), each arbiter with the behaviours that compete under it, then the other
+//! the mission's place), the subsystems of the system file with their modules (nested as they
+//! are), each arbiter with the behaviours that compete under it, then the other
 //! modules — each with its state coloured (a behaviour's `slept`, `checking`, `ready`,
 //! `winner`, the arbiter's winner marked), its cycle time and rates and its on/off switch
 //! ([`monitor::module_row`]); and a time line of the behaviours' state changes, one lane per
@@ -71,12 +72,24 @@ pub fn tree_ui(
         .id_salt("osc-root")
         .default_open(true)
         .show(ui, |ui| {
-            let behaviours: Vec<&ModuleStatus> = status
+            // With subsystems: place → subsystems → modules, the rest after them.
+            let grouped: Vec<&ModuleStatus> = status
                 .modules
                 .iter()
+                .filter(|m| !m.subsystems.is_empty())
+                .collect();
+            subsystem_tree(ui, &grouped, 0, &mut row);
+            let loose: Vec<&ModuleStatus> = status
+                .modules
+                .iter()
+                .filter(|m| m.subsystems.is_empty())
+                .collect();
+            let behaviours: Vec<&ModuleStatus> = loose
+                .iter()
+                .copied()
                 .filter(|m| m.behaviour.is_some())
                 .collect();
-            for arbiter in status.modules.iter().filter(|m| is_arbiter(m)) {
+            for arbiter in loose.iter().copied().filter(|m| is_arbiter(m)) {
                 let title = format!(
                     "⚖ {} — in control: {}",
                     arbiter.name,
@@ -92,13 +105,22 @@ pub fn tree_ui(
                         }
                     });
             }
-            let has_arbiter = status.modules.iter().any(is_arbiter);
+            let has_arbiter = loose.iter().copied().any(is_arbiter);
             // Behaviours are listed under their arbiter when there is one.
-            let others = status
-                .modules
+            let others: Vec<&ModuleStatus> = loose
                 .iter()
-                .filter(|m| !(is_arbiter(m) || has_arbiter && m.behaviour.is_some()));
-            egui::CollapsingHeader::new("modules")
+                .copied()
+                .filter(|m| !(is_arbiter(m) || has_arbiter && m.behaviour.is_some()))
+                .collect();
+            if others.is_empty() {
+                return;
+            }
+            let title = if grouped.is_empty() {
+                "modules"
+            } else {
+                "modules in no subsystem"
+            };
+            egui::CollapsingHeader::new(title)
                 .id_salt("osc-others")
                 .default_open(true)
                 .show(ui, |ui| {
@@ -108,6 +130,58 @@ pub fn tree_ui(
                 });
         });
     requests
+}
+
+/// The subsystems at `depth` of `modules` (each in one, at least that deep), one header each
+/// in the order they first come, with their modules (an arbiter's winner said on its row)
+/// and the subsystems inside.
+fn subsystem_tree(
+    ui: &mut Ui,
+    modules: &[&ModuleStatus],
+    depth: usize,
+    row: &mut dyn FnMut(&mut Ui, &ModuleStatus),
+) {
+    let mut names: Vec<&str> = Vec::new();
+    for module in modules {
+        if let Some(name) = module.subsystems.get(depth)
+            && !names.contains(&name.as_str())
+        {
+            names.push(name);
+        }
+    }
+    for name in names {
+        let inside: Vec<&ModuleStatus> = modules
+            .iter()
+            .copied()
+            .filter(|m| m.subsystems.get(depth).is_some_and(|s| s == name))
+            .collect();
+        let winner = inside
+            .iter()
+            .find_map(|m| m.winner.as_deref().filter(|_| is_arbiter(m)));
+        let title = match winner {
+            Some(winner) => format!("▣ {name} — in control: {winner}"),
+            None => format!("▣ {name} · {} modules", inside.len()),
+        };
+        egui::CollapsingHeader::new(title)
+            .id_salt(("osc-subsystem", depth, name))
+            .default_open(true)
+            .show(ui, |ui| {
+                for module in inside.iter().filter(|m| m.subsystems.len() == depth + 1) {
+                    if is_arbiter(module) {
+                        ui.label(
+                            RichText::new(format!(
+                                "⚖ {} — in control: {}",
+                                module.name,
+                                module.winner.as_deref().unwrap_or("none")
+                            ))
+                            .strong(),
+                        );
+                    }
+                    row(ui, module);
+                }
+                subsystem_tree(ui, &inside, depth + 1, row);
+            });
+    }
 }
 
 /// Each module's state at `at_secs`, from the time line (the last change at or before it).
@@ -222,5 +296,56 @@ mod tests {
         assert_eq!(at(0.5), Vec::<String>::new());
         assert_eq!(at(6.0), ["follower ready", "vff winner"]);
         assert_eq!(at(8.0), ["follower ready", "vff checking"]);
+    }
+
+    /// The tree of a run whose system has subsystems: place → subsystems (nested) → modules,
+    /// the arbiter's winner said on its subsystem, the modules in none after them.
+    #[test]
+    fn the_tree_goes_place_subsystems_modules() {
+        use armor_runtime::control::{MissionStatus, ModuleState};
+        use egui_kittest::kittest::Queryable as _;
+        let module = |name: &str, subsystems: &[&str]| ModuleStatus {
+            name: name.into(),
+            module_type: name.into(),
+            state: ModuleState::Running,
+            controllable: true,
+            subsystems: subsystems.iter().map(|s| (*s).to_owned()).collect(),
+            ..ModuleStatus::default()
+        };
+        let mut arbiter = module("arbiter", &["navigation"]);
+        arbiter.winner = Some("vff".into());
+        let mut vff = module("vff", &["navigation", "behaviours"]);
+        vff.behaviour = Some(BehaviourState::Winner);
+        let mut stop = module("stop", &["navigation", "behaviours"]);
+        stop.behaviour = Some(BehaviourState::Ready);
+        let status = Status {
+            system: "robot".into(),
+            modules: vec![module("sim", &[]), arbiter, vff, stop],
+            mission: Some(MissionStatus {
+                marking: [("drive".to_owned(), 1)].into(),
+                ..MissionStatus::default()
+            }),
+            ..Status::default()
+        };
+        let history = BTreeMap::new();
+        let mut harness = egui_kittest::Harness::new_ui(|ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                tree_ui(ui, &status, &history, true);
+            });
+        });
+        harness.run();
+        harness.get_by_label("system robot · place drive");
+        harness.get_by_label("▣ navigation — in control: vff");
+        harness.get_by_label("⚖ arbiter — in control: vff");
+        harness.get_by_label("▣ behaviours · 2 modules");
+        harness.get_by_label("★ vff in control");
+        harness.get_by_label("stop: ready");
+        harness.get_by_label("modules in no subsystem");
+        // In that order, top to bottom: the place, the subsystem, the one inside, the rest.
+        let top = |label: &str| harness.get_by_label(label).rect().top();
+        assert!(top("system robot · place drive") < top("▣ navigation — in control: vff"));
+        assert!(top("▣ navigation — in control: vff") < top("▣ behaviours · 2 modules"));
+        assert!(top("▣ behaviours · 2 modules") < top("★ vff in control"));
+        assert!(top("★ vff in control") < top("modules in no subsystem"));
     }
 }

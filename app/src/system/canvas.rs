@@ -10,9 +10,22 @@ use egui_snarl::ui::SnarlWidget;
 
 use super::SystemView;
 use crate::command::UiCommand;
-use crate::diagram::{BlockId, Catalog};
+use crate::diagram::{BlockId, Catalog, Diagram, GROUP_TYPE_PREFIX, border_of};
 use crate::editor::Command;
 use crate::viewer::{self, CanvasEvents, DiagramViewer};
+
+/// Where the level's diagram of `real` draws the block `id` (a group's border block).
+fn real_view_pos(
+    real: &Diagram,
+    level: Option<BlockId>,
+    id: BlockId,
+    catalog: &Catalog,
+) -> Option<[f32; 2]> {
+    real.at_level(level, catalog)
+        .0
+        .block(id)
+        .map(|block| block.pos)
+}
 
 /// The canvas's id: tests and the selection lookup name it.
 const CANVAS_ID: &str = "diagram";
@@ -41,7 +54,71 @@ impl SystemView {
         })
     }
 
+    /// The canvas. With subsystems, it draws one level (see `diagram/groups.rs`): the
+    /// document is swapped for the level's diagram for the frame, so that everything the
+    /// canvas does reads what it draws, and what moved is copied back after.
     pub(super) fn canvas_ui(
+        &mut self,
+        ui: &mut Ui,
+        catalog: &Catalog,
+        started: bool,
+        live: &BTreeMap<String, ModuleState>,
+    ) {
+        let level = self.editor.level;
+        if level.is_none() && self.editor.diagram.groups().next().is_none() {
+            self.canvas_body(ui, catalog, started, live);
+            return;
+        }
+        let (view, view_catalog) = self.editor.diagram.at_level(level, catalog);
+        let real = std::mem::replace(&mut self.editor.diagram, view);
+        let had_before = self.canvas.move_before.is_some();
+        let queued = self.commands.len();
+        self.drawing_level = true;
+        self.canvas_body(ui, &view_catalog, started, live);
+        self.drawing_level = false;
+        let view = std::mem::replace(&mut self.editor.diagram, real.clone());
+        for (id, block) in view.blocks() {
+            if border_of(id).is_some() {
+                let group = border_of(id).and_then(|(group, outputs)| {
+                    Some(self.editor.diagram.group(group)?.border[usize::from(outputs)])
+                });
+                // Drawn where it was computed until moved: a move is a change from that.
+                let before = real_view_pos(&real, level, id, catalog);
+                if group.is_some() && before != Some(block.pos) {
+                    self.editor.diagram.move_border(id, block.pos);
+                }
+                continue;
+            }
+            let moved = match self.editor.diagram.block(id) {
+                Some(real) => real.pos != block.pos,
+                None => self
+                    .editor
+                    .diagram
+                    .group(id)
+                    .is_some_and(|group| group.pos != block.pos),
+            };
+            if moved {
+                self.editor.diagram.move_block(id, block.pos);
+            }
+        }
+        // An undo step of a move restores the document, not the level's diagram.
+        if !had_before && self.canvas.move_before.is_some() {
+            self.canvas.move_before = Some(real.clone());
+        }
+        for command in &mut self.commands[queued..] {
+            if let Command::Moved { before } = command
+                && !had_before
+            {
+                **before = real.clone();
+            }
+        }
+        // A double click on a group (or its menu's Parameters) opens it.
+        if let Some(block) = self.opened_group.take() {
+            self.commands.push(Command::Open(Some(block)));
+        }
+    }
+
+    fn canvas_body(
         &mut self,
         ui: &mut Ui,
         catalog: &Catalog,
@@ -145,7 +222,18 @@ impl SystemView {
         }
         self.canvas.overview_names = std::mem::take(&mut events.overview_names);
         if let Some(block) = events.open_params {
-            self.open_params(block);
+            let group = self
+                .editor
+                .diagram
+                .block(block)
+                .is_some_and(|b| b.module_type.starts_with(GROUP_TYPE_PREFIX));
+            if group {
+                self.opened_group = Some(block);
+            } else if border_of(block).is_some() {
+                // A subsystem's border has no parameters.
+            } else {
+                self.open_params(block);
+            }
         }
 
         // A wire dropped on a pin of the same side: egui-snarl ignores it silently; say why.

@@ -58,6 +58,11 @@ pub struct SystemView {
     messages: Vec<(String, bool)>,
     /// The last fit guessed the size of blocks not yet drawn: fit again after this many frames.
     fit_again: u8,
+    /// A subsystem double-clicked this frame, to open once the frame is drawn.
+    opened_group: Option<BlockId>,
+    /// The canvas is drawing a level of the subsystems: the document is that level's diagram
+    /// for the frame (`canvas.rs`).
+    drawing_level: bool,
 }
 
 impl SystemView {
@@ -100,9 +105,60 @@ impl SystemView {
                 .min_size(240.0)
                 .show(ui, |ui| self.problems_ui(ui, palette));
         }
+        if self.editor.diagram.groups().next().is_some() {
+            egui::Panel::top("breadcrumb").show(ui, |ui| self.breadcrumb_ui(ui));
+        }
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| self.canvas_ui(ui, &palette.catalog, started, live));
+    }
+
+    /// Where the canvas is in the subsystems: `System › navigation`, each level above a link
+    /// that goes up to it; inside a subsystem, the ports on its border.
+    fn breadcrumb_ui(&mut self, ui: &mut Ui) {
+        let diagram = &self.editor.diagram;
+        let path = diagram.path_to(self.editor.level);
+        let mut open = None;
+        ui.horizontal_wrapped(|ui| {
+            if path.is_empty() {
+                ui.strong("System");
+            } else if ui
+                .link("System")
+                .on_hover_text("up to the top (Alt+↑ goes up a level)")
+                .clicked()
+            {
+                open = Some(None);
+            }
+            for (index, id) in path.iter().enumerate() {
+                ui.weak("›");
+                let name = diagram.group(*id).map_or("?", |group| group.name.as_str());
+                if index + 1 == path.len() {
+                    ui.strong(name);
+                } else if ui.link(name).clicked() {
+                    open = Some(Some(*id));
+                }
+            }
+            match path.last().and_then(|id| diagram.group(*id)) {
+                Some(group) => {
+                    let ports: Vec<&str> =
+                        group.ports.iter().map(|(name, _)| name.as_str()).collect();
+                    ui.weak(format!(
+                        "   ports on its border: {}",
+                        if ports.is_empty() {
+                            "none".to_owned()
+                        } else {
+                            ports.join(", ")
+                        }
+                    ));
+                }
+                None => {
+                    ui.weak("   double-click a subsystem to open it · Ctrl+G groups the selection");
+                }
+            }
+        });
+        if let Some(level) = open {
+            self.commands.push(Command::Open(level));
+        }
     }
 
     /// Applies the edits queued this frame.
@@ -110,7 +166,9 @@ impl SystemView {
         for command in std::mem::take(&mut self.commands) {
             let copies = matches!(command, Command::Copy | Command::Cut);
             let arranges = matches!(command, Command::Arrange);
+            let opens = matches!(command, Command::Open(_));
             match self.editor.apply(command, catalog) {
+                Outcome::Nothing if opens => self.zoom_to_fit(),
                 Outcome::Nothing => {}
                 Outcome::Done(text) => {
                     if arranges {
@@ -277,6 +335,12 @@ impl SystemView {
             UiCommand::SelectAll => Command::SelectAll,
             UiCommand::Arrange => Command::Arrange,
             UiCommand::ClearSelection => Command::Select(BTreeSet::new()),
+            UiCommand::Group => Command::Group,
+            UiCommand::Ungroup => Command::Ungroup,
+            UiCommand::Up => {
+                let level = self.editor.level;
+                Command::Open(level.and_then(|level| self.editor.diagram.level_of(level)))
+            }
             UiCommand::ZoomToFit => {
                 self.zoom_to_fit();
                 return;
@@ -291,12 +355,23 @@ impl SystemView {
     }
 
     pub fn zoom_to_fit(&mut self) {
-        self.canvas.view_request = self.canvas.bounds(&self.editor.diagram, None);
+        // With subsystems, the level shown (inside the canvas's frame, the document is that
+        // level's already).
+        let level;
+        let diagram = if self.drawing_level || self.editor.diagram.groups().next().is_none() {
+            &self.editor.diagram
+        } else {
+            level = self
+                .editor
+                .diagram
+                .at_level(self.editor.level, &Catalog::new())
+                .0;
+            &level
+        };
+        self.canvas.view_request = self.canvas.bounds(diagram, None);
         // Blocks not drawn yet have a guessed size: fitted again once they are (egui-snarl
         // draws the blocks in view, and the view changes with the fit: a few frames).
-        let guessed = self
-            .editor
-            .diagram
+        let guessed = diagram
             .blocks()
             .any(|(id, _)| !self.canvas.node_rects.contains_key(&id));
         self.fit_again = if guessed { 3 } else { 0 };
@@ -330,9 +405,19 @@ impl SystemView {
 
     // ----- Where things are on screen (tests and the bench) -----
 
-    /// Where a block's pin is on screen (as drawn last frame): `side` is input or output.
+    /// Where a block's pin is on screen (as drawn last frame): `side` is input or output; a
+    /// subsystem's border inside it is `NAME inputs` or `NAME outputs`.
     pub fn pin_pos(&self, block: &str, port: &str, side: PinSide) -> Option<Pos2> {
-        let block = self.editor.diagram.block_named(block)?;
+        let diagram = &self.editor.diagram;
+        let border = |suffix: &str, outputs: bool| {
+            let group = diagram.group_named(block.strip_suffix(suffix)?)?;
+            Some(crate::diagram::border_id(group, outputs))
+        };
+        let block = diagram
+            .block_named(block)
+            .or_else(|| diagram.group_named(block))
+            .or_else(|| border(" inputs", false))
+            .or_else(|| border(" outputs", true))?;
         self.canvas.pin_screen_pos(&Pin {
             side,
             port: crate::diagram::PortRef {
@@ -406,8 +491,18 @@ impl SystemView {
 
     /// A block's rectangle on the canvas, if it has been laid out.
     fn block_rect(&self, catalog: &Catalog, block: &str) -> Option<egui::Rect> {
-        let id = self.editor.diagram.block_named(block)?;
-        let rect = self.canvas.rect_of(&self.editor.diagram, catalog, id);
+        let diagram = &self.editor.diagram;
+        if let Some(id) = diagram.group_named(block) {
+            // A subsystem's block: where its group is, as big as it was drawn.
+            let group = diagram.group(id)?;
+            let size = self.canvas.node_rects.get(&id)?.size();
+            return Some(egui::Rect::from_min_size(
+                Pos2::new(group.pos[0], group.pos[1]),
+                size,
+            ));
+        }
+        let id = diagram.block_named(block)?;
+        let rect = self.canvas.rect_of(diagram, catalog, id);
         rect.is_finite().then_some(rect)
     }
 }

@@ -188,6 +188,9 @@ pub struct ModuleStatus {
     /// An arbiter's winner: the module whose command is in control.
     #[serde(default)]
     pub winner: Option<String>,
+    /// The subsystems it is in, outermost first (empty: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub subsystems: Vec<String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

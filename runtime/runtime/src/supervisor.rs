@@ -215,7 +215,8 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             "mission checked"
         );
         Controller::new(
-            mission.net,
+            // A place that names a subsystem runs its modules.
+            mission.net.with_subsystems_expanded(&loaded.system),
             controllable,
             clock,
             start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9),
@@ -598,6 +599,12 @@ fn run_status(
                 why: demand.get(&module.name).map(ToString::to_string),
                 behaviour: behaviours.states().get(&module.name).copied(),
                 winner: behaviours.winners().get(&module.name).cloned(),
+                subsystems: loaded
+                    .system
+                    .subsystem_path(&module.name)
+                    .into_iter()
+                    .map(str::to_owned)
+                    .collect(),
             }
         })
         .collect();

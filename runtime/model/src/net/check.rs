@@ -27,6 +27,10 @@ pub fn check_names(
     for place in &net.places {
         let subject = format!("place `{}`", place.name);
         for module in &place.modules {
+            // A subsystem stands for its modules; those that are not controllable run anyway.
+            if system.module(module).is_none() && system.subsystem(module).is_some() {
+                continue;
+            }
             if let Some((instance, Some(description))) =
                 find(module, &subject, place.pos, &mut problems)
                 && !description.controllable
@@ -130,6 +134,27 @@ pub fn check_names(
     problems
 }
 
+impl MissionNet {
+    /// The net with each place's subsystems (names of `system`'s subsystems where its
+    /// modules are named) replaced by their modules, each named once: what the controller
+    /// runs. A name that is neither stays as it is.
+    pub fn with_subsystems_expanded(&self, system: &SystemConfig) -> MissionNet {
+        let mut net = self.clone();
+        for place in &mut net.places {
+            let mut modules: Vec<String> = Vec::new();
+            for name in &place.modules {
+                for module in system.units(name).unwrap_or_else(|| vec![name.clone()]) {
+                    if !modules.contains(&module) {
+                        modules.push(module);
+                    }
+                }
+            }
+            place.modules = modules;
+        }
+        net
+    }
+}
+
 /// The modules that run in some place of `net`: those each place names, closed over what they
 /// need (activation on demand, [`crate::system::demand`]), and those that always run.
 fn runs_somewhere(
@@ -148,7 +173,8 @@ fn runs_somewhere(
         let wanted = place
             .modules
             .iter()
-            .map(|module| (module.clone(), format!("place {}", place.name)))
+            .flat_map(|name| system.units(name).unwrap_or_default())
+            .map(|module| (module, format!("place {}", place.name)))
             .collect();
         running.extend(demand(system, controllable, &wanted, &held).into_keys());
     }
@@ -169,10 +195,23 @@ fn find_module<'a>(
     problems: &mut Vec<Located>,
 ) -> Option<(&'a ModuleInstance, Option<&'a ModuleDescription>)> {
     let Some(instance) = system.module(name) else {
+        let subsystems = system.all_subsystems();
+        let also = if subsystems.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; subsystems: {}",
+                listing(
+                    subsystems
+                        .iter()
+                        .filter_map(|path| path.last().map(|s| s.name.as_str()))
+                )
+            )
+        };
         problems.push(Located::new(
             pos,
             format!(
-                "{subject}: no module `{name}` in the system (modules: {})",
+                "{subject}: no module `{name}` in the system (modules: {}{also})",
                 listing(system.modules.iter().map(|module| module.name.as_str()))
             ),
         ));
@@ -309,5 +348,43 @@ mod tests {
                 "9:1: transition `d`: fault event `module.ghost.failed`: no module `ghost` in the system (modules: nav, sim, ui, cam)",
             ],
         );
+    }
+
+    #[test]
+    fn a_place_names_a_subsystem_for_all_its_modules() {
+        let system = SystemConfig::parse(
+            r#"<system name="robot">
+  <module name="nav" type="navigation"/>
+  <module name="sim" type="sim"/>
+  <module name="ui" type="console"/>
+  <subsystem name="robot"><member module="nav"/><member module="ui"/>
+    <subsystem name="body"><member module="sim"/></subsystem></subsystem>
+</system>"#,
+        )
+        .expect("valid system");
+        let net = MissionNet::parse(
+            r#"<mission name="m">
+<place name="go" tokens="1"><module name="robot"/><module name="nav"/></place>
+<place name="done" final="true"/>
+<transition name="arrive" event="nav.goal_reached"><input place="go"/><output place="done"/></transition>
+<place name="lost"><module name="wheels"/></place>
+</mission>"#,
+        )
+        .expect("valid net");
+        // The subsystem is a name the place may use (and its console, which is not
+        // controllable, runs anyway); its follower's event comes.
+        let got: Vec<String> = check_names(&net, &system, &descriptions())
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        assert_eq!(
+            got,
+            [
+                "5:1: place `lost`: no module `wheels` in the system (modules: nav, sim, ui; subsystems: robot, body)"
+            ]
+        );
+        let expanded = net.with_subsystems_expanded(&system);
+        assert_eq!(expanded.places[0].modules, ["nav", "ui", "sim"]);
+        assert_eq!(expanded.places[2].modules, ["wheels"]);
     }
 }

@@ -150,6 +150,7 @@ pub fn check(
             ));
         }
     }
+    super::subsystem::check_subsystems(system, &modules, descriptions, &mut problems);
     problems.sort_by_key(|problem| problem.pos);
     problems
 }

@@ -11,6 +11,10 @@
 //! </system>
 //! ```
 //!
+//! Modules may be grouped into named subsystems (`<subsystem name="…"><member module="…"/>…`),
+//! which nest and expose ports on their border; they change nothing at run time (see
+//! [`subsystem`]).
+//!
 //! A module may be limited to what it publishes and subscribes to: `may_publish` and
 //! `may_subscribe` list data names (`module.output`, `module.*` or `*`), separated by spaces or
 //! commas. The agent refuses registrations and lookups outside the lists; without a list, a
@@ -237,6 +241,8 @@ pub struct SystemConfig {
     pub host: Option<String>,
     pub modules: Vec<ModuleInstance>,
     pub links: Vec<Link>,
+    /// Named groups of its modules (see [`subsystem`]); empty for a flat system.
+    pub subsystems: Vec<Subsystem>,
 }
 
 /// What one module instance is told at start: where its data comes from and goes to, and its
@@ -332,10 +338,12 @@ impl SystemConfig {
 
 mod check;
 pub mod demand;
+pub mod subsystem;
 mod xml;
 
 pub use check::check;
 pub use demand::{Reason, demand};
+pub use subsystem::{ExposedPort, Member, Subsystem};
 
 #[cfg(test)]
 mod tests;

@@ -171,7 +171,7 @@ fn structural_problems() {
         "<system name=\"s\" color=\"red\">\n  <modul name=\"a\"/>\n  <module name=\"a\" type=\"t\" prio=\"1\">\n    <parameter/>\n    <param name=\"p\" value=\"1\" unit=\"s\"><x/></param>\n  </module>\n  <link from=\"a.b\" to=\"a.c\" via=\"d\">text</link>\n</system>",
         &[
             "1:18: unknown attribute `color` on <system> (expected one of: name, host)",
-            "2:3: unknown element <modul> inside <system> (expected one of: module, link)",
+            "2:3: unknown element <modul> inside <system> (expected one of: module, link, subsystem)",
             "3:29: unknown attribute `prio` on <module> (expected one of: name, type, restart, activation, host, may_publish, may_subscribe)",
             "4:5: unknown element <parameter> inside <module> (expected one of: param)",
             "5:31: unknown attribute `unit` on <param> (expected one of: name, value)",
@@ -399,6 +399,18 @@ fn without_positions(mut system: SystemConfig) -> SystemConfig {
     for link in &mut system.links {
         (link.pos, link.from_pos, link.to_pos) = (zero, zero, zero);
     }
+    fn unplace(subsystem: &mut Subsystem) {
+        let zero = Pos::default();
+        subsystem.pos = zero;
+        for member in &mut subsystem.members {
+            member.pos = zero;
+        }
+        for port in &mut subsystem.ports {
+            (port.pos, port.of_pos) = (zero, zero);
+        }
+        subsystem.subsystems.iter_mut().for_each(unplace);
+    }
+    system.subsystems.iter_mut().for_each(unplace);
     system
 }
 
@@ -505,4 +517,90 @@ fn bindings_of_modules() {
         Some(["cmd=n.cmd", "odometry=s.odometry scan=s.scan", ""]),
     );
     bindings(&xml, "nobody", true, None);
+}
+
+/// A system with two subsystems, one nested.
+const GROUPED: &str = r#"<system name="g">
+  <module name="sim" type="sim"/>
+  <module name="nav" type="nav"><param name="goal_x" value="1"/></module>
+  <module name="counter" type="counter"/>
+  <module name="checker" type="checker"/>
+  <link from="sim.scan" to="nav.scan"/>
+  <link from="nav.cmd" to="sim.cmd"/>
+  <link from="counter.count" to="checker.input"/>
+  <subsystem name="robot">
+    <member module="nav"/>
+    <subsystem name="body">
+      <member module="sim"/>
+    </subsystem>
+    <port name="scan" of="sim.scan"/>
+  </subsystem>
+  <subsystem name="counting">
+    <member module="counter"/>
+    <member module="checker"/>
+  </subsystem>
+</system>
+"#;
+
+#[test]
+fn subsystems_parse_nest_and_round_trip() {
+    let system = SystemConfig::parse(GROUPED).expect("valid");
+    assert_eq!(system.subsystems.len(), 2);
+    let robot = system.subsystem("robot").expect("robot");
+    assert_eq!(robot.modules(), ["nav", "sim"]);
+    assert_eq!(robot.ports[0].of, Endpoint::new("sim", "scan"));
+    assert_eq!(system.subsystem_path("sim"), ["robot", "body"]);
+    assert_eq!(system.subsystem_path("checker"), ["counting"]);
+    assert!(system.subsystem_path("nope").is_empty());
+    assert_eq!(system.units("body"), Some(vec!["sim".to_owned()]));
+    assert_eq!(system.units("nav"), Some(vec!["nav".to_owned()]));
+    assert_eq!(system.units("nothing"), None);
+    // Flattened, it is the same modules and links.
+    assert_eq!(system.modules.len(), 4);
+    assert_eq!(system.links.len(), 3);
+    check(GROUPED, &[]);
+    round_trip(GROUPED);
+    // Written, it is still a subsystem element per group, nested.
+    let written = system.to_xml();
+    assert!(written.contains("    <subsystem name=\"body\">\n      <member module=\"sim\"/>"));
+}
+
+#[test]
+fn subsystem_structural_problems_have_positions() {
+    parse_problems(
+        "<system name=\"s\">\n<subsystem>\n<member/>\n<port name=\"p\" of=\"x\"/>\n<wheel/>\n</subsystem>\n</system>",
+        &[
+            "2:1: <subsystem> needs the attribute `name`",
+            "3:1: <member> needs the attribute `module`",
+            "4:16: `of` must be MODULE.PORT (two names joined by a dot), not `x`",
+            "5:1: unknown element <wheel> inside <subsystem> (expected one of: member, port, subsystem)",
+        ],
+    );
+}
+
+#[test]
+fn subsystem_problems_against_the_system() {
+    let xml = r#"<system name="s">
+<module name="counter" type="counter"/>
+<module name="checker" type="checker"/>
+<subsystem name="a"><member module="counter"/><member module="ghost"/>
+<port name="out" of="counter.count"/><port name="out" of="counter.reset"/>
+<port name="wrong" of="counter.nothing"/><port name="far" of="checker.input"/></subsystem>
+<subsystem name="b"><member module="counter"/></subsystem>
+<subsystem name="a"><member module="checker"/></subsystem>
+<subsystem name="checker"><subsystem name="empty"/></subsystem>
+</system>"#;
+    check(
+        xml,
+        &[
+            "4:47: subsystem `a`: no module `ghost` in this system (modules: checker, counter)",
+            "5:38: subsystem `a`: port `out` is already exposed at line 5",
+            "6:20: subsystem `a`: port `wrong` is of `counter.nothing`, but module `counter` (type `counter`) has no port `nothing` (ports: reset, count)",
+            "6:59: subsystem `a`: port `far` is of `checker.input`, but module `checker` is not in the subsystem (members: counter, ghost)",
+            "7:21: subsystem `b`: module `counter` is already a member of `a` (line 4); a module is in one subsystem at most",
+            "8:1: subsystem `a` is already defined at line 4",
+            "9:1: subsystem `checker`: a module has that name (line 3); a place names one or the other",
+            "9:27: subsystem `empty` has no member (add <member module=\"…\"/>)",
+        ],
+    );
 }

@@ -4,6 +4,7 @@
 use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{self, Attr, Element, Located, Pos};
 
+use super::subsystem::{read_subsystem, write_subsystem};
 use super::{Activation, Endpoint, Link, ModuleInstance, ParamValue, RestartPolicy, SystemConfig};
 use crate::fields::{escape, identifier, no_children, no_text, required};
 
@@ -19,7 +20,7 @@ impl SystemConfig {
         }
         let mut problems = Vec::new();
         problems.extend(root.unknown_attrs(&["name", "host"]));
-        problems.extend(root.unknown_children(&["module", "link"]));
+        problems.extend(root.unknown_children(&["module", "link", "subsystem"]));
         no_text(&root, &mut problems);
         let name = identifier(&root, "name", "name", &mut problems).unwrap_or_default();
         let host = host_attr(&root, &mut problems);
@@ -28,6 +29,7 @@ impl SystemConfig {
             host,
             modules: Vec::new(),
             links: Vec::new(),
+            subsystems: Vec::new(),
         };
         for child in &root.children {
             match child.name.as_str() {
@@ -39,6 +41,11 @@ impl SystemConfig {
                 "link" => {
                     if let Some(link) = read_link(child, &mut problems) {
                         system.links.push(link);
+                    }
+                }
+                "subsystem" => {
+                    if let Some(subsystem) = read_subsystem(child, &mut problems) {
+                        system.subsystems.push(subsystem);
                     }
                 }
                 _ => {}
@@ -109,6 +116,9 @@ impl SystemConfig {
                 let _ = write!(out, " fallback=\"{}\"", link.fallback);
             }
             out.push_str("/>\n");
+        }
+        for subsystem in &self.subsystems {
+            write_subsystem(&mut out, subsystem, 1);
         }
         out.push_str("</system>\n");
         out
