@@ -136,6 +136,8 @@ pub(crate) struct InputSlot {
     pub notified: bool,
     /// Samples received since the module started.
     pub received: u64,
+    /// Payload bytes received since the module started.
+    pub received_bytes: u64,
     /// At most this many samples per second, asked of the provider (best-effort only).
     pub max_rate_hz: Option<f64>,
     /// Pull mode: the provider sends a sample only when asked ([`Node::pull`]).
@@ -199,7 +201,8 @@ impl Core {
                 link: 0,
                 notified: false,
                 received: 0,
-                max_rate_hz: None,
+                received_bytes: 0,
+                max_rate_hz: config.input_rates.get(&port.name).copied(),
                 pull: false,
             })
             .collect();
@@ -248,6 +251,12 @@ impl Core {
                 .iter()
                 .map(|slot| (slot.name.clone(), slot.received))
                 .collect(),
+            received_bytes: self
+                .inputs
+                .iter()
+                .filter(|slot| slot.received_bytes > 0)
+                .map(|slot| (slot.name.clone(), slot.received_bytes))
+                .collect(),
         }
     }
 
@@ -255,6 +264,7 @@ impl Core {
     pub fn deliver(&mut self, index: usize, frame: DataFrame) -> bool {
         let slot = &mut self.inputs[index];
         slot.received += 1;
+        slot.received_bytes += frame.payload.len() as u64;
         if slot.reliable {
             slot.queued_bytes += frame.payload.len();
             slot.queue.push_back((slot.link, frame));

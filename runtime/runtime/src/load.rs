@@ -29,10 +29,8 @@ impl Loaded {
             outputs: bindings.outputs,
             params: bindings.params,
             active: true,
-            host: module
-                .host
-                .clone()
-                .unwrap_or_else(|| self.system.host_or_default().to_owned()),
+            host: self.system.bind_address(module),
+            input_rates: self.system.input_rates(&module.name),
         })
     }
 }
