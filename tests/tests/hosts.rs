@@ -332,3 +332,109 @@ fn armor_check_reports_a_module_type_missing_on_a_host() {
         host.lines().join("\n")
     );
 }
+
+/// A daemon on loopback whose clock is `offset_ms` off (the daemon's test hook), and the port
+/// it listens on.
+fn loopback_host(offset_ms: i64) -> (Proc, u16) {
+    let host = Proc::start(
+        Command::new(bin("armor"))
+            .args(["host", "--name", "robot1", "--listen", "127.0.0.1:0"])
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .env(armor_runtime::host::ENV_CLOCK_OFFSET_MS, offset_ms.to_string()),
+    );
+    let line = host.wait_for("with its address", PATIENCE, |line| {
+        line.starts_with(armor_runtime::host::HOST_READY_PREFIX)
+    });
+    let addr: std::net::SocketAddr = line
+        .trim_start_matches(armor_runtime::host::HOST_READY_PREFIX)
+        .trim()
+        .parse()
+        .unwrap();
+    (host, addr.port())
+}
+
+/// A mission with a delay over a system with its checker on `robot1` at `port`.
+fn timed_mission(dir: &Path, port: u16) -> PathBuf {
+    std::fs::write(
+        dir.join("system.xml"),
+        format!(
+            r#"<system name="timed">
+  <host name="robot1" address="127.0.0.1" port="{port}"/>
+  <module name="counter" type="counter"><param name="period_secs" value="0.05"/></module>
+  <module name="checker" type="checker" host="robot1"/>
+  <link from="counter.count" to="checker.input"/>
+</system>
+"#
+        ),
+    )
+    .unwrap();
+    let mission = dir.join("mission.xml");
+    std::fs::write(
+        &mission,
+        r#"<mission name="timed" system="system.xml">
+  <place name="counting" tokens="1"><module name="counter"/><module name="checker"/></place>
+  <place name="done" final="true"/>
+  <transition name="enough" delay_secs="1"><input place="counting"/><output place="done"/></transition>
+</mission>
+"#,
+    )
+    .unwrap();
+    mission
+}
+
+#[test]
+fn a_mission_with_time_constraints_is_refused_when_a_hosts_clock_is_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_host, port) = loopback_host(400);
+    let mission = timed_mission(dir.path(), port);
+    let mut run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(&mission)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let status = run.wait_exit(PATIENCE);
+    assert!(!status.success(), "{}", run.lines().join("\n"));
+    let lines = run.lines().join("\n");
+    assert!(
+        lines.contains("host `robot1`'s clock is 400.") && lines.contains("more than 50 ms"),
+        "{lines}"
+    );
+    // Told to accept the skew, it runs to its end (the offset is still reported).
+    let mut run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(&mission)
+            .args(["--no-run-folder", "--max-clock-skew-ms", "0"])
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    run.wait_for("the offset reported", PATIENCE, |line| {
+        line.contains("clock offset +4") && line.contains("host `robot1`")
+    });
+    let status = run.wait_exit(PATIENCE);
+    assert!(status.success(), "{}", run.lines().join("\n"));
+    assert!(
+        run.lines()
+            .iter()
+            .any(|line| line.starts_with("[checker]") && line.contains("received")),
+        "{}",
+        run.lines().join("\n")
+    );
+}
+
+#[test]
+fn a_synchronised_host_runs_a_timed_mission() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_host, port) = loopback_host(0);
+    let mission = timed_mission(dir.path(), port);
+    let mut run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(&mission)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let status = run.wait_exit(PATIENCE);
+    assert!(status.success(), "{}", run.lines().join("\n"));
+}

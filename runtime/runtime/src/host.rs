@@ -37,6 +37,9 @@ pub const SUPERVISOR_IDENTITY: &str = "armor.run";
 pub const DEFAULT_ORPHAN: Duration = Duration::from_secs(3);
 /// How often the supervisor says it is alive.
 pub const PING_EVERY: Duration = Duration::from_millis(250);
+/// Milliseconds added to the time the daemon reports (`time`): a clock that is off, made on
+/// purpose, for the tests of the supervisor's skew check. Never set it on a robot.
+pub const ENV_CLOCK_OFFSET_MS: &str = "ARMOR_HOST_CLOCK_OFFSET_MS";
 /// A line of a module's output longer than this is cut.
 const MAX_LOG_LINE: usize = 16 * 1024;
 
@@ -142,6 +145,8 @@ struct Daemon {
     modules: Mutex<HashMap<String, Running>>,
     /// The connection serving now (its number); an older one stops when it sees a newer.
     session: Mutex<u64>,
+    /// Added to the time reported ([`ENV_CLOCK_OFFSET_MS`]).
+    clock_offset_ns: i64,
 }
 
 /// Serves supervisors on the listener until the process ends.
@@ -157,6 +162,10 @@ pub fn serve(options: HostOptions) {
         orphan: options.orphan,
         modules: Mutex::new(HashMap::new()),
         session: Mutex::new(0),
+        clock_offset_ns: std::env::var(ENV_CLOCK_OFFSET_MS)
+            .ok()
+            .and_then(|ms| ms.trim().parse::<i64>().ok())
+            .map_or(0, |ms| ms.saturating_mul(1_000_000)),
     });
     crate::gate::serve(options.listener, listen, move |stream, proven| {
         if authenticated && proven.as_deref() != Some(SUPERVISOR_IDENTITY) {
@@ -359,7 +368,7 @@ impl Daemon {
             ToHost::Time { id } => {
                 let _ = tx.send(FromHost::Time {
                     id,
-                    unix_ns: unix_now_ns(),
+                    unix_ns: unix_now_ns().saturating_add_signed(self.clock_offset_ns),
                 });
             }
             ToHost::Check { id, types } => {
