@@ -34,6 +34,7 @@ pub enum UiCommand {
     Help,
     Run,
     Stop,
+    Attach,
     New,
     ExportPng,
     Arrange,
@@ -52,7 +53,7 @@ const fn key(modifiers: Modifiers, key: Key) -> KeyboardShortcut {
 }
 
 impl UiCommand {
-    pub const ALL: [UiCommand; 25] = [
+    pub const ALL: [UiCommand; 26] = [
         UiCommand::Save,
         UiCommand::SaveAs,
         UiCommand::Open,
@@ -70,6 +71,7 @@ impl UiCommand {
         UiCommand::Help,
         UiCommand::Run,
         UiCommand::Stop,
+        UiCommand::Attach,
         UiCommand::New,
         UiCommand::ExportPng,
         UiCommand::Arrange,
@@ -115,6 +117,7 @@ impl UiCommand {
             UiCommand::Help => "Keyboard shortcuts",
             UiCommand::Run => "Run",
             UiCommand::Stop => "Stop",
+            UiCommand::Attach => "Attach…",
         }
     }
 
@@ -148,6 +151,7 @@ impl UiCommand {
             UiCommand::Run => const { &[key(Modifiers::NONE, Key::F5)] },
             UiCommand::Stop => const { &[key(Modifiers::SHIFT, Key::F5)] },
             UiCommand::New
+            | UiCommand::Attach
             | UiCommand::ExportPng
             | UiCommand::Arrange
             | UiCommand::ImportGpx
@@ -187,7 +191,8 @@ impl UiCommand {
             UiCommand::Find => "find a block",
             UiCommand::Help => "this sheet",
             UiCommand::Run => "run the open plan, else the system (Run view)",
-            UiCommand::Stop => "stop the run",
+            UiCommand::Stop => "stop the run (detach from one attached to)",
+            UiCommand::Attach => "watch and operate a run started elsewhere (its control address)",
             UiCommand::New => "a new document",
             UiCommand::ExportPng => "export a picture",
             UiCommand::Arrange => "lay the blocks out by data flow, sources left",
@@ -217,6 +222,7 @@ impl UiCommand {
             | UiCommand::SelectAll
             | UiCommand::Find => view == View::System,
             UiCommand::New
+            | UiCommand::Attach
             | UiCommand::ExportPng
             | UiCommand::Arrange
             | UiCommand::ImportGpx
@@ -395,6 +401,7 @@ const RUN_MENUS: &[Menu] = &[
         items: &[
             Item(UiCommand::Run),
             Item(UiCommand::Stop),
+            Item(UiCommand::Attach),
             Separator,
             Item(UiCommand::Open),
         ],
@@ -581,7 +588,7 @@ mod tests {
         assert_eq!(
             labels(View::Run),
             [
-                ("Run", vec!["Run", "Stop", "---", "Open recording…"]),
+                ("Run", vec!["Run", "Stop", "Attach…", "---", "Open recording…"]),
                 (
                     "View",
                     vec![

@@ -8,6 +8,7 @@
 //! teleop module from the keyboard or the on-screen pad; each module's log is kept and
 //! filterable. A recording of the recorder opens into the same map.
 
+pub mod attach;
 pub mod followed;
 pub mod live;
 pub mod monitor;
@@ -96,6 +97,8 @@ pub struct RunView {
     /// The follower's paths of the current leg, as drawn at the last frame.
     followed: FollowedLeg,
     pub video: video::VideoPanel,
+    /// Run → Attach…'s prompt, while it is open.
+    pub attach_prompt: Option<attach::AttachPrompt>,
 }
 
 impl RunView {
@@ -124,6 +127,7 @@ impl RunView {
             max_replans: None,
             followed: FollowedLeg::default(),
             video: video::VideoPanel::default(),
+            attach_prompt: None,
         }
     }
 
@@ -240,6 +244,26 @@ impl RunView {
         ctx: &egui::Context,
     ) {
         let options = self.options(&target, surroundings, ctx);
+        self.session = Some(RunSession::attach(options, control, ctx));
+        self.messages
+            .push((true, format!("watching the run at {control}")));
+    }
+
+    /// Watches a run started elsewhere whose system file the studio does not have: its
+    /// modules, mission and controls, without the live map's sources.
+    pub fn attach_bare(&mut self, control: std::net::SocketAddr, ctx: &egui::Context) {
+        self.stop();
+        self.recording = None;
+        let options = RunOptions {
+            target: PathBuf::new(),
+            time_scale: self.time_scale,
+            start_at: None,
+            working_dir: self.working_dir.clone(),
+            module_path: self.module_path.clone(),
+            sources: Sources::default(),
+            secret: Some(PathBuf::from(self.secret_file.trim()))
+                .filter(|file| !file.as_os_str().is_empty()),
+        };
         self.session = Some(RunSession::attach(options, control, ctx));
         self.messages
             .push((true, format!("watching the run at {control}")));
@@ -483,9 +507,18 @@ impl RunView {
                     ui.checkbox(&mut self.prefer_system, "system only");
                 }
             });
+            let attached = self.session.as_ref().is_some_and(RunSession::is_attached);
+            let (stop_label, stop_hover) = if attached {
+                (
+                    "⏏ Detach",
+                    "stop watching: the run goes on (Shift+F5)",
+                )
+            } else {
+                ("■ Stop", "stop every module in order (Shift+F5)")
+            };
             if ui
-                .add_enabled(running, egui::Button::new("■ Stop"))
-                .on_hover_text("stop every module in order (Shift+F5)")
+                .add_enabled(running, egui::Button::new(stop_label))
+                .on_hover_text(stop_hover)
                 .clicked()
             {
                 self.stop();
@@ -501,8 +534,25 @@ impl RunView {
                 self.fit_pending = true;
             }
             ui.separator();
+            let lost = self.session.as_ref().and_then(|session| {
+                let shared = session.shared();
+                let (since, why) = shared.connection_lost.clone()?;
+                Some(format!(
+                    "connection lost {:.0} s ago, retrying: {why}",
+                    (session.elapsed_secs() - since).max(0.0)
+                ))
+            });
+            if let (Some(lost), true) = (&lost, running) {
+                ui.colored_label(ui.visuals().error_fg_color, lost);
+            }
             let text = match (&self.session, status) {
                 (Some(session), _) if session.is_stopping() => "stopping…".to_owned(),
+                (Some(session), Some(status)) if session.is_attached() && session.is_running() => {
+                    format!(
+                        "attached to {} — {:.1} s of run time (×{})",
+                        status.system, status.run_secs, status.time_scale
+                    )
+                }
                 (Some(session), Some(status)) if session.is_running() => format!(
                     "{} — {:.1} s of run time (×{})",
                     status.system, status.run_secs, status.time_scale
