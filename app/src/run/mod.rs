@@ -537,10 +537,17 @@ impl RunView {
             let lost = self.session.as_ref().and_then(|session| {
                 let shared = session.shared();
                 let (since, why) = shared.connection_lost.clone()?;
-                Some(format!(
-                    "connection lost {:.0} s ago, retrying: {why}",
-                    (session.elapsed_secs() - since).max(0.0)
-                ))
+                // The cause without the address, which the status line shows already.
+                let cause = why.rsplit(": ").next().unwrap_or(&why);
+                let ago = (session.elapsed_secs() - since).max(0.0);
+                Some(if shared.status.is_some() {
+                    format!(
+                        "connection lost {ago:.0} s ago, retrying — {cause}; the state shown is \
+                         the last known"
+                    )
+                } else {
+                    format!("cannot reach the run, retrying — {cause}")
+                })
             });
             if let (Some(lost), true) = (&lost, running) {
                 ui.colored_label(ui.visuals().error_fg_color, lost);
