@@ -32,6 +32,7 @@ mod pull;
 mod qgc_import;
 mod raw;
 mod reachability;
+mod remote;
 mod sim_realtime;
 mod startup;
 mod studio;
@@ -181,6 +182,12 @@ const BENCHES: &[Bench] = &[
         name: startup::NAME,
         about: "`armor run` of ten counters until configured vs ten --describe spawns (ms)",
         run: startup::run,
+    },
+    Bench {
+        name: remote::NAME,
+        about: "`armor run` of ten counters, half on an `armor host` in another network \
+                namespace, until configured vs the same all local (ms; needs root)",
+        run: remote::run,
     },
     Bench {
         name: event_start::NAME,
