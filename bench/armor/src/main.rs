@@ -16,6 +16,7 @@
 mod benchprobe;
 mod camera_sim;
 mod compile_plan;
+mod cross;
 mod discovery;
 mod event_start;
 mod fuzz;
@@ -182,6 +183,12 @@ const BENCHES: &[Bench] = &[
         name: startup::NAME,
         about: "`armor run` of ten counters until configured vs ten --describe spawns (ms)",
         run: startup::run,
+    },
+    Bench {
+        name: cross::NAME,
+        about: "round trip of 64 bytes through armor-mod-echo in another network namespace \
+                (a veth pair) vs TCP ping-pong over the same pair (ns; needs root)",
+        run: cross::run,
     },
     Bench {
         name: remote::NAME,

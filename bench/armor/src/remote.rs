@@ -21,12 +21,12 @@ pub const NAME: &str = "remote_start_ms";
 const MODULES: usize = 10;
 const STOP_TIMEOUT: Duration = Duration::from_secs(10);
 /// This side of the veth pair, and the far side (in the namespace).
-const NEAR: &str = "10.78.0.1";
-const FAR: &str = "10.78.0.2";
+pub const NEAR: &str = "10.78.0.1";
+pub const FAR: &str = "10.78.0.2";
 
 /// A namespace joined to this one by a veth pair; deleted on drop.
-struct FarSide {
-    ns: String,
+pub struct FarSide {
+    pub ns: String,
     veth: String,
 }
 
@@ -46,7 +46,7 @@ fn ip(args: &[&str]) -> anyhow::Result<()> {
 }
 
 impl FarSide {
-    fn make() -> anyhow::Result<FarSide> {
+    pub fn make() -> anyhow::Result<FarSide> {
         let tag = std::process::id() % 100_000;
         let side = FarSide {
             ns: format!("armor_bench_{tag}"),
