@@ -588,7 +588,10 @@ mod tests {
         assert_eq!(
             labels(View::Run),
             [
-                ("Run", vec!["Run", "Stop", "Attach…", "---", "Open recording…"]),
+                (
+                    "Run",
+                    vec!["Run", "Stop", "Attach…", "---", "Open recording…"]
+                ),
                 (
                     "View",
                     vec![

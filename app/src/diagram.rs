@@ -504,7 +504,11 @@ impl Diagram {
                 from_pos: Default::default(),
                 to_pos: Default::default(),
                 max_rate_hz: (link.fallback == 0)
-                    .then(|| self.link_rates.get(&endpoint(&link.to).to_string()).copied())
+                    .then(|| {
+                        self.link_rates
+                            .get(&endpoint(&link.to).to_string())
+                            .copied()
+                    })
                     .flatten(),
             })
             .collect();

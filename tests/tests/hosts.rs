@@ -46,7 +46,11 @@ impl Namespaces {
     /// The pair, or why it cannot be made here.
     fn make() -> Result<Namespaces, String> {
         static NEXT: AtomicU32 = AtomicU32::new(0);
-        let tag = format!("{}_{}", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed));
+        let tag = format!(
+            "{}_{}",
+            std::process::id(),
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        );
         let namespaces = Namespaces {
             near: format!("armor_near_{tag}"),
             far: format!("armor_far_{tag}"),
@@ -54,8 +58,18 @@ impl Namespaces {
         ip(&["netns", "add", &namespaces.near])?;
         ip(&["netns", "add", &namespaces.far])?;
         ip(&[
-            "link", "add", "veth_near", "netns", &namespaces.near, "type", "veth", "peer",
-            "name", "veth_far", "netns", &namespaces.far,
+            "link",
+            "add",
+            "veth_near",
+            "netns",
+            &namespaces.near,
+            "type",
+            "veth",
+            "peer",
+            "name",
+            "veth_far",
+            "netns",
+            &namespaces.far,
         ])?;
         for (ns, dev, addr) in [
             (&namespaces.near, "veth_near", SUPERVISOR_ADDR),
@@ -153,9 +167,12 @@ fn in_order(checker: &'static str) -> impl Fn(&str) -> bool {
 
 /// The pid the daemon logged for `module`, at or after line `skip` of its output.
 fn started_on_host(host: &Proc, skip: usize, module: &str) -> i32 {
-    let line = host.wait_for_from(skip, &format!("saying {module} started"), PATIENCE, |line| {
-        line.contains("module started") && field(line, "module") == Some(module)
-    });
+    let line = host.wait_for_from(
+        skip,
+        &format!("saying {module} started"),
+        PATIENCE,
+        |line| line.contains("module started") && field(line, "module") == Some(module),
+    );
     field(&line, "pid").unwrap().parse().unwrap()
 }
 
@@ -273,7 +290,10 @@ fn hosts_authenticate_with_the_runs_secret() {
             line.contains("host `robot1` unreachable") && line.contains("secret")
         });
         assert!(
-            !host.lines().iter().any(|line| line.contains("module started")),
+            !host
+                .lines()
+                .iter()
+                .any(|line| line.contains("module started")),
             "{}",
             host.lines().join("\n")
         );
@@ -327,7 +347,10 @@ fn armor_check_reports_a_module_type_missing_on_a_host() {
     assert!(!stdout.contains("`counter` is not on host"), "{stdout}");
     // A query does not take the host over.
     assert!(
-        !host.lines().iter().any(|line| line.contains("supervisor connected")),
+        !host
+            .lines()
+            .iter()
+            .any(|line| line.contains("supervisor connected")),
         "{}",
         host.lines().join("\n")
     );
@@ -340,7 +363,10 @@ fn loopback_host(offset_ms: i64) -> (Proc, u16) {
         Command::new(bin("armor"))
             .args(["host", "--name", "robot1", "--listen", "127.0.0.1:0"])
             .env("ARMOR_MODULE_PATH", bin_dir())
-            .env(armor_runtime::host::ENV_CLOCK_OFFSET_MS, offset_ms.to_string()),
+            .env(
+                armor_runtime::host::ENV_CLOCK_OFFSET_MS,
+                offset_ms.to_string(),
+            ),
     );
     let line = host.wait_for("with its address", PATIENCE, |line| {
         line.starts_with(armor_runtime::host::HOST_READY_PREFIX)

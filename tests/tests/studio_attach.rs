@@ -126,12 +126,16 @@ fn the_studio_attaches_pauses_resumes_and_detaches_without_stopping_the_run() {
 
     harness.get_by_label("⏸ Pause").click();
     step_until(&mut harness, "the mission paused", |h| {
-        status(h.state()).mission.is_some_and(|mission| mission.paused)
+        status(h.state())
+            .mission
+            .is_some_and(|mission| mission.paused)
     });
     assert!(paused(addr), "the run itself is paused");
     harness.get_by_label("⏵ Resume").click();
     step_until(&mut harness, "the mission resumed", |h| {
-        status(h.state()).mission.is_some_and(|mission| !mission.paused)
+        status(h.state())
+            .mission
+            .is_some_and(|mission| !mission.paused)
     });
     assert!(!paused(addr));
 

@@ -42,7 +42,8 @@ impl AttachPrompt {
                         .hint_text("10.0.0.2:7420"),
                 );
                 field.request_focus();
-                let enter = field.lost_focus() && ui.input(|input| input.key_pressed(egui::Key::Enter));
+                let enter =
+                    field.lost_focus() && ui.input(|input| input.key_pressed(egui::Key::Enter));
                 if let Some(error) = &self.error {
                     ui.colored_label(ui.visuals().error_fg_color, error);
                 }

@@ -509,10 +509,7 @@ impl RunView {
             });
             let attached = self.session.as_ref().is_some_and(RunSession::is_attached);
             let (stop_label, stop_hover) = if attached {
-                (
-                    "⏏ Detach",
-                    "stop watching: the run goes on (Shift+F5)",
-                )
+                ("⏏ Detach", "stop watching: the run goes on (Shift+F5)")
             } else {
                 ("■ Stop", "stop every module in order (Shift+F5)")
             };

@@ -443,7 +443,10 @@ mod tests {
         before.stats.received_bytes = [("odometry".to_owned(), 1_000)].into();
         after.stats.received_bytes = [("odometry".to_owned(), 26_000)].into();
         let rates = rates(&before, &after);
-        assert_eq!(rates.received_bytes, vec![("odometry".to_owned(), 25_000.0)]);
+        assert_eq!(
+            rates.received_bytes,
+            vec![("odometry".to_owned(), 25_000.0)]
+        );
         assert_eq!(bandwidth_text(25_000.0), "25.0 kB/s");
         assert_eq!(bandwidth_text(2_500_000.0), "2.5 MB/s");
         assert_eq!(bandwidth_text(12.0), "12 B/s");

@@ -58,7 +58,15 @@ impl FarSide {
         ])?;
         ip(&["addr", "add", &format!("{NEAR}/24"), "dev", &side.veth])?;
         ip(&["link", "set", &side.veth, "up"])?;
-        ip(&["-n", &side.ns, "addr", "add", &format!("{FAR}/24"), "dev", "abf"])?;
+        ip(&[
+            "-n",
+            &side.ns,
+            "addr",
+            "add",
+            &format!("{FAR}/24"),
+            "dev",
+            "abf",
+        ])?;
         ip(&["-n", &side.ns, "link", "set", "abf", "up"])?;
         ip(&["-n", &side.ns, "link", "set", "lo", "up"])?;
         Ok(side)
@@ -102,9 +110,11 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
         reference.push(startup(&armor, &local)?);
     }
     host.check_alive()?;
-    Ok(Report::single(NAME, "ms", median(&ours), median(&reference))
-        .with("remote_modules", MODULES / 2)
-        .with("reference_is", "the same ten counters all on this machine"))
+    Ok(
+        Report::single(NAME, "ms", median(&ours), median(&reference))
+            .with("remote_modules", MODULES / 2)
+            .with("reference_is", "the same ten counters all on this machine"),
+    )
 }
 
 /// Ten counters, the odd ones on the far host when `split`.

@@ -20,11 +20,11 @@ use std::sync::mpsc::{self, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use armor_module_api::ENV_RUN_DIR;
 use armor_module_api::auth::{Admit, ENV_ENCRYPT, ENV_KEY, ENV_SECRET_FILE, Listen, Secret};
 use armor_module_api::clock::unix_now_ns;
-use armor_module_api::wire::blocking::{self, SecureStream};
 use armor_module_api::wire::WireError;
-use armor_module_api::ENV_RUN_DIR;
+use armor_module_api::wire::blocking::{self, SecureStream};
 use serde::{Deserialize, Serialize};
 
 use crate::probe;
@@ -57,9 +57,14 @@ pub enum ToHost {
         query: bool,
     },
     /// What time is it on the host? (clock skew)
-    Time { id: u64 },
+    Time {
+        id: u64,
+    },
     /// Which of these module types has the host no binary for?
-    Check { id: u64, types: Vec<String> },
+    Check {
+        id: u64,
+        types: Vec<String>,
+    },
     /// Start a module. `generation` tells this start from the module's earlier ones.
     Spawn {
         name: String,
@@ -244,7 +249,10 @@ impl Daemon {
         };
         if query {
             while let Ok(message) = blocking::read_message::<ToHost>(&mut reader) {
-                if matches!(message, ToHost::Check { .. } | ToHost::Time { .. } | ToHost::Ping) {
+                if matches!(
+                    message,
+                    ToHost::Check { .. } | ToHost::Time { .. } | ToHost::Ping
+                ) {
                     self.handle(message, &tx);
                 }
             }
@@ -335,9 +343,9 @@ impl Daemon {
                     tracing::debug!("`{run}` asks questions");
                 } else {
                     tracing::info!(
-                    run,
-                    "serving run `{run}`; its modules stop {:.1} s after the supervisor is lost",
-                    orphan.as_secs_f64()
+                        run,
+                        "serving run `{run}`; its modules stop {:.1} s after the supervisor is lost",
+                        orphan.as_secs_f64()
                     );
                 }
                 let _ = tx.send(FromHost::Welcome {

@@ -42,10 +42,11 @@ pub fn connect_hosts(
         .hosts
         .iter()
         .filter(|host| {
-            system
-                .modules
-                .iter()
-                .any(|module| system.placement(module).is_some_and(|at| at.name == host.name))
+            system.modules.iter().any(|module| {
+                system
+                    .placement(module)
+                    .is_some_and(|at| at.name == host.name)
+            })
         })
         .collect();
     let links: BTreeMap<String, HostLink> = used
@@ -139,10 +140,9 @@ pub fn take_notes(hosts: &BTreeMap<String, HostLink>, server: &ConfigServer) {
                         }
                     }
                 }
-                HostNote::Unreachable { why } => tracing::warn!(
-                    "host `{}` unreachable: {why}; trying again",
-                    link.name()
-                ),
+                HostNote::Unreachable { why } => {
+                    tracing::warn!("host `{}` unreachable: {why}; trying again", link.name())
+                }
                 HostNote::SpawnFailed { module, error } => {
                     tracing::error!(module, "cannot start on host `{}`: {error}", link.name());
                 }

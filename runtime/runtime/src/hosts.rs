@@ -448,8 +448,13 @@ pub fn missing_types(
     types: Vec<String>,
 ) -> anyhow::Result<Vec<String>> {
     // A query: the host stays with the run that uses it, if one does.
-    let (mut reader, mut writer, _) =
-        connect(&decl.daemon_addr(), secret, "armor check", Duration::ZERO, true)?;
+    let (mut reader, mut writer, _) = connect(
+        &decl.daemon_addr(),
+        secret,
+        "armor check",
+        Duration::ZERO,
+        true,
+    )?;
     blocking::write_message(&mut writer, &ToHost::Check { id: 1, types })?;
     loop {
         match blocking::read_message::<FromHost>(&mut reader)? {

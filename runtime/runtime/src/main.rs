@@ -653,16 +653,16 @@ fn check(file: &std::path::Path, secret: Option<&armor_module_api::auth::Secret>
         Ok(mission::DocumentKind::System) => load::load_system(file, &module_path)
             .and_then(|loaded| check_hosts(file, &loaded.system, secret).map(|()| loaded))
             .map(|loaded| {
-            (
-                format!(
-                    "system `{}`: {}, {}",
-                    loaded.system.name,
-                    plural(loaded.system.modules.len(), "module"),
-                    plural(loaded.system.links.len(), "link")
-                ),
-                Vec::new(),
-            )
-        }),
+                (
+                    format!(
+                        "system `{}`: {}, {}",
+                        loaded.system.name,
+                        plural(loaded.system.modules.len(), "module"),
+                        plural(loaded.system.links.len(), "link")
+                    ),
+                    Vec::new(),
+                )
+            }),
         Ok(_) => mission::load_mission(file, &module_path).map(|mission| {
             (
                 format!(
@@ -700,7 +700,11 @@ fn check_hosts(
         let placed: Vec<&armor_model::ModuleInstance> = system
             .modules
             .iter()
-            .filter(|module| system.placement(module).is_some_and(|at| at.name == host.name))
+            .filter(|module| {
+                system
+                    .placement(module)
+                    .is_some_and(|at| at.name == host.name)
+            })
             .collect();
         if placed.is_empty() {
             continue;

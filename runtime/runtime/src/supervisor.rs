@@ -806,7 +806,8 @@ impl ModuleProc {
                 return;
             }
         };
-        let lost = matches!(&self.child, Some(ModuleChild::Remote(child)) if child.lost_with_host());
+        let lost =
+            matches!(&self.child, Some(ModuleChild::Remote(child)) if child.lost_with_host());
         self.child = None;
         if lost {
             // Not a crash of its own: it comes back when its host does.

@@ -519,7 +519,10 @@ fn modules_are_placed_on_declared_hosts() {
     assert_eq!(system.hosts[0].daemon_addr(), "10.0.0.2:7410");
     assert_eq!(system.hosts[1].daemon_addr(), "[fe80::2]:7500");
     let [a, b, c] = [0, 1, 2].map(|i| &system.modules[i]);
-    assert_eq!(system.placement(a).map(|host| host.name.as_str()), Some("robot1"));
+    assert_eq!(
+        system.placement(a).map(|host| host.name.as_str()),
+        Some("robot1")
+    );
     // A host that names no declaration is an address on the supervisor's machine, as before.
     assert_eq!(system.placement(b), None);
     assert_eq!(system.placement(c), None);
