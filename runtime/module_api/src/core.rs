@@ -362,3 +362,45 @@ impl Core {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::types::Blob;
+
+    #[test]
+    fn a_links_rate_from_the_configuration_is_asked_of_the_provider() {
+        let spec = crate::ModuleSpec::new("m", "a test module")
+            .input::<Blob>("scan", "rate-limited")
+            .input::<Blob>("odometry", "every sample");
+        let config = ModuleConfig {
+            input_rates: [("scan".to_owned(), 5.0)].into(),
+            ..ModuleConfig::default()
+        };
+        let mut core = Core::new(
+            "m".to_owned(),
+            spec.description().clone(),
+            config,
+            Clock::new(0, 1.0),
+        );
+        let rate = |core: &Core, name: &str| {
+            core.inputs
+                .iter()
+                .find(|slot| slot.name == name)
+                .and_then(|slot| slot.max_rate_hz)
+        };
+        assert_eq!(rate(&core, "scan"), Some(5.0));
+        assert_eq!(rate(&core, "odometry"), None);
+        // What arrives is counted in bytes too: the link's bandwidth.
+        let frame = DataFrame {
+            seq: 1,
+            stamp_ns: 0,
+            payload: vec![0; 100],
+        };
+        core.deliver(0, frame);
+        assert_eq!(
+            core.stats().received_bytes,
+            [("scan".to_owned(), 100)].into()
+        );
+    }
+}
