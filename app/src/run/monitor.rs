@@ -102,6 +102,10 @@ pub fn module_row(
         ui.label(RichText::new(&module.name).strong())
             .on_hover_text(format!("type {}", module.module_type));
         ui.label(RichText::new(module.state.as_str()).color(colour));
+        if let Some(host) = &module.host {
+            ui.label(RichText::new(format!("on {host}")).weak())
+                .on_hover_text("started by that computer's armor host");
+        }
         // Why it runs (`place cross_drive`, `needed by follower.odometry`): activation on demand.
         if let (true, None, Some(why)) = (module.controllable, module.manual, &module.why) {
             ui.label(RichText::new(why).weak());

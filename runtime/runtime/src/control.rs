@@ -167,6 +167,9 @@ pub struct ModuleStatus {
     /// `None` when nothing needs it and it idles.
     #[serde(default)]
     pub why: Option<String>,
+    /// The declared host it runs on (`armor host`), or `None` for the supervisor's machine.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

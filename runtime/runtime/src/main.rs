@@ -818,6 +818,9 @@ fn status_text(status: &control::Status) -> String {
             module.module_type,
             module.state.as_str()
         );
+        if let Some(host) = &module.host {
+            let _ = write!(out, " on host `{host}`");
+        }
         match (module.manual, &module.why) {
             (Some(true), _) => out.push_str(", started by hand"),
             (Some(false), _) => out.push_str(", stopped by hand"),

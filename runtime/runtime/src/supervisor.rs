@@ -607,6 +607,7 @@ fn run_status(
                 last_exit: module.last_exit.clone(),
                 stats: stats.remove(&module.name),
                 why: demand.get(&module.name).map(ToString::to_string),
+                host: module.host.clone(),
             }
         })
         .collect();
