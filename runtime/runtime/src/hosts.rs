@@ -22,6 +22,8 @@ use crate::host::{FromHost, PING_EVERY, SUPERVISOR_IDENTITY, ToHost};
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(1);
 /// Silence from a host after which it is lost (it answers every ping).
 pub const HOST_SILENCE: Duration = Duration::from_secs(2);
+/// Round trips the clock offset is measured over, at each join.
+const CLOCK_SAMPLES: usize = 5;
 /// Between two connection attempts to a host that is away.
 const RETRY_EVERY: Duration = Duration::from_millis(300);
 /// The raw wait status of a module that went with its host (as if killed by SIGKILL).
@@ -308,28 +310,34 @@ impl HostLink {
             }
         });
         let _ = reader.get_ref().set_read_timeout(Some(HOST_SILENCE));
-        // The clock, measured over the first round trip (answered by the reader below).
+        // The clock, as NTP does: over a few round trips (answered by the reader below), the
+        // one that took least bounds the error best (half its round trip).
         let measurer = self.clone();
         std::thread::spawn(move || {
-            let sent = unix_now_ns();
-            let answer = measurer.ask(|id| ToHost::Time { id }, HOST_SILENCE);
-            let back = unix_now_ns();
-            let note = match answer {
-                Some(FromHost::Time { unix_ns, .. }) => {
-                    let middle = sent as f64 / 2.0 + back as f64 / 2.0;
-                    let offset_ms = (unix_ns as f64 - middle) / 1e6;
-                    measurer.lock().offset_ms = Some(offset_ms);
-                    HostNote::Joined {
-                        offset_ms,
-                        round_trip_ms: back.saturating_sub(sent) as f64 / 1e6,
-                    }
+            let mut best: Option<(f64, f64)> = None;
+            for _ in 0..CLOCK_SAMPLES {
+                let sent = unix_now_ns();
+                let answer = measurer.ask(|id| ToHost::Time { id }, HOST_SILENCE);
+                let back = unix_now_ns();
+                let Some(FromHost::Time { unix_ns, .. }) = answer else {
+                    break;
+                };
+                let middle = sent as f64 / 2.0 + back as f64 / 2.0;
+                let offset_ms = (unix_ns as f64 - middle) / 1e6;
+                let round_trip_ms = back.saturating_sub(sent) as f64 / 1e6;
+                if best.is_none_or(|(_, best_trip)| round_trip_ms < best_trip) {
+                    best = Some((offset_ms, round_trip_ms));
                 }
-                _ => HostNote::Joined {
-                    offset_ms: f64::NAN,
-                    round_trip_ms: f64::NAN,
-                },
-            };
-            measurer.lock().notes.push(note);
+            }
+            let (offset_ms, round_trip_ms) = best.unwrap_or((f64::NAN, f64::NAN));
+            let mut state = measurer.lock();
+            if best.is_some() {
+                state.offset_ms = Some(offset_ms);
+            }
+            state.notes.push(HostNote::Joined {
+                offset_ms,
+                round_trip_ms,
+            });
         });
         let why = loop {
             let message = match blocking::read_message::<FromHost>(&mut reader) {
