@@ -43,6 +43,9 @@ pub struct Options {
     /// Show the start page while the studio holds no document (the window does; tests that
     /// drive the canvas from the first frame do not ask for it).
     pub start_page: bool,
+    /// Attach the Run view to the run whose control interface is here, from the first frame
+    /// (`armor-studio --attach ADDR`).
+    pub attach: Option<std::net::SocketAddr>,
 }
 
 impl Options {
@@ -54,6 +57,7 @@ impl Options {
             file: None,
             autosave_every: Duration::from_secs(5),
             start_page: false,
+            attach: None,
         }
     }
 }
@@ -100,6 +104,8 @@ pub struct StudioApp {
     quitting: bool,
     /// Given up on closing: no recovery copy is to be left.
     discard_on_exit: bool,
+    /// A run to attach to at the first frame (`--attach`).
+    attach_at_start: Option<std::net::SocketAddr>,
 }
 
 impl StudioApp {
@@ -136,7 +142,11 @@ impl StudioApp {
             after_save_as: None,
             quitting: false,
             discard_on_exit: false,
+            attach_at_start: options.attach,
         };
+        if options.attach.is_some() {
+            app.start = None;
+        }
         if let Some(file) = options.file {
             if is_plan(&file) {
                 app.view = View::Mission;
@@ -197,9 +207,12 @@ impl StudioApp {
         self.run.start(target, &mut surroundings, ctx);
     }
 
-    /// Watches a run of the open system started elsewhere, through its control interface.
+    /// Watches a run started elsewhere, through its control interface: with the open system's
+    /// live views when a system is open, else its modules, mission and controls.
     pub fn attach_run(&mut self, control: std::net::SocketAddr, ctx: &egui::Context) {
+        self.set_view(View::Run);
         let Some(system) = self.system.path.clone() else {
+            self.run.attach_bare(control, ctx);
             return;
         };
         let mut surroundings = RunSurroundings {
@@ -290,6 +303,9 @@ impl StudioApp {
             ctx.request_repaint_after(Duration::from_millis(50));
         }
         self.handle_screenshots(&ctx);
+        if let Some(control) = self.attach_at_start.take() {
+            self.attach_run(control, &ctx);
+        }
         self.shortcuts(&ctx);
         self.run.poll();
         for (ok, message) in std::mem::take(&mut self.run.messages) {
@@ -315,6 +331,7 @@ impl StudioApp {
         command::help_ui(ui.ctx(), &mut self.help_open);
         self.recovery_ui(ui);
         self.unsaved_ui(ui);
+        self.attach_ui(&ctx);
 
         self.system.apply_commands(&ctx, &self.palette.catalog);
         self.show_system_messages();
@@ -324,6 +341,21 @@ impl StudioApp {
             tracing::info!("window ready");
         }
         self.started = true;
+    }
+
+    /// Run → Attach…'s prompt, while it is open.
+    fn attach_ui(&mut self, ctx: &egui::Context) {
+        let Some(prompt) = &mut self.run.attach_prompt else {
+            return;
+        };
+        match prompt.ui(ctx) {
+            None => {}
+            Some(crate::run::attach::Answer::Cancel) => self.run.attach_prompt = None,
+            Some(crate::run::attach::Answer::Attach(control)) => {
+                self.run.attach_prompt = None;
+                self.attach_run(control, ctx);
+            }
+        }
     }
 
     /// The Mission view: tools, inspector, net, map.
@@ -445,6 +477,16 @@ impl StudioApp {
     fn execute(&mut self, command: UiCommand, ctx: &egui::Context, from_menu: bool) {
         match (self.view, command) {
             (_, UiCommand::Stop) => self.run.stop(),
+            (_, UiCommand::Attach) => {
+                let last = self
+                    .run
+                    .session
+                    .as_ref()
+                    .and_then(|session| session.shared().control_addr)
+                    .map(|addr| addr.to_string())
+                    .unwrap_or_default();
+                self.run.attach_prompt = Some(crate::run::attach::AttachPrompt::new(&last));
+            }
             (_, UiCommand::Run) => {
                 if !self.run.is_running() {
                     self.start_run(ctx);

@@ -37,6 +37,7 @@ pub enum UiCommand {
     Help,
     Run,
     Stop,
+    Attach,
     New,
     ExportPng,
     Arrange,
@@ -55,7 +56,7 @@ const fn key(modifiers: Modifiers, key: Key) -> KeyboardShortcut {
 }
 
 impl UiCommand {
-    pub const ALL: [UiCommand; 28] = [
+    pub const ALL: [UiCommand; 29] = [
         UiCommand::Save,
         UiCommand::SaveAs,
         UiCommand::Open,
@@ -76,6 +77,7 @@ impl UiCommand {
         UiCommand::Help,
         UiCommand::Run,
         UiCommand::Stop,
+        UiCommand::Attach,
         UiCommand::New,
         UiCommand::ExportPng,
         UiCommand::Arrange,
@@ -124,6 +126,7 @@ impl UiCommand {
             UiCommand::Help => "Keyboard shortcuts",
             UiCommand::Run => "Run",
             UiCommand::Stop => "Stop",
+            UiCommand::Attach => "Attach…",
         }
     }
 
@@ -160,6 +163,7 @@ impl UiCommand {
             UiCommand::Run => const { &[key(Modifiers::NONE, Key::F5)] },
             UiCommand::Stop => const { &[key(Modifiers::SHIFT, Key::F5)] },
             UiCommand::New
+            | UiCommand::Attach
             | UiCommand::ExportPng
             | UiCommand::Arrange
             | UiCommand::ImportGpx
@@ -204,7 +208,8 @@ impl UiCommand {
             UiCommand::Find => "find a block",
             UiCommand::Help => "this sheet",
             UiCommand::Run => "run the open plan, else the system (Run view)",
-            UiCommand::Stop => "stop the run",
+            UiCommand::Stop => "stop the run (detach from one attached to)",
+            UiCommand::Attach => "watch and operate a run started elsewhere (its control address)",
             UiCommand::New => "a new document",
             UiCommand::ExportPng => "export a picture",
             UiCommand::Arrange => "lay the blocks out by data flow, sources left",
@@ -237,6 +242,7 @@ impl UiCommand {
             | UiCommand::Up
             | UiCommand::Find => view == View::System,
             UiCommand::New
+            | UiCommand::Attach
             | UiCommand::ExportPng
             | UiCommand::Arrange
             | UiCommand::ImportGpx
@@ -419,6 +425,7 @@ const RUN_MENUS: &[Menu] = &[
         items: &[
             Item(UiCommand::Run),
             Item(UiCommand::Stop),
+            Item(UiCommand::Attach),
             Separator,
             Item(UiCommand::Open),
         ],
@@ -609,7 +616,10 @@ mod tests {
         assert_eq!(
             labels(View::Run),
             [
-                ("Run", vec!["Run", "Stop", "---", "Open recording…"]),
+                (
+                    "Run",
+                    vec!["Run", "Stop", "Attach…", "---", "Open recording…"]
+                ),
                 (
                     "View",
                     vec![

@@ -80,6 +80,10 @@ pub struct Diagram {
     pub name: String,
     /// The system's host attribute, kept as it was read.
     pub host: Option<String>,
+    /// The system's `<host>` declarations (the robot's other computers), kept as read.
+    pub hosts: Vec<armor_model::HostDecl>,
+    /// Links' `max_rate_hz`, by the input they feed (`module.input`), kept as read.
+    pub link_rates: BTreeMap<String, f64>,
     /// Ordered by id, which is creation order: the file is written in that order.
     blocks: BTreeMap<BlockId, Block>,
     links: BTreeSet<Link>,
@@ -134,6 +138,8 @@ impl Diagram {
         Diagram {
             name: name.to_owned(),
             host: None,
+            hosts: Vec::new(),
+            link_rates: BTreeMap::new(),
             blocks: BTreeMap::new(),
             links: BTreeSet::new(),
             groups: BTreeMap::new(),
@@ -550,11 +556,19 @@ impl Diagram {
                 pos: Default::default(),
                 from_pos: Default::default(),
                 to_pos: Default::default(),
+                max_rate_hz: (link.fallback == 0)
+                    .then(|| {
+                        self.link_rates
+                            .get(&endpoint(&link.to).to_string())
+                            .copied()
+                    })
+                    .flatten(),
             })
             .collect();
         SystemConfig {
             name: self.name.clone(),
             host: self.host.clone(),
+            hosts: self.hosts.clone(),
             modules,
             links,
             subsystems: self.subsystems(),
@@ -682,6 +696,12 @@ impl Diagram {
         let unlaid = layout.is_empty();
         let mut diagram = Diagram::new(&system.name);
         diagram.host.clone_from(&system.host);
+        diagram.hosts.clone_from(&system.hosts);
+        diagram.link_rates = system
+            .links
+            .iter()
+            .filter_map(|link| Some((link.to.to_string(), link.max_rate_hz?)))
+            .collect();
         let mut by_name = BTreeMap::new();
         for (index, module) in system.modules.iter().enumerate() {
             let pos = layout

@@ -42,8 +42,18 @@ impl eframe::App for Window {
 
 /// Opens the studio's window, with `file` loaded if given.
 pub fn run(file: Option<PathBuf>) -> anyhow::Result<()> {
+    run_attached(file, None)
+}
+
+/// Opens the studio's window, with `file` loaded if given, its Run view attached to the run
+/// whose control interface is at `attach` if given.
+pub fn run_attached(
+    file: Option<PathBuf>,
+    attach: Option<std::net::SocketAddr>,
+) -> anyhow::Result<()> {
     let mut options = Options::new(files::Home::new(files::default_home()));
     options.file = file;
+    options.attach = attach;
     options.start_page = true;
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()

@@ -11,6 +11,7 @@
 //! on-screen pad; each module's log is kept and filterable. A recording of the recorder opens
 //! into the same map.
 
+pub mod attach;
 pub mod followed;
 pub mod inspector;
 pub mod live;
@@ -111,6 +112,8 @@ pub struct RunView {
     pub timeline_at: Option<f64>,
     /// How many markers of each module the live map drew at the last frame (for tests).
     pub markers_drawn: BTreeMap<String, usize>,
+    /// Run → Attach…'s prompt, while it is open.
+    pub attach_prompt: Option<attach::AttachPrompt>,
 }
 
 impl RunView {
@@ -143,6 +146,7 @@ impl RunView {
             inspected: None,
             timeline_at: None,
             markers_drawn: BTreeMap::new(),
+            attach_prompt: None,
         }
     }
 
@@ -259,6 +263,26 @@ impl RunView {
         ctx: &egui::Context,
     ) {
         let options = self.options(&target, surroundings, ctx);
+        self.session = Some(RunSession::attach(options, control, ctx));
+        self.messages
+            .push((true, format!("watching the run at {control}")));
+    }
+
+    /// Watches a run started elsewhere whose system file the studio does not have: its
+    /// modules, mission and controls, without the live map's sources.
+    pub fn attach_bare(&mut self, control: std::net::SocketAddr, ctx: &egui::Context) {
+        self.stop();
+        self.recording = None;
+        let options = RunOptions {
+            target: PathBuf::new(),
+            time_scale: self.time_scale,
+            start_at: None,
+            working_dir: self.working_dir.clone(),
+            module_path: self.module_path.clone(),
+            sources: Sources::default(),
+            secret: Some(PathBuf::from(self.secret_file.trim()))
+                .filter(|file| !file.as_os_str().is_empty()),
+        };
         self.session = Some(RunSession::attach(options, control, ctx));
         self.messages
             .push((true, format!("watching the run at {control}")));
@@ -505,9 +529,15 @@ impl RunView {
                     ui.checkbox(&mut self.prefer_system, "system only");
                 }
             });
+            let attached = self.session.as_ref().is_some_and(RunSession::is_attached);
+            let (stop_label, stop_hover) = if attached {
+                ("⏏ Detach", "stop watching: the run goes on (Shift+F5)")
+            } else {
+                ("■ Stop", "stop every module in order (Shift+F5)")
+            };
             if ui
-                .add_enabled(running, egui::Button::new("■ Stop"))
-                .on_hover_text("stop every module in order (Shift+F5)")
+                .add_enabled(running, egui::Button::new(stop_label))
+                .on_hover_text(stop_hover)
                 .clicked()
             {
                 self.stop();
@@ -523,8 +553,32 @@ impl RunView {
                 self.fit_pending = true;
             }
             ui.separator();
+            let lost = self.session.as_ref().and_then(|session| {
+                let shared = session.shared();
+                let (since, why) = shared.connection_lost.clone()?;
+                // The cause without the address, which the status line shows already.
+                let cause = why.rsplit(": ").next().unwrap_or(&why);
+                let ago = (session.elapsed_secs() - since).max(0.0);
+                Some(if shared.status.is_some() {
+                    format!(
+                        "connection lost {ago:.0} s ago, retrying — {cause}; the state shown is \
+                         the last known"
+                    )
+                } else {
+                    format!("cannot reach the run, retrying — {cause}")
+                })
+            });
+            if let (Some(lost), true) = (&lost, running) {
+                ui.colored_label(ui.visuals().error_fg_color, lost);
+            }
             let text = match (&self.session, status) {
                 (Some(session), _) if session.is_stopping() => "stopping…".to_owned(),
+                (Some(session), Some(status)) if session.is_attached() && session.is_running() => {
+                    format!(
+                        "attached to {} — {:.1} s of run time (×{})",
+                        status.system, status.run_secs, status.time_scale
+                    )
+                }
                 (Some(session), Some(status)) if session.is_running() => format!(
                     "{} — {:.1} s of run time (×{})",
                     status.system, status.run_secs, status.time_scale

@@ -43,6 +43,8 @@ pub struct Rates {
     /// Samples per second, per output (data name) and per input (name, after the outputs).
     pub sent: Vec<(String, f64)>,
     pub received: Vec<(String, f64)>,
+    /// Payload bytes per second, per input: the bandwidth of the link into it.
+    pub received_bytes: Vec<(String, f64)>,
 }
 
 /// The rates between two samples (a process restarted in between counts from zero).
@@ -70,6 +72,18 @@ pub fn rates(before: &Sample, after: &Sample) -> Rates {
         },
         sent: per(&after.stats.sent, &before.stats.sent),
         received: per(&after.stats.received, &before.stats.received),
+        received_bytes: per(&after.stats.received_bytes, &before.stats.received_bytes),
+    }
+}
+
+/// A link's bandwidth, `12.3 kB/s` (decimal units, as network rates are given).
+pub fn bandwidth_text(bytes_per_sec: f64) -> String {
+    if bytes_per_sec >= 1e6 {
+        format!("{:.1} MB/s", bytes_per_sec / 1e6)
+    } else if bytes_per_sec >= 1e3 {
+        format!("{:.1} kB/s", bytes_per_sec / 1e3)
+    } else {
+        format!("{bytes_per_sec:.0} B/s")
     }
 }
 
@@ -88,6 +102,10 @@ pub fn module_row(
         ui.label(RichText::new(&module.name).strong())
             .on_hover_text(format!("type {}", module.module_type));
         ui.label(RichText::new(module.state.as_str()).color(colour));
+        if let Some(host) = &module.host {
+            ui.label(RichText::new(format!("on {host}")).weak())
+                .on_hover_text("started by that computer's armor host");
+        }
         // Why it runs (`place cross_drive`, `needed by follower.odometry`): activation on demand.
         if let (true, None, Some(why)) = (module.controllable, module.manual, &module.why) {
             ui.label(RichText::new(why).weak());
@@ -155,6 +173,9 @@ pub fn module_row(
     }
     for (name, rate) in &now.received {
         line.push_str(&format!(" · in {name} {rate:.1}/s"));
+        if let Some((_, bytes)) = now.received_bytes.iter().find(|(input, _)| input == name) {
+            line.push_str(&format!(" {}", bandwidth_text(*bytes)));
+        }
     }
     ui.label(RichText::new(line).small());
     // The first output's rate over time, else the loop's.
@@ -417,6 +438,22 @@ mod tests {
         assert_eq!(rates.cycles_per_sec, 200.0);
         assert_eq!(rates.cycle_ms, 0.02);
         assert_eq!(rates.sent, vec![("sim.odometry".to_owned(), 50.0)]);
+    }
+
+    #[test]
+    fn a_links_bandwidth_is_its_bytes_over_time() {
+        let mut before = sample(1.0, 0, 0, 0);
+        let mut after = sample(2.0, 0, 0, 0);
+        before.stats.received_bytes = [("odometry".to_owned(), 1_000)].into();
+        after.stats.received_bytes = [("odometry".to_owned(), 26_000)].into();
+        let rates = rates(&before, &after);
+        assert_eq!(
+            rates.received_bytes,
+            vec![("odometry".to_owned(), 25_000.0)]
+        );
+        assert_eq!(bandwidth_text(25_000.0), "25.0 kB/s");
+        assert_eq!(bandwidth_text(2_500_000.0), "2.5 MB/s");
+        assert_eq!(bandwidth_text(12.0), "12 B/s");
     }
 
     #[test]

@@ -93,6 +93,9 @@ pub struct Shared {
     pub replies: Vec<(bool, String)>,
     /// How the run ended, once it has.
     pub ended: Option<String>,
+    /// The control interface does not answer (why), since when (real seconds of the session);
+    /// it is asked again at every poll.
+    pub connection_lost: Option<(f64, String)>,
     pub live: live::SharedLive,
 }
 
@@ -273,6 +276,11 @@ impl RunSession {
     /// holds a command for its dead-man time, so a command must be sent again while held.
     pub fn teleop(&self, linear: f64, angular: f64) {
         let _ = self.teleop.send((linear, angular));
+    }
+
+    /// Watching a run started elsewhere: stopping only detaches.
+    pub fn is_attached(&self) -> bool {
+        self.attached
     }
 
     pub fn is_running(&self) -> bool {
@@ -544,6 +552,7 @@ fn poll_control(
         let mut shared_now = lock(shared);
         match reply {
             Ok(reply) => {
+                shared_now.connection_lost = None;
                 if !is_status {
                     shared_now.replies.push((reply.ok, reply.message));
                 }
@@ -577,9 +586,15 @@ fn poll_control(
                     shared_now.status = Some(status);
                 }
             }
-            Err(err) if !is_status => shared_now.replies.push((false, format!("{err:#}"))),
-            // The run is ending: its last state stays shown.
-            Err(_) => {}
+            Err(err) => {
+                if shared_now.connection_lost.is_none() {
+                    shared_now.connection_lost = Some((at_secs, format!("{err:#}")));
+                }
+                if !is_status {
+                    shared_now.replies.push((false, format!("{err:#}")));
+                }
+                // The run's last state stays shown.
+            }
         }
         drop(shared_now);
         ctx.request_repaint();

@@ -27,7 +27,7 @@ const LINK_PROBE: Duration = Duration::from_millis(20);
 /// After the first pong, how long stale pongs are drained.
 const SETTLE: Duration = Duration::from_millis(50);
 
-struct Counts {
+pub(crate) struct Counts {
     warm_up: usize,
     /// Timed round trips per block; blocks alternate between ArMoR and the reference, so that
     /// a change in the machine's load weighs on both alike.
@@ -65,7 +65,7 @@ pub fn run_encrypted(settings: &Settings) -> anyhow::Result<Report> {
     run_secured(NAME_ENCRYPTED, &Security::with_secret(true)?, settings)
 }
 
-fn counts(size: usize, settings: &Settings) -> Counts {
+pub(crate) fn counts(size: usize, settings: &Settings) -> Counts {
     // Fewer round trips for large messages: a 1 MiB one takes about a millisecond.
     let scale = (size / 1024).max(1);
     if settings.quick {
@@ -84,7 +84,7 @@ fn counts(size: usize, settings: &Settings) -> Counts {
 }
 
 /// Alternating blocks of round trips on `ours` and `reference`.
-fn alternate(
+pub(crate) fn alternate(
     ours: &mut impl FnMut(usize) -> anyhow::Result<Vec<Duration>>,
     reference: &mut impl FnMut(usize) -> anyhow::Result<Vec<Duration>>,
     counts: &Counts,
@@ -134,7 +134,7 @@ fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Resu
 
 /// The bench's node (output `ping`, reliable input `pong` bound to `echo.output`) and the echo
 /// process (input bound to `bench.ping`).
-struct ArmorPingPong {
+pub(crate) struct ArmorPingPong {
     node: Node,
     ping: Output<Blob>,
     pong: Input<Blob>,
@@ -147,14 +147,21 @@ impl ArmorPingPong {
     /// Connects both ways: keeps sending until a pong comes back.
     fn start(size: usize, security: &Security) -> anyhow::Result<Self> {
         let agent = security.agent()?;
-        let spec = ModuleSpec::new("bench", "armor-bench: the latency probe")
-            .output::<Blob>("ping", "messages, each stamped with its sequence number")
-            .input::<Blob>("pong", "the same messages, echoed");
-        let mut node = security.connect(spec, agent, &[("pong", "echo.output")])?;
+        let node = security.connect(spec(), agent, &[("pong", "echo.output")])?;
+        Self::link(node, size, |agent| spawn_echo(agent, security), agent)
+    }
+
+    /// The node's ports made, the echo started by `spawn` (given the agent's address), and the
+    /// link both ways waited for.
+    pub(crate) fn link(
+        mut node: Node,
+        size: usize,
+        spawn: impl FnOnce(&str) -> anyhow::Result<ChildGuard>,
+        agent: std::net::SocketAddr,
+    ) -> anyhow::Result<Self> {
         let ping = node.output::<Blob>("ping")?;
         let pong = node.reliable_input::<Blob>("pong")?;
-        let agent = agent.to_string();
-        let echo = spawn_echo(&agent, security)?;
+        let echo = spawn(&agent.to_string())?;
         let mut side = Self {
             node,
             ping,
@@ -188,7 +195,7 @@ impl ArmorPingPong {
     }
 
     /// Times `count` round trips, one message in flight.
-    fn round_trips(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+    pub(crate) fn round_trips(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
         let mut samples = Vec::with_capacity(count);
         for _ in 0..count {
             let start = Instant::now();
@@ -241,7 +248,7 @@ impl ArmorPingPong {
 }
 
 /// TCP ping-pong with this binary run as `--raw-echo`.
-struct RawPingPong {
+pub(crate) struct RawPingPong {
     peer: raw::Peer,
     message: Vec<u8>,
     echoed: Vec<u8>,
@@ -250,15 +257,20 @@ struct RawPingPong {
 
 impl RawPingPong {
     fn start(size: usize) -> anyhow::Result<Self> {
+        Self::over(raw::start_peer("--raw-echo", &size.to_string())?, size)
+    }
+
+    /// Ping-pong with a `--raw-echo` peer already connected.
+    pub(crate) fn over(peer: raw::Peer, size: usize) -> anyhow::Result<Self> {
         Ok(Self {
-            peer: raw::start_peer("--raw-echo", &size.to_string())?,
+            peer,
             message: vec![0xA5; size],
             echoed: vec![0; size],
             seq: 0,
         })
     }
 
-    fn round_trips(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+    pub(crate) fn round_trips(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
         let mut samples = Vec::with_capacity(count);
         for _ in 0..count {
             self.seq += 1;
@@ -278,12 +290,19 @@ impl RawPingPong {
     }
 
     /// Closes the connection and sees the peer exit cleanly.
-    fn finish(self) -> anyhow::Result<()> {
+    pub(crate) fn finish(self) -> anyhow::Result<()> {
         let raw::Peer { stream, mut child } = self.peer;
         drop(stream);
         child.wait_exit(Duration::from_secs(5))?;
         Ok(())
     }
+}
+
+/// The bench node's description: output `ping`, input `pong`.
+pub(crate) fn spec() -> ModuleSpec {
+    ModuleSpec::new("bench", "armor-bench: the latency probe")
+        .output::<Blob>("ping", "messages, each stamped with its sequence number")
+        .input::<Blob>("pong", "the same messages, echoed")
 }
 
 fn stamp(message: &mut Blob, seq: u64) {

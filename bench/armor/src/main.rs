@@ -17,6 +17,7 @@ mod arbiter_switch;
 mod benchprobe;
 mod camera_sim;
 mod compile_plan;
+mod cross;
 mod discovery;
 mod event_start;
 mod fuzz;
@@ -33,6 +34,7 @@ mod pull;
 mod qgc_import;
 mod raw;
 mod reachability;
+mod remote;
 mod sim_realtime;
 mod startup;
 mod studio;
@@ -182,6 +184,18 @@ const BENCHES: &[Bench] = &[
         name: startup::NAME,
         about: "`armor run` of ten counters until configured vs ten --describe spawns (ms)",
         run: startup::run,
+    },
+    Bench {
+        name: cross::NAME,
+        about: "round trip of 64 bytes through armor-mod-echo in another network namespace \
+                (a veth pair) vs TCP ping-pong over the same pair (ns; needs root)",
+        run: cross::run,
+    },
+    Bench {
+        name: remote::NAME,
+        about: "`armor run` of ten counters, half on an `armor host` in another network \
+                namespace, until configured vs the same all local (ms; needs root)",
+        run: remote::run,
     },
     Bench {
         name: event_start::NAME,

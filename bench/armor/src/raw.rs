@@ -74,9 +74,29 @@ pub struct Peer {
 
 /// Starts this binary as `--MODE ADDR ARG` and accepts its connection.
 pub fn start_peer(mode: &str, arg: &str) -> anyhow::Result<Peer> {
-    let listener = TcpListener::bind("127.0.0.1:0").context("cannot listen for the peer")?;
+    start_peer_on("127.0.0.1", None, mode, arg)
+}
+
+/// [`start_peer`] listening on `listen_on`, the peer run inside the network namespace `netns`
+/// when given (`ip netns exec`).
+pub fn start_peer_on(
+    listen_on: &str,
+    netns: Option<&str>,
+    mode: &str,
+    arg: &str,
+) -> anyhow::Result<Peer> {
+    let listener =
+        TcpListener::bind(format!("{listen_on}:0")).context("cannot listen for the peer")?;
     let addr = listener.local_addr()?.to_string();
-    let mut command = self_command()?;
+    let mut command = match netns {
+        None => self_command()?,
+        Some(ns) => {
+            let exe = std::env::current_exe().context("cannot locate this executable")?;
+            let mut command = std::process::Command::new("ip");
+            command.args(["netns", "exec", ns]).arg(exe);
+            command
+        }
+    };
     command.arg(mode).arg(&addr).arg(arg);
     let mut child = ChildGuard::spawn(&format!("armor-bench {mode}"), command)?;
     listener.set_nonblocking(true)?;

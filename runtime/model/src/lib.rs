@@ -37,6 +37,6 @@ pub fn plural(count: usize, noun: &str) -> String {
 }
 
 pub use system::{
-    Activation, DEFAULT_HOST, Endpoint, Link, ModuleBindings, ModuleInstance, ParamValue,
-    RestartPolicy, SystemConfig, check,
+    Activation, DEFAULT_HOST, DEFAULT_HOST_PORT, Endpoint, HostDecl, Link, ModuleBindings,
+    ModuleInstance, ParamValue, RestartPolicy, SystemConfig, check,
 };

@@ -136,6 +136,8 @@ pub(crate) struct InputSlot {
     pub notified: bool,
     /// Samples received since the module started.
     pub received: u64,
+    /// Payload bytes received since the module started.
+    pub received_bytes: u64,
     /// At most this many samples per second, asked of the provider (best-effort only).
     pub max_rate_hz: Option<f64>,
     /// Pull mode: the provider sends a sample only when asked ([`Node::pull`]).
@@ -203,7 +205,8 @@ impl Core {
                 link: 0,
                 notified: false,
                 received: 0,
-                max_rate_hz: None,
+                received_bytes: 0,
+                max_rate_hz: config.input_rates.get(&port.name).copied(),
                 pull: false,
             })
             .collect();
@@ -256,6 +259,12 @@ impl Core {
                 .collect(),
             applicable: self.applicable,
             winner: self.winner.clone(),
+            received_bytes: self
+                .inputs
+                .iter()
+                .filter(|slot| slot.received_bytes > 0)
+                .map(|slot| (slot.name.clone(), slot.received_bytes))
+                .collect(),
         }
     }
 
@@ -263,6 +272,7 @@ impl Core {
     pub fn deliver(&mut self, index: usize, frame: DataFrame) -> bool {
         let slot = &mut self.inputs[index];
         slot.received += 1;
+        slot.received_bytes += frame.payload.len() as u64;
         if slot.reliable {
             slot.queued_bytes += frame.payload.len();
             slot.queue.push_back((slot.link, frame));
@@ -358,5 +368,47 @@ impl Core {
             self.events
                 .push_back(if active { Event::Start } else { Event::Stop });
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::types::Blob;
+
+    #[test]
+    fn a_links_rate_from_the_configuration_is_asked_of_the_provider() {
+        let spec = crate::ModuleSpec::new("m", "a test module")
+            .input::<Blob>("scan", "rate-limited")
+            .input::<Blob>("odometry", "every sample");
+        let config = ModuleConfig {
+            input_rates: [("scan".to_owned(), 5.0)].into(),
+            ..ModuleConfig::default()
+        };
+        let mut core = Core::new(
+            "m".to_owned(),
+            spec.description().clone(),
+            config,
+            Clock::new(0, 1.0),
+        );
+        let rate = |core: &Core, name: &str| {
+            core.inputs
+                .iter()
+                .find(|slot| slot.name == name)
+                .and_then(|slot| slot.max_rate_hz)
+        };
+        assert_eq!(rate(&core, "scan"), Some(5.0));
+        assert_eq!(rate(&core, "odometry"), None);
+        // What arrives is counted in bytes too: the link's bandwidth.
+        let frame = DataFrame {
+            seq: 1,
+            stamp_ns: 0,
+            payload: vec![0; 100],
+        };
+        core.deliver(0, frame);
+        assert_eq!(
+            core.stats().received_bytes,
+            [("scan".to_owned(), 100)].into()
+        );
     }
 }

@@ -105,11 +105,11 @@ fn port<T: Datum>(name: &str, doc: &str) -> PortSpec {
 pub type BodyResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;
 
 const USAGE: &str = "\
-usage: armor-mod-TYPE [--describe] [--name NAME] [--agent HOST:PORT] [--param NAME=VALUE]... [--bind INPUT=MODULE.OUTPUT]...
+usage: armor-mod-TYPE [--describe] [--name NAME] [--agent HOST:PORT] [--host ADDR] [--param NAME=VALUE]... [--bind INPUT=MODULE.OUTPUT]...
 
 Run by `armor run`, a module takes everything from its supervisor. Run by hand, it takes its
-instance name, parameters and input links from these options, and finds the agent at --agent,
-$ARMOR_AGENT, or 127.0.0.1:7400.";
+instance name, parameters and input links from these options, finds the agent at --agent,
+$ARMOR_AGENT, or 127.0.0.1:7400, and accepts subscribers on --host (127.0.0.1 by default).";
 
 /// Settings of a module run without a supervisor (from the command line, or a benchmark or tool
 /// that hosts a module in its own process). Unset fields come from the environment.
@@ -123,6 +123,8 @@ pub struct Standalone {
     pub params: Vec<(String, String)>,
     /// Input links (`input`, `module.output`).
     pub binds: Vec<(String, String)>,
+    /// The address subscribers reach this node on (`--host`); 127.0.0.1 when `None`.
+    pub host: Option<String>,
     /// The shared secret's file, for a run started with `armor run --secret` (the node
     /// proves the key of its name, derived from it); else `$ARMOR_KEY`, else
     /// `$ARMOR_SECRET_FILE`, else none.
@@ -207,6 +209,7 @@ fn parse_options(args: &[String]) -> Result<Standalone, String> {
             "--agent" => options.agent = Some(value("--agent")?),
             "--param" => options.params.push(pair(value("--param")?, "--param")?),
             "--bind" => options.binds.push(pair(value("--bind")?, "--bind")?),
+            "--host" => options.host = Some(value("--host")?),
             other => return Err(format!("unknown argument `{other}`")),
         }
     }
@@ -243,7 +246,14 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
             (config, Some((addr, stream)))
         }
         Err(_) => (
-            standalone_config(&name, &description, options.params, options.binds)?,
+            {
+                let mut config =
+                    standalone_config(&name, &description, options.params, options.binds)?;
+                if let Some(host) = options.host {
+                    config.host = host;
+                }
+                config
+            },
             None,
         ),
     };

@@ -498,6 +498,7 @@ impl Node {
             link: 0,
             notified: false,
             received: 0,
+            received_bytes: 0,
             max_rate_hz,
             pull: false,
         });

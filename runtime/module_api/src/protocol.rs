@@ -47,7 +47,7 @@ pub enum FromAgent {
 }
 
 /// What a module needs to know to run: its port bindings and parameter values.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ModuleConfig {
     pub module_type: String,
     /// Input name → unique data name of the output feeding it (`module.output`).
@@ -60,6 +60,10 @@ pub struct ModuleConfig {
     pub active: bool,
     /// The address the module's data listener binds to.
     pub host: String,
+    /// Input name → at most this many samples a second, asked of its provider (a link's
+    /// `max_rate_hz` in the system file; best-effort inputs only).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub input_rates: BTreeMap<String, f64>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -114,9 +118,12 @@ pub struct NodeStats {
     /// An arbiter's latest [`ToSupervisor::Winner`], repeated for the same reason.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub winner: Option<String>,
+    /// Payload bytes received, per input name (the link's bandwidth, over time).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub received_bytes: BTreeMap<String, u64>,
 }
 
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum FromSupervisor {
     Config(ModuleConfig),

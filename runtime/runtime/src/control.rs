@@ -191,6 +191,9 @@ pub struct ModuleStatus {
     /// The subsystems it is in, outermost first (empty: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub subsystems: Vec<String>,
+    /// The declared host it runs on (`armor host`), or `None` for the supervisor's machine.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

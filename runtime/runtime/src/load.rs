@@ -29,10 +29,8 @@ impl Loaded {
             outputs: bindings.outputs,
             params: bindings.params,
             active: true,
-            host: module
-                .host
-                .clone()
-                .unwrap_or_else(|| self.system.host_or_default().to_owned()),
+            host: self.system.bind_address(module),
+            input_rates: self.system.input_rates(&module.name),
         })
     }
 }
@@ -179,4 +177,27 @@ fn resolve_files(
         }
     }
     problems
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_module_placed_on_a_host_binds_there_and_its_links_carry_their_rates() {
+        let system = SystemConfig::parse(
+            "<system name=\"s\" host=\"10.0.0.1\">\n<host name=\"robot1\" address=\"10.0.0.2\"/>\n<module name=\"a\" type=\"t\" host=\"robot1\"/>\n<module name=\"b\" type=\"t\"/>\n<link from=\"b.x\" to=\"a.scan\" max_rate_hz=\"4\"/>\n</system>",
+        )
+        .expect("valid");
+        let loaded = Loaded {
+            system,
+            descriptions: BTreeMap::new(),
+        };
+        let a = loaded.module_config(&loaded.system.modules[0]).expect("a");
+        let b = loaded.module_config(&loaded.system.modules[1]).expect("b");
+        assert_eq!(a.host, "10.0.0.2");
+        assert_eq!(a.input_rates, [("scan".to_owned(), 4.0)].into());
+        assert_eq!(b.host, "10.0.0.1");
+        assert!(b.input_rates.is_empty());
+    }
 }

@@ -104,6 +104,32 @@ enum Command {
         /// Make no run folder: modules write relative files into the current folder.
         #[arg(long)]
         no_run_folder: bool,
+        /// A mission with dates or delays is refused when a host's clock (`armor host`) is off
+        /// this machine's by more than this; 0 accepts any skew (it is still reported).
+        #[arg(long, value_name = "MS", default_value_t = 50)]
+        max_clock_skew_ms: u64,
+        /// A host daemon stops this run's modules when it has heard nothing from the run for
+        /// this long.
+        #[arg(long, value_name = "SECS", default_value_t = 3.0)]
+        host_orphan_secs: f64,
+    },
+    /// Run the host daemon of one computer of the robot: `armor run` starts, stops and watches
+    /// the modules placed on it (`<module … host="NAME">`) through it.
+    Host {
+        /// Where to listen (the address of the host's `<host>` declaration, its port 7410 by
+        /// default).
+        #[arg(long, default_value = "0.0.0.0:7410")]
+        listen: SocketAddr,
+        /// The host's name, for its logs (default: the machine's host name).
+        #[arg(long)]
+        name: Option<String>,
+        /// Accept only a supervisor that proves this shared secret (the run's --secret).
+        #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
+        secret: Option<PathBuf>,
+        /// Stop every module after this long without a word from the supervisor (a robot must
+        /// not drive on without its controller).
+        #[arg(long, value_name = "SECS", default_value_t = 3.0)]
+        orphan_secs: f64,
     },
     /// Compile a plan (waypoints, legs, actions, time constraints) into a mission net.
     Compile {
@@ -131,6 +157,10 @@ enum Command {
     Check {
         /// The system XML file.
         file: PathBuf,
+        /// The run's shared secret, to ask the system's hosts (`armor host`) which module
+        /// types they lack.
+        #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
+        secret: Option<PathBuf>,
     },
     /// Ask module binaries (files, or folders of armor-mod-* files) to describe themselves.
     Probe {
@@ -247,6 +277,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             observers,
             runs_dir,
             no_run_folder,
+            max_clock_skew_ms,
+            host_orphan_secs,
         } => {
             let lease = match lease_secs {
                 0.0 => None,
@@ -284,9 +316,59 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 encrypt,
                 observers,
                 runs_dir: (!no_run_folder).then_some(runs_dir),
+                max_clock_skew: (max_clock_skew_ms > 0)
+                    .then(|| Duration::from_millis(max_clock_skew_ms)),
+                host_orphan: Duration::try_from_secs_f64(host_orphan_secs)
+                    .context("--host-orphan-secs must be a positive number of seconds")?,
             })
         }
-        Command::Check { file } => Ok(check(&file)),
+        Command::Check { file, secret } => {
+            let secret = secret
+                .filter(|file| !file.as_os_str().is_empty())
+                .map(|file| armor_module_api::auth::Secret::load(&file))
+                .transpose()?;
+            Ok(check(&file, secret.as_ref()))
+        }
+        Command::Host {
+            listen,
+            name,
+            secret,
+            orphan_secs,
+        } => {
+            let secret = secret
+                .filter(|file| !file.as_os_str().is_empty())
+                .map(|file| armor_module_api::auth::Secret::load(&file))
+                .transpose()?;
+            let orphan = Duration::try_from_secs_f64(orphan_secs)
+                .context("--orphan-secs must be a positive number of seconds")?;
+            let listener = std::net::TcpListener::bind(listen)
+                .with_context(|| format!("cannot listen on {listen}"))?;
+            let addr = listener.local_addr()?;
+            let name = name.unwrap_or_else(|| {
+                std::fs::read_to_string("/proc/sys/kernel/hostname")
+                    .map(|name| name.trim().to_owned())
+                    .unwrap_or_else(|_| "host".to_owned())
+            });
+            let module_path = probe::module_path();
+            println!("{}{addr}", armor_runtime::host::HOST_READY_PREFIX);
+            tracing::info!(
+                "host `{name}`: modules from {}{}",
+                join_paths(&module_path),
+                if secret.is_some() {
+                    "; supervisors must prove the shared secret"
+                } else {
+                    ""
+                }
+            );
+            armor_runtime::host::serve(armor_runtime::host::HostOptions {
+                listener,
+                name,
+                module_path,
+                secret,
+                orphan,
+            });
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Ctl {
             addr,
             secret,
@@ -565,7 +647,7 @@ fn print_warnings(file: &std::path::Path, warnings: &[armor_module_api::xml::Loc
     }
 }
 
-fn check(file: &std::path::Path) -> ExitCode {
+fn check(file: &std::path::Path, secret: Option<&armor_module_api::auth::Secret>) -> ExitCode {
     let module_path = probe::module_path();
     // A large plan takes a while: every leg is planned and the net's states explored.
     let spinner = armor_runtime::console::Spinner::start(format!(
@@ -573,17 +655,19 @@ fn check(file: &std::path::Path) -> ExitCode {
         file.display()
     ));
     let summary = match mission::document_kind(file) {
-        Ok(mission::DocumentKind::System) => load::load_system(file, &module_path).map(|loaded| {
-            (
-                format!(
-                    "system `{}`: {}, {}",
-                    loaded.system.name,
-                    plural(loaded.system.modules.len(), "module"),
-                    plural(loaded.system.links.len(), "link")
-                ),
-                Vec::new(),
-            )
-        }),
+        Ok(mission::DocumentKind::System) => load::load_system(file, &module_path)
+            .and_then(|loaded| check_hosts(file, &loaded.system, secret).map(|()| loaded))
+            .map(|loaded| {
+                (
+                    format!(
+                        "system `{}`: {}, {}",
+                        loaded.system.name,
+                        plural(loaded.system.modules.len(), "module"),
+                        plural(loaded.system.links.len(), "link")
+                    ),
+                    Vec::new(),
+                )
+            }),
         Ok(_) => mission::load_mission(file, &module_path).map(|mission| {
             (
                 format!(
@@ -606,6 +690,62 @@ fn check(file: &std::path::Path) -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(diagnostics) => report(diagnostics),
+    }
+}
+
+/// Asks every declared host that has modules placed on it which of their types it lacks: a
+/// missing one is a problem at the module; a host that does not answer is only said.
+fn check_hosts(
+    file: &std::path::Path,
+    system: &armor_model::SystemConfig,
+    secret: Option<&armor_module_api::auth::Secret>,
+) -> Result<(), load::Diagnostics> {
+    let mut problems = Vec::new();
+    for host in &system.hosts {
+        let placed: Vec<&armor_model::ModuleInstance> = system
+            .modules
+            .iter()
+            .filter(|module| {
+                system
+                    .placement(module)
+                    .is_some_and(|at| at.name == host.name)
+            })
+            .collect();
+        if placed.is_empty() {
+            continue;
+        }
+        let mut types: Vec<String> = placed.iter().map(|m| m.module_type.clone()).collect();
+        types.sort();
+        types.dedup();
+        match armor_runtime::hosts::missing_types(host, secret, types) {
+            Ok(missing) => {
+                for module in placed {
+                    if missing.contains(&module.module_type) {
+                        problems.push(armor_module_api::xml::Located::new(
+                            module.type_pos,
+                            format!(
+                                "module type `{}` is not on host `{}` (its `armor host` finds no armor-mod-{} on its module path)",
+                                module.module_type, host.name, module.module_type
+                            ),
+                        ));
+                    }
+                }
+            }
+            Err(err) => eprintln!(
+                "{}: note: host `{}` at {} not asked for its module types: {err:#}",
+                file.display(),
+                host.name,
+                host.daemon_addr()
+            ),
+        }
+    }
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        Err(load::Diagnostics {
+            file: file.to_path_buf(),
+            problems,
+        })
     }
 }
 
@@ -683,6 +823,9 @@ fn status_text(status: &control::Status) -> String {
             module.module_type,
             module.state.as_str()
         );
+        if let Some(host) = &module.host {
+            let _ = write!(out, " on host `{host}`");
+        }
         match (module.manual, &module.why) {
             (Some(true), _) => out.push_str(", started by hand"),
             (Some(false), _) => out.push_str(", stopped by hand"),

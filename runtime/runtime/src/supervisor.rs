@@ -23,6 +23,7 @@ use armor_module_api::{Clock, ENV_AGENT, ENV_MODULE, ENV_RUN_DIR, ENV_SUPERVISOR
 use crate::agent::{Acl, ENV_ACL};
 use crate::config_server::{ConfigServer, ServerEvent};
 use crate::controller::{Controller, Outcome};
+use crate::hosts::{HostLink, ModuleChild};
 use crate::load::{Diagnostics, Loaded, load_system};
 use crate::mission::{DocumentKind, LoadedMission, document_kind, load_mission};
 use crate::progress::{self, Progress};
@@ -66,6 +67,11 @@ pub struct RunOptions {
     /// The folder under which the run makes its own (`run_dir`): its log, report, summary and
     /// the files its modules write under relative names. `None`: no folder.
     pub runs_dir: Option<PathBuf>,
+    /// Hosts (`armor host`) whose clock differs from ours by more than this refuse a mission
+    /// with time constraints; `None`: any skew is only reported.
+    pub max_clock_skew: Option<Duration>,
+    /// How long a host daemon keeps its modules without hearing from this run.
+    pub host_orphan: Duration,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,8 +88,10 @@ enum ProcState {
 struct ModuleProc {
     name: String,
     module_type: String,
+    /// The declared host it runs on (`armor host`), or `None` for this machine.
+    host: Option<String>,
     restart: RestartPolicy,
-    child: Option<Child>,
+    child: Option<ModuleChild>,
     state: ProcState,
     crashes: Backoff,
     restarts: u32,
@@ -104,6 +112,8 @@ struct RunEnv {
     encrypt: bool,
     /// The run's folder, given to every module (`ARMOR_RUN_DIR`).
     run_dir: Option<PathBuf>,
+    /// The links to the host daemons, by host name.
+    hosts: BTreeMap<String, HostLink>,
 }
 
 /// A file to run: a system, or a mission over a system.
@@ -146,6 +156,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             return Ok(ExitCode::FAILURE);
         }
     };
+    let time_constraints = mission
+        .as_ref()
+        .is_some_and(|mission| crate::host_run::has_time_constraints(&mission.net));
     let epoch_ns = unix_now_ns();
     let run_folder = match &options.runs_dir {
         None => None,
@@ -234,6 +247,19 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     if plan_legs.is_some() {
         observers.push(progress::NODE_NAME.to_owned());
     }
+    let hosts = match crate::host_run::connect_hosts(
+        &loaded.system,
+        secret.clone(),
+        options.host_orphan,
+        time_constraints,
+        options.max_clock_skew,
+    ) {
+        Ok(hosts) => hosts,
+        Err(err) => {
+            tracing::error!("{err:#}");
+            return Ok(ExitCode::FAILURE);
+        }
+    };
     let mut agent = AgentProc::start(
         options.agent_addr.map_or_else(|| local(0), Ok)?,
         secret_file.clone(),
@@ -276,6 +302,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         secret: secret.clone(),
         encrypt: options.encrypt,
         run_dir: run_folder.clone(),
+        hosts,
     };
     let start_unix_secs = start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9);
     let mut progress = plan_legs.as_ref().map(|(plan, compiled)| {
@@ -428,6 +455,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
         }
+        crate::host_run::take_notes(&env.hosts, &server);
         for module in modules.values_mut() {
             let before = module.state;
             module.supervise(&env);
@@ -592,7 +620,7 @@ fn run_status(
                     .get(&module.module_type)
                     .is_some_and(|description| description.controllable),
                 manual,
-                pid: module.child.as_ref().map(Child::id),
+                pid: module.child.as_ref().and_then(ModuleChild::id),
                 restarts: module.restarts,
                 last_exit: module.last_exit.clone(),
                 stats: stats.remove(&module.name),
@@ -605,6 +633,7 @@ fn run_status(
                     .into_iter()
                     .map(str::to_owned)
                     .collect(),
+                host: module.host.clone(),
             }
         })
         .collect();
@@ -628,6 +657,10 @@ fn add_modules(modules: &mut BTreeMap<String, ModuleProc>, loaded: &Loaded, env:
         let mut module = ModuleProc {
             name: instance.name.clone(),
             module_type: instance.module_type.clone(),
+            host: loaded
+                .system
+                .placement(instance)
+                .map(|host| host.name.clone()),
             restart: instance.restart,
             child: None,
             state: ProcState::Restarting(Instant::now()),
@@ -657,9 +690,11 @@ fn apply_reload(
     let removed: Vec<String> = modules
         .values()
         .filter(|module| {
-            wanted
-                .get(module.name.as_str())
-                .is_none_or(|instance| instance.module_type != module.module_type)
+            wanted.get(module.name.as_str()).is_none_or(|instance| {
+                instance.module_type != module.module_type
+                    || loaded.system.placement(instance).map(|host| &host.name)
+                        != module.host.as_ref()
+            })
         })
         .map(|module| module.name.clone())
         .collect();
@@ -686,7 +721,7 @@ fn stop_all(modules: &mut BTreeMap<String, ModuleProc>, server: &ConfigServer) {
             server.send(&module.name, &FromSupervisor::Shutdown);
         }
     }
-    let mut children: Vec<(String, Child)> = modules
+    let mut children: Vec<(String, ModuleChild)> = modules
         .values_mut()
         .filter_map(|module| Some((module.name.clone(), module.child.take()?)))
         .collect();
@@ -695,8 +730,8 @@ fn stop_all(modules: &mut BTreeMap<String, ModuleProc>, server: &ConfigServer) {
 }
 
 /// Waits for children to exit, then SIGTERM, then SIGKILL, so none is left behind.
-fn end_children(children: &mut Vec<(String, Child)>) {
-    let wait_until = |children: &mut Vec<(String, Child)>, deadline: Instant| {
+fn end_children(children: &mut Vec<(String, ModuleChild)>) {
+    let wait_until = |children: &mut Vec<(String, ModuleChild)>, deadline: Instant| {
         while !children.is_empty() && Instant::now() < deadline {
             children.retain_mut(|(_, child)| !matches!(child.try_wait(), Ok(Some(_))));
             if !children.is_empty() {
@@ -707,13 +742,12 @@ fn end_children(children: &mut Vec<(String, Child)>) {
     wait_until(children, Instant::now() + SHUTDOWN_GRACE);
     for (name, child) in children.iter() {
         tracing::debug!(module = name, "sending SIGTERM");
-        signal(child, libc::SIGTERM);
+        child.signal(libc::SIGTERM);
     }
     wait_until(children, Instant::now() + TERM_GRACE);
     for (name, child) in children.iter_mut() {
         tracing::warn!(module = name, "did not stop; killing it");
-        let _ = child.kill();
-        let _ = child.wait();
+        child.kill_and_wait();
     }
 }
 
@@ -725,6 +759,9 @@ fn signal(child: &Child, signal: libc::c_int) {
 
 impl ModuleProc {
     fn spawn(&mut self, env: &RunEnv) {
+        if let Some(host) = &self.host {
+            return self.spawn_remote(env, host.clone());
+        }
         let Some(binary) = probe::find_module(&env.module_path, &self.module_type) else {
             tracing::error!(
                 module = self.name,
@@ -763,7 +800,7 @@ impl ModuleProc {
                 tracing::info!(module = self.name, pid = child.id(), "module started");
                 stream_lines(&self.name, child.stdout.take());
                 stream_lines(&self.name, child.stderr.take());
-                self.child = Some(child);
+                self.child = Some(ModuleChild::Local(child));
                 self.state = ProcState::Running;
             }
             Err(err) => {
@@ -798,7 +835,16 @@ impl ModuleProc {
                 return;
             }
         };
+        let lost =
+            matches!(&self.child, Some(ModuleChild::Remote(child)) if child.lost_with_host());
         self.child = None;
+        if lost {
+            // Not a crash of its own: it comes back when its host does.
+            let host = self.host.as_deref().unwrap_or_default();
+            self.last_exit = Some(format!("went with its host `{host}`"));
+            self.state = ProcState::Restarting(Instant::now() + FIRST_BACKOFF);
+            return;
+        }
         if status.success() && self.restart != RestartPolicy::Always {
             tracing::info!(module = self.name, "module finished");
             self.state = ProcState::Exited;
@@ -842,9 +888,7 @@ impl ModuleProc {
     /// its exit is then handled as a crash, by its restart policy.
     fn kill(&mut self) {
         if let Some(child) = &self.child {
-            let pid = child.id() as libc::pid_t;
-            crate::process::kill(-pid, libc::SIGKILL);
-            crate::process::kill(pid, libc::SIGKILL);
+            child.kill_group();
         }
     }
 
@@ -852,6 +896,43 @@ impl ModuleProc {
         server.send(&self.name, &FromSupervisor::Shutdown);
         if let Some(child) = self.child.take() {
             end_children(&mut vec![(self.name.clone(), child)]);
+        }
+    }
+
+    /// Asks its host's daemon to start it, with the environment a local module gets (but no
+    /// run folder: that is on this machine). While the host is away, it waits for it without
+    /// counting a crash.
+    fn spawn_remote(&mut self, env: &RunEnv, host: String) {
+        let Some(link) = env.hosts.get(&host) else {
+            tracing::error!(module = self.name, "no host `{host}` in this system");
+            self.state = ProcState::Failed;
+            return;
+        };
+        let mut vars = vec![
+            (ENV_MODULE.to_owned(), self.name.clone()),
+            (ENV_AGENT.to_owned(), env.agent_addr.to_string()),
+            (ENV_SUPERVISOR.to_owned(), env.supervisor_addr.to_string()),
+            (ENV_EPOCH.to_owned(), env.epoch_ns.to_string()),
+            (ENV_TIME_SCALE.to_owned(), env.time_scale.to_string()),
+        ];
+        if let Some(secret) = &env.secret {
+            vars.push((ENV_KEY.to_owned(), secret.module_key(&self.name).to_hex()));
+            if env.encrypt {
+                vars.push((ENV_ENCRYPT.to_owned(), "1".to_owned()));
+            }
+        }
+        match link.spawn(&self.name, &self.module_type, vars) {
+            Some(child) => {
+                tracing::info!(module = self.name, host, "module started on host `{host}`");
+                self.child = Some(ModuleChild::Remote(child));
+                self.state = ProcState::Running;
+            }
+            None => {
+                // Tried again soon, not counted as a restart; the host's loss was said once,
+                // by its link.
+                self.restarts = self.restarts.saturating_sub(1);
+                self.state = ProcState::Restarting(Instant::now() + Duration::from_millis(250));
+            }
         }
     }
 }
@@ -964,7 +1045,7 @@ impl AgentProc {
     fn stop(&mut self) {
         if let Some(child) = self.child.take() {
             signal(&child, libc::SIGTERM);
-            end_children(&mut vec![("agent".to_owned(), child)]);
+            end_children(&mut vec![("agent".to_owned(), ModuleChild::Local(child))]);
         }
     }
 }

@@ -218,7 +218,7 @@ pub fn allowed(patterns: Option<&[String]>, data_name: &str) -> bool {
 }
 
 /// Data flowing from an output of a module to an input of a module.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Link {
     pub from: Endpoint,
     pub to: Endpoint,
@@ -231,14 +231,47 @@ pub struct Link {
     pub from_pos: Pos,
     /// The `to` attribute.
     pub to_pos: Pos,
+    /// At most this many samples a second cross the link (`max_rate_hz="10"`): the provider
+    /// skips the samples that come sooner, for a link over a slow or lossy network. `None`:
+    /// every sample.
+    pub max_rate_hz: Option<f64>,
+}
+
+/// A computer of the robot (`<host name="robot1" address="10.0.0.2"/>`), where an `armor host`
+/// daemon starts the modules placed on it (`<module … host="robot1">`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HostDecl {
+    pub name: String,
+    /// The address its modules bind to, and the daemon's host (its port: `port`).
+    pub address: String,
+    /// The daemon's port ([`DEFAULT_HOST_PORT`] when absent).
+    pub port: u16,
+    /// The `<host>` element.
+    pub pos: Pos,
+}
+
+/// The port `armor host` listens on when neither its command line nor the system says another.
+pub const DEFAULT_HOST_PORT: u16 = 7410;
+
+impl HostDecl {
+    /// `address:port`, bracketed for IPv6.
+    pub fn daemon_addr(&self) -> String {
+        if self.address.contains(':') {
+            format!("[{}]:{}", self.address, self.port)
+        } else {
+            format!("{}:{}", self.address, self.port)
+        }
+    }
 }
 
 /// A whole system configuration.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SystemConfig {
     pub name: String,
     /// The address the agent and the config server listen on; `None` for [`DEFAULT_HOST`].
     pub host: Option<String>,
+    /// The other computers of the robot, each with an `armor host` daemon.
+    pub hosts: Vec<HostDecl>,
     pub modules: Vec<ModuleInstance>,
     pub links: Vec<Link>,
     /// Named groups of its modules (see [`subsystem`]); empty for a flat system.
@@ -274,6 +307,36 @@ impl SystemConfig {
     /// The host the agent and config server listen on: the configured one or [`DEFAULT_HOST`].
     pub fn host_or_default(&self) -> &str {
         self.host.as_deref().unwrap_or(DEFAULT_HOST)
+    }
+
+    /// The declared host called `name`.
+    pub fn host_decl(&self, name: &str) -> Option<&HostDecl> {
+        self.hosts.iter().find(|host| host.name == name)
+    }
+
+    /// The declared host a module is placed on (its `host` names one), or `None` when it runs
+    /// on the supervisor's machine.
+    pub fn placement(&self, module: &ModuleInstance) -> Option<&HostDecl> {
+        self.host_decl(module.host.as_deref()?)
+    }
+
+    /// The address a module binds its data port to: its host's address when it is placed on a
+    /// declared host, else its `host` attribute taken as an address, else the system's.
+    pub fn bind_address(&self, module: &ModuleInstance) -> String {
+        match (self.placement(module), &module.host) {
+            (Some(host), _) => host.address.clone(),
+            (None, Some(address)) => address.clone(),
+            (None, None) => self.host_or_default().to_owned(),
+        }
+    }
+
+    /// The links' rate limits by the input they feed: `module` → input → Hz.
+    pub fn input_rates(&self, module: &str) -> BTreeMap<String, f64> {
+        self.links
+            .iter()
+            .filter(|link| link.to.module == module && link.fallback == 0)
+            .filter_map(|link| Some((link.to.port.clone(), link.max_rate_hz?)))
+            .collect()
     }
 
     /// What the module instance `module` is told at start, or `None` if there is no such

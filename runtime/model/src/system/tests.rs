@@ -171,13 +171,13 @@ fn structural_problems() {
         "<system name=\"s\" color=\"red\">\n  <modul name=\"a\"/>\n  <module name=\"a\" type=\"t\" prio=\"1\">\n    <parameter/>\n    <param name=\"p\" value=\"1\" unit=\"s\"><x/></param>\n  </module>\n  <link from=\"a.b\" to=\"a.c\" via=\"d\">text</link>\n</system>",
         &[
             "1:18: unknown attribute `color` on <system> (expected one of: name, host)",
-            "2:3: unknown element <modul> inside <system> (expected one of: module, link, subsystem)",
+            "2:3: unknown element <modul> inside <system> (expected one of: host, module, link, subsystem)",
             "3:29: unknown attribute `prio` on <module> (expected one of: name, type, restart, activation, host, may_publish, may_subscribe)",
             "4:5: unknown element <parameter> inside <module> (expected one of: param)",
             "5:31: unknown attribute `unit` on <param> (expected one of: name, value)",
             "5:40: unknown element <x> inside <param> (it has no elements)",
             "7:3: <link> must not contain text (found `text`)",
-            "7:29: unknown attribute `via` on <link> (expected one of: from, to, fallback)",
+            "7:29: unknown attribute `via` on <link> (expected one of: from, to, fallback, max_rate_hz)",
         ],
     );
     // Missing and empty required attributes.
@@ -411,6 +411,9 @@ fn without_positions(mut system: SystemConfig) -> SystemConfig {
         subsystem.subsystems.iter_mut().for_each(unplace);
     }
     system.subsystems.iter_mut().for_each(unplace);
+    for host in &mut system.hosts {
+        host.pos = zero;
+    }
     system
 }
 
@@ -601,6 +604,46 @@ fn subsystem_problems_against_the_system() {
             "8:1: subsystem `a` is already defined at line 4",
             "9:1: subsystem `checker`: a module has that name (line 3); a place names one or the other",
             "9:27: subsystem `empty` has no member (add <member module=\"…\"/>)",
+        ],
+    );
+}
+
+const ROBOT_ON_TWO: &str = "<system name=\"s\" host=\"10.0.0.1\">\n<host name=\"robot1\" address=\"10.0.0.2\"/>\n<host name=\"arm\" address=\"fe80::2\" port=\"7500\"/>\n<module name=\"a\" type=\"t\" host=\"robot1\"/>\n<module name=\"b\" type=\"t\" host=\"10.0.0.9\"/>\n<module name=\"c\" type=\"t\"/>\n<link from=\"a.x\" to=\"c.y\" max_rate_hz=\"2.5\"/>\n<link from=\"c.x\" to=\"a.y\"/>\n</system>";
+
+#[test]
+fn modules_are_placed_on_declared_hosts() {
+    let system = SystemConfig::parse(ROBOT_ON_TWO).expect("valid");
+    assert_eq!(system.hosts.len(), 2);
+    assert_eq!(system.hosts[0].daemon_addr(), "10.0.0.2:7410");
+    assert_eq!(system.hosts[1].daemon_addr(), "[fe80::2]:7500");
+    let [a, b, c] = [0, 1, 2].map(|i| &system.modules[i]);
+    assert_eq!(
+        system.placement(a).map(|host| host.name.as_str()),
+        Some("robot1")
+    );
+    // A host that names no declaration is an address on the supervisor's machine, as before.
+    assert_eq!(system.placement(b), None);
+    assert_eq!(system.placement(c), None);
+    assert_eq!(system.bind_address(a), "10.0.0.2");
+    assert_eq!(system.bind_address(b), "10.0.0.9");
+    assert_eq!(system.bind_address(c), "10.0.0.1");
+    assert_eq!(system.input_rates("c"), [("y".to_owned(), 2.5)].into());
+    assert!(system.input_rates("a").is_empty());
+    round_trip(ROBOT_ON_TWO);
+}
+
+#[test]
+fn bad_hosts_and_rates_are_reported_where_they_are() {
+    parse_problems(
+        "<system name=\"s\">\n<host name=\"r\" address=\"a\"/><host name=\"r\" address=\"b\"/>\n<host address=\"\" port=\"0\" os=\"linux\"/>\n<link from=\"a.b\" to=\"c.d\" max_rate_hz=\"fast\"/>\n<link from=\"a.b\" to=\"c.e\" max_rate_hz=\"-1\"/>\n</system>",
+        &[
+            "2:29: host `r` is declared twice",
+            "3:1: <host> needs the attribute `name`",
+            "3:7: attribute `address` of <host> must not be empty",
+            "3:18: `port` is a TCP port, 1 to 65535, not `0`",
+            "3:27: unknown attribute `os` on <host> (expected one of: name, address, port)",
+            "4:27: `max_rate_hz` is a number of samples a second above 0, not `fast`",
+            "5:27: `max_rate_hz` is a number of samples a second above 0, not `-1`",
         ],
     );
 }

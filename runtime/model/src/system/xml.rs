@@ -5,7 +5,10 @@ use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::{self, Attr, Element, Located, Pos};
 
 use super::subsystem::{read_subsystem, write_subsystem};
-use super::{Activation, Endpoint, Link, ModuleInstance, ParamValue, RestartPolicy, SystemConfig};
+use super::{
+    Activation, DEFAULT_HOST_PORT, Endpoint, HostDecl, Link, ModuleInstance, ParamValue,
+    RestartPolicy, SystemConfig,
+};
 use crate::fields::{escape, identifier, no_children, no_text, required};
 
 impl SystemConfig {
@@ -20,19 +23,32 @@ impl SystemConfig {
         }
         let mut problems = Vec::new();
         problems.extend(root.unknown_attrs(&["name", "host"]));
-        problems.extend(root.unknown_children(&["module", "link", "subsystem"]));
+        problems.extend(root.unknown_children(&["host", "module", "link", "subsystem"]));
         no_text(&root, &mut problems);
         let name = identifier(&root, "name", "name", &mut problems).unwrap_or_default();
         let host = host_attr(&root, &mut problems);
         let mut system = SystemConfig {
             name,
             host,
+            hosts: Vec::new(),
             modules: Vec::new(),
             links: Vec::new(),
             subsystems: Vec::new(),
         };
         for child in &root.children {
             match child.name.as_str() {
+                "host" => {
+                    if let Some(host) = read_host(child, &mut problems) {
+                        if system.hosts.iter().any(|other| other.name == host.name) {
+                            problems.push(Located::new(
+                                host.pos,
+                                format!("host `{}` is declared twice", host.name),
+                            ));
+                        } else {
+                            system.hosts.push(host);
+                        }
+                    }
+                }
                 "module" => {
                     if let Some(module) = read_module(child, &mut problems) {
                         system.modules.push(module);
@@ -68,6 +84,18 @@ impl SystemConfig {
             let _ = write!(out, " host=\"{}\"", escape(host));
         }
         out.push_str(">\n");
+        for host in &self.hosts {
+            let _ = write!(
+                out,
+                "  <host name=\"{}\" address=\"{}\"",
+                escape(&host.name),
+                escape(&host.address)
+            );
+            if host.port != DEFAULT_HOST_PORT {
+                let _ = write!(out, " port=\"{}\"", host.port);
+            }
+            out.push_str("/>\n");
+        }
         for module in &self.modules {
             let _ = write!(
                 out,
@@ -114,6 +142,9 @@ impl SystemConfig {
             );
             if link.fallback > 0 {
                 let _ = write!(out, " fallback=\"{}\"", link.fallback);
+            }
+            if let Some(hz) = link.max_rate_hz {
+                let _ = write!(out, " max_rate_hz=\"{hz}\"");
             }
             out.push_str("/>\n");
         }
@@ -205,7 +236,7 @@ fn read_param(element: &Element, problems: &mut Vec<Located>) -> Option<ParamVal
 }
 
 fn read_link(element: &Element, problems: &mut Vec<Located>) -> Option<Link> {
-    problems.extend(element.unknown_attrs(&["from", "to", "fallback"]));
+    problems.extend(element.unknown_attrs(&["from", "to", "fallback", "max_rate_hz"]));
     no_children(element, problems);
     no_text(element, problems);
     let from = endpoint_attr(element, "from", "MODULE.OUTPUT", problems);
@@ -226,6 +257,22 @@ fn read_link(element: &Element, problems: &mut Vec<Located>) -> Option<Link> {
             }
         },
     };
+    let max_rate_hz = match element.attr("max_rate_hz") {
+        None => Some(None),
+        Some(attr) => match attr.value.trim().parse::<f64>() {
+            Ok(hz) if hz.is_finite() && hz > 0.0 => Some(Some(hz)),
+            _ => {
+                problems.push(Located::new(
+                    attr.pos,
+                    format!(
+                        "`max_rate_hz` is a number of samples a second above 0, not `{}`",
+                        attr.value
+                    ),
+                ));
+                None
+            }
+        },
+    };
     let ((from, from_pos), (to, to_pos)) = (from?, to?);
     Some(Link {
         from,
@@ -234,6 +281,7 @@ fn read_link(element: &Element, problems: &mut Vec<Located>) -> Option<Link> {
         pos: element.pos,
         from_pos,
         to_pos,
+        max_rate_hz: max_rate_hz?,
     })
 }
 
@@ -257,6 +305,33 @@ fn endpoint_attr(
             None
         }
     }
+}
+
+fn read_host(element: &Element, problems: &mut Vec<Located>) -> Option<HostDecl> {
+    problems.extend(element.unknown_attrs(&["name", "address", "port"]));
+    no_children(element, problems);
+    no_text(element, problems);
+    let name = identifier(element, "name", "host name", problems);
+    let address = required(element, "address", problems).map(|field| field.value.to_owned());
+    let port = match element.attr("port") {
+        None => Some(DEFAULT_HOST_PORT),
+        Some(attr) => match attr.value.trim().parse::<u16>() {
+            Ok(port) if port > 0 => Some(port),
+            _ => {
+                problems.push(Located::new(
+                    attr.pos,
+                    format!("`port` is a TCP port, 1 to 65535, not `{}`", attr.value),
+                ));
+                None
+            }
+        },
+    };
+    Some(HostDecl {
+        name: name?,
+        address: address?,
+        port: port?,
+        pos: element.pos,
+    })
 }
 
 fn host_attr(element: &Element, problems: &mut Vec<Located>) -> Option<String> {
