@@ -6,7 +6,6 @@
 //! registered again); an input whose provider goes away asks the agent again and reconnects; the
 //! supervisor connection is retried and the configuration it sends is applied as a reload.
 
-use std::collections::HashMap;
 use std::io::{self, ErrorKind};
 use std::net::{SocketAddr, TcpStream};
 use std::os::fd::AsRawFd as _;
@@ -15,6 +14,7 @@ use std::time::{Duration, Instant};
 use mio::net::TcpListener;
 use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token};
+use rustc_hash::FxHashMap;
 use serde::Deserialize;
 
 use crate::auth::{Credentials, Dial, Key, SealedWriter};
@@ -45,6 +45,9 @@ const MAX_PENDING_PEERS: usize = 256;
 const BATCH_BYTES: usize = 64 * 1024;
 /// Past this many buffered bytes a reliable subscriber makes the publisher wait.
 const RELIABLE_BACKLOG_BYTES: usize = 8 * 1024 * 1024;
+/// The most send buffer a connection asks for large frames (Linux caps it at
+/// `net.core.wmem_max` and doubles it).
+const MAX_SEND_BUFFER: usize = 8 * 1024 * 1024;
 /// How long a publisher waits for a reliable subscriber before dropping it.
 const RELIABLE_STALL: Duration = Duration::from_secs(5);
 
@@ -115,6 +118,8 @@ struct Conn {
     last_sent: Option<Instant>,
     /// A subscriber pulled before its output had a sample: it gets the next one.
     pull_pending: bool,
+    /// The send buffer asked of the socket for large frames (0: the system's, autotuned).
+    send_buffer: usize,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -146,7 +151,7 @@ pub(crate) struct Net {
     events: Events,
     listener: TcpListener,
     listen_addr: SocketAddr,
-    conns: HashMap<Token, Conn>,
+    conns: FxHashMap<Token, Conn>,
     next_token: usize,
     agent_addr: SocketAddr,
     agent: Link,
@@ -181,6 +186,28 @@ impl Conn {
     fn stream(&mut self) -> &mut TcpStream {
         &mut self.link.inner
     }
+
+    /// Makes room in the socket's send buffer for two frames of `frame_len` bytes (up to the
+    /// system's limit), so that a large frame goes to the kernel in one write from the sender's
+    /// own bytes, as a blocking write does, instead of being copied into [`OutBuffer`] and
+    /// written piecewise as the socket drains. Only ever grows the buffer.
+    fn make_room_for(&mut self, frame_len: usize) {
+        let want = frame_len.saturating_mul(2).min(MAX_SEND_BUFFER);
+        if want <= self.send_buffer {
+            return;
+        }
+        self.send_buffer = want;
+        let socket = socket2::SockRef::from(&self.link.inner);
+        // The kernel reports twice what it was asked (its bookkeeping); autotuning may have
+        // grown it beyond `want` already.
+        if socket
+            .send_buffer_size()
+            .is_ok_and(|current| current / 2 < want)
+            && let Err(err) = socket.set_send_buffer_size(want)
+        {
+            tracing::debug!("cannot grow a send buffer: {err}");
+        }
+    }
 }
 
 impl Net {
@@ -214,7 +241,7 @@ impl Net {
             events: Events::with_capacity(256),
             listener,
             listen_addr,
-            conns: HashMap::new(),
+            conns: FxHashMap::default(),
             next_token: 1,
             agent_addr,
             agent: Link::Down { retry_at: now },
@@ -292,6 +319,7 @@ impl Net {
                 peer: None,
                 last_sent: None,
                 pull_pending: false,
+                send_buffer: 0,
             },
         );
         Ok(token)
@@ -457,6 +485,9 @@ impl Net {
                     continue;
                 }
                 conn.last_sent = Some(now);
+            }
+            if reliable && frame_len >= BATCH_BYTES {
+                conn.make_room_for(frame_len);
             }
             if reliable
                 && conn.out.is_empty()
