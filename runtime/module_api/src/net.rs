@@ -105,7 +105,11 @@ struct Conn {
     reader: FrameReader,
     out: OutBuffer,
     role: Role,
-    /// A reliable input stopped reading because its queue is full.
+    /// The input stopped reading: a reliable input's queue is full, or a large frame was just
+    /// delivered. Reading goes on at the next turn of the loop with room (when the module next
+    /// waits), so that a stream of camera frames is read one frame ahead of the module, not as
+    /// many as the socket holds: the next frame's buffer then reuses the memory of the one the
+    /// module has just dropped, still in the cache, as a reader reusing one buffer does.
     paused: bool,
     handshake_deadline: Option<Instant>,
     /// Messages queued before the handshake is over: they follow it, since the peer takes
@@ -120,6 +124,9 @@ struct Conn {
     pull_pending: bool,
     /// The send buffer asked of the socket for large frames (0: the system's, autotuned).
     send_buffer: usize,
+    /// A large frame is being written from the publisher's own buffers
+    /// ([`Net::finish_large_frame`]): nothing else may go to the socket until it is whole.
+    writing_parts: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -173,6 +180,9 @@ pub(crate) struct Net {
 impl Conn {
     /// Writes what is queued, then what the sealer holds; `Ok(true)` when all went out.
     fn flush(&mut self) -> io::Result<bool> {
+        if self.writing_parts {
+            return Ok(false);
+        }
         Ok(self.link.flush_pending()?
             && self.out.flush_to(&mut self.link)?
             && self.link.flush_pending()?)
@@ -320,6 +330,7 @@ impl Net {
                 last_sent: None,
                 pull_pending: false,
                 send_buffer: 0,
+                writing_parts: false,
             },
         );
         Ok(token)
@@ -448,6 +459,7 @@ impl Net {
     ) -> Result<(), ApiError> {
         let frame_len: usize = parts.iter().map(|part| part.len()).sum();
         let mut stalled = Vec::new();
+        let mut unfinished = Vec::new();
         let mut now = None;
         for &token in &self.subscribers[output] {
             let Some(conn) = self.conns.get_mut(&token) else {
@@ -509,24 +521,27 @@ impl Net {
                 && !conn.link.is_sealing()
             {
                 // A large frame with nothing queued before it goes out from the caller's
-                // buffers; only what the socket does not take now is copied. (A best-effort
-                // subscriber's queue may drop frames not yet started, so its frames are always
-                // queued whole.)
+                // buffers, all of it: what the socket does not take now is written as it drains
+                // (`finish_large_frame`), as a blocking write would, rather than copied. (A
+                // best-effort subscriber's queue may drop frames not yet started, so its frames
+                // are always queued whole.)
                 let slices: Vec<std::io::IoSlice<'_>> = parts
                     .iter()
                     .map(|part| std::io::IoSlice::new(part))
                     .collect();
                 match std::io::Write::write_vectored(conn.stream(), &slices) {
-                    Ok(written) if written == frame_len => continue,
-                    Ok(written) => conn.out.push_frame_parts(&unwritten(parts, written), false),
+                    Ok(written) if written == frame_len => {}
+                    Ok(written) => {
+                        conn.writing_parts = true;
+                        unfinished.push((token, written));
+                    }
                     Err(err) if err.kind() == ErrorKind::WouldBlock => {
-                        conn.out.push_frame_parts(parts, false);
+                        conn.writing_parts = true;
+                        unfinished.push((token, 0));
                     }
-                    Err(_) => {
-                        stalled.push(token);
-                        continue;
-                    }
+                    Err(_) => stalled.push(token),
                 }
+                continue;
             } else {
                 conn.out.push_frame_parts(parts, !reliable);
             }
@@ -541,10 +556,78 @@ impl Net {
                 }
             }
         }
+        for (token, written) in unfinished {
+            self.finish_large_frame(core, token, parts, written)?;
+        }
         for token in stalled {
             self.wait_for_subscriber(core, token, backlog_limit(frame_len))?;
         }
         Ok(())
+    }
+
+    /// Writes the rest of a large frame (`parts`, of which `written` bytes went out) from the
+    /// publisher's buffers as the socket takes it, keeping the loop turning meanwhile (other
+    /// connections, this one's reads) as [`Net::wait_for_subscriber`] does; nothing else is
+    /// written to this socket until the frame is whole. A subscriber stuck for
+    /// [`RELIABLE_STALL`] is dropped.
+    fn finish_large_frame(
+        &mut self,
+        core: &mut Core,
+        token: Token,
+        parts: &[&[u8]],
+        mut written: usize,
+    ) -> Result<(), ApiError> {
+        let frame_len: usize = parts.iter().map(|part| part.len()).sum();
+        let give_up = Instant::now() + RELIABLE_STALL;
+        loop {
+            let Some(conn) = self.conns.get_mut(&token) else {
+                return Ok(());
+            };
+            let rest = unwritten(parts, written);
+            let slices: Vec<std::io::IoSlice<'_>> = rest
+                .iter()
+                .map(|part| std::io::IoSlice::new(part))
+                .collect();
+            match std::io::Write::write_vectored(conn.stream(), &slices) {
+                Ok(0) => {}
+                Ok(more) => {
+                    written += more;
+                    if written >= frame_len {
+                        conn.writing_parts = false;
+                        // What was queued for this connection meanwhile (answers) follows.
+                        if let Err(err) = conn.flush() {
+                            tracing::info!("subscriber went away: {err}");
+                            self.close(core, token);
+                        }
+                        return Ok(());
+                    }
+                    continue;
+                }
+                Err(err) if err.kind() == ErrorKind::WouldBlock => {}
+                Err(err) if err.kind() == ErrorKind::Interrupted => continue,
+                Err(err) => {
+                    tracing::info!("subscriber went away: {err}");
+                    conn.writing_parts = false;
+                    self.close(core, token);
+                    return Ok(());
+                }
+            }
+            if Instant::now() >= give_up {
+                tracing::warn!(
+                    "a reliable subscriber has not read for {RELIABLE_STALL:?}; dropping it"
+                );
+                conn.writing_parts = false;
+                self.close(core, token);
+                return Ok(());
+            }
+            // Wait for the socket to drain even when the module has events waiting (the loop
+            // turns without waiting then): they are kept, first, for its next `next_event`.
+            let waiting = std::mem::take(&mut core.events);
+            let polled = self.poll_once(core, Some(Instant::now() + Duration::from_millis(50)));
+            let arrived = std::mem::replace(&mut core.events, waiting);
+            core.events.extend(arrived);
+            polled?;
+        }
     }
 
     /// Back-pressure for a reliable subscriber: keep the loop turning (other connections too)
@@ -1130,7 +1213,8 @@ impl Net {
                 let Some(index) = link.input else {
                     return Err(WireError::UnexpectedData);
                 };
-                if !core.deliver(index, data)
+                let large = data.payload.len() >= crate::wire::LARGE_PAYLOAD_BYTES;
+                if (!core.deliver(index, data) || large)
                     && let Some(conn) = self.conns.get_mut(&token)
                 {
                     conn.paused = true;
