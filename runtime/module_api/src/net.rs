@@ -626,7 +626,11 @@ impl Net {
             let polled = self.poll_once(core, Some(Instant::now() + Duration::from_millis(50)));
             let arrived = std::mem::replace(&mut core.events, waiting);
             core.events.extend(arrived);
-            polled?;
+            if let Err(err) = polled {
+                // Half a frame went out: the connection cannot carry anything else.
+                self.close(core, token);
+                return Err(err);
+            }
         }
     }
 
