@@ -145,20 +145,24 @@ impl ArmorLink {
         Ok(self.number)
     }
 
-    /// Serves the node (it writes what the socket did not take at once) until frame `number`
-    /// has arrived.
+    /// Waits for frame `number` on the viewer's channel, as the reference waits on its reader's,
+    /// and serves the node between waits (it writes what the socket did not take at once, if
+    /// anything). Waiting in the node's poll instead (as until 2026-11-24) noticed an arrival
+    /// only when the poll timed out, a millisecond later (epoll counts in milliseconds), so the
+    /// next frame went out from colder caches than the reference's.
     fn await_arrival(&mut self, number: u64) -> anyhow::Result<Instant> {
         let give_up = Instant::now() + STALL_TIMEOUT;
         loop {
-            while let Ok((got, at)) = self.arrivals.try_recv() {
-                if got == number {
-                    return Ok(at);
-                }
+            match self.arrivals.recv_timeout(Duration::from_millis(1)) {
+                Ok((got, at)) if got == number => return Ok(at),
+                Ok(_) => continue,
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => bail!("the viewer ended"),
             }
             if Instant::now() >= give_up {
                 bail!("frame {number} never arrived");
             }
-            self.node.next_event(Some(Duration::from_micros(200)))?;
+            self.node.next_event(Some(Duration::ZERO))?;
         }
     }
 

@@ -270,7 +270,9 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
 impl Node {
     /// Connects a module hosted in this process, as `run` does for a module binary: under the
     /// supervisor named by `$ARMOR_SUPERVISOR` if set, else standalone with `options`.
+    /// The process gets the heap policy of a module process too ([`crate::memory`]).
     pub fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
+        crate::memory::keep_freed_heap();
         connect(spec, options)
     }
 }

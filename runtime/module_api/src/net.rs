@@ -6,7 +6,6 @@
 //! registered again); an input whose provider goes away asks the agent again and reconnects; the
 //! supervisor connection is retried and the configuration it sends is applied as a reload.
 
-use std::collections::HashMap;
 use std::io::{self, ErrorKind};
 use std::net::{SocketAddr, TcpStream};
 use std::os::fd::AsRawFd as _;
@@ -15,6 +14,7 @@ use std::time::{Duration, Instant};
 use mio::net::TcpListener;
 use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token};
+use rustc_hash::FxHashMap;
 use serde::Deserialize;
 
 use crate::auth::{Credentials, Dial, Key, SealedWriter};
@@ -45,6 +45,9 @@ const MAX_PENDING_PEERS: usize = 256;
 const BATCH_BYTES: usize = 64 * 1024;
 /// Past this many buffered bytes a reliable subscriber makes the publisher wait.
 const RELIABLE_BACKLOG_BYTES: usize = 8 * 1024 * 1024;
+/// The most send buffer a connection asks for large frames (Linux caps it at
+/// `net.core.wmem_max` and doubles it).
+const MAX_SEND_BUFFER: usize = 8 * 1024 * 1024;
 /// How long a publisher waits for a reliable subscriber before dropping it.
 const RELIABLE_STALL: Duration = Duration::from_secs(5);
 
@@ -102,7 +105,11 @@ struct Conn {
     reader: FrameReader,
     out: OutBuffer,
     role: Role,
-    /// A reliable input stopped reading because its queue is full.
+    /// The input stopped reading: a reliable input's queue is full, or a large frame was just
+    /// delivered. Reading goes on at the next turn of the loop with room (when the module next
+    /// waits), so that a stream of camera frames is read one frame ahead of the module, not as
+    /// many as the socket holds: the next frame's buffer then reuses the memory of the one the
+    /// module has just dropped, still in the cache, as a reader reusing one buffer does.
     paused: bool,
     handshake_deadline: Option<Instant>,
     /// Messages queued before the handshake is over: they follow it, since the peer takes
@@ -115,6 +122,11 @@ struct Conn {
     last_sent: Option<Instant>,
     /// A subscriber pulled before its output had a sample: it gets the next one.
     pull_pending: bool,
+    /// The send buffer asked of the socket for large frames (0: the system's, autotuned).
+    send_buffer: usize,
+    /// A large frame is being written from the publisher's own buffers
+    /// ([`Net::finish_large_frame`]): nothing else may go to the socket until it is whole.
+    writing_parts: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -146,7 +158,7 @@ pub(crate) struct Net {
     events: Events,
     listener: TcpListener,
     listen_addr: SocketAddr,
-    conns: HashMap<Token, Conn>,
+    conns: FxHashMap<Token, Conn>,
     next_token: usize,
     agent_addr: SocketAddr,
     agent: Link,
@@ -168,6 +180,9 @@ pub(crate) struct Net {
 impl Conn {
     /// Writes what is queued, then what the sealer holds; `Ok(true)` when all went out.
     fn flush(&mut self) -> io::Result<bool> {
+        if self.writing_parts {
+            return Ok(false);
+        }
         Ok(self.link.flush_pending()?
             && self.out.flush_to(&mut self.link)?
             && self.link.flush_pending()?)
@@ -180,6 +195,28 @@ impl Conn {
 
     fn stream(&mut self) -> &mut TcpStream {
         &mut self.link.inner
+    }
+
+    /// Makes room in the socket's send buffer for two frames of `frame_len` bytes (up to the
+    /// system's limit), so that a large frame goes to the kernel in one write from the sender's
+    /// own bytes, as a blocking write does, instead of being copied into [`OutBuffer`] and
+    /// written piecewise as the socket drains. Only ever grows the buffer.
+    fn make_room_for(&mut self, frame_len: usize) {
+        let want = frame_len.saturating_mul(2).min(MAX_SEND_BUFFER);
+        if want <= self.send_buffer {
+            return;
+        }
+        self.send_buffer = want;
+        let socket = socket2::SockRef::from(&self.link.inner);
+        // The kernel reports twice what it was asked (its bookkeeping); autotuning may have
+        // grown it beyond `want` already.
+        if socket
+            .send_buffer_size()
+            .is_ok_and(|current| current / 2 < want)
+            && let Err(err) = socket.set_send_buffer_size(want)
+        {
+            tracing::debug!("cannot grow a send buffer: {err}");
+        }
     }
 }
 
@@ -214,7 +251,7 @@ impl Net {
             events: Events::with_capacity(256),
             listener,
             listen_addr,
-            conns: HashMap::new(),
+            conns: FxHashMap::default(),
             next_token: 1,
             agent_addr,
             agent: Link::Down { retry_at: now },
@@ -292,6 +329,8 @@ impl Net {
                 peer: None,
                 last_sent: None,
                 pull_pending: false,
+                send_buffer: 0,
+                writing_parts: false,
             },
         );
         Ok(token)
@@ -420,6 +459,7 @@ impl Net {
     ) -> Result<(), ApiError> {
         let frame_len: usize = parts.iter().map(|part| part.len()).sum();
         let mut stalled = Vec::new();
+        let mut unfinished = Vec::new();
         let mut now = None;
         for &token in &self.subscribers[output] {
             let Some(conn) = self.conns.get_mut(&token) else {
@@ -458,6 +498,9 @@ impl Net {
                 }
                 conn.last_sent = Some(now);
             }
+            if reliable && frame_len >= BATCH_BYTES {
+                conn.make_room_for(frame_len);
+            }
             if reliable
                 && conn.out.is_empty()
                 && frame_len >= BATCH_BYTES
@@ -478,24 +521,27 @@ impl Net {
                 && !conn.link.is_sealing()
             {
                 // A large frame with nothing queued before it goes out from the caller's
-                // buffers; only what the socket does not take now is copied. (A best-effort
-                // subscriber's queue may drop frames not yet started, so its frames are always
-                // queued whole.)
+                // buffers, all of it: what the socket does not take now is written as it drains
+                // (`finish_large_frame`), as a blocking write would, rather than copied. (A
+                // best-effort subscriber's queue may drop frames not yet started, so its frames
+                // are always queued whole.)
                 let slices: Vec<std::io::IoSlice<'_>> = parts
                     .iter()
                     .map(|part| std::io::IoSlice::new(part))
                     .collect();
                 match std::io::Write::write_vectored(conn.stream(), &slices) {
-                    Ok(written) if written == frame_len => continue,
-                    Ok(written) => conn.out.push_frame_parts(&unwritten(parts, written), false),
+                    Ok(written) if written == frame_len => {}
+                    Ok(written) => {
+                        conn.writing_parts = true;
+                        unfinished.push((token, written));
+                    }
                     Err(err) if err.kind() == ErrorKind::WouldBlock => {
-                        conn.out.push_frame_parts(parts, false);
+                        conn.writing_parts = true;
+                        unfinished.push((token, 0));
                     }
-                    Err(_) => {
-                        stalled.push(token);
-                        continue;
-                    }
+                    Err(_) => stalled.push(token),
                 }
+                continue;
             } else {
                 conn.out.push_frame_parts(parts, !reliable);
             }
@@ -510,10 +556,82 @@ impl Net {
                 }
             }
         }
+        for (token, written) in unfinished {
+            self.finish_large_frame(core, token, parts, written)?;
+        }
         for token in stalled {
             self.wait_for_subscriber(core, token, backlog_limit(frame_len))?;
         }
         Ok(())
+    }
+
+    /// Writes the rest of a large frame (`parts`, of which `written` bytes went out) from the
+    /// publisher's buffers as the socket takes it, keeping the loop turning meanwhile (other
+    /// connections, this one's reads) as [`Net::wait_for_subscriber`] does; nothing else is
+    /// written to this socket until the frame is whole. A subscriber stuck for
+    /// [`RELIABLE_STALL`] is dropped.
+    fn finish_large_frame(
+        &mut self,
+        core: &mut Core,
+        token: Token,
+        parts: &[&[u8]],
+        mut written: usize,
+    ) -> Result<(), ApiError> {
+        let frame_len: usize = parts.iter().map(|part| part.len()).sum();
+        let give_up = Instant::now() + RELIABLE_STALL;
+        loop {
+            let Some(conn) = self.conns.get_mut(&token) else {
+                return Ok(());
+            };
+            let rest = unwritten(parts, written);
+            let slices: Vec<std::io::IoSlice<'_>> = rest
+                .iter()
+                .map(|part| std::io::IoSlice::new(part))
+                .collect();
+            match std::io::Write::write_vectored(conn.stream(), &slices) {
+                Ok(0) => {}
+                Ok(more) => {
+                    written += more;
+                    if written >= frame_len {
+                        conn.writing_parts = false;
+                        // What was queued for this connection meanwhile (answers) follows.
+                        if let Err(err) = conn.flush() {
+                            tracing::info!("subscriber went away: {err}");
+                            self.close(core, token);
+                        }
+                        return Ok(());
+                    }
+                    continue;
+                }
+                Err(err) if err.kind() == ErrorKind::WouldBlock => {}
+                Err(err) if err.kind() == ErrorKind::Interrupted => continue,
+                Err(err) => {
+                    tracing::info!("subscriber went away: {err}");
+                    conn.writing_parts = false;
+                    self.close(core, token);
+                    return Ok(());
+                }
+            }
+            if Instant::now() >= give_up {
+                tracing::warn!(
+                    "a reliable subscriber has not read for {RELIABLE_STALL:?}; dropping it"
+                );
+                conn.writing_parts = false;
+                self.close(core, token);
+                return Ok(());
+            }
+            // Wait for the socket to drain even when the module has events waiting (the loop
+            // turns without waiting then): they are kept, first, for its next `next_event`.
+            let waiting = std::mem::take(&mut core.events);
+            let polled = self.poll_once(core, Some(Instant::now() + Duration::from_millis(50)));
+            let arrived = std::mem::replace(&mut core.events, waiting);
+            core.events.extend(arrived);
+            if let Err(err) = polled {
+                // Half a frame went out: the connection cannot carry anything else.
+                self.close(core, token);
+                return Err(err);
+            }
+        }
     }
 
     /// Back-pressure for a reliable subscriber: keep the loop turning (other connections too)
@@ -1099,7 +1217,8 @@ impl Net {
                 let Some(index) = link.input else {
                     return Err(WireError::UnexpectedData);
                 };
-                if !core.deliver(index, data)
+                let large = data.payload.len() >= crate::wire::LARGE_PAYLOAD_BYTES;
+                if (!core.deliver(index, data) || large)
                     && let Some(conn) = self.conns.get_mut(&token)
                 {
                     conn.paused = true;

@@ -862,6 +862,70 @@ mod tests {
         Node::connect(ModuleSpec::new(name, "test node"), options).expect("connect")
     }
 
+    /// Frames larger than any send buffer are written from the sender's buffer as the socket
+    /// drains, with small ones between them, and read one large frame at a time: all arrive
+    /// whole and in order.
+    #[test]
+    fn frames_larger_than_the_socket_arrive_whole_and_in_order_among_small_ones() {
+        let agent = fake_agent();
+        TcpStream::connect(&agent).expect("agent up");
+        let sizes = [20 * 1024 * 1024 + 3, 17, 300 * 1024, 12 * 1024 * 1024, 1];
+        let payloads: Vec<Vec<u8>> = sizes
+            .iter()
+            .enumerate()
+            .map(|(n, &size)| (0..size).map(|i| ((i * 7 + n) % 251) as u8).collect())
+            .collect();
+        let mut recorder = connect("recorder", &agent);
+        let input = recorder.subscribe_raw("replay.big", true).expect("raw");
+        let (done, finished) = std::sync::mpsc::channel::<()>();
+        let provider = {
+            let agent = agent.clone();
+            let payloads = payloads.clone();
+            std::thread::spawn(move || {
+                let mut provider = connect("replay", &agent);
+                let output = provider.publish_raw("replay.big", "Blob").expect("raw");
+                let deadline = Instant::now() + Duration::from_secs(10);
+                while provider.raw_subscriber_count(&output) == 0 {
+                    assert!(Instant::now() < deadline, "no subscriber in time");
+                    provider
+                        .next_event(Some(Duration::from_millis(5)))
+                        .expect("poll");
+                }
+                for payload in &payloads {
+                    provider.send_raw(&output, payload).expect("send");
+                }
+                // Served until the recorder has it all (the small frames may still be queued).
+                while finished.try_recv().is_err() {
+                    provider
+                        .next_event(Some(Duration::from_millis(5)))
+                        .expect("poll");
+                }
+            })
+        };
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let mut got = Vec::new();
+        while got.len() < payloads.len() {
+            assert!(Instant::now() < deadline, "{} of 5 arrived", got.len());
+            if let Event::Input(port) = recorder
+                .next_event(Some(Duration::from_millis(20)))
+                .expect("event")
+            {
+                assert_eq!(port, input.id());
+                while let Some(sample) = recorder.take_raw(&input) {
+                    got.push(sample.payload);
+                }
+            }
+        }
+        done.send(()).expect("provider alive");
+        provider.join().expect("provider");
+        assert_eq!(
+            got.iter().map(Vec::len).collect::<Vec<_>>(),
+            sizes,
+            "every frame, in order"
+        );
+        assert!(got == payloads, "the same bytes");
+    }
+
     #[test]
     fn raw_ports_link_over_the_network_taking_the_providers_type() {
         let agent = fake_agent();
