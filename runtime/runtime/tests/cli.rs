@@ -113,7 +113,7 @@ fn check_reports_malformed_and_unknown_xml() {
         "<system name=\"s\" colour=\"red\">\n  <robot/>\n</system>",
         &[
             "FILE:1:18: unknown attribute `colour` on <system> (expected one of: name, host)",
-            "FILE:2:3: unknown element <robot> inside <system> (expected one of: host, module, link)",
+            "FILE:2:3: unknown element <robot> inside <system> (expected one of: host, module, link, subsystem)",
         ],
     );
 }
