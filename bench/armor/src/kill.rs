@@ -123,9 +123,9 @@ pub fn run_lost(settings: &Settings) -> anyhow::Result<Report> {
                 tally.received_of(generation) >= LINKED_AFTER
             })?;
         if !linked {
-            return Err(victim
-                .child
-                .failure(&format!("generation {generation}: no samples in {LINK_TIMEOUT:?}")));
+            return Err(victim.child.failure(&format!(
+                "generation {generation}: no samples in {LINK_TIMEOUT:?}"
+            )));
         }
         let streamed = Duration::from_millis(STREAM_MS[generation as usize % STREAM_MS.len()]);
         tally.receive_until(&mut node, &input, Instant::now() + streamed, |_| false)?;
@@ -133,9 +133,10 @@ pub fn run_lost(settings: &Settings) -> anyhow::Result<Report> {
         victim = Victim::start(&agent, generation + 1)?;
     }
     let last = kills as u64;
-    let linked = tally.receive_until(&mut node, &input, Instant::now() + LINK_TIMEOUT, |tally| {
-        tally.received_of(last) >= LINKED_AFTER
-    })?;
+    let linked =
+        tally.receive_until(&mut node, &input, Instant::now() + LINK_TIMEOUT, |tally| {
+            tally.received_of(last) >= LINKED_AFTER
+        })?;
     if !linked {
         return Err(victim.child.failure("the last generation never linked"));
     }
@@ -153,7 +154,10 @@ pub fn run_lost(settings: &Settings) -> anyhow::Result<Report> {
         .with("delivered", tally.received)
         .with("not_promised_head_missed", verdict.head_missed)
         .with("links", tally.links.len())
-        .with("goal", "0: the promise of docs/protocol.md 4.3, \"When a provider dies\"")
+        .with(
+            "goal",
+            "0: the promise of docs/protocol.md 4.3, \"When a provider dies\"",
+        )
         .with(
             "reference_is",
             "what the protocol promises a reliable subscriber of a killed provider: every \
@@ -220,8 +224,11 @@ impl Victim {
 /// `GENERATION << 32 | N` for N = 1, 2, … every PERIOD_US, each sent and flushed (written to
 /// its subscribers' connections) before N is printed; `ready` first, once connected.
 pub fn victim_main(agent: &str, generation: u64, period_us: u64) -> anyhow::Result<ExitCode> {
-    let spec = ModuleSpec::new("victim", "armor-bench: the provider messages_lost_under_kill kills")
-        .output::<Counter>("count", "GENERATION << 32 | N, N = 1, 2, …");
+    let spec = ModuleSpec::new(
+        "victim",
+        "armor-bench: the provider messages_lost_under_kill kills",
+    )
+    .output::<Counter>("count", "GENERATION << 32 | N, N = 1, 2, …");
     let mut node = Node::connect(
         spec,
         Standalone {
@@ -313,7 +320,10 @@ impl LinkTally {
         if self.newest.is_some_and(|newest| generation < newest) {
             self.across_restart += 1;
         }
-        self.newest = Some(self.newest.map_or(generation, |newest| newest.max(generation)));
+        self.newest = Some(
+            self.newest
+                .map_or(generation, |newest| newest.max(generation)),
+        );
         let entry = self.generations.entry(generation).or_insert(Generation {
             first: n,
             highest: n - 1,

@@ -283,11 +283,7 @@ fn field(value: &serde_json::Value, key: &str) -> anyhow::Result<f64> {
 }
 
 /// Round trips of `size` bytes through a zenoh peer, in µs.
-fn zenoh_round_trips(
-    size: usize,
-    count: usize,
-    transport: Transport,
-) -> anyhow::Result<Vec<f64>> {
+fn zenoh_round_trips(size: usize, count: usize, transport: Transport) -> anyhow::Result<Vec<f64>> {
     let endpoint = free_endpoint()?;
     let session = zenoh::open(config(Some(&endpoint), None, transport)?)
         .wait()
@@ -398,10 +394,7 @@ fn zenoh_throughput(
     loop {
         ensure!(Instant::now() < deadline, "the zenoh sink never answered");
         publisher.put(hello.put()).wait().map_err(zerr)?;
-        if let Some(answer) = done
-            .recv_timeout(Duration::from_millis(20))
-            .map_err(zerr)?
-        {
+        if let Some(answer) = done.recv_timeout(Duration::from_millis(20)).map_err(zerr)? {
             ensure!(
                 transport == Transport::Tcp || first_byte(answer.payload()) == Some(1),
                 "zenoh did not carry the messages through shared memory"
