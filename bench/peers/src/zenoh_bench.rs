@@ -240,7 +240,7 @@ fn start_peer(args: &[&str]) -> anyhow::Result<Peer> {
 /// The `armor-bench` binary: `$ARMOR_BENCH`, else the workspace's `target/release`.
 fn armor_bench() -> PathBuf {
     std::env::var_os("ARMOR_BENCH").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/release/armor-bench"),
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/release/armor-bench"),
         PathBuf::from,
     )
 }
