@@ -58,6 +58,12 @@ impl StudioApp {
         self.system.canvas.rect
     }
 
+    /// Sets the canvas's view (the bench's overview, below the zoom a fit goes to).
+    pub fn set_canvas_transform(&mut self, to_global: egui::emath::TSTransform) {
+        self.system.canvas.to_global = to_global;
+        self.system.canvas.view_request = None;
+    }
+
     /// Shows the first blocks at about `scale` (the bench's other views).
     pub fn view_at_scale(&mut self, scale: f32) {
         self.system.view_at_scale(scale);

@@ -129,7 +129,10 @@ fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Resu
         &counts,
     )?;
     raw.finish()?;
-    Ok(Report::distribution(name, "us", 1e6, &ours, &reference).with("bytes", size))
+    Ok(Report::distribution(name, "us", 1e6, &ours, &reference)
+        .with("bytes", size)
+        // armor-bench-peers times as many zenoh round trips.
+        .with("round_trips", ours.len()))
 }
 
 /// The bench's node (output `ping`, reliable input `pong` bound to `echo.output`) and the echo

@@ -9,7 +9,8 @@
 //! machines where absolute numbers do not.
 //!
 //! The raw TCP references need a peer process: the binary re-executes itself in a hidden mode
-//! (`--raw-echo ADDR SIZE`, `--raw-sink ADDR BYTES`, `--raw-hop ADDR ROLE ROUNDS`). Called
+//! (`--raw-echo ADDR SIZE`, `--raw-sink ADDR BYTES`, `--raw-hop ADDR ROLE ROUNDS`), and the
+//! provider `messages_lost_under_kill` kills is one too (`--kill-victim`). Called
 //! through a symlink named `armor-mod-benchprobe`, it is the module `event_to_start_ms` runs
 //! under `armor run` (see `benchprobe.rs`).
 
@@ -75,6 +76,10 @@ struct Cli {
     /// through the relay ROUNDS times, then print the times.
     #[arg(long, hide = true, num_args = 3, value_names = ["ADDR", "ROLE", "ROUNDS"])]
     raw_hop: Option<Vec<String>>,
+    /// Hidden provider of `messages_lost_under_kill`: module `victim` on the agent at AGENT,
+    /// publishing GENERATION << 32 | N every PERIOD_US and printing each N once written.
+    #[arg(long, hide = true, num_args = 3, value_names = ["AGENT", "GENERATION", "PERIOD_US"])]
+    kill_victim: Option<Vec<String>>,
 }
 
 pub use armor_bench_report::Settings;
@@ -248,8 +253,9 @@ const BENCHES: &[Bench] = &[
     },
     Bench {
         name: kill::NAME_LOST,
-        about: "values lost, duplicated or reordered on a 1 kHz link while another module is \
-                killed again and again (must be 0)",
+        about: "samples written before a SIGKILL of their provider that never arrived, came \
+                twice or out of order (across the restart too), on the killed provider's own \
+                reliable 1 kHz link, vs what the protocol promises: 0",
         run: kill::run_lost,
     },
     Bench {
@@ -292,7 +298,7 @@ const BENCHES: &[Bench] = &[
     Bench {
         name: studio::NAME_FRAME,
         about: "one UI frame of armor-studio (headless) on a 1,000-block, 1,500-link diagram vs \
-                a 60 Hz frame budget (ms; goal < 16)",
+                a 60 Hz frame budget (ms; goal < 16; rendered_ms: rasterised too)",
         run: studio::run_frame,
     },
     Bench {
@@ -315,8 +321,15 @@ const BENCHES: &[Bench] = &[
     Bench {
         name: studio::NAME_VS_SNARL,
         about: "one frame of armor-studio's diagram vs a bare egui-snarl viewer on the same \
-                1,000-block graph and view (ms; goal ratio <= 0.5; also 100 and 500 blocks)",
+                1,000-block graph, view, zoom and text (ms; goal ratio <= 0.5; also 100 and 500 \
+                blocks)",
         run: studio::run_vs_snarl,
+    },
+    Bench {
+        name: studio::NAME_OVERVIEW_VS_SNARL,
+        about: "one frame of armor-studio's overview (all 1,000 blocks in view, boxes) vs the \
+                bare egui-snarl viewer at that zoom drawing every node with its text (ms)",
+        run: studio::run_overview_vs_snarl,
     },
     Bench {
         name: studio::NAME_LAYOUT,
@@ -361,6 +374,13 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     }
     if let Some(args) = &cli.raw_sink {
         return raw::sink_main(&args[0], parse_number(&args[1], "--raw-sink BYTES")?);
+    }
+    if let Some(args) = &cli.kill_victim {
+        return kill::victim_main(
+            &args[0],
+            parse_number(&args[1], "--kill-victim GENERATION")?,
+            parse_number(&args[2], "--kill-victim PERIOD_US")?,
+        );
     }
     if let Some(args) = &cli.raw_hop {
         return event_start::hop_main(

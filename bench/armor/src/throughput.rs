@@ -257,7 +257,10 @@ fn run(plan: &Plan) -> anyhow::Result<Report> {
     }
     Ok(
         Report::single(plan.name, "msg/s", median(&ours), median(&reference))
-            .with("bytes", plan.size),
+            .with("bytes", plan.size)
+            // armor-bench-peers sends zenoh the same number of messages in as many rounds.
+            .with("messages_per_round", plan.count)
+            .with("rounds", plan.rounds),
     )
 }
 

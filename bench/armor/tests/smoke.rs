@@ -171,3 +171,62 @@ fn studio_figures_are_relayed_from_armor_studio() {
         assert!(line["ours"].as_f64().is_some_and(|x| x > 0.0), "{line}");
     }
 }
+
+#[test]
+fn fuzz_execs_fails_clearly_without_cargo_fuzz() {
+    use std::os::unix::fs::PermissionsExt as _;
+    // A `cargo` that knows no `fuzz`, first on the PATH: what a machine without cargo-fuzz has.
+    let dir = tempfile::tempdir().unwrap();
+    let cargo = dir.path().join("cargo");
+    std::fs::write(
+        &cargo,
+        "#!/bin/sh\necho 'error: no such command: `fuzz`' >&2\nexit 101\n",
+    )
+    .unwrap();
+    std::fs::set_permissions(&cargo, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let path = format!(
+        "{}:{}",
+        dir.path().display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let output = Command::new(BENCH)
+        .args(["--quick", "fuzz_execs"])
+        .env("PATH", path)
+        .output()
+        .unwrap();
+    assert!(!output.status.success(), "a figure of 0 must not pass");
+    assert!(
+        output.stdout.is_empty(),
+        "no line: {}",
+        text(&output.stdout)
+    );
+    let stderr = text(&output.stderr);
+    assert!(
+        stderr.contains("fuzz_execs") && stderr.contains("cargo-fuzz is not installed"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn messages_lost_under_kill_checks_the_killed_providers_own_link() {
+    let output = bench(&["--quick", "messages_lost_under_kill"]);
+    let stdout = text(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{}\nstdout:\n{stdout}\nstderr:\n{}",
+        output.status,
+        text(&output.stderr)
+    );
+    let line: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(line["bench"], "messages_lost_under_kill", "{line}");
+    assert_eq!(line["kills"], 2, "{line}");
+    // The promise of docs/protocol.md: nothing written before a kill is lost, doubled or
+    // reordered.
+    assert_eq!(line["ours"], 0.0, "{line}");
+    assert!(
+        line["written_before_kills"].as_u64().is_some_and(|n| n > 0),
+        "{line}"
+    );
+    // Three generations, each on a link of its own.
+    assert_eq!(line["links"], 3, "{line}");
+}

@@ -28,7 +28,7 @@ const BINARIES: usize = 50;
 fn module_dir() -> PathBuf {
     match std::env::var_os(probe::ENV_MODULE_PATH) {
         Some(path) if !path.is_empty() => std::env::split_paths(&path).next().unwrap_or_default(),
-        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/release"),
+        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/release"),
     }
 }
 

@@ -12,7 +12,17 @@
 //!   latency_64b` (a node to `armor-mod-echo`) and its sizes.
 //! - `throughput_64b_vs_zenoh` (and the same sizes): messages per second into another process;
 //!   zenoh: a publisher (batching, blocking congestion control) to a counting subscriber; ours:
-//!   `armor-bench throughput_64b` (into `armor-mod-sink`) and its sizes.
+//!   `armor-bench throughput_64b` (into `armor-mod-sink`) and its sizes. Both sides send the
+//!   same number of messages in the same number of rounds (zenoh takes them from our line).
+//!
+//! zenoh is given its best path, as its own `z_pub_thr`, `z_ping` and their shared-memory twins
+//! do: the payload is built once as a `ZBytes` and each message puts a shallow clone of it (a
+//! reference count, no copy); the receivers look at the payload where it arrived (`slices()`,
+//! never `to_bytes()`). Every zenoh figure is taken twice: over TCP with shared memory off (the
+//! same transport as ours, the headline), and with zenoh's shared-memory transport (the payload
+//! allocated once in a POSIX shared-memory segment, only its descriptor on the TCP link; the
+//! receiver checks that it really came by shared memory), a second reference for processes on
+//! one host, which ArMoR does not offer.
 //!
 //! Run the whole binary under `taskset -c 0` for the figures with both processes on one core:
 //! the children inherit the affinity, and every line says which CPUs it was allowed
@@ -36,7 +46,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail, ensure};
 use zenoh::Wait as _;
+use zenoh::bytes::ZBytes;
 use zenoh::qos::CongestionControl;
+use zenoh::shm::{PosixShmProviderBackend, ShmProvider, ShmProviderBuilder, ZShm};
 
 use crate::Settings;
 use armor_bench_report::{Report, median, percentile};
@@ -72,13 +84,107 @@ fn zerr(err: zenoh::Error) -> anyhow::Error {
     anyhow::anyhow!("zenoh: {err}")
 }
 
+/// How zenoh carries the payload between the two processes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Transport {
+    /// TCP with shared memory off: the payload's bytes go through the socket, as ours do.
+    Tcp,
+    /// zenoh's shared-memory transport: the payload is allocated in a POSIX shared-memory
+    /// segment and only its descriptor goes through the TCP link.
+    Shm,
+}
+
+impl Transport {
+    fn arg(self) -> &'static str {
+        match self {
+            Transport::Tcp => "tcp",
+            Transport::Shm => "shm",
+        }
+    }
+
+    fn parse(text: &str) -> anyhow::Result<Self> {
+        match text {
+            "tcp" => Ok(Transport::Tcp),
+            "shm" => Ok(Transport::Shm),
+            other => bail!("--zenoh-peer: unknown transport `{other}` (tcp or shm)"),
+        }
+    }
+}
+
+/// A payload built once, sent as shallow clones of its `ZBytes` (a reference count each, no
+/// copy), as zenoh's `z_pub_thr` and `z_pub_shm_thr` do. The shared-memory provider is kept as
+/// long as the payload.
+struct Payload {
+    bytes: ZBytes,
+    _provider: Option<ShmProvider<PosixShmProviderBackend>>,
+}
+
+impl Payload {
+    /// `size` bytes of `fill`, the first one `first`, in the heap or in shared memory.
+    fn new(size: usize, first: u8, fill: u8, transport: Transport) -> anyhow::Result<Self> {
+        let mut data = vec![fill; size];
+        if let Some(byte) = data.first_mut() {
+            *byte = first;
+        }
+        match transport {
+            Transport::Tcp => Ok(Payload {
+                bytes: ZBytes::from(data),
+                _provider: None,
+            }),
+            Transport::Shm => {
+                // Room for the buffer and the allocator's own layout.
+                let provider = ShmProviderBuilder::default_backend(size * 2 + 64 * 1024)
+                    .wait()
+                    .map_err(zerr)?;
+                let mut buffer = provider
+                    .alloc(size)
+                    .wait()
+                    .map_err(|err| anyhow::anyhow!("zenoh shared memory: {err:?}"))?;
+                buffer.copy_from_slice(&data);
+                let buffer: ZShm = buffer.into();
+                Ok(Payload {
+                    bytes: ZBytes::from(buffer),
+                    _provider: Some(provider),
+                })
+            }
+        }
+    }
+
+    fn put(&self) -> ZBytes {
+        self.bytes.clone()
+    }
+}
+
+/// The first byte of a payload, read where it arrived (no copy of the payload).
+fn first_byte(payload: &ZBytes) -> Option<u8> {
+    payload
+        .slices()
+        .find(|slice| !slice.is_empty())
+        .map(|slice| slice[0])
+}
+
 /// A peer-mode configuration: listening on `listen` or connecting to `connect`, no multicast
-/// scouting.
-fn config(listen: Option<&str>, connect: Option<&str>) -> anyhow::Result<zenoh::Config> {
+/// scouting, shared memory on or off as `transport` says (off, zenoh would also move payloads
+/// of 3 KiB and more through shared memory on its own).
+fn config(
+    listen: Option<&str>,
+    connect: Option<&str>,
+    transport: Transport,
+) -> anyhow::Result<zenoh::Config> {
     let mut config = zenoh::Config::default();
     config.insert_json5("mode", r#""peer""#).map_err(zerr)?;
     config
         .insert_json5("scouting/multicast/enabled", "false")
+        .map_err(zerr)?;
+    config
+        .insert_json5(
+            "transport/shared_memory/enabled",
+            if transport == Transport::Shm {
+                "true"
+            } else {
+                "false"
+            },
+        )
         .map_err(zerr)?;
     let endpoints = |endpoint: Option<&str>| match endpoint {
         Some(endpoint) => format!(r#"["{endpoint}"]"#),
@@ -134,7 +240,7 @@ fn start_peer(args: &[&str]) -> anyhow::Result<Peer> {
 /// The `armor-bench` binary: `$ARMOR_BENCH`, else the workspace's `target/release`.
 fn armor_bench() -> PathBuf {
     std::env::var_os("ARMOR_BENCH").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/release/armor-bench"),
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/release/armor-bench"),
         PathBuf::from,
     )
 }
@@ -177,9 +283,9 @@ fn field(value: &serde_json::Value, key: &str) -> anyhow::Result<f64> {
 }
 
 /// Round trips of `size` bytes through a zenoh peer, in µs.
-fn zenoh_round_trips(size: usize, count: usize) -> anyhow::Result<Vec<f64>> {
+fn zenoh_round_trips(size: usize, count: usize, transport: Transport) -> anyhow::Result<Vec<f64>> {
     let endpoint = free_endpoint()?;
-    let session = zenoh::open(config(Some(&endpoint), None)?)
+    let session = zenoh::open(config(Some(&endpoint), None, transport)?)
         .wait()
         .map_err(zerr)?;
     let publisher = session
@@ -189,18 +295,21 @@ fn zenoh_round_trips(size: usize, count: usize) -> anyhow::Result<Vec<f64>> {
         .wait()
         .map_err(zerr)?;
     let subscriber = session.declare_subscriber(KEY_PONG).wait().map_err(zerr)?;
-    let _peer = start_peer(&["pong", &endpoint])?;
-    let payload = vec![7u8; size];
+    let _peer = start_peer(&["pong", &endpoint, transport.arg()])?;
+    let payload = Payload::new(size, 7, 7, transport)?;
     // Until the routes are known both ways, pings are dropped: ping until a pong comes.
     let deadline = Instant::now() + TIMEOUT;
     loop {
         ensure!(Instant::now() < deadline, "no pong from the zenoh peer");
-        publisher.put(payload.clone()).wait().map_err(zerr)?;
-        if subscriber
+        publisher.put(payload.put()).wait().map_err(zerr)?;
+        if let Some(pong) = subscriber
             .recv_timeout(Duration::from_millis(20))
             .map_err(zerr)?
-            .is_some()
         {
+            ensure!(
+                transport == Transport::Tcp || pong.payload().as_shm().is_some(),
+                "zenoh did not carry the pong through shared memory"
+            );
             break;
         }
     }
@@ -212,7 +321,7 @@ fn zenoh_round_trips(size: usize, count: usize) -> anyhow::Result<Vec<f64>> {
     let mut times = Vec::with_capacity(count);
     for _ in 0..count {
         let start = Instant::now();
-        publisher.put(payload.clone()).wait().map_err(zerr)?;
+        publisher.put(payload.put()).wait().map_err(zerr)?;
         let sample = subscriber
             .recv_timeout(TIMEOUT)
             .map_err(zerr)?
@@ -226,16 +335,16 @@ fn zenoh_round_trips(size: usize, count: usize) -> anyhow::Result<Vec<f64>> {
 /// The latency bench `LATENCY[index]`.
 pub fn run_latency(index: usize, settings: &Settings) -> anyhow::Result<Report> {
     let (name, ours_name, size) = LATENCY[index];
-    let count = if settings.quick {
-        200
-    } else {
-        (20_000 / (size / 1024).max(1)).max(1_000)
-    };
     let ours = ours(ours_name, settings)?;
-    let mut zenoh = zenoh_round_trips(size, count)?;
+    // As many round trips as our side timed.
+    let count = field(&ours, "round_trips")? as usize;
+    let mut zenoh = zenoh_round_trips(size, count, Transport::Tcp)?;
     zenoh.sort_by(f64::total_cmp);
+    let mut shm = zenoh_round_trips(size, count, Transport::Shm)?;
+    shm.sort_by(f64::total_cmp);
     let ours_p50 = field(&ours, "p50")?;
     let zenoh_p50 = percentile(&zenoh, 0.5);
+    let shm_p50 = percentile(&shm, 0.5);
     let mut report = Report::single(name, "us", ours_p50, zenoh_p50);
     report.p50 = Some(ours_p50);
     report.p99 = Some(field(&ours, "p99")?);
@@ -244,20 +353,31 @@ pub fn run_latency(index: usize, settings: &Settings) -> anyhow::Result<Report> 
     Ok(report
         .with("reference_p999", crate::round4(percentile(&zenoh, 0.999)))
         .with("bytes", size)
+        .with("round_trips", count)
         .with("cpus_allowed", cpus_allowed())
+        .with("zenoh_shm_p50", crate::round4(shm_p50))
+        .with("zenoh_shm_p99", crate::round4(percentile(&shm, 0.99)))
+        .with("ratio_vs_zenoh_shm", crate::round4(ours_p50 / shm_p50))
         .with("raw_tcp_p50", field(&ours, "reference_p50")?)
         .with("ratio_vs_raw_tcp", field(&ours, "ratio")?)
         .with("goal", "<= 0.5x zenoh, <= 1.3x raw TCP")
         .with(
             "reference_is",
-            "zenoh 1.10 peers over TCP, express publisher to a callback that puts it back",
+            "zenoh 1.10 peers over TCP (shared memory off), express publisher putting a \
+             payload built once, to a callback that puts the received payload back (no copy \
+             on either side); zenoh_shm_*: the same through zenoh's shared-memory transport",
         ))
 }
 
 /// Messages of `size` bytes per second into a zenoh subscriber in another process.
-fn zenoh_throughput(size: usize, count: u64, rounds: usize) -> anyhow::Result<Vec<f64>> {
+fn zenoh_throughput(
+    size: usize,
+    count: u64,
+    rounds: usize,
+    transport: Transport,
+) -> anyhow::Result<Vec<f64>> {
     let endpoint = free_endpoint()?;
-    let session = zenoh::open(config(Some(&endpoint), None)?)
+    let session = zenoh::open(config(Some(&endpoint), None, transport)?)
         .wait()
         .map_err(zerr)?;
     let publisher = session
@@ -266,19 +386,19 @@ fn zenoh_throughput(size: usize, count: u64, rounds: usize) -> anyhow::Result<Ve
         .wait()
         .map_err(zerr)?;
     let done = session.declare_subscriber(KEY_DONE).wait().map_err(zerr)?;
-    let _peer = start_peer(&["sink", &endpoint, &count.to_string()])?;
-    // A hello (first byte 1) is answered at once and not counted: send them until one is.
-    let mut hello = vec![0u8; size];
-    hello[0] = 1;
+    let _peer = start_peer(&["sink", &endpoint, &count.to_string(), transport.arg()])?;
+    // A hello (first byte 1) is answered at once and not counted: send them until one is. The
+    // answer says whether the hello came through shared memory.
+    let hello = Payload::new(size, 1, 0, transport)?;
     let deadline = Instant::now() + TIMEOUT;
     loop {
         ensure!(Instant::now() < deadline, "the zenoh sink never answered");
-        publisher.put(hello.clone()).wait().map_err(zerr)?;
-        if done
-            .recv_timeout(Duration::from_millis(20))
-            .map_err(zerr)?
-            .is_some()
-        {
+        publisher.put(hello.put()).wait().map_err(zerr)?;
+        if let Some(answer) = done.recv_timeout(Duration::from_millis(20)).map_err(zerr)? {
+            ensure!(
+                transport == Transport::Tcp || first_byte(answer.payload()) == Some(1),
+                "zenoh did not carry the messages through shared memory"
+            );
             break;
         }
     }
@@ -287,12 +407,12 @@ fn zenoh_throughput(size: usize, count: u64, rounds: usize) -> anyhow::Result<Ve
         .map_err(zerr)?
         .is_some()
     {}
-    let payload = vec![0u8; size];
+    let payload = Payload::new(size, 0, 0, transport)?;
     let mut rates = Vec::with_capacity(rounds);
     for _ in 0..rounds {
         let start = Instant::now();
         for _ in 0..count {
-            publisher.put(payload.clone()).wait().map_err(zerr)?;
+            publisher.put(payload.put()).wait().map_err(zerr)?;
         }
         done.recv_timeout(TIMEOUT * 6)
             .map_err(zerr)?
@@ -305,24 +425,29 @@ fn zenoh_throughput(size: usize, count: u64, rounds: usize) -> anyhow::Result<Ve
 /// The throughput bench `THROUGHPUT[index]`.
 pub fn run_throughput(index: usize, settings: &Settings) -> anyhow::Result<Report> {
     let (name, ours_name, size) = THROUGHPUT[index];
-    // About 32 MB a round (500,000 messages of 64 bytes), at least 1,000 messages.
-    let (count, rounds) = if settings.quick {
-        (1_000, 1)
-    } else {
-        ((32_000_000 / size as u64).clamp(1_000, 500_000), 5)
-    };
     let ours = ours(ours_name, settings)?;
-    let zenoh = median(&zenoh_throughput(size, count, rounds)?);
-    Ok(Report::single(name, "msg/s", field(&ours, "ours")?, zenoh)
+    // The same number of messages in as many rounds as our side sent.
+    let count = field(&ours, "messages_per_round")? as u64;
+    let rounds = field(&ours, "rounds")? as usize;
+    let ours_rate = field(&ours, "ours")?;
+    let zenoh = median(&zenoh_throughput(size, count, rounds, Transport::Tcp)?);
+    let shm = median(&zenoh_throughput(size, count, rounds, Transport::Shm)?);
+    Ok(Report::single(name, "msg/s", ours_rate, zenoh)
         .with("bytes", size)
+        .with("messages_per_round", count)
+        .with("rounds", rounds)
         .with("cpus_allowed", cpus_allowed())
+        .with("zenoh_shm", shm.round())
+        .with("ratio_vs_zenoh_shm", crate::round4(ours_rate / shm))
         .with("raw_tcp", field(&ours, "reference")?)
         .with("ratio_vs_raw_tcp", field(&ours, "ratio")?)
         .with("goal", ">= 1x zenoh at 64 bytes, >= 0.8x raw TCP at 1 MiB")
         .with(
             "reference_is",
-            "zenoh 1.10 peers over TCP, batching publisher (blocking congestion control) \
-                 to a counting subscriber in another process",
+            "zenoh 1.10 peers over TCP (shared memory off), batching publisher (blocking \
+             congestion control) putting a payload built once, to a subscriber in another \
+             process that counts without copying; the same message count and rounds as ours; \
+             zenoh_shm: the same through zenoh's shared-memory transport",
         ))
 }
 
@@ -349,7 +474,7 @@ fn raw_requests(count: usize) -> anyhow::Result<Vec<f64>> {
 /// zenoh `get` on a queryable in another process; µs each.
 fn zenoh_gets(count: usize) -> anyhow::Result<Vec<f64>> {
     let endpoint = free_endpoint()?;
-    let session = zenoh::open(config(Some(&endpoint), None)?)
+    let session = zenoh::open(config(Some(&endpoint), None, Transport::Tcp)?)
         .wait()
         .map_err(zerr)?;
     let _peer = start_peer(&["queryable", &endpoint])?;
@@ -422,7 +547,7 @@ pub fn run_pull(settings: &Settings) -> anyhow::Result<Report> {
 /// A zenoh process started to its first sample here, in ms.
 fn zenoh_discovery(rounds: usize) -> anyhow::Result<Vec<f64>> {
     let endpoint = free_endpoint()?;
-    let session = zenoh::open(config(Some(&endpoint), None)?)
+    let session = zenoh::open(config(Some(&endpoint), None, Transport::Tcp)?)
         .wait()
         .map_err(zerr)?;
     let subscriber = session
@@ -470,13 +595,14 @@ pub fn run_discovery(settings: &Settings) -> anyhow::Result<Report> {
             .with(
                 "reference_is",
                 "a process spawned that opens a zenoh peer session, connects to ours \
-                 (subscribed) and publishes, to the first sample here",
+                 (subscribed) and publishes every 0.5 ms (as our counter does), to the first \
+                 sample here",
             ),
     )
 }
 
-/// The hidden child roles: `pong ENDPOINT`, `sink ENDPOINT COUNT`, `queryable ENDPOINT`,
-/// `raw ADDR`, `pub ENDPOINT`. Each prints `ready` when set up and lives until its stdin
+/// The hidden child roles: `pong ENDPOINT TRANSPORT`, `sink ENDPOINT COUNT TRANSPORT`,
+/// `queryable ENDPOINT`, `raw ADDR`, `pub ENDPOINT` (TRANSPORT: `tcp` or `shm`). Each prints `ready` when set up and lives until its stdin
 /// closes (or it is killed).
 pub fn peer_main(args: &[String]) -> ExitCode {
     match peer(args) {
@@ -519,7 +645,8 @@ fn peer(args: &[String]) -> anyhow::Result<()> {
             Ok(())
         }
         "pong" => {
-            let session = zenoh::open(config(None, Some(arg(1)?))?)
+            let transport = Transport::parse(arg(2)?)?;
+            let session = zenoh::open(config(None, Some(arg(1)?), transport)?)
                 .wait()
                 .map_err(zerr)?;
             let publisher = session
@@ -541,7 +668,8 @@ fn peer(args: &[String]) -> anyhow::Result<()> {
         }
         "sink" => {
             let count: u64 = arg(2)?.parse()?;
-            let session = zenoh::open(config(None, Some(arg(1)?))?)
+            let transport = Transport::parse(arg(3)?)?;
+            let session = zenoh::open(config(None, Some(arg(1)?), transport)?)
                 .wait()
                 .map_err(zerr)?;
             let done = session
@@ -554,9 +682,11 @@ fn peer(args: &[String]) -> anyhow::Result<()> {
             let _subscriber = session
                 .declare_subscriber(KEY_DATA)
                 .callback(move |sample| {
-                    let hello = sample.payload().to_bytes().first() == Some(&1);
-                    if hello {
-                        let _ = done.put(vec![0u8]).wait();
+                    // The payload is looked at where it arrived, never copied.
+                    let payload = sample.payload();
+                    if first_byte(payload) == Some(1) {
+                        let by_shm = payload.as_shm().is_some();
+                        let _ = done.put(vec![u8::from(by_shm)]).wait();
                     } else if received.fetch_add(1, Ordering::Relaxed) + 1 == count {
                         received.store(0, Ordering::Relaxed);
                         let _ = done.put(vec![0u8]).wait();
@@ -569,10 +699,10 @@ fn peer(args: &[String]) -> anyhow::Result<()> {
             Ok(())
         }
         "queryable" => {
-            let session = zenoh::open(config(None, Some(arg(1)?))?)
+            let session = zenoh::open(config(None, Some(arg(1)?), Transport::Tcp)?)
                 .wait()
                 .map_err(zerr)?;
-            let latest = vec![9u8; SIZE];
+            let latest = ZBytes::from(vec![9u8; SIZE]);
             let _queryable = session
                 .declare_queryable(KEY_LATEST)
                 .callback(move |query| {
@@ -585,7 +715,7 @@ fn peer(args: &[String]) -> anyhow::Result<()> {
             Ok(())
         }
         "pub" => {
-            let session = zenoh::open(config(None, Some(arg(1)?))?)
+            let session = zenoh::open(config(None, Some(arg(1)?), Transport::Tcp)?)
                 .wait()
                 .map_err(zerr)?;
             let publisher = session
@@ -593,10 +723,12 @@ fn peer(args: &[String]) -> anyhow::Result<()> {
                 .express(true)
                 .wait()
                 .map_err(zerr)?;
-            // Publishes until killed: the first sample that finds the subscriber is the figure.
+            // Publishes until killed, every 0.5 ms like our counter in `discovery_ms`: the
+            // first sample that finds the subscriber is the figure.
+            let payload = ZBytes::from(vec![1u8; SIZE]);
             loop {
-                publisher.put(vec![1u8; SIZE]).wait().map_err(zerr)?;
-                std::thread::sleep(Duration::from_millis(1));
+                publisher.put(payload.clone()).wait().map_err(zerr)?;
+                std::thread::sleep(Duration::from_micros(500));
             }
         }
         other => bail!("--zenoh-peer: unknown role `{other}`"),
