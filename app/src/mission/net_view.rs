@@ -408,6 +408,19 @@ fn header_ui(ui: &mut Ui, state: &mut NetViewState) {
                 ("final place", Glyph::Final),
             ];
             for (text, glyph) in items.iter().rev() {
+                // What does not fit beside the buttons is left out, the last entries first.
+                let width = ui
+                    .painter()
+                    .layout_no_wrap(
+                        (*text).to_owned(),
+                        egui::TextStyle::Body.resolve(ui.style()),
+                        Color32::WHITE,
+                    )
+                    .size()
+                    .x;
+                if ui.available_width() < width + 16.0 + 2.0 * ui.spacing().item_spacing.x {
+                    break;
+                }
                 ui.label(*text);
                 let (rect, _) = ui.allocate_exact_size(vec2(16.0, 16.0), Sense::hover());
                 glyph.paint(ui.painter(), rect.center());
