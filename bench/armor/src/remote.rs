@@ -5,21 +5,18 @@
 //! made, the benchmark fails saying so.
 
 use std::fmt::Write as _;
-use std::path::Path;
 use std::process::Command;
-use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
-use armor_module_api::{ENV_MODULE, ENV_SUPERVISOR};
 
 use crate::Settings;
 use crate::harness::LINK_TIMEOUT;
 use crate::procs::{ChildGuard, sibling_binary};
+use crate::startup::armor_startup;
 use armor_bench_report::{Report, median};
 
 pub const NAME: &str = "remote_start_ms";
 const MODULES: usize = 10;
-const STOP_TIMEOUT: Duration = Duration::from_secs(10);
 /// This side of the veth pair, and the far side (in the namespace).
 pub const NEAR: &str = "10.78.0.1";
 pub const FAR: &str = "10.78.0.2";
@@ -106,8 +103,8 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     let mut ours = Vec::with_capacity(rounds);
     let mut reference = Vec::with_capacity(rounds);
     for _ in 0..rounds {
-        ours.push(startup(&armor, &split)?);
-        reference.push(startup(&armor, &local)?);
+        ours.push(armor_startup(&armor, &split)?);
+        reference.push(armor_startup(&armor, &local)?);
     }
     host.check_alive()?;
     Ok(
@@ -131,28 +128,4 @@ fn system_xml(split: bool) -> String {
     }
     xml.push_str("</system>\n");
     xml
-}
-
-/// Milliseconds from spawning `armor run` until it logs `all 10 modules configured`.
-fn startup(armor: &Path, file: &Path) -> anyhow::Result<f64> {
-    let mut command = Command::new(armor);
-    command
-        .arg("run")
-        .arg(file)
-        .arg("--no-run-folder")
-        .env("ARMOR_LOG", "info")
-        .env_remove(ENV_SUPERVISOR)
-        .env_remove(ENV_MODULE);
-    let expected = format!("all {MODULES} modules configured");
-    let start = Instant::now();
-    let mut child = ChildGuard::spawn("armor run", command)?.graceful();
-    let Some(lines) = child.take_lines() else {
-        bail!("armor run: no stderr to read");
-    };
-    child.wait_line(&lines, &format!("`{expected}`"), LINK_TIMEOUT, |line| {
-        line.contains(&expected).then_some(())
-    })?;
-    let elapsed = start.elapsed();
-    child.stop(STOP_TIMEOUT)?;
-    Ok(elapsed.as_secs_f64() * 1e3)
 }
