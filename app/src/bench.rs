@@ -389,6 +389,12 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
             // Every block in view, below the zoom where ours draws widgets.
             let overview = overview_transform(&app);
             let all_in_view = both(&mut app, Some(overview));
+            anyhow::ensure!(
+                app.is_overview() && (all_in_view.2 - overview.scaling).abs() < 1e-3,
+                "the overview line drew at zoom {} (asked {}): not the overview",
+                all_in_view.2,
+                overview.scaling
+            );
             if blocks == 1000 {
                 headline = fitted;
                 overview_line = all_in_view;

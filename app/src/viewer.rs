@@ -65,6 +65,9 @@ pub struct Canvas {
     pub move_before: Option<Diagram>,
     /// A canvas rectangle to show whole on the next frame (zoom to fit, find).
     pub view_request: Option<Rect>,
+    /// A transform to take as it is on the next frame (the bench's overview, below the zoom a
+    /// fit goes to).
+    pub transform_request: Option<TSTransform>,
     /// The snarl's own selection as last seen (shift-click and rectangle selection).
     snarl_selection: Vec<NodeId>,
     /// The block dragged in the overview, where egui-snarl holds none.
@@ -96,6 +99,7 @@ impl Default for Canvas {
             wire_from: None,
             move_before: None,
             view_request: None,
+            transform_request: None,
             snarl_selection: Vec::new(),
             overview_grab: None,
             overview_names: Vec::new(),
@@ -499,6 +503,7 @@ pub struct DiagramViewer<'a> {
     /// The canvas transform: read by snarl, overridden to show `view_request`.
     pub to_global: &'a mut TSTransform,
     pub view_request: Option<Rect>,
+    pub transform_request: Option<TSTransform>,
     pub screen_rect: Rect,
     /// Where a double click happened this frame, on screen.
     pub double_click: Option<Pos2>,
@@ -1109,7 +1114,9 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
     }
 
     fn current_transform(&mut self, to_global: &mut TSTransform, _snarl: &mut Snarl<BlockId>) {
-        if let Some(view) = self.view_request.take() {
+        if let Some(transform) = self.transform_request.take() {
+            *to_global = transform;
+        } else if let Some(view) = self.view_request.take() {
             *to_global = fit(view, self.screen_rect);
         } else if let Some(wheel) = self.wheel {
             *to_global = wheel.apply();

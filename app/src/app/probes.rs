@@ -60,7 +60,7 @@ impl StudioApp {
 
     /// Sets the canvas's view (the bench's overview, below the zoom a fit goes to).
     pub fn set_canvas_transform(&mut self, to_global: egui::emath::TSTransform) {
-        self.system.canvas.to_global = to_global;
+        self.system.canvas.transform_request = Some(to_global);
         self.system.canvas.view_request = None;
     }
 

@@ -161,6 +161,7 @@ impl SystemView {
         let mut node_rects = HashMap::new();
         let mut to_global = self.canvas.to_global;
         let view_request = self.canvas.view_request.take();
+        let transform_request = self.canvas.transform_request.take();
         let wire_from = self.canvas.wire_from.clone();
         // The viewer reads the canvas while egui-snarl edits the snarl: hold them apart.
         let mut canvas = std::mem::take(&mut self.canvas);
@@ -177,6 +178,7 @@ impl SystemView {
             node_rects: &mut node_rects,
             to_global: &mut to_global,
             view_request,
+            transform_request,
             screen_rect: canvas.rect,
             double_click: double_click.filter(|pos| canvas.rect.contains(*pos)),
             canvas: &canvas,
