@@ -415,6 +415,13 @@ impl StudioApp {
             };
             return format!("{} ({state}) — ArMoR Studio", name(Some(target)));
         }
+        if self.view == View::Run {
+            // What a Run would start, as the toolbar says.
+            let plan = self.mission.as_ref().and_then(|mission| mission.path());
+            if let Some(target) = self.run.ready_target(plan, self.system.path.as_deref()) {
+                return format!("{} — ArMoR Studio", name(Some(target)));
+            }
+        }
         let (path, dirty) = match (self.view, &self.mission) {
             (View::Mission, Some(mission)) => (mission.path(), mission.is_dirty()),
             _ => (self.system.path.as_deref(), self.system.dirty),

@@ -131,6 +131,10 @@ fn open_and_run(harness: &mut Harness<'_, StudioApp>, file: &Path, time_scale: f
     harness.state_mut().set_view(View::Run);
     harness.state_mut().run_mut().time_scale = time_scale;
     harness.run_ok();
+    // Before the run, the title names what a Run would start (not an empty System view's
+    // "untitled").
+    let name = file.file_name().unwrap().to_string_lossy();
+    assert_eq!(harness.state().title(), format!("{name} — ArMoR Studio"));
     harness.get_by_label("▶ Run").click();
     harness.run_ok();
     assert!(

@@ -228,11 +228,21 @@ impl RunView {
         let plan = surroundings
             .mission
             .as_ref()
-            .and_then(|mission| mission.path())
-            .map(|path| Target::Plan(path.to_path_buf()));
-        let system = surroundings
-            .system_file
-            .map(|path| Target::System(path.to_path_buf()));
+            .and_then(|mission| mission.path());
+        let path = self.ready_target(plan, surroundings.system_file)?;
+        Some(if Some(path) == plan {
+            Target::Plan(path.to_path_buf())
+        } else {
+            Target::System(path.to_path_buf())
+        })
+    }
+
+    /// Of the plan and the system file open, the one a Run would start now.
+    pub fn ready_target<'a>(
+        &self,
+        plan: Option<&'a Path>,
+        system: Option<&'a Path>,
+    ) -> Option<&'a Path> {
         if self.prefer_system {
             system.or(plan)
         } else {
