@@ -165,7 +165,7 @@ impl MissionView {
     /// The map and what is drawn on it, for editing.
     pub fn map_ui(&mut self, ui: &mut Ui) {
         let selection = self.editor.selection.clone();
-        let (scene, projector, response) = self.show_map(ui, &selection, |_, _| {});
+        let (scene, projector, response) = self.show_map(ui, &selection, |_, _, _| {});
         let mut out = Vec::new();
         self.handles_ui(ui, &scene, &projector, &mut out);
         self.clicks_ui(ui, &response, &scene, &projector, &mut out);
@@ -203,19 +203,20 @@ impl MissionView {
         &mut self,
         ui: &mut Ui,
         current: Option<usize>,
-        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2),
+        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect]),
     ) -> egui::Response {
         let selection = current.map_or(Selection::None, Selection::Leg);
         let (_, _, response) = self.show_map(ui, &selection, overlay);
         response
     }
 
-    /// Draws the map with the plan, `selection` highlighted, then `overlay`.
+    /// Draws the map with the plan, `selection` highlighted, then `overlay` (given the boxes of
+    /// the plan's labels, which its own texts should not cover).
     fn show_map(
         &mut self,
         ui: &mut Ui,
         selection: &Selection,
-        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2),
+        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect]),
     ) -> (Scene, Projector, egui::Response) {
         let rect = ui.available_rect_before_wrap();
         if self.map.fit_requested && rect.width() > 50.0 {
@@ -328,7 +329,11 @@ impl MissionView {
             let scale = draw_scale(&painter, response.rect, projector, origin);
             labels.obstacles.extend(scale);
             let drawn = labels.draw(&painter);
-            overlay(&painter, &|p: Point| project(LatLon::from_local(p, origin)));
+            overlay(
+                &painter,
+                &|p: Point| project(LatLon::from_local(p, origin)),
+                &drawn.0,
+            );
             (scene, projector.clone(), drawn)
         });
         let (scene, projector, (label_boxes, label_time)) = response.inner;

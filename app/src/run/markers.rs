@@ -8,7 +8,9 @@ use std::sync::Arc;
 
 use armor_model::world::Point;
 use armor_module_api::types::{Frame, Markers, Pose2D, Shape};
-use egui::{Color32, Pos2, Shape as EguiShape, Stroke, Ui, Vec2};
+use egui::{Color32, Pos2, Rect, Shape as EguiShape, Stroke, Ui, Vec2};
+
+use crate::mission::labels::{self, Importance, Label};
 
 use super::untrusted::MAX_COORDINATE_M;
 
@@ -61,27 +63,80 @@ fn check(markers: &Markers) -> Result<(), String> {
 }
 
 /// Paints every layer not in `hidden`; returns how many markers of each module were drawn
-/// (those out of view are not).
+/// (those out of view are not). Text markers are placed as the map places its labels: never
+/// over `plan_labels` (the plan's, drawn already) nor over each other, moved aside with a
+/// leader line when their point is taken, and dropped when there is no room near it.
 pub fn paint(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     layers: &Layers,
     hidden: &BTreeSet<String>,
     robot: Option<&Pose2D>,
+    plan_labels: &[Rect],
 ) -> BTreeMap<String, usize> {
     let mut drawn = BTreeMap::new();
     let origin = robot.map_or(Point::new(0.0, 0.0), |pose| Point::new(pose.x_m, pose.y_m));
     let near = Affine::near(project, origin);
+    let mut texts = Texts::default();
     for (module, markers) in &layers.by_module {
         if hidden.contains(module) {
             continue;
         }
         drawn.insert(
             module.clone(),
-            paint_markers(painter, &near, markers, robot),
+            paint_markers(painter, &near, markers, robot, &mut texts),
         );
     }
+    texts.draw(painter, plan_labels);
     drawn
+}
+
+/// The text markers of a frame, placed together once the shapes are drawn.
+#[derive(Default)]
+struct Texts {
+    labels: Vec<Label>,
+    /// Each text's size (a marker's `size_px` scales its text).
+    fonts: BTreeMap<String, f32>,
+}
+
+impl Texts {
+    fn add(&mut self, at: Pos2, text: String, size: f32, colour: Color32) {
+        self.fonts.insert(text.clone(), size);
+        self.labels.push(Label {
+            anchors: vec![at],
+            gap: 3.0,
+            preferred: egui::Align2::LEFT_BOTTOM,
+            text,
+            colour,
+            importance: Importance::Detail,
+        });
+    }
+
+    fn draw(self, painter: &egui::Painter, plan_labels: &[Rect]) {
+        if self.labels.is_empty() {
+            return;
+        }
+        let font = |fonts: &BTreeMap<String, f32>, text: &str| {
+            egui::FontId::proportional(fonts.get(text).copied().unwrap_or(12.0))
+        };
+        let mut measure = |text: &str| {
+            painter
+                .layout_no_wrap(text.to_owned(), font(&self.fonts, text), Color32::BLACK)
+                .size()
+        };
+        let placed = labels::place(self.labels, plan_labels, painter.clip_rect(), &mut measure);
+        for label in placed {
+            if let Some(leader) = label.leader {
+                painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
+            }
+            let galley = painter.layout_no_wrap(
+                label.text.clone(),
+                font(&self.fonts, &label.text),
+                label.colour,
+            );
+            painter.galley(label.rect.min + Vec2::splat(2.0), galley, label.colour);
+        }
+    }
 }
 
 /// The map's projection about a point, as an affine map: three projections a frame instead of
@@ -122,6 +177,7 @@ fn paint_markers(
     near: &Affine,
     markers: &Markers,
     robot: Option<&Pose2D>,
+    texts: &mut Texts,
 ) -> usize {
     let mut drawn = 0;
     let clip = painter.clip_rect();
@@ -182,13 +238,7 @@ fn paint_markers(
             Shape::Text => {
                 if let Some(at) = points.first() {
                     let text: String = marker.text.chars().take(MAX_TEXT_CHARS).collect();
-                    painter.text(
-                        *at,
-                        egui::Align2::LEFT_BOTTOM,
-                        text,
-                        egui::FontId::proportional(12.0 * width.max(1.0) / 2.0 + 6.0),
-                        colour,
-                    );
+                    texts.add(*at, text, 12.0 * width.max(1.0) / 2.0 + 6.0, colour);
                 }
             }
         }
@@ -292,5 +342,80 @@ mod tests {
                 .is_err()
         );
         assert_eq!(layers.by_module.keys().collect::<Vec<_>>(), ["follower"]);
+    }
+}
+
+#[cfg(test)]
+mod text_tests {
+    use super::*;
+    use armor_module_api::types::Marker;
+
+    /// The boxes of the texts a frame painted.
+    fn text_boxes(output: &egui::FullOutput) -> Vec<(String, Rect)> {
+        output
+            .shapes
+            .iter()
+            .filter_map(|clipped| match &clipped.shape {
+                EguiShape::Text(text) => Some((
+                    text.galley.text().to_owned(),
+                    text.galley.rect.translate(text.pos.to_vec2()),
+                )),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn texts_stand_clear_of_the_plans_labels_and_of_each_other() {
+        let goal = |module_colour: u8| {
+            let mut marker = Marker::new(
+                Shape::Text,
+                Frame::World,
+                [0, module_colour, 0, 255],
+                [(0.0, 0.0)],
+            );
+            marker.text = "goal".to_owned();
+            Markers {
+                markers: vec![marker],
+            }
+        };
+        let mut layers = Layers::default();
+        layers.take("follower.markers", goal(120)).expect("taken");
+        layers.take("vff.markers", goal(200)).expect("taken");
+        // The plan's label of the waypoint the goal is at, where a text would go first.
+        let at = Pos2::new(400.0, 300.0);
+        let plan_label = Rect::from_min_max(Pos2::new(395.0, 270.0), Pos2::new(460.0, 300.0));
+        let project =
+            |point: Point| Pos2::new(at.x + 10.0 * point.x as f32, at.y - 10.0 * point.y as f32);
+        let ctx = egui::Context::default();
+        let input = egui::RawInput {
+            screen_rect: Some(Rect::from_min_size(Pos2::ZERO, egui::vec2(800.0, 600.0))),
+            ..Default::default()
+        };
+        let mut drawn = BTreeMap::new();
+        let mut output = ctx.run_ui(input, |ui| {
+            drawn = paint(
+                ui.painter(),
+                &project,
+                &layers,
+                &BTreeSet::new(),
+                None,
+                &[plan_label],
+            );
+        });
+        assert_eq!(drawn.values().sum::<usize>(), 2);
+        let boxes = text_boxes(&output);
+        assert_eq!(boxes.len(), 2, "{boxes:?}");
+        for (text, rect) in &boxes {
+            assert_eq!(text, "goal");
+            assert!(
+                !rect.intersects(plan_label),
+                "{rect:?} over the plan's label"
+            );
+            // Near its point still: in the first rings round it.
+            assert!(rect.distance_to_pos(at) < 60.0, "{rect:?} far from {at:?}");
+        }
+        assert!(!boxes[0].1.intersects(boxes[1].1), "{boxes:?}");
+        output.textures_delta.clear();
     }
 }

@@ -986,9 +986,16 @@ impl RunView {
             });
         }
         let mut drawn = BTreeMap::new();
-        mission.watch_ui(ui, current_leg, |painter, project| {
+        mission.watch_ui(ui, current_leg, |painter, project, plan_labels| {
             monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
-            drawn = markers::paint(painter, project, &live.markers, &hidden, live.scan_pose());
+            drawn = markers::paint(
+                painter,
+                project,
+                &live.markers,
+                &hidden,
+                live.scan_pose(),
+                plan_labels,
+            );
         });
         self.markers_drawn = drawn;
         self.followed = followed;
