@@ -202,6 +202,26 @@ fn a_plan_run_from_the_run_view_reaches_its_final_place() {
         map.shrink(12.0).contains(robot),
         "the run frames the robot: it is drawn at {robot:?}, the map is {map:?}"
     );
+    // The net follows the mission: its marked places are in the net's view.
+    step_until(
+        &mut harness,
+        "the marked places in the net's view",
+        PATIENCE,
+        |app| {
+            let (Some(mission), Some(run)) = (app.mission(), status(app).mission) else {
+                return false;
+            };
+            let (view, Some(layout)) = (mission.net_view(), mission.net_layout()) else {
+                return false;
+            };
+            run.marking.keys().all(|place| {
+                layout
+                    .nodes
+                    .get(place)
+                    .is_some_and(|node| view.canvas.contains(view.screen_from_layout(node.pos)))
+            })
+        },
+    );
     step_until(&mut harness, "the run to end", PATIENCE, |app| {
         app.run().ended().is_some()
     });

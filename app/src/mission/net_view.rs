@@ -10,6 +10,8 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2, pos2, vec2};
 /// The least distance between layers and the distance between rows, in points of the layout
 /// (at zoom 1); layers are pushed further apart until no label touches another.
 const LAYER_STEP: f32 = 48.0;
+/// Room left between the canvas's edge and a highlight that does not fit in it.
+const HIGHLIGHT_MARGIN: f32 = 12.0;
 /// Rows clear a place's name below it and a transition's above the next by more than a name
 /// stands off its own node, so that a name in a stack of bars reads as the one below it (a layer
 /// holds only places or only transitions).
@@ -543,8 +545,44 @@ pub fn net_ui(
                 state.screen_from_layout(lit.max),
             );
             if !canvas.contains_rect(on_screen) {
-                state.offset += canvas.center() - on_screen.center();
+                // Centred where it fits; where it does not, its start (the leg's first place,
+                // where the marking enters it) at the canvas's edge rather than both ends cut.
+                let along = |lit: (f32, f32), room: (f32, f32)| {
+                    if lit.1 - lit.0 <= room.1 - room.0 {
+                        (room.0 + room.1 - lit.0 - lit.1) / 2.0
+                    } else {
+                        room.0 + HIGHLIGHT_MARGIN - lit.0
+                    }
+                };
+                state.offset += vec2(
+                    along(
+                        (on_screen.min.x, on_screen.max.x),
+                        (canvas.min.x, canvas.max.x),
+                    ),
+                    along(
+                        (on_screen.min.y, on_screen.max.y),
+                        (canvas.min.y, canvas.max.y),
+                    ),
+                );
                 state.fitted = false;
+            }
+            // A run's marked places, the tokens the operator watches, are never left out.
+            let marked = style
+                .marking
+                .into_iter()
+                .flat_map(|marking| marking.keys())
+                .filter_map(|name| layout.nodes.get(name.as_str()))
+                .fold(Rect::NOTHING, |rect, node| {
+                    rect.union(node.label.union(shape_rect(node.pos, node.is_place)))
+                });
+            if marked.is_positive() {
+                let on_screen = Rect::from_two_pos(
+                    state.screen_from_layout(marked.min),
+                    state.screen_from_layout(marked.max),
+                );
+                if !canvas.contains_rect(on_screen) {
+                    state.offset += canvas.center() - on_screen.center();
+                }
             }
         }
     }
