@@ -845,9 +845,9 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                 (block.module_type != block.name).then_some(block.module_type.as_str())
             };
             if let Some(module_type) = module_type {
+                // At the pins' size: small text is unreadable at the zoom a fit chooses.
                 ui.add(
-                    egui::Label::new(RichText::new(module_type).small().color(HEADER_TEXT_WEAK))
-                        .extend(),
+                    egui::Label::new(RichText::new(module_type).color(HEADER_TEXT_WEAK)).extend(),
                 );
             }
             // During a run, the module's state in its colour, on a dark ground so that it reads
