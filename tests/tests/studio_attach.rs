@@ -1,7 +1,9 @@
 //! The studio attached to a run started elsewhere (`armor-studio --attach ADDR`, Run →
 //! Attach…), driven through egui_kittest: it follows the run through its control interface,
 //! pauses and resumes the mission with the same buttons as a run of its own, detaches without
-//! stopping it, attaches again through the menu's prompt, and shows a lost connection.
+//! stopping it, attaches again through the menu's prompt, and shows a lost connection; drives
+//! the robot with the arrow keys through the run's control interface (no port of the teleop
+//! module's own), which stops it when the keys are let go and goes on without it once detached.
 #![allow(clippy::unwrap_used)]
 
 use std::process::Command;
@@ -62,10 +64,32 @@ fn run_elsewhere(dir: &std::path::Path) -> (Proc, std::net::SocketAddr) {
 }
 
 fn harness(dir: &std::path::Path, attach: std::net::SocketAddr) -> Harness<'static, StudioApp> {
+    harness_with(dir, attach, None)
+}
+
+/// The studio attached at `attach`, with the run's system `file` open when given
+/// (`armor-studio --attach ADDR FILE`).
+fn harness_with(
+    dir: &std::path::Path,
+    attach: std::net::SocketAddr,
+    file: Option<std::path::PathBuf>,
+) -> Harness<'static, StudioApp> {
     let mut options = Options::new(Home::new(dir.join("home")));
     options.module_path = vec![bin_dir()];
-    options.palette = Some(Palette::from_descriptions(Vec::new()));
+    // With a file, the modules' descriptions pick the live views' sources, as the probed
+    // palette of the window does.
+    let descriptions = if file.is_some() {
+        let binaries = armor_runtime::probe::list_modules(&[bin_dir()]);
+        armor_runtime::probe::probe_all(&binaries, Duration::from_secs(10))
+            .into_iter()
+            .filter_map(|(_, description)| description.ok())
+            .collect()
+    } else {
+        Vec::new()
+    };
+    options.palette = Some(Palette::from_descriptions(descriptions));
     options.attach = Some(attach);
+    options.file = file;
     let app = StudioApp::new(options);
     let mut harness = Harness::builder()
         .with_size([1500.0, 950.0])
@@ -170,4 +194,110 @@ fn the_studio_attaches_pauses_resumes_and_detaches_without_stopping_the_run() {
         has_label(h, "connection lost")
     });
     assert!(harness.state().run().is_running(), "still trying");
+}
+
+/// The simulated robot and a teleop module that alone commands it.
+fn driven_system(dir: &std::path::Path) -> std::path::PathBuf {
+    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
+    let file = dir.join("driven.xml");
+    std::fs::write(
+        &file,
+        format!(
+            r#"<system name="driven">
+  <module name="sim" type="sim"><param name="world" value="{}"/></module>
+  <module name="pad" type="teleop"/>
+  <link from="pad.cmd_vel" to="sim.cmd_vel"/>
+</system>
+"#,
+            world.display()
+        ),
+    )
+    .unwrap();
+    file
+}
+
+/// `armor run FILE` in a terminal of its own, and its control address.
+fn run_file_elsewhere(file: &std::path::Path) -> (Proc, std::net::SocketAddr) {
+    let run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(file)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let line = run.wait_for("with its control address", PATIENCE, |line| {
+        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
+    });
+    let addr = line
+        .trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
+        .trim()
+        .parse()
+        .unwrap();
+    (run, addr)
+}
+
+fn truth(app: &StudioApp) -> Option<(f64, f64)> {
+    app.run().live().truth.map(|pose| (pose.x_m, pose.y_m))
+}
+
+fn distance(a: (f64, f64), b: (f64, f64)) -> f64 {
+    (a.0 - b.0).hypot(a.1 - b.1)
+}
+
+/// Steps until the robot's pose has not changed for half a second; returns it.
+fn at_rest(harness: &mut Harness<'_, StudioApp>, what: &str) -> (f64, f64) {
+    let mut last = truth(harness.state()).unwrap();
+    let mut still_since = Instant::now();
+    step_until(harness, what, |h| {
+        let now = truth(h.state()).unwrap();
+        if distance(now, last) > 1e-9 {
+            last = now;
+            still_since = Instant::now();
+        }
+        still_since.elapsed() > Duration::from_millis(500)
+    });
+    last
+}
+
+#[test]
+fn the_attached_studio_drives_through_the_runs_control_interface_and_detaches() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = driven_system(dir.path());
+    let (run, addr) = run_file_elsewhere(&system);
+    let mut harness = harness_with(dir.path(), addr, Some(system));
+    step_until(&mut harness, "the teleop up and the robot seen", |h| {
+        h.state()
+            .run()
+            .status()
+            .is_some_and(|status| armor_studio::run::session::can_drive(&status))
+            && truth(h.state()).is_some()
+    });
+    // The pad shows once the run's teleop module is up.
+    harness.get_by_label("forward");
+    let start = at_rest(&mut harness, "the robot at rest");
+    harness.key_down(egui::Key::ArrowUp);
+    step_until(&mut harness, "the robot driven forward", |h| {
+        truth(h.state()).is_some_and(|now| distance(now, start) > 0.3)
+    });
+    harness.key_up(egui::Key::ArrowUp);
+    let stopped = at_rest(&mut harness, "the robot stopped once the key is let go");
+    assert!(
+        distance(start, stopped) < 3.0,
+        "the robot drove on after the key was let go: {start:?} → {stopped:?}"
+    );
+
+    // Detached: the run goes on, and nothing drives the robot.
+    harness.get_by_label("⏏ Detach").click();
+    step_until(&mut harness, "the studio detached", |h| {
+        !h.state().run().is_running()
+    });
+    assert!(process_alive(run.pid()), "detaching stopped the run");
+    let pad = ctl_status(&addr.to_string())["modules"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|module| module["name"] == "pad")
+        .cloned()
+        .unwrap();
+    assert_eq!(pad["state"], "running", "{pad}");
 }

@@ -709,10 +709,9 @@ impl RunView {
 
     fn teleop_ui(&mut self, ui: &mut Ui) {
         ui.label(RichText::new("Drive").strong());
-        let can_drive = self
-            .session
-            .as_ref()
-            .is_some_and(|s| s.is_running() && s.shared().teleop_addr.is_some());
+        let can_drive = self.session.as_ref().is_some_and(|s| {
+            s.is_running() && s.shared().status.as_ref().is_some_and(session::can_drive)
+        });
         if !can_drive {
             ui.label("A running system with a teleop module can be driven from here.");
             return;

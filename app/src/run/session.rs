@@ -5,8 +5,8 @@
 //! is a thread that writes into [`Shared`].
 
 use std::collections::{BTreeMap, VecDeque};
-use std::io::{BufRead, BufReader, Read, Write as _};
-use std::net::{SocketAddr, TcpStream};
+use std::io::{BufRead, BufReader, Read};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -32,6 +32,9 @@ const MAX_HISTORY: usize = 240;
 const STOP_GRACE: Duration = Duration::from_secs(8);
 /// How often the operator's teleoperation command is sent while held.
 pub const TELEOP_EVERY: Duration = Duration::from_millis(100);
+/// A driving command older than this when its turn comes (the control link was slow or being
+/// reconnected) is dropped, never sent late: the operator has let go or sent a newer one.
+const TELEOP_STALE: Duration = Duration::from_millis(300);
 
 /// What a run is started with.
 #[derive(Clone, Debug)]
@@ -88,7 +91,6 @@ pub struct Shared {
     /// Each module's counters over time (oldest first).
     pub history: BTreeMap<String, VecDeque<Sample>>,
     pub control_addr: Option<SocketAddr>,
-    pub teleop_addr: Option<SocketAddr>,
     /// The answers to the operator's requests, for the status line.
     pub replies: Vec<(bool, String)>,
     /// How the run ended, once it has.
@@ -120,7 +122,7 @@ pub struct RunSession {
     child: Option<Child>,
     pub shared: SharedRef,
     requests: Sender<Request>,
-    teleop: Sender<(f64, f64)>,
+    teleop: Sender<(f64, f64, Instant)>,
     /// Set when the run is asked to stop: every thread of the session ends.
     stop: Arc<AtomicBool>,
     /// Watching a run started elsewhere (no process of ours).
@@ -237,7 +239,8 @@ impl RunSession {
         {
             let shared = Arc::clone(&shared);
             let stop = Arc::clone(&stop);
-            std::thread::spawn(move || drive(&teleop_rx, &shared, &stop));
+            let secret = options.secret.clone();
+            std::thread::spawn(move || drive(&teleop_rx, &shared, &stop, secret.as_deref()));
         }
         RunSession {
             options,
@@ -272,10 +275,11 @@ impl RunSession {
         let _ = self.requests.send(request);
     }
 
-    /// Drives the robot through the teleop module: `linear` m/s, `angular` rad/s. The module
-    /// holds a command for its dead-man time, so a command must be sent again while held.
+    /// Drives the robot through the run's control interface, which relays to its teleop
+    /// module: `linear` m/s, `angular` rad/s. The module holds a command for its dead-man time,
+    /// so a command must be sent again while held.
     pub fn teleop(&self, linear: f64, angular: f64) {
-        let _ = self.teleop.send((linear, angular));
+        let _ = self.teleop.send((linear, angular, Instant::now()));
     }
 
     /// Watching a run started elsewhere: stopping only detaches.
@@ -429,14 +433,6 @@ fn read_output(
                 Level::Info
             };
             let mut shared = lock(&shared);
-            if let Some(addr) = text
-                .split("teleop listening on ")
-                .nth(1)
-                .and_then(|addr| addr.split_whitespace().next())
-                .and_then(|addr| addr.parse().ok())
-            {
-                shared.teleop_addr = Some(addr);
-            }
             shared.log(LogLine {
                 at_secs,
                 source: module,
@@ -536,6 +532,7 @@ fn poll_control(
     };
     let mut live_started = false;
     let mut next_poll = Instant::now();
+    let mut client: Option<armor_runtime::control::Client> = None;
     while !stop.load(Ordering::Relaxed) {
         let request =
             match requests.recv_timeout(next_poll.saturating_duration_since(Instant::now())) {
@@ -547,7 +544,20 @@ fn poll_control(
                 Err(mpsc::RecvTimeoutError::Disconnected) => return,
             };
         let is_status = request == Request::Status;
-        let reply = armor_runtime::control::request(addr, &request, secret.as_ref());
+        // One connection for every poll and request, opened again after an error.
+        let reply = match client.as_mut() {
+            Some(open) => open.call(&request),
+            None => armor_runtime::control::Client::connect(addr, secret.as_ref()).and_then(
+                |mut opened| {
+                    let reply = opened.call(&request);
+                    client = Some(opened);
+                    reply
+                },
+            ),
+        };
+        if reply.is_err() {
+            client = None;
+        }
         let at_secs = started.elapsed().as_secs_f64();
         let mut shared_now = lock(shared);
         match reply {
@@ -601,40 +611,78 @@ fn poll_control(
     }
 }
 
-/// Sends the operator's commands to the teleop module (`v LINEAR ANGULAR`, `stop`), reading its
-/// answers so that it never holds them for us.
-fn drive(commands: &Receiver<(f64, f64)>, shared: &SharedRef, stop: &AtomicBool) {
-    let mut stream: Option<(TcpStream, SocketAddr)> = None;
+/// Whether the run can be driven: a teleop module is at work and has said where it listens
+/// (the supervisor relays the operator's commands there).
+pub fn can_drive(status: &Status) -> bool {
+    status.modules.iter().any(|module| {
+        module.module_type == armor_runtime::teleop_relay::TELEOP_TYPE
+            && module.state == armor_runtime::control::ModuleState::Running
+            && module
+                .endpoints
+                .contains_key(armor_runtime::teleop_relay::ENDPOINT)
+    })
+}
+
+/// Sends the operator's driving commands as `teleop` requests on a connection of its own to
+/// the run's control interface (which relays them to the teleop module), so that polling never
+/// delays them. Only the newest command is sent, and only while fresh: one that waited behind a
+/// lost or slow link is dropped, never replayed once the link is back; and a studio whose link
+/// is lost commands nothing, so the module's dead-man stops the robot.
+fn drive(
+    commands: &Receiver<(f64, f64, Instant)>,
+    shared: &SharedRef,
+    stop: &AtomicBool,
+    secret_file: Option<&Path>,
+) {
+    let secret = secret_file.and_then(|file| armor_module_api::auth::Secret::load(file).ok());
+    let mut client: Option<armor_runtime::control::Client> = None;
+    let mut last_error: Option<String> = None;
     while !stop.load(Ordering::Relaxed) {
-        let (linear, angular) = match commands.recv_timeout(Duration::from_millis(200)) {
+        let mut command = match commands.recv_timeout(Duration::from_millis(200)) {
             Ok(command) => command,
             Err(mpsc::RecvTimeoutError::Timeout) => continue,
             Err(mpsc::RecvTimeoutError::Disconnected) => return,
         };
-        let Some(addr) = lock(shared).teleop_addr else {
+        while let Ok(newer) = commands.try_recv() {
+            command = newer;
+        }
+        let (linear, angular, at) = command;
+        if at.elapsed() > TELEOP_STALE {
+            continue;
+        }
+        let Some(addr) = lock(shared).control_addr else {
             continue;
         };
-        if stream.as_ref().is_none_or(|(_, at)| *at != addr) {
-            stream = TcpStream::connect_timeout(&addr, Duration::from_secs(1))
-                .ok()
-                .inspect(|stream| {
-                    let _ = stream.set_nonblocking(true);
-                })
-                .map(|stream| (stream, addr));
-        }
-        let Some((socket, _)) = &mut stream else {
-            continue;
+        let request = Request::Teleop {
+            linear,
+            angular,
+            module: None,
         };
-        let line = if linear == 0.0 && angular == 0.0 {
-            "stop\n".to_owned()
-        } else {
-            format!("v {linear:.3} {angular:.3}\n")
+        let reply = match client.as_mut() {
+            Some(open) => open.call(&request),
+            None => armor_runtime::control::Client::connect(addr, secret.as_ref()).and_then(
+                |mut opened| {
+                    let reply = opened.call(&request);
+                    client = Some(opened);
+                    reply
+                },
+            ),
         };
-        let mut answers = [0_u8; 1024];
-        while matches!(socket.read(&mut answers), Ok(n) if n > 0) {}
-        if socket.write_all(line.as_bytes()).is_err() {
-            stream = None;
+        let error = match reply {
+            Ok(reply) if reply.ok => None,
+            Ok(reply) => Some(reply.message),
+            Err(err) => {
+                client = None;
+                Some(format!("driving: {err:#}"))
+            }
+        };
+        // Each new problem once on the status line, not ten times a second.
+        if error.is_some() && error != last_error {
+            lock(shared)
+                .replies
+                .push((false, error.clone().unwrap_or_default()));
         }
+        last_error = error;
     }
 }
 
