@@ -308,6 +308,7 @@ impl StudioApp {
         }
         self.shortcuts(&ctx);
         self.run.poll();
+        self.run.attach_with_runs_files(&self.palette.catalog, &ctx);
         for (ok, message) in std::mem::take(&mut self.run.messages) {
             self.set_status(message, !ok);
         }

@@ -3,7 +3,9 @@
 //! pauses and resumes the mission with the same buttons as a run of its own, detaches without
 //! stopping it, attaches again through the menu's prompt, and shows a lost connection; drives
 //! the robot with the arrow keys through the run's control interface (no port of the teleop
-//! module's own), which stops it when the keys are let go and goes on without it once detached.
+//! module's own), which stops it when the keys are let go and goes on without it once detached;
+//! attached without the system file, draws the run's world and robot from the files the run
+//! sends.
 #![allow(clippy::unwrap_used)]
 
 use std::process::Command;
@@ -300,4 +302,45 @@ fn the_attached_studio_drives_through_the_runs_control_interface_and_detaches() 
         .cloned()
         .unwrap();
     assert_eq!(pad["state"], "running", "{pad}");
+}
+
+#[test]
+fn attached_without_its_file_the_studio_draws_the_run_from_the_runs_own_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = driven_system(dir.path());
+    let (run, addr) = run_file_elsewhere(&system);
+    // No file, and no module descriptions of its own: all from the run.
+    let mut harness = harness(dir.path(), addr);
+    step_until(
+        &mut harness,
+        "the world and the robot on the live map",
+        |h| {
+            truth(h.state()).is_some()
+                && h.state()
+                    .run()
+                    .own_map_view()
+                    .is_some_and(|map| map.surroundings.world.is_some())
+        },
+    );
+    let map = harness.state().run().own_map_view().unwrap();
+    assert_ne!(
+        map.surroundings.system_file, system,
+        "the map reads the run's copy of its system, not the file the test wrote"
+    );
+    assert!(
+        map.surroundings.problems.is_empty(),
+        "{:?}",
+        map.surroundings.problems
+    );
+    assert!(has_label(&harness, "attached to driven"));
+    assert!(
+        has_label(&harness, "from the run"),
+        "the status line says so"
+    );
+
+    harness.get_by_label("⏏ Detach").click();
+    step_until(&mut harness, "the studio detached", |h| {
+        !h.state().run().is_running()
+    });
+    assert!(process_alive(run.pid()), "detaching stopped the run");
 }

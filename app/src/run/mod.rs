@@ -114,6 +114,9 @@ pub struct RunView {
     pub markers_drawn: BTreeMap<String, usize>,
     /// Run → Attach…'s prompt, while it is open.
     pub attach_prompt: Option<attach::AttachPrompt>,
+    /// The files of a run attached without its system file, written where the Run view reads
+    /// them (kept as long as the attachment).
+    attach_mirror: Option<attach::Mirror>,
 }
 
 impl RunView {
@@ -147,6 +150,7 @@ impl RunView {
             timeline_at: None,
             markers_drawn: BTreeMap::new(),
             attach_prompt: None,
+            attach_mirror: None,
         }
     }
 
@@ -173,6 +177,11 @@ impl RunView {
             }
         }
         Some(status)
+    }
+
+    /// The map of a run without a plan (an empty plan on the run's system), once drawn.
+    pub fn own_map_view(&self) -> Option<&MissionView> {
+        self.own_map.as_ref().map(|(_, mission)| mission)
     }
 
     /// Frames the world, the plan and the robot at the next frame (Fit, Home).
@@ -268,8 +277,50 @@ impl RunView {
             .push((true, format!("watching the run at {control}")));
     }
 
+    /// A run attached without its system file has sent its files (at most once per
+    /// attachment): writes them into a folder of their own and attaches again, as with the
+    /// system file open, with the run's own module descriptions over `catalog`.
+    pub fn attach_with_runs_files(&mut self, catalog: &Catalog, ctx: &egui::Context) {
+        let Some(session) = &self.session else {
+            return;
+        };
+        if !session.is_attached() || !session.options.target.as_os_str().is_empty() {
+            return;
+        }
+        let (Some(files), Some(control)) = ({
+            let mut shared = session.shared();
+            (shared.files.take(), shared.control_addr)
+        }) else {
+            return;
+        };
+        match attach::mirror(&files) {
+            Ok(mirror) => {
+                let mut catalog = catalog.clone();
+                catalog.extend(mirror.catalog.clone());
+                let mut surroundings = Surroundings {
+                    mission: None,
+                    system_file: Some(&mirror.system),
+                    catalog: &catalog,
+                };
+                let target = Target::System(mirror.system.clone());
+                self.attach(target, control, &mut surroundings, ctx);
+                self.messages.push((
+                    true,
+                    format!(
+                        "watching the run at {control}: system {} from the run",
+                        files.system.path
+                    ),
+                ));
+                self.fit_pending = true;
+                self.attach_mirror = Some(mirror);
+            }
+            Err(err) => self.messages.push((false, format!("{err:#}"))),
+        }
+    }
+
     /// Watches a run started elsewhere whose system file the studio does not have: its
-    /// modules, mission and controls, without the live map's sources.
+    /// modules, mission and controls at once, and the live map once the run has sent its files
+    /// ([`Self::attach_with_runs_files`]).
     pub fn attach_bare(&mut self, control: std::net::SocketAddr, ctx: &egui::Context) {
         self.stop();
         self.recording = None;

@@ -15,7 +15,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use armor_runtime::control::{FiringRecord, MissionStatus, Request, Status};
+use armor_runtime::control::{FiringRecord, MissionStatus, Request, RunFiles, Status};
 
 use super::live::{self, Sources};
 
@@ -99,6 +99,9 @@ pub struct Shared {
     /// it is asked again at every poll.
     pub connection_lost: Option<(f64, String)>,
     pub live: live::SharedLive,
+    /// The run's files, asked of a run attached without its system file
+    /// ([`Request::Files`]); taken by the view, which attaches again with them.
+    pub files: Option<RunFiles>,
 }
 
 impl Shared {
@@ -507,8 +510,11 @@ fn poll_control(
     let RunOptions {
         sources,
         secret: secret_file,
+        target,
         ..
     } = options;
+    // Attached without the system file: ask the run for its files, once.
+    let mut want_files = target.as_os_str().is_empty();
     let addr = loop {
         if stop.load(Ordering::Relaxed) {
             return;
@@ -543,7 +549,12 @@ fn poll_control(
                 }
                 Err(mpsc::RecvTimeoutError::Disconnected) => return,
             };
-        let is_status = request == Request::Status;
+        let request = if want_files && request == Request::Status {
+            Request::Files
+        } else {
+            request
+        };
+        let is_status = matches!(request, Request::Status | Request::Files);
         // One connection for every poll and request, opened again after an error.
         let reply = match client.as_mut() {
             Some(open) => open.call(&request),
@@ -563,8 +574,15 @@ fn poll_control(
         match reply {
             Ok(reply) => {
                 shared_now.connection_lost = None;
-                if !is_status {
+                if !is_status || (reply.files.is_none() && request == Request::Files) {
                     shared_now.replies.push((reply.ok, reply.message));
+                }
+                if request == Request::Files {
+                    // Asked once: a run that cannot send them is watched without them.
+                    want_files = false;
+                }
+                if let Some(files) = reply.files {
+                    shared_now.files = Some(files);
                 }
                 if let Some(status) = reply.status {
                     for module in &status.modules {

@@ -234,6 +234,11 @@ pub struct RunFiles {
     /// them.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub params: Vec<ParamFile>,
+    /// The description of every module type the system uses, in the describe format
+    /// (`docs/protocol.md`, section 5), so that a client without the module binaries knows
+    /// their ports.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub descriptions: Vec<String>,
 }
 
 /// A file a module's parameter names.

@@ -649,6 +649,11 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> contro
             system,
             mission,
             params,
+            descriptions: loaded
+                .descriptions
+                .values()
+                .map(armor_module_api::ModuleDescription::to_xml)
+                .collect(),
         })
     })();
     match files {
