@@ -6,7 +6,15 @@
 //! ```text
 //! → {"command":"fire","transition":"leave_wp1"}
 //! ← {"ok":true,"message":"fired `leave_wp1`","status":{...}}
+//! → {"command":"teleop","linear":0.3,"angular":0}
+//! ← {"ok":true,"message":"teleop `teleop`: driving at 0.3 0","status":null}
+//! → {"command":"files"}
+//! ← {"ok":true,"message":"the run's files (…)","status":null,"files":{"system":{…},…}}
 //! ```
+//!
+//! `teleop` is relayed to the run's teleop module (see [`crate::teleop_relay`]) and answered
+//! with the module's own answer; `files` returns what a client that attaches without the
+//! system file needs to draw the run ([`RunFiles`]).
 //!
 //! With a shared secret (see `armor_module_api::auth`) the client speaks first and both sides
 //! prove the secret before any request, in three lines (hex bytes):
