@@ -344,3 +344,67 @@ fn attached_without_its_file_the_studio_draws_the_run_from_the_runs_own_files() 
     });
     assert!(process_alive(run.pid()), "detaching stopped the run");
 }
+
+#[test]
+fn attached_without_its_file_to_a_plans_run_the_studio_opens_the_runs_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
+    let system =
+        std::fs::read_to_string(armor_tests::workspace_root().join("missions/robot/system.xml"))
+            .unwrap()
+            .replace(
+                r#"value="yard.world""#,
+                &format!(r#"value="{}""#, world.display()),
+            )
+            .replace(
+                r#"value="truth.mcap""#,
+                &format!(r#"value="{}""#, dir.path().join("truth.mcap").display()),
+            );
+    std::fs::create_dir(dir.path().join("robot")).unwrap();
+    std::fs::create_dir(dir.path().join("plans")).unwrap();
+    std::fs::write(dir.path().join("robot/system.xml"), system).unwrap();
+    let plan = dir.path().join("plans/gate.xml");
+    std::fs::write(
+        &plan,
+        r#"<plan name="gate" system="../robot/system.xml">
+  <navigation module="follower" speed_mps="0.5"/>
+  <waypoint name="home" lat="43.5615360" lon="1.4690496"/>
+  <waypoint name="gate" lat="43.5615360" lon="1.4691986"/>
+  <leg name="advance" from="home" to="gate"/>
+</plan>"#,
+    )
+    .unwrap();
+    let (run, addr) = run_file_elsewhere(&plan);
+    let mut harness = harness(dir.path(), addr);
+    step_until(
+        &mut harness,
+        "the run's plan open and the robot seen",
+        |h| {
+            eprintln!(
+                "DEBUG {:?} {:?} {:?} {:?}",
+                truth(h.state()),
+                h.state().mission().and_then(|m| m.path()),
+                h.state().run().session_target(),
+                h.state().status()
+            );
+            truth(h.state()).is_some()
+                && h.state()
+                    .mission()
+                    .and_then(|mission| mission.path())
+                    .is_some_and(|path| path.ends_with("plans/gate.xml"))
+        },
+    );
+    let mission = harness.state().mission().unwrap();
+    assert_ne!(mission.path(), Some(plan.as_path()), "a copy of the run's");
+    assert!(
+        mission.surroundings.world.is_some(),
+        "the plan finds its system, and its world, as on the run's machine: {:?}",
+        mission.surroundings.problems
+    );
+    assert_eq!(
+        harness.state().run().session_target(),
+        mission.path(),
+        "the Run view runs the plan's map"
+    );
+    drop(run);
+}

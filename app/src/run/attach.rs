@@ -102,6 +102,58 @@ fn file_name(path: &str, fallback: &str) -> String {
         .to_owned()
 }
 
+/// Where the system and the mission go in the folder: as they lie on the run's machine below
+/// the folder both are in, so that the mission names its system as it does there; a file alone
+/// goes at the top.
+fn layout(system: &str, mission: Option<&str>) -> (PathBuf, Option<PathBuf>) {
+    let alone = |path: &str, fallback: &str| PathBuf::from(file_name(path, fallback));
+    let Some(mission) = mission else {
+        return (alone(system, "system.xml"), None);
+    };
+    // `plans/../robot/system.xml` is `robot/system.xml`: the run names a plan's system from
+    // the plan's folder.
+    let lexical = |path: &str| {
+        let mut clean = PathBuf::new();
+        for part in Path::new(path).components() {
+            match part {
+                Component::ParentDir
+                    if matches!(clean.components().next_back(), Some(Component::Normal(_))) =>
+                {
+                    clean.pop();
+                }
+                Component::CurDir => {}
+                part => clean.push(part),
+            }
+        }
+        clean
+    };
+    let (system_path, mission_path) = (&lexical(system), &lexical(mission));
+    let common: PathBuf = system_path
+        .parent()
+        .into_iter()
+        .flat_map(Path::components)
+        .zip(mission_path.parent().into_iter().flat_map(Path::components))
+        .take_while(|(a, b)| a == b)
+        .map(|(a, _)| a)
+        .collect();
+    let below = |path: &Path| {
+        path.strip_prefix(&common)
+            .ok()
+            .filter(|rest| {
+                rest.components()
+                    .all(|part| matches!(part, Component::Normal(_)))
+            })
+            .map(Path::to_path_buf)
+    };
+    match (below(system_path), below(mission_path)) {
+        (Some(system), Some(mission)) if system != mission => (system, Some(mission)),
+        _ => (
+            alone(system, "system.xml"),
+            Some(alone(mission, "mission.xml")),
+        ),
+    }
+}
+
 /// Writes the run's files into a new folder (see [`Mirror`]).
 pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
     use anyhow::Context as _;
@@ -119,6 +171,14 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
         )
     })?;
     let mut system_text = files.system.text.clone();
+    let (system_at, mission_at) = layout(
+        &files.system.path,
+        files.mission.as_ref().map(|mission| mission.path.as_str()),
+    );
+    let system_folder = system_at
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
     let write = |relative: &Path, text: &str| -> anyhow::Result<()> {
         let path = folder.path().join(relative);
         if let Some(parent) = path.parent() {
@@ -146,7 +206,7 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
             .components()
             .all(|part| matches!(part, Component::Normal(_)));
         let relative = if below {
-            as_written.to_path_buf()
+            system_folder.join(as_written)
         } else {
             let own = format!(
                 "{}-{}-{}",
@@ -160,19 +220,17 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
                     &format!("{quote}{own}{quote}"),
                 );
             }
-            PathBuf::from(own)
+            system_folder.join(own)
         };
         write(&relative, &param_file.file.text)?;
     }
-    let system_name = file_name(&files.system.path, "system.xml");
-    write(Path::new(&system_name), &system_text)?;
-    let mission = match &files.mission {
-        Some(mission) => {
-            let name = file_name(&mission.path, "mission.xml");
-            write(Path::new(&name), &mission.text)?;
-            Some(folder.path().join(name))
+    write(&system_at, &system_text)?;
+    let mission = match (&files.mission, mission_at) {
+        (Some(mission), Some(at)) => {
+            write(&at, &mission.text)?;
+            Some(folder.path().join(at))
         }
-        None => None,
+        _ => None,
     };
     let mut catalog = crate::diagram::Catalog::new();
     for text in &files.descriptions {
@@ -181,7 +239,7 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
         }
     }
     Ok(Mirror {
-        system: folder.path().join(system_name),
+        system: folder.path().join(system_at),
         mission,
         catalog,
         _folder: folder,
@@ -239,5 +297,38 @@ mod tests {
         );
         drop(mirror);
         assert!(!folder.exists(), "the folder goes with the mirror");
+    }
+
+    #[test]
+    fn a_mission_and_its_system_keep_their_places_one_to_the_other() {
+        let check = |system: &str, mission: Option<&str>, expected: (&str, Option<&str>)| {
+            let (system_at, mission_at) = layout(system, mission);
+            assert_eq!(
+                (system_at, mission_at),
+                (PathBuf::from(expected.0), expected.1.map(PathBuf::from)),
+                "{system} {mission:?}"
+            );
+        };
+        check("/m/robot/system.xml", None, ("system.xml", None));
+        check(
+            "/m/robot/system.xml",
+            Some("/m/robot/yard.xml"),
+            ("system.xml", Some("yard.xml")),
+        );
+        check(
+            "/m/systems/robot.xml",
+            Some("/m/plans/yard.xml"),
+            ("systems/robot.xml", Some("plans/yard.xml")),
+        );
+        check(
+            "/m/plans/../systems/robot.xml",
+            Some("/m/plans/yard.xml"),
+            ("systems/robot.xml", Some("plans/yard.xml")),
+        );
+        check(
+            "relative.xml",
+            Some("/m/plan.xml"),
+            ("relative.xml", Some("plan.xml")),
+        );
     }
 }

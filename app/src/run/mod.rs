@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use armor_model::plan::Origin;
 use armor_module_api::types::OccupancyGrid;
-use armor_runtime::control::{ModuleState, Request, Status};
+use armor_runtime::control::{ModuleState, Request, RunFiles, Status};
 use egui::{Color32, RichText, Ui};
 
 use crate::diagram::Catalog;
@@ -277,50 +277,28 @@ impl RunView {
             .push((true, format!("watching the run at {control}")));
     }
 
-    /// A run attached without its system file has sent its files (at most once per
-    /// attachment): writes them into a folder of their own and attaches again, as with the
-    /// system file open, with the run's own module descriptions over `catalog`.
-    pub fn attach_with_runs_files(&mut self, catalog: &Catalog, ctx: &egui::Context) {
-        let Some(session) = &self.session else {
-            return;
-        };
+    /// The files a run attached without its system file has sent (at most once per
+    /// attachment), with its control address: the window writes them out
+    /// ([`attach::mirror`]) and attaches again with them ([`Self::keep_mirror`]).
+    pub fn take_runs_files(&mut self) -> Option<(std::net::SocketAddr, RunFiles)> {
+        let session = self.session.as_ref()?;
         if !session.is_attached() || !session.options.target.as_os_str().is_empty() {
-            return;
+            return None;
         }
-        let (Some(files), Some(control)) = ({
-            let mut shared = session.shared();
-            (shared.files.take(), shared.control_addr)
-        }) else {
-            return;
-        };
-        match attach::mirror(&files) {
-            Ok(mirror) => {
-                let mut catalog = catalog.clone();
-                catalog.extend(mirror.catalog.clone());
-                let mut surroundings = Surroundings {
-                    mission: None,
-                    system_file: Some(&mirror.system),
-                    catalog: &catalog,
-                };
-                let target = Target::System(mirror.system.clone());
-                self.attach(target, control, &mut surroundings, ctx);
-                self.messages.push((
-                    true,
-                    format!(
-                        "watching the run at {control}: system {} from the run",
-                        files.system.path
-                    ),
-                ));
-                self.fit_pending = true;
-                self.attach_mirror = Some(mirror);
-            }
-            Err(err) => self.messages.push((false, format!("{err:#}"))),
-        }
+        let mut shared = session.shared();
+        let control = shared.control_addr?;
+        Some((control, shared.files.take()?))
+    }
+
+    /// Keeps the folder of an attached run's files as long as the attachment.
+    pub fn keep_mirror(&mut self, mirror: attach::Mirror) {
+        self.fit_pending = true;
+        self.attach_mirror = Some(mirror);
     }
 
     /// Watches a run started elsewhere whose system file the studio does not have: its
     /// modules, mission and controls at once, and the live map once the run has sent its files
-    /// ([`Self::attach_with_runs_files`]).
+    /// ([`Self::take_runs_files`]).
     pub fn attach_bare(&mut self, control: std::net::SocketAddr, ctx: &egui::Context) {
         self.stop();
         self.recording = None;
