@@ -5,7 +5,7 @@
 //! the robot with the arrow keys through the run's control interface (no port of the teleop
 //! module's own), which stops it when the keys are let go and goes on without it once detached;
 //! attached without the system file, draws the run's world and robot from the files the run
-//! sends.
+//! sends, and opens the plan a run plays in its Mission view.
 #![allow(clippy::unwrap_used)]
 
 use std::process::Command;
@@ -380,13 +380,6 @@ fn attached_without_its_file_to_a_plans_run_the_studio_opens_the_runs_plan() {
         &mut harness,
         "the run's plan open and the robot seen",
         |h| {
-            eprintln!(
-                "DEBUG {:?} {:?} {:?} {:?}",
-                truth(h.state()),
-                h.state().mission().and_then(|m| m.path()),
-                h.state().run().session_target(),
-                h.state().status()
-            );
             truth(h.state()).is_some()
                 && h.state()
                     .mission()
