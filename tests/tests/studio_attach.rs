@@ -5,7 +5,7 @@
 //! the robot with the arrow keys through the run's control interface (no port of the teleop
 //! module's own), which stops it when the keys are let go and goes on without it once detached;
 //! attached without the system file, draws the run's world and robot from the files the run
-//! sends, and opens the plan a run plays in its Mission view.
+//! sends (a ROS map's image too), and opens the plan a run plays in its Mission view.
 #![allow(clippy::unwrap_used)]
 
 use std::process::Command;
@@ -398,6 +398,43 @@ fn attached_without_its_file_to_a_plans_run_the_studio_opens_the_runs_plan() {
         harness.state().run().session_target(),
         mission.path(),
         "the Run view runs the plan's map"
+    );
+    drop(run);
+}
+
+#[test]
+fn attached_without_its_file_to_a_run_on_a_ros_map_the_studio_has_the_maps_image_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let worlds = armor_tests::workspace_root().join("assets/worlds");
+    for name in ["yard-map.yaml", "yard-map.pgm"] {
+        std::fs::copy(worlds.join(name), dir.path().join(name)).unwrap();
+    }
+    let system = dir.path().join("mapped.xml");
+    std::fs::write(
+        &system,
+        r#"<system name="mapped">
+  <module name="sim" type="sim"><param name="world" value="yard-map.yaml"/></module>
+  <module name="pad" type="teleop"/>
+  <link from="pad.cmd_vel" to="sim.cmd_vel"/>
+</system>
+"#,
+    )
+    .unwrap();
+    let (run, addr) = run_file_elsewhere(&system);
+    let mut harness = harness(dir.path(), addr);
+    step_until(&mut harness, "the map's world and the robot", |h| {
+        truth(h.state()).is_some()
+            && h.state()
+                .run()
+                .own_map_view()
+                .is_some_and(|map| map.surroundings.world.is_some())
+    });
+    let map = harness.state().run().own_map_view().unwrap();
+    let copy = map.surroundings.system_file.with_file_name("yard-map.pgm");
+    assert_eq!(
+        std::fs::read(&copy).unwrap(),
+        std::fs::read(worlds.join("yard-map.pgm")).unwrap(),
+        "the map's image, as the run has it"
     );
     drop(run);
 }

@@ -179,7 +179,7 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_default();
-    let write = |relative: &Path, text: &str| -> anyhow::Result<()> {
+    let write = |relative: &Path, text: &[u8]| -> anyhow::Result<()> {
         let path = folder.path().join(relative);
         if let Some(parent) = path.parent() {
             std::fs::create_dir_all(parent)?;
@@ -222,12 +222,29 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
             }
             system_folder.join(own)
         };
-        write(&relative, &param_file.file.text)?;
+        write(&relative, param_file.file.text.as_bytes())?;
+        for beside in &param_file.beside {
+            use base64::Engine as _;
+            let name = Path::new(&beside.name);
+            let Some(folder) = relative.parent() else {
+                continue;
+            };
+            if !name
+                .components()
+                .all(|part| matches!(part, Component::Normal(_)))
+            {
+                continue;
+            }
+            let Ok(bytes) = base64::engine::general_purpose::STANDARD.decode(&beside.base64) else {
+                continue;
+            };
+            write(&folder.join(name), &bytes)?;
+        }
     }
-    write(&system_at, &system_text)?;
+    write(&system_at, system_text.as_bytes())?;
     let mission = match (&files.mission, mission_at) {
         (Some(mission), Some(at)) => {
-            write(&at, &mission.text)?;
+            write(&at, mission.text.as_bytes())?;
             Some(folder.path().join(at))
         }
         _ => None,
@@ -249,7 +266,7 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use armor_runtime::control::{FileText, ParamFile};
+    use armor_runtime::control::{BinaryFile, FileText, ParamFile};
 
     #[test]
     fn the_runs_files_are_written_where_the_system_names_them() {
@@ -271,6 +288,10 @@ mod tests {
                         path: "/robot/missions/worlds/yard.world".to_owned(),
                         text: "yard".to_owned(),
                     },
+                    beside: vec![BinaryFile {
+                        name: "yard.pgm".to_owned(),
+                        base64: "UDUK/w==".to_owned(),
+                    }],
                 },
                 ParamFile {
                     module: "other".to_owned(),
@@ -279,6 +300,7 @@ mod tests {
                         path: "/srv/far.world".to_owned(),
                         text: "far".to_owned(),
                     },
+                    beside: Vec::new(),
                 },
             ],
             descriptions: Vec::new(),
@@ -289,6 +311,11 @@ mod tests {
         let read = |name: &str| std::fs::read_to_string(folder.join(name)).expect(name);
         assert_eq!(read("worlds/yard.world"), "yard");
         assert_eq!(read("other-world-far.world"), "far");
+        assert_eq!(
+            std::fs::read(folder.join("worlds/yard.pgm")).expect("image"),
+            b"P5\n\xff",
+            "a map's image beside it, byte for byte"
+        );
         let system = read("robot.xml");
         assert!(system.contains(r#"value="worlds/yard.world""#), "{system}");
         assert!(

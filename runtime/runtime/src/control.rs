@@ -255,6 +255,17 @@ pub struct ParamFile {
     pub module: String,
     pub param: String,
     pub file: FileText,
+    /// The files it names in turn, by their names relative to its folder: a ROS map's image.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub beside: Vec<BinaryFile>,
+}
+
+/// A file that need not be text, its bytes in base64.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BinaryFile {
+    /// Its name as the file that names it writes it.
+    pub name: String,
+    pub base64: String,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -635,10 +635,12 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> contro
                 if !names_file || param.value.trim().is_empty() {
                     continue;
                 }
-                match read(Path::new(param.value.trim())) {
+                let path = Path::new(param.value.trim());
+                match read(path) {
                     Ok(file) => params.push(control::ParamFile {
                         module: module.name.clone(),
                         param: param.name.clone(),
+                        beside: files_beside(path, &file.text),
                         file,
                     }),
                     Err(err) => tracing::debug!("not sent to the client: {err}"),
@@ -669,6 +671,32 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> contro
             status: None,
             files: None,
         },
+    }
+}
+
+/// The files a parameter's file names in turn: a ROS map's image (the only such file a world
+/// has), read as bytes.
+fn files_beside(path: &Path, text: &str) -> Vec<control::BinaryFile> {
+    use base64::Engine as _;
+    let is_yaml = path
+        .extension()
+        .is_some_and(|extension| extension == "yaml" || extension == "yml");
+    let Some(map) = is_yaml
+        .then(|| armor_model::ros_map::parse_yaml(text, &path.display().to_string()).ok())
+        .flatten()
+    else {
+        return Vec::new();
+    };
+    let folder = path.parent().unwrap_or_else(|| Path::new("."));
+    match std::fs::read(folder.join(&map.image)) {
+        Ok(bytes) => vec![control::BinaryFile {
+            name: map.image,
+            base64: base64::engine::general_purpose::STANDARD.encode(bytes),
+        }],
+        Err(err) => {
+            tracing::debug!("not sent to the client: {}: {err}", map.image);
+            Vec::new()
+        }
     }
 }
 
