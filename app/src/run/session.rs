@@ -755,6 +755,67 @@ fn read_report(file: &Path) -> Option<Report> {
 mod tests {
     use super::*;
 
+    /// A stand-in for a run's control interface that records each request line and answers
+    /// `ok`, the first answer only after `first_delay` (a slow or lost link).
+    fn fake_control(first_delay: Duration) -> (SocketAddr, Receiver<serde_json::Value>) {
+        use std::io::Write as _;
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+        let addr = listener.local_addr().expect("addr");
+        let (seen, requests) = mpsc::channel();
+        std::thread::spawn(move || {
+            let Ok((stream, _)) = listener.accept() else {
+                return;
+            };
+            let mut writer = stream.try_clone().expect("clone");
+            let mut delay = Some(first_delay);
+            for line in BufReader::new(stream).lines() {
+                let Ok(line) = line else { return };
+                let _ = seen.send(serde_json::from_str(&line).expect("a request"));
+                if let Some(delay) = delay.take() {
+                    std::thread::sleep(delay);
+                }
+                let reply = b"{\"ok\":true,\"message\":\"ok\",\"status\":null}\n";
+                if writer.write_all(reply).is_err() {
+                    return;
+                }
+            }
+        });
+        (addr, requests)
+    }
+
+    #[test]
+    fn driving_commands_that_waited_behind_a_slow_link_are_dropped_not_replayed() {
+        let (addr, requests) = fake_control(Duration::from_millis(1200));
+        let shared: SharedRef = Arc::default();
+        lock(&shared).control_addr = Some(addr);
+        let stop = Arc::new(AtomicBool::new(false));
+        let (commands, commands_rx) = mpsc::channel();
+        {
+            let shared = Arc::clone(&shared);
+            let stop = Arc::clone(&stop);
+            std::thread::spawn(move || drive(&commands_rx, &shared, &stop, None));
+        }
+        let linear = |request: serde_json::Value| request["linear"].as_f64();
+        commands.send((0.1, 0.0, Instant::now())).expect("send");
+        let first = requests
+            .recv_timeout(Duration::from_secs(5))
+            .expect("first");
+        assert_eq!(first["command"], "teleop");
+        assert_eq!(linear(first), Some(0.1));
+        // While the link holds the first answer, the operator goes on driving, then lets go.
+        for speed in [0.2, 0.3, 0.4] {
+            commands.send((speed, 0.0, Instant::now())).expect("send");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        // Once it answers, none of those is sent late; the next fresh command is.
+        std::thread::sleep(Duration::from_millis(1500));
+        commands.send((0.5, 0.0, Instant::now())).expect("send");
+        let next = requests.recv_timeout(Duration::from_secs(5)).expect("next");
+        assert_eq!(linear(next), Some(0.5), "a stale command was replayed");
+        assert!(requests.try_recv().is_err());
+        stop.store(true, Ordering::Relaxed);
+    }
+
     #[test]
     fn timestamps_are_taken_off_log_lines() {
         assert_eq!(
