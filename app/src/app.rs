@@ -258,6 +258,11 @@ impl StudioApp {
             mission.set_catalog(&catalog);
             // Not through `open_plan`: a copy in a temporary folder is no recent file.
             self.with_mission(|mission| mission.open(plan));
+            // Compiled now: the Mission view compiles in its own frames, and the Run view
+            // draws the net before the operator ever looks there.
+            if let Some(mission) = self.mission.as_mut() {
+                mission.recheck(true);
+            }
         }
         let opened = self.mission.as_ref().and_then(MissionView::path);
         let target = match plan {

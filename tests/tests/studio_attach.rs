@@ -399,6 +399,10 @@ fn attached_without_its_file_to_a_plans_run_the_studio_opens_the_runs_plan() {
         mission.path(),
         "the Run view runs the plan's map"
     );
+    assert!(
+        mission.checked().net().is_some(),
+        "the plan compiled for the Run view's net, without a visit to the Mission view"
+    );
     drop(run);
 }
 
