@@ -228,6 +228,70 @@ impl StudioApp {
         );
     }
 
+    /// A run attached without its system file has sent its files: writes them into a folder of
+    /// their own and attaches again as with them open, with the run's module descriptions over
+    /// the palette's; the run's plan, if it plays one, in the Mission view (unless it holds a
+    /// plan of the user's), whose map the Run view then draws.
+    fn attach_with_runs_files(&mut self, ctx: &egui::Context) {
+        let Some((control, files)) = self.run.take_runs_files() else {
+            return;
+        };
+        let mirror = match crate::run::attach::mirror(&files) {
+            Ok(mirror) => mirror,
+            Err(err) => {
+                self.set_status(format!("{err:#}"), true);
+                return;
+            }
+        };
+        let mut catalog = self.palette.catalog.clone();
+        catalog.extend(mirror.catalog.clone());
+        let free = self
+            .mission
+            .as_ref()
+            .is_none_or(|mission| mission.path().is_none() && !mission.is_dirty());
+        let plan = mirror
+            .mission
+            .clone()
+            .filter(|mission| free && is_plan(mission));
+        if let Some(plan) = &plan {
+            let mission = self.mission.get_or_insert_with(|| MissionView::new(ctx));
+            mission.set_catalog(&catalog);
+            // Not through `open_plan`: a copy in a temporary folder is no recent file.
+            self.with_mission(|mission| mission.open(plan));
+            // Compiled now: the Mission view compiles in its own frames, and the Run view
+            // draws the net before the operator ever looks there.
+            if let Some(mission) = self.mission.as_mut() {
+                mission.recheck(true);
+            }
+        }
+        let opened = self.mission.as_ref().and_then(MissionView::path);
+        let target = match plan {
+            Some(plan) if opened == Some(plan.as_path()) => Target::Plan(plan),
+            _ => Target::System(mirror.system.clone()),
+        };
+        let mut surroundings = RunSurroundings {
+            mission: match target {
+                Target::Plan(_) => self.mission.as_mut(),
+                Target::System(_) => None,
+            },
+            system_file: Some(&mirror.system),
+            catalog: &catalog,
+        };
+        self.run.attach(target, control, &mut surroundings, ctx);
+        self.run.keep_mirror(mirror);
+        // After the attachment's own message, so that the status line says this.
+        self.run.messages.push((
+            true,
+            format!(
+                "watching the run at {control}: {} from the run",
+                files
+                    .mission
+                    .as_ref()
+                    .map_or(&files.system.path, |mission| &mission.path)
+            ),
+        ));
+    }
+
     /// The Mission view, once a frame has shown it.
     pub fn mission(&self) -> Option<&MissionView> {
         self.mission.as_ref()
@@ -308,6 +372,7 @@ impl StudioApp {
         }
         self.shortcuts(&ctx);
         self.run.poll();
+        self.attach_with_runs_files(&ctx);
         for (ok, message) in std::mem::take(&mut self.run.messages) {
             self.set_status(message, !ok);
         }

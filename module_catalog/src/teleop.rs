@@ -1,7 +1,9 @@
 //! `teleop`: velocity commands from an operator, over a line protocol on a TCP socket.
 //!
-//! The module listens on `listen` and logs `teleop listening on ADDR` (with the port chosen
-//! when `listen` asks for port 0). Each line a client sends is one command, answered by one
+//! The module listens on `listen`, logs `teleop listening on ADDR` (with the port chosen when
+//! `listen` asks for port 0) and tells the supervisor that address (its `teleop` endpoint), so
+//! that the operator drives through the run's control interface (`armor ctl teleop`, the
+//! studio) wherever the module runs. Each line a client sends is one command, answered by one
 //! line, `ok` or `error: WHY`:
 //!
 //! - `v LINEAR ANGULAR`: drive at LINEAR m/s and turn at ANGULAR rad/s (counter-clockwise),
@@ -22,6 +24,9 @@ use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType
 use crate::BodyError;
 
 pub const TYPE: &str = "teleop";
+/// The endpoint the module says it listens at (`docs/protocol.md`, section 4.2), where the
+/// supervisor relays `armor ctl teleop`.
+pub const ENDPOINT: &str = "teleop";
 
 /// How often, in run time, the module serves its clients and publishes the command.
 const TICK_SECS: f64 = 0.05;
@@ -52,7 +57,9 @@ pub fn spec() -> ModuleSpec {
             "listen",
             ParamType::String,
             "the TCP address to listen on for operators (port 0: any free port; the address is \
-             logged as `teleop listening on ADDR`); read at start only",
+             logged as `teleop listening on ADDR` and told to the supervisor, which relays \
+             `armor ctl teleop` there: a teleop on another host than the supervisor's listens \
+             on an address the supervisor reaches, such as 0.0.0.0:0); read at start only",
         )
         .default("127.0.0.1:0"),
     )
@@ -95,7 +102,10 @@ pub fn body(node: &mut Node) -> BodyResult {
     let listener =
         TcpListener::bind(listen).map_err(|err| format!("cannot listen on `{listen}`: {err}"))?;
     listener.set_nonblocking(true)?;
-    tracing::info!("teleop listening on {}", listener.local_addr()?);
+    let addr = listener.local_addr()?;
+    tracing::info!("teleop listening on {addr}");
+    // The supervisor relays the operator's commands here (`armor ctl teleop`, the studio).
+    node.set_endpoint(crate::teleop::ENDPOINT, &addr.to_string());
     serve(node, Server::new(listener))
 }
 
@@ -511,6 +521,19 @@ mod tests {
             bench.sent::<Twist>("cmd_vel").expect("sent"),
             [Twist::default(); 3]
         );
+    }
+
+    #[test]
+    fn tells_the_supervisor_where_it_listens() {
+        let mut bench = TestBench::new(&spec(), &[]).expect("bench");
+        bench.script([Step::Timeouts(1)]);
+        body(bench.node()).expect("body");
+        let endpoints = bench.endpoints();
+        assert_eq!(endpoints.len(), 1, "{endpoints:?}");
+        let addr = endpoints[0]
+            .strip_prefix("teleop 127.0.0.1:")
+            .unwrap_or_else(|| panic!("{endpoints:?}"));
+        assert!(addr.parse::<u16>().is_ok_and(|port| port > 0), "{addr}");
     }
 
     #[test]

@@ -4,7 +4,7 @@
 //! host; the host daemon killed takes its modules down, the supervisor says the host is lost,
 //! and a daemon started again rejoins and gets its modules back; a supervisor killed has its
 //! remote modules stopped by the daemon after its orphan time. `armor check` asks the host for
-//! the types it lacks.
+//! the types it lacks. `armor ctl teleop` reaches a teleop module on the other host.
 //!
 //! Namespaces need root (CAP_SYS_ADMIN) and `ip` (iproute2, which `.ci/run` installs): where
 //! they cannot be made, each test says so and passes without running.
@@ -486,4 +486,61 @@ fn a_synchronised_host_runs_a_timed_mission() {
     );
     let status = run.wait_exit(PATIENCE);
     assert!(status.success(), "{}", run.lines().join("\n"));
+}
+
+/// The operator drives a teleop module that runs on the other computer: it listens on every
+/// interface of its host (`0.0.0.0:0`), the supervisor takes the address its connection comes
+/// from as where to reach it, and relays `armor ctl teleop` there across the veth pair.
+#[test]
+fn armor_ctl_teleop_reaches_a_teleop_module_on_another_host() {
+    let Some(namespaces) =
+        namespaces_or_skip("armor_ctl_teleop_reaches_a_teleop_module_on_another_host")
+    else {
+        return;
+    };
+    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
+    let (_dir, file) = write_system(&format!(
+        r#"<system name="remote-pad" host="{SUPERVISOR_ADDR}">
+  <host name="robot1" address="{HOST_ADDR}"/>
+  <module name="sim" type="sim"><param name="world" value="{}"/></module>
+  <module name="pad" type="teleop" host="robot1"><param name="listen" value="0.0.0.0:0"/></module>
+  <link from="pad.cmd_vel" to="sim.cmd_vel"/>
+</system>
+"#,
+        world.display()
+    ));
+    let _host = start_host(&namespaces, &[]);
+    let run = start_run(&namespaces, &file, &[]);
+    let control = run.wait_for("the control address", PATIENCE, |line| {
+        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
+    });
+    let control = control
+        .trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
+        .trim()
+        .to_owned();
+    let ctl = |args: &[&str]| {
+        let output = Namespaces::command(&namespaces.near, &bin("armor"))
+            .args(["ctl", "--addr", &control])
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            output.status.success(),
+            String::from_utf8_lossy(&output.stdout).into_owned(),
+        )
+    };
+    let mut status = String::new();
+    wait_until("the remote teleop's endpoint", PATIENCE, || {
+        status = ctl(&["status"]).1;
+        status.contains(&format!("teleop at {HOST_ADDR}:"))
+    });
+    assert!(
+        status.contains("pad (teleop): running on host `robot1`"),
+        "{status}"
+    );
+    let (ok, reply) = ctl(&["teleop", "0.3", "0"]);
+    assert!(ok, "{reply}");
+    assert_eq!(reply.trim(), "teleop `pad`: driving at 0.3 0");
+    let (ok, reply) = ctl(&["teleop", "stop"]);
+    assert!(ok, "{reply}");
 }

@@ -1,7 +1,11 @@
 //! The studio attached to a run started elsewhere (`armor-studio --attach ADDR`, Run →
 //! Attach…), driven through egui_kittest: it follows the run through its control interface,
 //! pauses and resumes the mission with the same buttons as a run of its own, detaches without
-//! stopping it, attaches again through the menu's prompt, and shows a lost connection.
+//! stopping it, attaches again through the menu's prompt, and shows a lost connection; drives
+//! the robot with the arrow keys through the run's control interface (no port of the teleop
+//! module's own), which stops it when the keys are let go and goes on without it once detached;
+//! attached without the system file, draws the run's world and robot from the files the run
+//! sends (a ROS map's image too), and opens the plan a run plays in its Mission view.
 #![allow(clippy::unwrap_used)]
 
 use std::process::Command;
@@ -62,10 +66,32 @@ fn run_elsewhere(dir: &std::path::Path) -> (Proc, std::net::SocketAddr) {
 }
 
 fn harness(dir: &std::path::Path, attach: std::net::SocketAddr) -> Harness<'static, StudioApp> {
+    harness_with(dir, attach, None)
+}
+
+/// The studio attached at `attach`, with the run's system `file` open when given
+/// (`armor-studio --attach ADDR FILE`).
+fn harness_with(
+    dir: &std::path::Path,
+    attach: std::net::SocketAddr,
+    file: Option<std::path::PathBuf>,
+) -> Harness<'static, StudioApp> {
     let mut options = Options::new(Home::new(dir.join("home")));
     options.module_path = vec![bin_dir()];
-    options.palette = Some(Palette::from_descriptions(Vec::new()));
+    // With a file, the modules' descriptions pick the live views' sources, as the probed
+    // palette of the window does.
+    let descriptions = if file.is_some() {
+        let binaries = armor_runtime::probe::list_modules(&[bin_dir()]);
+        armor_runtime::probe::probe_all(&binaries, Duration::from_secs(10))
+            .into_iter()
+            .filter_map(|(_, description)| description.ok())
+            .collect()
+    } else {
+        Vec::new()
+    };
+    options.palette = Some(Palette::from_descriptions(descriptions));
     options.attach = Some(attach);
+    options.file = file;
     let app = StudioApp::new(options);
     let mut harness = Harness::builder()
         .with_size([1500.0, 950.0])
@@ -170,4 +196,249 @@ fn the_studio_attaches_pauses_resumes_and_detaches_without_stopping_the_run() {
         has_label(h, "connection lost")
     });
     assert!(harness.state().run().is_running(), "still trying");
+}
+
+/// The simulated robot and a teleop module that alone commands it.
+fn driven_system(dir: &std::path::Path) -> std::path::PathBuf {
+    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
+    let file = dir.join("driven.xml");
+    std::fs::write(
+        &file,
+        format!(
+            r#"<system name="driven">
+  <module name="sim" type="sim"><param name="world" value="{}"/></module>
+  <module name="pad" type="teleop"/>
+  <link from="pad.cmd_vel" to="sim.cmd_vel"/>
+</system>
+"#,
+            world.display()
+        ),
+    )
+    .unwrap();
+    file
+}
+
+/// `armor run FILE` in a terminal of its own, and its control address.
+fn run_file_elsewhere(file: &std::path::Path) -> (Proc, std::net::SocketAddr) {
+    let run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(file)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let line = run.wait_for("with its control address", PATIENCE, |line| {
+        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
+    });
+    let addr = line
+        .trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
+        .trim()
+        .parse()
+        .unwrap();
+    (run, addr)
+}
+
+fn truth(app: &StudioApp) -> Option<(f64, f64)> {
+    app.run().live().truth.map(|pose| (pose.x_m, pose.y_m))
+}
+
+fn distance(a: (f64, f64), b: (f64, f64)) -> f64 {
+    (a.0 - b.0).hypot(a.1 - b.1)
+}
+
+/// Steps until the robot's pose has not changed for half a second; returns it.
+fn at_rest(harness: &mut Harness<'_, StudioApp>, what: &str) -> (f64, f64) {
+    let mut last = truth(harness.state()).unwrap();
+    let mut still_since = Instant::now();
+    step_until(harness, what, |h| {
+        let now = truth(h.state()).unwrap();
+        if distance(now, last) > 1e-9 {
+            last = now;
+            still_since = Instant::now();
+        }
+        still_since.elapsed() > Duration::from_millis(500)
+    });
+    last
+}
+
+#[test]
+fn the_attached_studio_drives_through_the_runs_control_interface_and_detaches() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = driven_system(dir.path());
+    let (run, addr) = run_file_elsewhere(&system);
+    let mut harness = harness_with(dir.path(), addr, Some(system));
+    step_until(&mut harness, "the teleop up and the robot seen", |h| {
+        h.state()
+            .run()
+            .status()
+            .is_some_and(|status| armor_studio::run::session::can_drive(&status))
+            && truth(h.state()).is_some()
+    });
+    // The pad shows once the run's teleop module is up.
+    harness.get_by_label("forward");
+    let start = at_rest(&mut harness, "the robot at rest");
+    harness.key_down(egui::Key::ArrowUp);
+    step_until(&mut harness, "the robot driven forward", |h| {
+        truth(h.state()).is_some_and(|now| distance(now, start) > 0.3)
+    });
+    harness.key_up(egui::Key::ArrowUp);
+    let stopped = at_rest(&mut harness, "the robot stopped once the key is let go");
+    assert!(
+        distance(start, stopped) < 3.0,
+        "the robot drove on after the key was let go: {start:?} → {stopped:?}"
+    );
+
+    // Detached: the run goes on, and nothing drives the robot.
+    harness.get_by_label("⏏ Detach").click();
+    step_until(&mut harness, "the studio detached", |h| {
+        !h.state().run().is_running()
+    });
+    assert!(process_alive(run.pid()), "detaching stopped the run");
+    let pad = ctl_status(&addr.to_string())["modules"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|module| module["name"] == "pad")
+        .cloned()
+        .unwrap();
+    assert_eq!(pad["state"], "running", "{pad}");
+}
+
+#[test]
+fn attached_without_its_file_the_studio_draws_the_run_from_the_runs_own_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = driven_system(dir.path());
+    let (run, addr) = run_file_elsewhere(&system);
+    // No file, and no module descriptions of its own: all from the run.
+    let mut harness = harness(dir.path(), addr);
+    step_until(
+        &mut harness,
+        "the world and the robot on the live map",
+        |h| {
+            truth(h.state()).is_some()
+                && h.state()
+                    .run()
+                    .own_map_view()
+                    .is_some_and(|map| map.surroundings.world.is_some())
+        },
+    );
+    let map = harness.state().run().own_map_view().unwrap();
+    assert_ne!(
+        map.surroundings.system_file, system,
+        "the map reads the run's copy of its system, not the file the test wrote"
+    );
+    assert!(
+        map.surroundings.problems.is_empty(),
+        "{:?}",
+        map.surroundings.problems
+    );
+    assert!(has_label(&harness, "attached to driven"));
+    assert!(
+        has_label(&harness, "from the run"),
+        "the status line says so"
+    );
+
+    harness.get_by_label("⏏ Detach").click();
+    step_until(&mut harness, "the studio detached", |h| {
+        !h.state().run().is_running()
+    });
+    assert!(process_alive(run.pid()), "detaching stopped the run");
+}
+
+#[test]
+fn attached_without_its_file_to_a_plans_run_the_studio_opens_the_runs_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
+    let system =
+        std::fs::read_to_string(armor_tests::workspace_root().join("missions/robot/system.xml"))
+            .unwrap()
+            .replace(
+                r#"value="yard.world""#,
+                &format!(r#"value="{}""#, world.display()),
+            )
+            .replace(
+                r#"value="truth.mcap""#,
+                &format!(r#"value="{}""#, dir.path().join("truth.mcap").display()),
+            );
+    std::fs::create_dir(dir.path().join("robot")).unwrap();
+    std::fs::create_dir(dir.path().join("plans")).unwrap();
+    std::fs::write(dir.path().join("robot/system.xml"), system).unwrap();
+    let plan = dir.path().join("plans/gate.xml");
+    std::fs::write(
+        &plan,
+        r#"<plan name="gate" system="../robot/system.xml">
+  <navigation module="follower" speed_mps="0.5"/>
+  <waypoint name="home" lat="43.5615360" lon="1.4690496"/>
+  <waypoint name="gate" lat="43.5615360" lon="1.4691986"/>
+  <leg name="advance" from="home" to="gate"/>
+</plan>"#,
+    )
+    .unwrap();
+    let (run, addr) = run_file_elsewhere(&plan);
+    let mut harness = harness(dir.path(), addr);
+    step_until(
+        &mut harness,
+        "the run's plan open and the robot seen",
+        |h| {
+            truth(h.state()).is_some()
+                && h.state()
+                    .mission()
+                    .and_then(|mission| mission.path())
+                    .is_some_and(|path| path.ends_with("plans/gate.xml"))
+        },
+    );
+    let mission = harness.state().mission().unwrap();
+    assert_ne!(mission.path(), Some(plan.as_path()), "a copy of the run's");
+    assert!(
+        mission.surroundings.world.is_some(),
+        "the plan finds its system, and its world, as on the run's machine: {:?}",
+        mission.surroundings.problems
+    );
+    assert_eq!(
+        harness.state().run().session_target(),
+        mission.path(),
+        "the Run view runs the plan's map"
+    );
+    assert!(
+        mission.checked().net().is_some(),
+        "the plan compiled for the Run view's net, without a visit to the Mission view"
+    );
+    drop(run);
+}
+
+#[test]
+fn attached_without_its_file_to_a_run_on_a_ros_map_the_studio_has_the_maps_image_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let worlds = armor_tests::workspace_root().join("assets/worlds");
+    for name in ["yard-map.yaml", "yard-map.pgm"] {
+        std::fs::copy(worlds.join(name), dir.path().join(name)).unwrap();
+    }
+    let system = dir.path().join("mapped.xml");
+    std::fs::write(
+        &system,
+        r#"<system name="mapped">
+  <module name="sim" type="sim"><param name="world" value="yard-map.yaml"/></module>
+  <module name="pad" type="teleop"/>
+  <link from="pad.cmd_vel" to="sim.cmd_vel"/>
+</system>
+"#,
+    )
+    .unwrap();
+    let (run, addr) = run_file_elsewhere(&system);
+    let mut harness = harness(dir.path(), addr);
+    step_until(&mut harness, "the map's world and the robot", |h| {
+        truth(h.state()).is_some()
+            && h.state()
+                .run()
+                .own_map_view()
+                .is_some_and(|map| map.surroundings.world.is_some())
+    });
+    let map = harness.state().run().own_map_view().unwrap();
+    let copy = map.surroundings.system_file.with_file_name("yard-map.pgm");
+    assert_eq!(
+        std::fs::read(&copy).unwrap(),
+        std::fs::read(worlds.join("yard-map.pgm")).unwrap(),
+        "the map's image, as the run has it"
+    );
+    drop(run);
 }

@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use armor_model::plan::Origin;
 use armor_module_api::types::OccupancyGrid;
-use armor_runtime::control::{ModuleState, Request, Status};
+use armor_runtime::control::{ModuleState, Request, RunFiles, Status};
 use egui::{Color32, RichText, Ui};
 
 use crate::diagram::Catalog;
@@ -114,6 +114,9 @@ pub struct RunView {
     pub markers_drawn: BTreeMap<String, usize>,
     /// Run → Attach…'s prompt, while it is open.
     pub attach_prompt: Option<attach::AttachPrompt>,
+    /// The files of a run attached without its system file, written where the Run view reads
+    /// them (kept as long as the attachment).
+    attach_mirror: Option<attach::Mirror>,
 }
 
 impl RunView {
@@ -147,6 +150,7 @@ impl RunView {
             timeline_at: None,
             markers_drawn: BTreeMap::new(),
             attach_prompt: None,
+            attach_mirror: None,
         }
     }
 
@@ -173,6 +177,11 @@ impl RunView {
             }
         }
         Some(status)
+    }
+
+    /// The map of a run without a plan (an empty plan on the run's system), once drawn.
+    pub fn own_map_view(&self) -> Option<&MissionView> {
+        self.own_map.as_ref().map(|(_, mission)| mission)
     }
 
     /// Frames the world, the plan and the robot at the next frame (Fit, Home).
@@ -278,8 +287,28 @@ impl RunView {
             .push((true, format!("watching the run at {control}")));
     }
 
+    /// The files a run attached without its system file has sent (at most once per
+    /// attachment), with its control address: the window writes them out
+    /// ([`attach::mirror`]) and attaches again with them ([`Self::keep_mirror`]).
+    pub fn take_runs_files(&mut self) -> Option<(std::net::SocketAddr, RunFiles)> {
+        let session = self.session.as_ref()?;
+        if !session.is_attached() || !session.options.target.as_os_str().is_empty() {
+            return None;
+        }
+        let mut shared = session.shared();
+        let control = shared.control_addr?;
+        Some((control, shared.files.take()?))
+    }
+
+    /// Keeps the folder of an attached run's files as long as the attachment.
+    pub fn keep_mirror(&mut self, mirror: attach::Mirror) {
+        self.fit_pending = true;
+        self.attach_mirror = Some(mirror);
+    }
+
     /// Watches a run started elsewhere whose system file the studio does not have: its
-    /// modules, mission and controls, without the live map's sources.
+    /// modules, mission and controls at once, and the live map once the run has sent its files
+    /// ([`Self::take_runs_files`]).
     pub fn attach_bare(&mut self, control: std::net::SocketAddr, ctx: &egui::Context) {
         self.stop();
         self.recording = None;
@@ -719,10 +748,9 @@ impl RunView {
 
     fn teleop_ui(&mut self, ui: &mut Ui) {
         ui.label(RichText::new("Drive").strong());
-        let can_drive = self
-            .session
-            .as_ref()
-            .is_some_and(|s| s.is_running() && s.shared().teleop_addr.is_some());
+        let can_drive = self.session.as_ref().is_some_and(|s| {
+            s.is_running() && s.shared().status.as_ref().is_some_and(session::can_drive)
+        });
         if !can_drive {
             ui.label("A running system with a teleop module can be driven from here.");
             return;

@@ -5,8 +5,8 @@
 //! is a thread that writes into [`Shared`].
 
 use std::collections::{BTreeMap, VecDeque};
-use std::io::{BufRead, BufReader, Read, Write as _};
-use std::net::{SocketAddr, TcpStream};
+use std::io::{BufRead, BufReader, Read};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -15,7 +15,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use armor_runtime::control::{FiringRecord, MissionStatus, Request, Status};
+use armor_runtime::control::{FiringRecord, MissionStatus, Request, RunFiles, Status};
 
 use super::live::{self, Sources};
 
@@ -32,6 +32,9 @@ const MAX_HISTORY: usize = 240;
 const STOP_GRACE: Duration = Duration::from_secs(8);
 /// How often the operator's teleoperation command is sent while held.
 pub const TELEOP_EVERY: Duration = Duration::from_millis(100);
+/// A driving command older than this when its turn comes (the control link was slow or being
+/// reconnected) is dropped, never sent late: the operator has let go or sent a newer one.
+const TELEOP_STALE: Duration = Duration::from_millis(300);
 
 /// What a run is started with.
 #[derive(Clone, Debug)]
@@ -88,7 +91,6 @@ pub struct Shared {
     /// Each module's counters over time (oldest first).
     pub history: BTreeMap<String, VecDeque<Sample>>,
     pub control_addr: Option<SocketAddr>,
-    pub teleop_addr: Option<SocketAddr>,
     /// The answers to the operator's requests, for the status line.
     pub replies: Vec<(bool, String)>,
     /// How the run ended, once it has.
@@ -97,6 +99,9 @@ pub struct Shared {
     /// it is asked again at every poll.
     pub connection_lost: Option<(f64, String)>,
     pub live: live::SharedLive,
+    /// The run's files, asked of a run attached without its system file
+    /// ([`Request::Files`]); taken by the view, which attaches again with them.
+    pub files: Option<RunFiles>,
 }
 
 impl Shared {
@@ -120,7 +125,7 @@ pub struct RunSession {
     child: Option<Child>,
     pub shared: SharedRef,
     requests: Sender<Request>,
-    teleop: Sender<(f64, f64)>,
+    teleop: Sender<(f64, f64, Instant)>,
     /// Set when the run is asked to stop: every thread of the session ends.
     stop: Arc<AtomicBool>,
     /// Watching a run started elsewhere (no process of ours).
@@ -237,7 +242,8 @@ impl RunSession {
         {
             let shared = Arc::clone(&shared);
             let stop = Arc::clone(&stop);
-            std::thread::spawn(move || drive(&teleop_rx, &shared, &stop));
+            let secret = options.secret.clone();
+            std::thread::spawn(move || drive(&teleop_rx, &shared, &stop, secret.as_deref()));
         }
         RunSession {
             options,
@@ -272,10 +278,11 @@ impl RunSession {
         let _ = self.requests.send(request);
     }
 
-    /// Drives the robot through the teleop module: `linear` m/s, `angular` rad/s. The module
-    /// holds a command for its dead-man time, so a command must be sent again while held.
+    /// Drives the robot through the run's control interface, which relays to its teleop
+    /// module: `linear` m/s, `angular` rad/s. The module holds a command for its dead-man time,
+    /// so a command must be sent again while held.
     pub fn teleop(&self, linear: f64, angular: f64) {
-        let _ = self.teleop.send((linear, angular));
+        let _ = self.teleop.send((linear, angular, Instant::now()));
     }
 
     /// Watching a run started elsewhere: stopping only detaches.
@@ -429,14 +436,6 @@ fn read_output(
                 Level::Info
             };
             let mut shared = lock(&shared);
-            if let Some(addr) = text
-                .split("teleop listening on ")
-                .nth(1)
-                .and_then(|addr| addr.split_whitespace().next())
-                .and_then(|addr| addr.parse().ok())
-            {
-                shared.teleop_addr = Some(addr);
-            }
             shared.log(LogLine {
                 at_secs,
                 source: module,
@@ -511,8 +510,11 @@ fn poll_control(
     let RunOptions {
         sources,
         secret: secret_file,
+        target,
         ..
     } = options;
+    // Attached without the system file: ask the run for its files, once.
+    let mut want_files = target.as_os_str().is_empty();
     let addr = loop {
         if stop.load(Ordering::Relaxed) {
             return;
@@ -536,6 +538,7 @@ fn poll_control(
     };
     let mut live_started = false;
     let mut next_poll = Instant::now();
+    let mut client: Option<armor_runtime::control::Client> = None;
     while !stop.load(Ordering::Relaxed) {
         let request =
             match requests.recv_timeout(next_poll.saturating_duration_since(Instant::now())) {
@@ -546,15 +549,40 @@ fn poll_control(
                 }
                 Err(mpsc::RecvTimeoutError::Disconnected) => return,
             };
-        let is_status = request == Request::Status;
-        let reply = armor_runtime::control::request(addr, &request, secret.as_ref());
+        let request = if want_files && request == Request::Status {
+            Request::Files
+        } else {
+            request
+        };
+        let is_status = matches!(request, Request::Status | Request::Files);
+        // One connection for every poll and request, opened again after an error.
+        let reply = match client.as_mut() {
+            Some(open) => open.call(&request),
+            None => armor_runtime::control::Client::connect(addr, secret.as_ref()).and_then(
+                |mut opened| {
+                    let reply = opened.call(&request);
+                    client = Some(opened);
+                    reply
+                },
+            ),
+        };
+        if reply.is_err() {
+            client = None;
+        }
         let at_secs = started.elapsed().as_secs_f64();
         let mut shared_now = lock(shared);
         match reply {
             Ok(reply) => {
                 shared_now.connection_lost = None;
-                if !is_status {
+                if !is_status || (reply.files.is_none() && request == Request::Files) {
                     shared_now.replies.push((reply.ok, reply.message));
+                }
+                if request == Request::Files {
+                    // Asked once: a run that cannot send them is watched without them.
+                    want_files = false;
+                }
+                if let Some(files) = reply.files {
+                    shared_now.files = Some(files);
                 }
                 if let Some(status) = reply.status {
                     for module in &status.modules {
@@ -601,40 +629,78 @@ fn poll_control(
     }
 }
 
-/// Sends the operator's commands to the teleop module (`v LINEAR ANGULAR`, `stop`), reading its
-/// answers so that it never holds them for us.
-fn drive(commands: &Receiver<(f64, f64)>, shared: &SharedRef, stop: &AtomicBool) {
-    let mut stream: Option<(TcpStream, SocketAddr)> = None;
+/// Whether the run can be driven: a teleop module is at work and has said where it listens
+/// (the supervisor relays the operator's commands there).
+pub fn can_drive(status: &Status) -> bool {
+    status.modules.iter().any(|module| {
+        module.module_type == armor_runtime::teleop_relay::TELEOP_TYPE
+            && module.state == armor_runtime::control::ModuleState::Running
+            && module
+                .endpoints
+                .contains_key(armor_runtime::teleop_relay::ENDPOINT)
+    })
+}
+
+/// Sends the operator's driving commands as `teleop` requests on a connection of its own to
+/// the run's control interface (which relays them to the teleop module), so that polling never
+/// delays them. Only the newest command is sent, and only while fresh: one that waited behind a
+/// lost or slow link is dropped, never replayed once the link is back; and a studio whose link
+/// is lost commands nothing, so the module's dead-man stops the robot.
+fn drive(
+    commands: &Receiver<(f64, f64, Instant)>,
+    shared: &SharedRef,
+    stop: &AtomicBool,
+    secret_file: Option<&Path>,
+) {
+    let secret = secret_file.and_then(|file| armor_module_api::auth::Secret::load(file).ok());
+    let mut client: Option<armor_runtime::control::Client> = None;
+    let mut last_error: Option<String> = None;
     while !stop.load(Ordering::Relaxed) {
-        let (linear, angular) = match commands.recv_timeout(Duration::from_millis(200)) {
+        let mut command = match commands.recv_timeout(Duration::from_millis(200)) {
             Ok(command) => command,
             Err(mpsc::RecvTimeoutError::Timeout) => continue,
             Err(mpsc::RecvTimeoutError::Disconnected) => return,
         };
-        let Some(addr) = lock(shared).teleop_addr else {
+        while let Ok(newer) = commands.try_recv() {
+            command = newer;
+        }
+        let (linear, angular, at) = command;
+        if at.elapsed() > TELEOP_STALE {
+            continue;
+        }
+        let Some(addr) = lock(shared).control_addr else {
             continue;
         };
-        if stream.as_ref().is_none_or(|(_, at)| *at != addr) {
-            stream = TcpStream::connect_timeout(&addr, Duration::from_secs(1))
-                .ok()
-                .inspect(|stream| {
-                    let _ = stream.set_nonblocking(true);
-                })
-                .map(|stream| (stream, addr));
-        }
-        let Some((socket, _)) = &mut stream else {
-            continue;
+        let request = Request::Teleop {
+            linear,
+            angular,
+            module: None,
         };
-        let line = if linear == 0.0 && angular == 0.0 {
-            "stop\n".to_owned()
-        } else {
-            format!("v {linear:.3} {angular:.3}\n")
+        let reply = match client.as_mut() {
+            Some(open) => open.call(&request),
+            None => armor_runtime::control::Client::connect(addr, secret.as_ref()).and_then(
+                |mut opened| {
+                    let reply = opened.call(&request);
+                    client = Some(opened);
+                    reply
+                },
+            ),
         };
-        let mut answers = [0_u8; 1024];
-        while matches!(socket.read(&mut answers), Ok(n) if n > 0) {}
-        if socket.write_all(line.as_bytes()).is_err() {
-            stream = None;
+        let error = match reply {
+            Ok(reply) if reply.ok => None,
+            Ok(reply) => Some(reply.message),
+            Err(err) => {
+                client = None;
+                Some(format!("driving: {err:#}"))
+            }
+        };
+        // Each new problem once on the status line, not ten times a second.
+        if error.is_some() && error != last_error {
+            lock(shared)
+                .replies
+                .push((false, error.clone().unwrap_or_default()));
         }
+        last_error = error;
     }
 }
 
@@ -688,6 +754,67 @@ fn read_report(file: &Path) -> Option<Report> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A stand-in for a run's control interface that records each request line and answers
+    /// `ok`, the first answer only after `first_delay` (a slow or lost link).
+    fn fake_control(first_delay: Duration) -> (SocketAddr, Receiver<serde_json::Value>) {
+        use std::io::Write as _;
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+        let addr = listener.local_addr().expect("addr");
+        let (seen, requests) = mpsc::channel();
+        std::thread::spawn(move || {
+            let Ok((stream, _)) = listener.accept() else {
+                return;
+            };
+            let mut writer = stream.try_clone().expect("clone");
+            let mut delay = Some(first_delay);
+            for line in BufReader::new(stream).lines() {
+                let Ok(line) = line else { return };
+                let _ = seen.send(serde_json::from_str(&line).expect("a request"));
+                if let Some(delay) = delay.take() {
+                    std::thread::sleep(delay);
+                }
+                let reply = b"{\"ok\":true,\"message\":\"ok\",\"status\":null}\n";
+                if writer.write_all(reply).is_err() {
+                    return;
+                }
+            }
+        });
+        (addr, requests)
+    }
+
+    #[test]
+    fn driving_commands_that_waited_behind_a_slow_link_are_dropped_not_replayed() {
+        let (addr, requests) = fake_control(Duration::from_millis(1200));
+        let shared: SharedRef = Arc::default();
+        lock(&shared).control_addr = Some(addr);
+        let stop = Arc::new(AtomicBool::new(false));
+        let (commands, commands_rx) = mpsc::channel();
+        {
+            let shared = Arc::clone(&shared);
+            let stop = Arc::clone(&stop);
+            std::thread::spawn(move || drive(&commands_rx, &shared, &stop, None));
+        }
+        let linear = |request: serde_json::Value| request["linear"].as_f64();
+        commands.send((0.1, 0.0, Instant::now())).expect("send");
+        let first = requests
+            .recv_timeout(Duration::from_secs(5))
+            .expect("first");
+        assert_eq!(first["command"], "teleop");
+        assert_eq!(linear(first), Some(0.1));
+        // While the link holds the first answer, the operator goes on driving, then lets go.
+        for speed in [0.2, 0.3, 0.4] {
+            commands.send((speed, 0.0, Instant::now())).expect("send");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        // Once it answers, none of those is sent late; the next fresh command is.
+        std::thread::sleep(Duration::from_millis(1500));
+        commands.send((0.5, 0.0, Instant::now())).expect("send");
+        let next = requests.recv_timeout(Duration::from_secs(5)).expect("next");
+        assert_eq!(linear(next), Some(0.5), "a stale command was replayed");
+        assert!(requests.try_recv().is_err());
+        stop.store(true, Ordering::Relaxed);
+    }
 
     #[test]
     fn timestamps_are_taken_off_log_lines() {

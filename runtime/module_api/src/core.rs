@@ -2,7 +2,7 @@
 //! events), what the event loop hands the module, and the API's errors: what [`crate::Node`],
 //! the network transport and the test transport all share.
 
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::time::{Duration, Instant};
 
 use crate::clock::Clock;
@@ -181,6 +181,8 @@ pub(crate) struct Core {
     pub applicable: Option<bool>,
     /// An arbiter's input in control as it last set it.
     pub winner: Option<String>,
+    /// The module's own services and where they listen ([`crate::Node::set_endpoint`]).
+    pub endpoints: BTreeMap<String, String>,
 }
 
 impl Core {
@@ -239,6 +241,7 @@ impl Core {
             took_event_at: None,
             applicable: None,
             winner: None,
+            endpoints: BTreeMap::new(),
         }
     }
 
@@ -265,6 +268,7 @@ impl Core {
                 .filter(|slot| slot.received_bytes > 0)
                 .map(|slot| (slot.name.clone(), slot.received_bytes))
                 .collect(),
+            endpoints: self.endpoints.clone(),
         }
     }
 

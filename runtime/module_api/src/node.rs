@@ -641,6 +641,23 @@ impl Node {
         });
     }
 
+    /// Says where a service of the module's own, outside the data links, listens (the teleop's
+    /// command port, `name` `teleop`): the supervisor shows it in the run's status and relays
+    /// the operator's commands there (`armor ctl teleop`). Sent only when it changes. An
+    /// address on `0.0.0.0` or `::` is taken by the supervisor as the module's own host.
+    pub fn set_endpoint(&mut self, name: &str, address: &str) {
+        if self.core.endpoints.get(name).map(String::as_str) == Some(address) {
+            return;
+        }
+        self.core
+            .endpoints
+            .insert(name.to_owned(), address.to_owned());
+        self.tell_supervisor(ToSupervisor::Endpoint {
+            name: name.to_owned(),
+            address: address.to_owned(),
+        });
+    }
+
     fn tell_supervisor(&mut self, message: ToSupervisor) {
         match &mut self.transport {
             Transport::Net(net) => net.tell_supervisor(&message),

@@ -90,6 +90,13 @@ pub enum ToSupervisor {
         #[serde(default)]
         input: Option<String>,
     },
+    /// A service of the module's own, outside the data links, listens at `address` (the
+    /// teleop's command port): sent once it listens, and again when the address changes. The
+    /// supervisor shows it in the run's status and relays the operator's commands to it.
+    Endpoint {
+        name: String,
+        address: String,
+    },
     /// The answer to a ping, with what the module did so far (absent from modules that do not
     /// count: `{"type":"pong"}` is a valid answer).
     Pong {
@@ -121,6 +128,10 @@ pub struct NodeStats {
     /// Payload bytes received, per input name (the link's bandwidth, over time).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub received_bytes: BTreeMap<String, u64>,
+    /// The module's [`ToSupervisor::Endpoint`]s, name → address, repeated so that a config
+    /// server that reconnects learns them.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub endpoints: BTreeMap<String, String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -170,6 +170,23 @@ impl TestBench {
     }
 }
 
+impl TestBench {
+    /// The endpoints the module said it listens at ([`Node::set_endpoint`]), in order, each as
+    /// `NAME ADDRESS`.
+    pub fn endpoints(&self) -> Vec<String> {
+        let Transport::Test(test) = &self.node.transport else {
+            return Vec::new();
+        };
+        test.reports
+            .iter()
+            .filter_map(|report| match report {
+                ToSupervisor::Endpoint { name, address } => Some(format!("{name} {address}")),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,7 +13,7 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::Write as _;
-use std::net::{SocketAddr, TcpListener};
+use std::net::{IpAddr, SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -79,6 +79,11 @@ struct ModuleConn {
     last_heard: Instant,
     /// Reported unresponsive since it was last heard (reported once).
     reported: bool,
+    /// Where the module's own services listen (`endpoint` messages), an unspecified address
+    /// already replaced by the one its connection comes from.
+    endpoints: BTreeMap<String, String>,
+    /// The address the module's connection comes from.
+    peer: Option<IpAddr>,
 }
 
 /// What the mission controller wants of the modules right now.
@@ -279,6 +284,21 @@ impl State {
 /// An arbiter's winning input, as said (`Some(None)`: none wins).
 type Winner = Option<String>;
 
+impl ModuleConn {
+    /// Notes an endpoint the module said it listens at. An unspecified address (`0.0.0.0`, `::`)
+    /// listens on every interface of the module's host: the one its connection comes from is
+    /// where the supervisor reaches it.
+    fn note_endpoint(&mut self, name: String, address: &str) {
+        let address = match (address.parse::<SocketAddr>(), self.peer) {
+            (Ok(addr), Some(peer)) if addr.ip().is_unspecified() => {
+                SocketAddr::new(peer, addr.port()).to_string()
+            }
+            _ => address.to_owned(),
+        };
+        self.endpoints.insert(name, address);
+    }
+}
+
 #[derive(Clone)]
 pub struct ConfigServer {
     state: Arc<Mutex<State>>,
@@ -454,6 +474,7 @@ impl ConfigServer {
     ) -> Result<(), WireError> {
         stream.get_ref().set_nodelay(true)?;
         stream.get_ref().set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
+        let peer = stream.get_ref().peer_addr().ok().map(|addr| addr.ip());
         let (mut reader, mut writer) = stream.split();
         let stream = &mut reader;
         let ToSupervisor::Hello { module: name, pid } = blocking::read_message(stream)? else {
@@ -488,6 +509,8 @@ impl ConfigServer {
                     sent: config,
                     last_heard: Instant::now(),
                     reported: false,
+                    endpoints: BTreeMap::new(),
+                    peer,
                 },
             );
         }
@@ -517,6 +540,13 @@ impl ConfigServer {
                 ToSupervisor::Pong { stats } => {
                     if let Some(stats) = stats {
                         let mut state = self.lock();
+                        if let Some(conn) = state.conns.get_mut(&name)
+                            && conn.conn_id == conn_id
+                        {
+                            for (endpoint, address) in &stats.endpoints {
+                                conn.note_endpoint(endpoint.clone(), address);
+                            }
+                        }
                         let winner = stats.winner.clone().map(Some);
                         state.note_behaviour(&name, stats.applicable, winner);
                         state.stats.insert(name.clone(), stats);
@@ -529,6 +559,19 @@ impl ConfigServer {
                 }
                 ToSupervisor::Winner { input } => {
                     self.lock().note_behaviour(&name, None, Some(input));
+                    continue;
+                }
+                ToSupervisor::Endpoint {
+                    name: endpoint,
+                    address,
+                } => {
+                    let mut state = self.lock();
+                    if let Some(conn) = state.conns.get_mut(&name)
+                        && conn.conn_id == conn_id
+                    {
+                        tracing::debug!(module = name, endpoint, address, "endpoint");
+                        conn.note_endpoint(endpoint, &address);
+                    }
                     continue;
                 }
                 ToSupervisor::Hello { .. } => continue,
@@ -618,6 +661,16 @@ impl ConfigServer {
     /// Behaviour states, arbiters' winners and the time line of state changes.
     pub fn behaviours(&self) -> Behaviours {
         self.lock().behaviours.clone()
+    }
+
+    /// Where each connected module's own services listen (module → name → address).
+    pub fn endpoints(&self) -> HashMap<String, BTreeMap<String, String>> {
+        self.lock()
+            .conns
+            .iter()
+            .filter(|(_, conn)| !conn.endpoints.is_empty())
+            .map(|(name, conn)| (name.clone(), conn.endpoints.clone()))
+            .collect()
     }
 
     /// What each module last said of its work.

@@ -6,7 +6,15 @@
 //! ```text
 //! → {"command":"fire","transition":"leave_wp1"}
 //! ← {"ok":true,"message":"fired `leave_wp1`","status":{...}}
+//! → {"command":"teleop","linear":0.3,"angular":0}
+//! ← {"ok":true,"message":"teleop `teleop`: driving at 0.3 0","status":null}
+//! → {"command":"files"}
+//! ← {"ok":true,"message":"the run's files (…)","status":null,"files":{"system":{…},…}}
 //! ```
+//!
+//! `teleop` is relayed to the run's teleop module (see [`crate::teleop_relay`]) and answered
+//! with the module's own answer; `files` returns what a client that attaches without the
+//! system file needs to draw the run ([`RunFiles`]).
 //!
 //! With a shared secret (see `armor_module_api::auth`) the client speaks first and both sides
 //! prove the secret before any request, in three lines (hex bytes):
@@ -32,9 +40,12 @@ use serde::{Deserialize, Serialize};
 pub const ENV_CONTROL: &str = "ARMOR_CONTROL";
 /// A request line longer than this is not a request.
 const MAX_LINE_BYTES: u64 = 64 * 1024;
+/// A reply line longer than this is not a reply: a status, or the run's files (a world or a
+/// ROS map's image among them).
+const MAX_REPLY_BYTES: u64 = 64 * 1024 * 1024;
 const REPLY_TIMEOUT: Duration = Duration::from_secs(5);
 
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "command", rename_all = "snake_case")]
 pub enum Request {
     Status,
@@ -56,6 +67,18 @@ pub enum Request {
     ReleaseModule {
         module: String,
     },
+    /// Drive the robot: relayed to the run's teleop module (`module`, or the only module of
+    /// type `teleop`), which holds the command for its dead-man time: an operator sends it again
+    /// while driving. Zero speeds are sent as `stop`.
+    Teleop {
+        linear: f64,
+        angular: f64,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        module: Option<String>,
+    },
+    /// The run's files, for a client that attaches without them: the system file, the
+    /// mission's and the files the system's parameters name ([`RunFiles`]).
+    Files,
 }
 
 /// A run's state: every module, and the mission if there is one.
@@ -194,6 +217,55 @@ pub struct ModuleStatus {
     /// The declared host it runs on (`armor host`), or `None` for the supervisor's machine.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub host: Option<String>,
+    /// Where its own services listen, name → address, as it said (the teleop's `teleop`).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub endpoints: std::collections::BTreeMap<String, String>,
+}
+
+/// A file of the run, as the run's machine has it.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FileText {
+    /// Its path on the run's machine (for messages: the client need not have it).
+    pub path: String,
+    pub text: String,
+}
+
+/// What a client needs to draw a run it did not start ([`Request::Files`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RunFiles {
+    /// The system file.
+    pub system: FileText,
+    /// The mission the run plays, a plan or a net, when it has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mission: Option<FileText>,
+    /// The files the system's `file` parameters name (the simulated world), as the run found
+    /// them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub params: Vec<ParamFile>,
+    /// The description of every module type the system uses, in the describe format
+    /// (`docs/protocol.md`, section 5), so that a client without the module binaries knows
+    /// their ports.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub descriptions: Vec<String>,
+}
+
+/// A file a module's parameter names.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ParamFile {
+    pub module: String,
+    pub param: String,
+    pub file: FileText,
+    /// The files it names in turn, by their names relative to its folder: a ROS map's image.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub beside: Vec<BinaryFile>,
+}
+
+/// A file that need not be text, its bytes in base64.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BinaryFile {
+    /// Its name as the file that names it writes it.
+    pub name: String,
+    pub base64: String,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -201,6 +273,9 @@ pub struct Reply {
     pub ok: bool,
     pub message: String,
     pub status: Option<Status>,
+    /// The answer to [`Request::Files`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub files: Option<RunFiles>,
 }
 
 /// A request from a client, with where to send the answer.
@@ -306,6 +381,7 @@ fn authenticate_client(
                 ok: false,
                 message: message.to_owned(),
                 status: None,
+                files: None,
             },
         );
         Err(std::io::Error::other(message.to_owned()))
@@ -382,6 +458,7 @@ fn serve_client(
                     ok: false,
                     message: "the run did not answer".to_owned(),
                     status: None,
+                    files: None,
                 })
             }
             Err(err) => Reply {
@@ -390,6 +467,7 @@ fn serve_client(
                     "bad request: {err} (expected e.g. {{\"command\":\"pause\"}} or {{\"command\":\"fire\",\"transition\":\"NAME\"}})"
                 ),
                 status: None,
+                files: None,
             },
         };
         let mut text = serde_json::to_string(&reply).map_err(std::io::Error::other)?;
@@ -405,40 +483,65 @@ pub fn request(
     request: &Request,
     secret: Option<&Secret>,
 ) -> anyhow::Result<Reply> {
-    use anyhow::Context as _;
-    let stream = TcpStream::connect_timeout(&addr, REPLY_TIMEOUT)
-        .with_context(|| format!("cannot reach the run's control interface at {addr}"))?;
-    stream.set_read_timeout(Some(REPLY_TIMEOUT * 2))?;
-    let mut writer = stream.try_clone()?;
-    let mut reader = BufReader::new(stream);
-    if let Some(secret) = secret {
-        let dial = Dial {
-            key: secret.operator_key(),
-            identity: OPERATOR.to_owned(),
-            encrypt: false,
-        };
-        let (dialer, first) = Dialer::start(&dial)?;
-        write_json(&mut writer, &auth_line(&first))?;
-        let line =
-            read_line(&mut reader, MAX_LINE_BYTES)?.context("the run closed the connection")?;
-        if let Ok(Reply {
-            ok: false, message, ..
-        }) = serde_json::from_str::<Reply>(&line)
-        {
-            anyhow::bail!("the run refused: {message}");
+    Client::connect(addr, secret)?.call(request)
+}
+
+/// A connection to a run's control interface, kept for many requests (authenticated once): the
+/// studio's polls and the operator's driving commands, ten a second, need not each pay for a
+/// connection and a handshake.
+pub struct Client {
+    reader: BufReader<TcpStream>,
+    writer: TcpStream,
+}
+
+impl Client {
+    /// Connects to the control interface at `addr`; with a `secret`, proves it (and checks the
+    /// run's proof).
+    pub fn connect(addr: SocketAddr, secret: Option<&Secret>) -> anyhow::Result<Client> {
+        use anyhow::Context as _;
+        let stream = TcpStream::connect_timeout(&addr, REPLY_TIMEOUT)
+            .with_context(|| format!("cannot reach the run's control interface at {addr}"))?;
+        stream.set_read_timeout(Some(REPLY_TIMEOUT * 2))?;
+        stream.set_nodelay(true)?;
+        let mut writer = stream.try_clone()?;
+        let mut reader = BufReader::new(stream);
+        if let Some(secret) = secret {
+            let dial = Dial {
+                key: secret.operator_key(),
+                identity: OPERATOR.to_owned(),
+                encrypt: false,
+            };
+            let (dialer, first) = Dialer::start(&dial)?;
+            write_json(&mut writer, &auth_line(&first))?;
+            let line =
+                read_line(&mut reader, MAX_LINE_BYTES)?.context("the run closed the connection")?;
+            if let Ok(Reply {
+                ok: false, message, ..
+            }) = serde_json::from_str::<Reply>(&line)
+            {
+                anyhow::bail!("the run refused: {message}");
+            }
+            let Some(answer) = noise_of(&line) else {
+                anyhow::bail!(
+                    "the run does not authenticate (started without --secret?): it answered `{}`",
+                    line.trim()
+                );
+            };
+            let Ok((confirm, _)) = dialer.finish(&answer) else {
+                anyhow::bail!("the run's handshake does not match: it holds another secret");
+            };
+            write_json(&mut writer, &auth_line(&confirm))?;
         }
-        let Some(answer) = noise_of(&line) else {
-            anyhow::bail!(
-                "the run does not authenticate (started without --secret?): it answered `{}`",
-                line.trim()
-            );
-        };
-        let Ok((confirm, _)) = dialer.finish(&answer) else {
-            anyhow::bail!("the run's handshake does not match: it holds another secret");
-        };
-        write_json(&mut writer, &auth_line(&confirm))?;
+        Ok(Client { reader, writer })
     }
-    write_json(&mut writer, request)?;
-    let line = read_line(&mut reader, MAX_LINE_BYTES)?.context("no reply from the run")?;
-    serde_json::from_str(&line).with_context(|| format!("unreadable reply `{}`", line.trim()))
+
+    /// Sends one request and waits for its reply. After an error the connection is in an
+    /// unknown state: connect again.
+    pub fn call(&mut self, request: &Request) -> anyhow::Result<Reply> {
+        use anyhow::Context as _;
+        write_json(&mut self.writer, request)?;
+        let line =
+            read_line(&mut self.reader, MAX_REPLY_BYTES)?.context("no reply from the run")?;
+        serde_json::from_str(&line).with_context(|| format!("unreadable reply `{}`", line.trim()))
+    }
 }

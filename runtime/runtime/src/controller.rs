@@ -449,7 +449,9 @@ impl Controller {
             Request::Status
             | Request::StartModule { .. }
             | Request::StopModule { .. }
-            | Request::ReleaseModule { .. } => (false, "not a mission request".to_owned()),
+            | Request::ReleaseModule { .. }
+            | Request::Teleop { .. }
+            | Request::Files => (false, "not a mission request".to_owned()),
             Request::Pause if self.paused => (false, "already paused".to_owned()),
             Request::Pause => {
                 self.paused = true;

@@ -30,6 +30,7 @@ pub mod ros_export;
 pub mod run_dir;
 pub mod summary;
 pub mod supervisor;
+pub mod teleop_relay;
 
 /// The agent's first line on stdout, followed by the address it listens on.
 pub const AGENT_READY_PREFIX: &str = "armor agent listening on ";

@@ -51,6 +51,23 @@ enum CtlCommand {
     Fire {
         transition: String,
     },
+    /// Drive the robot through the run's teleop module: `teleop LINEAR ANGULAR` (m/s, rad/s,
+    /// counter-clockwise) or `teleop stop`. The module holds a command for its dead-man time
+    /// (half a second of run time by default), then stops the robot: give `--for SECS` to keep
+    /// sending it that long.
+    #[command(allow_negative_numbers = true)]
+    Teleop {
+        /// Linear speed in m/s, or `stop`.
+        linear: String,
+        /// Turning speed in rad/s (counter-clockwise); not with `stop`.
+        angular: Option<f64>,
+        /// Send the command ten times a second for this many seconds (real time), then stop.
+        #[arg(long = "for", value_name = "SECS")]
+        for_secs: Option<f64>,
+        /// The teleop module to drive, when the run has several.
+        #[arg(long)]
+        module: Option<String>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -379,6 +396,15 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 .map(|file| armor_module_api::auth::Secret::load(&file))
                 .transpose()?;
             let json = matches!(request, CtlCommand::Status { json: true });
+            if let CtlCommand::Teleop {
+                linear,
+                angular,
+                for_secs,
+                module,
+            } = request
+            {
+                return ctl_teleop(addr, secret.as_ref(), &linear, angular, for_secs, module);
+            }
             let request = match request {
                 CtlCommand::Status { .. } => control::Request::Status,
                 CtlCommand::Start { module } => control::Request::StartModule { module },
@@ -388,6 +414,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 CtlCommand::Resume => control::Request::Resume,
                 CtlCommand::Abort => control::Request::Abort,
                 CtlCommand::Fire { transition } => control::Request::Fire { transition },
+                CtlCommand::Teleop { .. } => unreachable!("answered above"),
             };
             let reply = control::request(addr, &request, secret.as_ref())?;
             // With --json, stdout is the JSON alone (for jq and scripts).
@@ -808,6 +835,61 @@ fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration, cached: bool
     }
 }
 
+/// `armor ctl teleop`: one command, or the same one ten times a second for `for_secs`, then
+/// `stop`, over one connection to the control interface.
+fn ctl_teleop(
+    addr: SocketAddr,
+    secret: Option<&armor_module_api::auth::Secret>,
+    linear: &str,
+    angular: Option<f64>,
+    for_secs: Option<f64>,
+    module: Option<String>,
+) -> anyhow::Result<ExitCode> {
+    let (linear, angular) = match (linear.trim(), angular) {
+        ("stop", None) => (0.0, 0.0),
+        ("stop", Some(_)) => anyhow::bail!("`teleop stop` takes no turning speed"),
+        (_, None) => {
+            anyhow::bail!("expected `teleop LINEAR ANGULAR` (m/s, rad/s) or `teleop stop`")
+        }
+        (text, Some(angular)) => match text.parse::<f64>() {
+            Ok(linear) if linear.is_finite() && angular.is_finite() => (linear, angular),
+            _ => anyhow::bail!(
+                "LINEAR `{text}` is not a number: expected `teleop LINEAR ANGULAR` or `teleop stop`"
+            ),
+        },
+    };
+    let hold = for_secs
+        .map(|secs| {
+            Duration::try_from_secs_f64(secs)
+                .map_err(|_| anyhow::anyhow!("--for {secs}: expected seconds, 0 or more"))
+        })
+        .transpose()?;
+    let mut client = control::Client::connect(addr, secret)?;
+    let request = |linear, angular| control::Request::Teleop {
+        linear,
+        angular,
+        module: module.clone(),
+    };
+    let started = std::time::Instant::now();
+    let mut reply = client.call(&request(linear, angular))?;
+    if let Some(hold) = hold {
+        const EVERY: Duration = Duration::from_millis(100);
+        while reply.ok && started.elapsed() < hold {
+            std::thread::sleep(EVERY.min(hold.saturating_sub(started.elapsed())));
+            reply = client.call(&request(linear, angular))?;
+        }
+        if reply.ok && (linear, angular) != (0.0, 0.0) {
+            reply = client.call(&request(0.0, 0.0))?;
+        }
+    }
+    println!("{}", reply.message);
+    Ok(if reply.ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
 /// A run's status as `armor ctl status` prints it.
 fn status_text(status: &control::Status) -> String {
     use std::fmt::Write as _;
@@ -845,6 +927,9 @@ fn status_text(status: &control::Status) -> String {
         }
         if let Some(winner) = &module.winner {
             let _ = write!(out, ", in control: {winner}");
+        }
+        for (name, address) in &module.endpoints {
+            let _ = write!(out, ", {name} at {address}");
         }
         out.push('\n');
     }

@@ -330,6 +330,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     );
     let mut modules: BTreeMap<String, ModuleProc> = BTreeMap::new();
     add_modules(&mut modules, &loaded, &env);
+    let teleop = crate::teleop_relay::start();
     let mut ready: Vec<String> = Vec::new();
     let mut all_ready_logged = false;
     let outcome = loop {
@@ -387,6 +388,42 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     set_override(&server, &module, Some(false))
                 }
                 control::Request::ReleaseModule { module } => set_override(&server, &module, None),
+                control::Request::Teleop {
+                    linear,
+                    angular,
+                    module,
+                } => {
+                    let candidates =
+                        modules
+                            .values()
+                            .map(|process| crate::teleop_relay::Candidate {
+                                name: &process.name,
+                                module_type: &process.module_type,
+                                up: process.state == ProcState::Running && process.configured,
+                            });
+                    match crate::teleop_relay::target(
+                        candidates,
+                        &server.endpoints(),
+                        module.as_deref(),
+                    ) {
+                        Ok((module, addr)) => {
+                            // The relay answers: a slow module never holds up this loop.
+                            let _ = teleop.send(crate::teleop_relay::Command {
+                                module,
+                                addr,
+                                linear,
+                                angular,
+                                reply,
+                            });
+                            continue;
+                        }
+                        Err(message) => (false, message),
+                    }
+                }
+                control::Request::Files => {
+                    let _ = reply.send(run_files(&options.file, &system_file, &server));
+                    continue;
+                }
                 mission_request => match &mut controller {
                     Some(controller) => controller.handle(mission_request, &server),
                     None => (false, "this run has no mission".to_owned()),
@@ -400,6 +437,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 ok,
                 message,
                 status: Some(status),
+                files: None,
             });
         }
         let wake = controller.as_ref().and_then(Controller::next_wake);
@@ -568,6 +606,100 @@ fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (b
     }
 }
 
+/// The run's files, for a client that attaches without them ([`control::Request::Files`]): the
+/// system file and the mission (`target`, when it is not the system file itself) as they are
+/// now, and the files the system's `file` parameters name, as the run found them. A file that
+/// is not text (a ROS map's image) is left out.
+fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> control::Reply {
+    let read = |path: &Path| {
+        std::fs::read_to_string(path)
+            .map(|text| control::FileText {
+                path: path.display().to_string(),
+                text,
+            })
+            .map_err(|err| format!("cannot read {}: {err}", path.display()))
+    };
+    let files = (|| {
+        let system = read(system_file)?;
+        let mission = (target != system_file).then(|| read(target)).transpose()?;
+        let loaded = server.loaded();
+        let mut params = Vec::new();
+        for module in &loaded.system.modules {
+            let Some(description) = loaded.descriptions.get(&module.module_type) else {
+                continue;
+            };
+            for param in &module.params {
+                let names_file = description
+                    .param(&param.name)
+                    .is_some_and(|spec| spec.file.is_some());
+                if !names_file || param.value.trim().is_empty() {
+                    continue;
+                }
+                let path = Path::new(param.value.trim());
+                match read(path) {
+                    Ok(file) => params.push(control::ParamFile {
+                        module: module.name.clone(),
+                        param: param.name.clone(),
+                        beside: files_beside(path, &file.text),
+                        file,
+                    }),
+                    Err(err) => tracing::debug!("not sent to the client: {err}"),
+                }
+            }
+        }
+        Ok::<_, String>(control::RunFiles {
+            system,
+            mission,
+            params,
+            descriptions: loaded
+                .descriptions
+                .values()
+                .map(armor_module_api::ModuleDescription::to_xml)
+                .collect(),
+        })
+    })();
+    match files {
+        Ok(files) => control::Reply {
+            ok: true,
+            message: format!("the run's files ({})", files.system.path),
+            status: None,
+            files: Some(files),
+        },
+        Err(message) => control::Reply {
+            ok: false,
+            message,
+            status: None,
+            files: None,
+        },
+    }
+}
+
+/// The files a parameter's file names in turn: a ROS map's image (the only such file a world
+/// has), read as bytes.
+fn files_beside(path: &Path, text: &str) -> Vec<control::BinaryFile> {
+    use base64::Engine as _;
+    let is_yaml = path
+        .extension()
+        .is_some_and(|extension| extension == "yaml" || extension == "yml");
+    let Some(map) = is_yaml
+        .then(|| armor_model::ros_map::parse_yaml(text, &path.display().to_string()).ok())
+        .flatten()
+    else {
+        return Vec::new();
+    };
+    let folder = path.parent().unwrap_or_else(|| Path::new("."));
+    match std::fs::read(folder.join(&map.image)) {
+        Ok(bytes) => vec![control::BinaryFile {
+            name: map.image,
+            base64: base64::engine::general_purpose::STANDARD.encode(bytes),
+        }],
+        Err(err) => {
+            tracing::debug!("not sent to the client: {}: {err}", map.image);
+            Vec::new()
+        }
+    }
+}
+
 /// The time line of behaviour states, on the run clock.
 fn behaviour_changes(
     behaviours: &crate::behaviour::Behaviours,
@@ -595,6 +727,7 @@ fn run_status(
     let activity = server.activity();
     let demand = server.demand();
     let mut stats = server.stats();
+    let mut endpoints = server.endpoints();
     let behaviours = server.behaviours();
     let modules = modules
         .values()
@@ -634,6 +767,7 @@ fn run_status(
                     .map(str::to_owned)
                     .collect(),
                 host: module.host.clone(),
+                endpoints: endpoints.remove(&module.name).unwrap_or_default(),
             }
         })
         .collect();
