@@ -12,8 +12,8 @@ use armor_module_api::{Event, Input, ModuleSpec, Node, Output};
 use crate::Settings;
 use crate::harness::{LINK_TIMEOUT, STALL_TIMEOUT, Security};
 use crate::procs::{ChildGuard, spawn_echo};
-use crate::raw;
-use armor_bench_report::Report;
+use crate::{placement, raw};
+use armor_bench_report::{Report, round};
 
 /// The benches, by message size.
 pub const SIZES: [(&str, usize); 4] = [
@@ -121,18 +121,90 @@ fn run_secured(
 
 fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Result<Report> {
     let counts = counts(size, settings);
-    let mut armor = ArmorPingPong::start(size, &Security::Plain)?;
-    let mut raw = RawPingPong::start(size)?;
-    let (ours, reference) = alternate(
-        &mut |n| armor.round_trips(n),
-        &mut |n| raw.round_trips(n),
-        &counts,
-    )?;
-    raw.finish()?;
-    Ok(Report::distribution(name, "us", 1e6, &ours, &reference)
+    // Each side with fresh processes of its own in turn, never both peers alive: with both, the
+    // bench's thread shares a vCPU with only one of them, and that side is the fast one (see
+    // `placement`). Rounds alternate, so that a change in the machine's load weighs on both.
+    let rounds = FRESH_ROUNDS.min(counts.blocks);
+    let per_round = Counts {
+        warm_up: counts.warm_up,
+        block: counts.block,
+        blocks: counts.blocks / rounds,
+    };
+    let (mut ours, mut reference) = (Vec::new(), Vec::new());
+    for _ in 0..rounds {
+        let mut armor = ArmorPingPong::start(size, &Security::Plain)?;
+        armor.round_trips(per_round.warm_up)?;
+        for _ in 0..per_round.blocks {
+            ours.extend(armor.round_trips(per_round.block)?);
+        }
+        drop(armor);
+        let mut raw = RawPingPong::start(size)?;
+        raw.round_trips(per_round.warm_up)?;
+        for _ in 0..per_round.blocks {
+            reference.extend(raw.round_trips(per_round.block)?);
+        }
+        raw.finish()?;
+    }
+    let mut report = Report::distribution(name, "us", 1e6, &ours, &reference)
         .with("bytes", size)
         // armor-bench-peers times as many zenoh round trips.
-        .with("round_trips", ours.len()))
+        .with("round_trips", ours.len());
+    let mut armor = ArmorPingPong::start(size, &Security::Plain)?;
+    let mut raw = RawPingPong::start(size)?;
+    let me = placement::own_thread()?;
+    let allowed = placement::allowed_cpus();
+    if let [first, second, ..] = allowed[..] {
+        // Both pairs on one vCPU, then both split over two, each side alike.
+        let placed = Counts {
+            warm_up: counts.warm_up,
+            block: counts.block,
+            blocks: (counts.blocks / 2).max(1),
+        };
+        let peers = [armor.echo.id(), raw.peer.child.id()];
+        let mut measure = |peer_cpu: usize| -> anyhow::Result<(f64, f64)> {
+            placement::set(me, &[first], false)?;
+            for peer in peers {
+                placement::set(peer, &[peer_cpu], true)?;
+            }
+            let (ours, reference) = alternate(
+                &mut |n| armor.round_trips(n),
+                &mut |n| raw.round_trips(n),
+                &placed,
+            )?;
+            Ok((p50_us(&ours), p50_us(&reference)))
+        };
+        let same = measure(first);
+        let split = measure(second);
+        placement::set(me, &allowed, false)?;
+        for peer in peers {
+            placement::set(peer, &allowed, true)?;
+        }
+        let ((same, same_reference), (split, split_reference)) = (same?, split?);
+        report = report
+            .with("same_cpu_p50", round(same))
+            .with("same_cpu_reference_p50", round(same_reference))
+            .with("same_cpu_ratio", round(same / same_reference))
+            .with("split_p50", round(split))
+            .with("split_reference_p50", round(split_reference))
+            .with("split_ratio", round(split / split_reference))
+            .with(
+                "placement_is",
+                "ours and reference: each side in turn with fresh processes of its own, where \
+                 the scheduler puts them; same_cpu_* and split_* place both pairs alike: the \
+                 bench's thread and both peers on one vCPU, then the peers on the other vCPU",
+            );
+    }
+    raw.finish()?;
+    Ok(report)
+}
+
+/// Rounds of fresh processes each side gets in a latency line.
+const FRESH_ROUNDS: usize = 5;
+
+/// The median of round trips, in microseconds.
+fn p50_us(samples: &[Duration]) -> f64 {
+    let micros: Vec<f64> = samples.iter().map(|d| d.as_secs_f64() * 1e6).collect();
+    armor_bench_report::median(&micros)
 }
 
 /// The bench's node (output `ping`, reliable input `pong` bound to `echo.output`) and the echo

@@ -30,6 +30,7 @@ mod kill;
 mod latency;
 mod mapper_scan;
 mod path_plan;
+mod placement;
 mod procs;
 mod pull;
 mod qgc_import;

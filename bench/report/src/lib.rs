@@ -121,7 +121,7 @@ pub fn median(values: &[f64]) -> f64 {
 }
 
 /// Four significant digits, enough for any benchmark and easier to read.
-fn round(value: f64) -> f64 {
+pub fn round(value: f64) -> f64 {
     if !value.is_finite() || value == 0.0 {
         return value;
     }
