@@ -22,52 +22,63 @@ const SIZE: usize = 64;
 pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     let far = FarSide::make()?;
     let counts = latency::counts(SIZE, settings);
-    let agent = armor_runtime::agent::spawn(SocketAddr::new(
-        NEAR.parse().context("the near address")?,
-        0,
-    ))
-    .context("cannot start an agent")?;
-    let node = Node::connect(
-        latency::spec(),
-        Standalone {
-            name: Some(crate::harness::NODE_NAME.to_owned()),
-            agent: Some(agent.to_string()),
-            binds: vec![("pong".to_owned(), "echo.output".to_owned())],
-            host: Some(NEAR.to_owned()),
-            ..Standalone::default()
-        },
-    )?;
     let echo_binary = module_binary("echo")?;
-    let ns = far.ns.clone();
-    let mut armor = ArmorPingPong::link(
-        node,
-        SIZE,
-        |agent| {
-            let mut command = Command::new("ip");
-            command
-                .args(["netns", "exec", &ns])
-                .arg(&echo_binary)
-                .args(["--name", "echo", "--agent", agent, "--host", FAR])
-                .args(["--bind", "input=bench.ping"]);
-            ChildGuard::spawn("armor-mod-echo (far)", command)
-        },
-        agent,
-    )?;
-    let mut reference = RawPingPong::over(
-        raw::start_peer_on(NEAR, Some(&far.ns), "--raw-echo", &SIZE.to_string())?,
-        SIZE,
-    )?;
-    let (ours, theirs) = latency::alternate(
-        &mut |n| armor.round_trips(n),
-        &mut |n| reference.round_trips(n),
-        &counts,
-    )?;
-    reference.finish()?;
-    drop(armor);
+    // Each side with fresh processes of its own in turn, never both peers alive (the bench's
+    // thread would share a vCPU with only one of them: see `placement`); rounds alternate, so
+    // that a change in the machine's load weighs on both alike.
+    let rounds = latency::FRESH_ROUNDS.min(counts.blocks);
+    let (mut ours, mut theirs) = (Vec::new(), Vec::new());
+    for _ in 0..rounds {
+        let agent = armor_runtime::agent::spawn(SocketAddr::new(
+            NEAR.parse().context("the near address")?,
+            0,
+        ))
+        .context("cannot start an agent")?;
+        let node = Node::connect(
+            latency::spec(),
+            Standalone {
+                name: Some(crate::harness::NODE_NAME.to_owned()),
+                agent: Some(agent.to_string()),
+                binds: vec![("pong".to_owned(), "echo.output".to_owned())],
+                host: Some(NEAR.to_owned()),
+                ..Standalone::default()
+            },
+        )?;
+        let ns = far.ns.clone();
+        let mut armor = ArmorPingPong::link(
+            node,
+            SIZE,
+            |agent| {
+                let mut command = Command::new("ip");
+                command
+                    .args(["netns", "exec", &ns])
+                    .arg(&echo_binary)
+                    .args(["--name", "echo", "--agent", agent, "--host", FAR])
+                    .args(["--bind", "input=bench.ping"]);
+                ChildGuard::spawn("armor-mod-echo (far)", command)
+            },
+            agent,
+        )?;
+        armor.round_trips(counts.warm_up)?;
+        for _ in 0..counts.blocks / rounds {
+            ours.extend(armor.round_trips(counts.block)?);
+        }
+        drop(armor);
+        let mut reference = RawPingPong::over(
+            raw::start_peer_on(NEAR, Some(&far.ns), "--raw-echo", &SIZE.to_string())?,
+            SIZE,
+        )?;
+        reference.round_trips(counts.warm_up)?;
+        for _ in 0..counts.blocks / rounds {
+            theirs.extend(reference.round_trips(counts.block)?);
+        }
+        reference.finish()?;
+    }
     Ok(Report::distribution(NAME, "ns", 1e9, &ours, &theirs)
         .with("bytes", SIZE)
         .with(
             "reference_is",
-            "TCP ping-pong with a peer in the other namespace, over the same veth pair",
+            "TCP ping-pong with a peer in the other namespace, over the same veth pair; each \
+             side with fresh processes of its own in turn",
         ))
 }

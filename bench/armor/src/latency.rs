@@ -28,11 +28,11 @@ const LINK_PROBE: Duration = Duration::from_millis(20);
 const SETTLE: Duration = Duration::from_millis(50);
 
 pub(crate) struct Counts {
-    warm_up: usize,
-    /// Timed round trips per block; blocks alternate between ArMoR and the reference, so that
-    /// a change in the machine's load weighs on both alike.
-    block: usize,
-    blocks: usize,
+    pub(crate) warm_up: usize,
+    /// Timed round trips per block; blocks (or rounds of blocks) alternate between ArMoR and
+    /// the reference, so that a change in the machine's load weighs on both alike.
+    pub(crate) block: usize,
+    pub(crate) blocks: usize,
 }
 
 pub fn run_64b(settings: &Settings) -> anyhow::Result<Report> {
@@ -199,7 +199,7 @@ fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Resu
 }
 
 /// Rounds of fresh processes each side gets in a latency line.
-const FRESH_ROUNDS: usize = 5;
+pub(crate) const FRESH_ROUNDS: usize = 5;
 
 /// The median of round trips, in microseconds.
 fn p50_us(samples: &[Duration]) -> f64 {
