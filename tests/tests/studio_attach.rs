@@ -149,6 +149,8 @@ fn the_studio_attaches_pauses_resumes_and_detaches_without_stopping_the_run() {
         status.mission.is_some() && status.modules.len() == 2
     });
     assert!(has_label(&harness, "attached to demo"));
+    // The log panel says where the logs are rather than staying blank.
+    assert!(has_label(&harness, "its modules' logs stay where it runs"));
 
     harness.get_by_label("⏸ Pause").click();
     step_until(&mut harness, "the mission paused", |h| {

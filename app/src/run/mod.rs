@@ -831,6 +831,14 @@ impl RunView {
             ui.label("Each module's log shows here during a run.");
             return;
         };
+        if session.is_attached() && session.shared().logs.is_empty() {
+            // Not an empty log: the lines go to the terminal and the run folder of `armor run`.
+            ui.label(
+                "Attached to a run started elsewhere: its modules' logs stay where it runs (the \
+                 terminal of `armor run`, and `log.txt` in its run folder).",
+            );
+            return;
+        }
         let shared = session.shared();
         let mut sources: Vec<&str> = shared.logs.iter().map(|l| l.source.as_str()).collect();
         sources.sort_unstable();
