@@ -283,6 +283,52 @@ pub fn process_alive(pid: i32) -> bool {
     })
 }
 
+/// The control address a run prints once its control interface listens
+/// (`armor_runtime::CONTROL_READY_PREFIX`).
+pub fn control_address(run: &Proc) -> String {
+    let line = run.wait_for("the control address", PATIENCE, |line| {
+        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
+    });
+    line.trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
+        .trim()
+        .to_owned()
+}
+
+/// `armor run FILE --no-run-folder` with this build's modules, as in a terminal of its own, and
+/// its control address.
+pub fn run_with_control(file: &Path) -> (Proc, String) {
+    let run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(file)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let addr = control_address(&run);
+    (run, addr)
+}
+
+/// A system in `dir` of the simulated robot on the yard and a teleop module `pad` that alone
+/// commands it.
+pub fn driven_system(dir: &Path) -> PathBuf {
+    let world = workspace_root().join("assets/worlds/yard.world");
+    let file = dir.join("driven.xml");
+    std::fs::write(
+        &file,
+        format!(
+            r#"<system name="driven">
+  <module name="sim" type="sim"><param name="world" value="{}"/></module>
+  <module name="pad" type="teleop"/>
+  <link from="pad.cmd_vel" to="sim.cmd_vel"/>
+</system>
+"#,
+            world.display()
+        ),
+    )
+    .unwrap_or_else(|err| panic!("cannot write {}: {err}", file.display()));
+    file
+}
+
 /// `armor ctl --addr ADDR ARGS…`: whether it succeeded, and what it printed.
 pub fn ctl(addr: &str, args: &[&str]) -> (bool, String) {
     let output = Command::new(bin("armor"))

@@ -14,7 +14,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::{AtomicU32, Ordering};
 
-use armor_tests::{PATIENCE, Proc, bin, bin_dir, field, process_alive, wait_until};
+use armor_tests::{
+    PATIENCE, Proc, bin, bin_dir, control_address, field, process_alive, wait_until,
+};
 
 const SUPERVISOR_ADDR: &str = "10.77.0.1";
 const HOST_ADDR: &str = "10.77.0.2";
@@ -194,12 +196,9 @@ fn a_system_split_over_two_hosts_runs_and_recovers() {
     run.wait_for("far_checker's report", PATIENCE, in_order("far_checker"));
     run.wait_for("near_checker's report", PATIENCE, in_order("near_checker"));
     // `armor ctl status` says where each module runs.
-    let control = run.wait_for("the control address", PATIENCE, |line| {
-        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
-    });
-    let control = control.trim_start_matches(armor_runtime::CONTROL_READY_PREFIX);
+    let control = control_address(&run);
     let status = Namespaces::command(&namespaces.near, &bin("armor"))
-        .args(["ctl", "--addr", control.trim(), "status"])
+        .args(["ctl", "--addr", &control, "status"])
         .output()
         .unwrap();
     let status = String::from_utf8_lossy(&status.stdout);
@@ -511,13 +510,7 @@ fn armor_ctl_teleop_reaches_a_teleop_module_on_another_host() {
     ));
     let _host = start_host(&namespaces, &[]);
     let run = start_run(&namespaces, &file, &[]);
-    let control = run.wait_for("the control address", PATIENCE, |line| {
-        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
-    });
-    let control = control
-        .trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
-        .trim()
-        .to_owned();
+    let control = control_address(&run);
     let ctl = |args: &[&str]| {
         let output = Namespaces::command(&namespaces.near, &bin("armor"))
             .args(["ctl", "--addr", &control])

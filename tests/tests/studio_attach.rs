@@ -8,7 +8,6 @@
 //! sends (a ROS map's image too), and opens the plan a run plays in its Mission view.
 #![allow(clippy::unwrap_used)]
 
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 use armor_runtime::control::Status;
@@ -16,7 +15,9 @@ use armor_studio::app::View;
 use armor_studio::files::Home;
 use armor_studio::palette::Palette;
 use armor_studio::{Options, StudioApp};
-use armor_tests::{PATIENCE, Proc, bin, bin_dir, ctl_status, process_alive};
+use armor_tests::{
+    PATIENCE, Proc, bin_dir, ctl_status, driven_system, process_alive, run_with_control,
+};
 use egui_kittest::Harness;
 use egui_kittest::kittest::{NodeT as _, Queryable as _};
 
@@ -47,22 +48,7 @@ const SYSTEM: &str = r#"<system name="demo">
 fn run_elsewhere(dir: &std::path::Path) -> (Proc, std::net::SocketAddr) {
     std::fs::write(dir.join("system.xml"), SYSTEM).unwrap();
     std::fs::write(dir.join("mission.xml"), MISSION).unwrap();
-    let run = Proc::start(
-        Command::new(bin("armor"))
-            .arg("run")
-            .arg(dir.join("mission.xml"))
-            .arg("--no-run-folder")
-            .env("ARMOR_MODULE_PATH", bin_dir()),
-    );
-    let line = run.wait_for("with its control address", PATIENCE, |line| {
-        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
-    });
-    let addr = line
-        .trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
-        .trim()
-        .parse()
-        .unwrap();
-    (run, addr)
+    run_file_elsewhere(&dir.join("mission.xml"))
 }
 
 fn harness(dir: &std::path::Path, attach: std::net::SocketAddr) -> Harness<'static, StudioApp> {
@@ -200,44 +186,10 @@ fn the_studio_attaches_pauses_resumes_and_detaches_without_stopping_the_run() {
     assert!(harness.state().run().is_running(), "still trying");
 }
 
-/// The simulated robot and a teleop module that alone commands it.
-fn driven_system(dir: &std::path::Path) -> std::path::PathBuf {
-    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
-    let file = dir.join("driven.xml");
-    std::fs::write(
-        &file,
-        format!(
-            r#"<system name="driven">
-  <module name="sim" type="sim"><param name="world" value="{}"/></module>
-  <module name="pad" type="teleop"/>
-  <link from="pad.cmd_vel" to="sim.cmd_vel"/>
-</system>
-"#,
-            world.display()
-        ),
-    )
-    .unwrap();
-    file
-}
-
 /// `armor run FILE` in a terminal of its own, and its control address.
 fn run_file_elsewhere(file: &std::path::Path) -> (Proc, std::net::SocketAddr) {
-    let run = Proc::start(
-        Command::new(bin("armor"))
-            .arg("run")
-            .arg(file)
-            .arg("--no-run-folder")
-            .env("ARMOR_MODULE_PATH", bin_dir()),
-    );
-    let line = run.wait_for("with its control address", PATIENCE, |line| {
-        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
-    });
-    let addr = line
-        .trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
-        .trim()
-        .parse()
-        .unwrap();
-    (run, addr)
+    let (run, addr) = run_with_control(file);
+    (run, addr.parse().unwrap())
 }
 
 fn truth(app: &StudioApp) -> Option<(f64, f64)> {

@@ -5,53 +5,13 @@
 //! teleop module killed and restarted on another port is followed.
 #![allow(clippy::unwrap_used)]
 
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 use armor_module_api::types::Pose2D;
 use armor_module_api::{Event, ModuleSpec, Node};
 use armor_tests::{
-    PATIENCE, Proc, bin, bin_dir, ctl, ctl_status, signal, test_node, wait_until, workspace_root,
+    PATIENCE, ctl, ctl_status, driven_system, run_with_control, signal, test_node, wait_until,
 };
-
-/// The simulated robot and a teleop module that alone commands it.
-fn system(dir: &std::path::Path) -> std::path::PathBuf {
-    let world = workspace_root().join("assets/worlds/yard.world");
-    let file = dir.join("system.xml");
-    std::fs::write(
-        &file,
-        format!(
-            r#"<system name="driven">
-  <module name="sim" type="sim"><param name="world" value="{}"/></module>
-  <module name="pad" type="teleop"/>
-  <link from="pad.cmd_vel" to="sim.cmd_vel"/>
-</system>
-"#,
-            world.display()
-        ),
-    )
-    .unwrap();
-    file
-}
-
-/// `armor run` of the system, and its control address.
-fn run(file: &std::path::Path) -> (Proc, String) {
-    let run = Proc::start(
-        Command::new(bin("armor"))
-            .arg("run")
-            .arg(file)
-            .arg("--no-run-folder")
-            .env("ARMOR_MODULE_PATH", bin_dir()),
-    );
-    let line = run.wait_for("with its control address", PATIENCE, |line| {
-        line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
-    });
-    let addr = line
-        .trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
-        .trim()
-        .to_owned();
-    (run, addr)
-}
 
 /// The teleop module's endpoint and pid in the run's status, once it is running and said it.
 fn teleop_endpoint(addr: &str) -> Option<(String, i32)> {
@@ -92,7 +52,7 @@ fn distance(a: (f64, f64), b: (f64, f64)) -> f64 {
 #[test]
 fn armor_ctl_teleop_drives_the_robot_and_the_dead_man_stops_it() {
     let dir = tempfile::tempdir().unwrap();
-    let (run, addr) = run(&system(dir.path()));
+    let (run, addr) = run_with_control(&driven_system(dir.path()));
     let mut endpoint = None;
     wait_until("the teleop's endpoint in the status", PATIENCE, || {
         endpoint = teleop_endpoint(&addr);
