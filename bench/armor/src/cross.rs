@@ -23,12 +23,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     let far = FarSide::make()?;
     let counts = latency::counts(SIZE, settings);
     let echo_binary = module_binary("echo")?;
-    // Each side with fresh processes of its own in turn, never both peers alive (the bench's
-    // thread would share a vCPU with only one of them: see `placement`); rounds alternate, so
-    // that a change in the machine's load weighs on both alike.
-    let rounds = latency::FRESH_ROUNDS.min(counts.blocks);
-    let (mut ours, mut theirs) = (Vec::new(), Vec::new());
-    for _ in 0..rounds {
+    let ours = || -> anyhow::Result<ArmorPingPong> {
         let agent = armor_runtime::agent::spawn(SocketAddr::new(
             NEAR.parse().context("the near address")?,
             0,
@@ -44,36 +39,28 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
                 ..Standalone::default()
             },
         )?;
-        let ns = far.ns.clone();
-        let mut armor = ArmorPingPong::link(
+        ArmorPingPong::link(
             node,
             SIZE,
             |agent| {
                 let mut command = Command::new("ip");
                 command
-                    .args(["netns", "exec", &ns])
+                    .args(["netns", "exec", &far.ns])
                     .arg(&echo_binary)
                     .args(["--name", "echo", "--agent", agent, "--host", FAR])
                     .args(["--bind", "input=bench.ping"]);
                 ChildGuard::spawn("armor-mod-echo (far)", command)
             },
             agent,
-        )?;
-        armor.round_trips(counts.warm_up)?;
-        for _ in 0..counts.blocks / rounds {
-            ours.extend(armor.round_trips(counts.block)?);
-        }
-        drop(armor);
-        let mut reference = RawPingPong::over(
+        )
+    };
+    let reference = || {
+        RawPingPong::over(
             raw::start_peer_on(NEAR, Some(&far.ns), "--raw-echo", &SIZE.to_string())?,
             SIZE,
-        )?;
-        reference.round_trips(counts.warm_up)?;
-        for _ in 0..counts.blocks / rounds {
-            theirs.extend(reference.round_trips(counts.block)?);
-        }
-        reference.finish()?;
-    }
+        )
+    };
+    let (ours, theirs) = latency::in_turn(&counts, ours, reference)?;
     Ok(Report::distribution(NAME, "ns", 1e9, &ours, &theirs)
         .with("bytes", SIZE)
         .with(

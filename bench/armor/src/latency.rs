@@ -121,30 +121,11 @@ fn run_secured(
 
 fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Result<Report> {
     let counts = counts(size, settings);
-    // Each side with fresh processes of its own in turn, never both peers alive: with both, the
-    // bench's thread shares a vCPU with only one of them, and that side is the fast one (see
-    // `placement`). Rounds alternate, so that a change in the machine's load weighs on both.
-    let rounds = FRESH_ROUNDS.min(counts.blocks);
-    let per_round = Counts {
-        warm_up: counts.warm_up,
-        block: counts.block,
-        blocks: counts.blocks / rounds,
-    };
-    let (mut ours, mut reference) = (Vec::new(), Vec::new());
-    for _ in 0..rounds {
-        let mut armor = ArmorPingPong::start(size, &Security::Plain)?;
-        armor.round_trips(per_round.warm_up)?;
-        for _ in 0..per_round.blocks {
-            ours.extend(armor.round_trips(per_round.block)?);
-        }
-        drop(armor);
-        let mut raw = RawPingPong::start(size)?;
-        raw.round_trips(per_round.warm_up)?;
-        for _ in 0..per_round.blocks {
-            reference.extend(raw.round_trips(per_round.block)?);
-        }
-        raw.finish()?;
-    }
+    let (ours, reference) = in_turn(
+        &counts,
+        || ArmorPingPong::start(size, &Security::Plain),
+        || RawPingPong::start(size),
+    )?;
     let mut report = Report::distribution(name, "us", 1e6, &ours, &reference)
         .with("bytes", size)
         // armor-bench-peers times as many zenoh round trips.
@@ -198,8 +179,55 @@ fn run((name, size): (&'static str, usize), settings: &Settings) -> anyhow::Resu
     Ok(report)
 }
 
-/// Rounds of fresh processes each side gets in a latency line.
-pub(crate) const FRESH_ROUNDS: usize = 5;
+/// Rounds of fresh processes each side gets in [`in_turn`].
+const FRESH_ROUNDS: usize = 5;
+
+/// One side of a round-trip comparison, on processes of its own.
+pub(crate) trait Timed {
+    /// Times `count` round trips.
+    fn timed(&mut self, count: usize) -> anyhow::Result<Vec<Duration>>;
+    /// Ends the side's processes, checking that they end well.
+    fn end(self) -> anyhow::Result<()>
+    where
+        Self: Sized,
+    {
+        Ok(())
+    }
+}
+
+/// Round trips of both sides, each in turn with fresh processes of its own, never both peers
+/// alive: with both, the bench's thread shares a vCPU with only one of them, and that side is
+/// the fast one (see `placement`). [`FRESH_ROUNDS`] rounds alternate, so that a change in the
+/// machine's load weighs on both alike; each side warms up at every start.
+pub(crate) fn in_turn<O: Timed, R: Timed>(
+    counts: &Counts,
+    mut ours: impl FnMut() -> anyhow::Result<O>,
+    mut reference: impl FnMut() -> anyhow::Result<R>,
+) -> anyhow::Result<(Vec<Duration>, Vec<Duration>)> {
+    fn blocks(
+        side: &mut impl Timed,
+        counts: &Counts,
+        rounds: usize,
+    ) -> anyhow::Result<Vec<Duration>> {
+        side.timed(counts.warm_up)?;
+        let mut samples = Vec::new();
+        for _ in 0..counts.blocks / rounds {
+            samples.extend(side.timed(counts.block)?);
+        }
+        Ok(samples)
+    }
+    let rounds = FRESH_ROUNDS.min(counts.blocks).max(1);
+    let (mut mine, mut theirs) = (Vec::new(), Vec::new());
+    for _ in 0..rounds {
+        let mut side = ours()?;
+        mine.extend(blocks(&mut side, counts, rounds)?);
+        side.end()?;
+        let mut side = reference()?;
+        theirs.extend(blocks(&mut side, counts, rounds)?);
+        side.end()?;
+    }
+    Ok((mine, theirs))
+}
 
 /// The median of round trips, in microseconds.
 fn p50_us(samples: &[Duration]) -> f64 {
@@ -319,6 +347,22 @@ impl ArmorPingPong {
                 _ => {}
             }
         }
+    }
+}
+
+impl Timed for ArmorPingPong {
+    fn timed(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+        self.round_trips(count)
+    }
+}
+
+impl Timed for RawPingPong {
+    fn timed(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+        self.round_trips(count)
+    }
+
+    fn end(self) -> anyhow::Result<()> {
+        self.finish()
     }
 }
 

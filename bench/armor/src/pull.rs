@@ -12,43 +12,32 @@ use armor_module_api::{Input, ModuleSpec, Node, Output};
 
 use crate::Settings;
 use crate::harness::{self, LINK_TIMEOUT, STALL_TIMEOUT};
+use crate::latency::{self, Timed};
 use crate::procs::{ChildGuard, spawn_echo};
 use crate::raw;
 use armor_bench_report::Report;
 
 pub const NAME: &str = "pull_latest";
 const SIZE: usize = 64;
-/// Rounds of fresh processes each side gets.
-const FRESH_ROUNDS: usize = 5;
 /// How long a first pull waits for the echo's first value before another ping is sent.
 const LINK_PROBE: Duration = Duration::from_millis(20);
 
 pub fn run(settings: &Settings) -> anyhow::Result<Report> {
-    let (warm_up, block, blocks) = if settings.quick {
-        (20, 100, 2)
-    } else {
-        (2_000, 2_000, 10)
-    };
-    let mut ours = Vec::with_capacity(block * blocks);
-    let mut reference = Vec::with_capacity(block * blocks);
-    // Each side in turn with fresh processes of its own, never both peers alive (the bench's
-    // thread would share a vCPU with only one of them: see `placement`); rounds alternate, so
-    // that a change in the machine's load weighs on both alike.
-    let rounds = FRESH_ROUNDS.min(blocks);
-    for _ in 0..rounds {
-        let mut armor = ArmorPull::start()?;
-        armor.requests(warm_up)?;
-        for _ in 0..blocks / rounds {
-            ours.extend(armor.requests(block)?);
-        }
-        drop(armor);
-        let mut raw = RawPull::start()?;
-        raw.requests(warm_up)?;
-        for _ in 0..blocks / rounds {
-            reference.extend(raw.requests(block)?);
-        }
-    }
+    let counts = latency::counts(SIZE, settings);
+    let (ours, reference) = latency::in_turn(&counts, ArmorPull::start, RawPull::start)?;
     Ok(Report::distribution(NAME, "us", 1e6, &ours, &reference).with("bytes", SIZE))
+}
+
+impl Timed for ArmorPull {
+    fn timed(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+        self.requests(count)
+    }
+}
+
+impl Timed for RawPull {
+    fn timed(&mut self, count: usize) -> anyhow::Result<Vec<Duration>> {
+        self.requests(count)
+    }
 }
 
 /// The bench's node (output `ping`, pull input `latest` bound to `echo.output`) and the echo
