@@ -83,8 +83,10 @@ fn decode_pgm(bytes: &[u8], file: &str) -> Result<Image, WorldError> {
             grey.push(scale(next("pixel")?));
         }
     } else {
-        let (bytes_per_pixel, data) = (if max_value > 255 { 2 } else { 1 }, &bytes[at + 1..]);
-        if at >= bytes.len() || data.len() < count * bytes_per_pixel {
+        // One whitespace byte ends the header; the pixels follow it (none if the file ends).
+        let bytes_per_pixel = if max_value > 255 { 2 } else { 1 };
+        let data = bytes.get(at + 1..).unwrap_or_default();
+        if data.len() < count * bytes_per_pixel {
             return Err(error(
                 file,
                 0,

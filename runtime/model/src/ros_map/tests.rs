@@ -128,6 +128,8 @@ fn bad_maps_are_refused_with_their_place() {
         "maps/map.yaml:1:8: cannot read the map's image `maps/gone.pgm`: no such file"
     );
     assert!(load_error(YAML, b"P5 4 3\n255\n\x00\x00").contains("cut short"));
+    // The file ends right after the header's last number (found by the fuzzer: it panicked).
+    assert!(load_error(YAML, b"P5 4 3\n255").contains("cut short"));
     assert!(load_error(YAML, b"GIF89a").contains("not a PGM"));
 }
 
