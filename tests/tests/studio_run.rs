@@ -276,6 +276,11 @@ fn pause_holds_the_robot_and_the_operator_fires_and_aborts() {
         PATIENCE,
         |app| truth_x(app).is_some_and(|x| x > 1.5),
     );
+    // The robot's data can come before the first status that has the mission (and its Pause).
+    step_until(&mut harness, "the mission in the status", PATIENCE, |app| {
+        status(app).mission.is_some()
+    });
+    harness.run_ok();
     harness.get_by_label("⏸ Pause").click();
     step_until(&mut harness, "the mission to pause", PATIENCE, |app| {
         status(app).mission.is_some_and(|mission| mission.paused)
