@@ -1,4 +1,4 @@
-//! `webcam`: a V4L2 camera of a real robot, through the `v4l` crate ([`device`]), published as
+//! `webcam`: a V4L2 camera of a real robot, through the `linuxvideo` crate ([`device`]), published as
 //! `Image`s: a camera's Motion-JPEG frames as they come (`jpeg`), or its YUYV frames converted
 //! to `rgb8`. Device, size, pixel format and rate are parameters.
 //!
