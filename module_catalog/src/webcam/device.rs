@@ -8,7 +8,7 @@
 use std::os::fd::AsRawFd as _;
 use std::time::Duration;
 
-use linuxvideo::format::PixFormat;
+use linuxvideo::format::{PixFormat, PixelFormat as V4l2PixelFormat};
 use linuxvideo::stream::ReadStream;
 use linuxvideo::{CapabilityFlags, Device, Fract};
 use mio::unix::SourceFd;
@@ -51,7 +51,7 @@ impl V4l2Source {
         let asked = PixFormat::new(
             settings.width,
             settings.height,
-            linuxvideo::PixelFormat::from_fourcc(*settings.format.fourcc()),
+            V4l2PixelFormat::from_fourcc(*settings.format.fourcc()),
         );
         let capture = device
             .video_capture(asked)
