@@ -1,11 +1,19 @@
-//! ArMoR Studio: the block-diagram editor for a robot's functional layer. It finds module
-//! binaries on the module path and asks each to describe itself (`palette`), lets the user draw
-//! instances and links on a canvas (`viewer`, an egui-snarl adapter over the `diagram` model,
-//! edited through the `editor`'s commands and undo history), checks the result with the same
-//! function as `armor check` (`validation`), and reads and writes the one system XML format
-//! that `armor run` runs (`files`).
+//! ArMoR Studio: a window with three views, each in its own module with its own state, which
+//! the shell ([`app`]) routes frames, menus and keys to:
 //!
-//! Start it with [`run`]; tests drive [`StudioApp::ui`] in an egui_kittest harness.
+//! - [`system`]: the block-diagram editor of a system file. Module binaries on the module path
+//!   describe themselves ([`palette`]); blocks and links are drawn on a canvas ([`viewer`], an
+//!   egui-snarl adapter over the [`diagram`] model, edited through the [`editor`]'s commands and
+//!   undo history), checked with the same function as `armor check` ([`validation`]), and
+//!   saved in the one system XML format that `armor run` runs ([`files`]).
+//! - [`mission`]: a plan on an offline map, compiled and verified as `armor compile` and
+//!   `armor check` do, with the net it compiles to.
+//! - [`run`](mod@run): a run of the `armor` binary (or one attached to through its control
+//!   interface, or a recording) watched and driven live.
+//!
+//! The menus, the keys and the F1 sheet are all made from one table ([`command`]). Start the
+//! window with [`run()`] or [`run_attached`]; tests drive [`StudioApp::ui`] in an egui_kittest
+//! harness.
 
 pub mod app;
 pub mod bench;

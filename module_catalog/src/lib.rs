@@ -19,7 +19,9 @@
 //! - [`nav`]: navigation in two modules linked by `cmd_desired`: [`nav::follower`] drives
 //!   towards a goal set per leg (`goal_reached`, `blocked`), round the plan's no-go areas,
 //!   and [`nav::avoider`] bends that
-//!   command away from obstacles seen in the laser scan and stops short of them (`safety_stop`).
+//!   command away from obstacles seen in the laser scan and stops short of them (`safety_stop`);
+//!   [`nav::vff`] (obstacle avoidance) and [`nav::stop`] (always applies, proposes zero) are
+//!   behaviours the [`arbiter`] chooses among, beside the follower.
 //! - [`mapper`]: an occupancy grid from laser scans and odometry, with the pose corrected by
 //!   matching each scan against the map so far (published as `pose`, in place of odometry).
 //! - [`mux`]: the one source of the robot's `cmd_vel`: teleop when fresh and non-zero, else

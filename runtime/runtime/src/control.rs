@@ -16,14 +16,19 @@
 //! with the module's own answer; `files` returns what a client that attaches without the
 //! system file needs to draw the run ([`RunFiles`]).
 //!
-//! With a shared secret (see `armor_module_api::auth`) the client speaks first and both sides
-//! prove the secret before any request, in three lines (hex bytes):
+//! With a shared secret (see `armor_module_api::auth`) the client runs a Noise handshake with
+//! the operator key before any request, in three lines, each a handshake message in hex: the
+//! client's first message, the server's answer, and the client's confirmation. A wrong key gets
+//! a refusal (`"ok":false`) and the connection closes. Requests and replies then go in clear.
 //!
 //! ```text
-//! → {"challenge":"…"}
-//! ← {"challenge":"…","proof":"…"}
-//! → {"proof":"…"}
+//! → {"noise":"…"}
+//! ← {"noise":"…"}
+//! → {"noise":"…"}
 //! ```
+//!
+//! This listener does not go through [`crate::gate`]: [`serve`] gives each connection a thread
+//! of its own, and with a secret allows `MAX_PENDING_CLIENTS` (32) in their handshake at once.
 
 use std::io::{BufRead as _, BufReader, Read as _, Write as _};
 use std::net::{SocketAddr, TcpListener, TcpStream};

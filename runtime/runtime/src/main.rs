@@ -31,26 +31,19 @@ enum CtlCommand {
         json: bool,
     },
     /// Start a controllable module by hand, whatever the mission wants, until released.
-    Start {
-        module: String,
-    },
+    Start { module: String },
     /// Stop a controllable module by hand, until released.
-    Stop {
-        module: String,
-    },
+    Stop { module: String },
     /// Give a module started or stopped by hand back to the mission.
-    Release {
-        module: String,
-    },
+    Release { module: String },
     /// Hold every controllable module; fire nothing until resumed.
     Pause,
+    /// Resume a paused mission.
     Resume,
     /// End the mission now (armor run exits non-zero).
     Abort,
     /// Fire an enabled transition now, whatever its condition.
-    Fire {
-        transition: String,
-    },
+    Fire { transition: String },
     /// Drive the robot through the run's teleop module: `teleop LINEAR ANGULAR` (m/s, rad/s,
     /// counter-clockwise) or `teleop stop`. The module holds a command for its dead-man time
     /// (half a second of run time by default), then stops the robot: give `--for SECS` to keep
@@ -72,9 +65,10 @@ enum CtlCommand {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a system: the agent, the config server and every module, until Ctrl-C.
+    /// Run a system, a mission, a plan or a PNML net: the agent, the config server and every
+    /// module, until Ctrl-C (a system) or until the mission ends (a mission, a plan, a net).
     Run {
-        /// The system XML file.
+        /// The system, mission, plan or PNML file.
         file: PathBuf,
         /// Run time passes this many times faster than real time.
         #[arg(long, default_value_t = 1.0)]
@@ -92,7 +86,8 @@ enum Command {
         #[arg(long)]
         report: Option<PathBuf>,
         /// The date the run starts at, for a mission's dates (appointments, deadlines), like
-        /// 2026-11-23T08:00:00Z: rehearse a plan made for another day. Default: now.
+        /// 2026-11-23T08:00:00Z: rehearse a plan made for another day. Default: now, or the
+        /// plan's own start when that day has passed.
         #[arg(long, value_name = "DATE")]
         start_at: Option<String>,
         /// A module that answers no ping for this long (stopped, or stuck in its own code) is
@@ -168,11 +163,11 @@ enum Command {
         #[command(subcommand)]
         request: CtlCommand,
     },
-    /// Check a system or mission file: schema, module types, links, parameters; for a mission,
-    /// the names it uses and its behaviour (deadlocks, dead transitions, unboundedness).
-    /// Exit 1 on any problem.
+    /// Check a system, mission or plan file: schema, module types, links, parameters, the files
+    /// it names; for a plan, every leg planned on its world; for a mission, the names it uses
+    /// and its behaviour (deadlocks, dead transitions, unboundedness). Exit 1 on any problem.
     Check {
-        /// The system XML file.
+        /// The system, mission or plan file.
         file: PathBuf,
         /// The run's shared secret, to ask the system's hosts (`armor host`) which module
         /// types they lack.
@@ -259,6 +254,7 @@ enum Command {
     },
     /// Run the central agent (name server) alone.
     Agent {
+        /// Where to listen.
         #[arg(long, default_value = armor_module_api::DEFAULT_AGENT)]
         listen: SocketAddr,
         /// Accept only peers that prove this shared secret (a file readable by its owner only).
