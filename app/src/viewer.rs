@@ -4,6 +4,13 @@
 //! in-progress wire private and has no "may connect?" hook, so the wire's origin is tracked
 //! from egui's pointer state (by `system/canvas.rs`) and the pins drawn last frame, which
 //! [`Canvas`] keeps.
+//!
+//! egui-snarl lays out every node it holds each frame, so it is given only the blocks in view;
+//! below [`DETAIL_SCALE`] the diagram is painted as an overview of boxes and lines instead.
+//! Wires are drawn above the blocks, with an arrowhead at the pin each enters, rather than
+//! routed round them: egui-snarl draws its own curves with no hook for a route, and a router
+//! would have to follow every drag. Only a link that runs backwards (into an input left of its
+//! output) is drawn round, below the blocks between its ends, in a lane of its own.
 
 use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet, HashMap};

@@ -21,7 +21,8 @@ const PLACEHOLDERS: &[&str] = &[
     "FILE", "DIR", "DATE", "NAME", "PLAN", "MISSION", "REC", "OUT", "PATH", "LEG", "FOLDER", "T",
 ];
 
-/// Files that a run or the studio writes, named in the documents but never in the repository.
+/// Files that a run or the studio writes, named in the documents but never in the repository,
+/// and folders that are looked in but hold nothing here.
 const WRITTEN_AT_RUN_TIME: &[&str] = &[
     "log.txt",
     "report.json",
@@ -30,6 +31,9 @@ const WRITTEN_AT_RUN_TIME: &[&str] = &[
     "map.yaml",
     "map.pgm",
     "yard-recon.mcap",
+    // A folder the search for base maps looks in (docs/systems.md), which this repository has
+    // no files for.
+    "assets/maps",
 ];
 
 /// README.md, ARCHITECTURE.md and every page under docs/.
@@ -197,7 +201,8 @@ fn looks_like_repository_path(span: &str) -> bool {
 /// document's folder, or as the end of a longer path (`run/untrusted.rs`, `auth.rs`, `net/`).
 fn names_something(span: &str, document_dir: &str, paths: &BTreeSet<String>) -> bool {
     let path = span.trim_start_matches("./").trim_end_matches('/');
-    if WRITTEN_AT_RUN_TIME.contains(&path) {
+    // Build output (`target/release/armor`) is made by cargo, never kept in the repository.
+    if WRITTEN_AT_RUN_TIME.contains(&path) || path == "target" || path.starts_with("target/") {
         return true;
     }
     let from_document = normalise(&format!("{document_dir}/{path}"));

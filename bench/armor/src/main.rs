@@ -53,7 +53,7 @@ use armor_bench_report::{Bench, run_benches};
 #[command(
     name = "armor-bench",
     version,
-    about = "Measures ArMoR against raw TCP and plain process spawns, one JSON line per benchmark"
+    about = "Measures ArMoR against references measured in the same run (raw TCP, plain process spawns, other crates doing the same work), one JSON line per benchmark"
 )]
 struct Cli {
     /// Benchmarks to run, in this order (default: all; see --list).

@@ -14,7 +14,7 @@ use clap::{Parser, Subcommand};
 #[command(
     name = "armor",
     version,
-    about = "ArMoR: run, check and probe modular robot systems"
+    about = "ArMoR: run, check, operate and convert modular robot systems, missions and plans"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -79,7 +79,8 @@ enum Command {
         /// Address for the agent (default: a free port on the system's host).
         #[arg(long)]
         agent: Option<SocketAddr>,
-        /// Address for a mission's control interface (default: a free port).
+        /// Address for the run's control interface, which every run serves (default: a free
+        /// port).
         #[arg(long)]
         control: Option<SocketAddr>,
         /// Write a mission's timeline (every firing, start and stop) to this JSON file.
