@@ -23,6 +23,7 @@ mod json_positions;
 pub mod net;
 pub mod plan;
 pub mod planner;
+pub mod rehearsal;
 pub mod ros_map;
 pub mod system;
 pub mod world;

@@ -506,20 +506,25 @@ impl Controller {
     }
 
     /// Writes the timeline as JSON.
-    /// Writes the report: the outcome, the timeline, and the behaviours' state changes (as the
-    /// control interface gives them).
+    /// Writes the report: the outcome, the timeline, the behaviours' state changes (as the
+    /// control interface gives them) and, for a simulated plan run, the rehearsal's verdict by
+    /// the simulator's truth (`crate::rehearsal::report`).
     pub fn write_report(
         &self,
         file: &Path,
         behaviour_changes: &[crate::control::BehaviourChange],
+        rehearsal: Option<&serde_json::Value>,
     ) -> std::io::Result<()> {
-        let report = json!({
+        let mut report = json!({
             "mission": self.net.name,
             "outcome": self.outcome.as_ref().map_or("unfinished", Outcome::as_str),
             "timeline": self.timeline.as_deref().unwrap_or_default(),
             "timeline_dropped": self.timeline_dropped,
             "behaviour_changes": behaviour_changes,
         });
+        if let Some(rehearsal) = rehearsal {
+            report["rehearsal"] = rehearsal.clone();
+        }
         let text = serde_json::to_string_pretty(&report).map_err(std::io::Error::other)?;
         crate::fs::write_atomically(file, text.as_bytes())
     }

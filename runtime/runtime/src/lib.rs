@@ -24,6 +24,7 @@ pub mod paths;
 pub mod probe;
 pub mod process;
 pub mod progress;
+pub mod rehearsal;
 pub mod replay;
 pub mod restart;
 pub mod ros_export;

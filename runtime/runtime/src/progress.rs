@@ -5,7 +5,9 @@
 //!
 //! The robot's position comes from the output that feeds the navigation module's `odometry`
 //! input, to which a node of the run's own (`armor-run`, an observer of the access lists)
-//! subscribes.
+//! subscribes. In a simulated run the same node follows the simulator's true pose, every
+//! sample of it, into the rehearsal's judge (`armor_model::rehearsal`), which the leg's
+//! arrivals are given to as they fire.
 
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
@@ -16,7 +18,8 @@ use std::time::{Duration, Instant};
 
 use armor_model::geo::{self, Point};
 use armor_model::plan::{Compiled, Plan};
-use armor_module_api::types::{Datum, Odometry};
+use armor_model::rehearsal::{Arrival, Judge, TruePose, Verdict};
+use armor_module_api::types::{Datum, Odometry, Pose2D};
 use armor_module_api::{Event, ModuleSpec, Node, Standalone};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -26,6 +29,9 @@ use crate::console;
 pub const NODE_NAME: &str = "armor-run";
 /// How often the line is redrawn.
 const DRAW_PERIOD: Duration = Duration::from_millis(200);
+/// How long the end of a run waits, in real time, for the true poses that settle the last
+/// arrivals (those at or after each arrival's time): they are in flight when the mission ends.
+const SETTLE_WAIT: Duration = Duration::from_secs(2);
 
 /// One leg as planned, in run seconds from the run's start date.
 #[derive(Clone, Debug)]
@@ -33,6 +39,8 @@ pub struct LegPlan {
     pub name: String,
     pub from: String,
     pub to: String,
+    /// Where `to` is, in the world frame.
+    pub target: Option<Point>,
     pub route: Vec<Point>,
     /// Its appointment: not to set off before.
     pub not_before_secs: Option<f64>,
@@ -53,6 +61,7 @@ pub fn leg_plans(plan: &Plan, compiled: &Compiled, start_unix_secs: f64) -> Vec<
             name: leg.name.clone(),
             from: leg.from.clone(),
             to: leg.to.clone(),
+            target: compiled.positions.get(&leg.to).copied(),
             route: compiled.routes.get(index).cloned().unwrap_or_default(),
             not_before_secs: leg.not_before_unix_secs.map(|at| at - start_unix_secs),
             deadline_secs: leg.arrive_by_unix_secs.map(|at| at - start_unix_secs),
@@ -224,6 +233,8 @@ pub struct Progress {
     speed_mps: f64,
     bar: ProgressBar,
     odometer: Option<Arc<Mutex<Odometer>>>,
+    /// The rehearsal's judge, in a simulated run.
+    judge: Option<Arc<Mutex<Judge>>>,
     stop: Arc<AtomicBool>,
     node: Option<std::thread::JoinHandle<()>>,
     /// The odometer when each leg set off and arrived.
@@ -235,17 +246,20 @@ pub struct Progress {
     next_draw: Instant,
 }
 
-/// The robot's odometry to watch: the data name and the run's agent.
+/// What the run's node watches: the robot's odometry and, in a simulated run, its true pose
+/// (data names), through the run's agent.
 pub struct Watch {
     pub agent: SocketAddr,
     pub secret_file: Option<PathBuf>,
-    pub odometry: String,
+    pub odometry: Option<String>,
+    /// The simulator's true pose and the judge it feeds.
+    pub truth: Option<(String, Judge)>,
 }
 
 impl Progress {
     /// Starts the line on standard error (drawn only if it is a terminal) and, with `watch`,
-    /// the node that follows the robot's odometry.
-    pub fn start(legs: Vec<LegPlan>, speed_mps: f64, watch: Option<Watch>) -> Progress {
+    /// the node that follows the robot's odometry and true pose.
+    pub fn start(legs: Vec<LegPlan>, speed_mps: f64, watch: Watch) -> Progress {
         let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr_with_hz(5));
         bar.set_style(
             ProgressStyle::with_template("{spinner} {wide_msg}")
@@ -256,22 +270,41 @@ impl Progress {
         }
         let stop = Arc::new(AtomicBool::new(false));
         let mut node = None;
-        let odometer = watch.map(|watch| {
-            let odometer = Arc::new(Mutex::new(Odometer::default()));
-            let (shared, stop) = (Arc::clone(&odometer), Arc::clone(&stop));
+        let odometer = watch
+            .odometry
+            .as_ref()
+            .map(|_| Arc::new(Mutex::new(Odometer::default())));
+        let Watch {
+            agent,
+            secret_file,
+            odometry,
+            truth,
+        } = watch;
+        let (truth, judge) = match truth {
+            Some((name, judge)) => (Some(name), Some(Arc::new(Mutex::new(judge)))),
+            None => (None, None),
+        };
+        if odometry.is_some() || truth.is_some() {
+            let shared = Shared {
+                odometer: odometer.clone(),
+                judge: judge.clone(),
+            };
+            let stop = Arc::clone(&stop);
+            let names = Names { odometry, truth };
             node = Some(std::thread::spawn(move || {
-                if let Err(err) = follow(&watch, &shared, &stop) {
-                    tracing::debug!("the progress line has no odometry: {err}");
+                if let Err(err) = follow(agent, secret_file, &names, &shared, &stop) {
+                    // Without the truth the judge has no pose and says so in the verdict.
+                    tracing::warn!("the run's node cannot follow the robot: {err:#}");
                 }
             }));
-            odometer
-        });
+        }
         let count = legs.len();
         Progress {
             legs,
             speed_mps,
             bar,
             odometer,
+            judge,
             stop,
             node,
             odo_started: vec![None; count],
@@ -315,8 +348,19 @@ impl Progress {
                     .filter(|(name, _)| name.starts_with(&arrived))
                     .map(|(_, at)| *at)
                     .reduce(f64::min);
-                if self.arrived[index].is_some() {
+                if let Some(at_secs) = self.arrived[index] {
                     self.odo_arrived[index] = travelled;
+                    if let (Some(judge), Some(target)) = (&self.judge, leg.target) {
+                        judge
+                            .lock()
+                            .unwrap_or_else(PoisonError::into_inner)
+                            .arrived(Arrival {
+                                leg: leg.name.clone(),
+                                waypoint: leg.to.clone(),
+                                target,
+                                at_secs,
+                            });
+                    }
                 }
             }
         }
@@ -347,8 +391,21 @@ impl Progress {
         }
     }
 
-    /// Clears the line and stops the node (before the agent goes); returns each leg's extras.
-    pub fn finish(mut self) -> Vec<LegExtras> {
+    /// Clears the line and stops the node (before the agent goes); returns each leg's extras
+    /// and, in a simulated run, the rehearsal's verdict.
+    pub fn finish(mut self) -> (Vec<LegExtras>, Option<Verdict>) {
+        if let Some(judge) = &self.judge {
+            let deadline = Instant::now() + SETTLE_WAIT;
+            while !judge
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .settled()
+                && Instant::now() < deadline
+                && self.node.as_ref().is_some_and(|node| !node.is_finished())
+            {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        }
         self.stop.store(true, Ordering::Relaxed);
         if let Some(node) = self.node.take() {
             // It looks at `stop` ten times a second; one still waiting for the agent is left.
@@ -370,38 +427,94 @@ impl Progress {
                 _ => None,
             };
         }
-        std::mem::take(&mut self.extras)
+        let verdict = self.judge.as_ref().map(|judge| {
+            judge
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .verdict()
+        });
+        (std::mem::take(&mut self.extras), verdict)
     }
 }
 
-/// The run's node: follows the odometry named by `watch` into `shared` until `stop`.
-fn follow(watch: &Watch, shared: &Mutex<Odometer>, stop: &AtomicBool) -> anyhow::Result<()> {
+/// The data names the run's node follows.
+struct Names {
+    odometry: Option<String>,
+    truth: Option<String>,
+}
+
+/// Where the run's node writes what it follows.
+struct Shared {
+    odometer: Option<Arc<Mutex<Odometer>>>,
+    judge: Option<Arc<Mutex<Judge>>>,
+}
+
+/// The run's node: follows the odometry and the true pose named by `names` into `shared`
+/// until `stop`. The odometry is only for the line and the distances driven, a few samples a
+/// second are enough; the truth is evidence, so every sample is taken (a reliable input).
+fn follow(
+    agent: SocketAddr,
+    secret_file: Option<PathBuf>,
+    names: &Names,
+    shared: &Shared,
+    stop: &AtomicBool,
+) -> anyhow::Result<()> {
     let mut node = Node::connect(
-        ModuleSpec::new(NODE_NAME, "`armor run`'s progress line."),
+        ModuleSpec::new(
+            NODE_NAME,
+            "`armor run`'s progress line and rehearsal judge.",
+        ),
         Standalone {
             name: Some(NODE_NAME.to_owned()),
-            agent: Some(watch.agent.to_string()),
-            secret: watch.secret_file.clone(),
+            agent: Some(agent.to_string()),
+            secret: secret_file,
             ..Standalone::default()
         },
     )?;
-    let input = node.subscribe_raw_at_most(&watch.odometry, 20.0)?;
+    let odometry = match (&names.odometry, &shared.odometer) {
+        (Some(name), Some(odometer)) => Some((node.subscribe_raw_at_most(name, 20.0)?, odometer)),
+        _ => None,
+    };
+    let truth = match (&names.truth, &shared.judge) {
+        (Some(name), Some(judge)) => Some((node.subscribe_raw(name, true)?, judge)),
+        _ => None,
+    };
+    let mut poses = Vec::new();
     while !stop.load(Ordering::Relaxed) {
         if let Event::Input(_) = node.next_event(Some(Duration::from_millis(100)))? {
-            while let Some(sample) = node.take_raw(&input) {
-                let Ok(odometry) = Odometry::decode(&sample.payload) else {
-                    continue;
-                };
-                let pose = odometry.pose_in_odom;
-                let at = Point::new(pose.x_m, pose.y_m);
-                if !at.is_finite() {
-                    continue;
+            if let Some((input, shared)) = &odometry {
+                while let Some(sample) = node.take_raw(input) {
+                    let Ok(odometry) = Odometry::decode(&sample.payload) else {
+                        continue;
+                    };
+                    let pose = odometry.pose_in_odom;
+                    let at = Point::new(pose.x_m, pose.y_m);
+                    if !at.is_finite() {
+                        continue;
+                    }
+                    let mut odometer = shared.lock().unwrap_or_else(PoisonError::into_inner);
+                    if let Some(before) = odometer.at {
+                        odometer.travelled_m += before.distance(at);
+                    }
+                    odometer.at = Some(at);
                 }
-                let mut odometer = shared.lock().unwrap_or_else(PoisonError::into_inner);
-                if let Some(before) = odometer.at {
-                    odometer.travelled_m += before.distance(at);
+            }
+            if let Some((input, judge)) = &truth {
+                // Taken off the input first, then judged under one lock.
+                while let Some(sample) = node.take_raw(input) {
+                    if let Ok(pose) = Pose2D::decode(&sample.payload) {
+                        poses.push(TruePose {
+                            at_secs: sample.stamp_ns as f64 / 1e9,
+                            at: Point::new(pose.x_m, pose.y_m),
+                        });
+                    }
                 }
-                odometer.at = Some(at);
+                if !poses.is_empty() {
+                    let mut judge = judge.lock().unwrap_or_else(PoisonError::into_inner);
+                    for pose in poses.drain(..) {
+                        judge.observe(pose);
+                    }
+                }
             }
         }
     }
@@ -422,6 +535,7 @@ mod tests {
             name: name.to_owned(),
             from: "a".to_owned(),
             to: format!("{name}_end"),
+            target: None,
             route: route.iter().map(|&(x, y)| Point::new(x, y)).collect(),
             not_before_secs: not_before,
             deadline_secs: deadline,

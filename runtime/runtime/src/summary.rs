@@ -1,12 +1,15 @@
 //! The table `armor run PLAN` prints when the run ends: each leg of the plan, the length of its
 //! planned path and how far the robot drove it, its appointment, when it set off and arrived
 //! (run time), its deadline and how it stood against it, and the events modules reported on
-//! the way.
+//! the way. In a simulated run it adds each arrival's true error (the simulator's truth, by
+//! `armor_model::rehearsal`), each no-go area's least distance to the robot's true footprint,
+//! and the rehearsal's verdict.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use armor_model::geo;
+use armor_model::rehearsal::Verdict;
 
 use crate::progress::{LegExtras, LegPlan};
 
@@ -100,8 +103,20 @@ fn events_text(events: &[String]) -> String {
     }
 }
 
-/// The legs as a table, one line each.
-pub fn table(legs: &[LegRun]) -> String {
+/// The heading of the true errors' column.
+const TRUE_ERROR: &str = "true error";
+
+/// What the truth says beyond the legs: each no-go area's least distance to the robot's true
+/// footprint, then the verdict (`rehearsal passed …` or `rehearsal FAILED: …`), one line each.
+pub fn truth_lines(truth: &Verdict) -> Vec<String> {
+    let mut lines = truth.area_lines();
+    lines.push(truth.headline());
+    lines
+}
+
+/// The legs as a table, one line each; with `truth` (a simulated run), each arrival's true
+/// error in a column of its own.
+pub fn table(legs: &[LegRun], truth: Option<&Verdict>) -> String {
     let mut out = String::new();
     let name_width = legs
         .iter()
@@ -119,9 +134,26 @@ pub fn table(legs: &[LegRun]) -> String {
         .max()
         .unwrap_or(3)
         .max(3);
+    let true_errors: Option<Vec<String>> = truth.map(|truth| {
+        legs.iter()
+            .map(|leg| truth.true_error_text(&leg.name))
+            .collect()
+    });
+    let truth_width = true_errors.as_ref().map_or(0, |errors| {
+        errors
+            .iter()
+            .map(|error| error.chars().count())
+            .chain([TRUE_ERROR.len()])
+            .max()
+            .unwrap_or(0)
+    });
+    let truth_heading = match true_errors {
+        Some(_) => format!("{TRUE_ERROR:truth_width$}  "),
+        None => String::new(),
+    };
     let _ = writeln!(
         out,
-        "{:name_width$}  {:way_width$}  {:>8}  {:>8}  {:>10}  {:>8}  {:>8}  {:>8}  {:12}  events",
+        "{:name_width$}  {:way_width$}  {:>8}  {:>8}  {:>10}  {:>8}  {:>8}  {:>8}  {:12}  {truth_heading}events",
         "leg",
         "way",
         "planned",
@@ -134,7 +166,7 @@ pub fn table(legs: &[LegRun]) -> String {
     );
     let secs = |at: Option<f64>| at.map_or("-".to_owned(), |at| format!("{at:.1} s"));
     let metres = |m: Option<f64>| m.map_or("-".to_owned(), |m| format!("{m:.1} m"));
-    for (leg, way) in legs.iter().zip(&ways) {
+    for (index, (leg, way)) in legs.iter().zip(&ways).enumerate() {
         let against = match (leg.arrived_secs, leg.deadline_secs) {
             (Some(arrived), Some(deadline)) if arrived <= deadline => {
                 format!("{:.1} s early", deadline - arrived)
@@ -143,10 +175,14 @@ pub fn table(legs: &[LegRun]) -> String {
             (None, Some(_)) => "not reached".to_owned(),
             (_, None) => "no deadline".to_owned(),
         };
+        let true_error = match &true_errors {
+            Some(errors) => format!("{:truth_width$}  ", errors[index]),
+            None => String::new(),
+        };
         // `{:width$}` counts chars, and the arrow is one.
         let _ = writeln!(
             out,
-            "{:name_width$}  {way:way_width$}  {:>8}  {:>8}  {:>10}  {:>8}  {:>8}  {:>8}  {against:12}  {}",
+            "{:name_width$}  {way:way_width$}  {:>8}  {:>8}  {:>10}  {:>8}  {:>8}  {:>8}  {against:12}  {true_error}{}",
             leg.name,
             metres(Some(leg.length_m)),
             metres(leg.driven_m),
@@ -167,6 +203,7 @@ pub fn table(legs: &[LegRun]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use armor_model::geo::Point;
 
     #[test]
     fn the_switches_that_fired_go_under_their_leg_in_order() {
@@ -174,6 +211,7 @@ mod tests {
             name: "out".to_owned(),
             from: "home".to_owned(),
             to: "east".to_owned(),
+            target: None,
             route: Vec::new(),
             not_before_secs: None,
             deadline_secs: None,
@@ -204,7 +242,7 @@ mod tests {
                 "switched to `alt2`: `sim` failed"
             ]
         );
-        let table = table(&legs);
+        let table = table(&legs, None);
         let lines: Vec<&str> = table.lines().collect();
         assert_eq!(lines.len(), 4, "{table}");
         assert_eq!(lines[2].trim(), "switched to `odometry`: `mapper` failed");
@@ -234,12 +272,15 @@ mod tests {
         let mut unknown = leg("climb", None, Some(100.0));
         unknown.driven_m = None;
         unknown.events.clear();
-        let table = table(&[
-            leg("advance", Some(20.6), Some(60.0)),
-            waited,
-            unknown,
-            leg("regroup", Some(90.0), None),
-        ]);
+        let table = table(
+            &[
+                leg("advance", Some(20.6), Some(60.0)),
+                waited,
+                unknown,
+                leg("regroup", Some(90.0), None),
+            ],
+            None,
+        );
         let lines: Vec<&str> = table.lines().collect();
         assert_eq!(lines.len(), 5, "{table}");
         assert!(
@@ -275,5 +316,91 @@ mod tests {
                 .all(|line| line.chars().nth(column).is_some()),
             "{table}"
         );
+    }
+
+    #[test]
+    fn a_simulated_run_adds_each_true_error_the_areas_and_the_verdict() {
+        use armor_model::geo::Polygon;
+        use armor_model::rehearsal::{Arrival, NoGoArea, Rules, TruePose, judge};
+        let run = |name: &str, arrived: Option<f64>| LegRun {
+            name: name.to_owned(),
+            from: "a".to_owned(),
+            to: format!("{name}_end"),
+            length_m: 12.0,
+            driven_m: Some(12.1),
+            not_before_secs: None,
+            started_secs: Some(1.0),
+            arrived_secs: arrived,
+            deadline_secs: None,
+            events: Vec::new(),
+            switches: Vec::new(),
+        };
+        let poses = [
+            TruePose {
+                at_secs: 10.0,
+                at: Point::new(12.0, 0.1),
+            },
+            TruePose {
+                at_secs: 30.0,
+                at: Point::new(12.0, 2.59),
+            },
+        ];
+        let arrival = |leg: &str, at_secs: f64| Arrival {
+            leg: leg.to_owned(),
+            waypoint: format!("{leg}_end"),
+            target: Point::new(12.0, 0.0),
+            at_secs,
+        };
+        let area = NoGoArea {
+            name: "spill".to_owned(),
+            polygon: Polygon::new(vec![
+                Point::new(0.0, 5.0),
+                Point::new(1.0, 5.0),
+                Point::new(1.0, 6.0),
+            ]),
+        };
+        let rules = Rules {
+            radius_m: 0.35,
+            tolerance_m: 0.3,
+        };
+        let verdict = judge(
+            &poses,
+            &[arrival("advance", 10.0), arrival("regroup", 30.0)],
+            &[area],
+            rules,
+        );
+        let legs = [
+            run("advance", Some(10.0)),
+            run("regroup", Some(30.0)),
+            run("climb", None),
+        ];
+        let table = table(&legs, Some(&verdict));
+        let lines: Vec<&str> = table.lines().collect();
+        // The heading is ASCII; the rows' arrows are one char of three bytes.
+        let column = lines[0].find("true error").expect("the column");
+        let cell = |row: usize| -> String { lines[row].chars().skip(column).collect() };
+        assert_eq!(
+            lines[0].find("events"),
+            Some(column + "2.59 m (simulator) FAILED  ".len())
+        );
+        assert!(cell(1).starts_with("0.10 m (simulator)  "), "{table}");
+        assert!(
+            cell(2).starts_with("2.59 m (simulator) FAILED  -"),
+            "{table}"
+        );
+        assert!(cell(3).starts_with("-  "), "{table}");
+        let truth = truth_lines(&verdict);
+        assert_eq!(truth.len(), 2);
+        assert!(
+            truth[0].starts_with("no-go area `spill`: the footprint"),
+            "{truth:?}"
+        );
+        assert_eq!(
+            truth[1],
+            "rehearsal FAILED: leg `regroup` arrived 2.59 m from its waypoint `regroup_end` by \
+             the simulator's truth (allowed 0.40 m)"
+        );
+        // Without the truth, no column.
+        assert!(!super::table(&legs, None).contains("true error"));
     }
 }

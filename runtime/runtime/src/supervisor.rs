@@ -305,19 +305,30 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         hosts,
     };
     let start_unix_secs = start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9);
+    // In a simulated run, the simulator's true pose judges the rehearsal.
+    let truth_source = plan_legs
+        .as_ref()
+        .and_then(|_| crate::rehearsal::truth_source(&loaded.system, &loaded.descriptions));
     let mut progress = plan_legs.as_ref().map(|(plan, compiled)| {
         let odometry = loaded
             .system
             .bindings(&plan.navigation.module, None)
             .and_then(|bindings| bindings.inputs.get("odometry").cloned());
+        let truth = truth_source.clone().map(|source| {
+            tracing::info!("the rehearsal is judged by the simulator's truth, `{source}`");
+            let judge =
+                crate::rehearsal::judge(plan, compiled, &loaded.system, &loaded.descriptions);
+            (source, judge)
+        });
         Progress::start(
             progress::leg_plans(plan, compiled, start_unix_secs),
             plan.navigation.speed_mps,
-            odometry.map(|odometry| progress::Watch {
+            progress::Watch {
                 agent: env.agent_addr,
                 secret_file: secret_file.clone(),
                 odometry,
-            }),
+                truth,
+            },
         )
     });
     let started = Instant::now();
@@ -523,9 +534,16 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             break ExitCode::FAILURE;
         }
     };
-    let extras = progress.map(Progress::finish);
+    let (extras, truth) = progress.map(Progress::finish).unzip();
+    let truth = truth.flatten();
     stop_all(&mut modules, &server);
     agent.stop();
+    // A rehearsal the simulator's truth contradicts has failed, whatever the robot believed.
+    // Its words are the summary's last line.
+    let outcome = match &truth {
+        Some(verdict) if !verdict.passed => ExitCode::FAILURE,
+        _ => outcome,
+    };
     if let (Some(controller), Some((plan, compiled))) = (&controller, &plan_legs) {
         let legs = crate::summary::legs(
             &progress::leg_plans(plan, compiled, start_unix_secs),
@@ -533,12 +551,16 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             controller.first_marked(),
             extras.as_deref().unwrap_or_default(),
         );
-        let summary = format!(
+        let mut summary = format!(
             "plan `{}`, {}:\n{}",
             plan.name,
             controller.outcome().map_or("not finished", Outcome::as_str),
-            crate::summary::table(&legs)
+            crate::summary::table(&legs, truth.as_ref())
         );
+        for line in truth.iter().flat_map(crate::summary::truth_lines) {
+            summary.push_str(&line);
+            summary.push('\n');
+        }
         console::out_line(summary.trim_end());
         if let Some(dir) = &run_folder {
             let file = dir.join(run_dir::SUMMARY);
@@ -548,6 +570,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         }
     }
     if let Some(controller) = &controller {
+        let rehearsal = truth
+            .as_ref()
+            .zip(truth_source.as_deref())
+            .map(|(verdict, source)| crate::rehearsal::report(verdict, source));
         let behaviour_changes = behaviour_changes(&server.behaviours(), &clock);
         let reports = options
             .report
@@ -555,7 +581,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             .cloned()
             .chain(run_folder.as_ref().map(|dir| dir.join(run_dir::REPORT)));
         for report in reports {
-            match controller.write_report(&report, &behaviour_changes) {
+            match controller.write_report(&report, &behaviour_changes, rehearsal.as_ref()) {
                 Ok(()) => tracing::info!(file = %report.display(), "mission report written"),
                 Err(err) => tracing::error!("cannot write the report {}: {err}", report.display()),
             }

@@ -57,6 +57,9 @@ pub struct Compiled {
     pub positions: BTreeMap<String, Point>,
     /// The robot the paths were planned for.
     pub robot: Robot,
+    /// The no-go areas in the world frame, each with its margin, as the legs were planned round
+    /// them (what a rehearsal's truth is judged against).
+    pub keepouts: Vec<Keepout>,
     /// What may keep the plan from going as drawn without stopping it: time constraints that
     /// cannot all be met, with the numbers.
     pub warnings: Vec<Located>,
@@ -236,6 +239,7 @@ pub fn compile_for(
         routes,
         positions: legs.positions,
         robot: *robot,
+        keepouts: legs.keepouts,
         warnings,
         alternatives,
         switches,
