@@ -800,3 +800,87 @@ fn a_plan_over_thousands_of_kilometres_is_warned_about_the_local_frame() {
     assert!(checked.status.success(), "{said}");
     assert!(!said.contains("projection"), "{said}");
 }
+
+/// The QGC round trip the other way, on every bundled plan: the plan read back from its .plan
+/// writes the same mission items, fence and rally points again (the plan to .plan to plan way
+/// is `interchange.rs`'s).
+#[test]
+fn every_bundled_plan_s_qgc_file_comes_back_the_same_through_a_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    for plan_file in bundled_plans() {
+        let first = dir.path().join("first.plan");
+        let exported = run(&["export", "--qgc", &text(&plan_file), "-o", &text(&first)]);
+        assert!(exported.status.success(), "{}", output_text(&exported));
+        let back = dir.path().join("back.xml");
+        let imported = run(&[
+            "import",
+            &text(&first),
+            "-o",
+            &text(&back),
+            "--start",
+            "2026-11-23T00:00:00Z",
+        ]);
+        assert!(imported.status.success(), "{}", output_text(&imported));
+        let second = dir.path().join("second.plan");
+        let exported = run(&["export", "--qgc", &text(&back), "-o", &text(&second)]);
+        assert!(exported.status.success(), "{}", output_text(&exported));
+        let read = |file: &Path| -> serde_json::Value {
+            serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap()
+        };
+        let (a, b) = (read(&first), read(&second));
+        let points = |items: &serde_json::Value| -> Vec<(u64, Vec<f64>)> {
+            items
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|item| {
+                    (
+                        item["command"].as_u64().unwrap(),
+                        item["params"]
+                            .as_array()
+                            .unwrap()
+                            .iter()
+                            .map(|value| value.as_f64().unwrap_or(f64::NAN))
+                            .collect(),
+                    )
+                })
+                .collect()
+        };
+        let (items_a, items_b) = (
+            points(&a["mission"]["items"]),
+            points(&b["mission"]["items"]),
+        );
+        assert_eq!(items_a.len(), items_b.len(), "{}", plan_file.display());
+        for ((command_a, params_a), (command_b, params_b)) in items_a.iter().zip(&items_b) {
+            assert_eq!(command_a, command_b, "{}", plan_file.display());
+            for (x, y) in params_a.iter().zip(params_b) {
+                // Coordinates through the plan file's 7 decimals.
+                assert!(
+                    (x.is_nan() && y.is_nan()) || (x - y).abs() < 1e-7,
+                    "{}: {params_a:?} {params_b:?}",
+                    plan_file.display()
+                );
+            }
+        }
+        assert_eq!(
+            a["geoFence"]["polygons"].as_array().map(Vec::len),
+            b["geoFence"]["polygons"].as_array().map(Vec::len),
+            "{}",
+            plan_file.display()
+        );
+        // Rally points (the waypoints a `return` goes to) come back as waypoints only, as
+        // docs/interchange.md says: no contingency uses them, so the second file has none.
+        let plan = Plan::parse(&std::fs::read_to_string(&back).unwrap()).unwrap();
+        for rally in a["rallyPoints"]["points"].as_array().unwrap() {
+            let (lat, lon) = (rally[0].as_f64().unwrap(), rally[1].as_f64().unwrap());
+            assert!(
+                plan.waypoints
+                    .iter()
+                    .any(|w| (w.position.lat_deg - lat).abs() < 1e-7
+                        && (w.position.lon_deg - lon).abs() < 1e-7),
+                "{}: rally point {rally} lost",
+                plan_file.display()
+            );
+        }
+    }
+}
