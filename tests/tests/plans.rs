@@ -1273,7 +1273,7 @@ fn bad_places_are_refused_at_check_time_with_their_lines() {
         &file,
         line_of(&text, "name=\"wall\""),
         &[
-            "waypoint `wall` at (10, 3) m is 0 m from the wall on line 5 of the world `Closed rooms`",
+            "waypoint `wall` at (10, 3) m is on the wall on line 5 of the world `Closed rooms`",
             "the robot keeps 0.35 m from obstacles",
         ],
     );

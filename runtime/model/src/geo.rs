@@ -67,6 +67,16 @@ impl LatLon {
         )
     }
 
+    /// The great-circle distance to `other` in metres (haversine, on a sphere of the Earth's
+    /// mean radius): what [`LatLon::to_local`]'s flat frame is measured against.
+    pub fn great_circle_m(self, other: LatLon) -> f64 {
+        let (lat1, lat2) = (self.lat_deg.to_radians(), other.lat_deg.to_radians());
+        let half_dlat = (lat2 - lat1) / 2.0;
+        let half_dlon = (other.lon_deg - self.lon_deg).to_radians() / 2.0;
+        let h = half_dlat.sin().powi(2) + lat1.cos() * lat2.cos() * half_dlon.sin().powi(2);
+        2.0 * EARTH_RADIUS_M * h.sqrt().min(1.0).asin()
+    }
+
     /// The inverse of [`LatLon::to_local`].
     pub fn from_local(p: Point, origin: LatLon) -> LatLon {
         LatLon::new(
@@ -402,6 +412,15 @@ pub fn format_polygons(polygons: &[Polygon]) -> String {
 }
 
 /// A coordinate written to the millimetre, without trailing zeros.
+/// `is 0.25 m from`, or `is on` when the distance rounds to 0 mm (a point in a wall, or in an
+/// occupied cell of a map, is not "0 m from" it).
+pub fn is_from(distance_m: f64) -> String {
+    match round_mm(distance_m).as_str() {
+        "0" => "is on".to_owned(),
+        text => format!("is {text} m from"),
+    }
+}
+
 pub fn round_mm(value: f64) -> String {
     let text = format!("{value:.3}");
     let text = text.trim_end_matches('0').trim_end_matches('.');

@@ -5,7 +5,7 @@
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use armor_model::net::{Engine, Firing, MissionNet, Place};
 use armor_model::system::Reason;
@@ -20,8 +20,18 @@ use crate::control::{Enabled, FiringRecord, MissionStatus, Request};
 pub enum Outcome {
     Complete,
     Aborted,
-    Deadlock { marking: String },
-    Failed { module: String },
+    Deadlock {
+        marking: String,
+    },
+    Failed {
+        module: String,
+    },
+    /// Only an operator could take the mission on (a leg held), and nobody did within the
+    /// run's hold timeout.
+    Unattended {
+        marking: String,
+        waited_secs: f64,
+    },
 }
 
 impl Outcome {
@@ -32,6 +42,7 @@ impl Outcome {
             Outcome::Aborted => "aborted",
             Outcome::Deadlock { .. } => "deadlock",
             Outcome::Failed { .. } => "failed",
+            Outcome::Unattended { .. } => "unattended",
         }
     }
 }
@@ -58,6 +69,11 @@ pub struct Controller {
     first_marked: BTreeMap<String, f64>,
     /// Which modules ran and why when last noted in the timeline.
     running: BTreeMap<String, String>,
+    /// How long the mission may wait for an operator alone (real time) before the run ends;
+    /// `None`: as long as it takes.
+    hold_timeout: Option<Duration>,
+    /// Since when (real time) only an operator can take the mission on.
+    held_since: Option<Instant>,
 }
 
 /// The modules that every place of `net` runs, each with the same parameters in all: a plan's
@@ -124,6 +140,8 @@ impl Controller {
             first_fired: BTreeMap::new(),
             first_marked: BTreeMap::new(),
             running: BTreeMap::new(),
+            hold_timeout: None,
+            held_since: None,
         };
         let at = controller.clock.now_secs();
         controller.first_marked = controller
@@ -134,6 +152,78 @@ impl Controller {
             .collect();
         controller.record("started", json!({ "marking": controller.engine.marking() }));
         controller
+    }
+
+    /// Ends the mission (as [`Outcome::Unattended`]) once it has waited this long (real time)
+    /// for an operator alone, such as a leg held after the robot was blocked; `None`: it waits
+    /// as long as it takes.
+    pub fn with_hold_timeout(mut self, hold_timeout: Option<Duration>) -> Self {
+        self.hold_timeout = hold_timeout;
+        self
+    }
+
+    /// The enabled transitions when only an operator can fire them (and at least one is
+    /// enabled): what a held mission waits for.
+    fn operator_choices(&self) -> Option<Vec<String>> {
+        let enabled = self.engine.enabled();
+        let only_operator = !enabled.is_empty()
+            && enabled.iter().all(|name| {
+                self.net.transition(name).is_some_and(|transition| {
+                    let condition = &transition.condition;
+                    condition.operator
+                        && condition.event.is_none()
+                        && condition.delay_secs.is_none()
+                        && condition.at_unix_secs.is_none()
+                })
+            });
+        only_operator.then_some(enabled)
+    }
+
+    /// Says once when the mission starts to wait for an operator alone, and ends it when the
+    /// hold timeout has passed with no answer: a run with nobody at the controls must neither
+    /// wait in silence nor for ever.
+    fn watch_hold(&mut self) {
+        if self.paused || self.outcome.is_some() {
+            return;
+        }
+        let Some(choices) = self.operator_choices() else {
+            self.held_since = None;
+            return;
+        };
+        let marking = armor_model::net::marking_text(&self.engine.marking());
+        match self.held_since {
+            None => {
+                self.held_since = Some(Instant::now());
+                let fire = choices
+                    .iter()
+                    .map(|name| format!("`armor ctl fire {name}`"))
+                    .collect::<Vec<_>>()
+                    .join(" or ");
+                let ending = match self.hold_timeout {
+                    Some(timeout) => format!(
+                        "without an answer the run ends in {} s (--hold-timeout)",
+                        timeout.as_secs_f64()
+                    ),
+                    None => "the run waits as long as it takes (--hold-timeout 0)".to_owned(),
+                };
+                tracing::warn!(
+                    "mission `{}` waits for the operator in {marking}: {fire}, or `armor ctl \
+                     abort`; {ending}",
+                    self.net.name
+                );
+                self.record("waiting_for_operator", json!({ "enabled": choices }));
+            }
+            Some(since) => {
+                let waited = since.elapsed();
+                if self.hold_timeout.is_some_and(|timeout| waited >= timeout) {
+                    self.record("unattended", json!({ "marking": self.engine.marking() }));
+                    self.outcome = Some(Outcome::Unattended {
+                        marking,
+                        waited_secs: waited.as_secs_f64(),
+                    });
+                }
+            }
+        }
     }
 
     /// What the modules must be told: who idles, and the parameters of the marked places.
@@ -299,6 +389,7 @@ impl Controller {
             self.record("deadlock", json!({ "marking": self.engine.marking() }));
             self.outcome = Some(Outcome::Deadlock { marking });
         }
+        self.watch_hold();
     }
 
     /// Tells the modules what `firings` changed, `before` being the modules active before them.
@@ -455,6 +546,8 @@ impl Controller {
             Request::Pause if self.paused => (false, "already paused".to_owned()),
             Request::Pause => {
                 self.paused = true;
+                // An operator is there: a new wait for one is timed afresh after the resume.
+                self.held_since = None;
                 self.tell(server);
                 self.record("paused", json!({}));
                 tracing::info!("mission paused by the operator");

@@ -125,6 +125,12 @@ enum Command {
         /// this long.
         #[arg(long, value_name = "SECS", default_value_t = 3.0)]
         host_orphan_secs: f64,
+        /// When only an operator can take the mission on (a leg held after the robot was
+        /// blocked: `armor ctl fire LEG_retry` or `LEG_skip`), the run says so and, after this
+        /// many seconds (real time) with no answer, ends with a failure; 0 waits as long as it
+        /// takes (an attended run).
+        #[arg(long, value_name = "SECS", default_value_t = DEFAULT_HOLD_TIMEOUT_SECS)]
+        hold_timeout: f64,
     },
     /// Run the host daemon of one computer of the robot: `armor run` starts, stops and watches
     /// the modules placed on it (`<module … host="NAME">`) through it.
@@ -225,9 +231,10 @@ enum Command {
         /// The mission or plan file to write.
         #[arg(short, long)]
         output: PathBuf,
-        /// For GPX and QGC: the system file the plan runs (relative to the plan).
-        #[arg(long, default_value = "system.xml")]
-        system: String,
+        /// The system file the plan or mission runs (relative to it). Default for GPX and
+        /// QGC: system.xml; for PNML: the net's own (a net from another tool names none).
+        #[arg(long)]
+        system: Option<String>,
         /// For GPX and QGC: the world file the plan is drawn on (default: the system's).
         #[arg(long)]
         world: Option<String>,
@@ -264,6 +271,14 @@ enum Command {
     },
 }
 
+/// How long `armor run` waits for an operator alone by default: long enough for a person
+/// watching to answer, short enough that a run nobody watches (a rehearsal, CI) ends.
+const DEFAULT_HOLD_TIMEOUT_SECS: f64 = 300.0;
+
+/// Degrees of latitude and longitude round (0°, 0°) where a plan's waypoints are taken for a
+/// map's local coordinates with no geographic origin (0.1°: about 11 km).
+const NULL_ISLAND_DEG: f64 = 0.1;
+
 fn main() -> ExitCode {
     armor_runtime::console::init_logging();
     match run(Cli::parse()) {
@@ -293,6 +308,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             no_run_folder,
             max_clock_skew_ms,
             host_orphan_secs,
+            hold_timeout,
         } => {
             let lease = match lease_secs {
                 0.0 => None,
@@ -334,6 +350,13 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                     .then(|| Duration::from_millis(max_clock_skew_ms)),
                 host_orphan: Duration::try_from_secs_f64(host_orphan_secs)
                     .context("--host-orphan-secs must be a positive number of seconds")?,
+                hold_timeout: match hold_timeout {
+                    0.0 => None,
+                    secs => Some(
+                        Duration::try_from_secs_f64(secs)
+                            .context("--hold-timeout must be a number of seconds, 0 or more")?,
+                    ),
+                },
             })
         }
         Command::Check { file, secret } => {
@@ -489,6 +512,23 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                     Ok(plan) => plan,
                     Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
                 };
+                // A plan drawn on a map with no geographic origin has its coordinates round
+                // (0°, 0°), in the Gulf of Guinea: a GPS tool would show it there.
+                if !plan.waypoints.is_empty()
+                    && plan.waypoints.iter().all(|waypoint| {
+                        waypoint.position.lat_deg.abs() < NULL_ISLAND_DEG
+                            && waypoint.position.lon_deg.abs() < NULL_ISLAND_DEG
+                    })
+                {
+                    eprintln!(
+                        "{}:{}: warning: every waypoint is within {NULL_ISLAND_DEG}° of (0°, 0°): \
+                         the plan's world has no geographic origin (a ROS map with no \
+                         `geo_origin: [LAT, LON]`), so other tools will show it in the Gulf of \
+                         Guinea; give its world a geographic origin",
+                        file.display(),
+                        plan.pos
+                    );
+                }
                 if gpx {
                     armor_model::plan::gpx::export(&plan)
                 } else if qgc {
@@ -537,15 +577,22 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                     .file_stem()
                     .map(|stem| stem.to_string_lossy().into_owned())
                     .unwrap_or_else(|| "plan".into());
+                let system = system.unwrap_or_else(|| "system.xml".to_owned());
                 let imported = if is_gpx {
                     armor_model::plan::gpx::import(&text, &name, &system)
                 } else {
-                    armor_model::plan::qgc::import(&text, &name, &system, start_unix_secs).map(
-                        |imported| {
+                    match armor_model::plan::qgc::import_all(&text, &name, &system, start_unix_secs)
+                    {
+                        Ok(imported) => {
                             print_warnings(&file, &imported.warnings);
-                            imported.plan
-                        },
-                    )
+                            Ok(imported.plan)
+                        }
+                        // What was skipped is often why the plan is refused: say it too.
+                        Err(failed) => {
+                            print_warnings(&file, &failed.warnings);
+                            Err(failed.problems)
+                        }
+                    }
                 };
                 let mut plan = match imported {
                     Ok(plan) => plan,
@@ -569,7 +616,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 );
                 (plan.to_xml(), summary)
             } else {
-                let net = match armor_model::net::read_pnml(&text) {
+                let mut net = match armor_model::net::read_pnml(&text) {
                     Ok((net, warnings)) => {
                         for warning in warnings {
                             eprintln!(
@@ -583,6 +630,25 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                     }
                     Err(problems) => return Ok(report(load::Diagnostics { file, problems })),
                 };
+                if let Some(system) = system {
+                    net.system = system;
+                } else if net.system.is_empty() {
+                    eprintln!(
+                        "{}: warning: the net names no system file: give `--system FILE` to \
+                         check or run the mission",
+                        file.display()
+                    );
+                }
+                // A net with no token anywhere can never fire: the tool that wrote it may keep
+                // its initial marking elsewhere (or it was drawn unfinished).
+                if net.places.iter().all(|place| place.tokens == 0) {
+                    eprintln!(
+                        "{}:{}: warning: the net has no initial marking (no place holds a \
+                         token): nothing can ever fire",
+                        file.display(),
+                        net.pos
+                    );
+                }
                 let summary = format!(
                     "mission `{}` written ({}, {})",
                     net.name,
@@ -678,6 +744,38 @@ fn check(file: &std::path::Path, secret: Option<&armor_module_api::auth::Secret>
         "checking {}: describing the modules, planning each leg, exploring the net",
         file.display()
     ));
+    // A world (a ROS map's YAML, or our .world) is checked as one: what a plan or a simulator
+    // will find in it.
+    if armor_model::ros_map::is_map_yaml(file) || file.extension().is_some_and(|ext| ext == "world")
+    {
+        let loaded = armor_model::world::load(file, &mut |path| std::fs::read(path));
+        drop(spinner);
+        return match loaded {
+            Ok(world) => {
+                let bounds = world.bounds();
+                let start = world.start();
+                let mm = armor_model::geo::round_mm;
+                println!(
+                    "{}: ok (world `{}`: {} to {} m east, {} to {} m north; the simulated robot \
+                     starts at ({}, {}))",
+                    file.display(),
+                    world.name(),
+                    mm(bounds.min_x),
+                    mm(bounds.max_x),
+                    mm(bounds.min_y),
+                    mm(bounds.max_y),
+                    mm(start.x_m),
+                    mm(start.y_m)
+                );
+                ExitCode::SUCCESS
+            }
+            Err(err) => {
+                println!("{err}");
+                eprintln!("1 problem");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let summary = match mission::document_kind(file) {
         Ok(mission::DocumentKind::System) => load::load_system(file, &module_path)
             .and_then(|loaded| check_hosts(file, &loaded.system, secret).map(|()| loaded))
@@ -692,8 +790,8 @@ fn check(file: &std::path::Path, secret: Option<&armor_module_api::auth::Secret>
                     Vec::new(),
                 )
             }),
-        Ok(_) => mission::load_mission(file, &module_path).map(|mission| {
-            (
+        Ok(_) => match mission::load_mission_counted(file, &module_path) {
+            Ok(mission) => Ok((
                 format!(
                     "mission `{}`: {}, {}, {} reachable",
                     mission.net.name,
@@ -702,8 +800,22 @@ fn check(file: &std::path::Path, secret: Option<&armor_module_api::auth::Secret>
                     plural(mission.states, "marking")
                 ),
                 mission.warnings().to_vec(),
-            )
-        }),
+            )),
+            Err((diagnostics, states)) => {
+                drop(spinner);
+                let code = report(diagnostics);
+                // A net that ends has dead markings, so it fails the check: its state space is
+                // still worth comparing with the published one.
+                if let Some(states) = states {
+                    println!(
+                        "{}: {} reachable (counted although the check failed)",
+                        file.display(),
+                        plural(states, "marking")
+                    );
+                }
+                return code;
+            }
+        },
         Err(diagnostics) => Err(diagnostics),
     };
     drop(spinner);

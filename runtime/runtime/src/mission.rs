@@ -79,39 +79,63 @@ impl LoadedMission {
 
 /// Reads a mission file (our XML, PNML, or a plan), loads its system, and checks both.
 pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMission, Diagnostics> {
+    load_mission_counted(file, module_path).map_err(|(diagnostics, _)| diagnostics)
+}
+
+/// [`load_mission`], with the number of reachable markings also when the net's analysis finds
+/// problems (a net that ends has dead markings: its count is still worth comparing with the
+/// published one); `None` when the net was not analysed.
+pub fn load_mission_counted(
+    file: &Path,
+    module_path: &[PathBuf],
+) -> Result<LoadedMission, (Diagnostics, Option<usize>)> {
+    load_mission_inner(file, module_path).map_err(|(diagnostics, states)| (*diagnostics, states))
+}
+
+fn load_mission_inner(
+    file: &Path,
+    module_path: &[PathBuf],
+) -> Result<LoadedMission, (Box<Diagnostics>, Option<usize>)> {
+    let unanalysed = |diagnostics: Diagnostics| (Box::new(diagnostics), None);
     let fail = |problems| Diagnostics {
         file: file.to_path_buf(),
         problems,
     };
-    let text = read_source(file)?;
+    let text = read_source(file).map_err(unanalysed)?;
     // A plan is compiled once its system (and so its world) is known.
-    let source = match kind_of(file, &text)? {
-        DocumentKind::Plan => Err(Plan::parse(&text).map_err(fail)?),
-        DocumentKind::Pnml => Ok(net::from_pnml(&text).map_err(fail)?),
-        _ => Ok(MissionNet::parse(&text).map_err(fail)?),
+    let source = match kind_of(file, &text).map_err(unanalysed)? {
+        DocumentKind::Plan => Err(Plan::parse(&text).map_err(fail).map_err(unanalysed)?),
+        DocumentKind::Pnml => Ok(net::from_pnml(&text).map_err(fail).map_err(unanalysed)?),
+        _ => Ok(MissionNet::parse(&text).map_err(fail).map_err(unanalysed)?),
     };
     let (system_name, pos) = match &source {
         Ok(net) => (net.system.clone(), net.pos),
         Err(plan) => (plan.system.clone(), plan.pos),
     };
     if system_name.is_empty() {
-        return Err(fail(vec![Located::new(
+        return Err(unanalysed(fail(vec![Located::new(
             pos,
-            "the mission names no system file (attribute `system`)",
-        )]));
+            match source {
+                Ok(_) => {
+                    "the mission names no system file (attribute `system`; `armor import \
+                          NET.pnml --system FILE` writes it)"
+                }
+                Err(_) => "the plan names no system file (attribute `system`)",
+            },
+        )])));
     }
     let base = file.parent().unwrap_or_else(|| Path::new("."));
     let system_file = base.join(&system_name);
     if let Err(err) = std::fs::metadata(&system_file) {
-        return Err(fail(vec![Located::new(
+        return Err(unanalysed(fail(vec![Located::new(
             pos,
             format!(
                 "cannot read the mission's system file `{system_name}` ({}): {err}",
                 system_file.display()
             ),
-        )]));
+        )])));
     }
-    let system = load_system(&system_file, module_path)?;
+    let system = load_system(&system_file, module_path).map_err(unanalysed)?;
     let planned_start_unix_secs = source.as_ref().err().and_then(|plan| plan.start_unix_secs);
     let plan = source.as_ref().err().cloned();
     let (net, compiled) = match source {
@@ -119,13 +143,54 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         Err(plan) => {
             let system_dir = system_file.parent().unwrap_or(base);
             let world = plan_world(&plan, &system.system, base, system_dir, module_path)
-                .map_err(|message| fail(vec![Located::new(plan.pos, message)]))?;
+                .map_err(|message| unanalysed(fail(vec![Located::new(plan.pos, message)])))?;
             // The robot's size comes from the plan, else from the system's modules.
-            let robot = plan::robot(&plan, Some(&system.system), &system.descriptions);
-            let compiled = plan::compile_for(&plan, world.as_ref(), &robot).map_err(fail)?;
+            let (robot, radius_source) =
+                plan::robot_explained(&plan, Some(&system.system), &system.descriptions);
+            // The times are checked at the speed the robot can drive, not a faster one the plan
+            // assumes (a ground station's cruise speed).
+            let limit = speed_limit(&plan, &system);
+            let mut timed = plan.clone();
+            if let Some((limit_mps, _)) = &limit {
+                timed.navigation.speed_mps = timed.navigation.speed_mps.min(*limit_mps);
+            }
+            let mut compiled =
+                plan::compile_for(&timed, world.as_ref(), &robot).map_err(|mut problems| {
+                    for problem in &mut problems {
+                        // Every message about the robot's size says where the size comes from.
+                        if problem.message.contains(" keeps ") {
+                            problem.message.push_str(&format!(
+                                " (the robot's radius, {} m: {radius_source})",
+                                armor_model::geo::round_mm(robot.radius_m)
+                            ));
+                        }
+                    }
+                    unanalysed(fail(problems))
+                })?;
+            if let Some((limit_mps, why)) = limit
+                && plan.navigation.speed_mps > limit_mps
+            {
+                compiled.warnings.push(Located::new(
+                    if plan.navigation.pos == Pos::default() {
+                        plan.pos
+                    } else {
+                        plan.navigation.pos
+                    },
+                    format!(
+                        "the plan's speed, {} m/s, is more than the robot drives ({limit_mps} \
+                         m/s: {why}): its times are checked at {limit_mps} m/s",
+                        plan.navigation.speed_mps
+                    ),
+                ));
+            }
+            if let Some(warning) = start_warning(&plan, &compiled, world.as_ref(), &system) {
+                compiled.warnings.push(warning);
+            }
+            compiled.warnings.sort_by_key(|warning| warning.pos);
             if let Some(basemap) = &plan.basemap {
-                plan_basemap(&basemap.href, base, module_path)
-                    .map_err(|message| fail(vec![Located::new(basemap.pos, message)]))?;
+                plan_basemap(&basemap.href, base, module_path).map_err(|message| {
+                    unanalysed(fail(vec![Located::new(basemap.pos, message)]))
+                })?;
             }
             (compiled.net.clone(), Some(compiled))
         }
@@ -135,7 +200,7 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
     problems.extend(analysis.problems(&net));
     problems.sort_by_key(|problem| problem.pos);
     if !problems.is_empty() {
-        return Err(fail(problems));
+        return Err((Box::new(fail(problems)), Some(analysis.states)));
     }
     Ok(LoadedMission {
         file: file.to_path_buf(),
@@ -146,6 +211,106 @@ pub fn load_mission(file: &Path, module_path: &[PathBuf]) -> Result<LoadedMissio
         compiled,
         planned_start_unix_secs,
         plan,
+    })
+}
+
+/// The value of a module's number parameter: the system file's, else its description's
+/// default; with whether the system file gives it.
+fn module_number(loaded: &Loaded, module: &str, param: &str) -> Option<(f64, bool)> {
+    let module = loaded.system.module(module)?;
+    let (value, given) = match module.param(param) {
+        Some(value) => (value.value.clone(), true),
+        None => (
+            loaded
+                .descriptions
+                .get(&module.module_type)?
+                .param(param)?
+                .default
+                .clone()?,
+            false,
+        ),
+    };
+    value
+        .trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|value| value.is_finite())
+        .map(|value| (value, given))
+}
+
+/// The modules that simulate the robot: those given a `world` to run in.
+fn simulators(loaded: &Loaded) -> impl Iterator<Item = &armor_model::ModuleInstance> {
+    loaded.system.modules.iter().filter(|module| {
+        module
+            .param("world")
+            .is_some_and(|param| !param.value.trim().is_empty())
+    })
+}
+
+/// The fastest the robot drives on the plan's legs: the least `max_speed_mps` of its navigation
+/// module, their companions and the simulator, and which module sets it, in words.
+fn speed_limit(plan: &Plan, loaded: &Loaded) -> Option<(f64, String)> {
+    let navigation = &plan.navigation;
+    let drivers = std::iter::once(navigation.module.as_str())
+        .chain(navigation.companions.iter().map(String::as_str))
+        .chain(simulators(loaded).map(|module| module.name.as_str()));
+    drivers
+        .filter_map(|module| {
+            let (speed, given) = module_number(loaded, module, "max_speed_mps")?;
+            (speed > 0.0).then(|| {
+                (
+                    speed,
+                    format!(
+                        "module `{module}`'s {}max_speed_mps",
+                        if given { "" } else { "default " }
+                    ),
+                )
+            })
+        })
+        .fold(None, |least: Option<(f64, String)>, this| match least {
+            Some(least) if least.0 <= this.0 => Some(least),
+            _ => Some(this),
+        })
+}
+
+/// When the system simulates the robot on the plan's world and the robot starts further from
+/// where the plan's first leg starts than the navigation module's tolerance (its first leg
+/// would then be driven from elsewhere, or count as arrived too soon), a warning that says so.
+fn start_warning(
+    plan: &Plan,
+    compiled: &plan::Compiled,
+    world: Option<&World>,
+    loaded: &Loaded,
+) -> Option<Located> {
+    let world = world?;
+    simulators(loaded).next()?;
+    let first = plan.legs.first()?;
+    let planned = compiled.positions.get(&first.from)?;
+    let start = world.start();
+    let off_m = (start.x_m - planned.x).hypot(start.y_m - planned.y);
+    let tolerance_m = module_number(loaded, &plan.navigation.module, "tolerance_m")
+        .map_or(0.3, |(tolerance, _)| tolerance);
+    let mm = armor_model::geo::round_mm;
+    let cm = |value: f64| mm((value * 100.0).round() / 100.0);
+    (off_m > tolerance_m).then(|| {
+        Located::new(
+            first.pos,
+            format!(
+                "the simulated robot starts at ({}, {}) in the world `{}`, {} m from `{}` where \
+                 the plan starts (at ({}, {})): its first leg is driven from there. Move the \
+                 world's start there (a ROS map: `start: [{}, {}, 0]` in its YAML; without it \
+                 the robot starts at the free place nearest the map's origin)",
+                cm(start.x_m),
+                cm(start.y_m),
+                world.name(),
+                cm(off_m),
+                first.from,
+                cm(planned.x),
+                cm(planned.y),
+                cm(planned.x),
+                cm(planned.y)
+            ),
+        )
     })
 }
 

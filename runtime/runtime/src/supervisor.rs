@@ -72,6 +72,9 @@ pub struct RunOptions {
     pub max_clock_skew: Option<Duration>,
     /// How long a host daemon keeps its modules without hearing from this run.
     pub host_orphan: Duration,
+    /// How long (real time) a mission may wait for an operator alone (a leg held) before the
+    /// run ends; `None`: as long as it takes.
+    pub hold_timeout: Option<Duration>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -235,6 +238,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             start_at_unix_secs.unwrap_or(epoch_ns as f64 / 1e9),
             options.report.is_some() || run_folder.is_some(),
         )
+        .with_hold_timeout(options.hold_timeout)
     });
     for name in &options.observers {
         if loaded.system.module(name).is_some() {
@@ -384,6 +388,15 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 Some(Outcome::Failed { module }) => {
                     tracing::error!(
                         "mission failed: module `{module}` failed and nothing in the mission handles module.{module}.failed"
+                    );
+                    break ExitCode::FAILURE;
+                }
+                Some(Outcome::Unattended {
+                    marking,
+                    waited_secs,
+                }) => {
+                    tracing::error!(
+                        "mission ended: it waited {waited_secs:.0} s for the operator in {marking} and nobody answered (--hold-timeout)"
                     );
                     break ExitCode::FAILURE;
                 }

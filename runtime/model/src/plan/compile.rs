@@ -102,38 +102,99 @@ pub fn robot(
     system: Option<&SystemConfig>,
     descriptions: &BTreeMap<String, ModuleDescription>,
 ) -> Robot {
+    robot_explained(plan, system, descriptions).0
+}
+
+/// [`robot`], and where its radius comes from in words (`module `avoider`'s default
+/// robot_radius_m, the largest of the system's`), for the messages that depend on it.
+pub fn robot_explained(
+    plan: &Plan,
+    system: Option<&SystemConfig>,
+    descriptions: &BTreeMap<String, ModuleDescription>,
+) -> (Robot, String) {
     let navigation = &plan.navigation;
-    let from_system = || {
-        system?
-            .modules
-            .iter()
-            .filter_map(|module| {
-                let value = match module.param("robot_radius_m") {
-                    Some(param) => param.value.clone(),
-                    None => descriptions
-                        .get(&module.module_type)?
-                        .params
-                        .iter()
-                        .find(|param| param.name == "robot_radius_m")?
-                        .default
-                        .clone()?,
-                };
-                value
-                    .trim()
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|radius| radius.is_finite() && *radius >= 0.0)
-            })
-            .reduce(f64::max)
-    };
-    Robot {
-        radius_m: navigation
-            .robot_radius_m
-            .or_else(from_system)
-            .unwrap_or(planner::DEFAULT_ROBOT_RADIUS_M),
-        clearance_m: navigation
-            .clearance_m
-            .unwrap_or(planner::DEFAULT_CLEARANCE_M),
+    let clearance_m = navigation
+        .clearance_m
+        .unwrap_or(planner::DEFAULT_CLEARANCE_M);
+    if let Some(radius_m) = navigation.robot_radius_m {
+        return (
+            Robot {
+                radius_m,
+                clearance_m,
+            },
+            "the plan's <navigation robot_radius_m>".to_owned(),
+        );
+    }
+    // Every module's radius: (value, module, whether the system file gives it).
+    let radii: Vec<(f64, &str, bool)> = system
+        .map(|system| {
+            system
+                .modules
+                .iter()
+                .filter_map(|module| {
+                    let (value, given) = match module.param("robot_radius_m") {
+                        Some(param) => (param.value.clone(), true),
+                        None => (
+                            descriptions
+                                .get(&module.module_type)?
+                                .params
+                                .iter()
+                                .find(|param| param.name == "robot_radius_m")?
+                                .default
+                                .clone()?,
+                            false,
+                        ),
+                    };
+                    let radius = value
+                        .trim()
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|radius| radius.is_finite() && *radius >= 0.0)?;
+                    Some((radius, module.name.as_str(), given))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    // The first of the largest, in the system file's order.
+    let largest = radii
+        .iter()
+        .copied()
+        .fold(None, |best: Option<(f64, &str, bool)>, this| match best {
+            Some(best) if best.0 >= this.0 => Some(best),
+            _ => Some(this),
+        });
+    match largest {
+        Some((radius_m, module, given)) => {
+            let others: Vec<String> = radii
+                .iter()
+                .filter(|(radius, name, _)| *name != module && *radius < radius_m)
+                .map(|(radius, name, _)| format!("`{name}` {} m", geo::round_mm(*radius)))
+                .collect();
+            let mut source = format!(
+                "module `{module}`'s {}robot_radius_m, the largest of the system's modules",
+                if given { "" } else { "default " }
+            );
+            if !others.is_empty() {
+                source.push_str(&format!(" ({})", others.join(", ")));
+            }
+            source.push_str(
+                "; give <navigation robot_radius_m> or set it on that module for another robot",
+            );
+            (
+                Robot {
+                    radius_m,
+                    clearance_m,
+                },
+                source,
+            )
+        }
+        None => (
+            Robot {
+                radius_m: planner::DEFAULT_ROBOT_RADIUS_M,
+                clearance_m,
+            },
+            "the planner's default".to_owned(),
+        ),
     }
 }
 
@@ -223,7 +284,8 @@ pub fn compile_for(
         return Err(problems);
     }
     let routes: Vec<Vec<Point>> = paths.iter().map(|path| path.points.clone()).collect();
-    let warnings = time_warnings(plan, &routes);
+    let mut warnings = time_warnings(plan, &routes);
+    warnings.extend(frame_warning(plan, world));
     let mut builder = Builder::new(plan, &legs.positions, &legs.keepouts, &paths, robot);
     builder.build();
     let Builder {
@@ -422,7 +484,11 @@ fn waypoint_problem(
             });
             format!(
                 "waypoint `{name}` is outside the world `{world_name}`: it is at {point} m, the \
-                 world spans {min_x} to {max_x} m east and {min_y} to {max_y} m north"
+                 world spans {} to {} m east and {} to {} m north",
+                mm(min_x),
+                mm(max_x),
+                mm(min_y),
+                mm(max_y)
             )
         }
         Blocker::InObstacle { line } => format!(
@@ -435,9 +501,8 @@ fn waypoint_problem(
             distance_m,
             keep_m,
         } => format!(
-            "waypoint `{name}` at {point} m is {} m from the {kind}{} of the world \
-             `{world_name}`; {}",
-            mm(*distance_m),
+            "waypoint `{name}` at {point} m {} the {kind}{} of the world `{world_name}`; {}",
+            geo::is_from(*distance_m),
             shape_origin(*line),
             robot_is(*keep_m, "clearance", robot.clearance_m)
         ),
@@ -454,8 +519,8 @@ fn waypoint_problem(
                 .find(|keepout| &keepout.name == area)
                 .map_or(0.0, |keepout| keepout.margin_m);
             format!(
-                "waypoint `{name}` at {point} m is {} m from the no-go area `{area}`; {}",
-                mm(*distance_m),
+                "waypoint `{name}` at {point} m {} the no-go area `{area}`; {}",
+                geo::is_from(*distance_m),
                 robot_is(*keep_m, "margin", margin)
             )
         }
@@ -496,6 +561,47 @@ fn frame_origin(plan: &Plan, world: Option<&World>, problems: &mut Vec<Located>)
             None
         }
     }
+}
+
+/// How far the flat frame may be off a waypoint's true distance from its origin before a check
+/// says so: the legs are planned and timed in that frame.
+const FRAME_ERROR_LIMIT_M: f64 = 1.0;
+
+/// The waypoint where the plan's flat frame (an equirectangular projection round its origin,
+/// accurate to centimetres over a few kilometres) is furthest off the true distance from the
+/// origin, when that is more than [`FRAME_ERROR_LIMIT_M`]: a plan drawn over hundreds of
+/// kilometres is planned and timed on distorted distances.
+fn frame_warning(plan: &Plan, world: Option<&World>) -> Option<Located> {
+    let origin = match world {
+        Some(world) => {
+            let (lat, lon) = world.origin_lat_lon();
+            LatLon::new(lat, lon)
+        }
+        None => plan.origin?,
+    };
+    let (worst, error_m, true_m) = plan
+        .waypoints
+        .iter()
+        .map(|waypoint| {
+            let local = waypoint.position.to_local(origin);
+            let true_m = origin.great_circle_m(waypoint.position);
+            (waypoint, (local.x.hypot(local.y) - true_m).abs(), true_m)
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    (error_m > FRAME_ERROR_LIMIT_M).then(|| {
+        Located::new(
+            worst.pos,
+            format!(
+                "waypoint `{}` is {:.1} km from the origin of the plan's frame, where its flat \
+                 (local) projection is {:.0} m off the true distance: distances and times are \
+                 only right within a few kilometres of the origin; split the plan, or give it \
+                 an origin near its waypoints",
+                worst.name,
+                true_m / 1000.0,
+                error_m
+            ),
+        )
+    })
 }
 
 /// The no-go areas in the world frame, each with its margin.

@@ -3,7 +3,9 @@
 //! Import: every `<wpt>` becomes a waypoint; the points of each `<rte>` and each `<trk>`
 //! become waypoints joined by legs, routes and tracks one after the other in file order (a
 //! track's points are thinned to one every [`TRACK_SPACING_M`] metres, since a receiver logs
-//! one a second). A file with waypoints only gets legs between them in file order. Names become
+//! one a second). A route point with the name of a point already read, within [`SAME_POINT_M`]
+//! of it, is that point (GPS tools write a route's points as waypoints too, and a round trip
+//! ends where it began). A file with waypoints only gets legs between them in file order. Names become
 //! identifiers (`Gate 1` → `Gate_1`), made unique with a suffix. A `<sym>` that is a SIDC
 //! becomes the waypoint's symbol.
 //!
@@ -22,6 +24,10 @@ use crate::{geo, plan::xml::default_leg_name};
 
 /// Track points closer than this to the last one kept are dropped on import.
 pub const TRACK_SPACING_M: f64 = 5.0;
+
+/// A route point this close to a point of the same name already read is that point: GPS tools
+/// round coordinates differently in `wpt` and `rtept` (our own export writes 7 decimals, 1 cm).
+pub const SAME_POINT_M: f64 = 1.0;
 
 /// Reads a GPX file into a plan called `name` over the system file `system`.
 pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>> {
@@ -43,10 +49,15 @@ pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>
     // Sequences of waypoint names to join with legs, one per route or track.
     let mut sequences: Vec<Vec<String>> = Vec::new();
     let mut loose: Vec<String> = Vec::new();
+    // The named points so far (`wpt` and `rtept`): (name as written, position, waypoint).
+    let mut named: Vec<(String, LatLon, String)> = Vec::new();
     for child in &root.children {
         match local(&child.name) {
             "wpt" => {
                 if let Some(waypoint) = point(child, "wpt", &mut names, &mut problems) {
+                    if let Some(written) = written_name(child) {
+                        named.push((written, waypoint.position, waypoint.name.clone()));
+                    }
                     loose.push(waypoint.name.clone());
                     plan.waypoints.push(waypoint);
                 }
@@ -54,9 +65,34 @@ pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>
             "rte" => {
                 let mut sequence = Vec::new();
                 for rtept in child.children.iter().filter(|c| local(&c.name) == "rtept") {
-                    if let Some(waypoint) = point(rtept, "rtept", &mut names, &mut problems) {
-                        sequence.push(waypoint.name.clone());
-                        plan.waypoints.push(waypoint);
+                    let Some(waypoint) = point(rtept, "rtept", &mut names, &mut problems) else {
+                        continue;
+                    };
+                    // GPS tools (and our export) write a route's points as waypoints too, and
+                    // a round trip ends where it began: a point with the name and the place of
+                    // one already read is that one, not a copy.
+                    let written = written_name(rtept);
+                    let same = written.as_ref().and_then(|written| {
+                        named.iter().find(|(name, position, _)| {
+                            name == written
+                                && geo::distance(
+                                    waypoint.position.to_local(*position),
+                                    Point::default(),
+                                ) <= SAME_POINT_M
+                        })
+                    });
+                    match same {
+                        Some((_, _, existing)) => {
+                            names.forget(&waypoint.name);
+                            sequence.push(existing.clone());
+                        }
+                        None => {
+                            if let Some(written) = written {
+                                named.push((written, waypoint.position, waypoint.name.clone()));
+                            }
+                            sequence.push(waypoint.name.clone());
+                            plan.waypoints.push(waypoint);
+                        }
                     }
                 }
                 sequences.push(sequence);
@@ -130,6 +166,16 @@ pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>
         )]);
     }
     Ok(plan)
+}
+
+/// The name a point is given in the file, if any.
+fn written_name(element: &Element) -> Option<String> {
+    element
+        .children
+        .iter()
+        .find(|child| local(&child.name) == "name")
+        .map(|child| child.text.trim().to_owned())
+        .filter(|text| !text.is_empty())
 }
 
 /// A `wpt`, `rtept` or `trkpt` as a waypoint.
@@ -338,8 +384,10 @@ mod tests {
                 .map(|leg| (leg.from.clone(), leg.to.clone()))
                 .collect()
         };
-        // The export repeats the route's points after the waypoints: they come back suffixed.
-        assert_eq!(route(&again).len(), route(&plan).len());
+        // The export repeats the route's points after the waypoints: they are the same
+        // waypoints, not copies.
+        assert_eq!(route(&again), route(&plan));
+        assert_eq!(again.waypoints.len(), plan.waypoints.len());
         for (a, b) in plan.legs.iter().zip(&again.legs) {
             let pa = plan.waypoint(&a.to).expect("a").position;
             let pb = again.waypoint(&b.to).expect("b").position;

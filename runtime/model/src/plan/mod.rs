@@ -58,6 +58,7 @@ mod xml;
 pub use crate::geo::LatLon;
 pub use compile::{
     CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, robot,
+    robot_explained,
 };
 
 /// A whole plan.

@@ -222,8 +222,8 @@ impl fmt::Display for Blocker {
                 keep_m,
             } => write!(
                 f,
-                "is {} m from the {kind}{}; the robot keeps {} m from obstacles",
-                mm(*distance_m),
+                "{} the {kind}{}; the robot keeps {} m from obstacles",
+                geo::is_from(*distance_m),
                 shape_origin(*line),
                 mm(*keep_m)
             ),
@@ -252,6 +252,11 @@ pub struct Bottleneck {
     pub width_m: f64,
     /// The no-go area that makes it narrow, when one does (rather than an obstacle).
     pub area: Option<String>,
+    /// The width the robot needs there, measured the same way: twice what its centre keeps
+    /// from the thing that makes it narrow, plus a cell's diagonal (the planner's cells must be
+    /// clear at every point, so a passage is narrower on the grid than on the geometry); 0 when
+    /// not known (the way is closed).
+    pub needed_m: f64,
 }
 
 impl fmt::Display for Bottleneck {
@@ -270,6 +275,15 @@ impl fmt::Display for Bottleneck {
         }
         if let Some(area) = &self.area {
             write!(f, ", by the no-go area `{area}`")?;
+        }
+        // Said in the same terms as the width, so that a passage a little wider than twice the
+        // robot's keep does not read as a contradiction.
+        if self.width_m > 0.0 && self.needed_m > 0.0 {
+            write!(
+                f,
+                "; the robot needs {} m there",
+                geo::round_mm((self.needed_m * 100.0).ceil() / 100.0)
+            )?;
         }
         Ok(())
     }

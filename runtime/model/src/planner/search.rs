@@ -454,6 +454,7 @@ impl Planner {
                 at: goal,
                 width_m: 0.0,
                 area: None,
+                needed_m: 0.0,
             };
         };
         let (width, height) = (map.width(), map.height());
@@ -568,6 +569,14 @@ impl Planner {
                 inside_area = inside;
             }
         }
+        // Twice what the centre keeps from the thing that makes the passage narrow, and a cell's
+        // diagonal: a cell is free only when every point of it keeps that far.
+        let needed_m = 2.0
+            * (area
+                .as_ref()
+                .and_then(|name| map.keepouts().iter().find(|k| &k.name == name))
+                .map_or(robot.keep_m(), |keepout| keepout.keep_m(robot))
+                + map.half_diagonal());
         let walled = map.world().is_some_and(|world| !world.is_free(at));
         // A wall's cells are occupied although their centres may be a hair's breadth off it.
         let on_wall = area.is_none() && f64::from(map.slack(cell)) <= -robot.keep_m() + 1e-6;
@@ -576,6 +585,7 @@ impl Planner {
                 at,
                 width_m: 0.0,
                 area,
+                needed_m,
             };
         }
         let edges: Vec<(Point, Point)> = map
@@ -589,6 +599,7 @@ impl Planner {
                 at,
                 width_m: f64::INFINITY,
                 area,
+                needed_m,
             };
         };
         let away = Point::new(near.x - at.x, near.y - at.y);
@@ -597,11 +608,13 @@ impl Planner {
                 at: Point::new((near.x + far.x) / 2.0, (near.y + far.y) / 2.0),
                 width_m: near_m + far_m,
                 area,
+                needed_m,
             },
             None => Bottleneck {
                 at,
                 width_m: 2.0 * near_m,
                 area,
+                needed_m,
             },
         }
     }

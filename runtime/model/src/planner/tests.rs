@@ -214,7 +214,7 @@ fn paths_and_refusals_on_small_worlds() {
             (2.0, 4.3),
             (18.0, 4.3),
             Outcome::Error(
-                "no way through: the narrowest passage is 0.6 m wide at (10, 4.3)".into(),
+                "no way through: the narrowest passage is 0.6 m wide at (10, 4.3); the robot needs 0.78 m there".into(),
             ),
         ),
         (
@@ -240,7 +240,7 @@ fn paths_and_refusals_on_small_worlds() {
             (2.0, 5.0),
             (10.0, 2.0),
             Outcome::Error(
-                "the goal (10, 2) is 0 m from the wall on line 5; the robot keeps 0.35 m from obstacles"
+                "the goal (10, 2) is on the wall on line 5; the robot keeps 0.35 m from obstacles"
                     .into(),
             ),
         ),
@@ -278,7 +278,7 @@ fn paths_and_refusals_on_small_worlds() {
             (2.0, 5.0),
             (15.0, 5.0),
             Outcome::Error(
-                "no way through: the narrowest passage is 1.2 m wide at (10.02, 0.6), by the no-go area `ditch`"
+                "no way through: the narrowest passage is 1.2 m wide at (10.02, 0.6), by the no-go area `ditch`; the robot needs 2.08 m there"
                     .into(),
             ),
         ),

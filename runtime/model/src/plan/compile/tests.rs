@@ -518,7 +518,7 @@ fn a_leg_with_no_way_through_says_where_it_is_cut() {
             ""
         ),
         [
-            "leg `through`: no way from `west` to `east` keeps 0.6 m from obstacles; the narrowest passage is 1 m wide at (20, 14.5)"
+            "leg `through`: no way from `west` to `east` keeps 0.6 m from obstacles; the narrowest passage is 1 m wide at (20, 14.5); the robot needs 1.28 m there"
         ]
     );
     // A waypoint that the robot cannot get to: the ring of walls round the block is closed.

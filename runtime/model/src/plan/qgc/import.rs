@@ -18,6 +18,14 @@ pub struct Imported {
     pub warnings: Vec<Located>,
 }
 
+/// A QGC plan file that cannot be imported: its problems, and the warnings about what was
+/// skipped on the way (often the reason: a survey skipped leaves no waypoint).
+#[derive(Debug)]
+pub struct Failed {
+    pub problems: Vec<Located>,
+    pub warnings: Vec<Located>,
+}
+
 /// Reads a QGC plan file into a plan called `name` over the system file `system`. A delay
 /// until a time of day becomes an appointment on the day of `start_unix_secs` (the plan's
 /// start), or the next day when that time has passed; without a start it is dropped.
@@ -27,7 +35,20 @@ pub fn import(
     system: &str,
     start_unix_secs: Option<f64>,
 ) -> Result<Imported, Vec<Located>> {
-    let root: Value = serde_json::from_str(text).map_err(|err| vec![json_error(&err)])?;
+    import_all(text, name, system, start_unix_secs).map_err(|failed| failed.problems)
+}
+
+/// [`import`], with the warnings also when the file is refused.
+pub fn import_all(
+    text: &str,
+    name: &str,
+    system: &str,
+    start_unix_secs: Option<f64>,
+) -> Result<Imported, Failed> {
+    let root: Value = serde_json::from_str(text).map_err(|err| Failed {
+        problems: vec![json_error(&err)],
+        warnings: Vec::new(),
+    })?;
     let mut reader = Reader {
         positions: JsonPositions::of(text),
         problems: Vec::new(),
@@ -39,14 +60,12 @@ pub fn import(
         mut warnings,
         ..
     } = reader;
+    warnings.sort_by_key(|warning| warning.pos);
     match plan {
-        Some(plan) if problems.is_empty() => {
-            warnings.sort_by_key(|warning| warning.pos);
-            Ok(Imported { plan, warnings })
-        }
+        Some(plan) if problems.is_empty() => Ok(Imported { plan, warnings }),
         _ => {
             problems.sort_by_key(|problem| problem.pos);
-            Err(problems)
+            Err(Failed { problems, warnings })
         }
     }
 }
@@ -215,9 +234,20 @@ impl Reader<'_> {
             self.rally(rally, &mut plan);
         }
         if self.problems.is_empty() && plan.legs.is_empty() {
+            let skipped = self.warnings.len();
             self.problem(
                 "mission.items",
-                "the QGC plan has no waypoint to drive to: a plan needs two points to make a leg",
+                if skipped == 0 {
+                    "the QGC plan has no waypoint to drive to: a plan needs two points to make a \
+                     leg"
+                    .to_owned()
+                } else {
+                    format!(
+                        "the QGC plan has no waypoint to drive to: a plan needs two points to \
+                         make a leg, and what it has was skipped ({}, each warned where it is)",
+                        crate::plural(skipped, "warning")
+                    )
+                },
             );
         }
         Some(plan)
@@ -248,6 +278,8 @@ impl Reader<'_> {
                     .and_then(Value::as_f64)
                     .filter(|speed| speed.is_finite() && *speed > 0.0)
                 {
+                    // The plan's own speed, as QGC's time estimates use it; `armor check`
+                    // times the legs at the robot's speed when that is slower.
                     plan.navigation.speed_mps = speed;
                 }
             }
@@ -300,6 +332,13 @@ impl Reader<'_> {
             self.problem(path, "a simple item needs its `params`, a list of seven");
             return;
         };
+        // QGC's older item format (which it still loads): four `params` and the position
+        // apart, `coordinate` [latitude, longitude, altitude], as params 5 to 7.
+        let coordinate_path = key_path(path, "coordinate");
+        let coordinate = item
+            .get("coordinate")
+            .filter(|_| params.len() == 4)
+            .map(|value| (value, coordinate_path.as_str()));
         // QGC writes a NaN parameter (unused) as null.
         let param = |index: usize| params.get(index).and_then(Value::as_f64);
         match command {
@@ -315,24 +354,36 @@ impl Reader<'_> {
                     );
                     return;
                 }
-                let lat = self.param_number(params, &params_path, 4, "the latitude");
-                let lon = self.param_number(params, &params_path, 5, "the longitude");
-                let (Some(lat), Some(lon)) = (lat, lon) else {
-                    return;
-                };
-                let Some(position) = self.check_lat_lon(
-                    (lat, &index_path(&params_path, 4)),
-                    (lon, &index_path(&params_path, 5)),
-                ) else {
-                    return;
+                let (position, altitude, altitude_path) = match coordinate {
+                    Some((coordinate, coordinate_path)) => {
+                        let Some(position) = self.lat_lon(coordinate, coordinate_path) else {
+                            return;
+                        };
+                        let altitude = coordinate.get(2).and_then(Value::as_f64);
+                        (position, altitude, index_path(coordinate_path, 2))
+                    }
+                    None => {
+                        let lat = self.param_number(params, &params_path, 4, "the latitude");
+                        let lon = self.param_number(params, &params_path, 5, "the longitude");
+                        let (Some(lat), Some(lon)) = (lat, lon) else {
+                            return;
+                        };
+                        let Some(position) = self.check_lat_lon(
+                            (lat, &index_path(&params_path, 4)),
+                            (lon, &index_path(&params_path, 5)),
+                        ) else {
+                            return;
+                        };
+                        (position, param(6), index_path(&params_path, 6))
+                    }
                 };
                 if command == MAV_CMD_NAV_SPLINE_WAYPOINT {
                     self.warn(path, "a spline waypoint is driven to in a straight line");
                 }
-                let altitude = param(6).unwrap_or(0.0);
+                let altitude = altitude.unwrap_or(0.0);
                 if altitude != 0.0 {
                     self.warn(
-                        &index_path(&params_path, 6),
+                        &altitude_path,
                         format!("the altitude ({altitude} m) is not carried: a ground robot"),
                     );
                 }

@@ -26,7 +26,7 @@ mod import;
 mod tests;
 
 pub use export::{Exported, export};
-pub use import::{Imported, import};
+pub use import::{Failed, Imported, import, import_all};
 
 pub const MAV_CMD_NAV_WAYPOINT: u64 = 16;
 pub const MAV_CMD_NAV_LOITER_TIME: u64 = 19;
