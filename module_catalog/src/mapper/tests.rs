@@ -1,7 +1,7 @@
 use std::path::Path;
 
 use super::*;
-use crate::sim::tour::{BUILDING_LOOP, Tour};
+use crate::sim::tour::{BUILDING_LOOP, RING_FLOOR, RING_LOOP, Tour};
 use crate::sim::world::World;
 use crate::sim::{SimParams, Simulator};
 use armor_module_api::testing::{Step, TestBench};
@@ -307,7 +307,12 @@ fn drive_the_building_loop(seed: u64, odometry_noise_scale: f64) -> LoopRun {
         ..defaults
     };
     let mut sim = Simulator::new(world, params).expect("fits");
-    let mut mapper = Mapper::new(Settings::default()).expect("settings");
+    // Without loop closure: this test is about the scan matcher alone.
+    let settings = Settings {
+        loop_closure: false,
+        ..Settings::default()
+    };
+    let mut mapper = Mapper::new(settings).expect("settings");
     let mut tour = Tour::new(BUILDING_LOOP, 20_000);
     // At the last scan: the corrected pose, the odometry and the truth.
     let (mut corrected, mut odometry, mut truth_at_scan) = (sim.truth(), sim.truth(), sim.truth());
@@ -407,4 +412,149 @@ fn the_last_scan_placed_is_drawn_from_the_corrected_pose() {
         })
         .collect();
     assert_eq!(points, [(1.0, 3.0), (2.0, 1.0)]);
+}
+
+/// The intersection over union of the occupied cells (over 50 %) of the mapper's grid and the
+/// true one, each dilated by one cell (to its eight neighbours) first, so that a wall drawn half
+/// a cell off, or two cells thick where it lies on a cell boundary, still counts as found. Both
+/// are taken on the mapper's cells; the true grid's cells are aligned with them.
+fn dilated_iou(map: &OccupancyGrid, truth: &OccupancyGrid) -> f64 {
+    let (w, h) = (map.width as usize, map.height as usize);
+    let mapped: Vec<bool> = map.cells.iter().map(|&c| c > 50).collect();
+    let mut true_cells = vec![false; w * h];
+    for (index, &cell) in truth.cells.iter().enumerate() {
+        if cell <= 50 {
+            continue;
+        }
+        let (col, row) = (index % truth.width as usize, index / truth.width as usize);
+        let x = truth.origin_x_m + (col as f64 + 0.5) * truth.resolution_m;
+        let y = truth.origin_y_m + (row as f64 + 0.5) * truth.resolution_m;
+        let mc = ((x - map.origin_x_m) / map.resolution_m).floor();
+        let mr = ((y - map.origin_y_m) / map.resolution_m).floor();
+        assert!(
+            mc >= 0.0 && mr >= 0.0 && (mc as usize) < w && (mr as usize) < h,
+            "the mapper's grid covers the world"
+        );
+        true_cells[mr as usize * w + mc as usize] = true;
+    }
+    let dilate = |cells: &[bool]| {
+        let mut out = vec![false; w * h];
+        for row in 0..h {
+            for col in 0..w {
+                if !cells[row * w + col] {
+                    continue;
+                }
+                for r in row.saturating_sub(1)..=(row + 1).min(h - 1) {
+                    for c in col.saturating_sub(1)..=(col + 1).min(w - 1) {
+                        out[r * w + c] = true;
+                    }
+                }
+            }
+        }
+        out
+    };
+    let (mapped, true_cells) = (dilate(&mapped), dilate(&true_cells));
+    let both = mapped.iter().zip(&true_cells).filter(|(a, b)| **a && **b).count();
+    let either = mapped.iter().zip(&true_cells).filter(|(a, b)| **a || **b).count();
+    both as f64 / either as f64
+}
+
+/// One drive round the ring corridor of [`RING_FLOOR`] with the simulator's default noise.
+#[derive(Debug)]
+struct RingRun {
+    /// Back at the start: the mapper's error against the truth, and the odometry's.
+    closure_error_m: f64,
+    closure_heading_error_rad: f64,
+    odometry_error_m: f64,
+    /// The worst error of the pose published on the way.
+    max_error_m: f64,
+    iou: f64,
+    /// The IoU of a map drawn from the true poses: the best the scans allow.
+    truth_iou: f64,
+    stats: Stats,
+    travelled_m: f64,
+}
+
+fn drive_the_ring(seed: u64, loop_closure: bool) -> RingRun {
+    let world = World::parse(RING_FLOOR, "ring.world").expect("valid");
+    let truth_grid = world.occupancy_grid(0.1).expect("grid");
+    let params = SimParams {
+        seed,
+        ..SimParams::default()
+    };
+    let mut sim = Simulator::new(world, params).expect("fits");
+    let settings = Settings {
+        loop_closure,
+        ..Settings::default()
+    };
+    let mut mapper = Mapper::new(settings).expect("settings");
+    let mut placed = Mapper::new(settings).expect("settings");
+    let mut tour = Tour::new(RING_LOOP, 20_000);
+    let (mut corrected, mut odometry, mut truth) = (sim.truth(), sim.truth(), sim.truth());
+    let mut max_error_m = 0.0_f64;
+    while let Some(report) = tour.next_scan(&mut sim) {
+        odometry = report.odometry.pose_in_odom;
+        truth = report.truth;
+        placed.place_scan(sim.scan(), truth).expect("scan");
+        corrected = mapper.on_scan(sim.scan(), odometry).expect("scan");
+        max_error_m = max_error_m.max(distance(corrected, truth));
+    }
+    assert!(tour.finished(), "the robot got stuck at {:?}", sim.truth());
+    assert_eq!(sim.collisions(), 0);
+    let map = mapper.occupancy_grid().expect("a map");
+    RingRun {
+        closure_error_m: distance(corrected, truth),
+        closure_heading_error_rad: wrap_angle(corrected.theta_rad - truth.theta_rad).abs(),
+        odometry_error_m: distance(odometry, truth),
+        max_error_m,
+        iou: dilated_iou(&map, &truth_grid),
+        truth_iou: dilated_iou(&placed.occupancy_grid().expect("a map"), &truth_grid),
+        stats: mapper.stats(),
+        travelled_m: tour.travelled_m(),
+    }
+}
+
+/// The issue's loop closure test: once round a 100 m ring corridor with the simulator's default
+/// noise, the mapper without loop closure comes back off by its drift, with a second copy of
+/// the start's walls in its map; with it, the loop closes, the pose comes back onto the truth
+/// and the map onto the world.
+#[test]
+fn closing_the_loop_round_a_ring_corridor_corrects_the_pose_and_the_map() {
+    let off = drive_the_ring(1, false);
+    let on = drive_the_ring(1, true);
+    for (name, run) in [("without loop closure", &off), ("with loop closure", &on)] {
+        println!(
+            "ring, {:.1} m, {name}: error at the closure {:.3} m and {:.2}° (odometry {:.3} m), \
+             worst on the way {:.3} m; occupied IoU (dilated) {:.3} (from the true poses {:.3}); \
+             {:?}",
+            run.travelled_m,
+            run.closure_error_m,
+            run.closure_heading_error_rad.to_degrees(),
+            run.odometry_error_m,
+            run.max_error_m,
+            run.iou,
+            run.truth_iou,
+            run.stats
+        );
+    }
+    assert!(off.travelled_m > 95.0, "{} m", off.travelled_m);
+    assert_eq!(off.stats.keyframes, 0, "no keyframes without loop closure");
+    assert!(
+        off.closure_error_m > 0.2,
+        "the mapper alone must drift for the test to mean anything: {} m",
+        off.closure_error_m
+    );
+    assert!(on.stats.loop_closures >= 1 && on.stats.optimisations >= 1, "{:?}", on.stats);
+    assert!(
+        on.closure_error_m * 3.0 < off.closure_error_m && on.closure_error_m < 0.1,
+        "{} m with loop closure, {} m without",
+        on.closure_error_m,
+        off.closure_error_m
+    );
+    assert!(
+        on.iou > off.iou + 0.05,
+        "IoU {} with loop closure, {} without",
+        on.iou,
+        off.iou
+    );
 }
