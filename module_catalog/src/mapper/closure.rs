@@ -21,9 +21,9 @@ use std::collections::BinaryHeap;
 use armor_module_api::types::Pose2D;
 
 use super::between;
-use super::graph::{Edge, PoseGraph};
+use super::graph::{Edge, PoseGraph, diagonal};
 use super::grid::LogOddsGrid;
-use super::matcher::{Matcher, SearchWindow};
+use super::matcher::{self, Matcher, SearchWindow};
 
 /// Earlier keyframes are looked at only this far back along the path: nearer ones are part of
 /// the map the scan matcher already uses.
@@ -54,15 +54,30 @@ pub const LOOP_MIN_SHARE: f64 = 0.6;
 /// optimisation (metres, radians).
 const AGREES_M: f64 = 0.03;
 const AGREES_RAD: f64 = 0.01;
-/// The standard deviations trusted of a loop match...
-const LOOP_SIGMA_M: f64 = 0.05;
-const LOOP_SIGMA_RAD: f64 = 0.01;
-/// ... and of the scan matcher's motion from one keyframe to the next: this much, plus this
-/// much per metre travelled.
-const STEP_SIGMA_M: f64 = 0.01;
-const STEP_SIGMA_PER_M: f64 = 0.03;
-const STEP_SIGMA_RAD: f64 = 0.003;
-const STEP_SIGMA_RAD_PER_M: f64 = 0.005;
+/// How far off a point of a scan is trusted to be from the wall it pairs with, for the motion
+/// from one keyframe to the next (the scan matcher's, over a dozen scans) and for a loop match.
+/// A direction that every point pins down is trusted to this; one that no wall faces (along a
+/// corridor), not at all by the scan (see [`matcher::information_per_point`]).
+const STEP_POINT_SIGMA_M: f64 = 0.05;
+const LOOP_POINT_SIGMA_M: f64 = 0.05;
+/// Where the scan says nothing, the scan matcher's motion from one keyframe to the next is
+/// trusted to this much only: it is then only the odometry's prediction, or worse, a slip
+/// along a corridor.
+const STEP_PRIOR_SIGMA_M: f64 = 1.0;
+const STEP_PRIOR_SIGMA_RAD: f64 = 0.5;
+/// The odometry's motion from one keyframe to the next is trusted to within this much, plus
+/// this much per metre travelled and per radian turned: an ordinary wheel odometry (the
+/// simulator's default noise is 2 % of the way), which in a corridor says where along it the
+/// robot went better than the walls do.
+const ODOMETRY_SIGMA_M: f64 = 0.02;
+const ODOMETRY_SIGMA_PER_M: f64 = 0.05;
+const ODOMETRY_SIGMA_RAD: f64 = 0.01;
+const ODOMETRY_SIGMA_RAD_PER_M: f64 = 0.02;
+const ODOMETRY_SIGMA_RAD_PER_RAD: f64 = 0.05;
+/// A loop match is trusted to within this where its scan says nothing: it then only repeats
+/// the prediction it started from.
+const LOOP_PRIOR_SIGMA_M: f64 = 2.0;
+const LOOP_PRIOR_SIGMA_RAD: f64 = 0.5;
 
 /// A scan kept with its node of the graph.
 #[derive(Clone, Debug)]
@@ -73,6 +88,9 @@ pub struct Keyframe {
     points: Vec<(f64, f64)>,
     /// The path length travelled when it was made.
     travelled_m: f64,
+    /// The odometry's pose then (None when the odometry restarted since the keyframe before,
+    /// in another frame).
+    odometry: Option<Pose2D>,
 }
 
 /// When and how to make keyframes.
@@ -113,6 +131,14 @@ impl LoopCloser {
         &self.graph
     }
 
+    /// The odometry restarted: the next keyframe is joined to the one before by the scan
+    /// matcher alone.
+    pub fn forget_odometry(&mut self) {
+        if let Some(last) = self.keyframes.last_mut() {
+            last.odometry = None;
+        }
+    }
+
     /// Loop edges added so far, and the optimisations they caused.
     pub fn closures(&self) -> (u64, u64) {
         (self.closures, self.optimisations)
@@ -121,9 +147,12 @@ impl LoopCloser {
     /// Takes the corrected pose of a scan just integrated, with its beams and points. Makes a
     /// keyframe of it when it is far enough from the last one and looks for a loop from there;
     /// returns the new poses when the graph was optimised.
+    #[allow(clippy::too_many_arguments)]
     pub fn on_scan(
         &mut self,
+        grid: &LogOddsGrid,
         pose: Pose2D,
+        odometry: Pose2D,
         beams: &[(f64, f64, bool)],
         points: &[(f64, f64)],
         spacing: KeyframeSpacing,
@@ -142,24 +171,46 @@ impl LoopCloser {
                 return None;
             }
         }
+        // What the scan says of the keyframe's pose, on the map it was just matched against.
+        let seen = matcher::information_per_point(grid, points, pose);
         let node = self.graph.add_node(pose);
         self.keyframes.push(Keyframe {
             beams: beams.to_vec(),
             points: points.to_vec(),
             travelled_m: self.travelled_m,
+            odometry: Some(odometry),
         });
         if let Some(previous) = previous {
             let measured = between(previous, pose);
-            let length = measured.x_m.hypot(measured.y_m);
-            let sigma_m = STEP_SIGMA_M + STEP_SIGMA_PER_M * length;
-            let sigma_rad = STEP_SIGMA_RAD + STEP_SIGMA_RAD_PER_M * length;
-            // The nodes exist and the information is positive: this cannot be refused.
+            let scan_information = information(
+                seen,
+                pose,
+                STEP_POINT_SIGMA_M,
+                STEP_PRIOR_SIGMA_M,
+                STEP_PRIOR_SIGMA_RAD,
+            );
+            // The nodes exist and the information is positive definite: these cannot be
+            // refused.
             let _ = self.graph.add_edge(Edge {
                 from: node - 1,
                 to: node,
                 measured,
-                information: information(sigma_m, sigma_rad),
+                information: scan_information,
             });
+            if let Some(before) = self.keyframes[node - 1].odometry {
+                let moved = between(before, odometry);
+                let length = moved.x_m.hypot(moved.y_m);
+                let sigma_m = ODOMETRY_SIGMA_M + ODOMETRY_SIGMA_PER_M * length;
+                let sigma_rad = ODOMETRY_SIGMA_RAD
+                    + ODOMETRY_SIGMA_RAD_PER_M * length
+                    + ODOMETRY_SIGMA_RAD_PER_RAD * moved.theta_rad.abs();
+                let _ = self.graph.add_edge(Edge {
+                    from: node - 1,
+                    to: node,
+                    measured: moved,
+                    information: information(None, pose, 1.0, sigma_m, sigma_rad),
+                });
+            }
         }
         self.close_loop(node, resolution_m)
     }
@@ -181,15 +232,15 @@ impl LoopCloser {
             .filter_map(|&k| {
                 let pose = self.graph.poses()[k];
                 let apart = (pose.x_m - now.x_m).hypot(pose.y_m - now.y_m);
-                let uncertainty = (LOOP_BASE_M + LOOP_DRIFT_PER_M * way_m[k]).min(LOOP_MAX_SEARCH_M);
+                let uncertainty =
+                    (LOOP_BASE_M + LOOP_DRIFT_PER_M * way_m[k]).min(LOOP_MAX_SEARCH_M);
                 (apart <= uncertainty + LOOP_OVERLAP_M).then_some((k, apart, way_m[k]))
             })
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(k, _, way)| (k, way))?;
         let window = SearchWindow {
             linear_m: (LOOP_BASE_M + LOOP_DRIFT_PER_M * search_m).min(LOOP_MAX_SEARCH_M),
-            angular_rad: (LOOP_BASE_RAD + LOOP_DRIFT_RAD_PER_M * search_m)
-                .min(LOOP_MAX_SEARCH_RAD),
+            angular_rad: (LOOP_BASE_RAD + LOOP_DRIFT_RAD_PER_M * search_m).min(LOOP_MAX_SEARCH_RAD),
         };
         let submap = self.submap(candidate, travelled_m, window, resolution_m)?;
         let points = &self.keyframes[node].points;
@@ -204,11 +255,18 @@ impl LoopCloser {
             );
             return None;
         }
+        let seen = matcher::information_per_point(&submap, points, found.pose);
         let edge = Edge {
             from: candidate,
             to: node,
             measured: between(self.graph.poses()[candidate], found.pose),
-            information: information(LOOP_SIGMA_M, LOOP_SIGMA_RAD),
+            information: information(
+                seen,
+                found.pose,
+                LOOP_POINT_SIGMA_M,
+                LOOP_PRIOR_SIGMA_M,
+                LOOP_PRIOR_SIGMA_RAD,
+            ),
         };
         let (off_m, off_rad) = self.graph.edge_error(&edge);
         // The nodes exist and differ, and the information is positive: this cannot be refused.
@@ -294,10 +352,48 @@ impl LoopCloser {
     }
 }
 
-/// The information (inverse variances) of x, y and heading.
-fn information(sigma_m: f64, sigma_rad: f64) -> [f64; 3] {
+/// The information of an edge ending at `pose`: what its scan `seen` says (the matcher's
+/// information per point in the map frame and the number of points, each point trusted to
+/// `point_sigma_m`), turned into the frame of the edge's error (`pose`'s own), plus a floor of
+/// `sigma_m` and `sigma_rad` each way.
+// Matrix products read best with indices.
+#[allow(clippy::needless_range_loop)]
+fn information(
+    seen: Option<([[f64; 3]; 3], usize)>,
+    pose: Pose2D,
+    point_sigma_m: f64,
+    sigma_m: f64,
+    sigma_rad: f64,
+) -> [[f64; 3]; 3] {
     let linear = 1.0 / (sigma_m * sigma_m);
-    [linear, linear, 1.0 / (sigma_rad * sigma_rad)]
+    let mut total = diagonal([linear, linear, 1.0 / (sigma_rad * sigma_rad)]);
+    if let Some((per_point, pairs)) = seen {
+        // The error's x and y are the map frame's turned by the pose's heading: T = diag(R, 1),
+        // and the information in the error's frame is Tᵀ · H · T.
+        let (sin, cos) = pose.theta_rad.sin_cos();
+        let t = [[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]];
+        let scale = pairs as f64 / (point_sigma_m * point_sigma_m);
+        for r in 0..3 {
+            for c in 0..3 {
+                let mut sum = 0.0;
+                for i in 0..3 {
+                    for j in 0..3 {
+                        sum += t[i][r] * per_point[i][j] * t[j][c];
+                    }
+                }
+                total[r][c] += scale * sum;
+            }
+        }
+        // Rounding must not make it asymmetric.
+        for r in 0..3 {
+            for c in 0..r {
+                let mean = (total[r][c] + total[c][r]) / 2.0;
+                total[r][c] = mean;
+                total[c][r] = mean;
+            }
+        }
+    }
+    total
 }
 
 /// A node to visit at a length of way, shortest first.

@@ -23,13 +23,14 @@ const CONVERGED: f64 = 1e-6;
 const MAX_ITERATIONS: usize = 20;
 
 /// A measured motion from keyframe `from` to keyframe `to`, in `from`'s frame, and how much it
-/// is trusted: the inverse variances of its x, y and heading.
+/// is trusted: the inverse of the covariance of its error (x and y in `to`'s frame, and
+/// heading), symmetric and positive definite.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Edge {
     pub from: usize,
     pub to: usize,
     pub measured: Pose2D,
-    pub information: [f64; 3],
+    pub information: [[f64; 3]; 3],
 }
 
 impl Edge {
@@ -76,7 +77,7 @@ impl PoseGraph {
     }
 
     /// Adds an edge between two nodes already in the graph (refused otherwise, or when it joins
-    /// a node to itself or its information is not positive and finite).
+    /// a node to itself or its information is not symmetric and positive definite).
     pub fn add_edge(&mut self, edge: Edge) -> Result<(), String> {
         let nodes = self.poses.len();
         if edge.from >= nodes || edge.to >= nodes || edge.from == edge.to {
@@ -85,9 +86,9 @@ impl PoseGraph {
                 edge.from, edge.to
             ));
         }
-        if !edge.information.iter().all(|i| i.is_finite() && *i > 0.0) {
+        if !positive_definite(edge.information) {
             return Err(format!(
-                "an edge's information must be positive: {:?}",
+                "an edge's information must be symmetric and positive definite: {:?}",
                 edge.information
             ));
         }
@@ -101,7 +102,7 @@ impl PoseGraph {
             .iter()
             .map(|edge| {
                 let e = edge.error(self.poses[edge.from], self.poses[edge.to]);
-                (0..3).map(|k| edge.information[k] * e[k] * e[k]).sum::<f64>()
+                weighted(edge.information, e, e)
             })
             .sum()
     }
@@ -161,8 +162,8 @@ impl PoseGraph {
         let mut first: Vec<usize> = (0..size).map(|i| i - i % 3).collect();
         for edge in &self.edges {
             let (low, high) = (edge.from.min(edge.to), edge.from.max(edge.to));
-            for row in 3 * high..3 * high + 3 {
-                first[row] = first[row].min(3 * low);
+            for row_first in &mut first[3 * high..3 * high + 3] {
+                *row_first = (*row_first).min(3 * low);
             }
         }
         let mut h = Skyline::new(first);
@@ -172,22 +173,19 @@ impl PoseGraph {
             let e = edge.error(a, c);
             let (jacobian_from, jacobian_to) = jacobians(edge.measured, a, c);
             let blocks = [(edge.from, jacobian_from), (edge.to, jacobian_to)];
+            let column = |j: [[f64; 3]; 3], c: usize| [j[0][c], j[1][c], j[2][c]];
             for &(node_r, jr) in &blocks {
                 for r in 0..3 {
                     let row = 3 * node_r + r;
-                    for k in 0..3 {
-                        b[row] += jr[k][r] * edge.information[k] * e[k];
-                    }
+                    b[row] += weighted(edge.information, column(jr, r), e);
                     for &(node_c, jc) in &blocks {
                         for c in 0..3 {
                             let col = 3 * node_c + c;
-                            if col > row {
-                                continue;
+                            if col <= row {
+                                let value =
+                                    weighted(edge.information, column(jr, r), column(jc, c));
+                                h.add(row, col, value);
                             }
-                            let value: f64 = (0..3)
-                                .map(|k| jr[k][r] * edge.information[k] * jc[k][c])
-                                .sum();
-                            h.add(row, col, value);
                         }
                     }
                 }
@@ -205,6 +203,34 @@ impl PoseGraph {
         step[..3].fill(0.0);
         Some(step)
     }
+}
+
+/// `uᵀ · m · v`.
+fn weighted(m: [[f64; 3]; 3], u: [f64; 3], v: [f64; 3]) -> f64 {
+    (0..3)
+        .map(|r| (0..3).map(|c| u[r] * m[r][c] * v[c]).sum::<f64>())
+        .sum()
+}
+
+/// Whether a 3 × 3 matrix is finite, symmetric and positive definite (its leading minors
+/// positive).
+pub fn positive_definite(m: [[f64; 3]; 3]) -> bool {
+    let finite = m.iter().flatten().all(|v| v.is_finite());
+    let symmetric = (0..3).all(|r| (0..3).all(|c| m[r][c] == m[c][r]));
+    let minor2 = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    finite && symmetric && m[0][0] > 0.0 && minor2 > 0.0 && det > 0.0
+}
+
+/// A diagonal information matrix.
+pub fn diagonal(values: [f64; 3]) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for (k, value) in values.into_iter().enumerate() {
+        m[k][k] = value;
+    }
+    m
 }
 
 /// The Jacobians of an edge's error with respect to the (x, y, heading) of its two nodes, rows
@@ -281,18 +307,21 @@ impl Skyline {
         let mut x = b.to_vec();
         for i in 0..n {
             let fi = self.first[i];
-            let mut sum = x[i];
-            for k in fi..i {
-                sum -= self.rows[i][k - fi] * x[k];
-            }
-            x[i] = sum / self.rows[i][i - fi];
+            let row = &self.rows[i];
+            let known: f64 = row[..i - fi]
+                .iter()
+                .zip(&x[fi..i])
+                .map(|(l, x)| l * x)
+                .sum();
+            x[i] = (x[i] - known) / row[i - fi];
         }
         for i in (0..n).rev() {
             let fi = self.first[i];
-            x[i] /= self.rows[i][i - fi];
+            let row = &self.rows[i];
+            x[i] /= row[i - fi];
             let xi = x[i];
-            for k in fi..i {
-                x[k] -= self.rows[i][k - fi] * xi;
+            for (xk, l) in x[fi..i].iter_mut().zip(&row[..i - fi]) {
+                *xk -= l * xi;
             }
         }
         x.iter().all(|v| v.is_finite()).then_some(x)
@@ -317,7 +346,7 @@ mod tests {
             from,
             to,
             measured,
-            information,
+            information: diagonal(information),
         }
     }
 
@@ -399,8 +428,16 @@ mod tests {
         let mut graph = PoseGraph::default();
         graph.add_node(Pose2D::default());
         graph.add_node(pose(1.0, 0.0, 0.0));
-        assert!(graph.add_edge(edge(0, 2, Pose2D::default(), [1.0; 3])).is_err());
-        assert!(graph.add_edge(edge(1, 1, Pose2D::default(), [1.0; 3])).is_err());
+        assert!(
+            graph
+                .add_edge(edge(0, 2, Pose2D::default(), [1.0; 3]))
+                .is_err()
+        );
+        assert!(
+            graph
+                .add_edge(edge(1, 1, Pose2D::default(), [1.0; 3]))
+                .is_err()
+        );
         let zero = edge(0, 1, Pose2D::default(), [1.0, 0.0, 1.0]);
         assert!(graph.add_edge(zero).is_err());
         assert_eq!(graph.optimise(), None, "node 1 has no edge");

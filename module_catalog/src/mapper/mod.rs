@@ -407,6 +407,7 @@ impl Mapper {
         if let Some((_, odometry)) = &mut self.last {
             *odometry = None;
         }
+        self.closer.forget_odometry();
     }
 
     /// Matches a scan taken at the odometry pose `odometry`, integrates it, and returns the
@@ -427,7 +428,7 @@ impl Mapper {
         };
         self.integrate_at(pose)?;
         let pose = if self.settings.loop_closure {
-            self.close_loops(pose)?
+            self.close_loops(pose, odometry)?
         } else {
             pose
         };
@@ -448,13 +449,21 @@ impl Mapper {
 
     /// Hands the scan just integrated to the loop closure, and when a loop moved the keyframes,
     /// draws the grid again from them; returns the pose of the scan, corrected by the loop.
-    fn close_loops(&mut self, pose: Pose2D) -> Result<Pose2D, String> {
+    fn close_loops(&mut self, pose: Pose2D, odometry: Pose2D) -> Result<Pose2D, String> {
         let spacing = self.settings.keyframe_spacing();
         let resolution_m = self.settings.resolution_m;
-        let Some(closed) =
-            self.closer
-                .on_scan(pose, &self.beams, &self.points, spacing, resolution_m)
-        else {
+        let Some(grid) = &self.grid else {
+            return Ok(pose);
+        };
+        let Some(closed) = self.closer.on_scan(
+            grid,
+            pose,
+            odometry,
+            &self.beams,
+            &self.points,
+            spacing,
+            resolution_m,
+        ) else {
             return Ok(pose);
         };
         // Smaller moves than half a cell would leave the grid as it is.
@@ -462,8 +471,13 @@ impl Mapper {
             && let Some(old) = &self.grid
         {
             let (origin_x_m, origin_y_m) = old.origin();
-            let mut grid =
-                LogOddsGrid::new(resolution_m, old.width(), old.height(), origin_x_m, origin_y_m)?;
+            let mut grid = LogOddsGrid::new(
+                resolution_m,
+                old.width(),
+                old.height(),
+                origin_x_m,
+                origin_y_m,
+            )?;
             for (at, keyframe) in self.closer.keyframes() {
                 grid.integrate(at, keyframe.beams.iter().copied());
             }

@@ -52,7 +52,13 @@ rect     0,9 0.6,10
 ";
 
 /// Once round [`RING_FLOOR`]'s corridor, anticlockwise from the start and back to it: 100 m.
-pub const RING_LOOP: &[(f64, f64)] = &[(30.5, 1.5), (30.5, 22.5), (1.5, 22.5), (1.5, 1.5), (4.0, 1.5)];
+pub const RING_LOOP: &[(f64, f64)] = &[
+    (30.5, 1.5),
+    (30.5, 22.5),
+    (1.5, 22.5),
+    (1.5, 1.5),
+    (4.0, 1.5),
+];
 
 /// A waypoint counts as reached this close.
 const REACHED_M: f64 = 0.15;
