@@ -48,8 +48,11 @@ const SUBMAP_KEYFRAMES: usize = 10;
 /// A loop match must score at least this (the mean likelihood field at its points; the scan
 /// matcher's own threshold is 0.1, but a false loop closure bends the whole map) ...
 pub const LOOP_MIN_SCORE: f64 = 0.6;
-/// ... on at least this share of the scan's points.
-pub const LOOP_MIN_SHARE: f64 = 0.6;
+/// ... on at least this share of the scan's points (those that fall where the old keyframes
+/// saw; the others are what the robot sees of the place that it did not see then). A match
+/// along a corridor, where the walls say nothing of where along it the robot is, is taken for
+/// what it says across it only (see the edges' information).
+pub const LOOP_MIN_SHARE: f64 = 0.3;
 /// A loop edge that the graph already agrees with to within this does not start an
 /// optimisation (metres, radians).
 const AGREES_M: f64 = 0.03;
@@ -245,6 +248,17 @@ impl LoopCloser {
         let submap = self.submap(candidate, travelled_m, window, resolution_m)?;
         let points = &self.keyframes[node].points;
         let found = self.matcher.match_scan(&submap, points, now, window)?;
+        // Which points fall on what the old keyframes saw depends on where the scan is put:
+        // seen from the prediction, which may be metres off, too few may. Matched again from
+        // where the search put it, without searching, the score and the share are those of
+        // the pose found.
+        let settled = SearchWindow {
+            linear_m: 0.0,
+            angular_rad: 0.0,
+        };
+        let found = self
+            .matcher
+            .match_scan(&submap, points, found.pose, settled)?;
         let enough = found.points as f64 >= LOOP_MIN_SHARE * points.len() as f64;
         if !(found.score >= LOOP_MIN_SCORE && enough) {
             tracing::debug!(
