@@ -3,17 +3,25 @@
 //! spreads the correction over the way there.
 //!
 //! A keyframe is made every `keyframe_m` metres or `keyframe_deg` degrees of the corrected
-//! pose, a node of the graph joined to the previous keyframe by the motion the scan matcher
-//! found between them. Each new keyframe then looks for earlier ones it could have seen the same
-//! walls as: made at least [`LOOP_MIN_PATH_M`] of path before it (closer ones are what the scan
-//! matcher already matches against), and near it within the uncertainty of their relative
-//! position, which grows with the length of the shortest way between them through the graph
+//! pose, a node of the graph joined to the previous keyframe by two edges: the motion the scan
+//! matcher found between them, trusted in the directions its scan's walls pin down, and the
+//! odometry's, trusted as wheel odometry is. Along a corridor, whose walls say nothing of where
+//! along it the robot is, the odometry's is then what counts: the scan matcher can slip there,
+//! and the graph puts a loop's correction there rather than spreading it evenly.
+//!
+//! Each new keyframe then looks for earlier ones it could have seen the same walls as: made at
+//! least [`LOOP_MIN_PATH_M`] of path before it (closer ones are what the scan matcher already
+//! matches against), and near it within the uncertainty of their relative position, which
+//! grows with the length of the shortest way between them through the graph
 //! ([`LOOP_DRIFT_PER_M`] of it, as the mapper drifts). The nearest such keyframe and its
 //! neighbours along the old path are drawn into a small grid of their own, and the new scan is
 //! matched there with the mapper's [`Matcher`], searching as far as that uncertainty. A match
-//! that scores well on enough of the scan becomes an edge of the graph, and the graph is
-//! optimised when that edge disagrees with it; the mapper then draws its grid again from the
-//! keyframes at their corrected poses.
+//! that scores well on enough of the scan becomes an edge of the graph, trusted in the
+//! directions its walls pin down, and the graph is optimised when that edge disagrees with it;
+//! the mapper then draws its grid again from the keyframes at their corrected poses.
+//!
+//! Every keyframe is kept (about 12 kB each, one a metre) and every optimisation and redrawing
+//! takes them all: fine for a building, not for a city.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -59,8 +67,8 @@ const AGREES_M: f64 = 0.03;
 const AGREES_RAD: f64 = 0.01;
 /// How far off a point of a scan is trusted to be from the wall it pairs with, for the motion
 /// from one keyframe to the next (the scan matcher's, over a dozen scans) and for a loop match.
-/// A direction that every point pins down is trusted to this; one that no wall faces (along a
-/// corridor), not at all by the scan (see [`matcher::information_per_point`]).
+/// A direction is pinned down by as many points as face it, and one that no wall faces (along a
+/// corridor) not at all (see [`matcher::information_per_point`]).
 const STEP_POINT_SIGMA_M: f64 = 0.05;
 const LOOP_POINT_SIGMA_M: f64 = 0.05;
 /// Where the scan says nothing, the scan matcher's motion from one keyframe to the next is
