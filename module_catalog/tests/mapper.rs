@@ -50,11 +50,19 @@ fn the_mapper_describes_its_ports_and_params() {
         ("match_search_deg", "deg", "10"),
         ("max_range_m", "m", "7.5"),
         ("map_rate_hz", "Hz", "1"),
+        ("keyframe_m", "m", "1"),
+        ("keyframe_deg", "deg", "30"),
     ] {
         let param = description.param(name).unwrap_or_else(|| panic!("{name}"));
         assert_eq!(param.unit, unit, "{name}");
         assert_eq!(param.default.as_deref(), Some(default), "{name}");
     }
+    let loop_closure = description.param("loop_closure").expect("loop_closure");
+    assert_eq!(
+        loop_closure.default.as_deref(),
+        Some("true"),
+        "on by default"
+    );
 }
 
 #[test]

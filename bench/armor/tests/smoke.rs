@@ -138,9 +138,34 @@ fn list_names_every_benchmark() {
         "reachability_states_per_s",
         "sim_realtime_factor",
         "mapper_scan_ms",
+        "loop_closure_error_m",
     ] {
         assert!(stdout.contains(name), "{stdout}");
     }
+}
+
+/// Not a timing: the mapper's error after the loop is the same on any machine and load, so its
+/// goal is checked here.
+#[test]
+fn loop_closure_meets_its_goal_on_the_quick_seed() {
+    let output = bench(&["--quick", "loop_closure_error_m"]);
+    let stdout = text(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{}\nstdout:\n{stdout}\nstderr:\n{}",
+        output.status,
+        text(&output.stderr)
+    );
+    let value: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(value["bench"], "loop_closure_error_m", "{stdout}");
+    assert_eq!(value["unit"], "m", "{stdout}");
+    let without = value["reference"].as_f64().unwrap();
+    let ratio = value["ratio"].as_f64().unwrap();
+    assert!(without > 0.2, "the mapper alone must drift: {stdout}");
+    assert!(
+        ratio <= value["goal_ratio_at_most"].as_f64().unwrap(),
+        "{stdout}"
+    );
 }
 
 #[test]

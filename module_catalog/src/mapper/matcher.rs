@@ -383,54 +383,11 @@ fn refine(
     anchor: Pose2D,
     normals: &mut Vec<Option<CellNormal>>,
 ) -> Option<Pose2D> {
-    let res = grid.resolution_m();
-    let (pairing, huber) = (PAIRING_CELLS * res, HUBER_CELLS * res);
     normals.clear();
     normals.resize(points.len(), None);
     let mut pose = anchor;
     for _ in 0..REFINE_ITERATIONS {
-        let (sin, cos) = pose.theta_rad.sin_cos();
-        let mut h = [[0.0_f64; 3]; 3];
-        let mut b = [0.0_f64; 3];
-        let mut pairs = 0;
-        for (&p, known) in points.iter().zip(normals.iter_mut()) {
-            let (x, y) = transform(pose, (sin, cos), p);
-            let Some((cell, (ex, ey))) = grid.nearest_echo(x, y) else {
-                continue;
-            };
-            let (dx, dy) = (x - ex, y - ey);
-            if dx.hypot(dy) > pairing {
-                continue;
-            }
-            let normal = match *known {
-                Some((known_cell, normal)) if known_cell == cell => normal,
-                _ => {
-                    let normal = grid.normal(cell);
-                    *known = Some((cell, normal));
-                    normal
-                }
-            };
-            let Some((nx, ny)) = normal else {
-                continue;
-            };
-            pairs += 1;
-            let (px, py) = p;
-            // How the point moves as the heading turns.
-            let (tx, ty) = (-sin * px - cos * py, cos * px - sin * py);
-            let j = [nx, ny, nx * tx + ny * ty];
-            let residual = nx * dx + ny * dy;
-            let weight = if residual.abs() <= huber {
-                1.0
-            } else {
-                huber / residual.abs()
-            };
-            for r in 0..3 {
-                b[r] -= weight * j[r] * residual;
-                for c in 0..3 {
-                    h[r][c] += weight * j[r] * j[c];
-                }
-            }
-        }
+        let (mut h, mut b, pairs) = normal_equations(grid, points, pose, normals);
         if pairs < MIN_PAIRS {
             return None;
         }
@@ -455,6 +412,84 @@ fn refine(
         }
     }
     Some(pose)
+}
+
+/// How well the scan's points seen from `pose` pin each direction of the pose down: the
+/// Gauss–Newton matrix of [`refine`]'s point-to-line residuals there (in the map frame, for x,
+/// y and heading), divided by the number of points that paired, and that number. A corridor's
+/// straight walls give it nothing along the corridor: there the scan says nothing of where the
+/// robot is, and loop closure must not take it as saying so. None when too few points pair.
+pub fn information_per_point(
+    grid: &LogOddsGrid,
+    points: &[(f64, f64)],
+    pose: Pose2D,
+) -> Option<([[f64; 3]; 3], usize)> {
+    let mut normals = vec![None; points.len()];
+    let (mut h, _, pairs) = normal_equations(grid, points, pose, &mut normals);
+    if pairs < MIN_PAIRS {
+        return None;
+    }
+    for row in &mut h {
+        for value in row {
+            *value /= pairs as f64;
+        }
+    }
+    Some((h, pairs))
+}
+
+/// The Gauss–Newton matrix and vector of the point-to-line residuals at `pose`, and how many
+/// points paired; `normals` keeps each point's last cell and its normal between calls.
+fn normal_equations(
+    grid: &LogOddsGrid,
+    points: &[(f64, f64)],
+    pose: Pose2D,
+    normals: &mut [Option<CellNormal>],
+) -> ([[f64; 3]; 3], [f64; 3], usize) {
+    let res = grid.resolution_m();
+    let (pairing, huber) = (PAIRING_CELLS * res, HUBER_CELLS * res);
+    let (sin, cos) = pose.theta_rad.sin_cos();
+    let mut h = [[0.0_f64; 3]; 3];
+    let mut b = [0.0_f64; 3];
+    let mut pairs = 0;
+    for (&p, known) in points.iter().zip(normals.iter_mut()) {
+        let (x, y) = transform(pose, (sin, cos), p);
+        let Some((cell, (ex, ey))) = grid.nearest_echo(x, y) else {
+            continue;
+        };
+        let (dx, dy) = (x - ex, y - ey);
+        if dx.hypot(dy) > pairing {
+            continue;
+        }
+        let normal = match *known {
+            Some((known_cell, normal)) if known_cell == cell => normal,
+            _ => {
+                let normal = grid.normal(cell);
+                *known = Some((cell, normal));
+                normal
+            }
+        };
+        let Some((nx, ny)) = normal else {
+            continue;
+        };
+        pairs += 1;
+        let (px, py) = p;
+        // How the point moves as the heading turns.
+        let (tx, ty) = (-sin * px - cos * py, cos * px - sin * py);
+        let j = [nx, ny, nx * tx + ny * ty];
+        let residual = nx * dx + ny * dy;
+        let weight = if residual.abs() <= huber {
+            1.0
+        } else {
+            huber / residual.abs()
+        };
+        for r in 0..3 {
+            b[r] -= weight * j[r] * residual;
+            for c in 0..3 {
+                h[r][c] += weight * j[r] * j[c];
+            }
+        }
+    }
+    (h, b, pairs)
 }
 
 /// Solves `a · x = b` for a 3 × 3 system by Cramer's rule; None if it is singular.

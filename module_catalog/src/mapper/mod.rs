@@ -1,5 +1,6 @@
 //! `mapper`: builds an occupancy grid from laser scans and odometry, and corrects the robot's
-//! pose by matching each scan against the map built so far (2-D SLAM without loop closure).
+//! pose by matching each scan against the map built so far, closing loops when it comes back to
+//! a place it mapped long before (2-D graph SLAM).
 //!
 //! Each scan is paired with the latest odometry. The pose predicted for it is the previous
 //! corrected pose moved by the odometry's increment since the previous scan; the [`matcher`]
@@ -11,17 +12,28 @@
 //! echoes on the mapped part of the grid, or whose best match is poor, is placed at the
 //! prediction.
 //!
+//! Matching against the map so far holds the pose for a while, but its error grows with the
+//! way travelled: back at a place mapped long before, the robot is off by that error, and the
+//! map holds two copies of what it sees again. The [`closure`] keeps keyframes with their scans,
+//! matches a new keyframe against earlier ones nearby with a search as wide as that error, and
+//! optimises a [`graph`] of the keyframes' poses with what it found; the grid is then drawn again
+//! from the keyframes at their corrected poses, and the corrected pose jumps to where the loop
+//! put it. The parameter `loop_closure` turns this off (the mapper of before, for comparison).
+//!
 //! [`Mapper`] is the whole algorithm without a node, for tests and benchmarks: feed it scans
 //! with the odometry pose of each ([`Mapper::on_scan`]), read the map
 //! ([`Mapper::occupancy_grid`]) and the time it took ([`Mapper::stats`]). In release builds a
-//! 360-beam scan takes about 0.3 ms (match and integration) on the office floor of
-//! `building.world`.
+//! 360-beam scan takes about 0.35 ms (match, integration and keyframe) on the office floor of
+//! `building.world`; a scan that closes a loop also waits for the graph's optimisation and the
+//! grid drawn again (`armor-bench mapper_scan_ms` gave a p99 of 12 ms on a loaded machine).
 //!
 //! The map frame is the odometry frame at the first scan: the first corrected pose is the first
 //! odometry pose, and the grid is a square centred on it. With the simulator, whose odometry
 //! starts at the world's start pose, the map frame is thus the world frame, and the corrected
 //! pose can stand in for odometry wherever goals are given in world coordinates.
 
+pub mod closure;
+pub mod graph;
 pub mod grid;
 pub mod matcher;
 
@@ -34,6 +46,7 @@ use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType
 
 use crate::BodyError;
 use crate::nav::wrap_angle;
+use closure::{KeyframeSpacing, LoopCloser};
 use grid::LogOddsGrid;
 use matcher::{Matcher, SearchWindow};
 
@@ -51,8 +64,9 @@ pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
         TYPE,
         "Builds an occupancy grid from laser scans and odometry, correcting the odometry's drift \
-         by matching each scan against the map built so far; publishes the map and the corrected \
-         pose in the map frame (the odometry frame at the first scan).",
+         by matching each scan against the map built so far and closing loops (keyframes matched \
+         against earlier ones, a pose graph optimised); publishes the map and the corrected pose \
+         in the map frame (the odometry frame at the first scan).",
     )
     .category(armor_module_api::Category::Mapping)
     .version(env!("CARGO_PKG_VERSION"))
@@ -75,7 +89,7 @@ pub fn spec() -> ModuleSpec {
     .output::<Odometry>(
         "pose",
         "the corrected pose in the map frame (and the odometry's twist), after every integrated \
-         scan: a drop-in replacement for odometry",
+         scan: a drop-in replacement for odometry, which jumps when a loop closes",
     )
     .output::<Pose2D>("pose_map", "the same corrected pose, for display")
     .output::<Markers>(
@@ -152,6 +166,39 @@ pub fn spec() -> ModuleSpec {
         .unit("Hz")
         .default("1"),
     )
+    .param(
+        ParamSpec::new(
+            "loop_closure",
+            ParamType::Bool,
+            "match keyframes against earlier ones and correct the map and pose when a loop \
+             closes (tunable live: turned off, the keyframes made so far are kept for when it \
+             is turned on again)",
+        )
+        .default("true"),
+    )
+    .param(
+        ParamSpec::new(
+            "keyframe_m",
+            ParamType::Float,
+            "a keyframe, kept with its scan for loop closure, is made every this many metres of \
+             the corrected pose (greater than 0, at most 10; tunable live)",
+        )
+        .above(0.0)
+        .max(10.0)
+        .unit("m")
+        .default("1"),
+    )
+    .param(
+        ParamSpec::new(
+            "keyframe_deg",
+            ParamType::Float,
+            "... or every this many degrees of turn (greater than 0, at most 180; tunable live)",
+        )
+        .above(0.0)
+        .max(180.0)
+        .unit("deg")
+        .default("30"),
+    )
 }
 
 /// The mapper's parameters.
@@ -163,6 +210,9 @@ pub struct Settings {
     pub match_search_deg: f64,
     pub max_range_m: f64,
     pub map_rate_hz: f64,
+    pub loop_closure: bool,
+    pub keyframe_m: f64,
+    pub keyframe_deg: f64,
 }
 
 impl Default for Settings {
@@ -174,6 +224,9 @@ impl Default for Settings {
             match_search_deg: 10.0,
             max_range_m: 7.5,
             map_rate_hz: 1.0,
+            loop_closure: true,
+            keyframe_m: 1.0,
+            keyframe_deg: 30.0,
         }
     }
 }
@@ -188,6 +241,9 @@ impl Settings {
             match_search_deg: node.param::<f64>("match_search_deg")?,
             max_range_m: node.param::<f64>("max_range_m")?,
             map_rate_hz: node.param::<f64>("map_rate_hz")?,
+            loop_closure: node.param::<bool>("loop_closure")?,
+            keyframe_m: node.param::<f64>("keyframe_m")?,
+            keyframe_deg: node.param::<f64>("keyframe_deg")?,
         };
         settings.check_grid()?;
         Ok(settings)
@@ -213,6 +269,13 @@ impl Settings {
         SearchWindow {
             linear_m: self.match_search_m,
             angular_rad: self.match_search_deg.to_radians(),
+        }
+    }
+
+    fn keyframe_spacing(&self) -> KeyframeSpacing {
+        KeyframeSpacing {
+            linear_m: self.keyframe_m,
+            angular_rad: self.keyframe_deg.to_radians(),
         }
     }
 }
@@ -247,6 +310,11 @@ pub struct Stats {
     pub matched: u64,
     /// Time spent in [`Mapper::on_scan`], in seconds.
     pub busy_secs: f64,
+    /// Keyframes made, loop edges added to their graph, and the times a loop edge moved them
+    /// (and the grid was drawn again).
+    pub keyframes: u64,
+    pub loop_closures: u64,
+    pub optimisations: u64,
 }
 
 impl Stats {
@@ -266,6 +334,7 @@ pub struct Mapper {
     settings: Settings,
     grid: Option<LogOddsGrid>,
     matcher: Matcher,
+    closer: LoopCloser,
     /// The corrected pose of the last integrated scan, and the odometry pose it was paired with
     /// (None after [`Mapper::forget_odometry`]).
     last: Option<(Pose2D, Option<Pose2D>)>,
@@ -281,6 +350,7 @@ impl Mapper {
             settings,
             grid: None,
             matcher: Matcher::default(),
+            closer: LoopCloser::default(),
             last: None,
             stats: Stats::default(),
             beams: Vec::new(),
@@ -303,7 +373,18 @@ impl Mapper {
     }
 
     pub fn stats(&self) -> Stats {
-        self.stats
+        let (loop_closures, optimisations) = self.closer.closures();
+        Stats {
+            keyframes: self.closer.graph().poses().len() as u64,
+            loop_closures,
+            optimisations,
+            ..self.stats
+        }
+    }
+
+    /// The keyframes' poses, as the last loop closure corrected them.
+    pub fn keyframe_poses(&self) -> &[Pose2D] {
+        self.closer.graph().poses()
     }
 
     /// The corrected pose of the last integrated scan.
@@ -327,6 +408,7 @@ impl Mapper {
         if let Some((_, odometry)) = &mut self.last {
             *odometry = None;
         }
+        self.closer.forget_odometry();
     }
 
     /// Matches a scan taken at the odometry pose `odometry`, integrates it, and returns the
@@ -346,6 +428,11 @@ impl Mapper {
             }
         };
         self.integrate_at(pose)?;
+        let pose = if self.settings.loop_closure {
+            self.close_loops(pose, odometry)?
+        } else {
+            pose
+        };
         self.last = Some((pose, Some(odometry)));
         self.stats.scans += 1;
         self.stats.busy_secs += started.elapsed().as_secs_f64();
@@ -359,6 +446,45 @@ impl Mapper {
         check_finite(scan, pose)?;
         self.read_beams(scan);
         self.integrate_at(pose)
+    }
+
+    /// Hands the scan just integrated to the loop closure, and when a loop moved the keyframes,
+    /// draws the grid again from them; returns the pose of the scan, corrected by the loop.
+    fn close_loops(&mut self, pose: Pose2D, odometry: Pose2D) -> Result<Pose2D, String> {
+        let spacing = self.settings.keyframe_spacing();
+        let resolution_m = self.settings.resolution_m;
+        let Some(grid) = &self.grid else {
+            return Ok(pose);
+        };
+        let Some(closed) = self.closer.on_scan(
+            grid,
+            pose,
+            odometry,
+            &self.beams,
+            &self.points,
+            spacing,
+            resolution_m,
+        ) else {
+            return Ok(pose);
+        };
+        // Smaller moves than half a cell would leave the grid as it is.
+        if closed.largest_move_m >= resolution_m / 2.0
+            && let Some(old) = &self.grid
+        {
+            let (origin_x_m, origin_y_m) = old.origin();
+            let mut grid = LogOddsGrid::new(
+                resolution_m,
+                old.width(),
+                old.height(),
+                origin_x_m,
+                origin_y_m,
+            )?;
+            for (at, keyframe) in self.closer.keyframes() {
+                grid.integrate(at, keyframe.beams.iter().copied());
+            }
+            self.grid = Some(grid);
+        }
+        Ok(closed.pose)
     }
 
     /// Puts the beams read last into the grid from `pose` (making the grid, centred there, at
@@ -563,10 +689,14 @@ pub fn body(node: &mut Node) -> BodyResult {
             Event::Shutdown => {
                 let stats = mapper.stats();
                 tracing::info!(
-                    "{} scans integrated, {} placed by the matcher; {:.2} ms per scan",
+                    "{} scans integrated, {} placed by the matcher; {:.2} ms per scan; {} \
+                     keyframes, {} loop edges, {} corrections",
                     stats.scans,
                     stats.matched,
-                    stats.ms_per_scan()
+                    stats.ms_per_scan(),
+                    stats.keyframes,
+                    stats.loop_closures,
+                    stats.optimisations
                 );
                 return Ok(());
             }

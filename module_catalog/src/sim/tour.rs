@@ -29,6 +29,37 @@ pub const BUILDING_LOOP: &[(f64, f64)] = &[
     (2.5, 9.5),
 ];
 
+/// A floor built round a ring corridor, for the mapper's loop closure: a 32 m × 24 m building
+/// whose corridor, 3 m wide, runs all the way round a block of rooms, so that a drive round it
+/// comes back to where it started after 100 m without having seen any of it on the way. Doorways
+/// into the rooms, furniture and cabinets along the outer wall give the scan matcher something
+/// to hold on to, as in a real building; the corridor's long straight stretches are where its
+/// drift grows.
+pub const RING_FLOOR: &str = "\
+name     Ring floor
+origin   48.71250 2.20420
+start    4 1.5 0
+boundary 0,0 32,0 32,24 0,24 0,0
+wall     3,3 6,3
+wall     7.4,3 29,3
+wall     29,3 29,19
+wall     29,20.4 29,21
+wall     29,21 26,21
+wall     24.6,21 3,21
+wall     3,21 3,6
+wall     3,4.6 3,3
+rect     0,9 0.6,10
+";
+
+/// Once round [`RING_FLOOR`]'s corridor, anticlockwise from the start and back to it: 100 m.
+pub const RING_LOOP: &[(f64, f64)] = &[
+    (30.5, 1.5),
+    (30.5, 22.5),
+    (1.5, 22.5),
+    (1.5, 1.5),
+    (4.0, 1.5),
+];
+
 /// A waypoint counts as reached this close.
 const REACHED_M: f64 = 0.15;
 
