@@ -525,9 +525,10 @@ fn poll_control(
             Err(mpsc::RecvTimeoutError::Disconnected) => return,
         }
     };
+    // A role's key (an observer's, say) or the secret itself, which acts as the operator.
     let secret = match secret_file
         .as_deref()
-        .map(armor_module_api::auth::Secret::load)
+        .map(armor_runtime::control::key_from_file)
     {
         Some(Ok(secret)) => Some(secret),
         Some(Err(err)) => {
@@ -558,7 +559,7 @@ fn poll_control(
         // One connection for every poll and request, opened again after an error.
         let reply = match client.as_mut() {
             Some(open) => open.call(&request),
-            None => armor_runtime::control::Client::connect(addr, secret.as_ref()).and_then(
+            None => armor_runtime::control::Client::connect_with(addr, secret.as_ref()).and_then(
                 |mut opened| {
                     let reply = opened.call(&request);
                     client = Some(opened);
@@ -652,7 +653,7 @@ fn drive(
     stop: &AtomicBool,
     secret_file: Option<&Path>,
 ) {
-    let secret = secret_file.and_then(|file| armor_module_api::auth::Secret::load(file).ok());
+    let secret = secret_file.and_then(|file| armor_runtime::control::key_from_file(file).ok());
     let mut client: Option<armor_runtime::control::Client> = None;
     let mut last_error: Option<String> = None;
     while !stop.load(Ordering::Relaxed) {
@@ -678,7 +679,7 @@ fn drive(
         };
         let reply = match client.as_mut() {
             Some(open) => open.call(&request),
-            None => armor_runtime::control::Client::connect(addr, secret.as_ref()).and_then(
+            None => armor_runtime::control::Client::connect_with(addr, secret.as_ref()).and_then(
                 |mut opened| {
                     let reply = opened.call(&request);
                     client = Some(opened);

@@ -284,18 +284,40 @@ impl State {
 /// An arbiter's winning input, as said (`Some(None)`: none wins).
 type Winner = Option<String>;
 
+/// The most endpoints a module may say it serves.
+const MAX_ENDPOINTS: usize = 16;
+/// The longest endpoint name.
+const MAX_ENDPOINT_NAME_BYTES: usize = 64;
+/// The longest message a module sends the config server (a pong with its statistics).
+const MAX_MESSAGE_BYTES: usize = 1024 * 1024;
+
 impl ModuleConn {
     /// Notes an endpoint the module said it listens at. An unspecified address (`0.0.0.0`, `::`)
     /// listens on every interface of the module's host: the one its connection comes from is
     /// where the supervisor reaches it.
+    /// An endpoint is a short name and an `IP:PORT` (else it is dropped with a warning), and a
+    /// module has at most [`MAX_ENDPOINTS`]: whatever a module says, the status stays small.
     fn note_endpoint(&mut self, name: String, address: &str) {
-        let address = match (address.parse::<SocketAddr>(), self.peer) {
-            (Ok(addr), Some(peer)) if addr.ip().is_unspecified() => {
-                SocketAddr::new(peer, addr.port()).to_string()
-            }
-            _ => address.to_owned(),
+        let Ok(addr) = address.parse::<SocketAddr>() else {
+            tracing::warn!(
+                "refused an endpoint whose address is not IP:PORT ({} bytes)",
+                address.len()
+            );
+            return;
         };
-        self.endpoints.insert(name, address);
+        if name.is_empty() || name.len() > MAX_ENDPOINT_NAME_BYTES {
+            tracing::warn!("refused an endpoint name of {} bytes", name.len());
+            return;
+        }
+        if !self.endpoints.contains_key(&name) && self.endpoints.len() >= MAX_ENDPOINTS {
+            tracing::warn!("refused endpoint `{name}`: a module has at most {MAX_ENDPOINTS}");
+            return;
+        }
+        let address = match self.peer {
+            Some(peer) if addr.ip().is_unspecified() => SocketAddr::new(peer, addr.port()),
+            _ => addr,
+        };
+        self.endpoints.insert(name, address.to_string());
     }
 }
 
@@ -477,7 +499,9 @@ impl ConfigServer {
         let peer = stream.get_ref().peer_addr().ok().map(|addr| addr.ip());
         let (mut reader, mut writer) = stream.split();
         let stream = &mut reader;
-        let ToSupervisor::Hello { module: name, pid } = blocking::read_message(stream)? else {
+        let ToSupervisor::Hello { module: name, pid } =
+            blocking::read_message_at_most(stream, MAX_MESSAGE_BYTES)?
+        else {
             let message = "the first message must be `hello`".to_owned();
             blocking::write_message(&mut writer, &FromSupervisor::Error { message })?;
             return Ok(());
@@ -520,7 +544,8 @@ impl ConfigServer {
             pid,
         });
         loop {
-            let message = blocking::read_message::<ToSupervisor>(stream)?;
+            let message =
+                blocking::read_message_at_most::<ToSupervisor>(stream, MAX_MESSAGE_BYTES)?;
             self.heard(&name, conn_id);
             let event = match message {
                 ToSupervisor::Ready => {
