@@ -82,7 +82,12 @@ fn teleop_port(control: &str, secret: &Path) -> SocketAddr {
             "--json",
         ]);
         let json = text.find('{').map_or("", |start| &text[start..]);
-        let status: serde_json::Value = serde_json::from_str(json).unwrap_or_default();
+        // The JSON is followed by the reply's message (on stderr, after stdout here).
+        let status: serde_json::Value = serde_json::Deserializer::from_str(json)
+            .into_iter()
+            .next()
+            .and_then(Result::ok)
+            .unwrap_or_default();
         found = status["modules"].as_array().and_then(|modules| {
             modules
                 .iter()
@@ -531,6 +536,7 @@ fn every_listener_of_a_run_with_a_secret_sends_a_stranger_nothing_and_closes_it(
     let ports = listening_ports(&process_tree(run.pid()));
     // The agent, the config server, the control interface, two data ports and the teleop's.
     assert!(ports.len() >= 6, "{ports:?}");
+    println!("the run's listening ports: {ports:?}");
     let strangers: [&[u8]; 3] = [
         b"",
         b"GET / HTTP/1.0\r\n\r\n",
