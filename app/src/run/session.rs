@@ -102,6 +102,9 @@ pub struct Shared {
     /// The run's files, asked of a run attached without its system file
     /// ([`Request::Files`]); taken by the view, which attaches again with them.
     pub files: Option<RunFiles>,
+    /// The role the studio proved at the run's control interface (`None`: the run has no
+    /// secret, and anyone who reaches it operates).
+    pub role: Option<armor_runtime::control::Role>,
 }
 
 impl Shared {
@@ -561,6 +564,7 @@ fn poll_control(
             Some(open) => open.call(&request),
             None => armor_runtime::control::Client::connect_with(addr, secret.as_ref()).and_then(
                 |mut opened| {
+                    lock(shared).role = opened.role();
                     let reply = opened.call(&request);
                     client = Some(opened);
                     reply
