@@ -597,3 +597,57 @@ fn an_observer_key_reads_the_status_and_cannot_command() {
         assert!(!ok && text.contains("observer"), "{command:?}: {text}");
     }
 }
+
+/// A trickle of bare connections to a module's own port (strangers that never say a word) does
+/// not hold up its input's relink when its provider restarts: the module waits only on peers
+/// that sent a valid first handshake message, and not long in all.
+#[test]
+fn strangers_at_a_modules_port_do_not_delay_its_relink() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let system = armor_tests::workspace_root().join("missions/demo/system.xml");
+    let (run, _control) = run_with_secret(&system, &secret);
+    let line = run.wait_for("the checker's port", PATIENCE, |line| {
+        line.contains("provider registered") && line.contains("checker.received")
+    });
+    let port: SocketAddr = armor_tests::field(&line, "addr").unwrap().parse().unwrap();
+    run.wait_for("the checker linked", PATIENCE, |line| {
+        line.starts_with("[checker]") && line.contains("input linked")
+    });
+    // 25 bare connections a second, each left open without a word.
+    let stop = Arc::new(AtomicBool::new(false));
+    let trickle = {
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            let mut held = Vec::new();
+            while !stop.load(Ordering::Relaxed) {
+                if let Ok(stream) = TcpStream::connect(port) {
+                    held.push(stream);
+                }
+                std::thread::sleep(Duration::from_millis(40));
+            }
+        })
+    };
+    let counter = armor_tests::field(
+        &run.wait_for("the counter's pid", PATIENCE, |line| {
+            line.contains("module started") && line.contains("module=\"counter\"")
+        }),
+        "pid",
+    )
+    .unwrap()
+    .parse::<i32>()
+    .unwrap();
+    let before = run.line_count();
+    armor_tests::signal(counter, 9);
+    run.wait_for_from(before, "the counter started again", PATIENCE, |line| {
+        line.contains("module started") && line.contains("module=\"counter\"")
+    });
+    let restarted = Instant::now();
+    run.wait_for_from(before, "the checker relinked", PATIENCE, |line| {
+        line.starts_with("[checker]") && line.contains("input linked")
+    });
+    let took = restarted.elapsed();
+    stop.store(true, Ordering::Relaxed);
+    trickle.join().unwrap();
+    assert!(took < Duration::from_secs(5), "the relink took {took:?}");
+}

@@ -1,9 +1,11 @@
-//! The door of every server of a run (agent, config server): connections are accepted on one
-//! thread, without blocking, and get a thread of their own only once they have said their hello
-//! and, with a secret, passed the handshake. Until then a peer costs a socket and at most a
-//! kilobyte of buffer; at most [`MAX_PENDING`] are kept, the oldest dropped for a new one, and
-//! none longer than [`HANDSHAKE_TIMEOUT`]. A thousand idle connections thus cost a few hundred
-//! kilobytes and never keep a module from getting in.
+//! The door of every server of a run (agent, config server, control interface) and of
+//! `armor host`: connections are accepted on one thread, without blocking, and get a thread of
+//! their own only once they have said their hello and, with a secret, passed the handshake.
+//! Until then a peer costs a socket and at most a kilobyte of buffer; at most [`MAX_PENDING`]
+//! are kept, the oldest that has not proved a key dropped first for a new one, and none longer
+//! than [`HANDSHAKE_TIMEOUT`] for the whole handshake. A thousand idle connections thus cost a
+//! few hundred kilobytes and never keep a module or an operator from getting in. With a secret,
+//! the door sends nothing, not even its hello, before a valid first handshake message.
 
 use std::collections::HashMap;
 use std::io::{ErrorKind, Write as _};
