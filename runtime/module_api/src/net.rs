@@ -38,7 +38,11 @@ const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(1500);
 const IDENTIFY_WAIT: Duration = Duration::from_millis(50);
 /// How often it looks again meanwhile.
 const IDENTIFY_POLL: Duration = Duration::from_millis(2);
-/// The longest an input waits for peers to identify themselves, in all.
+/// The longest an input waits for peers to identify themselves, in all: strangers that keep
+/// connecting cannot hold a relink up for longer. (A peer's first handshake message cannot be
+/// asked for first: a module's dialer writes it only once its connect completes, often tens of
+/// milliseconds after the listener accepted on a busy machine, and waiting only on peers that
+/// sent it lost half of the shared connections in `tests/tests/shared_link.rs`.)
 const IDENTIFY_WAIT_MAX: Duration = Duration::from_millis(200);
 /// The most connections a module keeps that have not authenticated (or, without a secret,
 /// subscribed) yet; the oldest is dropped for a new one. A stranger costs a socket and a
@@ -1138,26 +1142,24 @@ impl Net {
         self.subscribe_on(core, token, index);
     }
 
-    /// Whether, with a shared secret, a peer connected less than [`IDENTIFY_WAIT`] ago, sent a
-    /// valid first handshake message (a stranger's bare connection is no reason to wait), and
-    /// has not subscribed yet (it may be in the middle of the handshake).
+    /// Whether, with a shared secret, a peer connected less than [`IDENTIFY_WAIT`] ago and has
+    /// not subscribed yet (it may be in the middle of the handshake). The wait it causes is
+    /// bounded in all by [`IDENTIFY_WAIT_MAX`].
     fn awaits_identification(&self) -> bool {
         let now = Instant::now();
         self.credentials.is_some()
             && self.conns.values().any(|conn| {
-                !conn.hello_owed
-                    && matches!(
-                        conn.role,
-                        Role::Peer(PeerLink {
-                            input: None,
-                            serving: None,
-                            peer_addr: None,
-                            ..
-                        })
-                    )
-                    && conn
-                        .handshake_deadline
-                        .is_some_and(|deadline| deadline > now + HANDSHAKE_TIMEOUT - IDENTIFY_WAIT)
+                matches!(
+                    conn.role,
+                    Role::Peer(PeerLink {
+                        input: None,
+                        serving: None,
+                        peer_addr: None,
+                        ..
+                    })
+                ) && conn
+                    .handshake_deadline
+                    .is_some_and(|deadline| deadline > now + HANDSHAKE_TIMEOUT - IDENTIFY_WAIT)
             })
     }
 
