@@ -760,29 +760,27 @@ fn read_report(file: &Path) -> Option<Report> {
 mod tests {
     use super::*;
 
-    /// A stand-in for a run's control interface that records each request line and answers
-    /// `ok`, the first answer only after `first_delay` (a slow or lost link).
+    /// A run's control interface (the real one) whose requests a stand-in for the run records
+    /// and answers `ok`, the first answer only after `first_delay` (a slow or lost link).
     fn fake_control(first_delay: Duration) -> (SocketAddr, Receiver<serde_json::Value>) {
-        use std::io::Write as _;
-        let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
-        let addr = listener.local_addr().expect("addr");
+        let (incoming, run) = mpsc::channel::<armor_runtime::control::Incoming>();
+        let addr =
+            armor_runtime::control::serve(SocketAddr::from(([127, 0, 0, 1], 0)), incoming, None)
+                .expect("serve");
         let (seen, requests) = mpsc::channel();
         std::thread::spawn(move || {
-            let Ok((stream, _)) = listener.accept() else {
-                return;
-            };
-            let mut writer = stream.try_clone().expect("clone");
             let mut delay = Some(first_delay);
-            for line in BufReader::new(stream).lines() {
-                let Ok(line) = line else { return };
-                let _ = seen.send(serde_json::from_str(&line).expect("a request"));
+            for (request, reply) in run {
+                let _ = seen.send(serde_json::to_value(&request).expect("a request"));
                 if let Some(delay) = delay.take() {
                     std::thread::sleep(delay);
                 }
-                let reply = b"{\"ok\":true,\"message\":\"ok\",\"status\":null}\n";
-                if writer.write_all(reply).is_err() {
-                    return;
-                }
+                let _ = reply.send(armor_runtime::control::Reply {
+                    ok: true,
+                    message: "ok".to_owned(),
+                    status: None,
+                    files: None,
+                });
             }
         });
         (addr, requests)
