@@ -10,6 +10,12 @@
 //!   clamped to `max_speed_mps` and `max_turn_radps`;
 //! - `stop`: command zero.
 //!
+//! When the run has a secret, the port speaks the run's wire protocol instead of lines: the
+//! client proves the link key of this module's key for the name it claims (as at a data port,
+//! `docs/protocol.md`), the link is encrypted, and each command and answer is a JSON string in
+//! a message frame. The supervisor's relay is such a client; a process without a key is
+//! closed without a byte and drives nothing.
+//!
 //! A command is held for `deadman_secs` of run time: an operator who stops sending stops the
 //! robot. The module publishes the current command 20 times per second of run time, and serves
 //! its clients from the same loop, with non-blocking sockets. It is an operator interface, so
@@ -17,8 +23,11 @@
 
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::time::{Duration, Instant};
 
+use armor_module_api::auth::{Listen, Sealer};
 use armor_module_api::types::Twist;
+use armor_module_api::wire::{Frame, FrameReader, HELLO, WireError};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
@@ -36,6 +45,8 @@ const MAX_LINE: usize = 256;
 const MAX_CLIENTS: usize = 16;
 /// A client that leaves this many bytes of replies unread is disconnected.
 const MAX_UNREAD: usize = 64 * 1024;
+/// How long a client with a secret has to finish its handshake.
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(1500);
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
@@ -59,7 +70,9 @@ pub fn spec() -> ModuleSpec {
             "the TCP address to listen on for operators (port 0: any free port; the address is \
              logged as `teleop listening on ADDR` and told to the supervisor, which relays \
              `armor ctl teleop` there: a teleop on another host than the supervisor's listens \
-             on an address the supervisor reaches, such as 0.0.0.0:0); read at start only",
+             on that host's address the supervisor reaches, such as 10.0.0.2:0, in a run with \
+             a secret, so that only the run's relay, over an encrypted link, can drive; \
+             without a secret keep it on 127.0.0.1); read at start only",
         )
         .default("127.0.0.1:0"),
     )
@@ -106,7 +119,11 @@ pub fn body(node: &mut Node) -> BodyResult {
     tracing::info!("teleop listening on {addr}");
     // The supervisor relays the operator's commands here (`armor ctl teleop`, the studio).
     node.set_endpoint(crate::teleop::ENDPOINT, &addr.to_string());
-    serve(node, Server::new(listener))
+    let listen = node.service_listen();
+    if listen.is_some() {
+        tracing::info!("the run has a secret: commands only over an authenticated, encrypted link");
+    }
+    serve(node, Server::new(listener, listen))
 }
 
 /// The module's loop, serving `server`'s clients.
@@ -213,7 +230,20 @@ fn parse(line: &str, limits: &Limits) -> Result<Twist, String> {
 /// The listening socket and the connected operators, all non-blocking.
 struct Server {
     listener: TcpListener,
+    /// With a secret: how clients authenticate.
+    listen: Option<Listen>,
     clients: Vec<Client>,
+}
+
+/// A client's link when the run has a secret.
+struct Secure {
+    reader: FrameReader,
+    sealer: Option<Sealer>,
+    /// The hello goes out with the answer to a valid first handshake message: a stranger gets
+    /// not a byte.
+    hello_owed: bool,
+    /// Until the handshake is done.
+    deadline: Option<Instant>,
 }
 
 struct Client {
@@ -227,12 +257,15 @@ struct Client {
     skipping: bool,
     /// The client hung up or failed: drop it once its replies are written (or cannot be).
     gone: bool,
+    /// The authenticated link, when the run has a secret (else lines in the clear).
+    secure: Option<Secure>,
 }
 
 impl Server {
-    fn new(listener: TcpListener) -> Self {
+    fn new(listener: TcpListener, listen: Option<Listen>) -> Self {
         Self {
             listener,
+            listen,
             clients: Vec::new(),
         }
     }
@@ -253,11 +286,35 @@ impl Server {
             return;
         }
         if self.clients.len() >= MAX_CLIENTS {
-            tracing::warn!("refusing operator {peer}: {MAX_CLIENTS} already connected");
-            let _ = (&stream).write(b"error: too many operators connected\n");
-            return;
+            // Strangers still in their handshake make room: the oldest goes.
+            let oldest = self
+                .clients
+                .iter()
+                .enumerate()
+                .filter_map(|(at, client)| Some((client.secure.as_ref()?.deadline?, at)))
+                .min();
+            match oldest {
+                Some((_, at)) => {
+                    self.clients.remove(at);
+                }
+                None => {
+                    tracing::warn!("refusing operator {peer}: {MAX_CLIENTS} already connected");
+                    if self.listen.is_none() {
+                        let _ = (&stream).write(b"error: too many operators connected\n");
+                    }
+                    return;
+                }
+            }
         }
-        tracing::info!("operator connected from {peer}");
+        let secure = self.listen.clone().map(|listen| Secure {
+            reader: FrameReader::listener(Some(listen)),
+            sealer: None,
+            hello_owed: true,
+            deadline: Some(Instant::now() + HANDSHAKE_TIMEOUT),
+        });
+        if secure.is_none() {
+            tracing::info!("operator connected from {peer}");
+        }
         self.clients.push(Client {
             stream,
             peer,
@@ -265,6 +322,7 @@ impl Server {
             outbox: Vec::new(),
             skipping: false,
             gone: false,
+            secure,
         });
     }
 
@@ -283,14 +341,23 @@ impl Server {
                 }
             }
         }
+        let now = Instant::now();
         for client in &mut self.clients {
-            client.receive();
-            client.answer(&mut handle);
+            if client.secure.is_some() {
+                client.serve_secure(&mut handle, now);
+            } else {
+                client.receive();
+                client.answer(&mut handle);
+            }
             client.send();
         }
         self.clients.retain(|client| {
             let keep = !client.gone;
-            if !keep {
+            let opened = client
+                .secure
+                .as_ref()
+                .is_none_or(|secure| secure.deadline.is_none());
+            if !keep && opened {
                 tracing::info!("operator {} disconnected", client.peer);
             }
             keep
@@ -299,6 +366,82 @@ impl Server {
 }
 
 impl Client {
+    /// Reads what an authenticating (or authenticated) client sent, answers its handshake and
+    /// its commands; a client that fails the handshake, or does not finish it in time, goes.
+    fn serve_secure(&mut self, handle: &mut impl FnMut(&str) -> String, now: Instant) {
+        if let Err(err) = self.advance_secure(handle) {
+            match err {
+                WireError::Closed => {}
+                err => tracing::warn!("refused {}: {err}", self.peer),
+            }
+            self.gone = true;
+        }
+        let late = self
+            .secure
+            .as_ref()
+            .and_then(|secure| secure.deadline)
+            .is_some_and(|deadline| deadline <= now);
+        if late {
+            tracing::warn!(
+                "{} did not finish its handshake in time: dropped",
+                self.peer
+            );
+            self.gone = true;
+        }
+    }
+
+    fn advance_secure(&mut self, handle: &mut impl FnMut(&str) -> String) -> Result<(), WireError> {
+        let Some(secure) = self.secure.as_mut() else {
+            return Ok(());
+        };
+        loop {
+            if secure.reader.take_hello()?
+                && let Some(frame) = secure.reader.next_frame()?
+            {
+                match frame {
+                    Frame::AuthStep => {
+                        let step = secure.reader.take_auth_step();
+                        if std::mem::take(&mut secure.hello_owed) {
+                            self.outbox.extend_from_slice(&HELLO);
+                        }
+                        self.outbox.extend_from_slice(&step.reply);
+                        secure.sealer = step.sealer.or(secure.sealer.take());
+                        if step.done {
+                            secure.deadline = None;
+                            tracing::info!(
+                                "operator {} connected as `{}`",
+                                self.peer,
+                                step.peer.as_deref().unwrap_or("?")
+                            );
+                        }
+                    }
+                    frame => {
+                        let line: String = frame.message()?;
+                        let reply = if line.len() > MAX_LINE {
+                            format!("error: line longer than {MAX_LINE} bytes")
+                        } else {
+                            handle(line.trim())
+                        };
+                        let mut plain = Vec::new();
+                        armor_module_api::wire::encode_message(&mut plain, &reply)?;
+                        let Some(sealer) = secure.sealer.as_mut() else {
+                            return Err(WireError::Unauthenticated("an unencrypted link"));
+                        };
+                        sealer.seal_records(&plain, &mut self.outbox);
+                    }
+                }
+                continue;
+            }
+            match secure.reader.fill_from(&mut self.stream) {
+                Ok(0) => return Err(WireError::Closed),
+                Ok(_) => {}
+                Err(err) if err.kind() == ErrorKind::WouldBlock => return Ok(()),
+                Err(err) if err.kind() == ErrorKind::Interrupted => {}
+                Err(err) => return Err(err.into()),
+            }
+        }
+    }
+
     fn receive(&mut self) {
         let mut buffer = [0u8; 1024];
         loop {
@@ -449,7 +592,7 @@ mod tests {
         let mut peeked = vec![0; lines.len()];
         while stream.peek(&mut peeked).expect("peek") < lines.len() {}
         listener.set_nonblocking(true).expect("non-blocking");
-        let mut server = Server::new(listener);
+        let mut server = Server::new(listener, None);
         server.adopt(stream, peer);
         client
             .set_read_timeout(Some(Duration::from_secs(10)))
@@ -516,7 +659,7 @@ mod tests {
             Step::param("max_speed_mps", "-1"),
             Step::Timeouts(1),
         ]);
-        serve(bench.node(), Server::new(listener)).expect("serve");
+        serve(bench.node(), Server::new(listener, None)).expect("serve");
         assert_eq!(
             bench.sent::<Twist>("cmd_vel").expect("sent"),
             [Twist::default(); 3]

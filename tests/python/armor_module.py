@@ -277,7 +277,9 @@ def accept(sock, own_key, insist_on_encryption):
     link key for the identity the dialer claims. Returns the link and that identity (or None)."""
     sock.settimeout(HELLO_TIMEOUT)
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-    sock.sendall(HELLO)
+    # With a key, not a byte before a valid message 1: the hello goes with message 2.
+    if own_key is None:
+        sock.sendall(HELLO)
     if recv_exact(sock, 6) != HELLO:
         raise Closed("wrong hello")
     if own_key is None:
@@ -293,7 +295,7 @@ def accept(sock, own_key, insist_on_encryption):
     except Exception as err:
         raise Closed(f"wrong key for {identity!r}: {err}") from err
     encrypted = bool(flags and flags[0] & 1) or insist_on_encryption
-    sock.sendall(frame_bytes(NOISE_2, bytes(noise.write_message(bytes([int(encrypted)])))))
+    sock.sendall(HELLO + frame_bytes(NOISE_2, bytes(noise.write_message(bytes([int(encrypted)])))))
     kind, body = read_plain_frame(sock, MAX_HANDSHAKE_FRAME)
     try:
         if kind != NOISE_CONFIRM or noise.decrypt(body) != b"":

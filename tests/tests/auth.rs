@@ -216,18 +216,18 @@ fn relay(target: SocketAddr) -> (SocketAddr, Capture) {
 /// The attacks of issue 17 on a frame listener (`request` is what the attacker wants served;
 /// `dial_key` and `identity` are what a genuine peer proves there, to record a handshake).
 fn attacks_fail(addr: SocketAddr, request: &[u8], dial_key: &Key, identity: &str, wrong: &Key) {
-    // 1. Reflection. The listener sends nothing but its hello before the dialer proves the
-    //    key: there is no challenge of its own to turn against it. Whatever it sent on one
+    // 1. Reflection. The listener sends nothing, not even its hello, before the dialer proves
+    //    the key: there is no challenge of its own to turn against it. Whatever it sent on one
     //    connection, sent back on another with the request, gets no answer.
     let mut one = connect(addr);
     let mut two = connect(addr);
     one.write_all(&HELLO).unwrap();
     two.write_all(&HELLO).unwrap();
     let (from_one, closed) = drain(&mut one, Duration::from_millis(300));
-    assert_eq!(from_one, HELLO, "only a hello before the dialer's proof");
+    assert!(from_one.is_empty(), "not a byte before the dialer's proof");
     assert!(!closed);
     let (from_two, _) = drain(&mut two, Duration::from_millis(300));
-    assert_eq!(from_two, HELLO);
+    assert!(from_two.is_empty());
     two.write_all(&frame(wire::KIND_HANDSHAKE_FIRST, &from_one))
         .unwrap();
     one.write_all(request).unwrap();
@@ -391,7 +391,7 @@ fn every_listener_refuses_reflection_replay_a_wrong_secret_and_no_secret() {
         "tester",
         &wrong.module_key("counter").link_key("tester"),
     );
-    // The control interface (JSON lines): a recorded exchange replayed, no secret, a wrong one.
+    // The control interface: a recorded exchange replayed, no secret, a wrong one.
     let ctl = |secret_file: Option<&Path>, addr: SocketAddr| {
         let mut command = Command::new(bin("armor"));
         command
@@ -409,14 +409,20 @@ fn every_listener_refuses_reflection_replay_a_wrong_secret_and_no_secret() {
     let mut replay = connect(addrs.control);
     replay.write_all(&recorded).unwrap();
     let (got, _) = drain(&mut replay, PATIENCE);
-    let text = String::from_utf8_lossy(&got);
+    // The replayed first message gets the run's hello and handshake answer (6 + 60 bytes at
+    // most), and the replayed confirmation, made for other keys, ends the connection: no reply.
     assert!(
-        !text.contains("\"ok\":true") && text.contains("another secret"),
-        "a replayed control exchange is refused: {text}"
+        got.len() <= 6 + 60,
+        "a replayed control exchange got {} bytes: {:?}",
+        got.len(),
+        String::from_utf8_lossy(&got)
     );
     let without = ctl(None, addrs.control);
     assert!(!without.status.success());
-    assert!(String::from_utf8_lossy(&without.stdout).contains("requires the shared secret"));
+    assert!(
+        String::from_utf8_lossy(&without.stderr).contains("requires the shared secret"),
+        "{without:?}"
+    );
     let other = secret_file(
         dir.path(),
         "other",

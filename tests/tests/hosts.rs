@@ -84,13 +84,30 @@ impl Namespaces {
         Ok(namespaces)
     }
 
-    /// A command run inside a namespace (`ip netns exec` execs it: its pid is the command's).
+    /// A command run inside a namespace (`ip netns exec` execs it: its pid is the command's),
+    /// with the run's secret in its environment: a daemon beyond loopback requires one.
     fn command(ns: &str, program: &Path) -> Command {
         let mut command = Command::new("ip");
         command.args(["netns", "exec", ns]).arg(program);
         command.env("ARMOR_MODULE_PATH", bin_dir());
+        command.env(armor_module_api::auth::ENV_SECRET_FILE, shared_secret());
         command
     }
+}
+
+/// The secret every command in the namespaces shares (a file of this test process, mode 600).
+fn shared_secret() -> &'static Path {
+    static SECRET: std::sync::OnceLock<tempfile::TempDir> = std::sync::OnceLock::new();
+    let dir = SECRET.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("secret");
+        std::fs::write(&file, "the secret the two namespaces share").unwrap();
+        use std::os::unix::fs::PermissionsExt as _;
+        std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o600)).unwrap();
+        dir
+    });
+    // A static's folder is never dropped: the file lives as long as the test process.
+    Box::leak(dir.path().join("secret").into_boxed_path())
 }
 
 impl Drop for Namespaces {
@@ -487,9 +504,9 @@ fn a_synchronised_host_runs_a_timed_mission() {
     assert!(status.success(), "{}", run.lines().join("\n"));
 }
 
-/// The operator drives a teleop module that runs on the other computer: it listens on every
-/// interface of its host (`0.0.0.0:0`), the supervisor takes the address its connection comes
-/// from as where to reach it, and relays `armor ctl teleop` there across the veth pair.
+/// The operator drives a teleop module that runs on the other computer: it listens on its
+/// host's address, the supervisor relays `armor ctl teleop` there across the veth pair, over an
+/// encrypted link with the module's key (the run has a secret).
 #[test]
 fn armor_ctl_teleop_reaches_a_teleop_module_on_another_host() {
     let Some(namespaces) =
@@ -502,7 +519,7 @@ fn armor_ctl_teleop_reaches_a_teleop_module_on_another_host() {
         r#"<system name="remote-pad" host="{SUPERVISOR_ADDR}">
   <host name="robot1" address="{HOST_ADDR}"/>
   <module name="sim" type="sim"><param name="world" value="{}"/></module>
-  <module name="pad" type="teleop" host="robot1"><param name="listen" value="0.0.0.0:0"/></module>
+  <module name="pad" type="teleop" host="robot1"><param name="listen" value="{HOST_ADDR}:0"/></module>
   <link from="pad.cmd_vel" to="sim.cmd_vel"/>
 </system>
 "#,

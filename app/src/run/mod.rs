@@ -158,6 +158,13 @@ impl RunView {
         self.session.as_ref().is_some_and(RunSession::is_running)
     }
 
+    /// Whether the studio may command the run: not with an observer's key.
+    pub fn may_command(&self) -> bool {
+        self.session.as_ref().is_none_or(|session| {
+            session.shared().role != Some(armor_runtime::control::Role::Observer)
+        })
+    }
+
     /// The last state the run reported; once the run is over, the modules it left at work
     /// read "ended with the run" (the run stopped them), and the crashed and failed stay so.
     pub fn status(&self) -> Option<Status> {
@@ -643,7 +650,7 @@ impl RunView {
         let Some(session) = &self.session else {
             return;
         };
-        let running = session.is_running();
+        let running = session.is_running() && self.may_command();
         let history = session.shared().history.clone();
         let mut requests = Vec::new();
         egui::ScrollArea::vertical()
@@ -680,9 +687,13 @@ impl RunView {
             ui.label("A plan's run shows its marking, what it waits for and its firings here.");
             return;
         };
-        let running = self.is_running();
+        // An observer's key reads the run: its commands are greyed.
+        let running = self.is_running() && self.may_command();
         let mut requests = Vec::new();
         ui.horizontal_wrapped(|ui| {
+            if !self.may_command() {
+                ui.label("attached as an observer: reading only");
+            }
             ui.add_enabled_ui(running && mission.outcome.is_none(), |ui| {
                 if mission.paused {
                     if ui.button("⏵ Resume").clicked() {
@@ -753,6 +764,10 @@ impl RunView {
         });
         if !can_drive {
             ui.label("A running system with a teleop module can be driven from here.");
+            return;
+        }
+        if !self.may_command() {
+            ui.label("Attached with an observer's key: driving needs an operator's.");
             return;
         }
         let mut held = (0.0, 0.0);

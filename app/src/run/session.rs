@@ -102,6 +102,9 @@ pub struct Shared {
     /// The run's files, asked of a run attached without its system file
     /// ([`Request::Files`]); taken by the view, which attaches again with them.
     pub files: Option<RunFiles>,
+    /// The role the studio proved at the run's control interface (`None`: the run has no
+    /// secret, and anyone who reaches it operates).
+    pub role: Option<armor_runtime::control::Role>,
 }
 
 impl Shared {
@@ -525,9 +528,10 @@ fn poll_control(
             Err(mpsc::RecvTimeoutError::Disconnected) => return,
         }
     };
+    // A role's key (an observer's, say) or the secret itself, which acts as the operator.
     let secret = match secret_file
         .as_deref()
-        .map(armor_module_api::auth::Secret::load)
+        .map(armor_runtime::control::key_from_file)
     {
         Some(Ok(secret)) => Some(secret),
         Some(Err(err)) => {
@@ -558,8 +562,9 @@ fn poll_control(
         // One connection for every poll and request, opened again after an error.
         let reply = match client.as_mut() {
             Some(open) => open.call(&request),
-            None => armor_runtime::control::Client::connect(addr, secret.as_ref()).and_then(
+            None => armor_runtime::control::Client::connect_with(addr, secret.as_ref()).and_then(
                 |mut opened| {
+                    lock(shared).role = opened.role();
                     let reply = opened.call(&request);
                     client = Some(opened);
                     reply
@@ -652,7 +657,7 @@ fn drive(
     stop: &AtomicBool,
     secret_file: Option<&Path>,
 ) {
-    let secret = secret_file.and_then(|file| armor_module_api::auth::Secret::load(file).ok());
+    let secret = secret_file.and_then(|file| armor_runtime::control::key_from_file(file).ok());
     let mut client: Option<armor_runtime::control::Client> = None;
     let mut last_error: Option<String> = None;
     while !stop.load(Ordering::Relaxed) {
@@ -678,7 +683,7 @@ fn drive(
         };
         let reply = match client.as_mut() {
             Some(open) => open.call(&request),
-            None => armor_runtime::control::Client::connect(addr, secret.as_ref()).and_then(
+            None => armor_runtime::control::Client::connect_with(addr, secret.as_ref()).and_then(
                 |mut opened| {
                     let reply = opened.call(&request);
                     client = Some(opened);
@@ -755,29 +760,27 @@ fn read_report(file: &Path) -> Option<Report> {
 mod tests {
     use super::*;
 
-    /// A stand-in for a run's control interface that records each request line and answers
-    /// `ok`, the first answer only after `first_delay` (a slow or lost link).
+    /// A run's control interface (the real one) whose requests a stand-in for the run records
+    /// and answers `ok`, the first answer only after `first_delay` (a slow or lost link).
     fn fake_control(first_delay: Duration) -> (SocketAddr, Receiver<serde_json::Value>) {
-        use std::io::Write as _;
-        let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
-        let addr = listener.local_addr().expect("addr");
+        let (incoming, run) = mpsc::channel::<armor_runtime::control::Incoming>();
+        let addr =
+            armor_runtime::control::serve(SocketAddr::from(([127, 0, 0, 1], 0)), incoming, None)
+                .expect("serve");
         let (seen, requests) = mpsc::channel();
         std::thread::spawn(move || {
-            let Ok((stream, _)) = listener.accept() else {
-                return;
-            };
-            let mut writer = stream.try_clone().expect("clone");
             let mut delay = Some(first_delay);
-            for line in BufReader::new(stream).lines() {
-                let Ok(line) = line else { return };
-                let _ = seen.send(serde_json::from_str(&line).expect("a request"));
+            for (request, reply) in run {
+                let _ = seen.send(serde_json::to_value(&request).expect("a request"));
                 if let Some(delay) = delay.take() {
                     std::thread::sleep(delay);
                 }
-                let reply = b"{\"ok\":true,\"message\":\"ok\",\"status\":null}\n";
-                if writer.write_all(reply).is_err() {
-                    return;
-                }
+                let _ = reply.send(armor_runtime::control::Reply {
+                    ok: true,
+                    message: "ok".to_owned(),
+                    status: None,
+                    files: None,
+                });
             }
         });
         (addr, requests)

@@ -18,6 +18,7 @@ mod arbiter_switch;
 mod benchprobe;
 mod camera_sim;
 mod compile_plan;
+mod control_rtt;
 mod cross;
 mod discovery;
 mod event_start;
@@ -136,6 +137,12 @@ const BENCHES: &[Bench] = &[
         about: "one 320x240 frame of the simulated camera, drawn and JPEG-encoded, vs the JPEG \
                 encoding alone (ms; goal under 10)",
         run: camera_sim::run,
+    },
+    Bench {
+        name: control_rtt::NAME,
+        about: "a status request and its reply on a kept control link, encrypted (a secret) vs \
+                plaintext (ms, p50; goal ratio <= 1.2)",
+        run: control_rtt::run,
     },
     Bench {
         name: handshake::NAME,

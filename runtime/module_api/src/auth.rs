@@ -81,6 +81,10 @@ pub enum SecretError {
     TooShort { path: String, len: usize },
     #[error("{ENV_KEY} must be {} hex digits", KEY_BYTES * 2)]
     BadKey,
+    #[error(
+        "{path} is not a role's key: expected one line `observer HEX` or `operator HEX` (written by armor secret derive)"
+    )]
+    BadRoleKey { path: String },
 }
 
 /// Why a handshake failed.
@@ -217,6 +221,84 @@ impl Secret {
     pub fn operator_key(&self) -> Key {
         expand(&self.0, &[b"operator"])
     }
+
+    /// The key of a role at the run's control interface: the operator key, or for an
+    /// observer HKDF-Expand with info `observer`. Neither key reveals the secret or the other.
+    pub fn role_key(&self, role: Role) -> Key {
+        match role {
+            Role::Operator => self.operator_key(),
+            Role::Observer => expand(&self.0, &[b"observer"]),
+        }
+    }
+}
+
+/// Who a control client is: an observer reads the run's status and data, an operator may also
+/// command it. The role is the identity the client proves at the control interface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    Observer,
+    Operator,
+}
+
+impl Role {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Role::Observer => "observer",
+            Role::Operator => "operator",
+        }
+    }
+
+    pub fn parse(text: &str) -> Option<Role> {
+        match text {
+            "observer" => Some(Role::Observer),
+            "operator" => Some(Role::Operator),
+            _ => None,
+        }
+    }
+}
+
+/// A role's key as a file holds it (`armor secret derive`): one line, `ROLE HEX`.
+#[derive(Clone, Debug)]
+pub struct RoleKey {
+    pub role: Role,
+    pub key: Key,
+}
+
+impl RoleKey {
+    /// The line a role's key file holds.
+    pub fn to_line(&self) -> String {
+        format!("{} {}\n", self.role.as_str(), self.key.to_hex())
+    }
+
+    /// Reads a role's key file, refusing one that others may read.
+    pub fn load(path: &Path) -> Result<RoleKey, SecretError> {
+        use std::os::unix::fs::PermissionsExt as _;
+        let shown = path.display().to_string();
+        let read_err = |source| SecretError::Read {
+            path: shown.clone(),
+            source,
+        };
+        let mode = std::fs::metadata(path)
+            .map_err(read_err)?
+            .permissions()
+            .mode();
+        if mode & 0o077 != 0 {
+            return Err(SecretError::Exposed {
+                path: shown,
+                mode: mode & 0o777,
+            });
+        }
+        let text = std::fs::read_to_string(path).map_err(read_err)?;
+        let mut words = text.split_whitespace();
+        match (
+            words.next().and_then(Role::parse),
+            words.next().and_then(Key::from_hex),
+            words.next(),
+        ) {
+            (Some(role), Some(key), None) => Ok(RoleKey { role, key }),
+            _ => Err(SecretError::BadRoleKey { path: shown }),
+        }
+    }
 }
 
 /// What a node proves itself with: its own module key, and whether its links are encrypted.
@@ -271,8 +353,9 @@ pub enum Admit {
     Modules(Secret),
     /// A module's data port: the link key of this module's key for the claimed name.
     LinksTo(Key),
-    /// The control interface: the operator key, whatever the name.
-    Operator(Key),
+    /// The control interface: the identity names the role (`observer`, else `operator`), and
+    /// the key is that role's. A run without observers admits only the operator.
+    Control { operator: Key, observer: Key },
 }
 
 impl Admit {
@@ -280,7 +363,10 @@ impl Admit {
         match self {
             Admit::Modules(secret) => secret.module_key(identity),
             Admit::LinksTo(key) => key.link_key(identity),
-            Admit::Operator(key) => key.clone(),
+            Admit::Control { operator, observer } => match Role::parse(identity) {
+                Some(Role::Observer) => observer.clone(),
+                _ => operator.clone(),
+            },
         }
     }
 }

@@ -42,13 +42,20 @@ const SUPERVISOR_RETRY: Duration = Duration::from_millis(250);
 const RELINK_DELAY: Duration = Duration::from_millis(100);
 const UNKNOWN_RETRY: Duration = Duration::from_millis(200);
 const LOOKUP_TIMEOUT: Duration = Duration::from_secs(2);
-const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+/// How long a peer has to finish its handshake: a stranger is closed within it.
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(1500);
 /// With a shared secret, how long a module waits for a peer that connected moments ago to say
 /// who it is (its subscribe follows the handshake's round trips) before it opens a connection
 /// of its own to a provider: the peer may be that provider, and the two would share one.
 const IDENTIFY_WAIT: Duration = Duration::from_millis(50);
 /// How often it looks again meanwhile.
 const IDENTIFY_POLL: Duration = Duration::from_millis(2);
+/// The longest an input waits for peers to identify themselves, in all: strangers that keep
+/// connecting cannot hold a relink up for longer. (A peer's first handshake message cannot be
+/// asked for first: a module's dialer writes it only once its connect completes, often tens of
+/// milliseconds after the listener accepted on a busy machine, and waiting only on peers that
+/// sent it lost half of the shared connections in `tests/tests/shared_link.rs`.)
+const IDENTIFY_WAIT_MAX: Duration = Duration::from_millis(200);
 /// The most connections a module keeps that have not authenticated (or, without a secret,
 /// subscribed) yet; the oldest is dropped for a new one. A stranger costs a socket and a
 /// kilobyte until its handshake deadline.
@@ -127,6 +134,9 @@ struct Conn {
     /// Messages queued before the handshake is over: they follow it, since the peer takes
     /// nothing before.
     held: Option<OutBuffer>,
+    /// A listener with a secret owes the dialer its hello until the dialer's first handshake
+    /// message proved the key: a stranger gets not a byte.
+    hello_owed: bool,
     /// The peer's module: proven by the handshake for a dialer, the provider dialled for a
     /// subscription; `None` without a secret.
     peer: Option<String>,
@@ -187,6 +197,20 @@ pub(crate) struct Net {
     credentials: Option<Credentials>,
     /// The module's name, which it proves.
     name: String,
+    /// Since when each input (by index) waits for peers to identify themselves.
+    identify_since: FxHashMap<usize, Instant>,
+}
+
+impl Net {
+    /// See [`crate::Node::service_listen`].
+    pub(crate) fn service_listen(&self) -> Option<crate::auth::Listen> {
+        self.credentials
+            .as_ref()
+            .map(|credentials| crate::auth::Listen {
+                encrypt: true,
+                ..credentials.listen()
+            })
+    }
 }
 
 impl Conn {
@@ -275,6 +299,7 @@ impl Net {
             latest: Vec::new(),
             pulled: Vec::new(),
             credentials,
+            identify_since: FxHashMap::default(),
             name: core.name.clone(),
         };
         if let Some((addr, stream)) = supervisor {
@@ -338,6 +363,7 @@ impl Net {
                 paused: false,
                 handshake_deadline: None,
                 held: None,
+                hello_owed: false,
                 peer: None,
                 last_sent: None,
                 pull_pending: false,
@@ -847,10 +873,12 @@ impl Net {
                         Ok(token) => {
                             tracing::debug!(%peer, "subscriber connecting");
                             if let Some(conn) = self.conns.get_mut(&token) {
-                                conn.out.push_hello();
                                 conn.handshake_deadline = Some(Instant::now() + HANDSHAKE_TIMEOUT);
                                 if self.credentials.is_some() {
                                     conn.held = Some(OutBuffer::default());
+                                    conn.hello_owed = true;
+                                } else {
+                                    conn.out.push_hello();
                                 }
                             }
                             accepted.push(token);
@@ -967,6 +995,9 @@ impl Net {
             };
             if let Frame::AuthStep = frame {
                 let step = conn.reader.take_auth_step();
+                if std::mem::take(&mut conn.hello_owed) {
+                    conn.out.push_hello();
+                }
                 conn.out.push_encoded(&step.reply);
                 if let Some(sealer) = step.sealer {
                     // The handshake's frames go out as they are, everything after sealed.
@@ -1052,11 +1083,19 @@ impl Net {
                 _ => None,
             });
         if shared.is_none() && self.awaits_identification() {
-            self.inputs[index] = InputLink::Resolve {
-                at: Instant::now() + IDENTIFY_POLL,
-            };
-            return;
+            // At most IDENTIFY_WAIT_MAX in all, whoever keeps connecting.
+            let since = *self
+                .identify_since
+                .entry(index)
+                .or_insert_with(Instant::now);
+            if since.elapsed() < IDENTIFY_WAIT_MAX {
+                self.inputs[index] = InputLink::Resolve {
+                    at: Instant::now() + IDENTIFY_POLL,
+                };
+                return;
+            }
         }
+        self.identify_since.remove(&index);
         let ticket = match (&self.credentials, &advert.key) {
             (None, _) => None,
             (Some(_), Some(key)) => match Key::from_hex(key) {
@@ -1116,7 +1155,8 @@ impl Net {
     }
 
     /// Whether, with a shared secret, a peer connected less than [`IDENTIFY_WAIT`] ago and has
-    /// not subscribed yet (it may be in the middle of the handshake).
+    /// not subscribed yet (it may be in the middle of the handshake). The wait it causes is
+    /// bounded in all by [`IDENTIFY_WAIT_MAX`].
     fn awaits_identification(&self) -> bool {
         let now = Instant::now();
         self.credentials.is_some()

@@ -147,6 +147,17 @@ impl Node {
         }
     }
 
+    /// How a service port of this module's own (the teleop's command port) admits clients
+    /// when the run has a secret: Noise with this module's key, as its data port does
+    /// ([`crate::auth::Admit::LinksTo`]: a client proves the link key for the name it
+    /// claims), always encrypted. `None` without a secret.
+    pub fn service_listen(&self) -> Option<crate::auth::Listen> {
+        match &self.transport {
+            Transport::Net(net) => net.service_listen(),
+            Transport::Test(_) => None,
+        }
+    }
+
     /// This module's instance name in the system.
     pub fn name(&self) -> &str {
         &self.core.name

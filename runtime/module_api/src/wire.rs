@@ -1006,6 +1006,23 @@ pub mod blocking {
         read_frame(stream)?.message()
     }
 
+    /// [`read_message`] refusing a frame longer than `limit` bytes before reading it: the
+    /// servers' requests are small, and a peer must not make them hold a large frame.
+    pub fn read_message_at_most<T: DeserializeOwned>(
+        stream: &mut impl Read,
+        limit: usize,
+    ) -> Result<T, WireError> {
+        let mut header = [0; 4];
+        read_exact(stream, &mut header)?;
+        let len = u32::from_le_bytes(header) as usize;
+        if len > limit.min(MAX_FRAME_BYTES) {
+            return Err(WireError::FrameTooLarge(len));
+        }
+        let mut body = vec![0; len];
+        read_exact(stream, &mut body)?;
+        decode_body(&body)?.message()
+    }
+
     fn read_exact(stream: &mut impl Read, buf: &mut [u8]) -> Result<(), WireError> {
         stream.read_exact(buf).map_err(|err| match err.kind() {
             io::ErrorKind::UnexpectedEof => WireError::Closed,

@@ -154,7 +154,17 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>, acl: Option<Acl>) {
         admit: Admit::Modules(secret),
         encrypt: true,
     });
+    let open = Arc::new(std::sync::atomic::AtomicUsize::new(0));
     crate::gate::serve(listener, listen, |stream, identity| {
+        use std::sync::atomic::Ordering;
+        // Each open connection has a thread: without a secret, whoever says hello is one, so
+        // their number is bounded.
+        if open.load(Ordering::Relaxed) >= MAX_CONNECTIONS {
+            tracing::warn!("{MAX_CONNECTIONS} connections open: refused another");
+            return;
+        }
+        open.fetch_add(1, Ordering::Relaxed);
+        let open = Arc::clone(&open);
         let registry = Arc::clone(&registry);
         let secret = secret.clone();
         let acl = acl.clone();
@@ -178,9 +188,13 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>, acl: Option<Acl>) {
                 }
             }
             forget(&registry, conn_id);
+            open.fetch_sub(1, Ordering::Relaxed);
         });
     });
 }
+
+/// The most connections the agent serves at once (one per module, and the studio's).
+const MAX_CONNECTIONS: usize = 1024;
 
 /// Starts an agent on a thread of this process (for benchmarks and tests).
 pub fn spawn(addr: SocketAddr) -> std::io::Result<SocketAddr> {
@@ -250,75 +264,120 @@ impl Conn<'_> {
         // The module this connection registered as; with a secret, the name it proved.
         let mut identity: Option<String> = proven.clone();
         loop {
-            let reply = match blocking::read_message::<ToAgent>(&mut stream)? {
-                ToAgent::Register { module, .. }
-                    if proven.as_ref().is_some_and(|proven| *proven != module) =>
-                {
-                    let message = format!(
-                        "this connection proved to be `{}`: it may not register as `{module}`",
-                        proven.as_deref().unwrap_or_default()
-                    );
-                    tracing::warn!("refused a registration: {message}");
-                    FromAgent::Error { message }
-                }
-                ToAgent::Register { module, outputs } => {
-                    let refused = acl.and_then(|acl| {
-                        outputs
-                            .iter()
-                            .find_map(|advert| acl.check_publish(&module, &advert.data_name).err())
-                            .or_else(|| acl.permissions(&module).err())
-                    });
-                    match refused {
-                        Some(message) => {
-                            tracing::warn!(module, "refused a registration: {message}");
-                            FromAgent::Error { message }
-                        }
-                        None => {
-                            identity = Some(module.clone());
-                            let (reply, pushes) =
-                                register(registry, conn_id, module.clone(), outputs);
-                            for (asker, advert) in pushes {
-                                let advert =
-                                    self.for_asker(&module, &advert, asker.identity.as_deref());
-                                // An asker that went away is forgotten by its own thread.
-                                let _ = write(&asker.writer, &FromAgent::Provider(advert));
-                            }
-                            reply
+            let reply =
+                match blocking::read_message_at_most::<ToAgent>(&mut stream, MAX_REQUEST_BYTES)? {
+                    ToAgent::Lookup { data_name } if data_name.len() > MAX_NAME_BYTES => {
+                        FromAgent::Error {
+                            message: format!(
+                                "a data name of {} bytes: at most {MAX_NAME_BYTES}",
+                                data_name.len()
+                            ),
                         }
                     }
-                }
-                ToAgent::Lookup { data_name }
-                    if let Some(Err(message)) =
-                        acl.map(|acl| acl.check_subscribe(identity.as_deref(), &data_name)) =>
-                {
-                    tracing::warn!(module = identity.as_deref(), "refused a lookup: {message}");
-                    FromAgent::Error { message }
-                }
-                ToAgent::Lookup { data_name } => {
-                    let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
-                    match registry.by_data_name.get(&data_name) {
-                        Some(entry) => FromAgent::Provider(self.for_asker(
-                            &entry.module,
-                            &entry.advert,
-                            identity.as_deref(),
-                        )),
-                        None => {
-                            let askers = registry.waiting.entry(data_name.clone()).or_default();
-                            if !askers.iter().any(|asker| asker.conn_id == conn_id) {
-                                askers.push(Asker {
-                                    conn_id,
-                                    writer: Arc::clone(&writer),
-                                    identity: identity.clone(),
-                                });
-                            }
-                            FromAgent::Unknown { data_name }
+                    ToAgent::Lookup { .. } if waits_of(registry, conn_id) >= MAX_WAITS => {
+                        FromAgent::Error {
+                            message: format!(
+                                "this connection already waits for {MAX_WAITS} data names"
+                            ),
                         }
                     }
-                }
-            };
+                    ToAgent::Register { module, .. }
+                        if proven.as_ref().is_some_and(|proven| *proven != module) =>
+                    {
+                        let message = format!(
+                            "this connection proved to be `{}`: it may not register as `{module}`",
+                            proven.as_deref().unwrap_or_default()
+                        );
+                        tracing::warn!("refused a registration: {message}");
+                        FromAgent::Error { message }
+                    }
+                    ToAgent::Register { module, outputs }
+                        if module.len() > MAX_NAME_BYTES
+                            || outputs
+                                .iter()
+                                .any(|advert| advert.data_name.len() > MAX_NAME_BYTES) =>
+                    {
+                        FromAgent::Error {
+                            message: format!("a name longer than {MAX_NAME_BYTES} bytes"),
+                        }
+                    }
+                    ToAgent::Register { module, outputs } => {
+                        let refused = acl.and_then(|acl| {
+                            outputs
+                                .iter()
+                                .find_map(|advert| {
+                                    acl.check_publish(&module, &advert.data_name).err()
+                                })
+                                .or_else(|| acl.permissions(&module).err())
+                        });
+                        match refused {
+                            Some(message) => {
+                                tracing::warn!(module, "refused a registration: {message}");
+                                FromAgent::Error { message }
+                            }
+                            None => {
+                                identity = Some(module.clone());
+                                let (reply, pushes) =
+                                    register(registry, conn_id, module.clone(), outputs);
+                                for (asker, advert) in pushes {
+                                    let advert =
+                                        self.for_asker(&module, &advert, asker.identity.as_deref());
+                                    // An asker that went away is forgotten by its own thread.
+                                    let _ = write(&asker.writer, &FromAgent::Provider(advert));
+                                }
+                                reply
+                            }
+                        }
+                    }
+                    ToAgent::Lookup { data_name }
+                        if let Some(Err(message)) =
+                            acl.map(|acl| acl.check_subscribe(identity.as_deref(), &data_name)) =>
+                    {
+                        tracing::warn!(module = identity.as_deref(), "refused a lookup: {message}");
+                        FromAgent::Error { message }
+                    }
+                    ToAgent::Lookup { data_name } => {
+                        let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+                        match registry.by_data_name.get(&data_name) {
+                            Some(entry) => FromAgent::Provider(self.for_asker(
+                                &entry.module,
+                                &entry.advert,
+                                identity.as_deref(),
+                            )),
+                            None => {
+                                let askers = registry.waiting.entry(data_name.clone()).or_default();
+                                if !askers.iter().any(|asker| asker.conn_id == conn_id) {
+                                    askers.push(Asker {
+                                        conn_id,
+                                        writer: Arc::clone(&writer),
+                                        identity: identity.clone(),
+                                    });
+                                }
+                                FromAgent::Unknown { data_name }
+                            }
+                        }
+                    }
+                };
             write(&writer, &reply)?;
         }
     }
+}
+
+/// The longest request the agent reads (a registration lists a module's outputs).
+const MAX_REQUEST_BYTES: usize = 1024 * 1024;
+/// The longest data name looked up or registered.
+const MAX_NAME_BYTES: usize = 256;
+/// The most data names one connection may wait for (names no module serves yet).
+const MAX_WAITS: usize = 1024;
+
+/// How many data names connection `conn_id` waits for.
+fn waits_of(registry: &Mutex<Registry>, conn_id: u64) -> usize {
+    let registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
+    registry
+        .waiting
+        .values()
+        .filter(|askers| askers.iter().any(|asker| asker.conn_id == conn_id))
+        .count()
 }
 
 /// Registers `outputs`; the reply, and the providers to push to those who asked for them.

@@ -284,18 +284,58 @@ impl State {
 /// An arbiter's winning input, as said (`Some(None)`: none wins).
 type Winner = Option<String>;
 
+/// An endpoint as the status shows it, or why it is refused: a short name and an `IP:PORT`, at
+/// most [`MAX_ENDPOINTS`] a module, whatever a module says, so the status stays small. An
+/// unspecified address (`0.0.0.0`, `::`) listens on every interface of the module's host: the
+/// one its connection comes from (`peer`) is where the supervisor reaches it.
+fn checked_endpoint(
+    endpoints: &BTreeMap<String, String>,
+    name: &str,
+    address: &str,
+    peer: Option<IpAddr>,
+) -> Result<String, String> {
+    if name.is_empty() || name.len() > MAX_ENDPOINT_NAME_BYTES {
+        return Err(format!(
+            "a name of {} bytes (1 to {MAX_ENDPOINT_NAME_BYTES})",
+            name.len()
+        ));
+    }
+    let Ok(addr) = address.parse::<SocketAddr>() else {
+        return Err(format!(
+            "`{name}`: an address of {} bytes that is not IP:PORT",
+            address.len()
+        ));
+    };
+    if !endpoints.contains_key(name) && endpoints.len() >= MAX_ENDPOINTS {
+        return Err(format!("`{name}`: a module has at most {MAX_ENDPOINTS}"));
+    }
+    Ok(match peer {
+        Some(peer) if addr.ip().is_unspecified() => SocketAddr::new(peer, addr.port()),
+        _ => addr,
+    }
+    .to_string())
+}
+
+/// The most endpoints a module may say it serves.
+const MAX_ENDPOINTS: usize = 16;
+/// The longest endpoint name.
+const MAX_ENDPOINT_NAME_BYTES: usize = 64;
+/// The longest message a module sends the config server (a pong with its statistics).
+const MAX_MESSAGE_BYTES: usize = 1024 * 1024;
+
 impl ModuleConn {
     /// Notes an endpoint the module said it listens at. An unspecified address (`0.0.0.0`, `::`)
     /// listens on every interface of the module's host: the one its connection comes from is
     /// where the supervisor reaches it.
+    /// Notes an endpoint the module said it listens at ([`checked_endpoint`]); a refused one
+    /// is dropped with a warning.
     fn note_endpoint(&mut self, name: String, address: &str) {
-        let address = match (address.parse::<SocketAddr>(), self.peer) {
-            (Ok(addr), Some(peer)) if addr.ip().is_unspecified() => {
-                SocketAddr::new(peer, addr.port()).to_string()
+        match checked_endpoint(&self.endpoints, &name, address, self.peer) {
+            Ok(address) => {
+                self.endpoints.insert(name, address);
             }
-            _ => address.to_owned(),
-        };
-        self.endpoints.insert(name, address);
+            Err(why) => tracing::warn!("refused an endpoint: {why}"),
+        }
     }
 }
 
@@ -477,7 +517,9 @@ impl ConfigServer {
         let peer = stream.get_ref().peer_addr().ok().map(|addr| addr.ip());
         let (mut reader, mut writer) = stream.split();
         let stream = &mut reader;
-        let ToSupervisor::Hello { module: name, pid } = blocking::read_message(stream)? else {
+        let ToSupervisor::Hello { module: name, pid } =
+            blocking::read_message_at_most(stream, MAX_MESSAGE_BYTES)?
+        else {
             let message = "the first message must be `hello`".to_owned();
             blocking::write_message(&mut writer, &FromSupervisor::Error { message })?;
             return Ok(());
@@ -520,7 +562,8 @@ impl ConfigServer {
             pid,
         });
         loop {
-            let message = blocking::read_message::<ToSupervisor>(stream)?;
+            let message =
+                blocking::read_message_at_most::<ToSupervisor>(stream, MAX_MESSAGE_BYTES)?;
             self.heard(&name, conn_id);
             let event = match message {
                 ToSupervisor::Ready => {
@@ -750,5 +793,50 @@ impl ConfigServer {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check(
+        endpoints: &[(&str, &str)],
+        name: &str,
+        address: &str,
+        peer: Option<&str>,
+    ) -> Result<String, String> {
+        let endpoints = endpoints
+            .iter()
+            .map(|(name, address)| ((*name).to_owned(), (*address).to_owned()))
+            .collect();
+        let peer = peer.map(|peer| peer.parse().unwrap_or(IpAddr::from([0, 0, 0, 0])));
+        checked_endpoint(&endpoints, name, address, peer)
+    }
+
+    #[test]
+    fn endpoints_are_short_names_and_addresses_and_few() {
+        assert_eq!(
+            check(&[], "teleop", "127.0.0.1:4000", None),
+            Ok("127.0.0.1:4000".to_owned())
+        );
+        // An unspecified address is where the module's connection comes from.
+        assert_eq!(
+            check(&[], "teleop", "0.0.0.0:4000", Some("10.0.0.2")),
+            Ok("10.0.0.2:4000".to_owned())
+        );
+        // A megabyte of address, or of name, is refused without being kept.
+        let huge = "x".repeat(1 << 20);
+        assert!(check(&[], "teleop", &huge, None).is_err_and(|why| why.len() < 200));
+        assert!(check(&[], &huge, "127.0.0.1:1", None).is_err_and(|why| why.len() < 200));
+        assert!(check(&[], "", "127.0.0.1:1", None).is_err());
+        // At most MAX_ENDPOINTS; saying one again at another port is fine.
+        let names: Vec<String> = (0..MAX_ENDPOINTS).map(|n| format!("e{n}")).collect();
+        let full: Vec<(&str, &str)> = names
+            .iter()
+            .map(|name| (name.as_str(), "127.0.0.1:1"))
+            .collect();
+        assert!(check(&full, "one_more", "127.0.0.1:2", None).is_err());
+        assert!(check(&full, "e0", "127.0.0.1:2", None).is_ok());
     }
 }

@@ -1,36 +1,27 @@
 //! The operator's hold on a run (adjustable autonomy): ask for the state of every module and of
 //! the mission, start and stop modules by hand, and pause, resume, abort a mission or fire a
-//! transition by hand. `armor run` serves it on a TCP port as JSON lines, one request and one
-//! reply per line; `armor ctl` and the studio's run view are its clients.
+//! transition by hand. `armor run` serves it on a TCP port; `armor ctl` and the studio's run
+//! view are its clients, through [`Client`].
+//!
+//! The link is the run's wire protocol (`docs/protocol.md`): hellos, then JSON messages in
+//! frames, each request numbered from 1 and its reply carrying the same number:
 //!
 //! ```text
-//! → {"command":"fire","transition":"leave_wp1"}
-//! ← {"ok":true,"message":"fired `leave_wp1`","status":{...}}
-//! → {"command":"teleop","linear":0.3,"angular":0}
-//! ← {"ok":true,"message":"teleop `teleop`: driving at 0.3 0","status":null}
-//! → {"command":"files"}
-//! ← {"ok":true,"message":"the run's files (…)","status":null,"files":{"system":{…},…}}
+//! → {"seq":1,"request":{"command":"fire","transition":"leave_wp1"}}
+//! ← {"seq":1,"reply":{"ok":true,"message":"fired `leave_wp1`","status":{...}}}
+//! → {"seq":2,"request":{"command":"teleop","linear":0.3,"angular":0}}
+//! ← {"seq":2,"reply":{"ok":true,"message":"teleop `teleop`: driving at 0.3 0","status":null}}
 //! ```
+//!
+//! With a shared secret the client proves a role's key in the Noise handshake of the data
+//! links (identity `operator` or `observer`), and the link is encrypted: nobody on the path
+//! reads it, and a record changed, replayed, reordered or dropped fails to open, which ends
+//! the connection. The run sends nothing to a client before its valid first handshake message.
 //!
 //! `teleop` is relayed to the run's teleop module (see [`crate::teleop_relay`]) and answered
 //! with the module's own answer; `files` returns what a client that attaches without the
 //! system file needs to draw the run ([`RunFiles`]).
-//!
-//! With a shared secret (see `armor_module_api::auth`) the client runs a Noise handshake with
-//! the operator key before any request, in three lines, each a handshake message in hex: the
-//! client's first message, the server's answer, and the client's confirmation. A wrong key gets
-//! a refusal (`"ok":false`) and the connection closes. Requests and replies then go in clear.
-//!
-//! ```text
-//! → {"noise":"…"}
-//! ← {"noise":"…"}
-//! → {"noise":"…"}
-//! ```
-//!
-//! This listener does not go through [`crate::gate`]: [`serve`] gives each connection a thread
-//! of its own, and with a secret allows `MAX_PENDING_CLIENTS` (32) in their handshake at once.
 
-use std::io::{BufRead as _, BufReader, Read as _, Write as _};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::mpsc::{self, Sender};
 use std::time::Duration;
@@ -38,16 +29,16 @@ use std::time::Duration;
 use armor_model::net::Marking;
 
 pub use crate::behaviour::BehaviourState;
-use armor_module_api::auth::{Admit, Dial, Dialer, Key, Listen, Listener, Secret};
+use armor_module_api::auth::{Admit, Dial, Listen, Secret};
+pub use armor_module_api::auth::{Role, RoleKey};
 use armor_module_api::protocol::NodeStats;
+use armor_module_api::wire::blocking::{self, SecureReader, SecureStream, SecureWriter};
+use armor_module_api::wire::{MAX_FRAME_BYTES, WireError};
 use serde::{Deserialize, Serialize};
 
 pub const ENV_CONTROL: &str = "ARMOR_CONTROL";
-/// A request line longer than this is not a request.
-const MAX_LINE_BYTES: u64 = 64 * 1024;
-/// A reply line longer than this is not a reply: a status, or the run's files (a world or a
-/// ROS map's image among them).
-const MAX_REPLY_BYTES: u64 = 64 * 1024 * 1024;
+/// A request longer than this is not a request.
+const MAX_REQUEST_BYTES: usize = 64 * 1024;
 const REPLY_TIMEOUT: Duration = Duration::from_secs(5);
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -286,22 +277,33 @@ pub struct Reply {
 /// A request from a client, with where to send the answer.
 pub type Incoming = (Request, Sender<Reply>);
 
-/// One line of the authentication exchange: a Noise handshake message, in hex.
-#[derive(Debug, Default, Serialize, Deserialize)]
-struct AuthLine {
-    #[serde(default)]
-    noise: String,
+/// A request on the control link, numbered by the client from 1: the run answers only the
+/// next number, so a request replayed, reordered or dropped on the way ends the connection.
+#[derive(Debug, Serialize, Deserialize)]
+struct ToRun {
+    seq: u64,
+    request: Request,
 }
 
-/// The identity a control client claims (its key is the operator key, whatever the name).
-const OPERATOR: &str = "operator";
-/// The most control connections that have not authenticated yet; more are closed at once.
-const MAX_PENDING_CLIENTS: usize = 32;
-/// A handshake line is short: a few hundred hex digits.
-const MAX_AUTH_LINE_BYTES: u64 = 2048;
+/// The answer to request `seq`.
+#[derive(Debug, Serialize, Deserialize)]
+struct FromRun {
+    seq: u64,
+    reply: Reply,
+}
 
-/// Serves the control interface on `addr`, handing each request to `requests`; with a
-/// `secret`, only to clients that prove the operator key derived from it.
+/// The most control connections open at once (authenticated, with a secret); more are closed
+/// at once. Connections still in their handshake are the gate's, bounded there.
+const MAX_CLIENTS: usize = 64;
+/// An open connection that sends nothing for this long is closed (the studio polls twice a
+/// second; `armor ctl` sends at once).
+const IDLE_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Serves the control interface on `addr`, handing each request to `requests`. With a
+/// `secret`, the link is a Noise transport like the data links: through the run's gate
+/// ([`crate::gate`]: no thread and not a byte for a stranger, a deadline on the whole
+/// handshake), encrypted, and only for clients that prove the key of a role (operator or
+/// observer, [`Secret::role_key`]); an observer's commands are refused.
 pub fn serve(
     addr: SocketAddr,
     requests: Sender<Incoming>,
@@ -311,173 +313,148 @@ pub fn serve(
     use std::sync::atomic::{AtomicUsize, Ordering};
     let listener = TcpListener::bind(addr)?;
     let local = listener.local_addr()?;
-    let operator = secret.map(|secret| secret.operator_key());
-    let pending = Arc::new(AtomicUsize::new(0));
+    let listen = secret.map(|secret| Listen {
+        admit: Admit::Control {
+            operator: secret.role_key(Role::Operator),
+            observer: secret.role_key(Role::Observer),
+        },
+        encrypt: true,
+    });
+    let open = Arc::new(AtomicUsize::new(0));
     std::thread::spawn(move || {
-        for stream in listener.incoming().flatten() {
-            if operator.is_some() && pending.load(Ordering::Relaxed) >= MAX_PENDING_CLIENTS {
-                tracing::warn!(
-                    "{MAX_PENDING_CLIENTS} control clients are authenticating: refused another"
-                );
-                continue;
+        crate::gate::serve(listener, listen, move |stream, proven| {
+            // Without a secret there is no role to prove: whoever reaches the (loopback)
+            // port operates.
+            let role = match proven.as_deref().map(Role::parse) {
+                None => Role::Operator,
+                Some(Some(role)) => role,
+                Some(None) => return,
+            };
+            if open.load(Ordering::Relaxed) >= MAX_CLIENTS {
+                tracing::warn!("{MAX_CLIENTS} control clients are connected: refused another");
+                return;
             }
+            open.fetch_add(1, Ordering::Relaxed);
             let requests = requests.clone();
-            let operator = operator.clone();
-            let pending = Arc::clone(&pending);
-            pending.fetch_add(1, Ordering::Relaxed);
+            let open = Arc::clone(&open);
             std::thread::spawn(move || {
-                if let Err(err) = serve_client(stream, &requests, operator.as_ref(), &pending) {
-                    tracing::warn!("control client: {err}");
+                if let Err(err) = serve_client(stream, role, &requests) {
+                    tracing::warn!("control client ({}): {err:#}", role.as_str());
                 }
+                open.fetch_sub(1, Ordering::Relaxed);
             });
-        }
+        });
     });
     Ok(local)
 }
 
-fn read_line(reader: &mut BufReader<TcpStream>, limit: u64) -> std::io::Result<Option<String>> {
-    let mut line = String::new();
-    if reader.take(limit).read_line(&mut line)? == 0 {
-        return Ok(None);
-    }
-    Ok(Some(line))
-}
-
-fn write_json(writer: &mut TcpStream, value: &impl Serialize) -> std::io::Result<()> {
-    let mut text = serde_json::to_string(value).map_err(std::io::Error::other)?;
-    text.push('\n');
-    writer.write_all(text.as_bytes())
-}
-
-fn auth_line(bytes: &[u8]) -> AuthLine {
-    AuthLine {
-        noise: bytes.iter().map(|b| format!("{b:02x}")).collect(),
-    }
-}
-
-fn from_hex(text: &str) -> Option<Vec<u8>> {
-    let text = text.trim();
-    if !text.len().is_multiple_of(2) || !text.is_ascii() {
-        return None;
-    }
-    (0..text.len() / 2)
-        .map(|i| u8::from_str_radix(&text[i * 2..i * 2 + 2], 16).ok())
-        .collect()
-}
-
-fn noise_of(line: &str) -> Option<Vec<u8>> {
-    serde_json::from_str::<AuthLine>(line)
-        .ok()
-        .and_then(|auth| from_hex(&auth.noise))
-        .filter(|bytes| !bytes.is_empty())
-}
-
-/// The server's side of the authentication (Noise, as the responder, with the operator key);
-/// an error ends the connection.
-fn authenticate_client(
-    reader: &mut BufReader<TcpStream>,
-    writer: &mut TcpStream,
-    operator: &Key,
-) -> std::io::Result<()> {
-    let refuse = |writer: &mut TcpStream, message: &str| {
-        let _ = write_json(
-            writer,
-            &Reply {
-                ok: false,
-                message: message.to_owned(),
-                status: None,
-                files: None,
-            },
-        );
-        Err(std::io::Error::other(message.to_owned()))
-    };
-    let Some(line) = read_line(reader, MAX_AUTH_LINE_BYTES)? else {
-        return Ok(());
-    };
-    let Some(first) = noise_of(&line) else {
-        return refuse(
-            writer,
-            "this run requires the shared secret: give armor ctl --secret FILE (or ARMOR_SECRET_FILE)",
-        );
-    };
-    let listen = Listen {
-        admit: Admit::Operator(operator.clone()),
-        encrypt: false,
-    };
-    let listener = match Listener::accept(&listen, &first) {
-        Ok((listener, answer, _)) => {
-            write_json(writer, &auth_line(&answer))?;
-            listener
+/// The key a control client proves, from a file: a role's key (`armor secret derive`), or the
+/// run's secret itself, which acts as the operator.
+pub fn key_from_file(
+    path: &std::path::Path,
+) -> Result<RoleKey, armor_module_api::auth::SecretError> {
+    match RoleKey::load(path) {
+        Ok(key) => Ok(key),
+        Err(armor_module_api::auth::SecretError::BadRoleKey { .. }) => {
+            Secret::load(path).map(|secret| RoleKey {
+                role: Role::Operator,
+                key: secret.role_key(Role::Operator),
+            })
         }
-        Err(_) => {
-            return refuse(
-                writer,
-                "the handshake failed: another secret than this run's",
-            );
-        }
-    };
-    let Some(line) = read_line(reader, MAX_AUTH_LINE_BYTES)? else {
-        return Err(std::io::Error::other("closed during authentication"));
-    };
-    match noise_of(&line).map(|confirm| listener.confirm(&confirm)) {
-        Some(Ok(_)) => Ok(()),
-        _ => refuse(
-            writer,
-            "the handshake failed: another secret than this run's",
+        Err(err) => Err(err),
+    }
+}
+
+/// Whether the peer closed (or reset) the connection.
+fn closed(err: &WireError) -> bool {
+    match err {
+        WireError::Closed => true,
+        WireError::Io(err) => matches!(
+            err.kind(),
+            std::io::ErrorKind::ConnectionReset | std::io::ErrorKind::BrokenPipe
         ),
+        _ => false,
     }
+}
+
+/// Whether a role may make a request: an observer only reads.
+pub fn allowed(role: Role, request: &Request) -> bool {
+    role == Role::Operator || matches!(request, Request::Status | Request::Files)
+}
+
+/// Reads one frame of at most `limit` bytes and decodes its message.
+fn read_bounded<T: serde::de::DeserializeOwned>(
+    reader: &mut impl std::io::Read,
+    limit: usize,
+) -> Result<T, WireError> {
+    let mut header = [0; 4];
+    read_exact(reader, &mut header)?;
+    let len = u32::from_le_bytes(header) as usize;
+    if len > limit {
+        return Err(WireError::FrameTooLarge(len));
+    }
+    let mut frame = header.to_vec();
+    frame.resize(4 + len, 0);
+    read_exact(reader, &mut frame[4..])?;
+    blocking::read_message(&mut frame.as_slice())
+}
+
+fn read_exact(reader: &mut impl std::io::Read, buf: &mut [u8]) -> Result<(), WireError> {
+    reader.read_exact(buf).map_err(|err| match err.kind() {
+        std::io::ErrorKind::UnexpectedEof => WireError::Closed,
+        _ => WireError::Io(err),
+    })
 }
 
 fn serve_client(
-    stream: TcpStream,
+    stream: SecureStream,
+    role: Role,
     requests: &Sender<Incoming>,
-    operator: Option<&Key>,
-    pending: &std::sync::atomic::AtomicUsize,
-) -> std::io::Result<()> {
-    use std::sync::atomic::Ordering;
-    let started = (|| {
-        let writer = stream.try_clone()?;
-        let mut reader = BufReader::with_capacity(MAX_AUTH_LINE_BYTES as usize, stream);
-        let mut writer = writer;
-        if let Some(operator) = operator {
-            reader.get_ref().set_read_timeout(Some(REPLY_TIMEOUT))?;
-            authenticate_client(&mut reader, &mut writer, operator)?;
-            reader.get_ref().set_read_timeout(None)?;
-        }
-        Ok::<_, std::io::Error>((reader, writer))
-    })();
-    pending.fetch_sub(1, Ordering::Relaxed);
-    let (mut reader, mut writer) = started?;
+) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    stream.get_ref().set_read_timeout(Some(IDLE_TIMEOUT))?;
+    stream.get_ref().set_nodelay(true)?;
+    let (mut reader, mut writer) = stream.split();
+    let mut expected = 1;
     loop {
-        let mut line = String::new();
-        if (&mut reader).take(MAX_LINE_BYTES).read_line(&mut line)? == 0 {
-            return Ok(());
+        let message: ToRun = match read_bounded(&mut reader, MAX_REQUEST_BYTES) {
+            Ok(message) => message,
+            Err(WireError::Closed) => return Ok(()),
+            Err(err) => return Err(err).context("bad request"),
+        };
+        if message.seq != expected {
+            anyhow::bail!(
+                "request numbered {} where {expected} was due: replayed, reordered or dropped on the way",
+                message.seq
+            );
         }
-        let reply = match serde_json::from_str::<Request>(&line) {
-            Ok(request) => {
-                let (tx, rx) = mpsc::channel();
-                if requests.send((request, tx)).is_err() {
-                    return Ok(());
-                }
-                rx.recv_timeout(REPLY_TIMEOUT).unwrap_or_else(|_| Reply {
-                    ok: false,
-                    message: "the run did not answer".to_owned(),
-                    status: None,
-                    files: None,
-                })
+        expected += 1;
+        let reply = if allowed(role, &message.request) {
+            let (tx, rx) = mpsc::channel();
+            if requests.send((message.request, tx)).is_err() {
+                return Ok(());
             }
-            Err(err) => Reply {
+            rx.recv_timeout(REPLY_TIMEOUT).unwrap_or_else(|_| Reply {
                 ok: false,
-                message: format!(
-                    "bad request: {err} (expected e.g. {{\"command\":\"pause\"}} or {{\"command\":\"fire\",\"transition\":\"NAME\"}})"
-                ),
+                message: "the run did not answer".to_owned(),
                 status: None,
                 files: None,
-            },
+            })
+        } else {
+            Reply {
+                ok: false,
+                message: "refused: an observer's key may read the run, not command it (give an operator's key)".to_owned(),
+                status: None,
+                files: None,
+            }
         };
-        let mut text = serde_json::to_string(&reply).map_err(std::io::Error::other)?;
-        text.push('\n');
-        writer.write_all(text.as_bytes())?;
+        blocking::write_message(
+            &mut writer,
+            &FromRun {
+                seq: message.seq,
+                reply,
+            },
+        )?;
     }
 }
 
@@ -495,58 +472,113 @@ pub fn request(
 /// studio's polls and the operator's driving commands, ten a second, need not each pay for a
 /// connection and a handshake.
 pub struct Client {
-    reader: BufReader<TcpStream>,
-    writer: TcpStream,
+    reader: SecureReader,
+    writer: SecureWriter,
+    role: Option<Role>,
+    seq: u64,
+    /// The run's hello has not been read yet (a client without a key).
+    hello_due: bool,
+}
+
+fn dial_role(dial: &Dial) -> Role {
+    Role::parse(&dial.identity).unwrap_or(Role::Operator)
 }
 
 impl Client {
-    /// Connects to the control interface at `addr`; with a `secret`, proves it (and checks the
-    /// run's proof).
+    /// Connects to the control interface at `addr`; with a `secret`, as the operator.
     pub fn connect(addr: SocketAddr, secret: Option<&Secret>) -> anyhow::Result<Client> {
+        let key = secret.map(|secret| RoleKey {
+            role: Role::Operator,
+            key: secret.role_key(Role::Operator),
+        });
+        Client::connect_with(addr, key.as_ref())
+    }
+
+    /// Connects to the control interface at `addr`; with a role's `key`, proves it (and checks
+    /// the run's proof) and encrypts the link.
+    pub fn connect_with(addr: SocketAddr, key: Option<&RoleKey>) -> anyhow::Result<Client> {
         use anyhow::Context as _;
         let stream = TcpStream::connect_timeout(&addr, REPLY_TIMEOUT)
             .with_context(|| format!("cannot reach the run's control interface at {addr}"))?;
         stream.set_read_timeout(Some(REPLY_TIMEOUT * 2))?;
         stream.set_nodelay(true)?;
-        let mut writer = stream.try_clone()?;
-        let mut reader = BufReader::new(stream);
-        if let Some(secret) = secret {
-            let dial = Dial {
-                key: secret.operator_key(),
-                identity: OPERATOR.to_owned(),
-                encrypt: false,
-            };
-            let (dialer, first) = Dialer::start(&dial)?;
-            write_json(&mut writer, &auth_line(&first))?;
-            let line =
-                read_line(&mut reader, MAX_LINE_BYTES)?.context("the run closed the connection")?;
-            if let Ok(Reply {
-                ok: false, message, ..
-            }) = serde_json::from_str::<Reply>(&line)
-            {
-                anyhow::bail!("the run refused: {message}");
+        let dial = key.map(|key| Dial {
+            key: key.key.clone(),
+            identity: key.role.as_str().to_owned(),
+            encrypt: true,
+        });
+        // Without a key the run's hello is read with the first reply: a run that requires a
+        // key sends nothing and closes at once, which the first call reports.
+        let Some(dial) = dial else {
+            blocking::write_hello(&mut &stream)?;
+            let (reader, writer) = SecureStream::plain(stream)?.split();
+            return Ok(Client {
+                reader,
+                writer,
+                role: None,
+                seq: 0,
+                hello_due: true,
+            });
+        };
+        let stream = match blocking::dial(stream, Some(&dial)) {
+            Ok(stream) => stream,
+            Err(WireError::HandshakeRefused(_)) => anyhow::bail!(
+                "the run refused the handshake: it holds another secret, or runs without one"
+            ),
+            Err(err) => {
+                return Err(err).with_context(|| {
+                    format!("cannot open the control link at {addr} (is it a run's?)")
+                });
             }
-            let Some(answer) = noise_of(&line) else {
-                anyhow::bail!(
-                    "the run does not authenticate (started without --secret?): it answered `{}`",
-                    line.trim()
-                );
-            };
-            let Ok((confirm, _)) = dialer.finish(&answer) else {
-                anyhow::bail!("the run's handshake does not match: it holds another secret");
-            };
-            write_json(&mut writer, &auth_line(&confirm))?;
-        }
-        Ok(Client { reader, writer })
+        };
+        let (reader, writer) = stream.split();
+        Ok(Client {
+            reader,
+            writer,
+            role: Some(dial_role(&dial)),
+            seq: 0,
+            hello_due: false,
+        })
+    }
+
+    /// The role this client proved, `None` without a secret (then it may do anything).
+    pub fn role(&self) -> Option<Role> {
+        self.role
     }
 
     /// Sends one request and waits for its reply. After an error the connection is in an
     /// unknown state: connect again.
     pub fn call(&mut self, request: &Request) -> anyhow::Result<Reply> {
         use anyhow::Context as _;
-        write_json(&mut self.writer, request)?;
-        let line =
-            read_line(&mut self.reader, MAX_REPLY_BYTES)?.context("no reply from the run")?;
-        serde_json::from_str(&line).with_context(|| format!("unreadable reply `{}`", line.trim()))
+        self.seq += 1;
+        blocking::write_message(
+            &mut self.writer,
+            &ToRun {
+                seq: self.seq,
+                request: request.clone(),
+            },
+        )?;
+        let hello = if std::mem::take(&mut self.hello_due) {
+            blocking::read_hello(&mut self.reader)
+        } else {
+            Ok(())
+        };
+        let answer =
+            hello.and_then(|()| read_bounded::<FromRun>(&mut self.reader, MAX_FRAME_BYTES));
+        let answer = match answer {
+            Ok(answer) => answer,
+            Err(err) if self.role.is_none() && self.seq == 1 && closed(&err) => anyhow::bail!(
+                "the run closed the connection without a word: it requires the shared secret (armor ctl --secret FILE, or --key FILE)"
+            ),
+            Err(err) => return Err(err).context("no reply from the run"),
+        };
+        if answer.seq != self.seq {
+            anyhow::bail!(
+                "the run answered request {} where {} was due: the link was tampered with",
+                answer.seq,
+                self.seq
+            );
+        }
+        Ok(answer.reply)
     }
 }

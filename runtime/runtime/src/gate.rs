@@ -1,9 +1,11 @@
-//! The door of every server of a run (agent, config server): connections are accepted on one
-//! thread, without blocking, and get a thread of their own only once they have said their hello
-//! and, with a secret, passed the handshake. Until then a peer costs a socket and at most a
-//! kilobyte of buffer; at most [`MAX_PENDING`] are kept, the oldest dropped for a new one, and
-//! none longer than [`HANDSHAKE_TIMEOUT`]. A thousand idle connections thus cost a few hundred
-//! kilobytes and never keep a module from getting in.
+//! The door of every server of a run (agent, config server, control interface) and of
+//! `armor host`: connections are accepted on one thread, without blocking, and get a thread of
+//! their own only once they have said their hello and, with a secret, passed the handshake.
+//! Until then a peer costs a socket and at most a kilobyte of buffer; at most [`MAX_PENDING`]
+//! are kept, the oldest that has not proved a key dropped first for a new one, and none longer
+//! than [`HANDSHAKE_TIMEOUT`] for the whole handshake. A thousand idle connections thus cost a
+//! few hundred kilobytes and never keep a module or an operator from getting in. With a secret,
+//! the door sends nothing, not even its hello, before a valid first handshake message.
 
 use std::collections::HashMap;
 use std::io::{ErrorKind, Write as _};
@@ -20,7 +22,7 @@ use mio::{Events, Interest, Poll, Token};
 /// The most connections kept before their handshake is over.
 pub const MAX_PENDING: usize = 256;
 /// How long a peer has to say its hello and finish the handshake.
-pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(1500);
 
 const LISTENER: Token = Token(0);
 
@@ -30,6 +32,9 @@ struct Pending {
     out: OutBuffer,
     sealer: Option<Sealer>,
     peer: Option<String>,
+    /// With a secret, the hello goes out with the answer to a valid first handshake message:
+    /// a stranger gets not a byte.
+    hello_owed: bool,
     deadline: Instant,
 }
 
@@ -70,10 +75,19 @@ fn run(
         {
             return Err(err);
         }
-        let ready: Vec<Token> = events.iter().map(|event| event.token()).collect();
-        for token in ready {
+        let mut ready: Vec<Token> = events.iter().map(|event| event.token()).collect();
+        while let Some(token) = ready.pop() {
             if token == LISTENER {
-                accept_all(&listener, &poll, &mut pending, &mut next_token, &listen);
+                // What a new connection brought with it (a dialer's hello and first message
+                // come with the connect) is read at once: a key holder's first message then
+                // counts before more strangers arrive.
+                ready.extend(accept_all(
+                    &listener,
+                    &poll,
+                    &mut pending,
+                    &mut next_token,
+                    &listen,
+                ));
                 continue;
             }
             let Some(conn) = pending.get_mut(&token) else {
@@ -115,27 +129,31 @@ fn run(
     }
 }
 
+/// Accepts every waiting connection; returns their tokens.
 fn accept_all(
     listener: &mio::net::TcpListener,
     poll: &Poll,
     pending: &mut HashMap<Token, Pending>,
     next_token: &mut usize,
     listen: &Option<Listen>,
-) {
+) -> Vec<Token> {
+    let mut accepted = Vec::new();
     loop {
         let stream = match listener.accept() {
             Ok((stream, _)) => TcpStream::from(stream),
-            Err(err) if err.kind() == ErrorKind::WouldBlock => return,
+            Err(err) if err.kind() == ErrorKind::WouldBlock => return accepted,
             Err(err) => {
                 // Out of descriptors, say: the pending ones will free some.
                 tracing::warn!("accept failed: {err}");
-                return;
+                return accepted;
             }
         };
+        // The oldest stranger goes first: a peer whose first handshake message proved a key
+        // is dropped only when every pending peer has.
         if pending.len() >= MAX_PENDING
             && let Some(oldest) = pending
                 .iter()
-                .min_by_key(|(_, conn)| conn.deadline)
+                .min_by_key(|(_, conn)| (!conn.hello_owed, conn.deadline))
                 .map(|(&token, _)| token)
         {
             tracing::debug!("{MAX_PENDING} connections in their handshake: dropped the oldest");
@@ -155,16 +173,19 @@ fn accept_all(
             continue;
         }
         let mut out = OutBuffer::default();
-        out.push_encoded(&HELLO);
+        if listen.is_none() {
+            out.push_encoded(&HELLO);
+        }
         let mut conn = Pending {
             stream,
             reader: FrameReader::listener(listen.clone()),
             out,
             sealer: None,
             peer: None,
+            hello_owed: listen.is_some(),
             deadline: Instant::now() + HANDSHAKE_TIMEOUT,
         };
-        // The hello is six bytes: a new socket takes them at once.
+        // The hello (if any yet) is six bytes: a new socket takes them at once.
         if let Err(err) = conn.out.flush_to(&mut conn.stream) {
             tracing::debug!("cannot greet a new connection: {err}");
             let _ = poll
@@ -173,6 +194,7 @@ fn accept_all(
             continue;
         }
         pending.insert(token, conn);
+        accepted.push(token);
     }
 }
 
@@ -190,6 +212,9 @@ fn advance(conn: &mut Pending) -> Result<bool, WireError> {
                     return Err(WireError::Unauthenticated("a frame"));
                 };
                 let step = conn.reader.take_auth_step();
+                if std::mem::take(&mut conn.hello_owed) {
+                    conn.out.push_encoded(&HELLO);
+                }
                 conn.out.push_encoded(&step.reply);
                 conn.sealer = step.sealer.or(conn.sealer.take());
                 conn.peer = step.peer.or(conn.peer.take());

@@ -65,12 +65,22 @@ pub enum ToHost {
         id: u64,
         types: Vec<String>,
     },
-    /// Start a module. `generation` tells this start from the module's earlier ones.
+    /// Start a module. `generation` tells this start from the module's earlier ones. The
+    /// daemon builds the module's environment from these checked values itself (and, with a
+    /// secret, derives the module's key from it): nothing else of the message reaches the
+    /// process, so a supervisor cannot hand a module `LD_PRELOAD` or any other variable.
     Spawn {
         name: String,
         module_type: String,
         generation: u64,
-        env: Vec<(String, String)>,
+        /// The run's agent and supervisor, `IP:PORT`.
+        agent: String,
+        supervisor: String,
+        epoch_ns: u64,
+        time_scale: f64,
+        /// Whether the module's links are encrypted (only with a secret).
+        #[serde(default)]
+        encrypt: bool,
     },
     /// Send a signal to a module's process group.
     Signal {
@@ -128,12 +138,116 @@ pub enum FromHost {
 
 pub struct HostOptions {
     pub listener: TcpListener,
+    /// The run's secret; `None` only on a loopback listener (see [`check_listen`]).
     /// The host's name, as the system declares it (for logs).
     pub name: String,
     pub module_path: Vec<PathBuf>,
     pub secret: Option<Secret>,
     /// Modules are killed after this long without the supervisor.
     pub orphan: Duration,
+}
+
+/// The address `armor host` listens on when not told: every interface with a secret, loopback
+/// without (a stranger on the network must never reach a daemon that starts programs).
+pub fn default_listen(with_secret: bool) -> std::net::SocketAddr {
+    let ip = if with_secret {
+        std::net::Ipv4Addr::UNSPECIFIED
+    } else {
+        std::net::Ipv4Addr::LOCALHOST
+    };
+    std::net::SocketAddr::from((ip, DEFAULT_PORT))
+}
+
+/// The port of a host daemon unless its `<host>` says another.
+pub const DEFAULT_PORT: u16 = 7410;
+
+/// Refuses an address beyond loopback without a secret, saying why.
+pub fn check_listen(addr: std::net::SocketAddr, with_secret: bool) -> Result<(), String> {
+    if with_secret || addr.ip().is_loopback() {
+        return Ok(());
+    }
+    Err(format!(
+        "refusing to listen on {addr} without a secret: anyone who reaches it could start \
+         programs on this machine. Give --secret FILE (the run's secret), or listen on \
+         127.0.0.1"
+    ))
+}
+
+/// The variables the daemon sets for a module, removed from what the module inherits of the
+/// daemon's own environment (which its operator set, not the network).
+const MODULE_VARS: [&str; 8] = [
+    armor_module_api::ENV_MODULE,
+    armor_module_api::ENV_AGENT,
+    armor_module_api::ENV_SUPERVISOR,
+    armor_module_api::clock::ENV_EPOCH,
+    armor_module_api::clock::ENV_TIME_SCALE,
+    ENV_KEY,
+    ENV_ENCRYPT,
+    ENV_RUN_DIR,
+];
+
+/// The longest module name or type the daemon takes.
+const MAX_NAME_BYTES: usize = 128;
+
+/// A module name or type as a system may write it: letters, digits, `_`, `-` and `.` (no
+/// `/`, so a type names a file in a folder of the module path and nothing else).
+fn check_name(what: &str, name: &str) -> Result<(), String> {
+    let fine = !name.is_empty()
+        && name.len() <= MAX_NAME_BYTES
+        && !name.starts_with('.')
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'));
+    if fine {
+        Ok(())
+    } else {
+        Err(format!(
+            "refused a {what} that is not a name (letters, digits, `_`, `-`, `.`; at most \
+             {MAX_NAME_BYTES} bytes): {:?}",
+            name.chars().take(MAX_NAME_BYTES).collect::<String>()
+        ))
+    }
+}
+
+/// The module's environment from a spawn request, every value checked: names, addresses,
+/// numbers; the key derived here from the daemon's own secret.
+fn module_env(
+    secret: Option<&Secret>,
+    name: &str,
+    agent: &str,
+    supervisor: &str,
+    epoch_ns: u64,
+    time_scale: f64,
+    encrypt: bool,
+) -> Result<Vec<(&'static str, String)>, String> {
+    let address = |what: &str, text: &str| {
+        text.parse::<std::net::SocketAddr>()
+            .map(|addr| addr.to_string())
+            .map_err(|_| format!("refused a {what} address that is not IP:PORT"))
+    };
+    if !(time_scale.is_finite() && time_scale > 0.0) {
+        return Err("refused a time scale that is not a positive number".to_owned());
+    }
+    let mut env = vec![
+        (armor_module_api::ENV_MODULE, name.to_owned()),
+        (armor_module_api::ENV_AGENT, address("agent", agent)?),
+        (
+            armor_module_api::ENV_SUPERVISOR,
+            address("supervisor", supervisor)?,
+        ),
+        (armor_module_api::clock::ENV_EPOCH, epoch_ns.to_string()),
+        (
+            armor_module_api::clock::ENV_TIME_SCALE,
+            time_scale.to_string(),
+        ),
+    ];
+    if let Some(secret) = secret {
+        env.push((ENV_KEY, secret.module_key(name).to_hex()));
+        if encrypt {
+            env.push((ENV_ENCRYPT, "1".to_owned()));
+        }
+    }
+    Ok(env)
 }
 
 /// A module the daemon started, by name.
@@ -146,6 +260,7 @@ struct Running {
 struct Daemon {
     name: String,
     module_path: Vec<PathBuf>,
+    secret: Option<Secret>,
     orphan: Duration,
     modules: Mutex<HashMap<String, Running>>,
     /// The connection serving now (its number); an older one stops when it sees a newer.
@@ -164,6 +279,7 @@ pub fn serve(options: HostOptions) {
     let daemon = Arc::new(Daemon {
         name: options.name,
         module_path: options.module_path,
+        secret: options.secret.clone(),
         orphan: options.orphan,
         modules: Mutex::new(HashMap::new()),
         session: Mutex::new(0),
@@ -407,8 +523,37 @@ impl Daemon {
                 name,
                 module_type,
                 generation,
-                env,
-            } => self.spawn(name, &module_type, generation, &env, tx),
+                agent,
+                supervisor,
+                epoch_ns,
+                time_scale,
+                encrypt,
+            } => {
+                let env = check_name("module name", &name)
+                    .and_then(|()| check_name("module type", &module_type))
+                    .and_then(|()| {
+                        module_env(
+                            self.secret.as_ref(),
+                            &name,
+                            &agent,
+                            &supervisor,
+                            epoch_ns,
+                            time_scale,
+                            encrypt,
+                        )
+                    });
+                match env {
+                    Ok(env) => self.spawn(name, &module_type, generation, &env, tx),
+                    Err(error) => {
+                        tracing::warn!("{error}");
+                        let _ = tx.send(FromHost::SpawnFailed {
+                            name: name.chars().take(MAX_NAME_BYTES).collect(),
+                            generation,
+                            error,
+                        });
+                    }
+                }
+            }
         }
     }
 
@@ -417,7 +562,7 @@ impl Daemon {
         name: String,
         module_type: &str,
         generation: u64,
-        env: &[(String, String)],
+        env: &[(&'static str, String)],
         tx: &Sender<FromHost>,
     ) {
         let failed = |error: String| {
@@ -444,11 +589,12 @@ impl Daemon {
             ));
         };
         let mut command = Command::new(&binary);
+        // The daemon's own variables of a run (its secret file among them) are not the module's.
+        command.env_remove(ENV_SECRET_FILE);
+        for var in MODULE_VARS {
+            command.env_remove(var);
+        }
         command
-            .env_remove(ENV_SECRET_FILE)
-            .env_remove(ENV_ENCRYPT)
-            .env_remove(ENV_KEY)
-            .env_remove(ENV_RUN_DIR)
             .envs(env.iter().map(|(key, value)| (key, value)))
             .stdin(Stdio::null())
             .stdout(Stdio::piped())

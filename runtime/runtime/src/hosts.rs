@@ -81,6 +81,16 @@ struct Shared {
 #[derive(Clone)]
 pub struct HostLink(Arc<Shared>);
 
+/// What a host needs to know of the run to start one of its modules.
+#[derive(Clone, Copy, Debug)]
+pub struct SpawnRun {
+    pub agent: SocketAddr,
+    pub supervisor: SocketAddr,
+    pub epoch_ns: u64,
+    pub time_scale: f64,
+    pub encrypt: bool,
+}
+
 impl std::fmt::Debug for HostLink {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "HostLink({} at {})", self.0.name, self.0.addr)
@@ -236,13 +246,9 @@ impl HostLink {
         }
     }
 
-    /// Asks the host to start a module with this environment.
-    pub fn spawn(
-        &self,
-        name: &str,
-        module_type: &str,
-        env: Vec<(String, String)>,
-    ) -> Option<RemoteChild> {
+    /// Asks the host to start a module for this run (the host builds its environment from
+    /// `run` and derives its key from its own secret).
+    pub fn spawn(&self, name: &str, module_type: &str, run: &SpawnRun) -> Option<RemoteChild> {
         let generation = {
             let mut state = self.lock();
             state.writer.as_ref()?;
@@ -256,7 +262,11 @@ impl HostLink {
             name: name.to_owned(),
             module_type: module_type.to_owned(),
             generation,
-            env,
+            agent: run.agent.to_string(),
+            supervisor: run.supervisor.to_string(),
+            epoch_ns: run.epoch_ns,
+            time_scale: run.time_scale,
+            encrypt: run.encrypt,
         };
         if !self.send(&message) {
             return None;

@@ -64,6 +64,23 @@ enum CtlCommand {
 }
 
 #[derive(Subcommand)]
+enum SecretCommand {
+    /// Write the key of a role at the control interface (`armor ctl --key FILE`, the studio's
+    /// attach): it proves that role and reveals neither the secret nor another role's key.
+    Derive {
+        /// `observer` (reads the run's status) or `operator` (may also command it).
+        #[arg(long)]
+        role: String,
+        /// The run's shared secret.
+        #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
+        secret: PathBuf,
+        /// The key file to write (mode 600).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+}
+
+#[derive(Subcommand)]
 enum Command {
     /// Run a system, a mission, a plan or a PNML net: the agent, the config server and every
     /// module, until Ctrl-C (a system) or until the mission ends (a mission, a plan, a net).
@@ -136,9 +153,10 @@ enum Command {
     /// the modules placed on it (`<module … host="NAME">`) through it.
     Host {
         /// Where to listen (the address of the host's `<host>` declaration, its port 7410 by
-        /// default).
-        #[arg(long, default_value = "0.0.0.0:7410")]
-        listen: SocketAddr,
+        /// default). Default: 0.0.0.0:7410 with a secret, 127.0.0.1:7410 without; an address
+        /// beyond loopback is refused without a secret.
+        #[arg(long)]
+        listen: Option<SocketAddr>,
         /// The host's name, for its logs (default: the machine's host name).
         #[arg(long)]
         name: Option<String>,
@@ -164,11 +182,20 @@ enum Command {
         /// The run's control interface (printed by `armor run`; default: $ARMOR_CONTROL).
         #[arg(long, env = armor_runtime::control::ENV_CONTROL)]
         addr: SocketAddr,
-        /// The run's shared secret, when it was started with one.
+        /// The run's shared secret, when it was started with one (acts as the operator).
         #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
         secret: Option<PathBuf>,
+        /// A role's key instead of the secret (`armor secret derive`): an observer's reads the
+        /// status, an operator's may also command.
+        #[arg(long, value_name = "FILE", conflicts_with = "secret")]
+        key: Option<PathBuf>,
         #[command(subcommand)]
         request: CtlCommand,
+    },
+    /// Keys derived from a run's secret.
+    Secret {
+        #[command(subcommand)]
+        command: SecretCommand,
     },
     /// Check a system, mission or plan file: schema, module types, links, parameters, the files
     /// it names; for a plan, every leg planned on its world; for a mission, the names it uses
@@ -378,6 +405,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 .transpose()?;
             let orphan = Duration::try_from_secs_f64(orphan_secs)
                 .context("--orphan-secs must be a positive number of seconds")?;
+            let listen =
+                listen.unwrap_or_else(|| armor_runtime::host::default_listen(secret.is_some()));
+            armor_runtime::host::check_listen(listen, secret.is_some())
+                .map_err(anyhow::Error::msg)?;
             let listener = std::net::TcpListener::bind(listen)
                 .with_context(|| format!("cannot listen on {listen}"))?;
             let addr = listener.local_addr()?;
@@ -406,15 +437,44 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             });
             Ok(ExitCode::SUCCESS)
         }
+        Command::Secret {
+            command:
+                SecretCommand::Derive {
+                    role,
+                    secret,
+                    output,
+                },
+        } => {
+            let Some(role) = armor_module_api::auth::Role::parse(role.trim()) else {
+                anyhow::bail!("--role {role}: expected `observer` or `operator`");
+            };
+            let secret = armor_module_api::auth::Secret::load(&secret)?;
+            let key = armor_module_api::auth::RoleKey {
+                role,
+                key: secret.role_key(role),
+            };
+            write_private(&output, key.to_line().as_bytes())
+                .with_context(|| format!("cannot write {}", output.display()))?;
+            println!("wrote the {} key to {}", role.as_str(), output.display());
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Ctl {
             addr,
             secret,
+            key,
             request,
         } => {
-            let secret = secret
-                .filter(|file| !file.as_os_str().is_empty())
-                .map(|file| armor_module_api::auth::Secret::load(&file))
-                .transpose()?;
+            let secret = match key.filter(|file| !file.as_os_str().is_empty()) {
+                Some(file) => Some(control::key_from_file(&file)?),
+                None => secret
+                    .filter(|file| !file.as_os_str().is_empty())
+                    .map(|file| armor_module_api::auth::Secret::load(&file))
+                    .transpose()?
+                    .map(|secret| armor_module_api::auth::RoleKey {
+                        role: armor_module_api::auth::Role::Operator,
+                        key: secret.role_key(armor_module_api::auth::Role::Operator),
+                    }),
+            };
             let json = matches!(request, CtlCommand::Status { json: true });
             if let CtlCommand::Teleop {
                 linear,
@@ -436,7 +496,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 CtlCommand::Fire { transition } => control::Request::Fire { transition },
                 CtlCommand::Teleop { .. } => unreachable!("answered above"),
             };
-            let reply = control::request(addr, &request, secret.as_ref())?;
+            let reply = control::Client::connect_with(addr, secret.as_ref())?.call(&request)?;
             // With --json, stdout is the JSON alone (for jq and scripts).
             if json {
                 eprintln!("{}", reply.message);
@@ -944,11 +1004,33 @@ fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration, cached: bool
     }
 }
 
+/// Writes a file only its owner may read, through a temporary file renamed over it (a key is
+/// never readable by others, not even for a moment, and a failed write leaves the old file).
+fn write_private(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write as _;
+    use std::os::unix::fs::OpenOptionsExt as _;
+    let dir = path
+        .parent()
+        .filter(|dir| !dir.as_os_str().is_empty())
+        .unwrap_or_else(|| std::path::Path::new("."));
+    let mut name = path.file_name().unwrap_or_default().to_owned();
+    name.push(format!(".{}.tmp", std::process::id()));
+    let temporary = dir.join(name);
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(&temporary)?;
+    file.write_all(bytes)?;
+    file.sync_all()?;
+    std::fs::rename(&temporary, path)
+}
+
 /// `armor ctl teleop`: one command, or the same one ten times a second for `for_secs`, then
 /// `stop`, over one connection to the control interface.
 fn ctl_teleop(
     addr: SocketAddr,
-    secret: Option<&armor_module_api::auth::Secret>,
+    secret: Option<&armor_module_api::auth::RoleKey>,
     linear: &str,
     angular: Option<f64>,
     for_secs: Option<f64>,
@@ -973,7 +1055,7 @@ fn ctl_teleop(
                 .map_err(|_| anyhow::anyhow!("--for {secs}: expected seconds, 0 or more"))
         })
         .transpose()?;
-    let mut client = control::Client::connect(addr, secret)?;
+    let mut client = control::Client::connect_with(addr, secret)?;
     let request = |linear, angular| control::Request::Teleop {
         linear,
         angular,

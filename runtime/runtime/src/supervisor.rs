@@ -345,7 +345,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     );
     let mut modules: BTreeMap<String, ModuleProc> = BTreeMap::new();
     add_modules(&mut modules, &loaded, &env);
-    let teleop = crate::teleop_relay::start();
+    let teleop = crate::teleop_relay::start(secret.clone());
     let mut ready: Vec<String> = Vec::new();
     let mut all_ready_logged = false;
     let outcome = loop {
@@ -1081,20 +1081,14 @@ impl ModuleProc {
             self.state = ProcState::Failed;
             return;
         };
-        let mut vars = vec![
-            (ENV_MODULE.to_owned(), self.name.clone()),
-            (ENV_AGENT.to_owned(), env.agent_addr.to_string()),
-            (ENV_SUPERVISOR.to_owned(), env.supervisor_addr.to_string()),
-            (ENV_EPOCH.to_owned(), env.epoch_ns.to_string()),
-            (ENV_TIME_SCALE.to_owned(), env.time_scale.to_string()),
-        ];
-        if let Some(secret) = &env.secret {
-            vars.push((ENV_KEY.to_owned(), secret.module_key(&self.name).to_hex()));
-            if env.encrypt {
-                vars.push((ENV_ENCRYPT.to_owned(), "1".to_owned()));
-            }
-        }
-        match link.spawn(&self.name, &self.module_type, vars) {
+        let run = crate::hosts::SpawnRun {
+            agent: env.agent_addr,
+            supervisor: env.supervisor_addr,
+            epoch_ns: env.epoch_ns,
+            time_scale: env.time_scale,
+            encrypt: env.secret.is_some() && env.encrypt,
+        };
+        match link.spawn(&self.name, &self.module_type, &run) {
             Some(child) => {
                 tracing::info!(module = self.name, host, "module started on host `{host}`");
                 self.child = Some(ModuleChild::Remote(child));

@@ -16,6 +16,9 @@ use std::net::{SocketAddr, TcpStream};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::time::Duration;
 
+use armor_module_api::auth::{Dial, Secret};
+use armor_module_api::wire::blocking::{self, SecureStream};
+
 use crate::control::Reply;
 
 /// The module type whose command port the relay drives.
@@ -100,42 +103,72 @@ pub fn target<'a>(
     Ok((chosen.name.to_owned(), addr))
 }
 
-/// Starts the relay's thread; it ends when the sender is dropped.
-pub fn start() -> Sender<Command> {
+/// Starts the relay's thread; it ends when the sender is dropped. With the run's `secret`, the
+/// relay proves the link key of each teleop module's key (identity
+/// [`crate::host::SUPERVISOR_IDENTITY`]) and the link is encrypted, as the module requires.
+pub fn start(secret: Option<Secret>) -> Sender<Command> {
     let (commands, receiver) = mpsc::channel();
-    std::thread::spawn(move || relay(&receiver));
+    std::thread::spawn(move || relay(&receiver, secret.as_ref()));
     commands
 }
 
 /// The connection to the module's command port, and where it goes.
 struct Link {
     addr: SocketAddr,
-    reader: BufReader<TcpStream>,
-    writer: TcpStream,
+    conn: Conn,
+}
+
+enum Conn {
+    /// Without a secret: lines in the clear.
+    Lines {
+        reader: BufReader<TcpStream>,
+        writer: TcpStream,
+    },
+    /// With a secret: the wire protocol over Noise, a JSON string per frame.
+    Secure(SecureStream),
 }
 
 impl Link {
-    fn open(addr: SocketAddr) -> std::io::Result<Link> {
+    fn open(addr: SocketAddr, module: &str, secret: Option<&Secret>) -> std::io::Result<Link> {
         let stream = TcpStream::connect_timeout(&addr, TIMEOUT)?;
         stream.set_nodelay(true)?;
         stream.set_read_timeout(Some(TIMEOUT))?;
-        let writer = stream.try_clone()?;
-        Ok(Link {
-            addr,
-            reader: BufReader::new(stream),
-            writer,
-        })
+        let conn = match secret {
+            Some(secret) => {
+                let dial = Dial {
+                    key: secret
+                        .module_key(module)
+                        .link_key(crate::host::SUPERVISOR_IDENTITY),
+                    identity: crate::host::SUPERVISOR_IDENTITY.to_owned(),
+                    encrypt: true,
+                };
+                Conn::Secure(blocking::dial(stream, Some(&dial)).map_err(std::io::Error::other)?)
+            }
+            None => {
+                let writer = stream.try_clone()?;
+                Conn::Lines {
+                    reader: BufReader::new(stream),
+                    writer,
+                }
+            }
+        };
+        Ok(Link { addr, conn })
     }
 
     /// Sends one command line and reads the module's answer.
     fn send(&mut self, line: &str) -> std::io::Result<String> {
-        self.writer.write_all(line.as_bytes())?;
+        let (reader, writer) = match &mut self.conn {
+            Conn::Lines { reader, writer } => (reader, writer),
+            Conn::Secure(stream) => {
+                blocking::write_message(stream, &line.trim()).map_err(std::io::Error::other)?;
+                let answer: String =
+                    blocking::read_message(stream).map_err(std::io::Error::other)?;
+                return Ok(answer.trim().to_owned());
+            }
+        };
+        writer.write_all(line.as_bytes())?;
         let mut answer = String::new();
-        if (&mut self.reader)
-            .take(MAX_ANSWER_BYTES)
-            .read_line(&mut answer)?
-            == 0
-        {
+        if reader.take(MAX_ANSWER_BYTES).read_line(&mut answer)? == 0 {
             return Err(std::io::Error::other("the module closed the connection"));
         }
         Ok(answer.trim().to_owned())
@@ -151,7 +184,7 @@ fn command_line(linear: f64, angular: f64) -> String {
     }
 }
 
-fn relay(commands: &Receiver<Command>) {
+fn relay(commands: &Receiver<Command>, secret: Option<&Secret>) {
     let mut link: Option<Link> = None;
     while let Ok(command) = commands.recv() {
         let line = command_line(command.linear, command.angular);
@@ -163,7 +196,7 @@ fn relay(commands: &Receiver<Command>) {
         let mut answer = Err(std::io::Error::other("not sent"));
         for _ in 0..2 {
             if link.is_none() {
-                match Link::open(command.addr) {
+                match Link::open(command.addr, &command.module, secret) {
                     Ok(opened) => link = Some(opened),
                     Err(err) => {
                         answer = Err(err);
@@ -323,7 +356,7 @@ mod tests {
 
     #[test]
     fn relays_commands_and_answers_and_follows_a_new_port() {
-        let relay = start();
+        let relay = start(None);
         let first = fake_module(|line| {
             if line == "stop" || line.starts_with("v ") {
                 "ok".to_owned()

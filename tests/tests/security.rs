@@ -1,0 +1,653 @@
+//! Attacks on a run and a host daemon, each written as the attacker would try it (issue 34):
+//! a stranger at a default `armor host`, and one that chooses a module's environment; an
+//! on-path relay that reads and rewrites the control link; slow clients and strangers that try
+//! to lock the operator out; a process without a key at the teleop port; oversized lookups;
+//! and, for every socket a run under `--secret` listens on, a stranger that gets not a byte
+//! and is closed within 2 s. Real processes and sockets on loopback.
+#![allow(clippy::unwrap_used)]
+
+use std::collections::HashSet;
+use std::io::{Read as _, Write as _};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use armor_module_api::auth::Secret;
+use armor_module_api::wire::blocking;
+use armor_tests::{
+    PATIENCE, Proc, bin, bin_dir, children_of, control_address, driven_system, start_agent,
+    wait_until,
+};
+
+/// What the brief allows a stranger: closed within this, having received nothing.
+const STRANGER_CLOSED_WITHIN: Duration = Duration::from_secs(2);
+
+/// A secret file of 32 random-looking bytes, mode 600.
+fn secret_file(dir: &Path) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt as _;
+    let file = dir.join("secret");
+    std::fs::write(&file, "a secret of thirty-two bytes, ok").unwrap();
+    std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o600)).unwrap();
+    file
+}
+
+/// `armor run FILE --secret SECRET --no-run-folder`, and its control address.
+fn run_with_secret(file: &Path, secret: &Path) -> (Proc, String) {
+    let run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(file)
+            .arg("--secret")
+            .arg(secret)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let addr = control_address(&run);
+    (run, addr)
+}
+
+/// `armor ctl` with these arguments: whether it succeeded, its output, and how long it took.
+fn ctl(args: &[&str]) -> (bool, String, Duration) {
+    let started = Instant::now();
+    let output = Command::new(bin("armor"))
+        .arg("ctl")
+        .args(args)
+        .env_remove(armor_module_api::auth::ENV_SECRET_FILE)
+        .output()
+        .unwrap();
+    (
+        output.status.success(),
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        ),
+        started.elapsed(),
+    )
+}
+
+/// The teleop module's command port, once the run's status shows it.
+fn teleop_port(control: &str, secret: &Path) -> SocketAddr {
+    let mut found = None;
+    wait_until("the teleop's endpoint in the status", PATIENCE, || {
+        let (ok, text, _) = ctl(&[
+            "--addr",
+            control,
+            "--secret",
+            secret.to_str().unwrap(),
+            "status",
+            "--json",
+        ]);
+        let json = text.find('{').map_or("", |start| &text[start..]);
+        // The JSON is followed by the reply's message (on stderr, after stdout here).
+        let status: serde_json::Value = serde_json::Deserializer::from_str(json)
+            .into_iter()
+            .next()
+            .and_then(Result::ok)
+            .unwrap_or_default();
+        found = status["modules"].as_array().and_then(|modules| {
+            modules
+                .iter()
+                .find(|module| module["name"] == "pad" && module["state"] == "running")
+                .and_then(|pad| pad["endpoints"]["teleop"].as_str())
+                .and_then(|addr| addr.parse().ok())
+        });
+        ok && found.is_some()
+    });
+    found.unwrap()
+}
+
+/// Reads what a peer sends until it closes or `wait` passes: the bytes, and whether (and when)
+/// it closed.
+fn read_until_closed(stream: &mut TcpStream, wait: Duration) -> (Vec<u8>, Option<Duration>) {
+    let started = Instant::now();
+    let mut got = Vec::new();
+    let mut buf = [0; 4096];
+    loop {
+        let left = wait.saturating_sub(started.elapsed());
+        if left.is_zero() {
+            return (got, None);
+        }
+        stream.set_read_timeout(Some(left)).unwrap();
+        match stream.read(&mut buf) {
+            Ok(0) => return (got, Some(started.elapsed())),
+            Ok(n) => got.extend_from_slice(&buf[..n]),
+            Err(err)
+                if matches!(
+                    err.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) =>
+            {
+                return (got, None);
+            }
+            Err(_) => return (got, Some(started.elapsed())),
+        }
+    }
+}
+
+#[test]
+fn a_default_host_listens_on_loopback_and_refuses_the_network_without_a_secret() {
+    // Defaults first, as a user would start it.
+    let mut host = Proc::start(
+        Command::new(bin("armor"))
+            .args(["host", "--name", "robot1"])
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .env_remove(armor_module_api::auth::ENV_SECRET_FILE),
+    );
+    let line = host.wait_for("its address or why not", PATIENCE, |line| {
+        line.contains("listening on") || line.contains("cannot listen on")
+    });
+    // Port 7410 may be taken by another test's daemon: the address is what matters.
+    assert!(line.contains("127.0.0.1:7410"), "{line}");
+    host.signal(9);
+    host.wait_exit(PATIENCE);
+    // Asked for every interface without a secret, it refuses and says why.
+    let output = Command::new(bin("armor"))
+        .args(["host", "--listen", "0.0.0.0:0"])
+        .env_remove(armor_module_api::auth::ENV_SECRET_FILE)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(stderr.contains("without a secret"), "{stderr}");
+}
+
+/// A supervisor's spawn request (here a stranger's, at a loopback daemon without a secret)
+/// cannot choose the module's environment: the daemon builds it itself.
+#[test]
+fn a_spawn_request_cannot_choose_the_modules_environment() {
+    let host = Proc::start(
+        Command::new(bin("armor"))
+            .args(["host", "--name", "robot1", "--listen", "127.0.0.1:0"])
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .env_remove(armor_module_api::auth::ENV_SECRET_FILE),
+    );
+    let line = host.wait_for("its address", PATIENCE, |line| {
+        line.starts_with("armor host listening on ")
+    });
+    let addr: SocketAddr = line
+        .trim_start_matches("armor host listening on ")
+        .trim()
+        .parse()
+        .unwrap();
+    let stream = TcpStream::connect(addr).unwrap();
+    stream.set_read_timeout(Some(PATIENCE)).unwrap();
+    let mut stream = blocking::dial(stream, None).unwrap();
+    let hello = serde_json::json!({"op": "hello", "run": "stranger", "orphan_ms": 3000});
+    blocking::write_message(&mut stream, &hello).unwrap();
+    // The environment an attacker would like (the old form of the request) and the fields the
+    // daemon checks (the new one): whichever the daemon reads, LD_PRELOAD must not pass.
+    let spawn = serde_json::json!({
+        "op": "spawn",
+        "name": "victim",
+        "module_type": "counter",
+        "generation": 1,
+        "env": [["LD_PRELOAD", "/nonexistent/attacker.so"], ["ARMOR_MODULE", "victim"]],
+        "agent": "127.0.0.1:9",
+        "supervisor": "127.0.0.1:9",
+        "epoch_ns": 0,
+        "time_scale": 1.0
+    });
+    blocking::write_message(&mut stream, &spawn).unwrap();
+    let deadline = Instant::now() + PATIENCE;
+    let pid = loop {
+        assert!(Instant::now() < deadline, "no answer to the spawn");
+        let message: serde_json::Value = blocking::read_message(&mut stream).unwrap();
+        match message["op"].as_str() {
+            Some("started") => break message["pid"].as_u64().unwrap(),
+            Some("spawn_failed") => panic!("{message}"),
+            _ => {}
+        }
+    };
+    let environ = std::fs::read(format!("/proc/{pid}/environ")).unwrap_or_default();
+    let environ = String::from_utf8_lossy(&environ);
+    assert!(
+        !environ.contains("LD_PRELOAD"),
+        "the module got LD_PRELOAD from the network: {environ}"
+    );
+    assert!(environ.contains("ARMOR_MODULE=victim"), "{environ}");
+}
+
+/// A relay between the operator and the run: it records both directions, and with `tamper`
+/// rewrites what it can of the client's requests (a status poll into an abort in clear text;
+/// a byte of the first request once the handshake is over on an encrypted link).
+struct Relay {
+    addr: SocketAddr,
+    seen: Arc<Mutex<Vec<u8>>>,
+}
+
+fn relay(target: SocketAddr, tamper: bool) -> Relay {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let record = Arc::clone(&seen);
+    std::thread::spawn(move || {
+        for client in listener.incoming().flatten() {
+            let Ok(server) = TcpStream::connect(target) else {
+                continue;
+            };
+            let pump = |mut from: TcpStream, mut to: TcpStream, upstream: bool| {
+                let record = Arc::clone(&record);
+                std::thread::spawn(move || {
+                    let mut buf = [0; 65536];
+                    let mut offset = 0;
+                    let mut clear_text = None;
+                    while let Ok(n) = from.read(&mut buf) {
+                        if n == 0 {
+                            break;
+                        }
+                        record.lock().unwrap().extend_from_slice(&buf[..n]);
+                        let chunk = &mut buf[..n];
+                        if tamper && upstream {
+                            let clear = *clear_text.get_or_insert(chunk[0] == b'{');
+                            if clear {
+                                rewrite(chunk, br#""status"}"#, br#""abort"} "#);
+                            } else if (offset..offset + n).contains(&FLIP_AT) {
+                                chunk[FLIP_AT - offset] ^= 1;
+                            }
+                        }
+                        offset += n;
+                        if to.write_all(chunk).is_err() {
+                            break;
+                        }
+                    }
+                    let _ = to.shutdown(std::net::Shutdown::Both);
+                });
+            };
+            pump(
+                client.try_clone().unwrap(),
+                server.try_clone().unwrap(),
+                true,
+            );
+            pump(server, client, false);
+        }
+    });
+    Relay { addr, seen }
+}
+
+/// On the framed link: hello (6), first handshake frame (63), confirmation (21), then the first
+/// request's record.
+const FLIP_AT: usize = 100;
+
+fn rewrite(chunk: &mut [u8], from: &[u8], to: &[u8]) {
+    if let Some(at) = chunk.windows(from.len()).position(|window| window == from) {
+        chunk[at..at + to.len()].copy_from_slice(to);
+    }
+}
+
+#[test]
+fn an_on_path_relay_reads_nothing_of_the_control_link_and_its_rewrites_are_detected() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret_path = secret_file(dir.path());
+    let secret = Secret::load(&secret_path).unwrap();
+    let (_run, control) = run_with_secret(&driven_system(dir.path()), &secret_path);
+    let control: SocketAddr = control.parse().unwrap();
+    // Reading: a status through the relay, then a look at what passed.
+    let reader = relay(control, false);
+    let mut client = armor_runtime::control::Client::connect(reader.addr, Some(&secret)).unwrap();
+    let reply = client
+        .call(&armor_runtime::control::Request::Status)
+        .unwrap();
+    assert!(reply.ok, "{reply:?}");
+    let seen = reader.seen.lock().unwrap().clone();
+    for clear in ["status", "command", "driven", "teleop", "sim"] {
+        assert!(
+            !seen
+                .windows(clear.len())
+                .any(|window| window == clear.as_bytes()),
+            "`{clear}` passed the relay in clear text"
+        );
+    }
+    // Rewriting: the request changed on the way is not carried out, and the client learns it.
+    let tamperer = relay(control, true);
+    let mut client = armor_runtime::control::Client::connect(tamperer.addr, Some(&secret)).unwrap();
+    let answer = client.call(&armor_runtime::control::Request::Status);
+    assert!(
+        answer.is_err(),
+        "a rewritten request was answered: {answer:?}"
+    );
+    // The run goes on, for an operator who is not on that path.
+    let (ok, text, _) = ctl(&[
+        "--addr",
+        &control.to_string(),
+        "--secret",
+        secret_path.to_str().unwrap(),
+        "status",
+    ]);
+    assert!(ok, "{text}");
+}
+
+/// Clients that keep connections open and send a byte every 4 s, reconnecting when closed,
+/// until `stop`; each connection counted in `made`.
+fn slow_clients(target: SocketAddr, count: usize, stop: &Arc<AtomicBool>, made: &Arc<AtomicUsize>) {
+    for _ in 0..count {
+        let stop = Arc::clone(stop);
+        let made = Arc::clone(made);
+        std::thread::spawn(move || {
+            while !stop.load(Ordering::Relaxed) {
+                let Ok(mut stream) = TcpStream::connect(target) else {
+                    continue;
+                };
+                made.fetch_add(1, Ordering::Relaxed);
+                let mut last = Instant::now() - Duration::from_secs(4);
+                while !stop.load(Ordering::Relaxed) {
+                    if last.elapsed() >= Duration::from_secs(4) {
+                        if stream.write_all(b"{").is_err() {
+                            break;
+                        }
+                        last = Instant::now();
+                    }
+                    // A peek that ends with the run closing the connection.
+                    stream
+                        .set_read_timeout(Some(Duration::from_millis(200)))
+                        .unwrap();
+                    let mut byte = [0];
+                    match stream.read(&mut byte) {
+                        Ok(0) => break,
+                        Ok(_) => {}
+                        Err(err)
+                            if matches!(
+                                err.kind(),
+                                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                            ) => {}
+                        Err(_) => break,
+                    }
+                }
+            }
+        });
+    }
+}
+
+/// Strangers that hold `count` idle connections, opening new ones as the run closes them; each
+/// connection counted in `made`.
+fn strangers(target: SocketAddr, count: usize, stop: &Arc<AtomicBool>, made: &Arc<AtomicUsize>) {
+    let stop = Arc::clone(stop);
+    let made = Arc::clone(made);
+    std::thread::spawn(move || {
+        let mut held: Vec<TcpStream> = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            held.retain(|stream| {
+                let mut byte = [0];
+                stream.set_nonblocking(true).is_ok()
+                    && matches!((&*stream).read(&mut byte), Err(err) if err.kind() == std::io::ErrorKind::WouldBlock)
+            });
+            while held.len() < count {
+                match TcpStream::connect(target) {
+                    Ok(stream) => {
+                        made.fetch_add(1, Ordering::Relaxed);
+                        held.push(stream);
+                    }
+                    Err(_) => break,
+                }
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    });
+}
+
+#[test]
+fn slow_clients_and_strangers_do_not_lock_the_operator_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    std::fs::write(
+        dir.path().join("system.xml"),
+        r#"<system name="held">
+  <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
+</system>
+"#,
+    )
+    .unwrap();
+    let mission = dir.path().join("mission.xml");
+    std::fs::write(
+        &mission,
+        r#"<mission name="long" system="system.xml">
+  <place name="counting" tokens="1"><module name="counter"/></place>
+  <place name="done" final="true"/>
+  <transition name="later" delay_secs="3600"><input place="counting"/><output place="done"/></transition>
+</mission>
+"#,
+    )
+    .unwrap();
+    let (_run, control) = run_with_secret(&mission, &secret);
+    let target: SocketAddr = control.parse().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let made = Arc::new(AtomicUsize::new(0));
+    slow_clients(target, 40, &stop, &made);
+    strangers(target, 500, &stop, &made);
+    // The slow clients and strangers take their places first (and renew them once).
+    wait_until("the attackers' connections", PATIENCE, || {
+        made.load(Ordering::Relaxed) >= 1000
+    });
+    let secret = secret.to_str().unwrap();
+    for attempt in 1..=10 {
+        let command = if attempt == 10 { "abort" } else { "status" };
+        let (ok, text, took) = ctl(&["--addr", &control, "--secret", secret, command]);
+        assert!(ok, "attempt {attempt} ({command}): {text}");
+        assert!(
+            took <= STRANGER_CLOSED_WITHIN,
+            "attempt {attempt} ({command}) took {took:?}: {text}"
+        );
+    }
+    stop.store(true, Ordering::Relaxed);
+}
+
+#[test]
+fn a_client_without_a_key_at_the_teleop_port_drives_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let (_run, control) = run_with_secret(&driven_system(dir.path()), &secret);
+    let port = teleop_port(&control, &secret);
+    let mut stranger = TcpStream::connect(port).unwrap();
+    stranger.write_all(b"v 0.5 0\n").unwrap();
+    let (got, closed) = read_until_closed(&mut stranger, STRANGER_CLOSED_WITHIN * 2);
+    assert!(
+        got.is_empty(),
+        "the teleop answered a client without a key: {:?}",
+        String::from_utf8_lossy(&got)
+    );
+    assert!(closed.is_some(), "the teleop kept a client without a key");
+    // The operator still drives, through the run.
+    let (ok, text, _) = ctl(&[
+        "--addr",
+        &control,
+        "--secret",
+        secret.to_str().unwrap(),
+        "teleop",
+        "0.3",
+        "0",
+    ]);
+    assert!(ok && text.contains("driving at 0.3 0"), "{text}");
+}
+
+#[test]
+fn oversized_lookups_are_refused_by_the_agent() {
+    let (_agent, addr) = start_agent();
+    let stream = TcpStream::connect(addr).unwrap();
+    stream.set_read_timeout(Some(PATIENCE)).unwrap();
+    let mut stream = blocking::dial(stream, None).unwrap();
+    // A name far longer than any data name: refused, the connection kept.
+    let lookup = serde_json::json!({"type": "lookup", "data_name": "x".repeat(10_000)});
+    blocking::write_message(&mut stream, &lookup).unwrap();
+    let answer: serde_json::Value = blocking::read_message(&mut stream).unwrap();
+    assert_eq!(answer["type"], "error", "{answer}");
+    // A frame of megabytes is not read at all: the connection ends.
+    let lookup = serde_json::json!({"type": "lookup", "data_name": "x".repeat(4 << 20)});
+    let _ = blocking::write_message(&mut stream, &lookup);
+    let answer = blocking::read_message::<serde_json::Value>(&mut stream);
+    assert!(answer.is_err(), "{answer:?}");
+}
+
+/// The TCP ports the processes `pids` listen on (from their sockets' inodes and
+/// `/proc/PID/net/tcp`).
+fn listening_ports(pids: &[i32]) -> Vec<u16> {
+    let mut ports = HashSet::new();
+    for pid in pids {
+        let Ok(fds) = std::fs::read_dir(format!("/proc/{pid}/fd")) else {
+            continue;
+        };
+        let inodes: HashSet<String> = fds
+            .filter_map(Result::ok)
+            .filter_map(|fd| std::fs::read_link(fd.path()).ok())
+            .filter_map(|link| {
+                let link = link.to_string_lossy().into_owned();
+                Some(link.strip_prefix("socket:[")?.strip_suffix(']')?.to_owned())
+            })
+            .collect();
+        for table in ["tcp", "tcp6"] {
+            let text =
+                std::fs::read_to_string(format!("/proc/{pid}/net/{table}")).unwrap_or_default();
+            for line in text.lines().skip(1) {
+                let fields: Vec<&str> = line.split_whitespace().collect();
+                if fields.len() > 9 && fields[3] == "0A" && inodes.contains(fields[9]) {
+                    let port = fields[1].rsplit(':').next().unwrap_or("");
+                    if let Ok(port) = u16::from_str_radix(port, 16) {
+                        ports.insert(port);
+                    }
+                }
+            }
+        }
+    }
+    let mut ports: Vec<u16> = ports.into_iter().collect();
+    ports.sort_unstable();
+    ports
+}
+
+/// The process and all its descendants.
+fn process_tree(pid: i32) -> Vec<i32> {
+    let mut all = vec![pid];
+    let mut at = 0;
+    while at < all.len() {
+        all.extend(children_of(all[at]));
+        at += 1;
+    }
+    all
+}
+
+#[test]
+fn every_listener_of_a_run_with_a_secret_sends_a_stranger_nothing_and_closes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let (run, control) = run_with_secret(&driven_system(dir.path()), &secret);
+    // Once the teleop said where it listens, every module is up.
+    teleop_port(&control, &secret);
+    let ports = listening_ports(&process_tree(run.pid()));
+    // The agent, the config server, the control interface, two data ports and the teleop's.
+    assert!(ports.len() >= 6, "{ports:?}");
+    println!("the run's listening ports: {ports:?}");
+    let strangers: [&[u8]; 3] = [
+        b"",
+        b"GET / HTTP/1.0\r\n\r\n",
+        &[b'A', b'R', b'M', b'R', 1, 0],
+    ];
+    for port in ports {
+        for said in strangers {
+            let mut stream = TcpStream::connect(("127.0.0.1", port)).unwrap();
+            stream.write_all(said).unwrap();
+            let (got, closed) = read_until_closed(&mut stream, STRANGER_CLOSED_WITHIN * 2);
+            assert!(
+                got.is_empty(),
+                "port {port} sent {} bytes to a stranger who said {said:?}",
+                got.len()
+            );
+            let closed = closed.unwrap_or_else(|| panic!("port {port} kept a stranger"));
+            assert!(
+                closed <= STRANGER_CLOSED_WITHIN,
+                "port {port} kept a stranger who said {said:?} for {closed:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn an_observer_key_reads_the_status_and_cannot_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let observer = dir.path().join("observer.key");
+    let output = Command::new(bin("armor"))
+        .args(["secret", "derive", "--role", "observer", "--secret"])
+        .arg(&secret)
+        .arg("-o")
+        .arg(&observer)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    // The key file reveals neither the secret nor the operator key.
+    let text = std::fs::read_to_string(&observer).unwrap();
+    let secret_text = std::fs::read_to_string(&secret).unwrap();
+    let operator = Secret::load(&secret).unwrap().operator_key().to_hex();
+    assert!(
+        !text.contains(secret_text.trim()) && !text.contains(&operator),
+        "{text}"
+    );
+    let (_run, control) = run_with_secret(&driven_system(dir.path()), &secret);
+    let key = observer.to_str().unwrap();
+    let (ok, text, _) = ctl(&["--addr", &control, "--key", key, "status"]);
+    assert!(ok && text.contains("pad (teleop)"), "{text}");
+    for command in [&["abort"][..], &["teleop", "0.3", "0"], &["stop", "sim"]] {
+        let mut args = vec!["--addr", control.as_str(), "--key", key];
+        args.extend_from_slice(command);
+        let (ok, text, _) = ctl(&args);
+        assert!(!ok && text.contains("observer"), "{command:?}: {text}");
+    }
+}
+
+/// A trickle of bare connections to a module's own port (strangers that never say a word) does
+/// not hold up its input's relink when its provider restarts: the module waits only on peers
+/// that sent a valid first handshake message, and not long in all.
+#[test]
+fn strangers_at_a_modules_port_do_not_delay_its_relink() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let system = armor_tests::workspace_root().join("missions/demo/system.xml");
+    let (run, _control) = run_with_secret(&system, &secret);
+    let line = run.wait_for("the checker's port", PATIENCE, |line| {
+        line.contains("provider registered") && line.contains("checker.received")
+    });
+    let port: SocketAddr = armor_tests::field(&line, "addr").unwrap().parse().unwrap();
+    run.wait_for("the checker linked", PATIENCE, |line| {
+        line.starts_with("[checker]") && line.contains("input linked")
+    });
+    // 25 bare connections a second, each left open without a word.
+    let stop = Arc::new(AtomicBool::new(false));
+    let trickle = {
+        let stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            let mut held = Vec::new();
+            while !stop.load(Ordering::Relaxed) {
+                if let Ok(stream) = TcpStream::connect(port) {
+                    held.push(stream);
+                }
+                std::thread::sleep(Duration::from_millis(40));
+            }
+        })
+    };
+    let counter = armor_tests::field(
+        &run.wait_for("the counter's pid", PATIENCE, |line| {
+            line.contains("module started") && line.contains("module=\"counter\"")
+        }),
+        "pid",
+    )
+    .unwrap()
+    .parse::<i32>()
+    .unwrap();
+    let before = run.line_count();
+    armor_tests::signal(counter, 9);
+    run.wait_for_from(before, "the counter started again", PATIENCE, |line| {
+        line.contains("module started") && line.contains("module=\"counter\"")
+    });
+    let restarted = Instant::now();
+    run.wait_for_from(before, "the checker relinked", PATIENCE, |line| {
+        line.starts_with("[checker]") && line.contains("input linked")
+    });
+    let took = restarted.elapsed();
+    stop.store(true, Ordering::Relaxed);
+    trickle.join().unwrap();
+    assert!(took < Duration::from_secs(5), "the relink took {took:?}");
+}
