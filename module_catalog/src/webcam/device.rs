@@ -34,7 +34,15 @@ impl V4l2Source {
     /// Opens `settings.device` and starts streaming; the error says what is missing, in words.
     pub fn open(settings: &Settings) -> Result<Self, String> {
         let path = &settings.device;
-        let device = Device::open(path).map_err(|err| format!("no camera at {path}: {err}"))?;
+        // `Device::open` asks the driver for its capabilities at once, so a file that is not a
+        // V4L2 device fails there, with the ioctl refused (ENOTTY).
+        let device = Device::open(path).map_err(|err| {
+            if err.raw_os_error() == Some(libc::ENOTTY) {
+                format!("{path} is not a V4L2 device: {err}")
+            } else {
+                format!("no camera at {path}: {err}")
+            }
+        })?;
         let caps = device
             .capabilities()
             .map_err(|err| format!("{path} is not a V4L2 device: {err}"))?;
