@@ -28,6 +28,7 @@ mod health;
 mod image_link;
 mod kill;
 mod latency;
+mod localise;
 mod mapper_scan;
 mod path_plan;
 mod placement;
@@ -289,6 +290,18 @@ const BENCHES: &[Bench] = &[
         about: "one 360-beam scan matched and integrated by the mapper vs the grid update alone \
                 (ms)",
         run: mapper_scan::run,
+    },
+    Bench {
+        name: localise::NAME_MS,
+        about: "one Monte Carlo localisation update (1,000 particles, the sim's 360-beam scan) \
+                vs the scan period (ms; goal p99 < 2)",
+        run: localise::run_ms,
+    },
+    Bench {
+        name: localise::NAME_ERROR,
+        about: "the localiser's mean error against the sim's truth on the warehouse round vs \
+                odometry alone (m; goal mean <= 0.1, max <= 0.25, >= 10x better)",
+        run: localise::run_error,
     },
     Bench {
         name: arbiter_switch::NAME,

@@ -43,6 +43,9 @@ const FREE_PITCH_M: f64 = 0.2;
 /// The particles are resampled when their effective number (1 / Σ w²) falls below this
 /// fraction of their number.
 const RESAMPLE_BELOW: f64 = 0.5;
+/// A localised estimate stays localised until its standard deviations grow by this factor
+/// beyond the thresholds, or its fit falls by it below.
+const LEAVE_LOCALISED: f64 = 1.35;
 /// Global mode scores this many poses per particle kept.
 const PROPOSALS_PER_PARTICLE: usize = 20;
 /// For this many updates after a spread, the scans count for this fraction of their usual
@@ -670,11 +673,18 @@ impl Filter {
             particles: self.particles.len(),
         };
         let t = self.settings.thresholds;
+        // Once localised, the state is left only beyond a margin (hysteresis), so that an
+        // estimate on the edge does not report localised and uncertain by turns.
+        let slack = if self.estimate.state == State::Localised {
+            LEAVE_LOCALISED
+        } else {
+            1.0
+        };
         estimate.state = if estimate.sigma_m() > t.lost_sigma_m || self.fit < t.lost_fit {
             State::Lost
-        } else if estimate.sigma_m() <= t.localised_sigma_m
-            && estimate.sigma_rad() <= t.localised_sigma_rad
-            && self.fit >= t.localised_fit
+        } else if estimate.sigma_m() <= t.localised_sigma_m * slack
+            && estimate.sigma_rad() <= t.localised_sigma_rad * slack
+            && self.fit >= t.localised_fit / slack
         {
             State::Localised
         } else {

@@ -1,18 +1,8 @@
 use std::path::Path;
 
 use super::*;
-use crate::sim::tour::Tour;
+use crate::sim::tour::{Tour, WAREHOUSE_ROUND};
 use crate::sim::{SimParams, Simulator, load_world_file};
-
-/// The warehouse round: down the main aisle, through the cross aisle into the south one, back
-/// west along it and up to the start.
-const WAREHOUSE_ROUND: &[(f64, f64)] = &[
-    (25.5, 10.0),
-    (25.5, 3.0),
-    (10.0, 3.0),
-    (3.0, 3.0),
-    (3.0, 10.0),
-];
 
 fn world(name: &str) -> World {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
