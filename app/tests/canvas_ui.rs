@@ -28,6 +28,7 @@ fn bundled_palette() -> Palette {
     use armor_module_catalog as catalog;
     let specs = [
         catalog::sim::spec(),
+        catalog::localiser::spec(),
         catalog::nav::follower::spec(),
         catalog::nav::avoider::spec(),
         catalog::observer::spec(),

@@ -43,6 +43,8 @@ const FREE_PITCH_M: f64 = 0.2;
 /// The particles are resampled when their effective number (1 / Σ w²) falls below this
 /// fraction of their number.
 const RESAMPLE_BELOW: f64 = 0.5;
+/// Updates made after the pose is set or the particles spread, even with the robot still.
+const FORCED_UPDATES: u32 = 3;
 /// A localised estimate stays localised until its standard deviations grow by this factor
 /// beyond the thresholds, or its fit falls by it below.
 const LEAVE_LOCALISED: f64 = 1.35;
@@ -280,6 +282,9 @@ pub struct Filter {
     since_spread: u32,
     /// The particles were spread and the next scan picks where they go ([`Filter::propose`]).
     spread_pending: bool,
+    /// Updates still to make whether the robot moves or not: after the pose is set or the
+    /// particles spread, a robot standing still must still be able to find itself.
+    forced_updates: u32,
     /// Beam ends in the robot's frame for the scan being weighed (reused).
     points: Vec<(f64, f64)>,
     log_weights: Vec<f64>,
@@ -305,6 +310,7 @@ impl Filter {
             },
             since_spread: u32::MAX,
             spread_pending: false,
+            forced_updates: 0,
             points: Vec::new(),
             log_weights: Vec::new(),
         };
@@ -345,6 +351,7 @@ impl Filter {
             });
         }
         self.fit = 1.0;
+        self.forced_updates = FORCED_UPDATES;
         self.estimate = self.summarise();
     }
 
@@ -371,6 +378,7 @@ impl Filter {
         self.fit = 0.0;
         self.since_spread = 0;
         self.spread_pending = true;
+        self.forced_updates = FORCED_UPDATES;
         self.estimate = self.summarise();
     }
 
@@ -386,9 +394,10 @@ impl Filter {
                         >= self.settings.update_min_rad
             }
         };
-        if !moved {
+        if !moved && self.forced_updates == 0 {
             return false;
         }
+        self.forced_updates = self.forced_updates.saturating_sub(1);
         if let Some(last) = self.last_odom {
             self.predict(last, odom);
         }
