@@ -28,6 +28,7 @@ fn bundled_palette() -> Palette {
     use armor_module_catalog as catalog;
     let specs = [
         catalog::sim::spec(),
+        catalog::localiser::spec(),
         catalog::nav::follower::spec(),
         catalog::nav::avoider::spec(),
         catalog::observer::spec(),
@@ -415,7 +416,12 @@ fn a_backward_link_goes_round_the_blocks_between() {
             .iter()
             .map(|(link, _)| link.as_str())
             .collect::<Vec<_>>(),
-        ["mux.cmd_vel -> sim.cmd_vel"]
+        // The localiser's links to the follower run from one band's end to the next's start.
+        [
+            "mux.cmd_vel -> sim.cmd_vel",
+            "localiser.estimate -> follower.estimate",
+            "localiser.pose -> follower.odometry"
+        ]
     );
     let points = &routes[0].1;
     let from = harness

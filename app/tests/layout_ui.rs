@@ -21,11 +21,12 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
     let dir = tempfile::tempdir().unwrap();
     let harness = harness(options(&dir.path().join("home"), Some(robot_system())));
     let diagram = &harness.state().editor().diagram;
-    // sim, camera, follower, avoider, observer, teleop, mux, recorder.
-    assert_eq!(diagram.len(), 8);
+    // sim, localiser, camera, follower, avoider, observer, teleop, mux, recorder.
+    assert_eq!(diagram.len(), 9);
 
     // Sources left of their sinks, for every link but the one that closes the loop through
-    // the robot (mux → sim), which the layout turns round.
+    // the robot (mux → sim), which the layout turns round, and those that cross into the next
+    // band.
     let x = |id| diagram.block(id).unwrap().pos[0];
     let backwards: Vec<String> = diagram
         .links()
@@ -38,7 +39,16 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
             )
         })
         .collect();
-    assert_eq!(backwards, ["`mux.cmd_vel` -> `sim.cmd_vel`"]);
+    // With the localiser between the sim and the follower the chain is folded into two bands:
+    // its two links run from the first band's end back to the second band's start.
+    assert_eq!(
+        backwards,
+        [
+            "`localiser.estimate` -> `follower.estimate`",
+            "`localiser.pose` -> `follower.odometry`",
+            "`mux.cmd_vel` -> `sim.cmd_vel`"
+        ]
+    );
 
     // Fitted no smaller than the zoom at which names are drawn, and every name is drawn.
     let scale = harness.state().canvas_transform().scaling;
@@ -57,6 +67,7 @@ fn behaviours_palette() -> armor_studio::palette::Palette {
     use armor_module_catalog as catalog;
     let specs = [
         catalog::sim::spec(),
+        catalog::localiser::spec(),
         catalog::nav::follower::spec(),
         catalog::nav::vff::spec(),
         catalog::nav::stop::spec(),
@@ -101,7 +112,7 @@ fn a_long_loop_opens_whole_folded_into_bands() {
         .blocks()
         .map(|(_, block)| block.name.clone())
         .collect();
-    assert_eq!(names.len(), 8, "{names:?}");
+    assert_eq!(names.len(), 9, "{names:?}");
     let scale = app.canvas_transform().scaling;
     assert!(scale >= DETAIL_SCALE, "fitted at {scale}");
     let canvas = app.canvas_rect();

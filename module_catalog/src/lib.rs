@@ -24,6 +24,9 @@
 //!   behaviours the [`arbiter`] chooses among, beside the follower.
 //! - [`mapper`]: an occupancy grid from laser scans and odometry, with the pose corrected by
 //!   matching each scan against the map so far (published as `pose`, in place of odometry).
+//! - [`localiser`]: Monte Carlo localisation on the plan's map (a `.world` or a ROS map): the
+//!   robot's pose in the map frame with its covariance, in place of odometry, and whether it is
+//!   `localised`, `uncertain` or `lost`.
 //! - [`mux`]: the one source of the robot's `cmd_vel`: teleop when fresh and non-zero, else
 //!   observe, else auto, else zero (not controllable).
 //! - [`observer`]: turns on the spot through a sector measured on the odometry heading, then
@@ -44,6 +47,7 @@ pub mod camera;
 pub mod checker;
 pub mod counter;
 pub mod echo;
+pub mod localiser;
 pub mod mapper;
 pub mod monitor;
 pub mod mux;

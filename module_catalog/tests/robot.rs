@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use armor_module_api::describe::{ModuleDescription, PortSpec};
 
 const FOLLOWER: &str = env!("CARGO_BIN_EXE_armor-mod-follower");
+const LOCALISER: &str = env!("CARGO_BIN_EXE_armor-mod-localiser");
 const AVOIDER: &str = env!("CARGO_BIN_EXE_armor-mod-avoider");
 const OBSERVER: &str = env!("CARGO_BIN_EXE_armor-mod-observer");
 const TELEOP: &str = env!("CARGO_BIN_EXE_armor-mod-teleop");
@@ -50,13 +51,25 @@ const MODULES: &[Expected] = &[
         binary: FOLLOWER,
         module_type: "follower",
         controllable: true,
-        inputs: &[("odometry", "Odometry"), ("scan", "LaserScan")],
+        inputs: &[
+            ("odometry", "Odometry"),
+            ("estimate", "PoseEstimate"),
+            ("scan", "LaserScan"),
+        ],
         outputs: &[
             ("path", "Text"),
             ("markers", "Markers"),
             ("cmd_desired", "Twist"),
         ],
         events: &["goal_reached", "blocked"],
+    },
+    Expected {
+        binary: LOCALISER,
+        module_type: "localiser",
+        controllable: false,
+        inputs: &[("odometry", "Odometry"), ("scan", "LaserScan")],
+        outputs: &[("pose", "Odometry"), ("estimate", "PoseEstimate")],
+        events: &["localised", "uncertain", "lost"],
     },
     Expected {
         binary: AVOIDER,

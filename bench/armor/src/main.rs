@@ -30,6 +30,7 @@ mod image_link;
 mod kill;
 mod latency;
 mod loop_closure;
+mod localise;
 mod mapper_scan;
 mod path_plan;
 mod placement;
@@ -303,6 +304,18 @@ const BENCHES: &[Bench] = &[
         about: "the mapper's error at the closure of a 100 m loop (simulator's default noise) \
                 with loop closure vs without (m; goal ratio <= 0.2)",
         run: loop_closure::run,
+    },
+    Bench {
+        name: localise::NAME_MS,
+        about: "one Monte Carlo localisation update (1,000 particles, the sim's 360-beam scan) \
+                vs the scan period (ms; goal p99 < 2)",
+        run: localise::run_ms,
+    },
+    Bench {
+        name: localise::NAME_ERROR,
+        about: "the localiser's mean error against the sim's truth on the warehouse round vs \
+                odometry alone (m; goal mean <= 0.1, max <= 0.25, >= 10x better)",
+        run: localise::run_error,
     },
     Bench {
         name: arbiter_switch::NAME,

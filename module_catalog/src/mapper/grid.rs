@@ -14,9 +14,11 @@ pub const LOG_ODDS_MIN: f32 = -2.0;
 pub const LOG_ODDS_MAX: f32 = 3.5;
 /// A cell counts as occupied for the matcher above this log-odds (p > 0.5).
 pub const OCCUPIED_LOG_ODDS: f32 = 0.0;
-/// Standard deviation of the likelihood field around the echoes, in cells.
+/// Standard deviation of the likelihood field around the echoes, in cells (the mapper's; a
+/// localiser on a known map asks for a wider one with [`LogOddsGrid::with_field`]).
 const FIELD_SIGMA_CELLS: f32 = 1.0;
-/// How far the field and the nearest-echo index reach from an occupied cell, in cells.
+/// How far the field and the nearest-echo index reach from an occupied cell, in cells (the
+/// mapper's).
 const REACH_CELLS: isize = 3;
 /// A surface's normal is fitted to the mean echoes of the occupied cells this many cells
 /// around (each way).
@@ -57,6 +59,9 @@ pub struct LogOddsGrid {
     field: Vec<f32>,
     /// The (column, row) offsets within reach of a cell.
     window: Vec<(isize, isize)>,
+    /// The field's standard deviation and reach, in cells.
+    field_sigma_cells: f32,
+    reach_cells: isize,
     /// Which scan last touched each cell (log-odds change at most once per scan).
     touched: Vec<u32>,
     scan_id: u32,
@@ -91,17 +96,6 @@ impl LogOddsGrid {
             ));
         }
         let cells = width * height;
-        let reach = REACH_CELLS + 1;
-        let mut window = Vec::new();
-        for dr in -reach..=reach {
-            for dc in -reach..=reach {
-                // Cells whose centre may lie within reach of an echo anywhere in the middle cell.
-                let (near_c, near_r) = ((dc.abs() - 1).max(0), (dr.abs() - 1).max(0));
-                if near_c * near_c + near_r * near_r < REACH_CELLS * REACH_CELLS {
-                    window.push((dc, dr));
-                }
-            }
-        }
         Ok(Self {
             resolution_m,
             width,
@@ -114,7 +108,9 @@ impl LogOddsGrid {
             echo_counts: vec![0; cells],
             nearest: vec![NONE; cells],
             field: vec![0.0; cells],
-            window,
+            window: reach_window(REACH_CELLS),
+            field_sigma_cells: FIELD_SIGMA_CELLS,
+            reach_cells: REACH_CELLS,
             touched: vec![0; cells],
             scan_id: 0,
             cleared: Vec::new(),
@@ -138,6 +134,47 @@ impl LogOddsGrid {
         let side = side as usize;
         let half = side as f64 * resolution_m / 2.0;
         Self::new(resolution_m, side, side, x_m - half, y_m - half)
+    }
+
+    /// The same empty grid with a likelihood field of another standard deviation and reach
+    /// (in cells, at least 1): a localiser on a known map wants a field wider than the mapper's,
+    /// so that a pose a few centimetres off still scores. Refused once anything is marked,
+    /// since the field already computed would keep the old shape.
+    pub fn with_field(mut self, sigma_cells: f32, reach_cells: isize) -> Result<Self, String> {
+        if !(sigma_cells.is_finite() && sigma_cells > 0.0 && (1..=64).contains(&reach_cells)) {
+            return Err(format!(
+                "a likelihood field of {sigma_cells} cells reaching {reach_cells} cells is \
+                 refused (more than 0 and 1 to 64 cells)"
+            ));
+        }
+        if self.known.iter().any(|&known| known) {
+            return Err("the field's shape is set before anything is marked".to_owned());
+        }
+        self.field_sigma_cells = sigma_cells;
+        self.reach_cells = reach_cells;
+        self.window = reach_window(reach_cells);
+        Ok(self)
+    }
+
+    /// Marks cells of a known map: `occupied` (column, row) cells as certainly occupied, with
+    /// their echo at the cell's centre, and every other cell as known and free; then brings
+    /// the nearest-echo index and the field up to date, as a scan's integration does.
+    pub fn mark_map(&mut self, occupied: impl IntoIterator<Item = (usize, usize)>) {
+        self.known.fill(true);
+        self.log_odds.fill(LOG_ODDS_MIN);
+        self.cleared.clear();
+        self.echoed.clear();
+        for (col, row) in occupied {
+            if col >= self.width || row >= self.height {
+                continue;
+            }
+            let index = row * self.width + col;
+            self.log_odds[index] = LOG_ODDS_MAX;
+            self.echo_sums[index] = [0.5, 0.5];
+            self.echo_counts[index] = 1;
+            self.echoed.push(index);
+        }
+        self.refresh();
     }
 
     pub fn resolution_m(&self) -> f64 {
@@ -436,7 +473,7 @@ impl LogOddsGrid {
         self.field[index] = if nearest == NONE {
             0.0
         } else {
-            (-distance_sq / (2.0 * FIELD_SIGMA_CELLS * FIELD_SIGMA_CELLS)).exp()
+            (-distance_sq / (2.0 * self.field_sigma_cells * self.field_sigma_cells)).exp()
         };
     }
 
@@ -444,7 +481,7 @@ impl LogOddsGrid {
     /// occupied they are recomputed; around occupied cells that got echoes (new, or with a mean
     /// that moved) those cells take over wherever they are now the nearest.
     fn refresh(&mut self) {
-        let reach_sq = (REACH_CELLS * REACH_CELLS) as f32;
+        let reach_sq = (self.reach_cells * self.reach_cells) as f32;
         let cleared = std::mem::take(&mut self.cleared);
         for &index in &cleared {
             if self.is_occupied(index) {
@@ -493,7 +530,7 @@ impl LogOddsGrid {
 
     /// The occupied cell whose mean echo is nearest a cell's centre, within reach.
     fn nearest_occupied(&self, index: usize) -> (u32, f32) {
-        let reach_sq = (REACH_CELLS * REACH_CELLS) as f32;
+        let reach_sq = (self.reach_cells * self.reach_cells) as f32;
         let (col, row) = ((index % self.width) as isize, (index / self.width) as isize);
         let mut best = (NONE, f32::INFINITY);
         for &(dc, dr) in &self.window {
@@ -539,6 +576,22 @@ impl LogOddsGrid {
             cells,
         }
     }
+}
+
+/// The (column, row) offsets of the cells whose centre may lie within `reach` cells of an echo
+/// anywhere in the middle cell.
+fn reach_window(reach: isize) -> Vec<(isize, isize)> {
+    let outer = reach + 1;
+    let mut window = Vec::new();
+    for dr in -outer..=outer {
+        for dc in -outer..=outer {
+            let (near_c, near_r) = ((dc.abs() - 1).max(0), (dr.abs() - 1).max(0));
+            if near_c * near_c + near_r * near_r < reach * reach {
+                window.push((dc, dr));
+            }
+        }
+    }
+    window
 }
 
 #[cfg(test)]

@@ -20,12 +20,18 @@
 //! pure pursuit ([`super::pursuit`]), and progress is the length of path left to the goal.
 //! When it replans, it keeps each no-go area's own margin (`no_go_margins_m`, as the plan was
 //! checked with), not one for all.
+//!
+//! With a localiser's `estimate` linked, the follower also keeps the pose's uncertainty from
+//! the no-go areas: while its body is closer to one than [`UNCERTAINTY_SIGMAS`] standard
+//! deviations of the position (on its worst axis), it stops rather than guess, until the
+//! estimate is sure enough again (or `blocked` follows).
 
 use armor_model::geo::{self, Polygon};
 use armor_model::planner::{self, Keepout, Path, Robot};
 use armor_model::world::Point;
 use armor_module_api::types::{
-    Frame, LaserScan, Marker, Markers, Odometry, Pose2D, Shape, Text, Twist,
+    Frame, LaserScan, LocalisationState, Marker, Markers, Odometry, Pose2D, PoseEstimate, Shape,
+    Text, Twist,
 };
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
@@ -53,6 +59,9 @@ const SWITCH_M: f64 = 1.0;
 const VIA_REACHED_M: f64 = 0.4;
 /// How far the way round a no-go area keeps from it (what plans are compiled with).
 pub const CLEARANCE_M: f64 = armor_model::plan::CLEARANCE_M;
+/// How many standard deviations of the estimated position the robot's body keeps from the
+/// no-go areas (two: about 95 % along the worst axis).
+pub const UNCERTAINTY_SIGMAS: f64 = 2.0;
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
@@ -65,6 +74,12 @@ pub fn spec() -> ModuleSpec {
     .input::<Odometry>(
         "odometry",
         "the robot's pose (the odometry pose, or a corrected pose in the same frame as the goal)",
+    )
+    .input::<PoseEstimate>(
+        "estimate",
+        "the localiser's estimate (optional): its uncertainty is kept from the no-go areas \
+         (closer than two standard deviations of the position, the follower stops until the \
+         estimate is sure enough)",
     )
     .input::<LaserScan>(
         "scan",
@@ -244,6 +259,7 @@ pub fn spec() -> ModuleSpec {
 pub fn body(node: &mut Node) -> BodyResult {
     let odometry = node.input::<Odometry>("odometry")?;
     let scan = node.input::<LaserScan>("scan")?;
+    let estimate = node.input::<PoseEstimate>("estimate")?;
     let path_output = node.output::<Text>("path")?;
     let output = node.output::<Twist>("cmd_desired")?;
     let markers_output = node.output::<Markers>("markers")?;
@@ -294,6 +310,11 @@ pub fn body(node: &mut Node) -> BodyResult {
             Event::Input(port) if port == scan.id() => {
                 if let Some(sample) = node.take(&scan)? {
                     follower.on_scan(&sample.value);
+                }
+            }
+            Event::Input(port) if port == estimate.id() => {
+                if let Some(sample) = node.take(&estimate)? {
+                    follower.on_estimate(&sample.value);
                 }
             }
             Event::Timeout if node.is_active() => {
@@ -499,16 +520,16 @@ fn parse_margins(text: &str) -> Result<Vec<f64>, BodyError> {
 
 /// The command for one pose, and the event to report, if any.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Control {
-    twist: Twist,
-    report: Option<&'static str>,
+pub(crate) struct Control {
+    pub(crate) twist: Twist,
+    pub(crate) report: Option<&'static str>,
     /// A new path is being followed (to publish).
     new_path: bool,
 }
 
 /// The go-to-goal controller and its once-only events, on run time.
 #[derive(Clone, Debug)]
-struct Follower {
+pub(crate) struct Follower {
     settings: Settings,
     /// The path being followed, when there is one.
     pursuit: Option<Pursuit>,
@@ -522,16 +543,21 @@ struct Follower {
     /// Replans since the last (re)start, and when the last one was.
     replans: u32,
     last_replan: f64,
-    reached: bool,
+    pub(crate) reached: bool,
     blocked: bool,
     /// The shortest way left to the goal so far (along the path when there is one), and when
     /// it was last shortened.
     best_distance_m: f64,
     last_progress: f64,
+    /// How far the true position may be from the pose ([`UNCERTAINTY_SIGMAS`] standard
+    /// deviations of the latest estimate; 0 without one).
+    uncertainty_m: f64,
+    /// The robot is stopped by a no-go area within its uncertainty.
+    guarded: bool,
 }
 
 impl Follower {
-    fn new(settings: Settings, now: f64) -> Self {
+    pub(crate) fn new(settings: Settings, now: f64) -> Self {
         let mut follower = Self {
             settings,
             pursuit: None,
@@ -545,6 +571,8 @@ impl Follower {
             blocked: false,
             best_distance_m: f64::INFINITY,
             last_progress: now,
+            uncertainty_m: 0.0,
+            guarded: false,
         };
         follower.restart(now);
         follower
@@ -634,7 +662,7 @@ impl Follower {
         }
     }
 
-    fn on_pose(&mut self, pose: Pose2D, now: f64) -> Control {
+    pub(crate) fn on_pose(&mut self, pose: Pose2D, now: f64) -> Control {
         let Some((twist, distance_m, remaining_m)) = self.steer(pose) else {
             tracing::warn!("ignoring a non-finite pose {pose:?}");
             return Control {
@@ -659,6 +687,25 @@ impl Follower {
             };
         }
         self.pose = Some(pose);
+        let too_close = self.too_close(pose);
+        if too_close.is_some() != self.guarded {
+            self.guarded = too_close.is_some();
+            match too_close {
+                Some(area) => tracing::warn!(
+                    "stopping: no-go area {} may be within the pose's uncertainty ({:.2} m)",
+                    area + 1,
+                    self.uncertainty_m
+                ),
+                None => tracing::info!("the pose is sure enough again: driving on"),
+            }
+        }
+        if self.guarded {
+            return Control {
+                twist: Twist::default(),
+                report: self.on_tick(now),
+                new_path: false,
+            };
+        }
         let progress = remaining_m < self.best_distance_m - PROGRESS_M;
         if let Some(control) = self.replan_if_stuck(pose, progress, now) {
             return control;
@@ -678,8 +725,31 @@ impl Follower {
         }
     }
 
+    /// A localiser's estimate: how uncertain the pose is (a lost localiser's estimate counts
+    /// as uncertain without bound).
+    pub(crate) fn on_estimate(&mut self, estimate: &PoseEstimate) {
+        self.uncertainty_m = if estimate.state == LocalisationState::Lost {
+            f64::INFINITY
+        } else {
+            UNCERTAINTY_SIGMAS * estimate.position_sigma_m()
+        };
+    }
+
+    /// The no-go area the robot's body may be in or touching, given the pose's uncertainty.
+    fn too_close(&self, pose: Pose2D) -> Option<usize> {
+        if self.uncertainty_m <= 0.0 {
+            return None;
+        }
+        let here = Point::new(pose.x_m, pose.y_m);
+        let reach = self.settings.robot_radius_m + self.uncertainty_m;
+        self.settings
+            .no_go
+            .iter()
+            .position(|area| area.contains(here) || area.distance_to_outline(here) < reach)
+    }
+
     /// The laser's hits that the world does not explain, placed from the latest pose.
-    fn on_scan(&mut self, scan: &LaserScan) {
+    pub(crate) fn on_scan(&mut self, scan: &LaserScan) {
         if self.pursuit.is_none() {
             return;
         }

@@ -227,6 +227,16 @@ pub fn spec() -> ModuleSpec {
         )
         .default(""),
     )
+    .param(
+        ParamSpec::new(
+            "kidnap",
+            ParamType::String,
+            "`T X Y HEADING_DEG`: at T seconds of simulated time, carry the robot to (X, Y) \
+             facing HEADING_DEG, as if someone picked it up (the odometry does not see it; for \
+             testing localisation); empty: never",
+        )
+        .default(""),
+    )
     .event(
         "collision",
         "the robot ran into a wall, an obstacle or the boundary and stopped at the contact \
@@ -248,6 +258,8 @@ pub struct SimParams {
     pub max_speed_mps: f64,
     pub max_turn_radps: f64,
     pub robot_radius_m: f64,
+    /// When (simulated seconds) and where the robot is carried ([`Simulator::kidnap`]).
+    pub kidnap: Option<(f64, Pose2D)>,
 }
 
 impl Default for SimParams {
@@ -268,7 +280,33 @@ impl Default for SimParams {
             max_speed_mps: 1.0,
             max_turn_radps: 1.5,
             robot_radius_m: 0.25,
+            kidnap: None,
         }
+    }
+}
+
+/// The `kidnap` parameter: `T X Y HEADING_DEG`, or None when empty.
+fn parse_kidnap(text: &str) -> Result<Option<(f64, Pose2D)>, String> {
+    let words: Vec<&str> = text.split_whitespace().collect();
+    if words.is_empty() {
+        return Ok(None);
+    }
+    let numbers: Option<Vec<f64>> = words
+        .iter()
+        .map(|word| word.parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect();
+    match numbers.as_deref() {
+        Some(&[t, x_m, y_m, heading_deg]) if t >= 0.0 => Ok(Some((
+            t,
+            Pose2D {
+                x_m,
+                y_m,
+                theta_rad: crate::wrap_angle(heading_deg.to_radians()),
+            },
+        ))),
+        _ => Err(format!(
+            "parameter `kidnap`: `{text}` is not `T X Y HEADING_DEG` (four numbers, T 0 or more)"
+        )),
     }
 }
 
@@ -300,6 +338,7 @@ impl SimParams {
             max_speed_mps: node.param::<f64>("max_speed_mps")?,
             max_turn_radps: node.param::<f64>("max_turn_radps")?,
             robot_radius_m: node.param::<f64>("robot_radius_m")?,
+            kidnap: parse_kidnap(&node.param::<String>("kidnap")?)?,
         })
     }
 }
@@ -422,6 +461,26 @@ impl Simulator {
         self.robot.truth
     }
 
+    /// Carries the robot to `pose` (a kidnapping, for testing localisation): the truth jumps,
+    /// the odometry does not. Refused where the robot does not fit.
+    pub fn kidnap(&mut self, pose: Pose2D) -> Result<(), String> {
+        if !(pose.x_m.is_finite() && pose.y_m.is_finite() && pose.theta_rad.is_finite())
+            || self
+                .world
+                .collides(pose.x_m, pose.y_m, self.params.robot_radius_m)
+        {
+            return Err(format!(
+                "cannot carry the robot to ({:.2}, {:.2}): it does not fit there",
+                pose.x_m, pose.y_m
+            ));
+        }
+        self.robot.truth = Pose2D {
+            theta_rad: crate::wrap_angle(pose.theta_rad),
+            ..pose
+        };
+        Ok(())
+    }
+
     /// The latest scan.
     pub fn scan(&self) -> &LaserScan {
         &self.scan
@@ -450,6 +509,19 @@ impl Simulator {
     /// Advances by one step of `1 / rate_hz` seconds.
     pub fn step(&mut self) -> StepReport {
         let dt = 1.0 / self.params.rate_hz;
+        if let Some((at, pose)) = self.params.kidnap
+            && self.time() >= at
+        {
+            self.params.kidnap = None;
+            match self.kidnap(pose) {
+                Ok(()) => tracing::warn!(
+                    "kidnapped: the robot is carried to ({:.2}, {:.2})",
+                    pose.x_m,
+                    pose.y_m
+                ),
+                Err(why) => tracing::error!("parameter `kidnap`: {why}"),
+            }
+        }
         let age = self.time() - self.command_time;
         let cmd = if age < COMMAND_TIMEOUT_SECS - 1e-9 {
             self.command

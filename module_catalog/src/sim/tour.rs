@@ -60,6 +60,16 @@ pub const RING_LOOP: &[(f64, f64)] = &[
     (4.0, 1.5),
 ];
 
+/// The warehouse round (`warehouse.world`): east along the main aisle to the cross aisle, down
+/// it into the south aisle, west along it, and up to the start.
+pub const WAREHOUSE_ROUND: &[(f64, f64)] = &[
+    (25.5, 10.0),
+    (25.5, 3.0),
+    (10.0, 3.0),
+    (3.0, 3.0),
+    (3.0, 10.0),
+];
+
 /// A waypoint counts as reached this close.
 const REACHED_M: f64 = 0.15;
 

@@ -135,6 +135,55 @@ pub struct Odometry {
 }
 postcard_datum!(Odometry, "Odometry");
 
+/// How much a localiser trusts its estimate (the thresholds are the localiser's, stated in its
+/// description).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LocalisationState {
+    Localised,
+    #[default]
+    Uncertain,
+    Lost,
+}
+
+impl LocalisationState {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            LocalisationState::Localised => "localised",
+            LocalisationState::Uncertain => "uncertain",
+            LocalisationState::Lost => "lost",
+        }
+    }
+}
+
+/// A pose estimated on a map, with its uncertainty: the covariance of (x, y, heading), row by
+/// row (m², m·rad, rad²), how well the latest scan fits the map there (0 to 1: the mean of the
+/// likelihood field at the beams' ends) and the localiser's state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseEstimate {
+    pub pose_in_map: Pose2D,
+    pub covariance: [f64; 9],
+    pub fit: f64,
+    pub state: LocalisationState,
+}
+postcard_datum!(PoseEstimate, "PoseEstimate");
+
+impl PoseEstimate {
+    /// The standard deviation of the position along its most uncertain axis (the square root
+    /// of the largest eigenvalue of the covariance's position block).
+    pub fn position_sigma_m(&self) -> f64 {
+        let c = &self.covariance;
+        let (a, b, d) = (c[0], c[1], c[4]);
+        let half_trace = (a + d) / 2.0;
+        let spread = (((a - d) / 2.0).powi(2) + b * b).sqrt();
+        let largest = half_trace + spread;
+        if largest.is_finite() {
+            largest.max(0.0).sqrt()
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
 /// One sweep of a planar laser scanner. Beam `i` points at `angle_min_rad + i ×
 /// angle_increment_rad` in the robot's frame; a range of `range_max_m` or more means no echo.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]

@@ -109,6 +109,9 @@ struct State {
     /// The operator's hand on controllable modules (true: started, false: stopped), over
     /// the controller's wishes until released.
     overrides: BTreeMap<String, bool>,
+    /// Parameter values the operator set (module → name → value), over the system file's and
+    /// the controller's, for the rest of the run.
+    param_overrides: BTreeMap<String, BTreeMap<String, String>>,
     /// What each module last said of its work (with its answers to pings).
     stats: HashMap<String, NodeStats>,
     /// The modules that run and why: the controller's wishes and the operator's hand, closed
@@ -127,6 +130,9 @@ impl State {
         let mut config = self.loaded.module_config(instance)?;
         if let Some(overlay) = self.control.overlays.get(module) {
             config.params.extend(overlay.clone());
+        }
+        if let Some(set) = self.param_overrides.get(module) {
+            config.params.extend(set.clone());
         }
         config.active = self.demand.contains_key(module);
         for (input, source) in &mut config.inputs {
@@ -366,6 +372,7 @@ impl ConfigServer {
             conns: HashMap::new(),
             next_conn_id: 0,
             overrides: BTreeMap::new(),
+            param_overrides: BTreeMap::new(),
             stats: HashMap::new(),
             demand: BTreeMap::new(),
             health: HealthBook::new(clock),
@@ -673,6 +680,63 @@ impl ConfigServer {
         };
         state.push_changes();
         Ok(())
+    }
+
+    /// Sets a module's parameter by hand, over the system file's and the controller's value,
+    /// for the rest of the run; `module` `None`: the only module of type `module_type`. Returns
+    /// the module's name. Refused for a module or parameter the system does not have, or a
+    /// value the parameter's description refuses.
+    pub fn set_param(
+        &self,
+        module: Option<&str>,
+        module_type: &str,
+        name: &str,
+        value: &str,
+    ) -> Result<String, String> {
+        let mut state = self.lock();
+        let module = match module {
+            Some(module) => module.to_owned(),
+            None => {
+                let of_type: Vec<&str> = state
+                    .loaded
+                    .system
+                    .modules
+                    .iter()
+                    .filter(|instance| instance.module_type == module_type)
+                    .map(|instance| instance.name.as_str())
+                    .collect();
+                match of_type[..] {
+                    [only] => only.to_owned(),
+                    [] => return Err(format!("no module of type `{module_type}` in this system")),
+                    _ => {
+                        return Err(format!(
+                            "several modules of type `{module_type}` ({}): name one",
+                            of_type.join(", ")
+                        ));
+                    }
+                }
+            }
+        };
+        let instance = state
+            .loaded
+            .system
+            .module(&module)
+            .ok_or_else(|| format!("no module `{module}` in this system"))?;
+        let spec = state
+            .loaded
+            .descriptions
+            .get(&instance.module_type)
+            .and_then(|description| description.params.iter().find(|p| p.name == name))
+            .ok_or_else(|| format!("module `{module}` has no parameter `{name}`"))?;
+        spec.check_value(value)
+            .map_err(|why| format!("`{module}`.{name}: {why}"))?;
+        state
+            .param_overrides
+            .entry(module.clone())
+            .or_default()
+            .insert(name.to_owned(), value.to_owned());
+        state.push_changes();
+        Ok(module)
     }
 
     /// For each connected module: whether it is active, and the operator's override if any.

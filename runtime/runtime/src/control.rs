@@ -75,6 +75,16 @@ pub enum Request {
     /// The run's files, for a client that attaches without them: the system file, the
     /// mission's and the files the system's parameters name ([`RunFiles`]).
     Files,
+    /// Tell the localiser where the robot is (rviz's "2D Pose Estimate"): its `set_pose`
+    /// parameter is set to `X Y HEADING_DEG` over the system file's, for the rest of the run.
+    /// `module`, or the only module of type `localiser`.
+    SetPose {
+        x_m: f64,
+        y_m: f64,
+        heading_deg: f64,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        module: Option<String>,
+    },
 }
 
 /// A run's state: every module, and the mission if there is one.

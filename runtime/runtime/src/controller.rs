@@ -542,6 +542,7 @@ impl Controller {
             | Request::StopModule { .. }
             | Request::ReleaseModule { .. }
             | Request::Teleop { .. }
+            | Request::SetPose { .. }
             | Request::Files => (false, "not a mission request".to_owned()),
             Request::Pause if self.paused => (false, "already paused".to_owned()),
             Request::Pause => {

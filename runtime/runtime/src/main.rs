@@ -43,7 +43,20 @@ enum CtlCommand {
     /// End the mission now (armor run exits non-zero).
     Abort,
     /// Fire an enabled transition now, whatever its condition.
-    Fire { transition: String },
+    Fire {
+        transition: String,
+    },
+    /// Tell the localiser where the robot is (as rviz's "2D Pose Estimate"): `set-pose X Y
+    /// HEADING_DEG` in the map frame (metres, degrees counter-clockwise from east).
+    #[command(allow_negative_numbers = true)]
+    SetPose {
+        x_m: f64,
+        y_m: f64,
+        heading_deg: f64,
+        /// The localiser, when the run has several.
+        #[arg(long)]
+        module: Option<String>,
+    },
     /// Drive the robot through the run's teleop module: `teleop LINEAR ANGULAR` (m/s, rad/s,
     /// counter-clockwise) or `teleop stop`. The module holds a command for its dead-man time
     /// (half a second of run time by default), then stops the robot: give `--for SECS` to keep
@@ -494,6 +507,17 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 CtlCommand::Resume => control::Request::Resume,
                 CtlCommand::Abort => control::Request::Abort,
                 CtlCommand::Fire { transition } => control::Request::Fire { transition },
+                CtlCommand::SetPose {
+                    x_m,
+                    y_m,
+                    heading_deg,
+                    module,
+                } => control::Request::SetPose {
+                    x_m,
+                    y_m,
+                    heading_deg,
+                    module,
+                },
                 CtlCommand::Teleop { .. } => unreachable!("answered above"),
             };
             let reply = control::Client::connect_with(addr, secret.as_ref())?.call(&request)?;

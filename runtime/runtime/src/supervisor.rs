@@ -412,6 +412,18 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     set_override(&server, &module, Some(false))
                 }
                 control::Request::ReleaseModule { module } => set_override(&server, &module, None),
+                control::Request::SetPose {
+                    x_m,
+                    y_m,
+                    heading_deg,
+                    module,
+                } => {
+                    let value = format!("{x_m} {y_m} {heading_deg}");
+                    match server.set_param(module.as_deref(), "localiser", "set_pose", &value) {
+                        Ok(module) => (true, format!("`{module}`: pose set to {value}")),
+                        Err(why) => (false, why),
+                    }
+                }
                 control::Request::Teleop {
                     linear,
                     angular,

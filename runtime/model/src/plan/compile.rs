@@ -1070,6 +1070,28 @@ impl<'a> Builder<'a> {
             drive,
             &target,
         );
+        // A robot that does not know where it is stops driving, when the plan says which
+        // localiser to listen to.
+        let lost = self
+            .plan
+            .contingency_on(leg, |trigger| matches!(trigger, Trigger::Lost { .. }))
+            .cloned();
+        if let Some(contingency) = lost
+            && let Trigger::Lost { module } = &contingency.trigger
+        {
+            let target = self.respond(index, leg, &contingency.response);
+            self.transition(
+                &format!("{name}_lost{suffix}"),
+                Origin::Leg(index),
+                contingency.pos,
+                Condition {
+                    event: Some(format!("{module}.lost")),
+                    ..Condition::default()
+                },
+                drive,
+                &target,
+            );
+        }
     }
 
     fn response(&self, leg: &Leg, trigger: &Trigger) -> Option<Response> {

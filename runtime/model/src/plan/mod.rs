@@ -31,7 +31,7 @@
 //! `arrival` runs at the destination until its event (or for at most `for_secs`). Time
 //! constraints: `not_before` (do not leave before: an appointment), `arrive_by` (a deadline),
 //! `wait_secs` (stay at the destination). Contingencies say what to do when the robot is
-//! `blocked`, a module `failed`, or the robot is `late`: `skip` the rest of the leg, `hold` for
+//! `blocked`, a module `failed`, the robot is `late`, or the localiser is `lost`: `skip` the rest of the leg, `hold` for
 //! the operator (who may retry or skip), `return` to a waypoint and end there, or (`late` only)
 //! `continue`. A leg's action may list `<alternative>`s: other sets of modules, tried in order
 //! when a module the way in force depends on fails for good (its `on` modules, or those it does
@@ -346,6 +346,9 @@ pub enum Trigger {
     Failed { module: String },
     /// The leg's deadline passed before the arrival.
     Late,
+    /// The localiser `module` reports that it does not know where the robot is (its `lost`
+    /// event; the module is `localiser` unless the contingency names another).
+    Lost { module: String },
 }
 
 impl Trigger {
@@ -354,6 +357,7 @@ impl Trigger {
             Trigger::Blocked => "blocked".into(),
             Trigger::Failed { module } => format!("failed (module `{module}`)"),
             Trigger::Late => "late".into(),
+            Trigger::Lost { module } => format!("lost (module `{module}`)"),
         }
     }
 }
@@ -468,6 +472,18 @@ impl Plan {
             .iter()
             .chain(&self.contingencies)
             .find(|contingency| &contingency.trigger == trigger)
+    }
+
+    /// The contingency whose trigger matches: the leg's own, else the plan's.
+    pub fn contingency_on<'a>(
+        &'a self,
+        leg: &'a Leg,
+        matches: impl Fn(&Trigger) -> bool,
+    ) -> Option<&'a Contingency> {
+        leg.contingencies
+            .iter()
+            .chain(&self.contingencies)
+            .find(|contingency| matches(&contingency.trigger))
     }
 
     /// The plan's contingencies, then each leg's.

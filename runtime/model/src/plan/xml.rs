@@ -368,6 +368,8 @@ fn write_contingency(out: &mut String, indent: &str, contingency: &Contingency) 
         Trigger::Blocked => "blocked".to_owned(),
         Trigger::Late => "late".to_owned(),
         Trigger::Failed { module } => format!("failed\" module=\"{}", escape(module)),
+        Trigger::Lost { module } if module == DEFAULT_LOCALISER => "lost".to_owned(),
+        Trigger::Lost { module } => format!("lost\" module=\"{}", escape(module)),
     };
     let response = match &contingency.response {
         Response::Skip => "skip".to_owned(),
@@ -778,6 +780,9 @@ fn read_modules(element: &Element, p: &mut Vec<Located>) -> Vec<ActionModule> {
     modules
 }
 
+/// The module a `lost` contingency listens to when it names none.
+pub const DEFAULT_LOCALISER: &str = "localiser";
+
 fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingency> {
     p.extend(element.unknown_attrs(&["on", "module", "do", "waypoint"]));
     no_children(element, p);
@@ -790,22 +795,31 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
         Some(("failed", _)) => {
             identifier(element, "module", "module name", p).map(|module| Trigger::Failed { module })
         }
+        Some(("lost", _)) => {
+            let module = if element.attr("module").is_some() {
+                identifier(element, "module", "module name", p)
+            } else {
+                Some(DEFAULT_LOCALISER.to_owned())
+            };
+            module.map(|module| Trigger::Lost { module })
+        }
         Some((other, pos)) => {
             p.push(Located::new(
                 pos,
-                format!("`on` must be `blocked`, `failed` or `late`, not `{other}`"),
+                format!("`on` must be `blocked`, `failed`, `late` or `lost`, not `{other}`"),
             ));
             None
         }
         None => None,
     };
     if trigger.is_some()
-        && !matches!(trigger, Some(Trigger::Failed { .. }))
+        && !matches!(trigger, Some(Trigger::Failed { .. } | Trigger::Lost { .. }))
         && let Some(module) = element.attr("module")
     {
         p.push(Located::new(
             module.pos,
-            "`module` is only for on=\"failed\" (the module whose failure it handles)",
+            "`module` is only for on=\"failed\" (the module whose failure it handles) and \
+             on=\"lost\" (the localiser)",
         ));
     }
     let response = match response.map(|field| (field.value.trim(), field.pos)) {
@@ -821,8 +835,17 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             }
             Some(Response::Continue)
         }
-        Some(("return", _)) => identifier(element, "waypoint", "waypoint name", p)
-            .map(|waypoint| Response::Return { waypoint }),
+        Some(("return", pos)) => {
+            if matches!(trigger, Some(Trigger::Lost { .. })) {
+                p.push(Located::new(
+                    pos,
+                    "`return` is not for on=\"lost\": a robot that does not know where it is \
+                     cannot drive back (use hold or skip)",
+                ));
+            }
+            identifier(element, "waypoint", "waypoint name", p)
+                .map(|waypoint| Response::Return { waypoint })
+        }
         Some((other, pos)) => {
             p.push(Located::new(
                 pos,
@@ -1347,7 +1370,7 @@ mod tests {
   <leg from="a" to="b" wait_secs="NaN">
     <arrival><module name="observer"/></arrival>
     <during/>
-    <contingency on="lost" do="panic"/>
+    <contingency on="tired" do="panic"/>
   </leg>
   <area name="z" kind="swamp" margin_m="wide"><point lat="1" lon="2"/></area>
   <bogus/>
@@ -1364,8 +1387,8 @@ mod tests {
             "5:24: expected a number of seconds, 0 or more",
             "6:5: <arrival> needs `until`",
             "7:5: <during> runs no module",
-            "8:18: `on` must be `blocked`, `failed` or `late`, not `lost`",
-            "8:28: `do` must be `skip`, `hold`, `return` or `continue`, not `panic`",
+            "8:18: `on` must be `blocked`, `failed`, `late` or `lost`, not `tired`",
+            "8:29: `do` must be `skip`, `hold`, `return` or `continue`, not `panic`",
             "10:18: `kind` must be one of no-go, objective, assembly, named, not `swamp`",
             "10:31: `margin_m` must be a distance in metres",
             "10:3: <area> needs 3 <point>s or more, it has 1",

@@ -770,3 +770,26 @@ fn an_alternative_cannot_run_what_drives_or_runs_throughout() {
         ]
     );
 }
+
+#[test]
+fn a_lost_localiser_holds_the_leg_it_drives_or_skips_it_as_the_leg_says() {
+    let with = picture(
+        &compiled(
+            r#"<leg from="home" to="gate"/>
+<leg from="gate" to="hill">
+  <contingency on="lost" module="amcl" do="skip"/>
+</leg>
+<contingency on="lost" do="hold"/>"#,
+        )
+        .net,
+    );
+    for line in [
+        "leg1_lost: leg1_drive -> leg1_hold localiser.lost",
+        "leg2_lost: leg2_drive -> done amcl.lost",
+    ] {
+        assert!(with.lines().any(|l| l == line), "no `{line}` in\n{with}");
+    }
+    // Without a `lost` contingency nothing listens to a localiser.
+    let without = picture(&compiled(r#"<leg from="home" to="gate"/>"#).net);
+    assert!(!without.contains(".lost"), "{without}");
+}

@@ -1,0 +1,736 @@
+//! Monte Carlo localisation on a known map, pure: no IO, no clock, its randomness from a seeded
+//! generator, so that a run is repeated exactly by the same seed, odometry and scans.
+//!
+//! - Motion: `sample_motion_model_odometry` (Thrun, Burgard and Fox, *Probabilistic Robotics*,
+//!   table 5.6): the odometry's motion between two filter updates split into a turn, a
+//!   straight line and a turn, each drawn with noise whose variance grows with the motion
+//!   (`alpha`, as AMCL's `odom_alpha1..4`).
+//! - Measurement: the likelihood field of the map (the mapper's [`LogOddsGrid`], built once from
+//!   the map's occupied cells with a field wider than the mapper's), a mixture of a hit
+//!   (Gaussian of the distance from a beam's end to the nearest wall) and a random reading, on
+//!   a subset of the beams; the log-likelihoods are tempered (`effective_beams`), because
+//!   neighbouring beams are not independent and a product over all of them makes every
+//!   particle but one weigh nothing.
+//! - Resampling: low-variance (systematic), to a count chosen by KLD sampling (Fox 2003): as
+//!   many particles as keep the error of the estimated distribution under `kld_err` with
+//!   probability `kld_z`, for the number of histogram bins the particles occupy, within
+//!   `min_particles..=max_particles`.
+//! - Confidence: the particles' covariance and how well the scan fits the map at the estimate
+//!   (the mean field value at the beams' ends, smoothed over scans) give [`State`]: a cloud can
+//!   be tight and wrong (a robot carried elsewhere), which only the fit shows.
+//! - Global mode: particles spread over the map's free space, placed by the first scan where
+//!   it fits best of many proposals ([`Filter::propose`]). On a map with places alike (a
+//!   rectangular yard's corners, rooms of the same shape) one view cannot tell them apart and
+//!   the cloud may settle on the wrong one, so recovering by itself when lost is off by default
+//!   (`recover`): a lost localiser stays lost until an operator sets the pose.
+
+use std::collections::HashSet;
+
+use armor_model::world::World;
+use armor_module_api::types::{LaserScan, Pose2D};
+
+use crate::mapper::grid::LogOddsGrid;
+use crate::sim::rng::Rng;
+use crate::wrap_angle;
+
+/// The likelihood field's cell, in metres.
+pub const FIELD_RESOLUTION_M: f64 = 0.05;
+/// Bins of the KLD histogram: position and heading.
+const KLD_BIN_M: f64 = 0.5;
+const KLD_BIN_RAD: f64 = 10.0 * std::f64::consts::PI / 180.0;
+/// Free space for the global mode is sampled on a lattice of this pitch.
+const FREE_PITCH_M: f64 = 0.2;
+/// The particles are resampled when their effective number (1 / Σ w²) falls below this
+/// fraction of their number.
+const RESAMPLE_BELOW: f64 = 0.5;
+/// Updates made after the pose is set or the particles spread, even with the robot still.
+const FORCED_UPDATES: u32 = 3;
+/// A localised estimate stays localised until its standard deviations grow by this factor
+/// beyond the thresholds, or its fit falls by it below.
+const LEAVE_LOCALISED: f64 = 1.35;
+/// Global mode scores this many poses per particle kept.
+const PROPOSALS_PER_PARTICLE: usize = 20;
+/// For this many updates after a spread, the scans count for this fraction of their usual
+/// weight.
+const SOFT_UPDATES: u32 = 60;
+const SOFT_FACTOR: f64 = 0.15;
+/// Lost again this many updates after spreading the particles, they are spread again (they
+/// did not find the robot, or it was carried off once more).
+const SPREAD_AGAIN_UPDATES: u32 = 100;
+/// How fast the scan's fit is smoothed from scan to scan (weight of the newest).
+const FIT_SMOOTHING: f64 = 0.3;
+
+/// The filter's settings (the module's parameters).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub min_particles: usize,
+    pub max_particles: usize,
+    /// Noise of the motion model: rotation from rotation, rotation from translation,
+    /// translation from translation, translation from rotation (AMCL's `alpha1..4`).
+    pub alpha: [f64; 4],
+    /// Beams used per scan, spread evenly over it.
+    pub beams: usize,
+    /// Standard deviation of a beam's end round the wall it hit.
+    pub sigma_hit_m: f64,
+    /// Weight of the hit in the measurement mixture (the rest is a random reading).
+    pub z_hit: f64,
+    /// How many independent beams a scan counts as.
+    pub effective_beams: f64,
+    pub kld_err: f64,
+    /// Upper standard normal quantile of the KLD bound (2.326 for 0.99).
+    pub kld_z: f64,
+    /// The filter is updated when odometry moved this far or turned this much since the last
+    /// update (a robot standing still would otherwise grow confident on the same scan).
+    pub update_min_m: f64,
+    pub update_min_rad: f64,
+    /// The robot's radius: global mode spreads particles only where it fits.
+    pub robot_radius_m: f64,
+    /// Spread particles over the free space when lost (global mode), else hold the estimate.
+    pub recover: bool,
+    pub thresholds: Thresholds,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            min_particles: 500,
+            max_particles: 3000,
+            alpha: [0.05, 0.005, 0.05, 0.01],
+            beams: 60,
+            sigma_hit_m: 0.1,
+            z_hit: 0.9,
+            effective_beams: 12.0,
+            kld_err: 0.05,
+            kld_z: 2.326,
+            update_min_m: 0.05,
+            update_min_rad: 0.05,
+            robot_radius_m: 0.25,
+            recover: false,
+            thresholds: Thresholds::default(),
+        }
+    }
+}
+
+/// Where [`State`] changes (documented in the module's description and docs/localisation.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Thresholds {
+    /// Localised: position standard deviation (largest axis) at most this ...
+    pub localised_sigma_m: f64,
+    /// ... heading standard deviation at most this ...
+    pub localised_sigma_rad: f64,
+    /// ... and the scan's fit at least this.
+    pub localised_fit: f64,
+    /// Lost: position standard deviation above this, or the fit below `lost_fit`.
+    pub lost_sigma_m: f64,
+    pub lost_fit: f64,
+}
+
+impl Default for Thresholds {
+    fn default() -> Self {
+        Self {
+            localised_sigma_m: 0.15,
+            localised_sigma_rad: 0.1,
+            localised_fit: 0.5,
+            lost_sigma_m: 1.0,
+            lost_fit: 0.25,
+        }
+    }
+}
+
+/// How much the localiser trusts its estimate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum State {
+    Localised,
+    Uncertain,
+    Lost,
+}
+
+impl State {
+    /// The event the module reports on entering the state.
+    pub fn event(self) -> &'static str {
+        match self {
+            State::Localised => "localised",
+            State::Uncertain => "uncertain",
+            State::Lost => "lost",
+        }
+    }
+}
+
+/// The estimate: the particles' mean, their covariance (x, y, heading; row-major 3 × 3), the
+/// scan's fit, the state and the number of particles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    pub pose: Pose2D,
+    pub covariance: [f64; 9],
+    pub fit: f64,
+    pub state: State,
+    pub particles: usize,
+}
+
+impl Estimate {
+    /// The standard deviation of position along its largest axis.
+    pub fn sigma_m(&self) -> f64 {
+        let c = &self.covariance;
+        let (a, b, d) = (c[0], c[1], c[4]);
+        let half_trace = (a + d) / 2.0;
+        let spread = (((a - d) / 2.0).powi(2) + b * b).sqrt();
+        (half_trace + spread).max(0.0).sqrt()
+    }
+
+    pub fn sigma_rad(&self) -> f64 {
+        self.covariance[8].max(0.0).sqrt()
+    }
+}
+
+/// The map as the filter sees it: the likelihood field and where the robot fits.
+#[derive(Clone, Debug)]
+pub struct Map {
+    field: LogOddsGrid,
+    free: Vec<(f64, f64)>,
+}
+
+impl Map {
+    /// The map of a world: its occupied cells' edges (the faces a laser can see) make the
+    /// likelihood field, with a standard deviation of `sigma_hit_m` reaching three of them.
+    pub fn new(world: &World, sigma_hit_m: f64, robot_radius_m: f64) -> Result<Self, String> {
+        let grid = world.occupancy_grid(FIELD_RESOLUTION_M)?;
+        let (width, height) = (grid.width as usize, grid.height as usize);
+        let occupied = |col: isize, row: isize| {
+            col >= 0
+                && row >= 0
+                && (col as usize) < width
+                && (row as usize) < height
+                && grid.cells[row as usize * width + col as usize] > 50
+        };
+        // An occupied cell inside a solid obstacle cannot be seen: leaving it out keeps the
+        // field small and gives no credit to a beam that ends inside a wall.
+        let mut edges = Vec::new();
+        for row in 0..height as isize {
+            for col in 0..width as isize {
+                if occupied(col, row)
+                    && [(1, 0), (-1, 0), (0, 1), (0, -1)]
+                        .iter()
+                        .any(|(dc, dr)| !occupied(col + dc, row + dr))
+                {
+                    edges.push((col as usize, row as usize));
+                }
+            }
+        }
+        let sigma_cells = (sigma_hit_m / FIELD_RESOLUTION_M) as f32;
+        let reach_cells = ((3.0 * sigma_hit_m / FIELD_RESOLUTION_M).ceil() as isize).clamp(1, 64);
+        // The field reaches beyond the map's edge (a boundary wall lies on it), so the grid is
+        // wider by the reach on every side.
+        let pad = reach_cells as usize + 1;
+        let mut field = LogOddsGrid::new(
+            FIELD_RESOLUTION_M,
+            width + 2 * pad,
+            height + 2 * pad,
+            grid.origin_x_m - pad as f64 * FIELD_RESOLUTION_M,
+            grid.origin_y_m - pad as f64 * FIELD_RESOLUTION_M,
+        )?
+        .with_field(sigma_cells, reach_cells)?;
+        let edges = edges.into_iter().map(|(col, row)| (col + pad, row + pad));
+        field.mark_map(edges);
+        let bounds = world.bounds();
+        let mut free = Vec::new();
+        let mut y = bounds.min_y + FREE_PITCH_M / 2.0;
+        while y < bounds.max_y {
+            let mut x = bounds.min_x + FREE_PITCH_M / 2.0;
+            while x < bounds.max_x {
+                if !world.collides(x, y, robot_radius_m) {
+                    free.push((x, y));
+                }
+                x += FREE_PITCH_M;
+            }
+            y += FREE_PITCH_M;
+        }
+        if free.is_empty() {
+            return Err(format!(
+                "the world `{}` has no place where a robot of radius {robot_radius_m} m fits",
+                world.name()
+            ));
+        }
+        Ok(Self { field, free })
+    }
+
+    /// The likelihood field at a point (1 on a wall, falling off as a Gaussian, 0 far off).
+    pub fn field_at(&self, x_m: f64, y_m: f64) -> f64 {
+        self.field.field_at(x_m, y_m)
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Particle {
+    pose: Pose2D,
+    weight: f64,
+}
+
+/// The filter.
+#[derive(Clone, Debug)]
+pub struct Filter {
+    settings: Settings,
+    map: Map,
+    particles: Vec<Particle>,
+    spare: Vec<Particle>,
+    rng: Rng,
+    /// The odometry pose at the last update.
+    last_odom: Option<Pose2D>,
+    /// The scan's fit at the estimate, smoothed.
+    fit: f64,
+    estimate: Estimate,
+    /// Updates since the particles were last spread over the map.
+    since_spread: u32,
+    /// The particles were spread and the next scan picks where they go ([`Filter::propose`]).
+    spread_pending: bool,
+    /// Updates still to make whether the robot moves or not: after the pose is set or the
+    /// particles spread, a robot standing still must still be able to find itself.
+    forced_updates: u32,
+    /// Beam ends in the robot's frame for the scan being weighed (reused).
+    points: Vec<(f64, f64)>,
+    log_weights: Vec<f64>,
+}
+
+impl Filter {
+    /// A filter with its particles round `pose`.
+    pub fn new(settings: Settings, map: Map, pose: Pose2D, seed: u64) -> Self {
+        let mut filter = Self {
+            settings,
+            map,
+            particles: Vec::new(),
+            spare: Vec::new(),
+            rng: Rng::new(seed, 7),
+            last_odom: None,
+            fit: 1.0,
+            estimate: Estimate {
+                pose,
+                covariance: [0.0; 9],
+                fit: 1.0,
+                state: State::Uncertain,
+                particles: 0,
+            },
+            since_spread: u32::MAX,
+            spread_pending: false,
+            forced_updates: 0,
+            points: Vec::new(),
+            log_weights: Vec::new(),
+        };
+        filter.set_pose(pose, 0.1, 0.1);
+        filter
+    }
+
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    pub fn map(&self) -> &Map {
+        &self.map
+    }
+
+    pub fn estimate(&self) -> Estimate {
+        self.estimate
+    }
+
+    /// Particles drawn round `pose` with the given standard deviations (an operator's "2D pose
+    /// estimate", or the plan's start).
+    pub fn set_pose(&mut self, pose: Pose2D, sigma_m: f64, sigma_rad: f64) {
+        let count = self
+            .settings
+            .max_particles
+            .min(1000)
+            .max(self.settings.min_particles);
+        self.particles.clear();
+        for _ in 0..count {
+            let drawn = Pose2D {
+                x_m: pose.x_m + self.rng.normal(sigma_m),
+                y_m: pose.y_m + self.rng.normal(sigma_m),
+                theta_rad: wrap_angle(pose.theta_rad + self.rng.normal(sigma_rad)),
+            };
+            self.particles.push(Particle {
+                pose: drawn,
+                weight: 1.0 / count as f64,
+            });
+        }
+        self.fit = 1.0;
+        self.forced_updates = FORCED_UPDATES;
+        self.estimate = self.summarise();
+    }
+
+    /// Global mode: `max_particles` particles spread over the map's free space with random
+    /// headings, for a robot whose place is unknown.
+    pub fn spread(&mut self) {
+        let count = self.settings.max_particles;
+        self.particles.clear();
+        let free = &self.map.free;
+        for _ in 0..count {
+            let pick = ((self.rng.uniform() * free.len() as f64) as usize).min(free.len() - 1);
+            let (x, y) = free[pick];
+            let half = FREE_PITCH_M / 2.0;
+            let pose = Pose2D {
+                x_m: x + (self.rng.uniform() * 2.0 - 1.0) * half,
+                y_m: y + (self.rng.uniform() * 2.0 - 1.0) * half,
+                theta_rad: wrap_angle((self.rng.uniform() * 2.0 - 1.0) * std::f64::consts::PI),
+            };
+            self.particles.push(Particle {
+                pose,
+                weight: 1.0 / count as f64,
+            });
+        }
+        self.fit = 0.0;
+        self.since_spread = 0;
+        self.spread_pending = true;
+        self.forced_updates = FORCED_UPDATES;
+        self.estimate = self.summarise();
+    }
+
+    /// One scan with the odometry pose at its time. The particles move by the odometry's motion
+    /// since the last update, are weighed on the scan and resampled, when the robot moved
+    /// enough since the last update (or at the first scan); returns whether it did.
+    pub fn update(&mut self, odom: Pose2D, scan: &LaserScan) -> bool {
+        let moved = match self.last_odom {
+            None => true,
+            Some(last) => {
+                (odom.x_m - last.x_m).hypot(odom.y_m - last.y_m) >= self.settings.update_min_m
+                    || wrap_angle(odom.theta_rad - last.theta_rad).abs()
+                        >= self.settings.update_min_rad
+            }
+        };
+        if !moved && self.forced_updates == 0 {
+            return false;
+        }
+        self.forced_updates = self.forced_updates.saturating_sub(1);
+        if let Some(last) = self.last_odom {
+            self.predict(last, odom);
+        }
+        self.last_odom = Some(odom);
+        self.take_points(scan);
+        if self.spread_pending {
+            self.propose();
+        } else {
+            self.weigh();
+            self.resample();
+        }
+        self.estimate = self.summarise();
+        self.since_spread = self.since_spread.saturating_add(1);
+        if self.estimate.state == State::Lost
+            && self.settings.recover
+            && self.since_spread >= SPREAD_AGAIN_UPDATES
+        {
+            self.spread();
+        }
+        true
+    }
+
+    /// Moves every particle by the odometry's motion from `from` to `to`, with noise.
+    fn predict(&mut self, from: Pose2D, to: Pose2D) {
+        let (dx, dy) = (to.x_m - from.x_m, to.y_m - from.y_m);
+        let trans = dx.hypot(dy);
+        // A turn on the spot has no direction of travel.
+        let rot1 = if trans < 0.01 {
+            0.0
+        } else {
+            wrap_angle(dy.atan2(dx) - from.theta_rad)
+        };
+        let rot2 = wrap_angle(to.theta_rad - from.theta_rad - rot1);
+        // A robot reversing turns by (rot1 - π), not rot1: the noise is drawn on the smaller.
+        let small = |angle: f64| {
+            angle.abs().min(
+                (angle - std::f64::consts::PI)
+                    .abs()
+                    .min((angle + std::f64::consts::PI).abs()),
+            )
+        };
+        let [a1, a2, a3, a4] = self.settings.alpha;
+        let (r1, r2) = (small(rot1), small(rot2));
+        let sd_rot1 = (a1 * r1 * r1 + a2 * trans * trans).sqrt();
+        let sd_trans = (a3 * trans * trans + a4 * (r1 * r1 + r2 * r2)).sqrt();
+        let sd_rot2 = (a1 * r2 * r2 + a2 * trans * trans).sqrt();
+        for particle in &mut self.particles {
+            let rot1_hat = rot1 - self.rng.normal(sd_rot1);
+            let trans_hat = trans - self.rng.normal(sd_trans);
+            let rot2_hat = rot2 - self.rng.normal(sd_rot2);
+            let p = &mut particle.pose;
+            let heading = p.theta_rad + rot1_hat;
+            p.x_m += trans_hat * heading.cos();
+            p.y_m += trans_hat * heading.sin();
+            p.theta_rad = wrap_angle(heading + rot2_hat);
+        }
+    }
+
+    /// The ends of the beams used, in the robot's frame.
+    fn take_points(&mut self, scan: &LaserScan) {
+        self.points.clear();
+        let n = scan.ranges_m.len();
+        let step = n.div_ceil(self.settings.beams.max(1)).max(1);
+        for (i, &range) in scan.ranges_m.iter().enumerate().step_by(step) {
+            let range = f64::from(range);
+            // No echo, or nonsense: says nothing about where the walls are.
+            if !(range.is_finite() && range > 0.0 && range < scan.range_max_m) {
+                continue;
+            }
+            let angle = scan.angle_min_rad + i as f64 * scan.angle_increment_rad;
+            self.points.push((range * angle.cos(), range * angle.sin()));
+        }
+    }
+
+    /// The tempering of the scan's log-likelihood: how much one scan counts.
+    fn temper(&self) -> f64 {
+        // Just after the particles were spread, the scans are trusted less, so that the cloud
+        // keeps every place that fits until the robot's motion tells them apart, rather than
+        // collapsing on the first that fits well (a map with rooms alike has several).
+        let effective = if self.since_spread < SOFT_UPDATES {
+            self.settings.effective_beams * SOFT_FACTOR
+        } else {
+            self.settings.effective_beams
+        };
+        effective / self.points.len().max(1) as f64
+    }
+
+    /// The scan's log-likelihood from a pose.
+    fn log_likelihood(&self, pose: Pose2D) -> f64 {
+        let z_hit = self.settings.z_hit;
+        let z_rand = 1.0 - z_hit;
+        let (sin, cos) = pose.theta_rad.sin_cos();
+        let mut log_likelihood = 0.0;
+        for &(lx, ly) in &self.points {
+            let x = pose.x_m + cos * lx - sin * ly;
+            let y = pose.y_m + sin * lx + cos * ly;
+            log_likelihood += (z_hit * self.map.field_at(x, y) + z_rand).ln();
+        }
+        log_likelihood
+    }
+
+    /// Global mode's first scan: of [`PROPOSALS_PER_PARTICLE`] times `max_particles` poses
+    /// drawn over the free space, the `max_particles` where the scan fits best become the
+    /// particles, weighed by the scan. Drawing only `max_particles` would leave hardly any near
+    /// the robot on a large map; scoring many and keeping the best is importance sampling from
+    /// a wider proposal.
+    fn propose(&mut self) {
+        if self.points.is_empty() {
+            return;
+        }
+        self.spread_pending = false;
+        let count = self.settings.max_particles;
+        let free = &self.map.free;
+        let mut candidates: Vec<(f64, Pose2D)> = Vec::with_capacity(count * PROPOSALS_PER_PARTICLE);
+        for _ in 0..count * PROPOSALS_PER_PARTICLE {
+            let pick = ((self.rng.uniform() * free.len() as f64) as usize).min(free.len() - 1);
+            let (x, y) = free[pick];
+            let half = FREE_PITCH_M / 2.0;
+            let pose = Pose2D {
+                x_m: x + (self.rng.uniform() * 2.0 - 1.0) * half,
+                y_m: y + (self.rng.uniform() * 2.0 - 1.0) * half,
+                theta_rad: wrap_angle((self.rng.uniform() * 2.0 - 1.0) * std::f64::consts::PI),
+            };
+            candidates.push((self.log_likelihood(pose), pose));
+        }
+        if candidates.len() > count {
+            candidates.select_nth_unstable_by(count, |a, b| b.0.total_cmp(&a.0));
+            candidates.truncate(count);
+        }
+        let best = candidates
+            .iter()
+            .map(|(l, _)| *l)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let temper = self.temper();
+        self.particles.clear();
+        let mut total = 0.0;
+        for (log_likelihood, pose) in candidates {
+            let weight = (temper * (log_likelihood - best)).exp();
+            total += weight;
+            self.particles.push(Particle { pose, weight });
+        }
+        for particle in &mut self.particles {
+            particle.weight /= total;
+        }
+    }
+
+    /// Weighs every particle by how well the scan's beams fit the map from its pose.
+    fn weigh(&mut self) {
+        if self.points.is_empty() {
+            return;
+        }
+        let temper = self.temper();
+        let mut log_weights = std::mem::take(&mut self.log_weights);
+        log_weights.clear();
+        let mut best = f64::NEG_INFINITY;
+        for particle in &self.particles {
+            let log_weight =
+                particle.weight.max(1e-300).ln() + temper * self.log_likelihood(particle.pose);
+            best = best.max(log_weight);
+            log_weights.push(log_weight);
+        }
+        let mut total = 0.0;
+        for (particle, &log_weight) in self.particles.iter_mut().zip(&log_weights) {
+            particle.weight = (log_weight - best).exp();
+            total += particle.weight;
+        }
+        for particle in &mut self.particles {
+            particle.weight /= total;
+        }
+        self.log_weights = log_weights;
+    }
+
+    /// Low-variance resampling to the KLD bound's count, when the weights say something: while
+    /// they are nearly even (a corridor seen from anywhere along it looks the same), resampling
+    /// would only make the cloud's mean wander (genetic drift), so the particles are kept as
+    /// they are, weights and all.
+    fn resample(&mut self) {
+        let first = self.particles.len();
+        let sum_sq: f64 = self.particles.iter().map(|p| p.weight * p.weight).sum();
+        let effective = if sum_sq > 0.0 { 1.0 / sum_sq } else { 0.0 };
+        if effective > RESAMPLE_BELOW * first as f64 {
+            return;
+        }
+        self.systematic(first);
+        let bins: HashSet<(i64, i64, i64)> = self
+            .particles
+            .iter()
+            .map(|particle| {
+                let p = particle.pose;
+                (
+                    (p.x_m / KLD_BIN_M).floor() as i64,
+                    (p.y_m / KLD_BIN_M).floor() as i64,
+                    (p.theta_rad / KLD_BIN_RAD).floor() as i64,
+                )
+            })
+            .collect();
+        let wanted = kld_bound(bins.len(), self.settings.kld_err, self.settings.kld_z)
+            .clamp(self.settings.min_particles, self.settings.max_particles);
+        if wanted != first {
+            // The resampled set is equally weighted: resampling it again to another count
+            // keeps its distribution.
+            self.systematic(wanted);
+        }
+    }
+
+    /// Systematic resampling of the weighted particles into `count` equally weighted ones.
+    fn systematic(&mut self, count: usize) {
+        self.spare.clear();
+        let step = 1.0 / count as f64;
+        let mut target = self.rng.uniform() * step;
+        let mut cumulative = 0.0;
+        let mut source = self.particles.iter();
+        let mut current = source.next().copied();
+        while self.spare.len() < count {
+            let Some(particle) = current else {
+                break;
+            };
+            if cumulative + particle.weight >= target {
+                self.spare.push(Particle {
+                    pose: particle.pose,
+                    weight: step,
+                });
+                target += step;
+            } else {
+                cumulative += particle.weight;
+                current = source.next().copied();
+            }
+        }
+        // Rounding can leave the last few places: they go to the last particle.
+        while self.spare.len() < count
+            && let Some(last) = self.particles.last()
+        {
+            self.spare.push(Particle {
+                pose: last.pose,
+                weight: step,
+            });
+        }
+        std::mem::swap(&mut self.particles, &mut self.spare);
+    }
+
+    /// The mean, covariance, fit and state of the particles.
+    fn summarise(&mut self) -> Estimate {
+        let total: f64 = self.particles.iter().map(|p| p.weight).sum();
+        let total = if total > 0.0 { total } else { 1.0 };
+        let (mut mx, mut my, mut ms, mut mc) = (0.0, 0.0, 0.0, 0.0);
+        for particle in &self.particles {
+            let w = particle.weight / total;
+            mx += w * particle.pose.x_m;
+            my += w * particle.pose.y_m;
+            ms += w * particle.pose.theta_rad.sin();
+            mc += w * particle.pose.theta_rad.cos();
+        }
+        let mean_theta = ms.atan2(mc);
+        let mut cov = [0.0; 9];
+        for particle in &self.particles {
+            let w = particle.weight / total;
+            let d = [
+                particle.pose.x_m - mx,
+                particle.pose.y_m - my,
+                wrap_angle(particle.pose.theta_rad - mean_theta),
+            ];
+            for r in 0..3 {
+                for c in 0..3 {
+                    cov[r * 3 + c] += w * d[r] * d[c];
+                }
+            }
+        }
+        let pose = Pose2D {
+            x_m: mx,
+            y_m: my,
+            theta_rad: mean_theta,
+        };
+        if !self.points.is_empty() {
+            let fit = self.fit_at(pose);
+            self.fit = FIT_SMOOTHING * fit + (1.0 - FIT_SMOOTHING) * self.fit;
+        }
+        let mut estimate = Estimate {
+            pose,
+            covariance: cov,
+            fit: self.fit,
+            state: State::Uncertain,
+            particles: self.particles.len(),
+        };
+        let t = self.settings.thresholds;
+        // Once localised, the state is left only beyond a margin (hysteresis), so that an
+        // estimate on the edge does not report localised and uncertain by turns.
+        let slack = if self.estimate.state == State::Localised {
+            LEAVE_LOCALISED
+        } else {
+            1.0
+        };
+        estimate.state = if estimate.sigma_m() > t.lost_sigma_m || self.fit < t.lost_fit {
+            State::Lost
+        } else if estimate.sigma_m() <= t.localised_sigma_m * slack
+            && estimate.sigma_rad() <= t.localised_sigma_rad * slack
+            && self.fit >= t.localised_fit / slack
+        {
+            State::Localised
+        } else {
+            State::Uncertain
+        };
+        estimate
+    }
+
+    /// The mean field value at the ends of the beams of the last scan weighed, from `pose`.
+    fn fit_at(&self, pose: Pose2D) -> f64 {
+        let (sin, cos) = pose.theta_rad.sin_cos();
+        let sum: f64 = self
+            .points
+            .iter()
+            .map(|&(lx, ly)| {
+                self.map.field_at(
+                    pose.x_m + cos * lx - sin * ly,
+                    pose.y_m + sin * lx + cos * ly,
+                )
+            })
+            .sum();
+        sum / self.points.len() as f64
+    }
+}
+
+/// The number of particles KLD sampling asks for when they occupy `bins` bins: the error of the
+/// estimated distribution stays under `err` with the confidence whose normal quantile is `z`
+/// (Fox 2003, with the Wilson–Hilferty approximation of the chi-square quantile).
+pub fn kld_bound(bins: usize, err: f64, z: f64) -> usize {
+    if bins <= 1 {
+        return 0;
+    }
+    let k = (bins - 1) as f64;
+    let a = 2.0 / (9.0 * k);
+    let n = k / (2.0 * err) * (1.0 - a + a.sqrt() * z).powi(3);
+    n.ceil() as usize
+}
+
+#[cfg(test)]
+mod tests;

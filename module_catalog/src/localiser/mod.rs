@@ -1,0 +1,445 @@
+//! `localiser`: where the robot is on a known map, by Monte Carlo localisation ([`mcl`]).
+//!
+//! The map is the plan's world (a `.world` file or a ROS map_server map, read by
+//! [`armor_model::world::load`] as the simulator and the planner read it). Each scan moves the
+//! particles by the odometry's motion since the last update, weighs them on the scan and
+//! resamples them; the estimate is their mean and covariance. Between scans, the pose published
+//! on `pose` is the last estimate moved by the odometry since (the map-from-odometry correction
+//! applied to every odometry sample), so a follower linked to it gets a pose as often as it got
+//! odometry: a drop-in replacement for it. `estimate` carries the covariance and the state at
+//! each scan.
+//!
+//! The state is reported as events on entering it: `localised` (position standard deviation at
+//! most 0.15 m on its worst axis, heading at most 0.1 rad, and the scan's fit at least 0.5),
+//! `lost` (position standard deviation above 1 m, or the fit below 0.25: a cloud can be tight
+//! and wrong, as when the robot is carried elsewhere, and only the fit shows it), `uncertain`
+//! otherwise. Lost, it stays lost until an operator sets the pose (`set_pose`), or, with
+//! `recover`, spreads its particles over the map's free space (global mode).
+//!
+//! The initial pose is the world's start (the simulator's), or `x_m`, `y_m`, `heading_deg`;
+//! `global` starts in global mode. `set_pose` ("X Y HEADING_DEG", tunable live) puts the
+//! particles round a pose given by hand, as rviz's "2D Pose Estimate" does.
+
+pub mod mcl;
+#[cfg(test)]
+mod sweep;
+
+use armor_module_api::types::{LaserScan, LocalisationState, Odometry, Pose2D, PoseEstimate};
+use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
+
+use crate::BodyError;
+use crate::mapper::{between, compose};
+use mcl::{Filter, Map, Settings, State};
+
+pub const TYPE: &str = "localiser";
+
+/// The spread of the particles round a pose given by a parameter or by hand.
+const SET_POSE_SIGMA_M: f64 = 0.2;
+const SET_POSE_SIGMA_RAD: f64 = 0.15;
+
+pub fn spec() -> ModuleSpec {
+    ModuleSpec::new(
+        TYPE,
+        "Localises the robot on a known map (a .world file or a ROS map) by Monte Carlo \
+         localisation: odometry motion model, likelihood-field laser model, KLD-adaptive \
+         particle count, low-variance resampling. Publishes the pose in the map frame in place \
+         of odometry, and its covariance and state: `localised` (position sigma <= 0.15 m, \
+         heading sigma <= 0.1 rad, scan fit >= 0.5), `lost` (position sigma > 1 m or scan fit \
+         < 0.25), else `uncertain`. Lost, it stays lost until set_pose (or, with recover, searches \
+         the whole map).",
+    )
+    .category(armor_module_api::Category::Navigation)
+    .version(env!("CARGO_PKG_VERSION"))
+    .not_controllable()
+    .input::<Odometry>(
+        "odometry",
+        "dead-reckoned pose and velocity (every sample is corrected and published on `pose`)",
+    )
+    .input::<LaserScan>(
+        "scan",
+        "laser scan from the robot's centre (each one updates the filter with the latest \
+         odometry, when the robot moved 5 cm or turned 0.05 rad since the last update)",
+    )
+    .output::<Odometry>(
+        "pose",
+        "the pose in the map frame (the world's) and the odometry's twist, at every odometry \
+         sample: the latest estimate moved by the odometry since; a drop-in replacement for \
+         odometry",
+    )
+    .output::<PoseEstimate>(
+        "estimate",
+        "the estimate at each scan: pose in the map frame, covariance of x, y and heading, the \
+         scan's fit and the state",
+    )
+    .param(
+        ParamSpec::new(
+            "world",
+            ParamType::String,
+            "the map: a world file or a ROS map_server map.yaml (found as the sim finds its own)",
+        )
+        .file("worlds"),
+    )
+    .param(
+        ParamSpec::new(
+            "x_m",
+            ParamType::String,
+            "initial x in the map frame (empty: the world's start)",
+        )
+        .default(""),
+    )
+    .param(
+        ParamSpec::new(
+            "y_m",
+            ParamType::String,
+            "initial y in the map frame (empty: the world's start)",
+        )
+        .default(""),
+    )
+    .param(
+        ParamSpec::new(
+            "heading_deg",
+            ParamType::String,
+            "initial heading, counter-clockwise from east (empty: the world's start)",
+        )
+        .default(""),
+    )
+    .param(
+        ParamSpec::new(
+            "global",
+            ParamType::Bool,
+            "start in global mode: the robot's place is unknown, particles spread over the map's \
+             free space",
+        )
+        .default("false"),
+    )
+    .param(
+        ParamSpec::new(
+            "set_pose",
+            ParamType::String,
+            "`X Y HEADING_DEG`: the robot is there, give or take 0.2 m and 0.15 rad (an \
+             operator's pose estimate; tunable live: each new value is taken once)",
+        )
+        .default(""),
+    )
+    .param(
+        ParamSpec::new(
+            "recover",
+            ParamType::Bool,
+            "when lost, search the whole map (global mode; on a map with places alike it may \
+             settle on the wrong one); off: stay lost until a set_pose",
+        )
+        .default("false"),
+    )
+    .param(
+        ParamSpec::new(
+            "min_particles",
+            ParamType::Int,
+            "fewest particles (1 or more)",
+        )
+        .min(1.0)
+        .max(100_000.0)
+        .default("500"),
+    )
+    .param(
+        ParamSpec::new(
+            "max_particles",
+            ParamType::Int,
+            "most particles, and how many global mode spreads (at least min_particles)",
+        )
+        .min(1.0)
+        .max(100_000.0)
+        .default("3000"),
+    )
+    .param(
+        ParamSpec::new(
+            "beams",
+            ParamType::Int,
+            "beams of each scan weighed, spread evenly over it (1 or more)",
+        )
+        .min(1.0)
+        .max(100_000.0)
+        .default("60"),
+    )
+    .param(
+        ParamSpec::new(
+            "sigma_hit_m",
+            ParamType::Float,
+            "standard deviation of a beam's end round the wall it hit (greater than 0)",
+        )
+        .above(0.0)
+        .max(1.0)
+        .unit("m")
+        .default("0.1"),
+    )
+    .param(
+        ParamSpec::new(
+            "alpha",
+            ParamType::String,
+            "noise of the motion model, four numbers: rotation from rotation, rotation from \
+             translation, translation from translation, translation from rotation",
+        )
+        .default("0.05 0.005 0.05 0.01"),
+    )
+    .param(
+        ParamSpec::new(
+            "robot_radius_m",
+            ParamType::Float,
+            "the robot's radius: global mode puts particles only where it fits (greater than 0)",
+        )
+        .above(0.0)
+        .unit("m")
+        .default("0.25"),
+    )
+    .param(ParamSpec::new("seed", ParamType::Int, "seed of the filter's randomness").default("1"))
+    .event(
+        "localised",
+        "the estimate became trustworthy: position sigma <= 0.15 m, heading sigma <= 0.1 rad, \
+         scan fit >= 0.5",
+    )
+    .event("uncertain", "the estimate is neither localised nor lost")
+    .event(
+        "lost",
+        "position sigma > 1 m, or the scan fits the map badly at the estimate (fit < 0.25)",
+    )
+}
+
+/// A number parameter given as text, empty for none.
+fn optional_number(node: &Node, name: &str) -> Result<Option<f64>, BodyError> {
+    let text: String = node.param(name)?;
+    let text = text.trim();
+    if text.is_empty() {
+        return Ok(None);
+    }
+    match text.parse::<f64>() {
+        Ok(value) if value.is_finite() => Ok(Some(value)),
+        _ => Err(format!("parameter `{name}`: `{text}` is not a number").into()),
+    }
+}
+
+/// `X Y HEADING_DEG`, or None when empty.
+pub fn parse_pose(text: &str) -> Result<Option<Pose2D>, String> {
+    let words: Vec<&str> = text.split_whitespace().collect();
+    if words.is_empty() {
+        return Ok(None);
+    }
+    let numbers: Vec<f64> = words
+        .iter()
+        .map(|word| word.parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("`{text}` is not three numbers `X Y HEADING_DEG`"))?;
+    match numbers[..] {
+        [x_m, y_m, heading_deg] => Ok(Some(Pose2D {
+            x_m,
+            y_m,
+            theta_rad: crate::wrap_angle(heading_deg.to_radians()),
+        })),
+        _ => Err(format!("`{text}` is not three numbers `X Y HEADING_DEG`")),
+    }
+}
+
+fn settings(node: &Node) -> Result<Settings, BodyError> {
+    let min_particles = node.param::<usize>("min_particles")?;
+    let max_particles = node.param::<usize>("max_particles")?;
+    if max_particles < min_particles {
+        return Err(format!(
+            "parameter `max_particles` ({max_particles}) must be at least min_particles \
+             ({min_particles})"
+        )
+        .into());
+    }
+    let alpha_text: String = node.param("alpha")?;
+    let alpha: Vec<f64> = alpha_text
+        .split_whitespace()
+        .map(|word| {
+            word.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 0.0)
+        })
+        .collect::<Option<_>>()
+        .unwrap_or_default();
+    let [a1, a2, a3, a4] = alpha[..] else {
+        return Err(
+            format!("parameter `alpha`: `{alpha_text}` is not four numbers of 0 or more").into(),
+        );
+    };
+    Ok(Settings {
+        min_particles,
+        max_particles,
+        alpha: [a1, a2, a3, a4],
+        beams: node.param::<usize>("beams")?,
+        sigma_hit_m: node.param::<f64>("sigma_hit_m")?,
+        robot_radius_m: node.param::<f64>("robot_radius_m")?,
+        recover: node.param::<bool>("recover")?,
+        ..Settings::default()
+    })
+}
+
+/// The estimate as the `estimate` output carries it.
+pub fn message(estimate: &mcl::Estimate) -> PoseEstimate {
+    PoseEstimate {
+        pose_in_map: estimate.pose,
+        covariance: estimate.covariance,
+        fit: estimate.fit,
+        state: match estimate.state {
+            State::Localised => LocalisationState::Localised,
+            State::Uncertain => LocalisationState::Uncertain,
+            State::Lost => LocalisationState::Lost,
+        },
+    }
+}
+
+/// The module without a node: the filter, and the correction it makes of odometry (the map
+/// pose of the odometry frame's origin: the estimate at the last update composed with the
+/// inverse of the odometry pose then).
+#[derive(Clone, Debug)]
+pub struct Localiser {
+    pub filter: Filter,
+    map_from_odom: Option<Pose2D>,
+}
+
+impl Localiser {
+    pub fn new(filter: Filter) -> Self {
+        Self {
+            filter,
+            map_from_odom: None,
+        }
+    }
+
+    /// The pose in the map frame for an odometry pose (none before the first scan).
+    pub fn on_odometry(&self, odom: Pose2D) -> Option<Pose2D> {
+        self.map_from_odom
+            .map(|correction| compose(correction, odom))
+    }
+
+    /// A scan, with the odometry pose of its time: the filter's update, and its estimate.
+    pub fn on_scan(&mut self, odom: Pose2D, scan: &LaserScan) -> mcl::Estimate {
+        let updated = self.filter.update(odom, scan);
+        let estimate = self.filter.estimate();
+        if updated || self.map_from_odom.is_none() {
+            self.map_from_odom = Some(compose(estimate.pose, between(odom, Pose2D::default())));
+        }
+        estimate
+    }
+}
+
+pub fn body(node: &mut Node) -> BodyResult {
+    let odometry_input = node.input::<Odometry>("odometry")?;
+    let scan_input = node.input::<LaserScan>("scan")?;
+    let pose_output = node.output::<Odometry>("pose")?;
+    let estimate_output = node.output::<PoseEstimate>("estimate")?;
+    let settings = settings(node)?;
+    let name: String = node.param("world").map_err(|_| {
+        "parameter `world` is required: the map, a world file or a ROS map.yaml (for example \
+         `warehouse.world`)"
+    })?;
+    let world = crate::sim::load_world_file(&crate::sim::find_world(name.trim())?)?;
+    let mut start = world.start();
+    if let Some(x) = optional_number(node, "x_m")? {
+        start.x_m = x;
+    }
+    if let Some(y) = optional_number(node, "y_m")? {
+        start.y_m = y;
+    }
+    if let Some(heading) = optional_number(node, "heading_deg")? {
+        start.theta_rad = crate::wrap_angle(heading.to_radians());
+    }
+    let seed: i64 = node.param("seed")?;
+    let map = Map::new(&world, settings.sigma_hit_m, settings.robot_radius_m)?;
+    let mut filter = Filter::new(settings, map, start, u64::from_ne_bytes(seed.to_ne_bytes()));
+    if node.param::<bool>("global")? {
+        filter.spread();
+        tracing::info!(
+            "map `{}`: global mode, the robot's place unknown",
+            world.name()
+        );
+    } else {
+        tracing::info!(
+            "map `{}`: starting at ({:.2}, {:.2}), heading {:.0}°",
+            world.name(),
+            start.x_m,
+            start.y_m,
+            start.theta_rad.to_degrees()
+        );
+    }
+    let mut set_pose: String = node.param("set_pose")?;
+    if let Some(pose) = parse_pose(&set_pose)? {
+        filter.set_pose(pose, SET_POSE_SIGMA_M, SET_POSE_SIGMA_RAD);
+    }
+    let mut localiser = Localiser::new(filter);
+    let mut latest: Option<Odometry> = None;
+    let mut reported: Option<State> = None;
+    loop {
+        match node.next_event(None)? {
+            Event::Input(port) if port == odometry_input.id() => {
+                let Some(sample) = node.take(&odometry_input)? else {
+                    continue;
+                };
+                latest = Some(sample.value);
+                if let Some(pose) = localiser.on_odometry(sample.value.pose_in_odom) {
+                    let pose = Odometry {
+                        pose_in_odom: pose,
+                        twist: sample.value.twist,
+                    };
+                    node.send(&pose_output, &pose)?;
+                }
+            }
+            Event::Input(port) if port == scan_input.id() => {
+                let Some(sample) = node.take(&scan_input)? else {
+                    continue;
+                };
+                let Some(odometry) = latest else {
+                    continue;
+                };
+                let estimate = localiser.on_scan(odometry.pose_in_odom, &sample.value);
+                node.send(&estimate_output, &message(&estimate))?;
+                if reported != Some(estimate.state) {
+                    reported = Some(estimate.state);
+                    let level = if estimate.state == State::Lost {
+                        tracing::Level::WARN
+                    } else {
+                        tracing::Level::INFO
+                    };
+                    let text = format!(
+                        "{} at ({:.2}, {:.2}): sigma {:.2} m, {:.2} rad; fit {:.2}; {} particles",
+                        estimate.state.event(),
+                        estimate.pose.x_m,
+                        estimate.pose.y_m,
+                        estimate.sigma_m(),
+                        estimate.sigma_rad(),
+                        estimate.fit,
+                        estimate.particles
+                    );
+                    if level == tracing::Level::WARN {
+                        tracing::warn!("{text}");
+                    } else {
+                        tracing::info!("{text}");
+                    }
+                    node.report(estimate.state.event())?;
+                }
+            }
+            Event::ParamsChanged(_) => {
+                let text: String = node.param("set_pose")?;
+                if text != set_pose {
+                    match parse_pose(&text) {
+                        Ok(Some(pose)) => {
+                            tracing::info!(
+                                "pose set by hand: ({:.2}, {:.2}), heading {:.0}°",
+                                pose.x_m,
+                                pose.y_m,
+                                pose.theta_rad.to_degrees()
+                            );
+                            localiser
+                                .filter
+                                .set_pose(pose, SET_POSE_SIGMA_M, SET_POSE_SIGMA_RAD);
+                        }
+                        Ok(None) => {}
+                        Err(why) => tracing::error!("parameter `set_pose`: {why}; ignored"),
+                    }
+                    set_pose = text;
+                }
+            }
+            Event::Shutdown => return Ok(()),
+            _ => {}
+        }
+    }
+}
