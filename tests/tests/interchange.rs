@@ -11,7 +11,6 @@
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use armor_model::plan::{AreaKind, GraphicKind, LatLon, Plan, Response};
 use armor_tests::check::{armor, assert_refused, line_of, located, output_text};

@@ -6,7 +6,6 @@
 #![allow(clippy::unwrap_used)]
 
 use std::collections::BTreeMap;
-use std::process::Command;
 
 use armor_model::{Engine, MissionNet, analyse, dining_philosophers, from_pnml, to_pnml};
 use serde_json::{Value, json};
