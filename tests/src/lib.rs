@@ -2,12 +2,14 @@
 //! processes whose output is captured line by line, wait for a line with a deadline (never a bare
 //! sleep), and kill every process a test started when it ends, even if it fails. [`mission`]
 //! runs a mission or plan headless and reads its report; [`mcap`] reads what a recorder wrote;
-//! [`check`] runs the one-shot commands (`armor check`, `armor compile`) and reads their errors.
+//! [`check`] runs the one-shot commands (`armor check`, `armor compile`) and reads their errors;
+//! [`tools`] finds the programs and Python modules from outside that the suites run.
 #![allow(clippy::unwrap_used)]
 
 pub mod check;
 pub mod mcap;
 pub mod mission;
+pub mod tools;
 
 use std::io::{BufRead as _, BufReader, Read};
 use std::path::{Path, PathBuf};
@@ -263,7 +265,7 @@ pub fn start_agent_with(args: &[&str]) -> (Proc, std::net::SocketAddr) {
 
 /// Sends a signal to a process (through the `kill` command: the workspace denies unsafe code).
 pub fn signal(pid: i32, signal: i32) {
-    let status = Command::new("kill")
+    let status = Command::new(tools::program("kill"))
         .arg(format!("-{signal}"))
         .arg(pid.to_string())
         .status()

@@ -183,11 +183,11 @@ fn recorded_images_are_read_by_the_mcap_python_package_in_foxglove_schemas() {
     let status = recorder.wait_exit(PATIENCE);
     assert!(status.success(), "{status}: {:#?}", recorder.lines());
 
-    let output = Command::new("python3")
+    let output = armor_tests::tools::python3(&["mcap"])
         .arg(workspace_root().join("tests/python/mcap_images.py"))
         .arg(&file)
         .output()
-        .unwrap();
+        .unwrap_or_else(|err| panic!("cannot run python3: {err}"));
     assert!(
         output.status.success(),
         "the mcap package could not read {}: {}",
@@ -237,7 +237,7 @@ fn recorded_images_are_read_by_the_mcap_python_package_in_foxglove_schemas() {
 fn images_published_by_a_python_module_written_from_the_protocol_arrive_decoded() {
     let (_agent, agent) = start_agent();
     let publisher = Proc::start(
-        Command::new("python3")
+        armor_tests::tools::python3(&[])
             .arg(workspace_root().join("tests/python/image_publisher.py"))
             .arg(agent.to_string())
             .arg("pycam"),

@@ -6,8 +6,8 @@
 //! remote modules stopped by the daemon after its orphan time. `armor check` asks the host for
 //! the types it lacks. `armor ctl teleop` reaches a teleop module on the other host.
 //!
-//! Namespaces need root (CAP_SYS_ADMIN) and `ip` (iproute2, which `.ci/run` installs): where
-//! they cannot be made, each test says so and passes without running.
+//! Namespaces need root (CAP_SYS_ADMIN) and `ip` (iproute2, which `scripts/test` installs):
+//! where they cannot be made, each test fails saying why.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -29,7 +29,7 @@ struct Namespaces {
 }
 
 fn ip(args: &[&str]) -> Result<(), String> {
-    let output = Command::new("ip")
+    let output = Command::new(armor_tests::tools::program("ip"))
         .args(args)
         .output()
         .map_err(|err| format!("cannot run `ip`: {err}"))?;
@@ -87,7 +87,7 @@ impl Namespaces {
     /// A command run inside a namespace (`ip netns exec` execs it: its pid is the command's),
     /// with the run's secret in its environment: a daemon beyond loopback requires one.
     fn command(ns: &str, program: &Path) -> Command {
-        let mut command = Command::new("ip");
+        let mut command = Command::new(armor_tests::tools::program("ip"));
         command.args(["netns", "exec", ns]).arg(program);
         command.env("ARMOR_MODULE_PATH", bin_dir());
         command.env(armor_module_api::auth::ENV_SECRET_FILE, shared_secret());
@@ -117,18 +117,15 @@ impl Drop for Namespaces {
     }
 }
 
-/// The namespaces, or `None` after saying plainly why the test does not run.
-fn namespaces_or_skip(test: &str) -> Option<Namespaces> {
-    match Namespaces::make() {
-        Ok(namespaces) => Some(namespaces),
-        Err(why) => {
-            println!(
-                "SKIPPED {test}: cannot make network namespaces here ({why}); these tests need \
-                 root and iproute2"
-            );
-            None
-        }
-    }
+/// The namespaces; the test fails saying why when they cannot be made (a test skipped
+/// quietly would pass on a machine where it proved nothing).
+fn namespaces(test: &str) -> Namespaces {
+    Namespaces::make().unwrap_or_else(|why| {
+        panic!(
+            "{test}: cannot make network namespaces here ({why}); these tests need root: run \
+             `scripts/test` as root (it installs iproute2)"
+        )
+    })
 }
 
 const SPLIT_SYSTEM: &str = r#"<system name="split" host="10.77.0.1">
@@ -197,10 +194,7 @@ fn started_on_host(host: &Proc, skip: usize, module: &str) -> i32 {
 
 #[test]
 fn a_system_split_over_two_hosts_runs_and_recovers() {
-    let Some(namespaces) = namespaces_or_skip("a_system_split_over_two_hosts_runs_and_recovers")
-    else {
-        return;
-    };
+    let namespaces = namespaces("a_system_split_over_two_hosts_runs_and_recovers");
     let (_dir, file) = write_system(SPLIT_SYSTEM);
     let mut host = start_host(&namespaces, &["--orphan-secs", "1"]);
     let run = start_run(&namespaces, &file, &[]);
@@ -301,9 +295,7 @@ fn a_system_split_over_two_hosts_runs_and_recovers() {
 
 #[test]
 fn hosts_authenticate_with_the_runs_secret() {
-    let Some(namespaces) = namespaces_or_skip("hosts_authenticate_with_the_runs_secret") else {
-        return;
-    };
+    let namespaces = namespaces("hosts_authenticate_with_the_runs_secret");
     let (dir, file) = write_system(SPLIT_SYSTEM);
     let secret = dir.path().join("secret");
     std::fs::write(&secret, "a secret long enough for the run").unwrap();
@@ -338,11 +330,7 @@ fn hosts_authenticate_with_the_runs_secret() {
 
 #[test]
 fn armor_check_reports_a_module_type_missing_on_a_host() {
-    let Some(namespaces) =
-        namespaces_or_skip("armor_check_reports_a_module_type_missing_on_a_host")
-    else {
-        return;
-    };
+    let namespaces = namespaces("armor_check_reports_a_module_type_missing_on_a_host");
     // The daemon's module path holds only the counter.
     let modules = tempfile::tempdir().unwrap();
     std::os::unix::fs::symlink(
@@ -509,11 +497,7 @@ fn a_synchronised_host_runs_a_timed_mission() {
 /// encrypted link with the module's key (the run has a secret).
 #[test]
 fn armor_ctl_teleop_reaches_a_teleop_module_on_another_host() {
-    let Some(namespaces) =
-        namespaces_or_skip("armor_ctl_teleop_reaches_a_teleop_module_on_another_host")
-    else {
-        return;
-    };
+    let namespaces = namespaces("armor_ctl_teleop_reaches_a_teleop_module_on_another_host");
     let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
     let (_dir, file) = write_system(&format!(
         r#"<system name="remote-pad" host="{SUPERVISOR_ADDR}">

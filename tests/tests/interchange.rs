@@ -11,7 +11,6 @@
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use armor_model::plan::{AreaKind, GraphicKind, LatLon, Plan, Response};
 use armor_tests::check::{armor, assert_refused, line_of, located, output_text};
@@ -579,13 +578,11 @@ print(json.dumps({
 "#;
 
 fn read_kml(file: &Path) -> Value {
-    let read = Command::new("python3")
+    let read = armor_tests::tools::python3(&["fastkml", "lxml"])
         .args(["-c", READ_KML])
         .arg(file)
         .output()
-        .expect(
-            "python3 with fastkml (`python3 -m pip install fastkml lxml`; .ci/run installs it)",
-        );
+        .unwrap_or_else(|err| panic!("cannot run python3: {err}"));
     assert!(read.status.success(), "{}", output_text(&read));
     serde_json::from_slice(&read.stdout).unwrap()
 }

@@ -10,6 +10,7 @@ use armor_model::ros_map;
 use armor_model::world::World;
 use armor_module_api::types::{Datum, OccupancyGrid};
 use armor_tests::check::{armor, assert_refused, line_of, output_text};
+use armor_tests::mcap::recorded;
 use armor_tests::{Proc, bin, bin_dir, workspace_root};
 
 fn robot_file(name: &str) -> PathBuf {
@@ -245,6 +246,7 @@ fn the_mappers_last_grid_is_exported_as_a_ros_map_that_reads_back_as_it() {
     <param name="record" value="mapper.map"/>
     <param name="file" value="{}"/>
     <param name="compression" value="none"/>
+    <param name="report_secs" value="0.2"/>
   </module>
   <link from="sim.scan" to="mapper.scan"/>
   <link from="sim.odometry" to="mapper.odometry"/>
@@ -254,14 +256,35 @@ fn the_mappers_last_grid_is_exported_as_a_ros_map_that_reads_back_as_it() {
         ),
     )
     .expect("write");
+    // A lease longer than the default 2 s: on a loaded machine (stress --cpu 2 beside the
+    // suite) the recorder, writing 60 m grids as JSON, was seen to miss the default lease and
+    // be killed and restarted, which this test of the export is not about (the health suite
+    // tests the lease).
     let mut run = Proc::start(
         Command::new(bin("armor"))
             .arg("run")
             .arg(&system)
-            .args(["--for", "6"])
+            .args(["--lease-secs", "10"])
             .env("ARMOR_MODULE_PATH", bin_dir())
             .current_dir(dir.path()),
     );
+    let addr = armor_tests::control_address(&run);
+    // Conditions, not a run of fixed length: a few grids recorded, then the recorder stopped
+    // by hand and seen to save its file, before the run ends (a busy machine could otherwise
+    // end the run before the first grid, or kill a recorder still writing at shutdown).
+    run.wait_for(
+        "saying a few grids were recorded",
+        Duration::from_secs(60),
+        |line| line.starts_with("[recorder]") && recorded(line).is_some_and(|count| count >= 3),
+    );
+    let (stopped, said) = armor_tests::ctl(&addr, &["stop", "recorder"]);
+    assert!(stopped, "{said}");
+    run.wait_for(
+        "saying the recording was saved",
+        Duration::from_secs(60),
+        |line| line.starts_with("[recorder]") && line.contains("saved "),
+    );
+    run.signal(libc::SIGINT);
     let status = run.wait_exit(Duration::from_secs(60));
     assert!(status.success(), "{status}\n{}", run.lines().join("\n"));
     let messages = armor_runtime::replay::read_recording(&recording).expect("recording");

@@ -1,5 +1,5 @@
 //! PNML written by another tool: pm4py (the most used Python process-mining and Petri-net
-//! library, `pip install pm4py`, installed by `.ci/run`) writes P/T nets as the PNML core model
+//! library, `pip install pm4py`, installed by `scripts/test`) writes P/T nets as the PNML core model
 //! (`pnmlcoremodel`) with markings, inscriptions and a `<finalmarkings>` element. `armor import`
 //! reads them with a warning; the mission it writes has the same places, initial marking, arcs
 //! and weights as pm4py's own net, its final marking as final places, and passes `armor check`'s
@@ -124,15 +124,15 @@ fn as_name(label: &str) -> String {
 #[test]
 fn nets_written_by_pm4py_import_with_their_markings_weights_and_final_places() {
     let dir = tempfile::tempdir().unwrap();
-    let output = Command::new("python3")
+    let output = armor_tests::tools::python3(&["pm4py"])
         .arg("-c")
         .arg(PM4PY)
         .arg(dir.path())
         .output()
-        .expect("python3");
+        .unwrap_or_else(|err| panic!("cannot run python3: {err}"));
     assert!(
         output.status.success(),
-        "pm4py could not write the nets (is it installed? pip install pm4py):\n{}",
+        "pm4py could not write the nets:\n{}",
         String::from_utf8_lossy(&output.stderr)
     );
     // pm4py prints a banner on stdout before our line.

@@ -6,7 +6,6 @@
 #![allow(clippy::unwrap_used)]
 
 use std::collections::BTreeMap;
-use std::process::Command;
 
 use armor_model::{Engine, MissionNet, analyse, dining_philosophers, from_pnml, to_pnml};
 use serde_json::{Value, json};
@@ -43,7 +42,7 @@ fn snakes(pnml: &str, firings: &[&str], count_reachable: bool) -> Value {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("net.pnml");
     std::fs::write(&path, pnml).unwrap();
-    let mut command = Command::new("python3");
+    let mut command = armor_tests::tools::python3(&["snakes.pnml"]);
     command
         .arg("-c")
         .arg(SNAKES)
@@ -54,10 +53,10 @@ fn snakes(pnml: &str, firings: &[&str], count_reachable: bool) -> Value {
     }
     let output = command
         .output()
-        .expect("python3 with SNAKES (pip install snakes)");
+        .unwrap_or_else(|err| panic!("cannot run python3: {err}"));
     assert!(
         output.status.success(),
-        "SNAKES could not read the export (is it installed? pip install snakes):\n{}\n{pnml}",
+        "SNAKES could not read the export:\n{}\n{pnml}",
         String::from_utf8_lossy(&output.stderr)
     );
     let stdout = String::from_utf8_lossy(&output.stdout);

@@ -39,16 +39,22 @@ fn python_module() -> PathBuf {
 /// and the secret file (mode 600).
 struct Setup {
     dir: tempfile::TempDir,
+    /// The Python that runs the module (checked to have its Noise and HKDF packages).
+    python: PathBuf,
 }
 
 impl Setup {
     fn new() -> Setup {
+        // The module imports these once it is given a key (its links' handshakes and keys).
+        let python =
+            PathBuf::from(armor_tests::tools::python3(&["noise", "cryptography"]).get_program());
         let dir = tempfile::tempdir().unwrap();
         let wrapper = dir.path().join("armor-mod-pyecho");
         std::fs::write(
             &wrapper,
             format!(
-                "#!/bin/sh\nexec python3 '{}' \"$@\"\n",
+                "#!/bin/sh\nexec '{}' '{}' \"$@\"\n",
+                python.display(),
                 python_module().display()
             ),
         )
@@ -58,7 +64,7 @@ impl Setup {
         let secret = dir.path().join("secret");
         std::fs::write(&secret, SECRET).unwrap();
         std::fs::set_permissions(&secret, std::fs::Permissions::from_mode(0o600)).unwrap();
-        Setup { dir }
+        Setup { dir, python }
     }
 
     fn path(&self, name: &str) -> PathBuf {
@@ -170,7 +176,7 @@ fn values_flow_through_the_python_module_with_a_secret() {
     // The Python side derives the keys the Rust side does (a module's, a link's).
     let secret = Secret::load(&secret_file).unwrap();
     let python_key = |args: &[&str]| -> String {
-        let output = Command::new("python3")
+        let output = Command::new(&setup.python)
             .arg(python_module())
             .arg("--key")
             .arg(&secret_file)

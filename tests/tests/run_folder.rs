@@ -21,7 +21,7 @@ fn run_on_a_terminal(plan: &Path, runs: &Path, typescript: &Path) -> Proc {
         plan.display()
     );
     Proc::start(
-        Command::new("script")
+        Command::new(armor_tests::tools::program("script"))
             .args(["-qfec", &command])
             .arg(typescript)
             .env("ARMOR_MODULE_PATH", bin_dir())
@@ -184,7 +184,7 @@ fn a_plan_run_shows_its_progress_ends_with_its_legs_and_leaves_a_folder() {
 fn on_a_terminal(args: &str, typescript: &Path) -> (std::process::ExitStatus, Vec<String>) {
     let command = format!("stty rows 50 cols 200; {} {args}", bin("armor").display());
     let mut run = Proc::start(
-        Command::new("script")
+        Command::new(armor_tests::tools::program("script"))
             .args(["-qfec", &command])
             .arg(typescript)
             .env("ARMOR_MODULE_PATH", bin_dir())

@@ -285,15 +285,31 @@ fn pause_holds_the_robot_and_the_operator_fires_and_aborts() {
     step_until(&mut harness, "the mission to pause", PATIENCE, |app| {
         status(app).mission.is_some_and(|mission| mission.paused)
     });
-    // The modules hold: after the robot has come to rest, it stays where it is.
-    let settle = Instant::now() + Duration::from_millis(600);
-    step_until(&mut harness, "a moment", PATIENCE, |_| {
-        Instant::now() > settle
+    // The modules hold: after the robot has come to rest, it stays where it is. Rest and the
+    // while after it are measured on the run's clock and in fresh samples of the robot's, not
+    // on the wall clock: on a busy machine a wall-clock second may bring neither, and a
+    // robot not seen to move because no sample came would prove nothing.
+    let reading = |app: &StudioApp| {
+        (
+            status(app).run_secs,
+            app.run().live().samples,
+            truth_x(app).unwrap_or(f64::NAN),
+        )
+    };
+    let mut last = reading(harness.state());
+    step_until(&mut harness, "the robot to come to rest", PATIENCE, |app| {
+        let now = reading(app);
+        if now.0 < last.0 + 1.0 || now.1 < last.1 + 20 {
+            return false;
+        }
+        let resting = (now.2 - last.2).abs() < 0.01;
+        last = now;
+        resting
     });
-    let held_at = truth_x(harness.state()).unwrap();
-    let later = Instant::now() + Duration::from_millis(1200);
-    step_until(&mut harness, "a while paused", PATIENCE, |_| {
-        Instant::now() > later
+    let (rested_secs, rested_samples, held_at) = last;
+    step_until(&mut harness, "a while paused", PATIENCE, |app| {
+        let (secs, samples, _) = reading(app);
+        secs >= rested_secs + 4.0 && samples >= rested_samples + 40
     });
     let now_at = truth_x(harness.state()).unwrap();
     assert!(
@@ -354,11 +370,7 @@ fn a_module_killed_from_outside_shows_crashed_then_running_again() {
         .find(|module| module.name == "counter")
         .and_then(|module| module.pid)
         .unwrap();
-    let killed = std::process::Command::new("kill")
-        .args(["-9", &pid.to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
+    armor_tests::signal(pid as i32, 9);
     step_until(
         &mut harness,
         "the counter restarted and running",

@@ -4,7 +4,7 @@
 //! `armor check`; the Run view starts the system with F5 and stops it with Shift+F5; a newcomer
 //! opens the robot example, reads its block names on the first frame (OCR of a screenshot),
 //! opens the yard plan, runs it until the robot moves and stops it. Needs Debian's `xvfb`,
-//! `xdotool`, `imagemagick` and `tesseract-ocr` (installed by `.ci/run`). Xvfb is started
+//! `xdotool`, `imagemagick` and `tesseract-ocr` (installed by `scripts/test`). Xvfb is started
 //! directly rather than through `xvfb-run`, so that the guard kills the server itself.
 #![allow(clippy::unwrap_used)]
 
@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use armor_tests::{PATIENCE, Proc, bin, bin_dir, wait_until};
+use armor_tests::{PATIENCE, Proc, bin, bin_dir, tools, wait_until};
 
 const SYSTEM: &str = r#"<system name="demo">
   <module name="counter" type="counter">
@@ -25,7 +25,7 @@ const SYSTEM: &str = r#"<system name="demo">
 
 /// Runs xdotool on the display; true if it succeeded.
 fn xdotool(display: &str, args: &[&str]) -> bool {
-    Command::new("xdotool")
+    Command::new(tools::program("xdotool"))
         .args(args)
         .env("DISPLAY", display)
         .output()
@@ -34,7 +34,7 @@ fn xdotool(display: &str, args: &[&str]) -> bool {
 }
 
 fn window(display: &str) -> Option<String> {
-    let out = Command::new("xdotool")
+    let out = Command::new(tools::program("xdotool"))
         .args(["search", "--name", "ArMoR Studio"])
         .env("DISPLAY", display)
         .output()
@@ -91,17 +91,11 @@ struct Session {
 
 /// Starts Xvfb and the studio on `file`, and waits for its window.
 fn start(dir: &Path, file: &Path) -> Session {
-    for tool in ["Xvfb", "xdotool"] {
-        assert!(
-            Command::new("sh")
-                .args(["-c", &format!("command -v {tool}")])
-                .output()
-                .is_ok_and(|out| out.status.success()),
-            "{tool} is not installed: run .ci/run, or apt-get install xvfb xdotool"
-        );
-    }
+    // Both before either starts, so a missing one is named before anything else fails.
+    tools::program("Xvfb");
+    tools::program("xdotool");
     // Xvfb picks a free display and writes its number on stdout.
-    let xvfb = Proc::start(Command::new("Xvfb").args([
+    let xvfb = Proc::start(Command::new(tools::program("Xvfb")).args([
         "-displayfd",
         "1",
         "-screen",
@@ -276,14 +270,6 @@ fn the_run_view_starts_and_stops_a_run_from_the_keyboard() {
     });
 }
 
-/// Whether `tool` is on the path.
-fn installed(tool: &str) -> bool {
-    Command::new("sh")
-        .args(["-c", &format!("command -v {tool}")])
-        .output()
-        .is_ok_and(|out| out.status.success())
-}
-
 /// Where the newcomer's screenshots are kept, to be looked at after the test.
 fn shots_dir() -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("studio_newcomer");
@@ -294,7 +280,7 @@ fn shots_dir() -> PathBuf {
 /// A screenshot of the whole display (`import -window root`), saved as `name`.png.
 fn screenshot(display: &str, name: &str) -> PathBuf {
     let file = shots_dir().join(format!("{name}.png"));
-    let out = Command::new("import")
+    let out = Command::new(tools::program("import"))
         .args(["-window", "root"])
         .arg(&file)
         .env("DISPLAY", display)
@@ -325,7 +311,7 @@ enum Ink {
 
 fn ocr(shot: &Path, crop: &str, ink: Ink) -> String {
     let scaled = shot.with_extension("ocr.png");
-    let mut convert = Command::new("convert");
+    let mut convert = Command::new(tools::program("convert"));
     convert.arg(shot).args([
         "-crop",
         crop,
@@ -350,7 +336,7 @@ fn ocr(shot: &Path, crop: &str, ink: Ink) -> String {
         "convert: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let out = Command::new("tesseract")
+    let out = Command::new(tools::program("tesseract"))
         .arg(&scaled)
         .args(["-", "--psm", "11"])
         .output()
@@ -446,10 +432,7 @@ fn ocr_until(
 #[test]
 fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     for tool in ["import", "convert", "tesseract"] {
-        assert!(
-            installed(tool),
-            "{tool} is not installed: run .ci/run, or apt-get install imagemagick tesseract-ocr"
-        );
+        tools::program(tool);
     }
     // The examples as they are, in a folder of the newcomer's with the yard's world where the
     // sim looks for it (under assets/worlds/ of the folder the run starts in).

@@ -423,14 +423,22 @@ impl RunView {
         catalog: &Catalog,
         ctx: &egui::Context,
     ) -> &mut MissionView {
-        if self.own_map.as_ref().is_none_or(|(path, _)| path != system) {
-            let mut mission = MissionView::new(ctx);
-            mission.set_catalog(catalog);
-            let _ = mission.new_plan(Some(system));
-            self.own_map = Some((system.to_path_buf(), mission));
+        if self
+            .own_map
+            .as_ref()
+            .is_some_and(|(path, _)| path != system)
+        {
+            self.own_map = None;
         }
-        let (_, mission) = self.own_map.as_mut().expect("made above");
-        mission
+        &mut self
+            .own_map
+            .get_or_insert_with(|| {
+                let mut mission = MissionView::new(ctx);
+                mission.set_catalog(catalog);
+                let _ = mission.new_plan(Some(system));
+                (system.to_path_buf(), mission)
+            })
+            .1
     }
 
     /// Notices a run's end and collects answers; called every frame, whatever the view.

@@ -229,6 +229,7 @@ pub fn parse_yaml(text: &str, file: &str) -> Result<MapYaml, WorldError> {
     let occupied_thresh = threshold("occupied_thresh")?;
     let free_thresh = threshold("free_thresh")?;
     if free_thresh > occupied_thresh {
+        // `threshold` found the key just above, or returned its error: it is there.
         let (_, at, _) = find("free_thresh").expect("read above");
         return Err(error(
             file,
