@@ -43,9 +43,7 @@ enum CtlCommand {
     /// End the mission now (armor run exits non-zero).
     Abort,
     /// Fire an enabled transition now, whatever its condition.
-    Fire {
-        transition: String,
-    },
+    Fire { transition: String },
     /// Tell the localiser where the robot is (as rviz's "2D Pose Estimate"): `set-pose X Y
     /// HEADING_DEG` in the map frame (metres, degrees counter-clockwise from east).
     #[command(allow_negative_numbers = true)]
