@@ -83,10 +83,13 @@ fn describes_ports_params_units_and_event() {
         assert_eq!(param.default.as_deref(), Some(default), "{name}");
         assert!(!param.doc.is_empty(), "{name}");
     }
-    // Besides these: `world`, and `obstacles` (shapes the world file does not have).
+    // Besides these: `world`, `obstacles` (shapes the world file does not have) and `kidnap`
+    // (the robot carried elsewhere, for testing localisation; never by default).
     let obstacles = description.param("obstacles").expect("obstacles");
     assert!(!obstacles.is_required());
-    assert_eq!(description.params.len(), expected.len() + 2);
+    let kidnap = description.param("kidnap").expect("kidnap");
+    assert_eq!(kidnap.default.as_deref(), Some(""));
+    assert_eq!(description.params.len(), expected.len() + 3);
     assert!(description.event("collision").is_some());
 }
 

@@ -1,7 +1,16 @@
-//! KML 2.2 (OGC 07-147r2: what Google Earth and ATAK open) from plans: the route as a line,
-//! the waypoints as placemarks with their times, the areas as polygons, phase lines and
-//! boundaries as lines, the units as placemarks with their SIDC, each kind in a folder of its
-//! own. Coordinates are `longitude,latitude,altitude` (KML's order), on the ground.
+//! KML 2.2 (OGC 07-147r2: what Google Earth and ATAK open) to and from plans.
+//!
+//! Export: the route as a line, the waypoints as placemarks with their times, the areas as
+//! polygons, phase lines and boundaries as lines, the units as placemarks with their SIDC, each
+//! kind in a folder of its own. Coordinates are `longitude,latitude,altitude` (KML's order), on
+//! the ground.
+//!
+//! Import, of every placemark however deep in documents and folders: a point is a waypoint (a
+//! unit when its `ExtendedData` holds a `sidc`, as ours do); a polygon an area (no-go unless its
+//! `kind` data or its style says otherwise, with its `margin_m`); a line the route when it is
+//! styled `#route` or is the first line with no `kind` (a path drawn in Google Earth), else a
+//! phase line or a boundary. Each point of the route is the waypoint within [`SAME_POINT_M`] of
+//! it, else a new one; without a route, the waypoints are joined in file order, as GPX's are.
 //!
 //! Written by hand, as GPX is ([`super::gpx`]): the handful of elements needs no library.
 //! What KML cannot carry as such (actions, contingencies, the navigation, the system) stays in
@@ -11,9 +20,15 @@
 use std::collections::HashMap;
 use std::fmt::Write as _;
 
-use super::{AreaKind, Graphic, GraphicKind, LatLon, Leg, Plan};
+use armor_module_api::xml::{self as tree, Element, Located};
+
+use super::gpx::{Names, SAME_POINT_M};
+use super::{AreaKind, Graphic, GraphicKind, LatLon, Leg, Plan, Unit, Waypoint, check_sidc};
 use crate::fields::escape;
+use crate::geo;
 use crate::net::format_date;
+use crate::plan::xml::default_leg_name;
+use crate::world::Point;
 
 /// The KML namespace.
 pub const KML_NAMESPACE: &str = "http://www.opengis.net/kml/2.2";
@@ -300,4 +315,417 @@ fn coordinates(points: &[LatLon]) -> String {
         .map(|p| format!("{},{},0", p.lon_deg, p.lat_deg))
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+/// Reads a KML file into a plan called `name` over the system file `system`.
+pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>> {
+    let root = tree::parse(text).map_err(|err| vec![err])?;
+    if &*root.name != "kml" {
+        return Err(vec![Located::new(
+            root.pos,
+            format!("expected <kml> at the top, found <{}>", root.name),
+        )]);
+    }
+    let mut placemarks = Vec::new();
+    collect_placemarks(&root, &mut placemarks);
+    let mut problems = Vec::new();
+    let mut names = Names::default();
+    let mut plan = Plan {
+        name: names.identifier(name, "plan"),
+        system: system.to_owned(),
+        pos: root.pos,
+        ..Plan::default()
+    };
+    let mut route: Option<Vec<LatLon>> = None;
+    for placemark in placemarks {
+        let label = child_text(placemark, "name");
+        let data = extended(placemark);
+        let kind = data
+            .iter()
+            .find(|(key, _)| key == "kind")
+            .map(|(_, v)| v.as_str());
+        let style = child_text(placemark, "styleUrl").unwrap_or_default();
+        let geometry = ["Point", "LineString", "Polygon"]
+            .iter()
+            .find_map(|tag| find_descendant(placemark, tag));
+        let Some(geometry) = geometry else {
+            continue;
+        };
+        let Some(points) = find_descendant(geometry, "coordinates")
+            .map(|coordinates| read_coordinates(coordinates, &mut problems))
+        else {
+            problems.push(Located::new(
+                geometry.pos,
+                format!("<{}> has no <coordinates>", geometry.name),
+            ));
+            continue;
+        };
+        match &*geometry.name {
+            "Point" => {
+                let Some(&position) = points.first() else {
+                    continue;
+                };
+                let sidc = data.iter().find(|(key, _)| key == "sidc").map(|(_, v)| v);
+                if let Some(sidc) = sidc.filter(|sidc| check_sidc(sidc).is_ok()) {
+                    plan.units.push(Unit {
+                        name: label.unwrap_or_else(|| "unit".to_owned()),
+                        sidc: sidc.clone(),
+                        position,
+                        pos: placemark.pos,
+                    });
+                } else {
+                    plan.waypoints.push(Waypoint {
+                        name: names.identifier(label.as_deref().unwrap_or("wpt"), "wpt"),
+                        position,
+                        symbol: None,
+                        pos: placemark.pos,
+                    });
+                }
+            }
+            "LineString" => {
+                let is_route = style == "#route" || (kind.is_none() && route.is_none());
+                if is_route && route.is_none() {
+                    route = Some(points);
+                } else {
+                    plan.graphics.push(Graphic {
+                        kind: if kind == Some("boundary") || style == "#boundary" {
+                            GraphicKind::Boundary
+                        } else {
+                            GraphicKind::PhaseLine
+                        },
+                        name: label.unwrap_or_else(|| "line".to_owned()),
+                        points,
+                        at_unix_secs: None,
+                        margin_m: None,
+                        pos: placemark.pos,
+                    });
+                }
+            }
+            _ => {
+                // A linear ring repeats its first point at the end; an area does not.
+                let mut ring = points;
+                if ring.len() > 1 && ring.first() == ring.last() {
+                    ring.pop();
+                }
+                let area = match kind {
+                    Some(kind) => AreaKind::ALL
+                        .into_iter()
+                        .find(|area| area.as_str() == kind)
+                        .unwrap_or(AreaKind::Named),
+                    None if style == "#area" => AreaKind::Named,
+                    None => AreaKind::NoGo,
+                };
+                let margin_m = data
+                    .iter()
+                    .find(|(key, _)| key == "margin_m")
+                    .and_then(|(_, value)| value.parse::<f64>().ok())
+                    .filter(|margin| margin.is_finite() && *margin >= 0.0);
+                plan.graphics.push(Graphic {
+                    kind: GraphicKind::Area(area),
+                    name: label.unwrap_or_else(|| "area".to_owned()),
+                    points: ring,
+                    at_unix_secs: None,
+                    margin_m,
+                    pos: placemark.pos,
+                });
+            }
+        }
+    }
+    if !problems.is_empty() {
+        return Err(problems);
+    }
+    let order: Vec<String> = match route {
+        Some(points) => points
+            .into_iter()
+            .map(|position| {
+                let near = plan.waypoints.iter().find(|waypoint| {
+                    geo::distance(waypoint.position.to_local(position), Point::default())
+                        <= SAME_POINT_M
+                });
+                match near {
+                    Some(waypoint) => waypoint.name.clone(),
+                    None => {
+                        let name = names.identifier("wp", "wp");
+                        plan.waypoints.push(Waypoint {
+                            name: name.clone(),
+                            position,
+                            symbol: None,
+                            pos: root.pos,
+                        });
+                        name
+                    }
+                }
+            })
+            .collect(),
+        None => plan.waypoints.iter().map(|w| w.name.clone()).collect(),
+    };
+    for pair in order.windows(2) {
+        if pair[0] == pair[1] {
+            continue;
+        }
+        let index = plan.legs.len();
+        plan.legs.push(Leg {
+            name: names.identifier(&default_leg_name(index), "leg"),
+            from: pair[0].clone(),
+            to: pair[1].clone(),
+            pos: root.pos,
+            ..Leg::default()
+        });
+    }
+    if plan.legs.is_empty() {
+        return Err(vec![Located::new(
+            root.pos,
+            "the KML file has no route and fewer than two points: a plan needs two to make a leg",
+        )]);
+    }
+    Ok(plan)
+}
+
+/// Every placemark under `element`, in document order.
+fn collect_placemarks<'e, 'a>(element: &'e Element<'a>, out: &mut Vec<&'e Element<'a>>) {
+    for child in &element.children {
+        if &*child.name == "Placemark" {
+            out.push(child);
+        } else {
+            collect_placemarks(child, out);
+        }
+    }
+}
+
+/// The first element called `tag` under `element` (itself excluded), depth first.
+fn find_descendant<'e, 'a>(element: &'e Element<'a>, tag: &str) -> Option<&'e Element<'a>> {
+    element.children.iter().find_map(|child| {
+        if &*child.name == tag {
+            Some(child)
+        } else {
+            find_descendant(child, tag)
+        }
+    })
+}
+
+/// The trimmed text of the child called `tag`, when it has some.
+fn child_text(element: &Element, tag: &str) -> Option<String> {
+    element
+        .children
+        .iter()
+        .find(|child| &*child.name == tag)
+        .map(|child| child.text.trim().to_owned())
+        .filter(|text| !text.is_empty())
+}
+
+/// A placemark's `<ExtendedData><Data name="…"><value>…</value></Data>` pairs.
+fn extended(placemark: &Element) -> Vec<(String, String)> {
+    placemark
+        .children
+        .iter()
+        .filter(|child| &*child.name == "ExtendedData")
+        .flat_map(|data| &data.children)
+        .filter(|data| &*data.name == "Data")
+        .filter_map(|data| {
+            Some((
+                data.attr_value("name")?.to_owned(),
+                child_text(data, "value").unwrap_or_default(),
+            ))
+        })
+        .collect()
+}
+
+/// `lon,lat[,alt]` tuples separated by white space; a wrong one is a problem at the element.
+fn read_coordinates(element: &Element, problems: &mut Vec<Located>) -> Vec<LatLon> {
+    let mut points = Vec::new();
+    for tuple in element.text.split_whitespace() {
+        let mut parts = tuple.split(',').map(|part| part.trim().parse::<f64>());
+        match (parts.next(), parts.next()) {
+            (Some(Ok(lon)), Some(Ok(lat)))
+                if lon.is_finite()
+                    && lat.is_finite()
+                    && lon.abs() <= 180.0
+                    && lat.abs() <= 90.0 =>
+            {
+                points.push(LatLon::new(lat, lon));
+            }
+            _ => problems.push(Located::new(
+                element.pos,
+                format!(
+                    "`{tuple}` is not `longitude,latitude[,altitude]` in degrees \
+                     (longitude within 180, latitude within 90)"
+                ),
+            )),
+        }
+    }
+    if points.is_empty() && problems.is_empty() {
+        problems.push(Located::new(element.pos, "<coordinates> holds no point"));
+    }
+    points
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A path and two pins drawn in Google Earth Pro and saved as KML (its style maps, the `gx`
+    /// namespace, an altitude on every point, a folder round the placemarks), with a polygon.
+    const FROM_GOOGLE_EARTH: &str = r##"<?xml version="1.0" encoding="UTF-8"?>
+<kml xmlns="http://www.opengis.net/kml/2.2" xmlns:gx="http://www.google.com/kml/ext/2.2" xmlns:kml="http://www.opengis.net/kml/2.2" xmlns:atom="http://www.w3.org/2005/Atom">
+<Document>
+	<name>Patrol.kml</name>
+	<StyleMap id="m_ylw-pushpin"><Pair><key>normal</key><styleUrl>#s_ylw-pushpin</styleUrl></Pair></StyleMap>
+	<Folder>
+		<name>Patrol</name>
+		<open>1</open>
+		<Placemark>
+			<name>Start</name>
+			<styleUrl>#m_ylw-pushpin</styleUrl>
+			<Point><gx:drawOrder>1</gx:drawOrder><coordinates>1.46905,43.56154,0</coordinates></Point>
+		</Placemark>
+		<Placemark>
+			<name>East gate</name>
+			<styleUrl>#m_ylw-pushpin</styleUrl>
+			<Point><coordinates>1.46925,43.56154,0</coordinates></Point>
+		</Placemark>
+		<Placemark>
+			<name>Path</name>
+			<styleUrl>#m_ylw-pushpin</styleUrl>
+			<LineString>
+				<tessellate>1</tessellate>
+				<coordinates>
+					1.46905,43.56154,0 1.46925,43.56154,0 1.46925,43.56165,0
+				</coordinates>
+			</LineString>
+		</Placemark>
+		<Placemark>
+			<name>Minefield</name>
+			<Polygon><outerBoundaryIs><LinearRing><coordinates>
+				1.4691,43.5616,0 1.4692,43.5616,0 1.4692,43.5617,0 1.4691,43.5616,0
+			</coordinates></LinearRing></outerBoundaryIs></Polygon>
+		</Placemark>
+	</Folder>
+</Document>
+</kml>
+"##;
+
+    #[test]
+    fn a_path_and_pins_from_google_earth_become_a_route_through_the_pins() {
+        let plan = import(FROM_GOOGLE_EARTH, "patrol", "system.xml").expect("imports");
+        let names: Vec<&str> = plan.waypoints.iter().map(|w| w.name.as_str()).collect();
+        // The path's first two points are the pins; its third is a waypoint of its own.
+        assert_eq!(names, ["Start", "East_gate", "wp"]);
+        let legs: Vec<(&str, &str)> = plan
+            .legs
+            .iter()
+            .map(|leg| (leg.from.as_str(), leg.to.as_str()))
+            .collect();
+        assert_eq!(legs, [("Start", "East_gate"), ("East_gate", "wp")]);
+        assert_eq!(plan.graphics.len(), 1);
+        let area = &plan.graphics[0];
+        assert_eq!(area.kind, GraphicKind::Area(AreaKind::NoGo));
+        assert_eq!(area.points.len(), 3, "the ring's closing point dropped");
+    }
+
+    #[test]
+    fn our_export_comes_back_with_its_waypoints_route_areas_lines_and_units() {
+        let mut plan = Plan {
+            name: "trip".into(),
+            system: "system.xml".into(),
+            ..Plan::default()
+        };
+        for (name, lat, lon) in [
+            ("home", 43.0, 1.0),
+            ("gate", 43.001, 1.0),
+            ("far", 43.001, 1.001),
+        ] {
+            plan.waypoints.push(Waypoint {
+                name: name.into(),
+                position: LatLon::new(lat, lon),
+                symbol: None,
+                pos: Default::default(),
+            });
+        }
+        for (from, to) in [("home", "gate"), ("gate", "far")] {
+            plan.legs.push(Leg {
+                name: format!("{from}_{to}"),
+                from: from.into(),
+                to: to.into(),
+                ..Leg::default()
+            });
+        }
+        plan.graphics.push(Graphic {
+            kind: GraphicKind::Area(AreaKind::Objective),
+            name: "obj".into(),
+            points: vec![
+                LatLon::new(43.0005, 1.0),
+                LatLon::new(43.0005, 1.0005),
+                LatLon::new(43.0008, 1.0005),
+            ],
+            margin_m: Some(1.5),
+            ..Graphic::default()
+        });
+        plan.graphics.push(Graphic {
+            kind: GraphicKind::Boundary,
+            name: "left".into(),
+            points: vec![LatLon::new(43.0, 0.999), LatLon::new(43.002, 0.999)],
+            ..Graphic::default()
+        });
+        plan.units.push(Unit {
+            name: "alpha".into(),
+            sidc: "SFGPUCR----K---".into(),
+            position: LatLon::new(43.0, 1.0002),
+            pos: Default::default(),
+        });
+        let back = import(&export(&plan), "trip", "system.xml").expect("imports");
+        let places = |p: &Plan| -> Vec<(String, String)> {
+            p.waypoints
+                .iter()
+                .map(|w| {
+                    (
+                        w.name.clone(),
+                        format!("{:.7} {:.7}", w.position.lat_deg, w.position.lon_deg),
+                    )
+                })
+                .collect()
+        };
+        assert_eq!(places(&back), places(&plan));
+        let ends = |p: &Plan| -> Vec<(String, String)> {
+            p.legs
+                .iter()
+                .map(|l| (l.from.clone(), l.to.clone()))
+                .collect()
+        };
+        assert_eq!(ends(&back), ends(&plan));
+        let kinds: Vec<(GraphicKind, &str, usize, Option<f64>)> = back
+            .graphics
+            .iter()
+            .map(|g| (g.kind, g.name.as_str(), g.points.len(), g.margin_m))
+            .collect();
+        assert_eq!(
+            kinds,
+            [
+                (GraphicKind::Area(AreaKind::Objective), "obj", 3, Some(1.5)),
+                (GraphicKind::Boundary, "left", 2, None),
+            ]
+        );
+        assert_eq!(back.units.len(), 1);
+        assert_eq!(back.units[0].sidc, "SFGPUCR----K---");
+    }
+
+    #[test]
+    fn broken_coordinates_and_other_documents_are_refused_where_they_are() {
+        let broken =
+            FROM_GOOGLE_EARTH.replace("1.46925,43.56154,0</coordinates>", "east,43</coordinates>");
+        let problems = import(&broken, "p", "s.xml").expect_err("refused");
+        assert!(
+            problems[0].message.contains("`east,43` is not"),
+            "{problems:?}"
+        );
+        assert_eq!(problems[0].pos.line, 17, "the `East gate` pin's coordinates");
+        let gpx = import("<gpx/>", "p", "s.xml").expect_err("refused");
+        assert!(gpx[0].message.contains("expected <kml>"), "{gpx:?}");
+        let lonely = import(
+            "<kml><Placemark><Point><coordinates>1,2</coordinates></Point></Placemark></kml>",
+            "p",
+            "s.xml",
+        )
+        .expect_err("refused");
+        assert!(lonely[0].message.contains("needs two"), "{lonely:?}");
+    }
 }
