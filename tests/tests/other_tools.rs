@@ -555,6 +555,79 @@ fn bundled_plans() -> Vec<PathBuf> {
     plans
 }
 
+/// KML both ways on every bundled plan: out and in gives the same waypoints (names and places),
+/// the same legs, the same areas (kind, name, corners, margin), lines and units; the plan read
+/// back writes the same KML again. (That fastkml reads our KML is `interchange.rs`'s test; a
+/// path drawn in Google Earth is `armor_model::plan::kml`'s.)
+#[test]
+fn every_bundled_plan_goes_through_kml_and_back() {
+    let dir = tempfile::tempdir().unwrap();
+    for plan_file in bundled_plans() {
+        let plan = Plan::parse(&std::fs::read_to_string(&plan_file).unwrap()).unwrap();
+        let kml = dir.path().join("out.kml");
+        let exported = run(&["export", "--kml", &text(&plan_file), "-o", &text(&kml)]);
+        assert!(exported.status.success(), "{}", output_text(&exported));
+        let back = dir.path().join("back.xml");
+        let imported = run(&["import", &text(&kml), "-o", &text(&back)]);
+        assert!(imported.status.success(), "{}", output_text(&imported));
+        let again = Plan::parse(&std::fs::read_to_string(&back).unwrap()).unwrap();
+        let places = |plan: &Plan| -> Vec<(String, String)> {
+            plan.waypoints
+                .iter()
+                .map(|w| {
+                    let at = format!("{:.6} {:.6}", w.position.lat_deg, w.position.lon_deg);
+                    (w.name.clone(), at)
+                })
+                .collect()
+        };
+        assert_eq!(places(&again), places(&plan), "{}", plan_file.display());
+        let legs = |plan: &Plan| -> Vec<(String, String)> {
+            plan.legs
+                .iter()
+                .map(|leg| (leg.from.clone(), leg.to.clone()))
+                .collect()
+        };
+        assert_eq!(legs(&again), legs(&plan), "{}", plan_file.display());
+        let graphics = |plan: &Plan| -> Vec<String> {
+            plan.graphics
+                .iter()
+                .map(|g| {
+                    format!(
+                        "{:?} {} {} {:?}",
+                        g.kind,
+                        g.name,
+                        g.points.len(),
+                        g.margin_m
+                    )
+                })
+                .collect()
+        };
+        assert_eq!(graphics(&again), graphics(&plan), "{}", plan_file.display());
+        let units = |plan: &Plan| -> Vec<(String, String)> {
+            plan.units
+                .iter()
+                .map(|u| (u.name.clone(), u.sidc.clone()))
+                .collect()
+        };
+        assert_eq!(units(&again), units(&plan), "{}", plan_file.display());
+        let kml_again = dir.path().join("again.kml");
+        let exported = run(&["export", "--kml", &text(&back), "-o", &text(&kml_again)]);
+        assert!(exported.status.success(), "{}", output_text(&exported));
+        let placemarks = |path: &std::path::Path| {
+            std::fs::read_to_string(path)
+                .unwrap()
+                .matches("<Placemark>")
+                .count()
+        };
+        assert_eq!(
+            placemarks(&kml_again),
+            placemarks(&kml),
+            "{}",
+            plan_file.display()
+        );
+    }
+}
+
 /// The round trips, both ways, on every bundled plan: GPX out and in gives the same waypoints
 /// (no copies) and the same legs, and that plan out again gives the same GPX; PNML out and in
 /// gives a net with the same places, transitions and reachable markings (`armor check`).

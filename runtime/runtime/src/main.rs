@@ -261,19 +261,19 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
-    /// Import a PNML P/T net as a mission, or a GPX file (waypoints, routes, tracks) or a
-    /// QGroundControl plan file (.plan) as a plan.
+    /// Import a PNML P/T net as a mission, or a GPX file (waypoints, routes, tracks), a KML file
+    /// (placemarks: points, paths, polygons) or a QGroundControl plan file (.plan) as a plan.
     Import {
-        /// The PNML, GPX or QGC plan file.
+        /// The PNML, GPX, KML or QGC plan file.
         file: PathBuf,
         /// The mission or plan file to write.
         #[arg(short, long)]
         output: PathBuf,
-        /// The system file the plan or mission runs (relative to it). Default for GPX and
-        /// QGC: system.xml; for PNML: the net's own (a net from another tool names none).
+        /// The system file the plan or mission runs (relative to it). Default for GPX, KML
+        /// and QGC: system.xml; for PNML: the net's own (a net from another tool names none).
         #[arg(long)]
         system: Option<String>,
-        /// For GPX and QGC: the world file the plan is drawn on (default: the system's).
+        /// For GPX, KML and QGC: the world file the plan is drawn on (default: the system's).
         #[arg(long)]
         world: Option<String>,
         /// For GPX and QGC: the plan's start (RFC 3339, UTC: 2026-11-23T08:00:00Z); a QGC delay
@@ -645,8 +645,11 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             start,
         } => {
             let text = read_text(&file)?;
-            let is_gpx = armor_module_api::xml::parse(&text)
-                .is_ok_and(|root| root.name.rsplit(':').next() == Some("gpx"));
+            let root_name = armor_module_api::xml::parse(&text)
+                .ok()
+                .map(|root| root.name.rsplit(':').next().unwrap_or_default().to_owned());
+            let is_gpx = root_name.as_deref() == Some("gpx");
+            let is_kml = root_name.as_deref() == Some("kml");
             // A QGC plan is JSON: an object, or a file named `.plan` whatever it holds.
             let is_qgc = text.trim_start().starts_with('{')
                 || file.extension().is_some_and(|ext| ext == "plan");
@@ -654,7 +657,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 .map(|date| armor_model::net::parse_rfc3339(&date))
                 .transpose()
                 .map_err(|err| anyhow::anyhow!("--start: {err}"))?;
-            let (written, summary) = if is_gpx || is_qgc {
+            let (written, summary) = if is_gpx || is_kml || is_qgc {
                 let name = output
                     .file_stem()
                     .map(|stem| stem.to_string_lossy().into_owned())
@@ -662,6 +665,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 let system = system.unwrap_or_else(|| "system.xml".to_owned());
                 let imported = if is_gpx {
                     armor_model::plan::gpx::import(&text, &name, &system)
+                } else if is_kml {
+                    armor_model::plan::kml::import(&text, &name, &system)
                 } else {
                     match armor_model::plan::qgc::import_all(&text, &name, &system, start_unix_secs)
                     {

@@ -5,8 +5,8 @@
 //! kind in a folder of its own. Coordinates are `longitude,latitude,altitude` (KML's order), on
 //! the ground.
 //!
-//! Import, of every placemark however deep in documents and folders: a point is a waypoint (a
-//! unit when its `ExtendedData` holds a `sidc`, as ours do); a polygon an area (no-go unless its
+//! Import, of every placemark however deep in documents and folders: a point is a waypoint, its
+//! `sidc` data its symbol (a unit when it is styled `#unit`, as ours are); a polygon an area (no-go unless its
 //! `kind` data or its style says otherwise, with its `margin_m`); a line the route when it is
 //! styled `#route` or is the first line with no `kind` (a path drawn in Google Earth), else a
 //! phase line or a boundary. Each point of the route is the waypoint within [`SAME_POINT_M`] of
@@ -365,21 +365,24 @@ pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>
                 let Some(&position) = points.first() else {
                     continue;
                 };
-                let sidc = data.iter().find(|(key, _)| key == "sidc").map(|(_, v)| v);
-                if let Some(sidc) = sidc.filter(|sidc| check_sidc(sidc).is_ok()) {
-                    plan.units.push(Unit {
+                let sidc = data
+                    .iter()
+                    .find(|(key, _)| key == "sidc")
+                    .map(|(_, sidc)| sidc.clone())
+                    .filter(|sidc| check_sidc(sidc).is_ok());
+                match sidc {
+                    Some(sidc) if style == "#unit" => plan.units.push(Unit {
                         name: label.unwrap_or_else(|| "unit".to_owned()),
-                        sidc: sidc.clone(),
+                        sidc,
                         position,
                         pos: placemark.pos,
-                    });
-                } else {
-                    plan.waypoints.push(Waypoint {
+                    }),
+                    symbol => plan.waypoints.push(Waypoint {
                         name: names.identifier(label.as_deref().unwrap_or("wpt"), "wpt"),
                         position,
-                        symbol: None,
+                        symbol,
                         pos: placemark.pos,
-                    });
+                    }),
                 }
             }
             "LineString" => {
@@ -717,7 +720,10 @@ mod tests {
             problems[0].message.contains("`east,43` is not"),
             "{problems:?}"
         );
-        assert_eq!(problems[0].pos.line, 17, "the `East gate` pin's coordinates");
+        assert_eq!(
+            problems[0].pos.line, 17,
+            "the `East gate` pin's coordinates"
+        );
         let gpx = import("<gpx/>", "p", "s.xml").expect_err("refused");
         assert!(gpx[0].message.contains("expected <kml>"), "{gpx:?}");
         let lonely = import(
