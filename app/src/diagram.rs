@@ -689,7 +689,8 @@ impl Diagram {
     }
 
     /// Reads a system file; a file without saved positions is laid out in layers by data flow
-    /// ([`Diagram::arrange`]), and a block missing from saved positions goes in a grid.
+    /// ([`Diagram::arrange`]), and a block missing from saved positions (a module added to the
+    /// file by hand) goes in a grid below the blocks that have one, never over them.
     pub fn from_xml(text: &str) -> Result<Diagram, Vec<Located>> {
         let system = SystemConfig::parse(text)?;
         let layout = read_layout(text);
@@ -703,11 +704,22 @@ impl Diagram {
             .filter_map(|link| Some((link.to.to_string(), link.max_rate_hz?)))
             .collect();
         let mut by_name = BTreeMap::new();
+        // The grid of blocks without a position starts a row below the lowest one placed.
+        let below_placed = layout
+            .values()
+            .map(|[_, y]| *y + GRID_ROW)
+            .fold(0.0_f32, f32::max);
+        let mut unplaced = 0;
         for (index, module) in system.modules.iter().enumerate() {
-            let pos = layout
-                .get(module.name.as_str())
-                .copied()
-                .unwrap_or_else(|| grid_position(index));
+            let pos = match layout.get(module.name.as_str()) {
+                Some(pos) => *pos,
+                None if unlaid => grid_position(index),
+                None => {
+                    let [x, y] = grid_position(unplaced);
+                    unplaced += 1;
+                    [x, y + below_placed]
+                }
+            };
             let id = diagram.insert(Block {
                 name: module.name.clone(),
                 module_type: module.module_type.clone(),
@@ -782,11 +794,14 @@ fn extras(module: &ModuleInstance) -> ModuleInstance {
     }
 }
 
+/// The height of a row of [`grid_position`]'s grid.
+const GRID_ROW: f32 = 200.0;
+
 /// Where the `index`-th block of a file without layout goes: rows of six.
 pub fn grid_position(index: usize) -> [f32; 2] {
     let column = (index % 6) as f32;
     let row = (index / 6) as f32;
-    [40.0 + column * 360.0, 40.0 + row * 200.0]
+    [40.0 + column * 360.0, 40.0 + row * GRID_ROW]
 }
 
 fn read_layout(text: &str) -> BTreeMap<&str, [f32; 2]> {

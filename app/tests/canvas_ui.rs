@@ -416,12 +416,7 @@ fn a_backward_link_goes_round_the_blocks_between() {
             .iter()
             .map(|(link, _)| link.as_str())
             .collect::<Vec<_>>(),
-        // The localiser's links to the follower run from one band's end to the next's start.
-        [
-            "mux.cmd_vel -> sim.cmd_vel",
-            "localiser.estimate -> follower.estimate",
-            "localiser.pose -> follower.odometry"
-        ]
+        ["mux.cmd_vel -> sim.cmd_vel"]
     );
     let points = &routes[0].1;
     let from = harness

@@ -25,8 +25,7 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
     assert_eq!(diagram.len(), 9);
 
     // Sources left of their sinks, for every link but the one that closes the loop through
-    // the robot (mux → sim), which the layout turns round, and those that cross into the next
-    // band.
+    // the robot (mux → sim), which the layout turns round.
     let x = |id| diagram.block(id).unwrap().pos[0];
     let backwards: Vec<String> = diagram
         .links()
@@ -39,16 +38,7 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
             )
         })
         .collect();
-    // With the localiser between the sim and the follower the chain is folded into two bands:
-    // its two links run from the first band's end back to the second band's start.
-    assert_eq!(
-        backwards,
-        [
-            "`localiser.estimate` -> `follower.estimate`",
-            "`localiser.pose` -> `follower.odometry`",
-            "`mux.cmd_vel` -> `sim.cmd_vel`"
-        ]
-    );
+    assert_eq!(backwards, ["`mux.cmd_vel` -> `sim.cmd_vel`"]);
 
     // Fitted no smaller than the zoom at which names are drawn, and every name is drawn.
     let scale = harness.state().canvas_transform().scaling;

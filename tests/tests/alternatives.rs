@@ -14,12 +14,14 @@ use serde_json::Value;
 
 const SIGKILL: i32 = 9;
 
-/// The robot in the yard; the follower reads the simulator's odometry, so that it drives with
-/// or without the mapper (which runs all the time: it is not controllable), and two recorders,
+/// The robot in the yard; the follower drives on the localiser's pose (on the yard's map, so
+/// that it truly arrives, as the run's rehearsal judges by the simulator's truth), with or
+/// without the mapper (which runs all the time: it is not controllable), and two recorders,
 /// one of the mapper's pose, one of the odometry, for the plan's two ways.
 const SYSTEM: &str = r#"<system name="alternatives">
   <module name="sim" type="sim"><param name="world" value="yard.world"/></module>
   <module name="mapper" type="mapper"/>
+  <module name="localiser" type="localiser"><param name="world" value="yard.world"/></module>
   <module name="map_recorder" type="recorder">
     <param name="record" value="mapper.pose"/>
     <param name="file" value="map.mcap"/>
@@ -38,7 +40,10 @@ const SYSTEM: &str = r#"<system name="alternatives">
   <module name="mux" type="mux"/>
   <link from="sim.odometry" to="mapper.odometry"/>
   <link from="sim.scan" to="mapper.scan"/>
-  <link from="sim.odometry" to="follower.odometry"/>
+  <link from="sim.odometry" to="localiser.odometry"/>
+  <link from="sim.scan" to="localiser.scan"/>
+  <link from="localiser.pose" to="follower.odometry"/>
+  <link from="localiser.estimate" to="follower.estimate"/>
   <link from="sim.scan" to="avoider.scan"/>
   <link from="sim.scan" to="follower.scan"/>
   <link from="follower.cmd_desired" to="avoider.cmd_desired"/>

@@ -168,15 +168,12 @@ fn the_warehouse_round_with_the_default_noise_is_judged_by_its_truth() {
     let dir = tempfile::tempdir().unwrap();
     let robot = workspace_root().join("missions/robot");
     let bundled = std::fs::read_to_string(robot.join("system-warehouse.xml")).unwrap();
+    // The bundled system runs the simulator's default noise (it once lowered two of them to
+    // pass): whatever lowers it is taken out here, so that the test keeps to the default.
     let kept: Vec<&str> = bundled
         .lines()
         .filter(|line| !line.contains("<param name=\"odom_noise_"))
         .collect();
-    assert_eq!(
-        bundled.lines().count() - kept.len(),
-        2,
-        "the bundled system lowers two noises"
-    );
     let world = world_file("warehouse.world");
     let system = kept.join("\n").replace(
         "value=\"warehouse.world\"",

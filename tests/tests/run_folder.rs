@@ -106,6 +106,7 @@ fn a_plan_run_shows_its_progress_ends_with_its_legs_and_leaves_a_folder() {
     let rows = &screen[header + 1..header + 5];
     for (row, name) in rows.iter().zip(["advance", "cross", "climb", "regroup"]) {
         assert!(row.starts_with(name), "{row}");
+        // The planned and driven lengths; the true error by the simulator follows them.
         let metres: Vec<f64> = row
             .split_whitespace()
             .collect::<Vec<_>>()
@@ -113,7 +114,7 @@ fn a_plan_run_shows_its_progress_ends_with_its_legs_and_leaves_a_folder() {
             .filter(|pair| pair[1] == "m")
             .map(|pair| pair[0].parse().unwrap())
             .collect();
-        let [planned, driven] = metres[..] else {
+        let [planned, driven, ..] = metres[..] else {
             panic!("planned and driven lengths in {row}");
         };
         assert!(
