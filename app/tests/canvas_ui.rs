@@ -416,9 +416,11 @@ fn a_backward_link_goes_round_the_blocks_between() {
             .iter()
             .map(|(link, _)| link.as_str())
             .collect::<Vec<_>>(),
-        ["mux.cmd_vel -> sim.cmd_vel"]
+        // The robot system's layout keeps the mux under the follower so that the whole
+        // diagram opens at a readable zoom: the avoider's command goes back to it, round.
+        ["avoider.cmd_vel -> mux.auto", "mux.cmd_vel -> sim.cmd_vel"]
     );
-    let points = &routes[0].1;
+    let points = &routes[1].1;
     let from = harness
         .state()
         .pin_pos("mux", "cmd_vel", PinSide::Output)

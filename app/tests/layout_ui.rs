@@ -25,7 +25,8 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
     assert_eq!(diagram.len(), 9);
 
     // Sources left of their sinks, for every link but the one that closes the loop through
-    // the robot (mux → sim), which the layout turns round.
+    // the robot (mux → sim), which the layout turns round, and the avoider's command to the
+    // mux, laid out under the follower so that the whole opens at a readable zoom.
     let x = |id| diagram.block(id).unwrap().pos[0];
     let backwards: Vec<String> = diagram
         .links()
@@ -38,7 +39,13 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
             )
         })
         .collect();
-    assert_eq!(backwards, ["`mux.cmd_vel` -> `sim.cmd_vel`"]);
+    assert_eq!(
+        backwards,
+        [
+            "`avoider.cmd_vel` -> `mux.auto`",
+            "`mux.cmd_vel` -> `sim.cmd_vel`"
+        ]
+    );
 
     // Fitted no smaller than the zoom at which names are drawn, and every name is drawn.
     let scale = harness.state().canvas_transform().scaling;
