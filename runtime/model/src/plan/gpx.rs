@@ -15,7 +15,7 @@
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
 
-use armor_module_api::xml::{self as tree, Element, Located};
+use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
 use super::{LatLon, Leg, Plan, Waypoint, check_sidc};
 use crate::fields::escape;
@@ -139,20 +139,7 @@ pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>
         sequences = vec![loose];
     }
     let order: Vec<String> = sequences.into_iter().flatten().collect();
-    for pair in order.windows(2) {
-        if pair[0] == pair[1] {
-            continue;
-        }
-        let index = plan.legs.len();
-        plan.legs.push(Leg {
-            // Not the default name as such: a point may be called `leg1` (found by fuzzing).
-            name: names.identifier(&default_leg_name(index), "leg"),
-            from: pair[0].clone(),
-            to: pair[1].clone(),
-            pos: root.pos,
-            ..Leg::default()
-        });
-    }
+    plan.legs = legs_through(&order, &mut names, root.pos);
     if plan.waypoints.is_empty() {
         return Err(vec![Located::new(
             root.pos,
@@ -166,6 +153,24 @@ pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>
         )]);
     }
     Ok(plan)
+}
+
+/// Legs through the waypoints named in `order`, one after the other (a point repeated at once
+/// makes no leg), as an imported route is read.
+pub(super) fn legs_through(order: &[String], names: &mut Names, pos: Pos) -> Vec<Leg> {
+    order
+        .windows(2)
+        .filter(|pair| pair[0] != pair[1])
+        .enumerate()
+        .map(|(index, pair)| Leg {
+            // Not the default name as such: a point may be called `leg1` (found by fuzzing).
+            name: names.identifier(&default_leg_name(index), "leg"),
+            from: pair[0].clone(),
+            to: pair[1].clone(),
+            pos,
+            ..Leg::default()
+        })
+        .collect()
 }
 
 /// The name a point is given in the file, if any.

@@ -22,12 +22,11 @@ use std::fmt::Write as _;
 
 use armor_module_api::xml::{self as tree, Element, Located};
 
-use super::gpx::{Names, SAME_POINT_M};
+use super::gpx::{Names, SAME_POINT_M, legs_through};
 use super::{AreaKind, Graphic, GraphicKind, LatLon, Leg, Plan, Unit, Waypoint, check_sidc};
 use crate::fields::escape;
 use crate::geo;
 use crate::net::format_date;
-use crate::plan::xml::default_leg_name;
 use crate::world::Point;
 
 /// The KML namespace.
@@ -462,19 +461,7 @@ pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>
             .collect(),
         None => plan.waypoints.iter().map(|w| w.name.clone()).collect(),
     };
-    for pair in order.windows(2) {
-        if pair[0] == pair[1] {
-            continue;
-        }
-        let index = plan.legs.len();
-        plan.legs.push(Leg {
-            name: names.identifier(&default_leg_name(index), "leg"),
-            from: pair[0].clone(),
-            to: pair[1].clone(),
-            pos: root.pos,
-            ..Leg::default()
-        });
-    }
+    plan.legs = legs_through(&order, &mut names, root.pos);
     if plan.legs.is_empty() {
         return Err(vec![Located::new(
             root.pos,
