@@ -49,6 +49,9 @@ pub struct PathDialog {
     native_offered: bool,
     /// The path field's text was selected, so that typing replaces it.
     selected: bool,
+    /// The path field has held the keyboard focus (said once in the log: keys typed from then
+    /// on go into it, while keys typed before its first frame are lost).
+    focused: bool,
 }
 
 /// What the user did with the path dialog.
@@ -101,6 +104,7 @@ impl PathDialog {
             text,
             native_offered: false,
             selected: false,
+            focused: false,
         }
     }
 
@@ -169,6 +173,10 @@ impl PathDialog {
                     .labelled_by(label.id);
                 if !edit.has_focus() && !edit.lost_focus() {
                     edit.request_focus();
+                }
+                if edit.has_focus() && dialog.selected && !dialog.focused {
+                    dialog.focused = true;
+                    tracing::info!("{title}: the path field takes what is typed");
                 }
                 // The path offered is selected: typing replaces it, an arrow key keeps it.
                 if !dialog.selected

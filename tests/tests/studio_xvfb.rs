@@ -149,7 +149,15 @@ fn save_as(session: &Session, saved: &Path) {
         window,
         ..
     } = session;
-    keys_until(studio, display, window, &["ctrl+shift+s"], "type a path");
+    // Typed keys reach the path field once it holds the focus, a frame or two after the dialog
+    // opens: the studio says when.
+    keys_until(
+        studio,
+        display,
+        window,
+        &["ctrl+shift+s"],
+        "the path field takes what is typed",
+    );
     assert!(xdotool(display, &["key", "--window", window, "ctrl+a"]));
     assert!(xdotool(
         display,
@@ -472,7 +480,13 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     assert!(!text.is_empty());
 
     // Open… from the System view takes the plan too, and shows it in the Mission view.
-    keys_until(studio, display, window, &["ctrl+o"], "type a path");
+    keys_until(
+        studio,
+        display,
+        window,
+        &["ctrl+o"],
+        "the path field takes what is typed",
+    );
     assert!(xdotool(display, &["key", "--window", window, "ctrl+a"]));
     let plan = dir.path().join("plan-yard.xml");
     assert!(xdotool(

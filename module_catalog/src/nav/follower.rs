@@ -24,7 +24,9 @@
 //! With a localiser's `estimate` linked, the follower also keeps the pose's uncertainty from
 //! the no-go areas: while its body is closer to one than [`UNCERTAINTY_SIGMAS`] standard
 //! deviations of the position (on its worst axis), it stops rather than guess, until the
-//! estimate is sure enough again (or `blocked` follows).
+//! estimate is sure enough again (or `blocked` follows). It also reports `goal_reached` only
+//! once the goal is within `tolerance_m` less that uncertainty (but at least half the
+//! tolerance), so that the robot is truly there, not only by its estimate.
 
 use armor_model::geo::{self, Polygon};
 use armor_model::planner::{self, Keepout, Path, Robot};
@@ -678,7 +680,7 @@ impl Follower {
                 new_path: false,
             };
         }
-        if distance_m <= self.settings.tolerance_m {
+        if distance_m <= self.arrival_radius_m() {
             self.reached = true;
             return Control {
                 twist: Twist::default(),
@@ -733,6 +735,16 @@ impl Follower {
         } else {
             UNCERTAINTY_SIGMAS * estimate.position_sigma_m()
         };
+    }
+
+    /// How close to the goal the pose must come to report it reached: `tolerance_m` less the
+    /// pose's uncertainty, so that the true position, not only the estimate, is within the
+    /// tolerance (a rehearsal judges arrivals by the truth). Never less than half the tolerance:
+    /// a robot whose estimate is that unsure would circle the goal for ever, and a lost
+    /// localiser holds the mission anyway.
+    fn arrival_radius_m(&self) -> f64 {
+        let tolerance_m = self.settings.tolerance_m;
+        (tolerance_m - self.uncertainty_m).max(tolerance_m / 2.0)
     }
 
     /// The no-go area the robot's body may be in or touching, given the pose's uncertainty.
@@ -1349,6 +1361,58 @@ mod tests {
         assert_eq!(follower.on_tick(60.0), Some("blocked"));
         follower.restart(70.0);
         assert_eq!(follower.on_tick(100.0), None, "no pose since the restart");
+    }
+
+    #[test]
+    fn the_goal_is_reached_only_when_the_uncertain_pose_is_truly_within_tolerance() {
+        let on_axis = |x_m| Pose2D {
+            x_m,
+            y_m: 0.0,
+            theta_rad: 0.0,
+        };
+        let estimate = |sigma_m: f64, state| PoseEstimate {
+            pose_in_map: Pose2D::default(),
+            covariance: [
+                sigma_m * sigma_m,
+                0.0,
+                0.0,
+                0.0,
+                sigma_m * sigma_m,
+                0.0,
+                0.0,
+                0.0,
+                0.01,
+            ],
+            fit: 0.9,
+            state,
+        };
+        // Without an estimate, the tolerance alone (0.3 m).
+        let mut follower = Follower::new(settings(), 0.0);
+        assert_eq!(
+            follower.on_pose(on_axis(4.75), 1.0).report,
+            Some("goal_reached")
+        );
+
+        // Two standard deviations of 0.05 m: 0.25 m from the goal is not yet sure to be within
+        // 0.3 m of it, 0.19 m is.
+        let mut follower = Follower::new(settings(), 0.0);
+        follower.on_estimate(&estimate(0.05, LocalisationState::Localised));
+        let control = follower.on_pose(on_axis(4.75), 1.0);
+        assert_eq!(control.report, None);
+        assert!(control.twist.linear_mps > 0.0, "drives on: {control:?}");
+        assert_eq!(
+            follower.on_pose(on_axis(4.81), 2.0).report,
+            Some("goal_reached")
+        );
+
+        // An estimate too unsure for that still arrives within half the tolerance.
+        let mut follower = Follower::new(settings(), 0.0);
+        follower.on_estimate(&estimate(1.0, LocalisationState::Uncertain));
+        assert_eq!(follower.on_pose(on_axis(4.8), 1.0).report, None);
+        assert_eq!(
+            follower.on_pose(on_axis(4.86), 2.0).report,
+            Some("goal_reached")
+        );
     }
 
     #[test]
