@@ -600,7 +600,8 @@ fn an_observer_key_reads_the_status_and_cannot_command() {
 
 /// A trickle of bare connections to a module's own port (strangers that never say a word) does
 /// not hold up its input's relink when its provider restarts: the module waits only on peers
-/// that sent a valid first handshake message, and not long in all.
+/// whose first handshake message proved a key. Relinks with and without the trickle alternate in
+/// one run, so that both see the same machine; the figures are printed.
 #[test]
 fn strangers_at_a_modules_port_do_not_delay_its_relink() {
     let dir = tempfile::tempdir().unwrap();
@@ -614,30 +615,63 @@ fn strangers_at_a_modules_port_do_not_delay_its_relink() {
     run.wait_for("the checker linked", PATIENCE, |line| {
         line.starts_with("[checker]") && line.contains("input linked")
     });
-    // 25 bare connections a second, each left open without a word.
-    let stop = Arc::new(AtomicBool::new(false));
-    let trickle = {
-        let stop = Arc::clone(&stop);
-        std::thread::spawn(move || {
-            let mut held = Vec::new();
-            while !stop.load(Ordering::Relaxed) {
-                if let Ok(stream) = TcpStream::connect(port) {
-                    held.push(stream);
+    let mut quiet = Vec::new();
+    let mut trickled = Vec::new();
+    // Four rounds: the supervisor gives up on a module that crashed six times in ten seconds.
+    for round in 0..4 {
+        let with_trickle = round % 2 == 1;
+        // 25 bare connections a second, each left open without a word.
+        let stop = Arc::new(AtomicBool::new(false));
+        let trickle = with_trickle.then(|| {
+            let stop = Arc::clone(&stop);
+            std::thread::spawn(move || {
+                let mut held = Vec::new();
+                while !stop.load(Ordering::Relaxed) {
+                    if let Ok(stream) = TcpStream::connect(port) {
+                        held.push(stream);
+                    }
+                    std::thread::sleep(Duration::from_millis(40));
                 }
-                std::thread::sleep(Duration::from_millis(40));
-            }
-        })
-    };
+            })
+        });
+        let took = relink_after_killing_the_counter(&run);
+        stop.store(true, Ordering::Relaxed);
+        if let Some(trickle) = trickle {
+            trickle.join().unwrap();
+            trickled.push(took);
+        } else {
+            quiet.push(took);
+        }
+    }
+    let mean = |times: &[Duration]| times.iter().sum::<Duration>() / times.len() as u32;
+    let (quiet_mean, trickled_mean) = (mean(&quiet), mean(&trickled));
+    println!(
+        "relink after the provider restarted: quiet {quiet:?} (mean {quiet_mean:?}), \
+         with 25 strangers a second {trickled:?} (mean {trickled_mean:?})"
+    );
+    // Waiting on strangers cost 200 ms a relink (the cap on the total wait); the margin is
+    // half of that, for the noise of a shared machine.
+    assert!(
+        trickled_mean < quiet_mean + Duration::from_millis(100),
+        "strangers delayed the relink: {trickled_mean:?} against {quiet_mean:?}"
+    );
+}
+
+/// Kills the demo's counter and returns how long after it started again the checker's input
+/// was linked to it.
+fn relink_after_killing_the_counter(run: &Proc) -> Duration {
+    let before = run.line_count();
     let counter = armor_tests::field(
-        &run.wait_for("the counter's pid", PATIENCE, |line| {
-            line.contains("module started") && line.contains("module=\"counter\"")
-        }),
+        &run.lines()
+            .into_iter()
+            .rev()
+            .find(|line| line.contains("module started") && line.contains("module=\"counter\""))
+            .unwrap(),
         "pid",
     )
     .unwrap()
     .parse::<i32>()
     .unwrap();
-    let before = run.line_count();
     armor_tests::signal(counter, 9);
     run.wait_for_from(before, "the counter started again", PATIENCE, |line| {
         line.contains("module started") && line.contains("module=\"counter\"")
@@ -646,8 +680,5 @@ fn strangers_at_a_modules_port_do_not_delay_its_relink() {
     run.wait_for_from(before, "the checker relinked", PATIENCE, |line| {
         line.starts_with("[checker]") && line.contains("input linked")
     });
-    let took = restarted.elapsed();
-    stop.store(true, Ordering::Relaxed);
-    trickle.join().unwrap();
-    assert!(took < Duration::from_secs(5), "the relink took {took:?}");
+    restarted.elapsed()
 }
