@@ -31,6 +31,7 @@ use serde::Deserialize;
 
 use crate::auth::{Credentials, Dial, Key, SealedWriter};
 use crate::core::{ApiError, Core};
+use crate::handshake_deadline::HandshakeDeadline;
 use crate::protocol::{
     Advert, FromAgent, FromProvider, FromSupervisor, ToAgent, ToProvider, ToSupervisor,
 };
@@ -42,8 +43,6 @@ const SUPERVISOR_RETRY: Duration = Duration::from_millis(250);
 const RELINK_DELAY: Duration = Duration::from_millis(100);
 const UNKNOWN_RETRY: Duration = Duration::from_millis(200);
 const LOOKUP_TIMEOUT: Duration = Duration::from_secs(2);
-/// How long a peer has to finish its handshake: a stranger is closed within it.
-const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(1500);
 /// With a shared secret, how long a module waits for a peer whose first handshake message has
 /// just proved a key to say who it is (its subscribe follows the handshake's round trip) before
 /// it opens a connection of its own to a provider: the peer may be that provider, and the two
@@ -134,7 +133,9 @@ struct Conn {
     /// many as the socket holds: the next frame's buffer then reuses the memory of the one the
     /// module has just dropped, still in the cache, as a reader reusing one buffer does.
     paused: bool,
-    handshake_deadline: Option<Instant>,
+    /// Until the handshake (with a secret) or the subscribe (without) is in: short for the
+    /// first message, a round trip more once it proved a key.
+    handshake_deadline: Option<HandshakeDeadline>,
     /// Messages queued before the handshake is over: they follow it, since the peer takes
     /// nothing before.
     held: Option<OutBuffer>,
@@ -807,7 +808,7 @@ impl Net {
         let handshakes = self
             .conns
             .values()
-            .filter_map(|conn| conn.handshake_deadline);
+            .filter_map(|conn| conn.handshake_deadline.map(|deadline| deadline.at()));
         [agent_timer, supervisor_timer]
             .into_iter()
             .flatten()
@@ -858,13 +859,14 @@ impl Net {
         let expired: Vec<Token> = self
             .conns
             .iter()
-            .filter(|(_, conn)| conn.handshake_deadline.is_some_and(|at| at <= now))
+            .filter(|(_, conn)| {
+                conn.handshake_deadline
+                    .is_some_and(|deadline| deadline.expired(now))
+            })
             .map(|(&token, _)| token)
             .collect();
         for token in expired {
-            tracing::warn!(
-                "a peer did not finish its handshake within {HANDSHAKE_TIMEOUT:?}; dropped"
-            );
+            tracing::warn!("a peer did not finish its handshake in time; dropped");
             self.close(core, token);
         }
     }
@@ -889,7 +891,8 @@ impl Net {
                         Ok(token) => {
                             tracing::debug!(%peer, "subscriber connecting");
                             if let Some(conn) = self.conns.get_mut(&token) {
-                                conn.handshake_deadline = Some(Instant::now() + HANDSHAKE_TIMEOUT);
+                                conn.handshake_deadline =
+                                    Some(HandshakeDeadline::accepted(Instant::now()));
                                 if self.credentials.is_some() {
                                     conn.held = Some(OutBuffer::default());
                                     conn.hello_owed = true;
@@ -919,7 +922,11 @@ impl Net {
         let pending = self
             .conns
             .iter()
-            .filter_map(|(&token, conn)| conn.handshake_deadline.map(|at| (at, token)));
+            // A stranger goes before a peer whose first message proved a key.
+            .filter_map(|(&token, conn)| {
+                conn.handshake_deadline
+                    .map(|deadline| ((deadline.has_proved(), deadline.at()), token))
+            });
         let (count, oldest) = pending.fold((0, None), |(count, oldest), item| {
             (count + 1, oldest.min(Some(item)).or(Some(item)))
         });
@@ -1013,7 +1020,11 @@ impl Net {
                 let step = conn.reader.take_auth_step();
                 if std::mem::take(&mut conn.hello_owed) {
                     conn.out.push_hello();
-                    conn.identify_by = Some(Instant::now() + IDENTIFY_WAIT);
+                    let now = Instant::now();
+                    conn.identify_by = Some(now + IDENTIFY_WAIT);
+                    if let Some(deadline) = conn.handshake_deadline.as_mut() {
+                        deadline.proved(now);
+                    }
                 }
                 conn.out.push_encoded(&step.reply);
                 if let Some(sealer) = step.sealer {
