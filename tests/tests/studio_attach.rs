@@ -396,3 +396,123 @@ fn attached_without_its_file_to_a_run_on_a_ros_map_the_studio_has_the_maps_image
     );
     drop(run);
 }
+
+/// The studio attached with an observer's key (`armor secret derive --role observer`) reads the
+/// run, says it is an observer, and greys every command it may not give: pause, abort, firing
+/// a transition, starting and stopping modules; it offers no driving pad.
+#[test]
+fn attached_with_an_observers_key_the_studio_reads_and_greys_its_commands() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let secret = dir.path().join("secret");
+    std::fs::write(&secret, "a secret of thirty-two bytes, ok").unwrap();
+    std::fs::set_permissions(&secret, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let key = dir.path().join("observer.key");
+    let derived = std::process::Command::new(armor_tests::bin("armor"))
+        .args(["secret", "derive", "--role", "observer", "--secret"])
+        .arg(&secret)
+        .arg("-o")
+        .arg(&key)
+        .output()
+        .unwrap();
+    assert!(derived.status.success(), "{derived:?}");
+    // The driven robot, and a counter the mission starts and stops (the sim and the teleop
+    // always run).
+    let driven = std::fs::read_to_string(driven_system(dir.path())).unwrap();
+    let system = driven.replace(
+        "</system>",
+        "  <module name=\"counter\" type=\"counter\"/>\n</system>",
+    );
+    std::fs::write(dir.path().join("driven.xml"), system).unwrap();
+    let mission = dir.path().join("mission.xml");
+    std::fs::write(
+        &mission,
+        r#"<mission name="watched" system="driven.xml">
+  <place name="driving" tokens="1">
+    <module name="counter"/>
+  </place>
+  <place name="done" final="true"/>
+  <transition name="finish" operator="true">
+    <input place="driving"/>
+    <output place="done"/>
+  </transition>
+</mission>
+"#,
+    )
+    .unwrap();
+    let run = Proc::start(
+        std::process::Command::new(armor_tests::bin("armor"))
+            .arg("run")
+            .arg(&mission)
+            .arg("--secret")
+            .arg(&secret)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let addr: std::net::SocketAddr = armor_tests::control_address(&run).parse().unwrap();
+
+    let mut options = Options::new(Home::new(dir.path().join("home")));
+    options.module_path = vec![bin_dir()];
+    options.palette = Some(Palette::from_descriptions(Vec::new()));
+    options.attach = Some(addr);
+    let mut app = StudioApp::new(options);
+    // The key the Run view's field holds (from ARMOR_SECRET_FILE or typed there).
+    app.run_mut().secret_file = key.to_string_lossy().into_owned();
+    let mut harness = Harness::builder()
+        .with_size([1500.0, 950.0])
+        .with_step_dt(1.0 / 60.0)
+        .with_max_steps(8)
+        .build_ui_state(|ui, app: &mut StudioApp| app.ui(ui), app);
+    harness.run_ok();
+    step_until(&mut harness, "the run read with the observer's key", |h| {
+        let status = status(h.state());
+        status.mission.is_some()
+            && status
+                .modules
+                .iter()
+                .any(|module| module.name == "pad" && module.state.as_str() == "running")
+    });
+    assert!(!harness.state().run().may_command());
+    assert!(has_label(&harness, "attached as an observer: reading only"));
+    for command in ["⏸ Pause", "⏹ Abort", "⏭ finish"] {
+        assert!(
+            harness.get_by_label(command).accesskit_node().is_disabled(),
+            "`{command}` is offered to an observer"
+        );
+    }
+    let switches: Vec<bool> = harness
+        .get_all_by_label("on")
+        .map(|switch| switch.accesskit_node().is_disabled())
+        .collect();
+    assert_eq!(switches, [true], "the counter's on switch");
+    assert!(has_label(&harness, "driving needs an operator's"));
+    assert!(harness.query_by_label("forward").is_none(), "a driving pad");
+    // A click on the greyed button commands nothing.
+    harness.get_by_label("⏹ Abort").click();
+    for _ in 0..30 {
+        harness.step();
+    }
+    let after = ctl_status_with(&addr, &secret);
+    assert_eq!(
+        after["mission"]["outcome"],
+        serde_json::Value::Null,
+        "{after}"
+    );
+    assert!(process_alive(run.pid()));
+}
+
+/// `armor ctl status --json` with the run's secret.
+fn ctl_status_with(addr: &std::net::SocketAddr, secret: &std::path::Path) -> serde_json::Value {
+    let output = std::process::Command::new(armor_tests::bin("armor"))
+        .args(["ctl", "--addr", &addr.to_string(), "--secret"])
+        .arg(secret)
+        .args(["status", "--json"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&output.stdout);
+    serde_json::Deserializer::from_str(&text)
+        .into_iter()
+        .next()
+        .and_then(Result::ok)
+        .unwrap_or_else(|| panic!("no status: {output:?}"))
+}
