@@ -9,7 +9,7 @@
 use std::collections::HashSet;
 use std::io::{Read as _, Write as _};
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -18,21 +18,12 @@ use std::time::{Duration, Instant};
 use armor_module_api::auth::Secret;
 use armor_module_api::wire::blocking;
 use armor_tests::{
-    PATIENCE, Proc, bin, bin_dir, children_of, control_address, driven_system, start_agent,
-    wait_until,
+    PATIENCE, Proc, bin, bin_dir, children_of, control_address, driven_system, role_key,
+    secret_file, start_agent, wait_until,
 };
 
 /// What the brief allows a stranger: closed within this, having received nothing.
 const STRANGER_CLOSED_WITHIN: Duration = Duration::from_secs(2);
-
-/// A secret file of 32 random-looking bytes, mode 600.
-fn secret_file(dir: &Path) -> PathBuf {
-    use std::os::unix::fs::PermissionsExt as _;
-    let file = dir.join("secret");
-    std::fs::write(&file, "a secret of thirty-two bytes, ok").unwrap();
-    std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o600)).unwrap();
-    file
-}
 
 /// `armor run FILE --secret SECRET --no-run-folder`, and its control address.
 fn run_with_secret(file: &Path, secret: &Path) -> (Proc, String) {
@@ -565,19 +556,7 @@ fn every_listener_of_a_run_with_a_secret_sends_a_stranger_nothing_and_closes_it(
 fn an_observer_key_reads_the_status_and_cannot_command() {
     let dir = tempfile::tempdir().unwrap();
     let secret = secret_file(dir.path());
-    let observer = dir.path().join("observer.key");
-    let output = Command::new(bin("armor"))
-        .args(["secret", "derive", "--role", "observer", "--secret"])
-        .arg(&secret)
-        .arg("-o")
-        .arg(&observer)
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    let observer = role_key(&secret, "observer");
     // The key file reveals neither the secret nor the operator key.
     let text = std::fs::read_to_string(&observer).unwrap();
     let secret_text = std::fs::read_to_string(&secret).unwrap();

@@ -78,7 +78,11 @@ fn harness_with(
     options.palette = Some(Palette::from_descriptions(descriptions));
     options.attach = Some(attach);
     options.file = file;
-    let app = StudioApp::new(options);
+    harness_of(StudioApp::new(options))
+}
+
+/// The studio's window around `app`, its first frames drawn (an `--attach` attaches there).
+fn harness_of(app: StudioApp) -> Harness<'static, StudioApp> {
     let mut harness = Harness::builder()
         .with_size([1500.0, 950.0])
         .with_step_dt(1.0 / 60.0)
@@ -402,44 +406,20 @@ fn attached_without_its_file_to_a_run_on_a_ros_map_the_studio_has_the_maps_image
 /// a transition, starting and stopping modules; it offers no driving pad.
 #[test]
 fn attached_with_an_observers_key_the_studio_reads_and_greys_its_commands() {
-    use std::os::unix::fs::PermissionsExt as _;
     let dir = tempfile::tempdir().unwrap();
-    let secret = dir.path().join("secret");
-    std::fs::write(&secret, "a secret of thirty-two bytes, ok").unwrap();
-    std::fs::set_permissions(&secret, std::fs::Permissions::from_mode(0o600)).unwrap();
-    let key = dir.path().join("observer.key");
-    let derived = std::process::Command::new(armor_tests::bin("armor"))
-        .args(["secret", "derive", "--role", "observer", "--secret"])
-        .arg(&secret)
-        .arg("-o")
-        .arg(&key)
-        .output()
-        .unwrap();
-    assert!(derived.status.success(), "{derived:?}");
-    // The driven robot, and a counter the mission starts and stops (the sim and the teleop
-    // always run).
+    let secret = armor_tests::secret_file(dir.path());
+    let key = armor_tests::role_key(&secret, "observer");
+    // The waiting mission on the driven robot: the counter and the checker, which the mission
+    // starts and stops, beside the sim and the teleop, which always run.
     let driven = std::fs::read_to_string(driven_system(dir.path())).unwrap();
-    let system = driven.replace(
-        "</system>",
-        "  <module name=\"counter\" type=\"counter\"/>\n</system>",
-    );
-    std::fs::write(dir.path().join("driven.xml"), system).unwrap();
-    let mission = dir.path().join("mission.xml");
+    let modules = SYSTEM.lines().skip(1).collect::<Vec<_>>().join("\n");
     std::fs::write(
-        &mission,
-        r#"<mission name="watched" system="driven.xml">
-  <place name="driving" tokens="1">
-    <module name="counter"/>
-  </place>
-  <place name="done" final="true"/>
-  <transition name="finish" operator="true">
-    <input place="driving"/>
-    <output place="done"/>
-  </transition>
-</mission>
-"#,
+        dir.path().join("system.xml"),
+        driven.replace("</system>\n", &modules),
     )
     .unwrap();
+    let mission = dir.path().join("mission.xml");
+    std::fs::write(&mission, MISSION).unwrap();
     let run = Proc::start(
         std::process::Command::new(armor_tests::bin("armor"))
             .arg("run")
@@ -458,12 +438,7 @@ fn attached_with_an_observers_key_the_studio_reads_and_greys_its_commands() {
     let mut app = StudioApp::new(options);
     // The key the Run view's field holds (from ARMOR_SECRET_FILE or typed there).
     app.run_mut().secret_file = key.to_string_lossy().into_owned();
-    let mut harness = Harness::builder()
-        .with_size([1500.0, 950.0])
-        .with_step_dt(1.0 / 60.0)
-        .with_max_steps(8)
-        .build_ui_state(|ui, app: &mut StudioApp| app.ui(ui), app);
-    harness.run_ok();
+    let mut harness = harness_of(app);
     step_until(&mut harness, "the run read with the observer's key", |h| {
         let status = status(h.state());
         status.mission.is_some()
@@ -471,6 +446,7 @@ fn attached_with_an_observers_key_the_studio_reads_and_greys_its_commands() {
                 .modules
                 .iter()
                 .any(|module| module.name == "pad" && module.state.as_str() == "running")
+            && status.modules.len() == 4
     });
     assert!(!harness.state().run().may_command());
     assert!(has_label(&harness, "attached as an observer: reading only"));
@@ -484,7 +460,7 @@ fn attached_with_an_observers_key_the_studio_reads_and_greys_its_commands() {
         .get_all_by_label("on")
         .map(|switch| switch.accesskit_node().is_disabled())
         .collect();
-    assert_eq!(switches, [true], "the counter's on switch");
+    assert_eq!(switches, [true, true], "the modules' on switches");
     assert!(has_label(&harness, "driving needs an operator's"));
     assert!(harness.query_by_label("forward").is_none(), "a driving pad");
     // A click on the greyed button commands nothing.
