@@ -23,9 +23,10 @@
 
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use armor_module_api::auth::{Listen, Sealer};
+use armor_module_api::handshake_deadline::HandshakeDeadline;
 use armor_module_api::types::Twist;
 use armor_module_api::wire::{Frame, FrameReader, HELLO, WireError};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
@@ -45,8 +46,6 @@ const MAX_LINE: usize = 256;
 const MAX_CLIENTS: usize = 16;
 /// A client that leaves this many bytes of replies unread is disconnected.
 const MAX_UNREAD: usize = 64 * 1024;
-/// How long a client with a secret has to finish its handshake.
-const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(1500);
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
@@ -242,8 +241,9 @@ struct Secure {
     /// The hello goes out with the answer to a valid first handshake message: a stranger gets
     /// not a byte.
     hello_owed: bool,
-    /// Until the handshake is done.
-    deadline: Option<Instant>,
+    /// Until the handshake is done: short for the first message, a round trip more once it
+    /// proved a key (a slow radio link).
+    deadline: Option<HandshakeDeadline>,
 }
 
 struct Client {
@@ -291,7 +291,11 @@ impl Server {
                 .clients
                 .iter()
                 .enumerate()
-                .filter_map(|(at, client)| Some((client.secure.as_ref()?.deadline?, at)))
+                .filter_map(|(at, client)| {
+                    let deadline = client.secure.as_ref()?.deadline?;
+                    // A stranger goes before a client whose first message proved a key.
+                    Some(((deadline.has_proved(), deadline.at()), at))
+                })
                 .min();
             match oldest {
                 Some((_, at)) => {
@@ -310,7 +314,7 @@ impl Server {
             reader: FrameReader::listener(Some(listen)),
             sealer: None,
             hello_owed: true,
-            deadline: Some(Instant::now() + HANDSHAKE_TIMEOUT),
+            deadline: Some(HandshakeDeadline::accepted(Instant::now())),
         });
         if secure.is_none() {
             tracing::info!("operator connected from {peer}");
@@ -380,7 +384,7 @@ impl Client {
             .secure
             .as_ref()
             .and_then(|secure| secure.deadline)
-            .is_some_and(|deadline| deadline <= now);
+            .is_some_and(|deadline| deadline.expired(now));
         if late {
             tracing::warn!(
                 "{} did not finish its handshake in time: dropped",
@@ -403,6 +407,9 @@ impl Client {
                         let step = secure.reader.take_auth_step();
                         if std::mem::take(&mut secure.hello_owed) {
                             self.outbox.extend_from_slice(&HELLO);
+                            if let Some(deadline) = secure.deadline.as_mut() {
+                                deadline.proved(Instant::now());
+                            }
                         }
                         self.outbox.extend_from_slice(&step.reply);
                         secure.sealer = step.sealer.or(secure.sealer.take());

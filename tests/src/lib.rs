@@ -387,3 +387,30 @@ pub fn field<'a>(line: &'a str, name: &str) -> Option<&'a str> {
         .find_map(|word| word.strip_prefix(name)?.strip_prefix('='))
         .map(|value| value.trim_matches('"'))
 }
+
+/// A secret file in `dir` (32 bytes, readable by its owner only), for runs with `--secret`.
+pub fn secret_file(dir: &Path) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt as _;
+    let file = dir.join("secret");
+    std::fs::write(&file, "a secret of thirty-two bytes, ok").unwrap();
+    std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o600)).unwrap();
+    file
+}
+
+/// `armor secret derive --role ROLE --secret SECRET -o DIR/ROLE.key`: the role's key file.
+pub fn role_key(secret: &Path, role: &str) -> PathBuf {
+    let key = secret.with_file_name(format!("{role}.key"));
+    let output = Command::new(bin("armor"))
+        .args(["secret", "derive", "--role", role, "--secret"])
+        .arg(secret)
+        .arg("-o")
+        .arg(&key)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    key
+}

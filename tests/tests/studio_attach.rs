@@ -78,7 +78,11 @@ fn harness_with(
     options.palette = Some(Palette::from_descriptions(descriptions));
     options.attach = Some(attach);
     options.file = file;
-    let app = StudioApp::new(options);
+    harness_of(StudioApp::new(options))
+}
+
+/// The studio's window around `app`, its first frames drawn (an `--attach` attaches there).
+fn harness_of(app: StudioApp) -> Harness<'static, StudioApp> {
     let mut harness = Harness::builder()
         .with_size([1500.0, 950.0])
         .with_step_dt(1.0 / 60.0)
@@ -395,4 +399,96 @@ fn attached_without_its_file_to_a_run_on_a_ros_map_the_studio_has_the_maps_image
         "the map's image, as the run has it"
     );
     drop(run);
+}
+
+/// The studio attached with an observer's key (`armor secret derive --role observer`) reads the
+/// run, says it is an observer, and greys every command it may not give: pause, abort, firing
+/// a transition, starting and stopping modules; it offers no driving pad.
+#[test]
+fn attached_with_an_observers_key_the_studio_reads_and_greys_its_commands() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = armor_tests::secret_file(dir.path());
+    let key = armor_tests::role_key(&secret, "observer");
+    // The waiting mission on the driven robot: the counter and the checker, which the mission
+    // starts and stops, beside the sim and the teleop, which always run.
+    let driven = std::fs::read_to_string(driven_system(dir.path())).unwrap();
+    let modules = SYSTEM.lines().skip(1).collect::<Vec<_>>().join("\n");
+    std::fs::write(
+        dir.path().join("system.xml"),
+        driven.replace("</system>\n", &modules),
+    )
+    .unwrap();
+    let mission = dir.path().join("mission.xml");
+    std::fs::write(&mission, MISSION).unwrap();
+    let run = Proc::start(
+        std::process::Command::new(armor_tests::bin("armor"))
+            .arg("run")
+            .arg(&mission)
+            .arg("--secret")
+            .arg(&secret)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let addr: std::net::SocketAddr = armor_tests::control_address(&run).parse().unwrap();
+
+    let mut options = Options::new(Home::new(dir.path().join("home")));
+    options.module_path = vec![bin_dir()];
+    options.palette = Some(Palette::from_descriptions(Vec::new()));
+    options.attach = Some(addr);
+    let mut app = StudioApp::new(options);
+    // The key the Run view's field holds (from ARMOR_SECRET_FILE or typed there).
+    app.run_mut().secret_file = key.to_string_lossy().into_owned();
+    let mut harness = harness_of(app);
+    step_until(&mut harness, "the run read with the observer's key", |h| {
+        let status = status(h.state());
+        status.mission.is_some()
+            && status
+                .modules
+                .iter()
+                .any(|module| module.name == "pad" && module.state.as_str() == "running")
+            && status.modules.len() == 4
+    });
+    assert!(!harness.state().run().may_command());
+    assert!(has_label(&harness, "attached as an observer: reading only"));
+    for command in ["⏸ Pause", "⏹ Abort", "⏭ finish"] {
+        assert!(
+            harness.get_by_label(command).accesskit_node().is_disabled(),
+            "`{command}` is offered to an observer"
+        );
+    }
+    let switches: Vec<bool> = harness
+        .get_all_by_label("on")
+        .map(|switch| switch.accesskit_node().is_disabled())
+        .collect();
+    assert_eq!(switches, [true, true], "the modules' on switches");
+    assert!(has_label(&harness, "driving needs an operator's"));
+    assert!(harness.query_by_label("forward").is_none(), "a driving pad");
+    // A click on the greyed button commands nothing.
+    harness.get_by_label("⏹ Abort").click();
+    for _ in 0..30 {
+        harness.step();
+    }
+    let after = ctl_status_with(&addr, &secret);
+    assert_eq!(
+        after["mission"]["outcome"],
+        serde_json::Value::Null,
+        "{after}"
+    );
+    assert!(process_alive(run.pid()));
+}
+
+/// `armor ctl status --json` with the run's secret.
+fn ctl_status_with(addr: &std::net::SocketAddr, secret: &std::path::Path) -> serde_json::Value {
+    let output = std::process::Command::new(armor_tests::bin("armor"))
+        .args(["ctl", "--addr", &addr.to_string(), "--secret"])
+        .arg(secret)
+        .args(["status", "--json"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&output.stdout);
+    serde_json::Deserializer::from_str(&text)
+        .into_iter()
+        .next()
+        .and_then(Result::ok)
+        .unwrap_or_else(|| panic!("no status: {output:?}"))
 }

@@ -31,6 +31,7 @@ use serde::Deserialize;
 
 use crate::auth::{Credentials, Dial, Key, SealedWriter};
 use crate::core::{ApiError, Core};
+use crate::handshake_deadline::HandshakeDeadline;
 use crate::protocol::{
     Advert, FromAgent, FromProvider, FromSupervisor, ToAgent, ToProvider, ToSupervisor,
 };
@@ -42,19 +43,21 @@ const SUPERVISOR_RETRY: Duration = Duration::from_millis(250);
 const RELINK_DELAY: Duration = Duration::from_millis(100);
 const UNKNOWN_RETRY: Duration = Duration::from_millis(200);
 const LOOKUP_TIMEOUT: Duration = Duration::from_secs(2);
-/// How long a peer has to finish its handshake: a stranger is closed within it.
-const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(1500);
-/// With a shared secret, how long a module waits for a peer that connected moments ago to say
-/// who it is (its subscribe follows the handshake's round trips) before it opens a connection
-/// of its own to a provider: the peer may be that provider, and the two would share one.
+/// With a shared secret, how long a module waits for a peer whose first handshake message has
+/// just proved a key to say who it is (its subscribe follows the handshake's round trip) before
+/// it opens a connection of its own to a provider: the peer may be that provider, and the two
+/// would share one.
 const IDENTIFY_WAIT: Duration = Duration::from_millis(50);
 /// How often it looks again meanwhile.
 const IDENTIFY_POLL: Duration = Duration::from_millis(2);
-/// The longest an input waits for peers to identify themselves, in all: strangers that keep
-/// connecting cannot hold a relink up for longer. (A peer's first handshake message cannot be
-/// asked for first: a module's dialer writes it only once its connect completes, often tens of
-/// milliseconds after the listener accepted on a busy machine, and waiting only on peers that
-/// sent it lost half of the shared connections in `tests/tests/shared_link.rs`.)
+/// The longest an input waits for peers to identify themselves, in all, however many key
+/// holders keep connecting. A stranger's connection is no reason to wait at all: only a peer
+/// whose first handshake message proved a key is waited for. That message must come with the
+/// connect for this to keep shared connections: a dialer makes it before it connects and
+/// writes it at once after (see [`Net::open`]). Made after the connect and written when the
+/// poll next said the socket was writable, it came tens of milliseconds after the listener
+/// had accepted and decided, and half of the pairs in `tests/tests/shared_link.rs` kept two
+/// connections.
 const IDENTIFY_WAIT_MAX: Duration = Duration::from_millis(200);
 /// The most connections a module keeps that have not authenticated (or, without a secret,
 /// subscribed) yet; the oldest is dropped for a new one. A stranger costs a socket and a
@@ -130,13 +133,18 @@ struct Conn {
     /// many as the socket holds: the next frame's buffer then reuses the memory of the one the
     /// module has just dropped, still in the cache, as a reader reusing one buffer does.
     paused: bool,
-    handshake_deadline: Option<Instant>,
+    /// Until the handshake (with a secret) or the subscribe (without) is in: short for the
+    /// first message, a round trip more once it proved a key.
+    handshake_deadline: Option<HandshakeDeadline>,
     /// Messages queued before the handshake is over: they follow it, since the peer takes
     /// nothing before.
     held: Option<OutBuffer>,
     /// A listener with a secret owes the dialer its hello until the dialer's first handshake
     /// message proved the key: a stranger gets not a byte.
     hello_owed: bool,
+    /// Until when an input looking for a provider waits for this accepted peer to say who it
+    /// is: set when its first handshake message proved a key ([`IDENTIFY_WAIT`]).
+    identify_by: Option<Instant>,
     /// The peer's module: proven by the handshake for a dialer, the provider dialled for a
     /// subscription; `None` without a secret.
     peer: Option<String>,
@@ -364,6 +372,7 @@ impl Net {
                 handshake_deadline: None,
                 held: None,
                 hello_owed: false,
+                identify_by: None,
                 peer: None,
                 last_sent: None,
                 pull_pending: false,
@@ -377,7 +386,6 @@ impl Net {
     /// Opens a connection to `addr`, proving this module's identity with `key` (its own for
     /// the agent and the supervisor, the agent's link key for a provider).
     fn open(&mut self, addr: SocketAddr, role: Role, key: Option<Key>) -> io::Result<Token> {
-        let stream: TcpStream = mio::net::TcpStream::connect(addr)?.into();
         let dial = match (&self.credentials, key) {
             (Some(credentials), Some(key)) => Some(Dial {
                 key,
@@ -386,13 +394,22 @@ impl Net {
             (Some(credentials), None) => Some(credentials.dial(&self.name)),
             (None, _) => None,
         };
+        // The first handshake message is made before the connect (it costs a key exchange), so
+        // that it follows the connect at once.
         let (reader, greeting) = FrameReader::dialer(dial.as_ref()).map_err(io::Error::other)?;
+        let stream: TcpStream = mio::net::TcpStream::connect(addr)?.into();
         let token = self.register(SealedWriter::new(stream), reader, role)?;
         if let Some(conn) = self.conns.get_mut(&token) {
             conn.out.push_encoded(&greeting);
             if dial.is_some() {
                 conn.held = Some(OutBuffer::default());
             }
+            // The greeting goes out with the connect (on loopback and most links the connect
+            // is complete by now): the listener then sees a valid first message at once and
+            // waits for this connection's subscribe rather than opening one of its own (see
+            // `awaits_identification`). A socket still connecting takes it when writable; a
+            // failed write shows at the next poll.
+            let _ = conn.flush();
         }
         Ok(token)
     }
@@ -791,7 +808,7 @@ impl Net {
         let handshakes = self
             .conns
             .values()
-            .filter_map(|conn| conn.handshake_deadline);
+            .filter_map(|conn| conn.handshake_deadline.map(|deadline| deadline.at()));
         [agent_timer, supervisor_timer]
             .into_iter()
             .flatten()
@@ -842,13 +859,14 @@ impl Net {
         let expired: Vec<Token> = self
             .conns
             .iter()
-            .filter(|(_, conn)| conn.handshake_deadline.is_some_and(|at| at <= now))
+            .filter(|(_, conn)| {
+                conn.handshake_deadline
+                    .is_some_and(|deadline| deadline.expired(now))
+            })
             .map(|(&token, _)| token)
             .collect();
         for token in expired {
-            tracing::warn!(
-                "a peer did not finish its handshake within {HANDSHAKE_TIMEOUT:?}; dropped"
-            );
+            tracing::warn!("a peer did not finish its handshake in time; dropped");
             self.close(core, token);
         }
     }
@@ -873,7 +891,8 @@ impl Net {
                         Ok(token) => {
                             tracing::debug!(%peer, "subscriber connecting");
                             if let Some(conn) = self.conns.get_mut(&token) {
-                                conn.handshake_deadline = Some(Instant::now() + HANDSHAKE_TIMEOUT);
+                                conn.handshake_deadline =
+                                    Some(HandshakeDeadline::accepted(Instant::now()));
                                 if self.credentials.is_some() {
                                     conn.held = Some(OutBuffer::default());
                                     conn.hello_owed = true;
@@ -903,7 +922,11 @@ impl Net {
         let pending = self
             .conns
             .iter()
-            .filter_map(|(&token, conn)| conn.handshake_deadline.map(|at| (at, token)));
+            // A stranger goes before a peer whose first message proved a key.
+            .filter_map(|(&token, conn)| {
+                conn.handshake_deadline
+                    .map(|deadline| ((deadline.has_proved(), deadline.at()), token))
+            });
         let (count, oldest) = pending.fold((0, None), |(count, oldest), item| {
             (count + 1, oldest.min(Some(item)).or(Some(item)))
         });
@@ -997,6 +1020,11 @@ impl Net {
                 let step = conn.reader.take_auth_step();
                 if std::mem::take(&mut conn.hello_owed) {
                     conn.out.push_hello();
+                    let now = Instant::now();
+                    conn.identify_by = Some(now + IDENTIFY_WAIT);
+                    if let Some(deadline) = conn.handshake_deadline.as_mut() {
+                        deadline.proved(now);
+                    }
                 }
                 conn.out.push_encoded(&step.reply);
                 if let Some(sealer) = step.sealer {
@@ -1154,9 +1182,10 @@ impl Net {
         self.subscribe_on(core, token, index);
     }
 
-    /// Whether, with a shared secret, a peer connected less than [`IDENTIFY_WAIT`] ago and has
-    /// not subscribed yet (it may be in the middle of the handshake). The wait it causes is
-    /// bounded in all by [`IDENTIFY_WAIT_MAX`].
+    /// Whether, with a shared secret, a peer whose first handshake message proved a key less
+    /// than [`IDENTIFY_WAIT`] ago has not subscribed yet (it is in the middle of the
+    /// handshake). A connection that has sent nothing valid, a stranger's, never counts; the
+    /// wait is bounded in all by [`IDENTIFY_WAIT_MAX`].
     fn awaits_identification(&self) -> bool {
         let now = Instant::now();
         self.credentials.is_some()
@@ -1169,9 +1198,7 @@ impl Net {
                         peer_addr: None,
                         ..
                     })
-                ) && conn
-                    .handshake_deadline
-                    .is_some_and(|deadline| deadline > now + HANDSHAKE_TIMEOUT - IDENTIFY_WAIT)
+                ) && conn.identify_by.is_some_and(|until| until > now)
             })
     }
 

@@ -3,7 +3,8 @@
 //! their own only once they have said their hello and, with a secret, passed the handshake.
 //! Until then a peer costs a socket and at most a kilobyte of buffer; at most [`MAX_PENDING`]
 //! are kept, the oldest that has not proved a key dropped first for a new one, and none longer
-//! than [`HANDSHAKE_TIMEOUT`] for the whole handshake. A thousand idle connections thus cost a
+//! than its [`HandshakeDeadline`]: a short one for the first message, which a stranger does not
+//! pass, and a round trip more once it proved a key. A thousand idle connections thus cost a
 //! few hundred kilobytes and never keep a module or an operator from getting in. With a secret,
 //! the door sends nothing, not even its hello, before a valid first handshake message.
 
@@ -11,9 +12,10 @@ use std::collections::HashMap;
 use std::io::{ErrorKind, Write as _};
 use std::net::TcpStream;
 use std::os::fd::AsRawFd as _;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use armor_module_api::auth::{Listen, SealedWriter, Sealer};
+use armor_module_api::handshake_deadline::HandshakeDeadline;
 use armor_module_api::wire::blocking::SecureStream;
 use armor_module_api::wire::{Frame, FrameReader, HELLO, OutBuffer, WireError};
 use mio::unix::SourceFd;
@@ -21,8 +23,6 @@ use mio::{Events, Interest, Poll, Token};
 
 /// The most connections kept before their handshake is over.
 pub const MAX_PENDING: usize = 256;
-/// How long a peer has to say its hello and finish the handshake.
-pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(1500);
 
 const LISTENER: Token = Token(0);
 
@@ -35,7 +35,7 @@ struct Pending {
     /// With a secret, the hello goes out with the answer to a valid first handshake message:
     /// a stranger gets not a byte.
     hello_owed: bool,
-    deadline: Instant,
+    deadline: HandshakeDeadline,
 }
 
 /// Accepts on `listener` until the process ends, and hands each connection that is open (hello
@@ -68,7 +68,7 @@ fn run(
         let now = Instant::now();
         let timeout = pending
             .values()
-            .map(|conn| conn.deadline.saturating_duration_since(now))
+            .map(|conn| conn.deadline.at().saturating_duration_since(now))
             .min();
         if let Err(err) = poll.poll(&mut events, timeout)
             && err.kind() != ErrorKind::Interrupted
@@ -115,14 +115,15 @@ fn run(
         let now = Instant::now();
         let expired: Vec<Token> = pending
             .iter()
-            .filter(|(_, conn)| conn.deadline <= now)
+            .filter(|(_, conn)| conn.deadline.expired(now))
             .map(|(&token, _)| token)
             .collect();
         for token in expired {
             if let Some(conn) = remove(&poll, &mut pending, token) {
                 tracing::warn!(
                     peer = ?conn.stream.peer_addr().ok(),
-                    "a peer did not finish its handshake within {HANDSHAKE_TIMEOUT:?}; dropped"
+                    proved_a_key = conn.deadline.has_proved(),
+                    "a peer did not finish its handshake in time; dropped"
                 );
             }
         }
@@ -153,7 +154,7 @@ fn accept_all(
         if pending.len() >= MAX_PENDING
             && let Some(oldest) = pending
                 .iter()
-                .min_by_key(|(_, conn)| (!conn.hello_owed, conn.deadline))
+                .min_by_key(|(_, conn)| (!conn.hello_owed, conn.deadline.at()))
                 .map(|(&token, _)| token)
         {
             tracing::debug!("{MAX_PENDING} connections in their handshake: dropped the oldest");
@@ -183,7 +184,7 @@ fn accept_all(
             sealer: None,
             peer: None,
             hello_owed: listen.is_some(),
-            deadline: Instant::now() + HANDSHAKE_TIMEOUT,
+            deadline: HandshakeDeadline::accepted(Instant::now()),
         };
         // The hello (if any yet) is six bytes: a new socket takes them at once.
         if let Err(err) = conn.out.flush_to(&mut conn.stream) {
@@ -214,6 +215,7 @@ fn advance(conn: &mut Pending) -> Result<bool, WireError> {
                 let step = conn.reader.take_auth_step();
                 if std::mem::take(&mut conn.hello_owed) {
                     conn.out.push_encoded(&HELLO);
+                    conn.deadline.proved(Instant::now());
                 }
                 conn.out.push_encoded(&step.reply);
                 conn.sealer = step.sealer.or(conn.sealer.take());

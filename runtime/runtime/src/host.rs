@@ -345,7 +345,7 @@ impl Daemon {
         let _ = stream.get_ref().set_nodelay(true);
         let _ = stream
             .get_ref()
-            .set_read_timeout(Some(crate::gate::HANDSHAKE_TIMEOUT));
+            .set_read_timeout(Some(armor_module_api::handshake_deadline::CONFIRM_TIMEOUT));
         let (mut reader, mut writer) = stream.split();
         let (tx, rx) = mpsc::channel::<FromHost>();
         std::thread::spawn(move || {
