@@ -149,11 +149,16 @@ impl Path {
 
     /// `X,Y X,Y …` in metres to the millimetre: the form of the follower's `path` parameter.
     pub fn format(&self) -> String {
-        self.points
-            .iter()
-            .map(|p| format!("{},{}", geo::round_mm(p.x), geo::round_mm(p.y)))
-            .collect::<Vec<_>>()
-            .join(" ")
+        let mut text = String::with_capacity(self.points.len() * 16);
+        for (index, point) in self.points.iter().enumerate() {
+            if index > 0 {
+                text.push(' ');
+            }
+            geo::push_mm(&mut text, point.x);
+            text.push(',');
+            geo::push_mm(&mut text, point.y);
+        }
+        text
     }
 
     /// Reads [`Path::format`]'s form; an empty text is an empty path.
