@@ -13,7 +13,9 @@ use std::time::Duration;
 
 use armor_model::SystemConfig;
 use armor_model::world::Point;
-use armor_module_api::types::{LaserScan, Markers, OccupancyGrid, Odometry, Pose2D, Text};
+use armor_module_api::types::{
+    LaserScan, Markers, OccupancyGrid, Odometry, Pose2D, PoseEstimate, Text,
+};
 use armor_module_api::{Datum, Event, ModuleDescription, ModuleSpec, Node, Standalone};
 
 use super::inspector::Outputs;
@@ -34,9 +36,11 @@ pub const MAX_RATE_HZ: f64 = 30.0;
 /// The data names the live views read.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Sources {
-    /// The robot's own estimate: a corrected pose (the mapper's) when there is one, else
-    /// odometry.
+    /// The robot's own estimate: the localiser's pose on the map when there is one, else a
+    /// corrected pose (the mapper's), else odometry.
     pub estimated: Option<String>,
+    /// The localiser's estimate with its covariance and state (`PoseEstimate`).
+    pub estimate: Option<String>,
     /// The simulator's ground truth.
     pub truth: Option<String>,
     pub scan: Option<String>,
@@ -51,7 +55,8 @@ pub struct Sources {
 
 impl Sources {
     /// Picks the outputs of a system by their data types: `Odometry` and `Pose2D` outputs named
-    /// like truth (`*truth*`) or not, the first `LaserScan`, the first `OccupancyGrid`.
+    /// like truth (`*truth*`) or not, the first `PoseEstimate`, the first `LaserScan`, the
+    /// first `OccupancyGrid`.
     pub fn of(
         system: &SystemConfig,
         describe: impl Fn(&str) -> Option<ModuleDescription>,
@@ -76,10 +81,18 @@ impl Sources {
         };
         Sources {
             truth: find(&|_, name, data_type| data_type == "Pose2D" && name.contains("truth")),
+            // What the follower drives by, in the bundled systems: the localiser's pose on the
+            // map; the sim's odometry, listed first, is only its input.
             estimated: find(&|module_type, _, data_type| {
-                module_type == "mapper" && data_type == "Odometry"
+                module_type == "localiser" && data_type == "Odometry"
+            })
+            .or_else(|| {
+                find(&|module_type, _, data_type| {
+                    module_type == "mapper" && data_type == "Odometry"
+                })
             })
             .or_else(|| find(&|_, _, data_type| data_type == "Odometry")),
+            estimate: find(&|_, _, data_type| data_type == PoseEstimate::TYPE),
             scan: find(&|_, _, data_type| data_type == "LaserScan"),
             grid: find(&|_, _, data_type| data_type == "OccupancyGrid"),
             path: find(&|module_type, name, data_type| {
@@ -101,6 +114,7 @@ impl Sources {
     fn names(&self) -> impl Iterator<Item = &String> {
         let mut names: Vec<&String> = [
             &self.estimated,
+            &self.estimate,
             &self.truth,
             &self.scan,
             &self.grid,
@@ -129,6 +143,8 @@ impl Sources {
 #[derive(Clone, Debug, Default)]
 pub struct LiveData {
     pub estimated: Option<Pose2D>,
+    /// The localiser's latest estimate: its covariance and state (none without a localiser).
+    pub estimate: Option<PoseEstimate>,
     pub truth: Option<Pose2D>,
     pub scan: Option<LaserScan>,
     /// Shared, not copied, by each frame's snapshot: it may hold millions of cells.
@@ -177,6 +193,11 @@ impl LiveData {
                 .map(|odometry| odometry.pose_in_odom)
                 .or_else(|_| Pose2D::decode(payload));
             checked(pose, untrusted::check_pose).map(|pose| self.estimated = Some(pose))
+        } else if is(&sources.estimate) {
+            checked(PoseEstimate::decode(payload), |estimate| {
+                untrusted::check_pose(&estimate.pose_in_map)
+            })
+            .map(|estimate| self.estimate = Some(estimate))
         } else if is(&sources.scan) {
             checked(LaserScan::decode(payload), untrusted::check_scan)
                 .map(|scan| self.scan = Some(scan))
@@ -389,9 +410,13 @@ impl Recording {
         };
         let sources = Sources {
             truth: first_of(&|m| m.data_type == "Pose2D" && m.data_name.contains("truth")),
-            estimated: first_of(&|m| m.data_type == "Odometry").or_else(|| {
-                first_of(&|m| m.data_type == "Pose2D" && !m.data_name.contains("truth"))
-            }),
+            // A localiser's pose (`localiser.pose`) before plain odometry, as in a run.
+            estimated: first_of(&|m| m.data_type == "Odometry" && m.data_name.ends_with(".pose"))
+                .or_else(|| first_of(&|m| m.data_type == "Odometry"))
+                .or_else(|| {
+                    first_of(&|m| m.data_type == "Pose2D" && !m.data_name.contains("truth"))
+                }),
+            estimate: first_of(&|m| m.data_type == PoseEstimate::TYPE),
             scan: first_of(&|m| m.data_type == "LaserScan"),
             grid: first_of(&|m| m.data_type == "OccupancyGrid"),
             path: first_of(&|m| m.data_type == "Text" && m.data_name.ends_with(".path")),
