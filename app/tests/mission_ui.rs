@@ -726,3 +726,71 @@ fn an_action_s_alternatives_are_added_ordered_given_modules_removed_and_drawn_in
         plan.to_xml()
     );
 }
+
+/// The response chosen in the combo box `when lost (module `localiser`)`, as it shows (the
+/// leg's or the plan's, whichever the inspector shows).
+fn lost_choice(harness: &Harness<'_, StudioApp>) -> String {
+    let combo = harness.get_by_label("when lost (module `localiser`)");
+    combo.value().unwrap_or_default()
+}
+
+#[test]
+fn the_inspector_offers_the_lost_contingency_and_the_plan_file_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    harness.key_press(Key::W);
+    harness.run();
+    for (x, y) in [(4.0, 4.0), (16.0, 4.0)] {
+        let p = at(&harness, x, y);
+        tap(&mut harness, p);
+    }
+    // The plan as a whole: skip the rest of a leg when the localiser is lost.
+    harness.state_mut().mission_mut().unwrap().editor.selection = Selection::None;
+    harness.run();
+    assert_eq!(lost_choice(&harness), "stop the mission");
+    harness
+        .get_by_label("when lost (module `localiser`)")
+        .click();
+    harness.run();
+    // Hold or skip only: a robot that does not know where it is cannot drive back anywhere.
+    assert!(
+        harness.query_by_label_contains("return to").is_none(),
+        "no `return` for lost"
+    );
+    harness.get_by_label("skip the rest of the leg").click();
+    harness.run();
+    // The leg: hold for the operator, whatever the plan says.
+    harness.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
+    harness.run();
+    assert_eq!(lost_choice(&harness), "as the plan says");
+    harness
+        .get_by_label("when lost (module `localiser`)")
+        .click();
+    harness.run();
+    harness.get_by_label("hold for the operator").click();
+    harness.run();
+    let file = dir.path().join("lost.xml");
+    let saved = harness.state_mut().mission_mut().unwrap().save(Some(&file));
+    assert!(saved.is_ok(), "{saved:?}");
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(
+        text.contains(r#"<contingency on="lost" do="skip"/>"#),
+        "{text}"
+    );
+    assert!(
+        text.contains(r#"<contingency on="lost" do="hold"/>"#),
+        "{text}"
+    );
+    // Read back: the inspector shows what was chosen.
+    let mut again = yard(dir.path());
+    let opened = again.state_mut().mission_mut().unwrap().open(&file);
+    assert!(opened.is_ok(), "{opened:?}");
+    again.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
+    again.run();
+    assert_eq!(lost_choice(&again), "hold for the operator");
+    again.state_mut().mission_mut().unwrap().editor.selection = Selection::None;
+    again.run();
+    assert_eq!(lost_choice(&again), "skip the rest of the leg");
+    let plan = again.state().mission().unwrap().plan().clone();
+    assert_eq!(plan.to_xml(), text, "read back as written");
+}

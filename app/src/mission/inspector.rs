@@ -662,7 +662,8 @@ fn plan_settings_ui(
             response_ui(ui, &key, &trigger, current, &waypoints, "stop the mission")
         {
             edits.change(&key, |plan| {
-                plan.contingencies.retain(|c| !same_slot(&c.trigger, &trigger));
+                plan.contingencies
+                    .retain(|c| !same_slot(&c.trigger, &trigger));
                 if let Some(response) = response {
                     plan.contingencies.push(Contingency {
                         trigger,
@@ -747,7 +748,8 @@ fn same_slot(a: &Trigger, b: &Trigger) -> bool {
 }
 
 fn set_contingency(leg: &mut Leg, trigger: Trigger, response: Option<Response>) {
-    leg.contingencies.retain(|c| !same_slot(&c.trigger, &trigger));
+    leg.contingencies
+        .retain(|c| !same_slot(&c.trigger, &trigger));
     if let Some(response) = response {
         leg.contingencies.push(Contingency {
             trigger,

@@ -1325,7 +1325,8 @@ fn set_pose_ui(
         .or_else(|| ui.input(|input| input.pointer.latest_pos()));
     if let (Some((_, start)), Some(pointer)) = (start, pointer) {
         let colour = Color32::from_rgb(150, 40, 200);
-        ui.painter().circle_stroke(start, 10.0, Stroke::new(2.5, colour));
+        ui.painter()
+            .circle_stroke(start, 10.0, Stroke::new(2.5, colour));
         if (pointer - start).length() >= SET_POSE_MIN_DRAG {
             ui.painter()
                 .arrow(start, pointer - start, Stroke::new(3.0, colour));

@@ -433,7 +433,15 @@ pub fn paint_live(
             ),
             None => ("estimate".to_owned(), ESTIMATE),
         };
-        tag(painter, project, pose, &text, colour, Side::Above, &mut taken);
+        tag(
+            painter,
+            project,
+            pose,
+            &text,
+            colour,
+            Side::Above,
+            &mut taken,
+        );
     }
     if let Some(pose) = &live.truth {
         tag(

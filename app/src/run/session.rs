@@ -15,7 +15,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use armor_model::rehearsal::{ArrivalJudgement, AreaJudgement, Verdict};
+use armor_model::rehearsal::{AreaJudgement, ArrivalJudgement, Verdict};
 use armor_runtime::control::{FiringRecord, MissionStatus, Request, RunFiles, Status};
 
 use super::live::{self, Sources};
