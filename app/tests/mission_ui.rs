@@ -747,7 +747,7 @@ fn the_inspector_offers_the_lost_contingency_and_the_plan_file_keeps_it() {
     // The plan as a whole: skip the rest of a leg when the localiser is lost.
     harness.state_mut().mission_mut().unwrap().editor.selection = Selection::None;
     harness.run();
-    assert_eq!(lost_choice(&harness), "stop the mission");
+    assert_eq!(lost_choice(&harness), "drive on regardless");
     harness
         .get_by_label("when lost (module `localiser`)")
         .click();

@@ -193,7 +193,7 @@ fn a_kidnapped_robot_is_shown_lost_and_its_rehearsal_fails_in_words() {
     assert!(shown(&harness, &reason) >= 2, "{reason}: {verdict:#?}");
     harness.get_by_label(" FAILED by the simulator's truth ");
     // The legs table: the leg, its way, and its true error marked as the simulator's.
-    harness.get_by_label("home → gate");
+    harness.get_by_label("home to gate");
     harness.get_by_label(&format!("{error:.2} m (simulator) FAILED"));
 }
 

@@ -458,8 +458,8 @@ fn the_mappers_grid_and_corrected_pose_are_shown_on_the_live_map() {
     assert_eq!(sources.grid.as_deref(), Some("mapper.map"));
     assert_eq!(
         sources.estimated.as_deref(),
-        Some("mapper.pose"),
-        "the estimated pose is the mapper's corrected one when there is a mapper"
+        Some("localiser.pose"),
+        "the estimated pose is the one the follower drives by, not the mapper's beside it"
     );
     step_until(
         &mut harness,

@@ -658,9 +658,12 @@ fn plan_settings_ui(
             .find(|c| same_slot(&c.trigger, &trigger))
             .map(|c| c.response.clone());
         let key = format!("p-{}", trigger.describe());
-        if let Some(response) =
-            response_ui(ui, &key, &trigger, current, &waypoints, "stop the mission")
-        {
+        // Blocked or late with no response stops the mission; lost with none has no effect.
+        let unset = match trigger {
+            Trigger::Lost { .. } => "drive on regardless",
+            _ => "stop the mission",
+        };
+        if let Some(response) = response_ui(ui, &key, &trigger, current, &waypoints, unset) {
             edits.change(&key, |plan| {
                 plan.contingencies
                     .retain(|c| !same_slot(&c.trigger, &trigger));

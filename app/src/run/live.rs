@@ -81,17 +81,26 @@ impl Sources {
         };
         Sources {
             truth: find(&|_, name, data_type| data_type == "Pose2D" && name.contains("truth")),
-            // What the follower drives by, in the bundled systems: the localiser's pose on the
-            // map; the sim's odometry, listed first, is only its input.
-            estimated: find(&|module_type, _, data_type| {
-                module_type == "localiser" && data_type == "Odometry"
-            })
-            .or_else(|| {
-                find(&|module_type, _, data_type| {
-                    module_type == "mapper" && data_type == "Odometry"
+            // What the robot drives by: the pose linked to the follower's odometry (in the
+            // bundled systems the localiser's; the mapper's in a building nobody mapped), else
+            // a localiser's, a mapper's, any odometry.
+            estimated: driven_by(system)
+                .filter(|name| {
+                    outputs
+                        .iter()
+                        .any(|(_, output, data_type)| output == name && data_type == "Odometry")
                 })
-            })
-            .or_else(|| find(&|_, _, data_type| data_type == "Odometry")),
+                .or_else(|| {
+                    find(&|module_type, _, data_type| {
+                        module_type == "localiser" && data_type == "Odometry"
+                    })
+                })
+                .or_else(|| {
+                    find(&|module_type, _, data_type| {
+                        module_type == "mapper" && data_type == "Odometry"
+                    })
+                })
+                .or_else(|| find(&|_, _, data_type| data_type == "Odometry")),
             estimate: find(&|_, _, data_type| data_type == PoseEstimate::TYPE),
             scan: find(&|_, _, data_type| data_type == "LaserScan"),
             grid: find(&|_, _, data_type| data_type == "OccupancyGrid"),
@@ -137,6 +146,20 @@ impl Sources {
             .find(|(name, _)| name == data_name)
             .map(|(_, data_type)| data_type.as_str())
     }
+}
+
+/// The output linked to the `odometry` input of the system's follower (`localiser.pose`).
+fn driven_by(system: &SystemConfig) -> Option<String> {
+    let follower = system
+        .modules
+        .iter()
+        .find(|module| module.module_type == "follower")?;
+    system
+        .links
+        .iter()
+        .filter(|link| link.to.module == follower.name && link.to.port == "odometry")
+        .min_by_key(|link| link.fallback)
+        .map(|link| format!("{}.{}", link.from.module, link.from.port))
 }
 
 /// The latest of each, with the true path so far.
@@ -535,6 +558,91 @@ mod tests {
         assert_eq!(live.truth.map(|pose| pose.x_m), Some(1.0));
         live.take(&sources, "other.thing", &[1, 2, 3]);
         assert_eq!(live.samples, 5);
+    }
+
+    fn description(module_type: &str, outputs: &[(&str, &str)]) -> ModuleDescription {
+        let mut description = ModuleDescription::new(module_type, "");
+        for (name, data_type) in outputs {
+            description
+                .outputs
+                .push(armor_module_api::describe::PortSpec {
+                    name: (*name).to_owned(),
+                    data_type: (*data_type).to_owned(),
+                    doc: String::new(),
+                });
+        }
+        description
+    }
+
+    #[test]
+    fn the_estimated_pose_is_the_one_the_follower_drives_by() {
+        let descriptions = [
+            description("sim", &[("odometry", "Odometry"), ("pose_truth", "Pose2D")]),
+            description(
+                "localiser",
+                &[("pose", "Odometry"), ("estimate", "PoseEstimate")],
+            ),
+            description("mapper", &[("pose", "Odometry")]),
+            description("follower", &[]),
+        ];
+        let describe = |module_type: &str| {
+            descriptions
+                .iter()
+                .find(|d| d.module_type == module_type)
+                .cloned()
+        };
+        let system = |driven_by: &str| {
+            SystemConfig::parse(&format!(
+                r#"<system name="s">
+                     <module name="sim" type="sim"/><module name="mapper" type="mapper"/>
+                     <module name="localiser" type="localiser"/>
+                     <module name="follower" type="follower"/>
+                     <link from="{driven_by}" to="follower.odometry"/>
+                   </system>"#
+            ))
+            .expect("a valid system")
+        };
+        let sources = Sources::of(&system("localiser.pose"), describe);
+        assert_eq!(sources.estimated.as_deref(), Some("localiser.pose"));
+        assert_eq!(sources.estimate.as_deref(), Some("localiser.estimate"));
+        assert_eq!(sources.truth.as_deref(), Some("sim.pose_truth"));
+        let sources = Sources::of(&system("mapper.pose"), describe);
+        assert_eq!(sources.estimated.as_deref(), Some("mapper.pose"));
+        // Driven by the sim's odometry, the map shows that, with the localiser's estimate.
+        let sources = Sources::of(&system("sim.odometry"), describe);
+        assert_eq!(sources.estimated.as_deref(), Some("sim.odometry"));
+        assert_eq!(sources.estimate.as_deref(), Some("localiser.estimate"));
+    }
+
+    #[test]
+    fn an_estimate_is_taken_unless_its_pose_cannot_be_drawn() {
+        let sources = Sources {
+            estimate: Some("localiser.estimate".into()),
+            ..Sources::default()
+        };
+        let mut live = LiveData::default();
+        let good = PoseEstimate {
+            pose_in_map: Pose2D {
+                x_m: 4.0,
+                y_m: 4.0,
+                theta_rad: 0.0,
+            },
+            covariance: [0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.001],
+            fit: 0.9,
+            state: armor_module_api::types::LocalisationState::Localised,
+        };
+        live.take(&sources, "localiser.estimate", &encode(&good));
+        assert_eq!(live.estimate, Some(good));
+        let hostile = PoseEstimate {
+            pose_in_map: Pose2D {
+                x_m: f64::NAN,
+                ..good.pose_in_map
+            },
+            ..good
+        };
+        live.take(&sources, "localiser.estimate", &encode(&hostile));
+        assert_eq!(live.estimate, Some(good), "the last good one stays");
+        assert!(live.refused.is_some_and(|r| r.contains("pose's x")));
     }
 
     #[test]

@@ -838,7 +838,7 @@ impl RunView {
         } else {
             plan_legs
                 .iter()
-                .map(|(name, from, to)| (name.clone(), format!("{from} → {to}")))
+                .map(|(name, from, to)| (name.clone(), format!("{from} to {to}")))
                 .collect()
         };
         ui.label(RichText::new("Legs").strong());
@@ -1244,14 +1244,21 @@ impl RunView {
         }
         let mut drawn = BTreeMap::new();
         let map = mission.watch_ui(ui, current_leg, |painter, project, plan_labels| {
-            monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
+            let labels = monitor::paint_live(
+                painter,
+                project,
+                &live,
+                grid_texture.as_ref(),
+                &followed,
+                plan_labels,
+            );
             drawn = markers::paint(
                 painter,
                 project,
                 &live.markers,
                 &hidden,
                 live.scan_pose(),
-                plan_labels,
+                &labels,
             );
         });
         let set_pose = set_pose_tool
@@ -1343,12 +1350,14 @@ fn set_pose_ui(
     }
     let to = mission.world_at(pointer)?;
     let heading_deg = (to.y - from.y).atan2(to.x - from.x).to_degrees();
-    // Centimetres and tenths of a degree: what a hand on a map can mean.
-    let round = |value: f64, step: f64| (value / step).round() * step;
+    // Centimetres and tenths of a degree: what a hand on a map can mean. Divided rather than
+    // multiplied by the step, so that the value prints as short as it reads (7.1, not
+    // 7.1000000000000005).
+    let round = |value: f64, per_unit: f64| (value * per_unit).round() / per_unit;
     Some(Request::SetPose {
-        x_m: round(from.x, 0.01),
-        y_m: round(from.y, 0.01),
-        heading_deg: round(heading_deg, 0.1),
+        x_m: round(from.x, 100.0),
+        y_m: round(from.y, 100.0),
+        heading_deg: round(heading_deg, 10.0),
         module: None,
     })
 }

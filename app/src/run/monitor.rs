@@ -361,14 +361,16 @@ pub fn grid_image(grid: &OccupancyGrid, max_side: usize) -> Result<egui::ColorIm
 }
 
 /// Paints the grid, the paths the follower follows and replaced, the true path, the scan and
-/// both poses.
+/// both poses, each labelled clear of `plan_labels` (the boxes of the plan's own labels).
+/// Returns those boxes with the poses' labels', for what is drawn next to keep clear of.
 pub fn paint_live(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     live: &LiveData,
     grid: Option<&(egui::TextureHandle, Arc<OccupancyGrid>)>,
     followed: &FollowedLeg,
-) {
+    plan_labels: &[egui::Rect],
+) -> Vec<egui::Rect> {
     if let Some((texture, grid)) = grid {
         let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
         let max = project(Point::new(
@@ -424,7 +426,7 @@ pub fn paint_live(
     if let Some(pose) = &live.estimated {
         robot(painter, project, pose, ESTIMATE);
     }
-    let mut taken = Vec::new();
+    let mut taken = plan_labels.to_vec();
     if let Some(pose) = &live.estimated {
         let (text, colour) = match &live.estimate {
             Some(estimate) => (
@@ -454,6 +456,7 @@ pub fn paint_live(
             &mut taken,
         );
     }
+    taken
 }
 
 /// Points of the uncertainty ellipse's outline.
@@ -468,8 +471,8 @@ enum Side {
     Below,
 }
 
-/// A word on a filled tag beside a robot: above it or below it, moved further out when it
-/// would cover a tag already drawn (`taken`).
+/// A word on a filled tag beside a robot: above it or below it, else on a side where it covers
+/// no label or tag already drawn (`taken`).
 fn tag(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
@@ -491,17 +494,22 @@ fn tag(
         Color32::WHITE,
     );
     let size = galley.size() + egui::vec2(10.0, 4.0);
-    let step = match side {
-        Side::Above => -1.0,
-        Side::Below => 1.0,
+    // Beside the robot, on the side asked first, then the other sides; where none is free, the
+    // side asked (a tag far from its robot would say nothing).
+    let gap = radius + 4.0;
+    let above = egui::vec2(0.0, -(gap + size.y / 2.0));
+    let below = egui::vec2(0.0, gap + size.y / 2.0);
+    let right = egui::vec2(gap + size.x / 2.0, 0.0);
+    let left = egui::vec2(-(gap + size.x / 2.0), 0.0);
+    let offsets = match side {
+        Side::Above => [above, right, left, below],
+        Side::Below => [below, right, left, above],
     };
-    let mut rect = egui::Rect::from_center_size(
-        centre + egui::vec2(0.0, step * (radius + 4.0 + size.y / 2.0)),
-        size,
-    );
-    while taken.iter().any(|other| other.intersects(rect)) {
-        rect = rect.translate(egui::vec2(0.0, step * (size.y + 2.0)));
-    }
+    let rect = offsets
+        .iter()
+        .map(|offset| egui::Rect::from_center_size(centre + *offset, size))
+        .find(|rect| !taken.iter().any(|other| other.intersects(*rect)))
+        .unwrap_or_else(|| egui::Rect::from_center_size(centre + offsets[0], size));
     painter.rect(
         rect,
         4.0,
@@ -618,6 +626,7 @@ fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D
 mod tests {
     use super::*;
     use armor_module_api::protocol::NodeStats;
+    use std::f64::consts::PI;
 
     fn sample(at_secs: f64, cycles: u64, busy_us: u64, sent: u64) -> Sample {
         Sample {
@@ -630,6 +639,81 @@ mod tests {
                 ..Default::default()
             },
         }
+    }
+
+    fn estimate(covariance: [f64; 9]) -> PoseEstimate {
+        PoseEstimate {
+            covariance,
+            ..PoseEstimate::default()
+        }
+    }
+
+    /// The outline's farthest point from the centre: its distance and direction (radians).
+    fn major(outline: &[Point]) -> (f64, f64) {
+        outline
+            .iter()
+            .map(|p| (p.x.hypot(p.y), p.y.atan2(p.x)))
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .unwrap_or_default()
+    }
+
+    #[test]
+    fn the_ellipse_spans_two_standard_deviations_along_the_covariance_s_axes() {
+        // σx = 0.2 m, σy = 0.1 m: 0.4 m along x, 0.2 m along y.
+        let outline = uncertainty_ellipse(
+            &estimate([0.04, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0]),
+            Point::new(0.0, 0.0),
+            360,
+        )
+        .expect("an ellipse");
+        let (length, direction) = major(&outline);
+        assert!((length - 0.4).abs() < 1e-9, "{length}");
+        assert!(direction.abs() < 1e-9 || (direction.abs() - PI).abs() < 1e-9);
+        let least = outline
+            .iter()
+            .map(|p| p.x.hypot(p.y))
+            .fold(f64::INFINITY, f64::min);
+        assert!((least - 0.2).abs() < 1e-9, "{least}");
+        // Correlated x and y: eigenvalues 0.03 and 0.01, the long axis (2 × √0.03 m) on the
+        // diagonal.
+        let outline = uncertainty_ellipse(
+            &estimate([0.02, 0.01, 0.0, 0.01, 0.02, 0.0, 0.0, 0.0, 0.0]),
+            Point::new(3.0, 4.0),
+            360,
+        )
+        .expect("an ellipse");
+        let centred: Vec<Point> = outline
+            .iter()
+            .map(|p| Point::new(p.x - 3.0, p.y - 4.0))
+            .collect();
+        let (length, direction) = major(&centred);
+        assert!((length - 2.0 * 0.03_f64.sqrt()).abs() < 1e-9, "{length}");
+        assert!(
+            (direction.abs() - PI / 4.0).abs() < 1e-6
+                || (direction.abs() - 3.0 * PI / 4.0).abs() < 1e-6,
+            "{direction}"
+        );
+    }
+
+    #[test]
+    fn a_covariance_that_is_none_or_too_wide_draws_no_ellipse() {
+        let at = Point::new(0.0, 0.0);
+        for covariance in [
+            [f64::NAN, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0],
+            [-0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0],
+            [1e300, 0.0, 0.0, 0.0, 1e300, 0.0, 0.0, 0.0, 0.0],
+            [f64::INFINITY, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0],
+        ] {
+            assert_eq!(
+                uncertainty_ellipse(&estimate(covariance), at, 8),
+                None,
+                "{covariance:?}"
+            );
+        }
+        assert!(
+            uncertainty_ellipse(&estimate([0.0; 9]), at, 8).is_some(),
+            "a point is one"
+        );
     }
 
     #[test]

@@ -887,6 +887,56 @@ mod tests {
     }
 
     #[test]
+    fn the_reports_rehearsal_reads_back_as_the_verdict_it_was_written_from() {
+        use armor_model::geo::{Point, Polygon};
+        use armor_model::rehearsal::{Arrival, NoGoArea, Rules, TruePose, judge};
+        let poses: Vec<TruePose> = (0..=20)
+            .map(|i| TruePose {
+                at_secs: f64::from(i),
+                at: Point::new(f64::from(i) * 0.5, 2.0),
+            })
+            .collect();
+        let arrivals = [
+            Arrival {
+                leg: "advance".into(),
+                waypoint: "gate".into(),
+                target: Point::new(10.0, 0.0),
+                at_secs: 20.0,
+            },
+            Arrival {
+                leg: "back".into(),
+                waypoint: "home".into(),
+                target: Point::new(0.0, 0.0),
+                at_secs: 400.0,
+            },
+        ];
+        let area = NoGoArea {
+            name: "spill".into(),
+            polygon: Polygon::new(vec![
+                Point::new(4.0, 1.5),
+                Point::new(6.0, 1.5),
+                Point::new(6.0, 3.0),
+                Point::new(4.0, 3.0),
+            ]),
+        };
+        let rules = Rules {
+            radius_m: 0.3,
+            tolerance_m: 0.3,
+        };
+        let verdict = judge(&poses, &arrivals, &[area], rules);
+        assert!(
+            !verdict.passed && verdict.failures.len() >= 2,
+            "{verdict:#?}"
+        );
+        let report = armor_runtime::rehearsal::report(&verdict, "sim.pose_truth");
+        let text = serde_json::to_string(&report).unwrap_or_default();
+        let back = rehearsal(&serde_json::from_str(&text).unwrap_or_default());
+        assert_eq!(back, Some(verdict));
+        assert_eq!(rehearsal(&serde_json::json!({"passed": true})), None);
+        assert_eq!(rehearsal(&serde_json::Value::Null), None);
+    }
+
+    #[test]
     fn timestamps_are_taken_off_log_lines() {
         assert_eq!(
             strip_timestamp("2026-11-23T06:40:00.123456Z  INFO armor: fired `go`"),
