@@ -482,12 +482,9 @@ fn tag(
     side: Side,
     taken: &mut Vec<egui::Rect>,
 ) {
-    let centre = project(Point::new(pose.x_m, pose.y_m));
-    if !centre.is_finite() {
+    let Some((centre, _, radius)) = on_screen(project, pose) else {
         return;
-    }
-    let metre = (project(Point::new(pose.x_m + 1.0, pose.y_m)) - centre).length();
-    let radius = (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0);
+    };
     let galley = painter.layout_no_wrap(
         text.to_owned(),
         egui::FontId::proportional(14.0),
@@ -524,19 +521,10 @@ fn tag(
 /// The simulator's pose: the robot's outline only, dashed, with its heading as a line, so that
 /// it never reads as a second robot nor hides the estimate drawn over it.
 fn true_robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D) {
-    let centre = project(Point::new(pose.x_m, pose.y_m));
-    let (sin, cos) = pose.theta_rad.sin_cos();
-    let ahead = project(Point::new(pose.x_m + cos, pose.y_m + sin)) - centre;
-    let metre = ahead.length();
-    if !metre.is_finite() || !centre.is_finite() {
+    let Some((centre, dir, radius)) = on_screen(project, pose) else {
         return;
-    }
-    let dir = if metre > 0.0 {
-        ahead / metre
-    } else {
-        egui::vec2(1.0, 0.0)
     };
-    let radius = (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0) + 3.0;
+    let radius = radius + 3.0;
     let outline: Vec<Pos2> = (0..=40)
         .map(|i| {
             let t = std::f32::consts::TAU * i as f32 / 40.0;
@@ -587,22 +575,31 @@ pub fn pad_button(ui: &mut Ui, direction: egui::Vec2, name: &str) -> bool {
 /// The least a robot is drawn across, in points, whatever the zoom: a newcomer must find it.
 pub const ROBOT_MIN_POINTS: f32 = 26.0;
 
-/// A robot: a disc with an arrow pointing where it heads, its real size (0.6 m) or
-/// [`ROBOT_MIN_POINTS`] across, whichever is larger, rimmed so it shows on any tile.
-fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D, colour: Color32) {
+/// Where a robot at `pose` is drawn: its centre, the unit vector of its heading on the screen
+/// and its radius (its real 0.3 m or half [`ROBOT_MIN_POINTS`], whichever is larger); `None`
+/// when the projection is not finite.
+fn on_screen(project: &dyn Fn(Point) -> Pos2, pose: &Pose2D) -> Option<(Pos2, egui::Vec2, f32)> {
     let centre = project(Point::new(pose.x_m, pose.y_m));
     let (sin, cos) = pose.theta_rad.sin_cos();
     let ahead = project(Point::new(pose.x_m + cos, pose.y_m + sin)) - centre;
     let metre = ahead.length();
     if !metre.is_finite() || !centre.is_finite() {
-        return;
+        return None;
     }
     let dir = if metre > 0.0 {
         ahead / metre
     } else {
         egui::vec2(1.0, 0.0)
     };
-    let radius = (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0);
+    Some((centre, dir, (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0)))
+}
+
+/// A robot: a disc with an arrow pointing where it heads, its real size (0.6 m) or
+/// [`ROBOT_MIN_POINTS`] across, whichever is larger, rimmed so it shows on any tile.
+fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D, colour: Color32) {
+    let Some((centre, dir, radius)) = on_screen(project, pose) else {
+        return;
+    };
     painter.circle(
         centre,
         radius,
