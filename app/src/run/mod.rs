@@ -762,7 +762,12 @@ impl RunView {
             }
         }
         let running = self.is_running();
-        let may = running && has_localiser && self.may_command();
+        // With a key, the role is known once the control link proved it: until then (a new
+        // attachment), the tool waits rather than offer an observer what it may not do.
+        let proven = self.session.as_ref().is_none_or(|session| {
+            session.options.secret.is_none() || session.shared().role.is_some()
+        });
+        let may = running && has_localiser && proven && self.may_command();
         let hint = if !self.may_command() {
             "attached with an observer's key: setting the pose needs an operator's"
         } else if !running {
