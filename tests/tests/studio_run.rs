@@ -595,14 +595,22 @@ fn a_system_with_access_lists_is_watched_all_the_same() {
     });
 }
 
+/// Writes `text` to `file`, readable by its owner only (as secrets and keys must be).
+fn private_file(file: &Path, text: &str) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt as _;
+    std::fs::write(file, text).unwrap();
+    std::fs::set_permissions(file, std::fs::Permissions::from_mode(0o600)).unwrap();
+    file.to_path_buf()
+}
+
 #[test]
 fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
-    use std::os::unix::fs::PermissionsExt as _;
     let dir = tempfile::tempdir().unwrap();
     let system = robot_system(dir.path());
-    let secret_file = dir.path().join("secret");
-    std::fs::write(&secret_file, "thirty-two bytes of shared secret").unwrap();
-    std::fs::set_permissions(&secret_file, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let secret_file = private_file(
+        &dir.path().join("secret"),
+        "thirty-two bytes of shared secret",
+    );
     let mut harness = harness(dir.path());
     harness.state_mut().run_mut().secret_file = secret_file.display().to_string();
     open_and_run(&mut harness, &system, 1.0);
@@ -918,12 +926,12 @@ fn drag(harness: &mut Harness<'_, StudioApp>, from: Pos2, to: Pos2) {
 
 #[test]
 fn the_pose_is_set_by_a_drag_on_the_map_and_an_observer_sees_the_tool_greyed() {
-    use std::os::unix::fs::PermissionsExt as _;
     let dir = tempfile::tempdir().unwrap();
     let system = robot_system(dir.path());
-    let secret_file = dir.path().join("secret");
-    std::fs::write(&secret_file, "thirty-two bytes of shared secret").unwrap();
-    std::fs::set_permissions(&secret_file, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let secret_file = private_file(
+        &dir.path().join("secret"),
+        "thirty-two bytes of shared secret",
+    );
     let mut harness = harness(dir.path());
     harness.state_mut().run_mut().secret_file = secret_file.display().to_string();
     open_and_run(&mut harness, &system, 1.0);
@@ -946,14 +954,12 @@ fn the_pose_is_set_by_a_drag_on_the_map_and_an_observer_sees_the_tool_greyed() {
     let truth = harness.state().run().live().truth.unwrap();
 
     // An observer's key: the same tool, greyed.
-    let observer_key = dir.path().join("observer.key");
     let secret = armor_module_api::auth::Secret::load(&secret_file).unwrap();
     let key = RoleKey {
         role: Role::Observer,
         key: secret.role_key(Role::Observer),
     };
-    std::fs::write(&observer_key, key.to_line()).unwrap();
-    std::fs::set_permissions(&observer_key, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let observer_key = private_file(&dir.path().join("observer.key"), &key.to_line());
     let control = harness
         .state()
         .run()
