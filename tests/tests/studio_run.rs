@@ -603,17 +603,20 @@ fn private_file(file: &Path, text: &str) -> PathBuf {
     file.to_path_buf()
 }
 
+/// The robot system run from the studio with a shared secret in `dir`; the secret's file.
+fn run_with_a_secret(dir: &Path) -> (Harness<'static, StudioApp>, PathBuf) {
+    let system = robot_system(dir);
+    let secret_file = private_file(&dir.join("secret"), "thirty-two bytes of shared secret");
+    let mut harness = harness(dir);
+    harness.state_mut().run_mut().secret_file = secret_file.display().to_string();
+    open_and_run(&mut harness, &system, 1.0);
+    (harness, secret_file)
+}
+
 #[test]
 fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
     let dir = tempfile::tempdir().unwrap();
-    let system = robot_system(dir.path());
-    let secret_file = private_file(
-        &dir.path().join("secret"),
-        "thirty-two bytes of shared secret",
-    );
-    let mut harness = harness(dir.path());
-    harness.state_mut().run_mut().secret_file = secret_file.display().to_string();
-    open_and_run(&mut harness, &system, 1.0);
+    let (mut harness, secret_file) = run_with_a_secret(dir.path());
     // The module monitor and the live map both come through connections that prove it.
     step_until(
         &mut harness,
@@ -927,14 +930,7 @@ fn drag(harness: &mut Harness<'_, StudioApp>, from: Pos2, to: Pos2) {
 #[test]
 fn the_pose_is_set_by_a_drag_on_the_map_and_an_observer_sees_the_tool_greyed() {
     let dir = tempfile::tempdir().unwrap();
-    let system = robot_system(dir.path());
-    let secret_file = private_file(
-        &dir.path().join("secret"),
-        "thirty-two bytes of shared secret",
-    );
-    let mut harness = harness(dir.path());
-    harness.state_mut().run_mut().secret_file = secret_file.display().to_string();
-    open_and_run(&mut harness, &system, 1.0);
+    let (mut harness, secret_file) = run_with_a_secret(dir.path());
     // The robot held still: only the operator moves it.
     for module in ["follower", "observer"] {
         harness.state_mut().run_mut().request(Request::StopModule {
