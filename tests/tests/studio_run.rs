@@ -603,6 +603,12 @@ fn private_file(file: &Path, text: &str) -> PathBuf {
     file.to_path_buf()
 }
 
+/// The control address of the run the studio started.
+fn control_addr(app: &StudioApp) -> std::net::SocketAddr {
+    let session = app.run().session.as_ref().unwrap();
+    session.shared().control_addr.unwrap()
+}
+
 /// The robot system run from the studio with a shared secret in `dir`; the secret's file.
 fn run_with_a_secret(dir: &Path) -> (Harness<'static, StudioApp>, PathBuf) {
     let system = robot_system(dir);
@@ -628,15 +634,7 @@ fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
         },
     );
     // The run requires it: its control interface refuses a client without it.
-    let control = harness
-        .state()
-        .run()
-        .session
-        .as_ref()
-        .unwrap()
-        .shared()
-        .control_addr;
-    let control = control.unwrap();
+    let control = control_addr(harness.state());
     // It sends such a client not a byte: the client says what that means.
     let refused = armor_runtime::control::request(control, &Request::Status, None)
         .map_err(|err| format!("{err:#}"));
@@ -956,15 +954,7 @@ fn the_pose_is_set_by_a_drag_on_the_map_and_an_observer_sees_the_tool_greyed() {
         key: secret.role_key(Role::Observer),
     };
     let observer_key = private_file(&dir.path().join("observer.key"), &key.to_line());
-    let control = harness
-        .state()
-        .run()
-        .session
-        .as_ref()
-        .unwrap()
-        .shared()
-        .control_addr
-        .unwrap();
+    let control = control_addr(harness.state());
     let mut observer = self::harness(&dir.path().join("observer"));
     observer.state_mut().set_view(View::Run);
     observer.state_mut().run_mut().secret_file = observer_key.display().to_string();
