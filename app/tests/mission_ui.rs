@@ -63,6 +63,16 @@ fn tap(harness: &mut Harness<'_, StudioApp>, at: Pos2) {
     click(harness, at);
 }
 
+/// A route through `points` (world metres), drawn with the waypoint tool.
+fn draw_route(harness: &mut Harness<'_, StudioApp>, points: &[(f64, f64)]) {
+    harness.key_press(Key::W);
+    harness.run();
+    for &(x, y) in points {
+        let p = at(harness, x, y);
+        tap(harness, p);
+    }
+}
+
 fn local(harness: &Harness<'_, StudioApp>, name: &str) -> (f64, f64) {
     let mission = harness.state().mission().unwrap();
     let plan = mission.plan();
@@ -159,12 +169,7 @@ fn waypoints_are_clicked_dragged_inserted_deleted_and_undone() {
 fn a_no_go_area_drawn_on_the_map_sends_the_route_round_it() {
     let dir = tempfile::tempdir().unwrap();
     let mut harness = yard(dir.path());
-    harness.key_press(Key::W);
-    harness.run();
-    for (x, y) in [(4.0, 4.0), (16.0, 4.0)] {
-        let p = at(&harness, x, y);
-        tap(&mut harness, p);
-    }
+    draw_route(&mut harness, &[(4.0, 4.0), (16.0, 4.0)]);
     let straight = harness
         .state()
         .mission()
@@ -254,12 +259,7 @@ fn an_unsaved_plan_is_offered_back_after_a_crash_and_its_net_exports_as_pnml() {
     let mut first = options(&home, None);
     first.autosave_every = std::time::Duration::ZERO;
     let mut harness = yard_with(first);
-    harness.key_press(Key::W);
-    harness.run();
-    for (x, y) in [(4.0, 4.0), (12.0, 4.0)] {
-        let p = at(&harness, x, y);
-        tap(&mut harness, p);
-    }
+    draw_route(&mut harness, &[(4.0, 4.0), (12.0, 4.0)]);
     assert!(home.join("recovery-plan.xml").exists());
     // The studio "crashes": it is dropped without on_exit.
     drop(harness);
@@ -327,12 +327,7 @@ fn a_new_plan_names_only_its_follower() {
 fn a_changed_plan_is_not_replaced_without_asking() {
     let dir = tempfile::tempdir().unwrap();
     let mut harness = yard(dir.path());
-    harness.key_press(Key::W);
-    harness.run();
-    for (x, y) in [(4.0, 4.0), (12.0, 4.0)] {
-        let p = at(&harness, x, y);
-        tap(&mut harness, p);
-    }
+    draw_route(&mut harness, &[(4.0, 4.0), (12.0, 4.0)]);
     assert_eq!(route(&harness), ["wp1>wp2"]);
     let new_plan = |harness: &mut Harness<'_, StudioApp>| {
         harness.get_by_label("File").click();
@@ -424,12 +419,7 @@ fn a_waypoint_is_placed_by_typing_metres_or_degrees_in_the_inspector() {
 fn each_leg_shows_its_path_and_a_leg_with_no_way_through_is_drawn_and_said_so() {
     let dir = tempfile::tempdir().unwrap();
     let mut harness = yard(dir.path());
-    harness.key_press(Key::W);
-    harness.run();
-    for (x, y) in [(4.0, 4.0), (16.0, 4.0)] {
-        let p = at(&harness, x, y);
-        tap(&mut harness, p);
-    }
+    draw_route(&mut harness, &[(4.0, 4.0), (16.0, 4.0)]);
     // A no-go area across the yard from its west boundary to its east one, between the two
     // waypoints... once moved north of it: the leg cannot get through.
     harness.key_press(Key::N);
@@ -640,12 +630,7 @@ fn during(harness: &Harness<'_, StudioApp>) -> armor_model::plan::Action {
 fn an_action_s_alternatives_are_added_ordered_given_modules_removed_and_drawn_in_the_net() {
     let dir = tempfile::tempdir().unwrap();
     let mut harness = yard(dir.path());
-    harness.key_press(Key::W);
-    harness.run();
-    for (x, y) in [(4.0, 4.0), (16.0, 4.0)] {
-        let p = at(&harness, x, y);
-        tap(&mut harness, p);
-    }
+    draw_route(&mut harness, &[(4.0, 4.0), (16.0, 4.0)]);
     harness.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
     harness.run();
     // The recorder beside the drive, picked from the system's modules.
@@ -725,4 +710,67 @@ fn an_action_s_alternatives_are_added_ordered_given_modules_removed_and_drawn_in
         "{}",
         plan.to_xml()
     );
+}
+
+/// The response chosen in the combo box `when lost (module `localiser`)`, as it shows (the
+/// leg's or the plan's, whichever the inspector shows).
+fn lost_choice(harness: &Harness<'_, StudioApp>) -> String {
+    let combo = harness.get_by_label("when lost (module `localiser`)");
+    combo.value().unwrap_or_default()
+}
+
+#[test]
+fn the_inspector_offers_the_lost_contingency_and_the_plan_file_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    draw_route(&mut harness, &[(4.0, 4.0), (16.0, 4.0)]);
+    // The plan as a whole: skip the rest of a leg when the localiser is lost.
+    harness.state_mut().mission_mut().unwrap().editor.selection = Selection::None;
+    harness.run();
+    assert_eq!(lost_choice(&harness), "drive on regardless");
+    harness
+        .get_by_label("when lost (module `localiser`)")
+        .click();
+    harness.run();
+    // Hold or skip only: a robot that does not know where it is cannot drive back anywhere.
+    assert!(
+        harness.query_by_label_contains("return to").is_none(),
+        "no `return` for lost"
+    );
+    harness.get_by_label("skip the rest of the leg").click();
+    harness.run();
+    // The leg: hold for the operator, whatever the plan says.
+    harness.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
+    harness.run();
+    assert_eq!(lost_choice(&harness), "as the plan says");
+    harness
+        .get_by_label("when lost (module `localiser`)")
+        .click();
+    harness.run();
+    harness.get_by_label("hold for the operator").click();
+    harness.run();
+    let file = dir.path().join("lost.xml");
+    let saved = harness.state_mut().mission_mut().unwrap().save(Some(&file));
+    assert!(saved.is_ok(), "{saved:?}");
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(
+        text.contains(r#"<contingency on="lost" do="skip"/>"#),
+        "{text}"
+    );
+    assert!(
+        text.contains(r#"<contingency on="lost" do="hold"/>"#),
+        "{text}"
+    );
+    // Read back: the inspector shows what was chosen.
+    let mut again = yard(dir.path());
+    let opened = again.state_mut().mission_mut().unwrap().open(&file);
+    assert!(opened.is_ok(), "{opened:?}");
+    again.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
+    again.run();
+    assert_eq!(lost_choice(&again), "hold for the operator");
+    again.state_mut().mission_mut().unwrap().editor.selection = Selection::None;
+    again.run();
+    assert_eq!(lost_choice(&again), "skip the rest of the leg");
+    let plan = again.state().mission().unwrap().plan().clone();
+    assert_eq!(plan.to_xml(), text, "read back as written");
 }

@@ -4,20 +4,25 @@
 //! driven with the arrow keys through the teleop module, and the recording of that drive opened
 //! into the same map; a crate only the sim knows of replanned round, the path followed and the
 //! one replaced drawn; the robot driven by its camera (the video panel holding the arrow keys)
-//! and the recorded video played back in the same panel.
+//! and the recorded video played back in the same panel; the localiser's estimate and the
+//! simulator's truth side by side (issue 33): a robot carried away mid-leg shown `localised`
+//! then `lost`, its rehearsal failing in words with the leg's true error, never a bare
+//! "complete"; the pose set by a drag on the map (rviz's "2D Pose Estimate"), the tool greyed
+//! for a studio attached with an observer's key.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use armor_model::world::Point;
-use armor_runtime::control::{ModuleState, Request, Status};
+use armor_module_api::types::LocalisationState;
+use armor_runtime::control::{ModuleState, Request, Role, RoleKey, Status};
 use armor_studio::app::View;
 use armor_studio::files::Home;
 use armor_studio::palette::Palette;
 use armor_studio::{Options, StudioApp};
 use armor_tests::{bin_dir, workspace_root};
-use egui::Key;
+use egui::{Key, Modifiers, Pos2};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable as _;
 
@@ -82,6 +87,11 @@ fn module_state(app: &StudioApp, name: &str) -> Option<ModuleState> {
 /// The robot system of `missions/robot`, its world and recording given as absolute paths so
 /// that the run works from `dir`.
 fn robot_system(dir: &Path) -> PathBuf {
+    robot_system_with(dir, "")
+}
+
+/// [`robot_system`] with `sim_params` (`<param …/>` elements) given to the sim.
+fn robot_system_with(dir: &Path, sim_params: &str) -> PathBuf {
     let world = workspace_root().join("assets/worlds/yard.world");
     let text = std::fs::read_to_string(workspace_root().join("missions/robot/system.xml"))
         .unwrap()
@@ -92,8 +102,13 @@ fn robot_system(dir: &Path) -> PathBuf {
         .replace(
             r#"value="truth.mcap""#,
             &format!(r#"value="{}""#, dir.join("truth.mcap").display()),
+        )
+        .replace(
+            r#"<module name="sim" type="sim">"#,
+            &format!(r#"<module name="sim" type="sim">{sim_params}"#),
         );
     assert!(text.contains(&world.display().to_string()));
+    assert!(text.contains(sim_params));
     let file = dir.join("system.xml");
     std::fs::write(&file, text).unwrap();
     file
@@ -458,8 +473,8 @@ fn the_mappers_grid_and_corrected_pose_are_shown_on_the_live_map() {
     assert_eq!(sources.grid.as_deref(), Some("mapper.map"));
     assert_eq!(
         sources.estimated.as_deref(),
-        Some("mapper.pose"),
-        "the estimated pose is the mapper's corrected one when there is a mapper"
+        Some("localiser.pose"),
+        "the estimated pose is the one the follower drives by, not the mapper's beside it"
     );
     step_until(
         &mut harness,
@@ -580,17 +595,34 @@ fn a_system_with_access_lists_is_watched_all_the_same() {
     });
 }
 
-#[test]
-fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
+/// Writes `text` to `file`, readable by its owner only (as secrets and keys must be).
+fn private_file(file: &Path, text: &str) -> PathBuf {
     use std::os::unix::fs::PermissionsExt as _;
-    let dir = tempfile::tempdir().unwrap();
-    let system = robot_system(dir.path());
-    let secret_file = dir.path().join("secret");
-    std::fs::write(&secret_file, "thirty-two bytes of shared secret").unwrap();
-    std::fs::set_permissions(&secret_file, std::fs::Permissions::from_mode(0o600)).unwrap();
-    let mut harness = harness(dir.path());
+    std::fs::write(file, text).unwrap();
+    std::fs::set_permissions(file, std::fs::Permissions::from_mode(0o600)).unwrap();
+    file.to_path_buf()
+}
+
+/// The control address of the run the studio started.
+fn control_addr(app: &StudioApp) -> std::net::SocketAddr {
+    let session = app.run().session.as_ref().unwrap();
+    session.shared().control_addr.unwrap()
+}
+
+/// The robot system run from the studio with a shared secret in `dir`; the secret's file.
+fn run_with_a_secret(dir: &Path) -> (Harness<'static, StudioApp>, PathBuf) {
+    let system = robot_system(dir);
+    let secret_file = private_file(&dir.join("secret"), "thirty-two bytes of shared secret");
+    let mut harness = harness(dir);
     harness.state_mut().run_mut().secret_file = secret_file.display().to_string();
     open_and_run(&mut harness, &system, 1.0);
+    (harness, secret_file)
+}
+
+#[test]
+fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut harness, secret_file) = run_with_a_secret(dir.path());
     // The module monitor and the live map both come through connections that prove it.
     step_until(
         &mut harness,
@@ -602,15 +634,7 @@ fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
         },
     );
     // The run requires it: its control interface refuses a client without it.
-    let control = harness
-        .state()
-        .run()
-        .session
-        .as_ref()
-        .unwrap()
-        .shared()
-        .control_addr;
-    let control = control.unwrap();
+    let control = control_addr(harness.state());
     // It sends such a client not a byte: the client says what that means.
     let refused = armor_runtime::control::request(control, &Request::Status, None)
         .map_err(|err| format!("{err:#}"));
@@ -801,6 +825,195 @@ fn behaviours_take_and_give_up_control_in_the_oscilloscope_and_markers_are_switc
         );
     }
 
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+}
+
+fn state(app: &StudioApp) -> Option<LocalisationState> {
+    app.run().live().estimate.map(|estimate| estimate.state)
+}
+
+fn shown(harness: &Harness<'_, StudioApp>, text: &str) -> usize {
+    harness.query_all_by_label_contains(text).count()
+}
+
+#[test]
+fn a_kidnapped_robot_is_shown_lost_and_its_rehearsal_fails_in_words() {
+    let dir = tempfile::tempdir().unwrap();
+    // Carried 10 m north of the line it drives at 14 s of simulated time (some metres into the
+    // leg, localised by then), where the laser sees another yard: its odometry does not see it,
+    // so the follower "arrives" 10 m or so from the gate by the truth.
+    robot_system_with(dir.path(), r#"<param name="kidnap" value="14 8 14 0"/>"#);
+    let file = dir.path().join("plan.xml");
+    std::fs::write(
+        &file,
+        r#"<plan name="short" system="system.xml">
+  <navigation module="follower" speed_mps="0.5"/>
+  <waypoint name="home" lat="43.5615360" lon="1.4690496"/>
+  <waypoint name="gate" lat="43.5615360" lon="1.4691986"/>
+  <leg name="advance" from="home" to="gate"/>
+</plan>"#,
+    )
+    .unwrap();
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &file, 2.0);
+    step_until(&mut harness, "the localiser localised", PATIENCE, |app| {
+        state(app) == Some(LocalisationState::Localised)
+    });
+    harness.step();
+    // In the panel and on the map's status line, with the estimate's spread; the estimate and
+    // the truth both known, each drawn.
+    assert!(shown(&harness, "localised") >= 2, "the state in words");
+    assert!(shown(&harness, "scan fit") >= 1, "the estimate's details");
+    let live = harness.state().run().live();
+    assert!(live.estimated.is_some() && live.truth.is_some());
+    step_until(&mut harness, "the localiser lost", PATIENCE, |app| {
+        state(app) == Some(LocalisationState::Lost)
+    });
+    harness.step();
+    assert!(shown(&harness, "lost") >= 2, "lost, in words");
+    step_until(&mut harness, "the run to end", PATIENCE, |app| {
+        app.run().ended().is_some()
+    });
+    harness.run_ok();
+    let ended = harness.state().run().ended().unwrap();
+    assert_eq!(
+        ended,
+        "ended: mission complete, rehearsal FAILED by the simulator's truth"
+    );
+    // The toolbar says so, never a bare "complete".
+    let words = format!("the run {ended}");
+    assert!(shown(&harness, &words) >= 1, "{words}");
+    assert_eq!(
+        shown(&harness, "the run ended: mission complete"),
+        shown(&harness, &words),
+        "never a bare `complete`"
+    );
+    let verdict = harness.state().run().rehearsal().unwrap();
+    assert!(!verdict.passed);
+    let error = verdict.arrivals[0].true_error_m.unwrap();
+    assert!(error > 9.0, "the leg truly ended {error} m off");
+    // Above the map and in the panel, the reason in words.
+    let reason = format!(
+        "leg `advance` arrived {error:.2} m from its waypoint `gate` by the simulator's truth"
+    );
+    assert!(shown(&harness, &reason) >= 2, "{reason}: {verdict:#?}");
+    harness.get_by_label(" FAILED by the simulator's truth ");
+    // The legs table: the leg, its way, and its true error marked as the simulator's.
+    harness.get_by_label("home to gate");
+    harness.get_by_label(&format!("{error:.2} m (simulator) FAILED"));
+}
+
+/// A press at `from`, a drag to `to` in small steps, a release there.
+fn drag(harness: &mut Harness<'_, StudioApp>, from: Pos2, to: Pos2) {
+    harness.hover_at(from);
+    harness.step();
+    harness.drag_at(from);
+    harness.step();
+    for i in 1..=12 {
+        harness.hover_at(from + (to - from) * (i as f32 / 12.0));
+        harness.step();
+    }
+    harness.event(egui::Event::PointerButton {
+        pos: to,
+        button: egui::PointerButton::Primary,
+        pressed: false,
+        modifiers: Modifiers::NONE,
+    });
+    harness.step();
+}
+
+#[test]
+fn the_pose_is_set_by_a_drag_on_the_map_and_an_observer_sees_the_tool_greyed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut harness, secret_file) = run_with_a_secret(dir.path());
+    // The robot held still: only the operator moves it.
+    for module in ["follower", "observer"] {
+        harness.state_mut().run_mut().request(Request::StopModule {
+            module: module.to_owned(),
+        });
+    }
+    step_until(
+        &mut harness,
+        "the drivers stopped and localised",
+        PATIENCE,
+        |app| {
+            module_state(app, "follower") == Some(ModuleState::Stopped)
+                && module_state(app, "observer") == Some(ModuleState::Stopped)
+                && state(app) == Some(LocalisationState::Localised)
+        },
+    );
+    let truth = harness.state().run().live().truth.unwrap();
+
+    // An observer's key: the same tool, greyed.
+    let secret = armor_module_api::auth::Secret::load(&secret_file).unwrap();
+    let key = RoleKey {
+        role: Role::Observer,
+        key: secret.role_key(Role::Observer),
+    };
+    let observer_key = private_file(&dir.path().join("observer.key"), &key.to_line());
+    let control = control_addr(harness.state());
+    let mut observer = self::harness(&dir.path().join("observer"));
+    observer.state_mut().set_view(View::Run);
+    observer.state_mut().run_mut().secret_file = observer_key.display().to_string();
+    let ctx = observer.ctx.clone();
+    observer.state_mut().run_mut().attach_bare(control, &ctx);
+    // Attached again with the run's files (its sources known), the observer's role proven.
+    step_until(&mut observer, "the observer attached", PATIENCE, |app| {
+        app.run().has_localiser()
+            && app.run().sources().is_some_and(|s| s.estimate.is_some())
+            && !app.run().may_command()
+    });
+    // Clicked, it does nothing: no tool to press on the map with.
+    let greyed = observer.get_by_label("📍 Set pose").rect().center();
+    observer.hover_at(greyed);
+    for pressed in [true, false] {
+        observer.event(egui::Event::PointerButton {
+            pos: greyed,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: Modifiers::NONE,
+        });
+    }
+    observer.run_ok();
+    assert!(
+        !observer.state().run().set_pose_tool,
+        "the tool is greyed for an observer"
+    );
+    drop(observer);
+
+    // The operator: the tool, then a press 2 m east and 1.5 m north of the robot, dragged
+    // north (up the screen) for a heading of 90°.
+    harness.get_by_label("📍 Set pose").click();
+    harness.run_ok();
+    assert!(harness.state().run().set_pose_tool);
+    let target = Point::new(truth.x_m + 2.0, truth.y_m + 1.5);
+    let (from, map) = harness
+        .state()
+        .run()
+        .own_map_view()
+        .unwrap()
+        .last_screen_of(target)
+        .unwrap();
+    assert!(map.contains(from), "{from:?} on the map {map:?}");
+    drag(&mut harness, from, from - egui::vec2(0.0, 60.0));
+    step_until(&mut harness, "the localiser's answer", PATIENCE, |app| {
+        !app.status().is_error && app.status().text.starts_with("`localiser`: pose set to")
+    });
+    assert!(!harness.state().run().set_pose_tool, "one pose per use");
+    step_until(
+        &mut harness,
+        "the estimate where it was set",
+        PATIENCE,
+        |app| {
+            app.run().live().estimated.is_some_and(|pose| {
+                (pose.x_m - target.x).hypot(pose.y_m - target.y) < 0.5
+                    && (pose.theta_rad - std::f64::consts::FRAC_PI_2).abs() < 0.3
+            })
+        },
+    );
     harness.get_by_label("■ Stop").click();
     step_until(&mut harness, "the run to stop", PATIENCE, |app| {
         !app.run().is_running()

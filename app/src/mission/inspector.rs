@@ -299,11 +299,11 @@ impl MissionView {
                         .iter()
                         .map(|w| w.name.clone())
                         .collect();
-                    for trigger in [Trigger::Blocked, Trigger::Late] {
+                    for trigger in triggers(&leg.contingencies) {
                         let current = leg
                             .contingencies
                             .iter()
-                            .find(|c| c.trigger == trigger)
+                            .find(|c| same_slot(&c.trigger, &trigger))
                             .map(|c| c.response.clone());
                         let key = format!("leg-{}", trigger.describe());
                         if let Some(response) =
@@ -651,18 +651,22 @@ fn plan_settings_ui(
     ui.separator();
     ui.label(RichText::new("Contingencies of every leg").strong());
     let waypoints: Vec<String> = plan.waypoints.iter().map(|w| w.name.clone()).collect();
-    for trigger in [Trigger::Blocked, Trigger::Late] {
+    for trigger in triggers(&plan.contingencies) {
         let current = plan
             .contingencies
             .iter()
-            .find(|c| c.trigger == trigger)
+            .find(|c| same_slot(&c.trigger, &trigger))
             .map(|c| c.response.clone());
         let key = format!("p-{}", trigger.describe());
-        if let Some(response) =
-            response_ui(ui, &key, &trigger, current, &waypoints, "stop the mission")
-        {
+        // Blocked or late with no response stops the mission; lost with none has no effect.
+        let unset = match trigger {
+            Trigger::Lost { .. } => "drive on regardless",
+            _ => "stop the mission",
+        };
+        if let Some(response) = response_ui(ui, &key, &trigger, current, &waypoints, unset) {
             edits.change(&key, |plan| {
-                plan.contingencies.retain(|c| c.trigger != trigger);
+                plan.contingencies
+                    .retain(|c| !same_slot(&c.trigger, &trigger));
                 if let Some(response) = response {
                     plan.contingencies.push(Contingency {
                         trigger,
@@ -722,8 +726,33 @@ fn rename_waypoint(plan: &mut Plan, old: &str, new: &str) {
     }
 }
 
+/// The triggers the inspector offers a response to, in this order: `blocked`, `late`, and
+/// `lost` of the localiser the contingencies already name (else the bundled systems'
+/// `localiser`). A module's `failed` is written in the plan file.
+fn triggers(contingencies: &[Contingency]) -> [Trigger; 3] {
+    let localiser = contingencies
+        .iter()
+        .find_map(|c| match &c.trigger {
+            Trigger::Lost { module } => Some(module.clone()),
+            _ => None,
+        })
+        .unwrap_or_else(|| armor_model::plan::DEFAULT_LOCALISER.to_owned());
+    [
+        Trigger::Blocked,
+        Trigger::Late,
+        Trigger::Lost { module: localiser },
+    ]
+}
+
+/// Whether two triggers take the same place in the inspector: equal, or both `lost` (a plan
+/// listens to one localiser).
+fn same_slot(a: &Trigger, b: &Trigger) -> bool {
+    matches!((a, b), (Trigger::Lost { .. }, Trigger::Lost { .. })) || a == b
+}
+
 fn set_contingency(leg: &mut Leg, trigger: Trigger, response: Option<Response>) {
-    leg.contingencies.retain(|c| c.trigger != trigger);
+    leg.contingencies
+        .retain(|c| !same_slot(&c.trigger, &trigger));
     if let Some(response) = response {
         leg.contingencies.push(Contingency {
             trigger,
@@ -754,11 +783,15 @@ fn response_ui(
     if *trigger == Trigger::Late {
         choices.push(Some(Response::Continue));
     }
-    choices.extend(waypoints.iter().map(|w| {
-        Some(Response::Return {
-            waypoint: w.clone(),
-        })
-    }));
+    // A robot that does not know where it is cannot drive back anywhere (the plan's reader
+    // refuses `return` on `lost`): hold or skip only.
+    if !matches!(trigger, Trigger::Lost { .. }) {
+        choices.extend(waypoints.iter().map(|w| {
+            Some(Response::Return {
+                waypoint: w.clone(),
+            })
+        }));
+    }
     egui::ComboBox::new(key, format!("when {}", trigger.describe()))
         .selected_text(describe(&choice))
         .show_ui(ui, |ui| {

@@ -197,6 +197,15 @@ impl MissionView {
         Some((at.to_pos2(), self.map.rect))
     }
 
+    /// The world-frame point (metres) under `pos` on the map drawn at the last frame: where
+    /// the operator pressed, for the Run view's set-pose tool.
+    pub fn world_at(&self, pos: Pos2) -> Option<Point> {
+        let projector = self.map.projector.as_ref()?;
+        let origin = self.surroundings.origin(&self.editor.plan);
+        let point = lat_lon_of(projector.unproject(pos.to_vec2())).to_local(origin);
+        (point.x.is_finite() && point.y.is_finite()).then_some(point)
+    }
+
     /// The map for watching a run: the plan with `current` (a leg) highlighted and no editing;
     /// `overlay` paints over it, given where a point of the world frame (metres) is on screen.
     pub fn watch_ui(

@@ -13,7 +13,9 @@ use std::time::Duration;
 
 use armor_model::SystemConfig;
 use armor_model::world::Point;
-use armor_module_api::types::{LaserScan, Markers, OccupancyGrid, Odometry, Pose2D, Text};
+use armor_module_api::types::{
+    LaserScan, Markers, OccupancyGrid, Odometry, Pose2D, PoseEstimate, Text,
+};
 use armor_module_api::{Datum, Event, ModuleDescription, ModuleSpec, Node, Standalone};
 
 use super::inspector::Outputs;
@@ -34,9 +36,11 @@ pub const MAX_RATE_HZ: f64 = 30.0;
 /// The data names the live views read.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Sources {
-    /// The robot's own estimate: a corrected pose (the mapper's) when there is one, else
-    /// odometry.
+    /// The robot's own estimate: the localiser's pose on the map when there is one, else a
+    /// corrected pose (the mapper's), else odometry.
     pub estimated: Option<String>,
+    /// The localiser's estimate with its covariance and state (`PoseEstimate`).
+    pub estimate: Option<String>,
     /// The simulator's ground truth.
     pub truth: Option<String>,
     pub scan: Option<String>,
@@ -51,7 +55,8 @@ pub struct Sources {
 
 impl Sources {
     /// Picks the outputs of a system by their data types: `Odometry` and `Pose2D` outputs named
-    /// like truth (`*truth*`) or not, the first `LaserScan`, the first `OccupancyGrid`.
+    /// like truth (`*truth*`) or not, the first `PoseEstimate`, the first `LaserScan`, the
+    /// first `OccupancyGrid`.
     pub fn of(
         system: &SystemConfig,
         describe: impl Fn(&str) -> Option<ModuleDescription>,
@@ -76,10 +81,27 @@ impl Sources {
         };
         Sources {
             truth: find(&|_, name, data_type| data_type == "Pose2D" && name.contains("truth")),
-            estimated: find(&|module_type, _, data_type| {
-                module_type == "mapper" && data_type == "Odometry"
-            })
-            .or_else(|| find(&|_, _, data_type| data_type == "Odometry")),
+            // What the robot drives by: the pose linked to the follower's odometry (in the
+            // bundled systems the localiser's; the mapper's in a building nobody mapped), else
+            // a localiser's, a mapper's, any odometry.
+            estimated: driven_by(system)
+                .filter(|name| {
+                    outputs
+                        .iter()
+                        .any(|(_, output, data_type)| output == name && data_type == "Odometry")
+                })
+                .or_else(|| {
+                    find(&|module_type, _, data_type| {
+                        module_type == "localiser" && data_type == "Odometry"
+                    })
+                })
+                .or_else(|| {
+                    find(&|module_type, _, data_type| {
+                        module_type == "mapper" && data_type == "Odometry"
+                    })
+                })
+                .or_else(|| find(&|_, _, data_type| data_type == "Odometry")),
+            estimate: find(&|_, _, data_type| data_type == PoseEstimate::TYPE),
             scan: find(&|_, _, data_type| data_type == "LaserScan"),
             grid: find(&|_, _, data_type| data_type == "OccupancyGrid"),
             path: find(&|module_type, name, data_type| {
@@ -101,6 +123,7 @@ impl Sources {
     fn names(&self) -> impl Iterator<Item = &String> {
         let mut names: Vec<&String> = [
             &self.estimated,
+            &self.estimate,
             &self.truth,
             &self.scan,
             &self.grid,
@@ -125,10 +148,26 @@ impl Sources {
     }
 }
 
+/// The output linked to the `odometry` input of the system's follower (`localiser.pose`).
+fn driven_by(system: &SystemConfig) -> Option<String> {
+    let follower = system
+        .modules
+        .iter()
+        .find(|module| module.module_type == "follower")?;
+    system
+        .links
+        .iter()
+        .filter(|link| link.to.module == follower.name && link.to.port == "odometry")
+        .min_by_key(|link| link.fallback)
+        .map(|link| format!("{}.{}", link.from.module, link.from.port))
+}
+
 /// The latest of each, with the true path so far.
 #[derive(Clone, Debug, Default)]
 pub struct LiveData {
     pub estimated: Option<Pose2D>,
+    /// The localiser's latest estimate: its covariance and state (none without a localiser).
+    pub estimate: Option<PoseEstimate>,
     pub truth: Option<Pose2D>,
     pub scan: Option<LaserScan>,
     /// Shared, not copied, by each frame's snapshot: it may hold millions of cells.
@@ -177,6 +216,11 @@ impl LiveData {
                 .map(|odometry| odometry.pose_in_odom)
                 .or_else(|_| Pose2D::decode(payload));
             checked(pose, untrusted::check_pose).map(|pose| self.estimated = Some(pose))
+        } else if is(&sources.estimate) {
+            checked(PoseEstimate::decode(payload), |estimate| {
+                untrusted::check_pose(&estimate.pose_in_map)
+            })
+            .map(|estimate| self.estimate = Some(estimate))
         } else if is(&sources.scan) {
             checked(LaserScan::decode(payload), untrusted::check_scan)
                 .map(|scan| self.scan = Some(scan))
@@ -389,9 +433,13 @@ impl Recording {
         };
         let sources = Sources {
             truth: first_of(&|m| m.data_type == "Pose2D" && m.data_name.contains("truth")),
-            estimated: first_of(&|m| m.data_type == "Odometry").or_else(|| {
-                first_of(&|m| m.data_type == "Pose2D" && !m.data_name.contains("truth"))
-            }),
+            // A localiser's pose (`localiser.pose`) before plain odometry, as in a run.
+            estimated: first_of(&|m| m.data_type == "Odometry" && m.data_name.ends_with(".pose"))
+                .or_else(|| first_of(&|m| m.data_type == "Odometry"))
+                .or_else(|| {
+                    first_of(&|m| m.data_type == "Pose2D" && !m.data_name.contains("truth"))
+                }),
+            estimate: first_of(&|m| m.data_type == PoseEstimate::TYPE),
             scan: first_of(&|m| m.data_type == "LaserScan"),
             grid: first_of(&|m| m.data_type == "OccupancyGrid"),
             path: first_of(&|m| m.data_type == "Text" && m.data_name.ends_with(".path")),
@@ -510,6 +558,91 @@ mod tests {
         assert_eq!(live.truth.map(|pose| pose.x_m), Some(1.0));
         live.take(&sources, "other.thing", &[1, 2, 3]);
         assert_eq!(live.samples, 5);
+    }
+
+    fn description(module_type: &str, outputs: &[(&str, &str)]) -> ModuleDescription {
+        let mut description = ModuleDescription::new(module_type, "");
+        for (name, data_type) in outputs {
+            description
+                .outputs
+                .push(armor_module_api::describe::PortSpec {
+                    name: (*name).to_owned(),
+                    data_type: (*data_type).to_owned(),
+                    doc: String::new(),
+                });
+        }
+        description
+    }
+
+    #[test]
+    fn the_estimated_pose_is_the_one_the_follower_drives_by() {
+        let descriptions = [
+            description("sim", &[("odometry", "Odometry"), ("pose_truth", "Pose2D")]),
+            description(
+                "localiser",
+                &[("pose", "Odometry"), ("estimate", "PoseEstimate")],
+            ),
+            description("mapper", &[("pose", "Odometry")]),
+            description("follower", &[]),
+        ];
+        let describe = |module_type: &str| {
+            descriptions
+                .iter()
+                .find(|d| d.module_type == module_type)
+                .cloned()
+        };
+        let system = |driven_by: &str| {
+            SystemConfig::parse(&format!(
+                r#"<system name="s">
+                     <module name="sim" type="sim"/><module name="mapper" type="mapper"/>
+                     <module name="localiser" type="localiser"/>
+                     <module name="follower" type="follower"/>
+                     <link from="{driven_by}" to="follower.odometry"/>
+                   </system>"#
+            ))
+            .expect("a valid system")
+        };
+        let sources = Sources::of(&system("localiser.pose"), describe);
+        assert_eq!(sources.estimated.as_deref(), Some("localiser.pose"));
+        assert_eq!(sources.estimate.as_deref(), Some("localiser.estimate"));
+        assert_eq!(sources.truth.as_deref(), Some("sim.pose_truth"));
+        let sources = Sources::of(&system("mapper.pose"), describe);
+        assert_eq!(sources.estimated.as_deref(), Some("mapper.pose"));
+        // Driven by the sim's odometry, the map shows that, with the localiser's estimate.
+        let sources = Sources::of(&system("sim.odometry"), describe);
+        assert_eq!(sources.estimated.as_deref(), Some("sim.odometry"));
+        assert_eq!(sources.estimate.as_deref(), Some("localiser.estimate"));
+    }
+
+    #[test]
+    fn an_estimate_is_taken_unless_its_pose_cannot_be_drawn() {
+        let sources = Sources {
+            estimate: Some("localiser.estimate".into()),
+            ..Sources::default()
+        };
+        let mut live = LiveData::default();
+        let good = PoseEstimate {
+            pose_in_map: Pose2D {
+                x_m: 4.0,
+                y_m: 4.0,
+                theta_rad: 0.0,
+            },
+            covariance: [0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.001],
+            fit: 0.9,
+            state: armor_module_api::types::LocalisationState::Localised,
+        };
+        live.take(&sources, "localiser.estimate", &encode(&good));
+        assert_eq!(live.estimate, Some(good));
+        let hostile = PoseEstimate {
+            pose_in_map: Pose2D {
+                x_m: f64::NAN,
+                ..good.pose_in_map
+            },
+            ..good
+        };
+        live.take(&sources, "localiser.estimate", &encode(&hostile));
+        assert_eq!(live.estimate, Some(good), "the last good one stays");
+        assert!(live.refused.is_some_and(|r| r.contains("pose's x")));
     }
 
     #[test]

@@ -31,13 +31,18 @@ use std::time::{Duration, Instant};
 use armor_model::plan::Origin;
 use armor_module_api::types::OccupancyGrid;
 use armor_runtime::control::{ModuleState, Request, RunFiles, Status};
-use egui::{Color32, RichText, Ui};
+use egui::{Color32, RichText, Stroke, Ui};
 
 use crate::diagram::Catalog;
 use crate::mission::{LegRoute, MissionView};
 use followed::FollowedLeg;
 use live::{LiveData, Recording, Sources};
 use session::{Level, RunOptions, RunSession};
+
+/// The module type whose pose the set-pose tool sets (`armor ctl set-pose`).
+const LOCALISER: &str = "localiser";
+/// A set-pose drag shorter than this (points) gives no heading: it is not sent.
+const SET_POSE_MIN_DRAG: f32 = 8.0;
 
 /// Teleoperation speeds at full stick.
 const DRIVE_MPS: f64 = 0.4;
@@ -117,6 +122,11 @@ pub struct RunView {
     /// The files of a run attached without its system file, written where the Run view reads
     /// them (kept as long as the attachment).
     attach_mirror: Option<attach::Mirror>,
+    /// The set-pose tool is chosen: a press on the map is where the robot is, the drag its
+    /// heading, the release sends it to the localiser (rviz's "2D Pose Estimate").
+    pub set_pose_tool: bool,
+    /// Where the set-pose press began (world frame), while the drag lasts.
+    set_pose_from: Option<armor_model::world::Point>,
 }
 
 impl RunView {
@@ -151,6 +161,8 @@ impl RunView {
             markers_drawn: BTreeMap::new(),
             attach_prompt: None,
             attach_mirror: None,
+            set_pose_tool: false,
+            set_pose_from: None,
         }
     }
 
@@ -237,6 +249,25 @@ impl RunView {
     /// How the run ended, once it has.
     pub fn ended(&self) -> Option<String> {
         self.session.as_ref().and_then(|s| s.shared().ended.clone())
+    }
+
+    /// A simulated plan run's verdict by the simulator's truth, once the run has ended.
+    pub fn rehearsal(&self) -> Option<armor_model::rehearsal::Verdict> {
+        self.session
+            .as_ref()
+            .and_then(|s| s.shared().rehearsal.clone())
+    }
+
+    /// Whether the run has a localiser whose pose can be set by hand: a module of that type, or
+    /// (attached without the system) an output carrying its estimate.
+    pub fn has_localiser(&self) -> bool {
+        let by_status = self.status().is_some_and(|status| {
+            status
+                .modules
+                .iter()
+                .any(|module| module.module_type == LOCALISER)
+        });
+        by_status || self.sources().is_some_and(|s| s.estimate.is_some())
     }
 
     /// The target a Run would start now.
@@ -447,8 +478,9 @@ impl RunView {
             if session.poll()
                 && let Some(ended) = session.shared().ended.clone()
             {
-                self.messages
-                    .push((!ended.contains("fail"), format!("the run {ended}")));
+                // `mission failed`, `rehearsal FAILED`: either is a failure.
+                let failed = ended.to_lowercase().contains("fail");
+                self.messages.push((!failed, format!("the run {ended}")));
             }
             let replies: Vec<_> = std::mem::take(&mut session.shared().replies);
             self.messages.extend(replies);
@@ -496,6 +528,18 @@ impl RunView {
             .default_size(380.0)
             .min_size(300.0)
             .show(ui, |ui| self.modules_ui(ui, status.as_ref()));
+        let legs: Vec<(String, String, String)> = surroundings
+            .mission
+            .as_ref()
+            .map(|mission| {
+                mission
+                    .plan()
+                    .legs
+                    .iter()
+                    .map(|leg| (leg.name.clone(), leg.from.clone(), leg.to.clone()))
+                    .collect()
+            })
+            .unwrap_or_default();
         egui::Panel::right("run-mission")
             .resizable(true)
             .default_size(320.0)
@@ -508,7 +552,9 @@ impl RunView {
                 egui::ScrollArea::vertical()
                     .id_salt("run-mission-scroll")
                     .show(ui, |ui| {
+                        self.localisation_ui(ui);
                         self.mission_ui(ui, status.as_ref());
+                        self.rehearsal_ui(ui, &legs);
                         self.views_ui(ui, status.as_ref());
                     });
             });
@@ -687,6 +733,144 @@ impl RunView {
         egui::CollapsingHeader::new("Sensors and motors")
             .id_salt("run-sensors-motors")
             .show(ui, |ui| sensors_motors::panel_ui(ui, &live.outputs, status));
+    }
+
+    /// The localiser's state in words and colour, and the set-pose tool.
+    fn localisation_ui(&mut self, ui: &mut Ui) {
+        let live = self.live();
+        let has_localiser = self.has_localiser();
+        if live.estimate.is_none() && !has_localiser {
+            return;
+        }
+        ui.heading("Localisation");
+        match &live.estimate {
+            Some(estimate) => {
+                ui.horizontal_wrapped(|ui| {
+                    ui.label(
+                        RichText::new(format!(" {} ", estimate.state.as_str()))
+                            .strong()
+                            .color(Color32::WHITE)
+                            .background_color(monitor::localisation_colour(estimate.state)),
+                    );
+                    let text = monitor::estimate_text(estimate);
+                    let details = text.split_once(" · ").map_or("", |(_, rest)| rest);
+                    ui.label(details);
+                });
+            }
+            None => {
+                ui.label("no estimate yet");
+            }
+        }
+        let running = self.is_running();
+        // With a key, the role is known once the control link proved it: until then (a new
+        // attachment), the tool waits rather than offer an observer what it may not do.
+        let proven = self.session.as_ref().is_none_or(|session| {
+            session.options.secret.is_none() || session.shared().role.is_some()
+        });
+        let may = running && has_localiser && proven && self.may_command();
+        let hint = if !self.may_command() {
+            "attached with an observer's key: setting the pose needs an operator's"
+        } else if !running {
+            "during a run"
+        } else {
+            "a run with a localiser"
+        };
+        let tool = ui
+            .add_enabled(
+                may,
+                egui::Button::selectable(self.set_pose_tool && may, "📍 Set pose"),
+            )
+            .on_hover_text(
+                "press on the map where the robot is, drag towards its heading, release: the                  localiser starts again from there (armor ctl set-pose)",
+            )
+            .on_disabled_hover_text(hint);
+        if tool.clicked() {
+            self.set_pose_tool = !self.set_pose_tool;
+            self.set_pose_from = None;
+        }
+        if !may {
+            self.set_pose_tool = false;
+            self.set_pose_from = None;
+        }
+        if self.set_pose_tool {
+            ui.label(
+                RichText::new("press where the robot is, drag towards its heading, release")
+                    .small(),
+            );
+        }
+        ui.separator();
+    }
+
+    /// A simulated plan run's verdict by the simulator's truth, once it ended: passed or failed
+    /// with every reason, each no-go area's least distance, and the legs with their true
+    /// errors.
+    fn rehearsal_ui(&mut self, ui: &mut Ui, plan_legs: &[(String, String, String)]) {
+        let Some(verdict) = self.rehearsal() else {
+            return;
+        };
+        ui.separator();
+        ui.heading("Rehearsal");
+        let (word, colour) = if verdict.passed {
+            ("passed", monitor::state_colour(ModuleState::Running))
+        } else {
+            ("FAILED", monitor::state_colour(ModuleState::Failed))
+        };
+        ui.label(
+            RichText::new(format!(" {word} by the simulator's truth "))
+                .strong()
+                .color(Color32::WHITE)
+                .background_color(colour),
+        );
+        for failure in &verdict.failures {
+            ui.label(RichText::new(failure).color(colour));
+        }
+        if verdict.passed {
+            ui.label(format!(
+                "every arrival within {:.2} m of its waypoint, no footprint met a no-go area",
+                verdict.allowed_m
+            ));
+        }
+        for line in verdict.area_lines() {
+            ui.label(RichText::new(line).small());
+        }
+        // The plan's legs, else (a run attached without its plan) the arrivals judged.
+        let legs: Vec<(String, String)> = if plan_legs.is_empty() {
+            verdict
+                .arrivals
+                .iter()
+                .map(|arrival| (arrival.leg.clone(), arrival.waypoint.clone()))
+                .collect()
+        } else {
+            plan_legs
+                .iter()
+                .map(|(name, from, to)| (name.clone(), format!("{from} to {to}")))
+                .collect()
+        };
+        ui.label(RichText::new("Legs").strong());
+        egui::Grid::new("run-rehearsal-legs")
+            .striped(true)
+            .show(ui, |ui| {
+                for heading in ["leg", "way", "arrived", "true error"] {
+                    ui.label(RichText::new(heading).strong());
+                }
+                ui.end_row();
+                for (leg, way) in legs {
+                    let arrival = verdict.arrivals.iter().find(|arrival| arrival.leg == leg);
+                    ui.label(&leg);
+                    ui.label(way);
+                    ui.label(arrival.map_or("-".to_owned(), |arrival| {
+                        format!("{:.1} s", arrival.arrived_secs)
+                    }));
+                    let error = verdict.true_error_text(&leg);
+                    let failed = arrival.is_some_and(|arrival| !arrival.ok);
+                    ui.label(if failed {
+                        RichText::new(error).color(colour)
+                    } else {
+                        RichText::new(error)
+                    });
+                    ui.end_row();
+                }
+            });
     }
 
     fn mission_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {
@@ -974,6 +1158,9 @@ impl RunView {
         let max_replans = self.max_replans;
         let hidden = self.hidden_markers.clone();
         let watching = self.is_running() || self.recording.is_some();
+        let verdict = self.rehearsal();
+        let set_pose_tool = self.set_pose_tool;
+        let mut set_pose_from = self.set_pose_from;
         // The camera beside the map.
         let images = self
             .sources()
@@ -1025,9 +1212,25 @@ impl RunView {
         // the plan's labels.
         // Once the run is over, nothing is being followed (the paths stay drawn as they were).
         let followed_text = followed.summary().filter(|_| watching);
-        if live.samples > 0 || live.refused.is_some() {
+        if live.samples > 0 || live.refused.is_some() || verdict.is_some() {
             egui::Panel::top("run-map-status").show(ui, |ui| {
+                if let Some(verdict) = &verdict {
+                    let colour = if verdict.passed {
+                        monitor::state_colour(ModuleState::Running)
+                    } else {
+                        monitor::state_colour(ModuleState::Failed)
+                    };
+                    ui.label(RichText::new(verdict.headline()).strong().color(colour));
+                }
                 ui.horizontal_wrapped(|ui| {
+                    if let Some(estimate) = &live.estimate {
+                        ui.label(
+                            RichText::new(format!(" {} ", estimate.state.as_str()))
+                                .strong()
+                                .color(Color32::WHITE)
+                                .background_color(monitor::localisation_colour(estimate.state)),
+                        );
+                    }
                     if live.samples > 0 {
                         ui.label(monitor::pose_text(&live));
                     }
@@ -1045,19 +1248,34 @@ impl RunView {
             });
         }
         let mut drawn = BTreeMap::new();
-        mission.watch_ui(ui, current_leg, |painter, project, plan_labels| {
-            monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
+        let map = mission.watch_ui(ui, current_leg, |painter, project, plan_labels| {
+            let labels = monitor::paint_live(
+                painter,
+                project,
+                &live,
+                grid_texture.as_ref(),
+                &followed,
+                plan_labels,
+            );
             drawn = markers::paint(
                 painter,
                 project,
                 &live.markers,
                 &hidden,
                 live.scan_pose(),
-                plan_labels,
+                &labels,
             );
         });
+        let set_pose = set_pose_tool
+            .then(|| set_pose_ui(ui, &map, mission, &mut set_pose_from))
+            .flatten();
         self.markers_drawn = drawn;
         self.followed = followed;
+        self.set_pose_from = set_pose_from;
+        if let Some(request) = set_pose {
+            self.set_pose_tool = false;
+            self.request(request);
+        }
     }
 
     /// The grid's picture, made again only when a new grid arrived. Its size is the grid's,
@@ -1092,6 +1310,61 @@ impl RunView {
             .as_ref()
             .map(|(_, texture)| (texture.clone(), Arc::clone(grid)))
     }
+}
+
+/// The set-pose tool on the map: over the map's own dragging, a press is where the robot is
+/// and the drag its heading, drawn as an arrow; the release makes the request.
+fn set_pose_ui(
+    ui: &mut Ui,
+    map: &egui::Response,
+    mission: &MissionView,
+    from: &mut Option<armor_model::world::Point>,
+) -> Option<Request> {
+    let response = ui
+        .interact(
+            map.rect,
+            egui::Id::new("run-set-pose"),
+            egui::Sense::click_and_drag(),
+        )
+        .on_hover_cursor(egui::CursorIcon::Crosshair);
+    let pressed_at = ui.input(|input| input.pointer.press_origin());
+    if response.drag_started() {
+        *from = pressed_at.and_then(|at| mission.world_at(at));
+    }
+    let start = (*from).and_then(|from| Some((from, mission.last_screen_of(from)?.0)));
+    let pointer = response
+        .interact_pointer_pos()
+        .or_else(|| ui.input(|input| input.pointer.latest_pos()));
+    if let (Some((_, start)), Some(pointer)) = (start, pointer) {
+        let colour = Color32::from_rgb(150, 40, 200);
+        ui.painter()
+            .circle_stroke(start, 10.0, Stroke::new(2.5, colour));
+        if (pointer - start).length() >= SET_POSE_MIN_DRAG {
+            ui.painter()
+                .arrow(start, pointer - start, Stroke::new(3.0, colour));
+        }
+    }
+    if !response.drag_stopped() {
+        return None;
+    }
+    *from = None;
+    let (from, start) = start?;
+    let pointer = pointer?;
+    if (pointer - start).length() < SET_POSE_MIN_DRAG {
+        return None;
+    }
+    let to = mission.world_at(pointer)?;
+    let heading_deg = (to.y - from.y).atan2(to.x - from.x).to_degrees();
+    // Centimetres and tenths of a degree: what a hand on a map can mean. Divided rather than
+    // multiplied by the step, so that the value prints as short as it reads (7.1, not
+    // 7.1000000000000005).
+    let round = |value: f64, per_unit: f64| (value * per_unit).round() / per_unit;
+    Some(Request::SetPose {
+        x_m: round(from.x, 100.0),
+        y_m: round(from.y, 100.0),
+        heading_deg: round(heading_deg, 10.0),
+        module: None,
+    })
 }
 
 /// The `max_replans` of the module that publishes `path` (`follower.path`): its value in

@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 
 use armor_model::world::Point;
-use armor_module_api::types::{OccupancyGrid, Pose2D};
+use armor_module_api::types::{LocalisationState, OccupancyGrid, Pose2D, PoseEstimate};
 use armor_runtime::control::{FiringRecord, ModuleState, ModuleStatus, Request};
 use egui::{Color32, Pos2, RichText, Stroke, Ui};
 use egui_plot::{Line, Plot, Points};
@@ -267,6 +267,68 @@ pub fn timeline_ui(ui: &mut Ui, firings: &[FiringRecord]) {
         });
 }
 
+/// The colour of a localisation state: green when localised, amber when uncertain, red when
+/// lost (the module states' colours, so that one colour means one thing across the view).
+pub fn localisation_colour(state: LocalisationState) -> Color32 {
+    match state {
+        LocalisationState::Localised => state_colour(ModuleState::Running),
+        LocalisationState::Uncertain => Color32::from_rgb(200, 130, 0),
+        LocalisationState::Lost => state_colour(ModuleState::Failed),
+    }
+}
+
+/// The localiser's estimate in words: `localised · σ 0.04 m, 1.2° · scan fit 0.81`.
+pub fn estimate_text(estimate: &PoseEstimate) -> String {
+    let heading_sigma_deg = estimate.covariance[8].max(0.0).sqrt().to_degrees();
+    format!(
+        "{} · σ {:.2} m, {:.1}° · scan fit {:.2}",
+        estimate.state.as_str(),
+        estimate.position_sigma_m(),
+        heading_sigma_deg,
+        estimate.fit
+    )
+}
+
+/// How many standard deviations the uncertainty ellipse spans: two, where the robot is with a
+/// probability of 86 % (a bivariate normal), as rviz draws AMCL's covariance.
+pub const ELLIPSE_SIGMAS: f64 = 2.0;
+/// An ellipse wider than this (metres, a semi-axis) says nothing a map can show: not drawn.
+const MAX_ELLIPSE_M: f64 = 500.0;
+
+/// The outline of the [`ELLIPSE_SIGMAS`] ellipse of `estimate`'s position covariance round
+/// `centre` (world frame), `points` points; `None` when the covariance is not a covariance
+/// (negative or non-finite variances) or too wide to draw.
+pub fn uncertainty_ellipse(
+    estimate: &PoseEstimate,
+    centre: Point,
+    points: usize,
+) -> Option<Vec<Point>> {
+    let c = &estimate.covariance;
+    let (a, b, d) = (c[0], c[1], c[4]);
+    if ![a, b, d].iter().all(|v| v.is_finite()) || a < 0.0 || d < 0.0 {
+        return None;
+    }
+    let half_trace = (a + d) / 2.0;
+    let spread = (((a - d) / 2.0).powi(2) + b * b).sqrt();
+    let major = ELLIPSE_SIGMAS * (half_trace + spread).max(0.0).sqrt();
+    let minor = ELLIPSE_SIGMAS * (half_trace - spread).max(0.0).sqrt();
+    if !(major.is_finite() && major <= MAX_ELLIPSE_M) {
+        return None;
+    }
+    // The major axis's direction: the eigenvector of the larger eigenvalue.
+    let angle = 0.5 * (2.0 * b).atan2(a - d);
+    let (sin, cos) = angle.sin_cos();
+    Some(
+        (0..points)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / points as f64;
+                let (u, v) = (major * t.cos(), minor * t.sin());
+                Point::new(centre.x + u * cos - v * sin, centre.y + u * sin + v * cos)
+            })
+            .collect(),
+    )
+}
+
 /// The poses in words, for the map's corner.
 pub fn pose_text(live: &LiveData) -> String {
     let pose = |pose: &Option<Pose2D>| {
@@ -299,14 +361,16 @@ pub fn grid_image(grid: &OccupancyGrid, max_side: usize) -> Result<egui::ColorIm
 }
 
 /// Paints the grid, the paths the follower follows and replaced, the true path, the scan and
-/// both poses.
+/// both poses, each labelled clear of `plan_labels` (the boxes of the plan's own labels).
+/// Returns those boxes with the poses' labels', for what is drawn next to keep clear of.
 pub fn paint_live(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     live: &LiveData,
     grid: Option<&(egui::TextureHandle, Arc<OccupancyGrid>)>,
     followed: &FollowedLeg,
-) {
+    plan_labels: &[egui::Rect],
+) -> Vec<egui::Rect> {
     if let Some((texture, grid)) = grid {
         let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
         let max = project(Point::new(
@@ -340,11 +404,143 @@ pub fn paint_live(
             painter.circle_filled(project(Point::new(x_m, y_m)), 1.6, SCAN);
         }
     }
-    for (pose, colour) in [(&live.estimated, ESTIMATE), (&live.truth, TRUTH)] {
-        if let Some(pose) = pose {
-            robot(painter, project, pose, colour);
+    // The estimate's uncertainty under both robots, round the pose the follower drives by.
+    if let (Some(estimate), Some(pose)) = (&live.estimate, &live.estimated)
+        && let Some(outline) =
+            uncertainty_ellipse(estimate, Point::new(pose.x_m, pose.y_m), ELLIPSE_POINTS)
+    {
+        let colour = localisation_colour(estimate.state);
+        let outline: Vec<Pos2> = outline.into_iter().map(project).collect();
+        if outline.iter().all(|p| p.is_finite()) {
+            painter.add(egui::Shape::convex_polygon(
+                outline,
+                colour.gamma_multiply(0.18),
+                Stroke::new(2.0, colour),
+            ));
         }
     }
+    // The truth first, hollow, so that the estimate over it stays whole when they agree.
+    if let Some(pose) = &live.truth {
+        true_robot(painter, project, pose);
+    }
+    if let Some(pose) = &live.estimated {
+        robot(painter, project, pose, ESTIMATE);
+    }
+    let mut taken = plan_labels.to_vec();
+    if let Some(pose) = &live.estimated {
+        let (text, colour) = match &live.estimate {
+            Some(estimate) => (
+                estimate.state.as_str().to_owned(),
+                localisation_colour(estimate.state),
+            ),
+            None => ("estimate".to_owned(), ESTIMATE),
+        };
+        tag(
+            painter,
+            project,
+            pose,
+            &text,
+            colour,
+            Side::Above,
+            &mut taken,
+        );
+    }
+    if let Some(pose) = &live.truth {
+        tag(
+            painter,
+            project,
+            pose,
+            TRUTH_LABEL,
+            TRUTH,
+            Side::Below,
+            &mut taken,
+        );
+    }
+    taken
+}
+
+/// Points of the uncertainty ellipse's outline.
+const ELLIPSE_POINTS: usize = 48;
+/// The label of the simulator's pose on the map: it is the judge, not something the robot
+/// knows.
+pub const TRUTH_LABEL: &str = "true pose (simulator)";
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Side {
+    Above,
+    Below,
+}
+
+/// A word on a filled tag beside a robot: above it or below it, else on a side where it covers
+/// no label or tag already drawn (`taken`).
+fn tag(
+    painter: &egui::Painter,
+    project: &dyn Fn(Point) -> Pos2,
+    pose: &Pose2D,
+    text: &str,
+    fill: Color32,
+    side: Side,
+    taken: &mut Vec<egui::Rect>,
+) {
+    let Some((centre, _, radius)) = on_screen(project, pose) else {
+        return;
+    };
+    let galley = painter.layout_no_wrap(
+        text.to_owned(),
+        egui::FontId::proportional(14.0),
+        Color32::WHITE,
+    );
+    let size = galley.size() + egui::vec2(10.0, 4.0);
+    // Beside the robot, on the side asked first, then the other sides; where none is free, the
+    // side asked (a tag far from its robot would say nothing).
+    let gap = radius + 4.0;
+    let above = egui::vec2(0.0, -(gap + size.y / 2.0));
+    let below = egui::vec2(0.0, gap + size.y / 2.0);
+    let right = egui::vec2(gap + size.x / 2.0, 0.0);
+    let left = egui::vec2(-(gap + size.x / 2.0), 0.0);
+    let offsets = match side {
+        Side::Above => [above, right, left, below],
+        Side::Below => [below, right, left, above],
+    };
+    let rect = offsets
+        .iter()
+        .map(|offset| egui::Rect::from_center_size(centre + *offset, size))
+        .find(|rect| !taken.iter().any(|other| other.intersects(*rect)))
+        .unwrap_or_else(|| egui::Rect::from_center_size(centre + offsets[0], size));
+    painter.rect(
+        rect,
+        4.0,
+        fill,
+        Stroke::new(1.0, Color32::WHITE),
+        egui::StrokeKind::Outside,
+    );
+    painter.galley(rect.min + egui::vec2(5.0, 2.0), galley, Color32::WHITE);
+    taken.push(rect);
+}
+
+/// The simulator's pose: the robot's outline only, dashed, with its heading as a line, so that
+/// it never reads as a second robot nor hides the estimate drawn over it.
+fn true_robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D) {
+    let Some((centre, dir, radius)) = on_screen(project, pose) else {
+        return;
+    };
+    let radius = radius + 3.0;
+    let outline: Vec<Pos2> = (0..=40)
+        .map(|i| {
+            let t = std::f32::consts::TAU * i as f32 / 40.0;
+            centre + egui::vec2(t.cos(), t.sin()) * radius
+        })
+        .collect();
+    painter.extend(egui::Shape::dashed_line(
+        &outline,
+        Stroke::new(2.5, TRUTH),
+        6.0,
+        4.0,
+    ));
+    painter.line_segment(
+        [centre, centre + dir * (radius + 8.0)],
+        Stroke::new(2.5, TRUTH),
+    );
 }
 
 /// A button of the drive pad: an arrow pointing along `direction` (screen axes), drawn rather
@@ -379,22 +575,31 @@ pub fn pad_button(ui: &mut Ui, direction: egui::Vec2, name: &str) -> bool {
 /// The least a robot is drawn across, in points, whatever the zoom: a newcomer must find it.
 pub const ROBOT_MIN_POINTS: f32 = 26.0;
 
-/// A robot: a disc with an arrow pointing where it heads, its real size (0.6 m) or
-/// [`ROBOT_MIN_POINTS`] across, whichever is larger, rimmed so it shows on any tile.
-fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D, colour: Color32) {
+/// Where a robot at `pose` is drawn: its centre, the unit vector of its heading on the screen
+/// and its radius (its real 0.3 m or half [`ROBOT_MIN_POINTS`], whichever is larger); `None`
+/// when the projection is not finite.
+fn on_screen(project: &dyn Fn(Point) -> Pos2, pose: &Pose2D) -> Option<(Pos2, egui::Vec2, f32)> {
     let centre = project(Point::new(pose.x_m, pose.y_m));
     let (sin, cos) = pose.theta_rad.sin_cos();
     let ahead = project(Point::new(pose.x_m + cos, pose.y_m + sin)) - centre;
     let metre = ahead.length();
     if !metre.is_finite() || !centre.is_finite() {
-        return;
+        return None;
     }
     let dir = if metre > 0.0 {
         ahead / metre
     } else {
         egui::vec2(1.0, 0.0)
     };
-    let radius = (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0);
+    Some((centre, dir, (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0)))
+}
+
+/// A robot: a disc with an arrow pointing where it heads, its real size (0.6 m) or
+/// [`ROBOT_MIN_POINTS`] across, whichever is larger, rimmed so it shows on any tile.
+fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D, colour: Color32) {
+    let Some((centre, dir, radius)) = on_screen(project, pose) else {
+        return;
+    };
     painter.circle(
         centre,
         radius,
@@ -418,6 +623,7 @@ fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D
 mod tests {
     use super::*;
     use armor_module_api::protocol::NodeStats;
+    use std::f64::consts::PI;
 
     fn sample(at_secs: f64, cycles: u64, busy_us: u64, sent: u64) -> Sample {
         Sample {
@@ -430,6 +636,81 @@ mod tests {
                 ..Default::default()
             },
         }
+    }
+
+    fn estimate(covariance: [f64; 9]) -> PoseEstimate {
+        PoseEstimate {
+            covariance,
+            ..PoseEstimate::default()
+        }
+    }
+
+    /// The outline's farthest point from the centre: its distance and direction (radians).
+    fn major(outline: &[Point]) -> (f64, f64) {
+        outline
+            .iter()
+            .map(|p| (p.x.hypot(p.y), p.y.atan2(p.x)))
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .unwrap_or_default()
+    }
+
+    #[test]
+    fn the_ellipse_spans_two_standard_deviations_along_the_covariance_s_axes() {
+        // σx = 0.2 m, σy = 0.1 m: 0.4 m along x, 0.2 m along y.
+        let outline = uncertainty_ellipse(
+            &estimate([0.04, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0]),
+            Point::new(0.0, 0.0),
+            360,
+        )
+        .expect("an ellipse");
+        let (length, direction) = major(&outline);
+        assert!((length - 0.4).abs() < 1e-9, "{length}");
+        assert!(direction.abs() < 1e-9 || (direction.abs() - PI).abs() < 1e-9);
+        let least = outline
+            .iter()
+            .map(|p| p.x.hypot(p.y))
+            .fold(f64::INFINITY, f64::min);
+        assert!((least - 0.2).abs() < 1e-9, "{least}");
+        // Correlated x and y: eigenvalues 0.03 and 0.01, the long axis (2 × √0.03 m) on the
+        // diagonal.
+        let outline = uncertainty_ellipse(
+            &estimate([0.02, 0.01, 0.0, 0.01, 0.02, 0.0, 0.0, 0.0, 0.0]),
+            Point::new(3.0, 4.0),
+            360,
+        )
+        .expect("an ellipse");
+        let centred: Vec<Point> = outline
+            .iter()
+            .map(|p| Point::new(p.x - 3.0, p.y - 4.0))
+            .collect();
+        let (length, direction) = major(&centred);
+        assert!((length - 2.0 * 0.03_f64.sqrt()).abs() < 1e-9, "{length}");
+        assert!(
+            (direction.abs() - PI / 4.0).abs() < 1e-6
+                || (direction.abs() - 3.0 * PI / 4.0).abs() < 1e-6,
+            "{direction}"
+        );
+    }
+
+    #[test]
+    fn a_covariance_that_is_none_or_too_wide_draws_no_ellipse() {
+        let at = Point::new(0.0, 0.0);
+        for covariance in [
+            [f64::NAN, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0],
+            [-0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0],
+            [1e300, 0.0, 0.0, 0.0, 1e300, 0.0, 0.0, 0.0, 0.0],
+            [f64::INFINITY, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0],
+        ] {
+            assert_eq!(
+                uncertainty_ellipse(&estimate(covariance), at, 8),
+                None,
+                "{covariance:?}"
+            );
+        }
+        assert!(
+            uncertainty_ellipse(&estimate([0.0; 9]), at, 8).is_some(),
+            "a point is one"
+        );
     }
 
     #[test]

@@ -15,6 +15,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use armor_model::rehearsal::{AreaJudgement, ArrivalJudgement, Verdict};
 use armor_runtime::control::{FiringRecord, MissionStatus, Request, RunFiles, Status};
 
 use super::live::{self, Sources};
@@ -95,6 +96,9 @@ pub struct Shared {
     pub replies: Vec<(bool, String)>,
     /// How the run ended, once it has.
     pub ended: Option<String>,
+    /// A simulated plan run's verdict by the simulator's truth (the report's `rehearsal`),
+    /// once the run has ended.
+    pub rehearsal: Option<Verdict>,
     /// The control interface does not answer (why), since when (real seconds of the session);
     /// it is asked again at every poll.
     pub connection_lost: Option<(f64, String)>,
@@ -339,12 +343,22 @@ impl RunSession {
         let _ = std::fs::remove_file(&self.report);
         let mut shared = self.shared();
         let ended = match (&report, status.code()) {
-            (Some(report), _) => format!("ended: mission {}", report.outcome),
+            // A mission that completed on the robot's word but not on the truth's did not pass:
+            // the verdict goes with the outcome, never the outcome alone.
+            (Some(report), _) => match &report.rehearsal {
+                Some(verdict) => format!(
+                    "ended: mission {}, rehearsal {} by the simulator's truth",
+                    report.outcome,
+                    if verdict.passed { "passed" } else { "FAILED" }
+                ),
+                None => format!("ended: mission {}", report.outcome),
+            },
             (None, Some(0)) => "ended".to_owned(),
             (None, Some(code)) => format!("ended with status {code}"),
             (None, None) => "was killed".to_owned(),
         };
         shared.ended = Some(ended);
+        shared.rehearsal = report.as_ref().and_then(|report| report.rehearsal.clone());
         if let (Some(report), Some(status)) = (report, shared.status.as_mut())
             && let Some(mission) = &mut status.mission
         {
@@ -714,6 +728,7 @@ struct Report {
     outcome: String,
     marking: Option<armor_model::net::Marking>,
     firings: Vec<FiringRecord>,
+    rehearsal: Option<Verdict>,
 }
 
 impl Report {
@@ -753,6 +768,58 @@ fn read_report(file: &Path) -> Option<Report> {
         outcome: report["outcome"].as_str()?.to_owned(),
         marking,
         firings,
+        rehearsal: rehearsal(&report["rehearsal"]),
+    })
+}
+
+/// The verdict of the report's `rehearsal` section (`armor_runtime::rehearsal::report`), so
+/// that the view words it as `armor run`'s summary does; `None` when there is none or it is
+/// not one.
+fn rehearsal(section: &serde_json::Value) -> Option<Verdict> {
+    let number = |value: &serde_json::Value| value.as_f64();
+    let text = |value: &serde_json::Value| value.as_str().map(str::to_owned);
+    let arrivals = section["arrivals"]
+        .as_array()?
+        .iter()
+        .map(|arrival| {
+            Some(ArrivalJudgement {
+                leg: text(&arrival["leg"])?,
+                waypoint: text(&arrival["waypoint"])?,
+                arrived_secs: number(&arrival["arrived_secs"])?,
+                true_error_m: number(&arrival["true_error_m"]),
+                truth_secs: number(&arrival["truth_secs"]),
+                allowed_m: number(&arrival["allowed_m"])?,
+                ok: arrival["ok"].as_bool()?,
+            })
+        })
+        .collect::<Option<Vec<_>>>()?;
+    let areas = section["no_go_areas"]
+        .as_array()?
+        .iter()
+        .map(|area| {
+            Some(AreaJudgement {
+                area: text(&area["area"])?,
+                least_distance_m: number(&area["least_distance_m"]),
+                least_secs: number(&area["least_secs"]),
+                first_met_secs: number(&area["first_met_secs"]),
+                poses_met: usize::try_from(area["poses_met"].as_u64()?).ok()?,
+                ok: area["ok"].as_bool()?,
+            })
+        })
+        .collect::<Option<Vec<_>>>()?;
+    Some(Verdict {
+        passed: section["passed"].as_bool()?,
+        true_poses: usize::try_from(section["true_poses"].as_u64()?).ok()?,
+        robot_radius_m: number(&section["robot_radius_m"])?,
+        tolerance_m: number(&section["tolerance_m"])?,
+        allowed_m: number(&section["allowed_m"])?,
+        arrivals,
+        areas,
+        failures: section["failures"]
+            .as_array()?
+            .iter()
+            .map(text)
+            .collect::<Option<Vec<_>>>()?,
     })
 }
 
@@ -817,6 +884,56 @@ mod tests {
         assert_eq!(linear(next), Some(0.5), "a stale command was replayed");
         assert!(requests.try_recv().is_err());
         stop.store(true, Ordering::Relaxed);
+    }
+
+    #[test]
+    fn the_reports_rehearsal_reads_back_as_the_verdict_it_was_written_from() {
+        use armor_model::geo::{Point, Polygon};
+        use armor_model::rehearsal::{Arrival, NoGoArea, Rules, TruePose, judge};
+        let poses: Vec<TruePose> = (0..=20)
+            .map(|i| TruePose {
+                at_secs: f64::from(i),
+                at: Point::new(f64::from(i) * 0.5, 2.0),
+            })
+            .collect();
+        let arrivals = [
+            Arrival {
+                leg: "advance".into(),
+                waypoint: "gate".into(),
+                target: Point::new(10.0, 0.0),
+                at_secs: 20.0,
+            },
+            Arrival {
+                leg: "back".into(),
+                waypoint: "home".into(),
+                target: Point::new(0.0, 0.0),
+                at_secs: 400.0,
+            },
+        ];
+        let area = NoGoArea {
+            name: "spill".into(),
+            polygon: Polygon::new(vec![
+                Point::new(4.0, 1.5),
+                Point::new(6.0, 1.5),
+                Point::new(6.0, 3.0),
+                Point::new(4.0, 3.0),
+            ]),
+        };
+        let rules = Rules {
+            radius_m: 0.3,
+            tolerance_m: 0.3,
+        };
+        let verdict = judge(&poses, &arrivals, &[area], rules);
+        assert!(
+            !verdict.passed && verdict.failures.len() >= 2,
+            "{verdict:#?}"
+        );
+        let report = armor_runtime::rehearsal::report(&verdict, "sim.pose_truth");
+        let text = serde_json::to_string(&report).unwrap_or_default();
+        let back = rehearsal(&serde_json::from_str(&text).unwrap_or_default());
+        assert_eq!(back, Some(verdict));
+        assert_eq!(rehearsal(&serde_json::json!({"passed": true})), None);
+        assert_eq!(rehearsal(&serde_json::Value::Null), None);
     }
 
     #[test]

@@ -60,6 +60,7 @@ pub use compile::{
     CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, robot,
     robot_explained,
 };
+pub use xml::DEFAULT_LOCALISER;
 
 /// A whole plan.
 #[derive(Clone, Debug, Default, PartialEq)]
