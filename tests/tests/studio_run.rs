@@ -284,12 +284,19 @@ fn pause_holds_the_robot_and_the_operator_fires_and_aborts() {
         r#"<leg name="back" from="gate" to="home" wait_secs="600"/>"#,
     );
     let mut harness = harness(dir.path());
-    open_and_run(&mut harness, &file, 4.0);
+    // At 1.5 times real time the robot takes about seven seconds of wall time to reach the gate:
+    // time enough for the pause to reach it through a loaded machine's studio frames.
+    open_and_run(&mut harness, &file, 1.5);
+    // The robot starts at `home`, 4 m east of the world's origin: driving is moving from there.
+    step_until(&mut harness, "the robot's true pose", PATIENCE, |app| {
+        truth_x(app).is_some()
+    });
+    let start_x = truth_x(harness.state()).unwrap();
     step_until(
         &mut harness,
         "the robot to start driving",
         PATIENCE,
-        |app| truth_x(app).is_some_and(|x| x > 1.5),
+        |app| truth_x(app).is_some_and(|x| x > start_x + 0.3),
     );
     // The robot's data can come before the first status that has the mission (and its Pause).
     step_until(&mut harness, "the mission in the status", PATIENCE, |app| {

@@ -47,7 +47,7 @@ fn window(display: &str) -> Option<String> {
 /// after a window appears can be lost while X gives it the focus.
 fn keys_until(studio: &Proc, display: &str, window: &str, keys: &[&str], said: &str) {
     let before = studio.line_count();
-    for _ in 0..10 {
+    for attempt in 1..=10 {
         // A window not yet mapped cannot take the focus: try again.
         if !xdotool(display, &["windowfocus", "--sync", window]) {
             wait_until_or(Duration::from_millis(200), || false);
@@ -56,8 +56,10 @@ fn keys_until(studio: &Proc, display: &str, window: &str, keys: &[&str], said: &
         for key in keys {
             assert!(xdotool(display, &["key", "--window", window, key]));
         }
+        // Keys are sent again only when the studio has said nothing for longer each time: on a
+        // loaded machine a frame can take seconds, and a key sent twice (Ctrl+O) opens twice.
         let mut seen = false;
-        wait_until_or(Duration::from_secs(2), || {
+        wait_until_or(Duration::from_secs(2 * attempt), || {
             seen = studio.lines()[before..]
                 .iter()
                 .any(|line| line.contains(said));
