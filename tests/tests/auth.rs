@@ -122,6 +122,7 @@ fn subscribe(data_name: &str, subscriber: &str) -> ToProvider {
         max_rate_hz: None,
         pull: false,
         subscriber_addr: None,
+        proof: None,
     }
 }
 

@@ -408,6 +408,29 @@ pub struct Session {
     pub peer: Option<String>,
     pub sealer: Option<Sealer>,
     pub opener: Option<Opener>,
+    /// The handshake's hash, the same on both sides and on no other connection: what a
+    /// [`reverse_proof`] is bound to.
+    pub binding: Vec<u8>,
+}
+
+/// A provider's proof, sent with a subscription on a connection its subscriber opened, that it
+/// holds `link_key` (the one the agent issued it for the subscriber's data port), bound to
+/// `binding` (the connection's handshake hash): HKDF-Expand with the link key, info
+/// `reverse:` and the binding; hex. Someone who reads it learns nothing of the key and cannot
+/// use it on another connection.
+pub fn reverse_proof(link_key: &Key, binding: &[u8]) -> String {
+    expand(&link_key.0, &[b"reverse:", binding]).to_hex()
+}
+
+/// Whether `proof` is [`reverse_proof`] of `link_key` and `binding`, compared in constant time.
+pub fn check_reverse_proof(link_key: &Key, binding: &[u8], proof: &str) -> bool {
+    let expected = reverse_proof(link_key, binding);
+    expected.len() == proof.len()
+        && expected
+            .bytes()
+            .zip(proof.bytes())
+            .fold(0, |diff, (a, b)| diff | (a ^ b))
+            == 0
 }
 
 /// The dialer after its first message.
@@ -470,10 +493,12 @@ impl Dialer {
         if self.encrypt && !encrypt {
             return Err(AuthError::NotEncrypted);
         }
+        let binding = self.handshake.get_handshake_hash().to_vec();
         let (to_listener, from_listener) = self.handshake.dangerously_get_raw_split();
         let mut sealer = Sealer::new(&to_listener);
         let confirm = sealer.seal_message(&[]);
         let session = Session {
+            binding,
             peer: None,
             sealer: encrypt.then_some(sealer),
             opener: encrypt.then(|| Opener::new(&from_listener)),
@@ -485,6 +510,7 @@ impl Dialer {
 /// The listener after it answered, waiting for the dialer's confirmation.
 pub struct Listener {
     identity: String,
+    binding: Vec<u8>,
     confirm: Opener,
     opener: Option<Opener>,
 }
@@ -531,10 +557,12 @@ impl Listener {
         let mut answer = [0; MAX_HANDSHAKE_BYTES];
         let flags = if encrypt { FLAG_ENCRYPT } else { 0 };
         let len = handshake.write_message(&[flags], &mut answer)?;
+        let binding = handshake.get_handshake_hash().to_vec();
         let (from_dialer, to_dialer) = handshake.dangerously_get_raw_split();
         Ok((
             Listener {
                 identity,
+                binding,
                 confirm: Opener::new(&from_dialer),
                 opener: None,
             }
@@ -571,6 +599,7 @@ impl Listener {
             return Err(AuthError::WrongKey(self.identity));
         }
         Ok(Session {
+            binding: self.binding,
             peer: Some(self.identity),
             sealer: None,
             opener: self.opener,
@@ -1088,6 +1117,31 @@ mod tests {
                 .expect("open");
         }
         assert_eq!(got, plain);
+    }
+
+    #[test]
+    fn a_reverse_proof_holds_on_its_own_connection_only() {
+        let secret = secret();
+        let provider = secret.module_key("sim");
+        let listen = Listen {
+            admit: Admit::LinksTo(provider.clone()),
+            encrypt: false,
+        };
+        let ticket = provider.link_key("nav");
+        let (nav, sim) = handshake(&dial(ticket.clone(), "nav", false), &listen).expect("link");
+        assert_eq!(nav.binding, sim.binding);
+        // `sim` subscribing back proves the key the agent gave it for nav's port.
+        let back = secret.module_key("nav").link_key("sim");
+        let proof = reverse_proof(&back, &sim.binding);
+        assert!(check_reverse_proof(&back, &nav.binding, &proof));
+        // Its own ticket is no proof, nor is a proof made for another connection.
+        assert!(!check_reverse_proof(
+            &back,
+            &nav.binding,
+            &reverse_proof(&ticket, &sim.binding)
+        ));
+        let (other, _) = handshake(&dial(ticket, "nav", false), &listen).expect("again");
+        assert!(!check_reverse_proof(&back, &other.binding, &proof));
     }
 
     #[test]
