@@ -24,6 +24,10 @@ use serde_json::{Value, json};
 /// A random-looking secret of 32 bytes (as `armor secret new` writes them, in hex).
 const SECRET: &str = "5f0c2a9e61d4b3870e1f92ac34d7b6e05a8c1f3d92e4b7a6c0d5e8f1a2b3c4d5\n";
 
+/// The user the run and its attacker share in the `/proc` test when the test runs as root
+/// (root reads every process; a module runs as an ordinary user).
+const NOBODY: u32 = 65534;
+
 fn secret_file(dir: &Path) -> PathBuf {
     let file = dir.join("secret");
     std::fs::write(&file, SECRET).unwrap();
@@ -269,5 +273,145 @@ fn a_provider_cannot_subscribe_back_on_its_subscribers_connection() {
             .as_str()
             .is_some_and(|reason| reason.contains("subscribes back")),
         "{answer}"
+    );
+}
+
+/// A command run as the attacker: a process of the run's user.
+fn as_sibling(program: &str) -> Command {
+    if is_root() {
+        let mut command = Command::new("setpriv");
+        command.args([
+            &format!("--reuid={NOBODY}"),
+            &format!("--regid={NOBODY}"),
+            "--clear-groups",
+            program,
+        ]);
+        command
+    } else {
+        Command::new(program)
+    }
+}
+
+/// What the attacker reads at `path`: the bytes, or why not.
+fn read_as_sibling(path: &str) -> Result<Vec<u8>, String> {
+    let output = as_sibling("cat").arg(path).output().unwrap();
+    if output.status.success() {
+        Ok(output.stdout)
+    } else {
+        Err(String::from_utf8_lossy(&output.stderr).trim().to_owned())
+    }
+}
+
+fn is_root() -> bool {
+    std::fs::read_to_string("/proc/self/status").is_ok_and(|status| {
+        status
+            .lines()
+            .find_map(|line| line.strip_prefix("Uid:"))
+            .and_then(|uids| uids.split_whitespace().next().map(|uid| uid == "0"))
+            .unwrap_or(false)
+    })
+}
+
+/// Attack 3. Every process of the run (`armor run`, its agent, each module) as seen by another
+/// process of the same user: its environment, command line, inherited descriptors and memory
+/// hold no key and no path to the secret; the secret file is read only if its path is known
+/// another way.
+#[test]
+fn a_sibling_reads_no_key_and_no_secret_path_in_proc() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let system = write_system(dir.path(), DEMO);
+    let mut command = Command::new(bin("armor"));
+    if is_root() {
+        // The run and its attacker share one ordinary user, as modules do.
+        for path in [dir.path(), &secret, &system] {
+            std::os::unix::fs::chown(path, Some(NOBODY), Some(NOBODY)).unwrap();
+        }
+        command = Command::new("setpriv");
+        command.args([
+            &format!("--reuid={NOBODY}"),
+            &format!("--regid={NOBODY}"),
+            "--clear-groups",
+            bin("armor").to_str().unwrap(),
+        ]);
+    }
+    let run = Proc::start(
+        command
+            .arg("run")
+            .arg(&system)
+            .arg("--no-run-folder")
+            .env("ARMOR_SECRET_FILE", &secret)
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .env("HOME", dir.path()),
+    );
+    let agent = agent_addr(&run);
+    run.wait_for("the checker's values", PATIENCE, checker_in_order);
+    let mut pids = vec![run.pid()];
+    pids.extend(children_of(run.pid()));
+    assert!(
+        pids.len() >= 4,
+        "armor run, its agent, two modules: {pids:?}"
+    );
+
+    let secret_path = secret.to_str().unwrap().as_bytes().to_vec();
+    let keys = Secret::from_bytes(SECRET.trim_end().as_bytes());
+    let mut stolen: Vec<String> = Vec::new();
+    for pid in &pids {
+        let comm = std::fs::read_to_string(format!("/proc/{pid}/comm")).unwrap_or_default();
+        for what in ["environ", "cmdline"] {
+            match read_as_sibling(&format!("/proc/{pid}/{what}")) {
+                Ok(bytes) => {
+                    for entry in bytes.split(|&b| b == 0) {
+                        let text = String::from_utf8_lossy(entry);
+                        if text.starts_with("ARMOR_KEY=")
+                            || entry.windows(secret_path.len()).any(|w| w == secret_path)
+                        {
+                            stolen.push(format!("{} {what}: {text}", comm.trim()));
+                        }
+                    }
+                }
+                Err(why) => println!("{} {what}: not readable ({why})", comm.trim()),
+            }
+        }
+        // Memory is read at the addresses `maps` gives; being let to open it is enough.
+        let opened = as_sibling("sh")
+            .args(["-c", "exec 3<\"$0\" && echo opened"])
+            .arg(format!("/proc/{pid}/mem"))
+            .output()
+            .unwrap();
+        if String::from_utf8_lossy(&opened.stdout).contains("opened") {
+            stolen.push(format!("{} mem: opened", comm.trim()));
+        }
+    }
+    // What was found is used as the attacker would: a module key to pass as its module at
+    // the agent, a secret path to read the secret.
+    for found in &stolen {
+        if let Some(hex) = found.split("ARMOR_KEY=").nth(1)
+            && let Some(key) = Key::from_hex(hex)
+        {
+            let owner = ["counter", "checker"]
+                .into_iter()
+                .find(|name| keys.module_key(name) == key)
+                .unwrap_or("?");
+            let stream = TcpStream::connect(agent).unwrap();
+            let passed = blocking::dial(
+                stream,
+                Some(&Dial {
+                    key,
+                    identity: owner.into(),
+                    encrypt: false,
+                }),
+            )
+            .is_ok();
+            println!("a stolen key passes at the agent as `{owner}`: {passed}");
+        }
+        if found.contains(&*String::from_utf8_lossy(&secret_path)) {
+            let read = read_as_sibling(secret.to_str().unwrap());
+            println!("the secret file, read by its path: {}", read.is_ok());
+        }
+    }
+    assert!(
+        stolen.is_empty(),
+        "a sibling of the same user found: {stolen:#?}"
     );
 }

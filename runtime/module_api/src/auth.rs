@@ -17,7 +17,7 @@
 //! The dialer's first transport message (an empty payload, [`confirm`](Dialer::finish)) proves
 //! it holds the session's keys, so a recorded first message replayed by someone else goes no
 //! further. Keys are derived from the run's secret with HKDF-SHA256 ([`Secret`]); a module is
-//! given only its own key ([`Key`], `ARMOR_KEY`), never the secret, so it can prove no other
+//! given only its own key ([`Key`], over the descriptor `ARMOR_KEY_FD`), never the secret, so it can prove no other
 //! name than its own.
 //!
 //! **Records.** When either side asks for encryption, each side's bytes after its last
@@ -36,8 +36,11 @@ use ring::aead::{AES_256_GCM, Aad, LessSafeKey, Nonce, Tag, UnboundKey};
 /// The environment variable that names the run's secret file (tools, the studio, standalone
 /// modules).
 pub const ENV_SECRET_FILE: &str = "ARMOR_SECRET_FILE";
-/// The environment variable that holds a module's own key (64 hex digits), set by `armor run`.
-pub const ENV_KEY: &str = "ARMOR_KEY";
+/// The environment variable that names the file descriptor a module reads its own key from
+/// (64 hex digits, then end of file), set by `armor run` and `armor host`. The key itself is
+/// never in the environment: a process of the same user reads `/proc/PID/environ`. A number of
+/// a descriptor is no secret; the module reads the key and closes the descriptor at start.
+pub const ENV_KEY_FD: &str = "ARMOR_KEY_FD";
 /// Set to `1` by `armor run --encrypt`: every link of the module is encrypted.
 pub const ENV_ENCRYPT: &str = "ARMOR_ENCRYPT";
 
@@ -76,11 +79,15 @@ pub enum SecretError {
     )]
     Exposed { path: String, mode: u32 },
     #[error(
-        "the secret in {path} is {len} bytes long; use {MIN_SECRET_BYTES} or more (for example 32 random bytes, base64)"
+        "the secret in {path} is {len} bytes long; use {MIN_SECRET_BYTES} or more: `armor secret new -o FILE` writes a random one, `armor secret new --passphrase -o FILE` stretches a shorter passphrase"
     )]
     TooShort { path: String, len: usize },
-    #[error("{ENV_KEY} must be {} hex digits", KEY_BYTES * 2)]
-    BadKey,
+    #[error("the key read from file descriptor {fd} ({ENV_KEY_FD}) must be {} hex digits", KEY_BYTES * 2)]
+    BadKey { fd: String },
+    #[error("cannot read the key from file descriptor {fd} ({ENV_KEY_FD}): {source}")]
+    KeyFd { fd: String, source: std::io::Error },
+    #[error("stretching the passphrase: {0}")]
+    Stretch(String),
     #[error(
         "{path} is not a role's key: expected one line `observer HEX` or `operator HEX` (written by armor secret derive)"
     )]
@@ -135,14 +142,19 @@ impl Key {
         Some(Key(bytes))
     }
 
-    /// The module key in `ARMOR_KEY`, if set.
-    pub fn from_env() -> Result<Option<Key>, SecretError> {
-        match std::env::var(ENV_KEY) {
-            Ok(text) if !text.is_empty() => {
-                Key::from_hex(&text).map(Some).ok_or(SecretError::BadKey)
-            }
-            _ => Ok(None),
-        }
+    /// The module key behind `ARMOR_KEY_FD`, if set: read to the end, after which the
+    /// descriptor is closed (see [`crate::hardening::take_key_fd`]).
+    pub fn from_fd_env() -> Result<Option<Key>, SecretError> {
+        let Some(fd) = std::env::var(ENV_KEY_FD).ok().filter(|fd| !fd.is_empty()) else {
+            return Ok(None);
+        };
+        let text = crate::hardening::take_key_fd(&fd).map_err(|source| SecretError::KeyFd {
+            fd: fd.clone(),
+            source,
+        })?;
+        Key::from_hex(&text)
+            .map(Some)
+            .ok_or(SecretError::BadKey { fd })
     }
 }
 
@@ -204,6 +216,31 @@ impl Secret {
             Some(path) if !path.is_empty() => Secret::load(Path::new(&path)).map(Some),
             _ => Ok(None),
         }
+    }
+
+    /// The secret as `armor run` hands it to its agent over a pipe: its pseudo-random key, hex.
+    pub fn to_hex(&self) -> String {
+        Key(*self.0).to_hex()
+    }
+
+    /// A secret handed over by [`Secret::to_hex`].
+    pub fn from_hex(text: &str) -> Option<Secret> {
+        Key::from_hex(text).map(|key| Secret(Arc::new(key.0)))
+    }
+
+    /// The secret handed over a descriptor named by `ARMOR_KEY_FD` (the agent `armor run`
+    /// starts), read and closed; `None` when the variable is not set.
+    pub fn from_fd_env() -> Result<Option<Secret>, SecretError> {
+        let Some(fd) = std::env::var(ENV_KEY_FD).ok().filter(|fd| !fd.is_empty()) else {
+            return Ok(None);
+        };
+        let text = crate::hardening::take_key_fd(&fd).map_err(|source| SecretError::KeyFd {
+            fd: fd.clone(),
+            source,
+        })?;
+        Secret::from_hex(&text)
+            .map(Some)
+            .ok_or(SecretError::BadKey { fd })
     }
 
     /// A secret from bytes (tests, tools): HKDF-Extract with the salt `ARMOR/1 secret`.
@@ -309,7 +346,8 @@ pub struct Credentials {
 }
 
 impl Credentials {
-    /// A module's credentials from its environment: `ARMOR_KEY` (set by `armor run`), else the
+    /// A module's credentials from its environment: the key behind `ARMOR_KEY_FD` (set by
+    /// `armor run`), else the
     /// key of `name` derived from the secret in `secret_file` or `ARMOR_SECRET_FILE`; with
     /// `ARMOR_ENCRYPT=1` (or `encrypt`), encrypted links.
     pub fn for_module(
@@ -320,7 +358,7 @@ impl Credentials {
         let encrypt = encrypt || std::env::var(ENV_ENCRYPT).is_ok_and(|value| value == "1");
         let key = match secret_file {
             Some(file) => Some(Secret::load(file)?.module_key(name)),
-            None => match Key::from_env()? {
+            None => match Key::from_fd_env()? {
                 Some(key) => Some(key),
                 None => Secret::from_env()?.map(|secret| secret.module_key(name)),
             },

@@ -15,6 +15,7 @@ pub mod auth;
 pub mod clock;
 mod core;
 pub mod describe;
+pub mod hardening;
 pub mod memory;
 mod module;
 mod net;

@@ -318,6 +318,9 @@ const DEFAULT_HOLD_TIMEOUT_SECS: f64 = 300.0;
 const NULL_ISLAND_DEG: f64 = 0.1;
 
 fn main() -> ExitCode {
+    // `armor run`, its agent and `armor host` hold the run's secret: the modules they start run
+    // as the same user, and must not read it from this process's memory (`/proc/PID/mem`).
+    armor_module_api::hardening::make_non_dumpable();
     armor_runtime::console::init_logging();
     match run(Cli::parse()) {
         Ok(code) => code,
@@ -768,10 +771,14 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Agent { listen, secret } => {
-            let secret = secret
-                .filter(|file| !file.as_os_str().is_empty())
-                .map(|file| armor_module_api::auth::Secret::load(&file))
-                .transpose()?;
+            // `armor run` hands its agent the secret over a pipe (`ARMOR_KEY_FD`), never a path.
+            let secret = match armor_module_api::auth::Secret::from_fd_env()? {
+                Some(secret) => Some(secret),
+                None => secret
+                    .filter(|file| !file.as_os_str().is_empty())
+                    .map(|file| armor_module_api::auth::Secret::load(&file))
+                    .transpose()?,
+            };
             let listener = std::net::TcpListener::bind(listen)
                 .with_context(|| format!("cannot listen on {listen}"))?;
             let addr = listener.local_addr()?;
