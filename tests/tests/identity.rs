@@ -415,3 +415,109 @@ fn a_sibling_reads_no_key_and_no_secret_path_in_proc() {
         "a sibling of the same user found: {stolen:#?}"
     );
 }
+
+/// Attack 4. A passphrase of 16 bytes (the issue's attack found one after 87 guesses) and one
+/// handshake message recorded on the way to the agent; the attacker has a word list.
+#[test]
+fn an_offline_guesser_pays_argon2_for_every_word() {
+    let passphrase = "tangerine sunset";
+    let mut words: Vec<String> = (0..86).map(|i| format!("password{i:03}")).collect();
+    words.push(passphrase.to_owned());
+    words.extend((0..100).map(|i| format!("dragon{i:03}")));
+
+    // A short passphrase is refused as the run's secret: too short to be one.
+    let dir = tempfile::tempdir().unwrap();
+    let weak = dir.path().join("weak");
+    std::fs::write(&weak, passphrase).unwrap();
+    std::fs::set_permissions(&weak, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let refused = Command::new(bin("armor"))
+        .args(["secret", "derive", "--role", "observer", "-o"])
+        .arg(dir.path().join("key"))
+        .arg("--secret")
+        .arg(&weak)
+        .output()
+        .unwrap();
+    assert!(!refused.status.success());
+    let said = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        said.contains("16 bytes long") && said.contains("--passphrase"),
+        "{said}"
+    );
+
+    // `armor secret new --passphrase` stretches it with Argon2id and a salt it prints.
+    let stretched = dir.path().join("secret");
+    let mut child = Command::new(bin("armor"))
+        .args(["secret", "new", "--passphrase", "-o"])
+        .arg(&stretched)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write as _;
+    writeln!(child.stdin.take().unwrap(), "{passphrase}").unwrap();
+    let made = child.wait_with_output().unwrap();
+    let printed = String::from_utf8_lossy(&made.stdout);
+    assert!(made.status.success(), "{printed}");
+    let salt_hex = printed
+        .split_whitespace()
+        .skip_while(|word| *word != "salt")
+        .nth(1)
+        .unwrap()
+        .to_owned();
+    let salt: Vec<u8> = (0..salt_hex.len() / 2)
+        .map(|i| u8::from_str_radix(&salt_hex[i * 2..i * 2 + 2], 16).unwrap())
+        .collect();
+    let mode = std::fs::metadata(&stretched).unwrap().permissions().mode();
+    assert_eq!(mode & 0o777, 0o600);
+    let secret = Secret::load(&stretched).unwrap();
+
+    // The recorded message: a module's first handshake message to the agent.
+    let (_, recorded) = Dialer::start(&Dial {
+        key: secret.module_key("checker"),
+        identity: "checker".into(),
+        encrypt: false,
+    })
+    .unwrap();
+    let fits = |candidate: &Secret| {
+        let listen = Listen {
+            admit: Admit::Modules(candidate.clone()),
+            encrypt: false,
+        };
+        Listener::accept(&listen, &recorded).is_ok()
+    };
+
+    // The guesser of the issue: each word as the secret itself.
+    let started = Instant::now();
+    let found = words
+        .iter()
+        .position(|word| fits(&Secret::from_bytes(word.as_bytes())));
+    let rate = words.len() as f64 / started.elapsed().as_secs_f64();
+    println!(
+        "words as secrets: {} guesses at {rate:.0}/s, found: {found:?}",
+        words.len()
+    );
+    assert_eq!(found, None, "the passphrase itself is no longer the secret");
+
+    // A guesser who knows the scheme and the salt pays Argon2id (64 MiB) for every word.
+    let started = Instant::now();
+    let tried = 3;
+    for word in &words[..tried] {
+        let key = armor_module_api::auth::stretch_passphrase(word.as_bytes(), &salt).unwrap();
+        assert!(!fits(&Secret::from_bytes(
+            armor_module_api::auth::hex(&key).as_bytes()
+        )));
+    }
+    let per_guess = started.elapsed().as_secs_f64() / tried as f64;
+    println!(
+        "words through Argon2id: {:.1} guesses/s on one core, so a million-word list takes {:.0} \
+         hours and 64 MiB for each guess in flight",
+        1.0 / per_guess,
+        1e6 * per_guess / 3600.0
+    );
+    // The right word does open it, once stretched: the scheme is what the guesser pays for.
+    let key = armor_module_api::auth::stretch_passphrase(passphrase.as_bytes(), &salt).unwrap();
+    assert!(fits(&Secret::from_bytes(
+        armor_module_api::auth::hex(&key).as_bytes()
+    )));
+}

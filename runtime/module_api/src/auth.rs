@@ -51,8 +51,17 @@ pub const PROLOGUE_LABEL: &[u8] = b"ARMOR/1 ";
 
 /// Bytes of a key.
 pub const KEY_BYTES: usize = 32;
-/// The shortest secret accepted, in bytes.
-pub const MIN_SECRET_BYTES: usize = 16;
+/// The shortest secret accepted, in bytes: as long as a key, so that a recorded handshake
+/// cannot be guessed offline. A shorter passphrase is stretched with Argon2id first
+/// ([`stretch_passphrase`], `armor secret new --passphrase`).
+pub const MIN_SECRET_BYTES: usize = 32;
+/// Argon2id's memory for a passphrase, in KiB (64 MiB): each guess of an offline attacker
+/// costs as much.
+pub const PASSPHRASE_MEMORY_KIB: u32 = 64 * 1024;
+/// Argon2id's passes over that memory.
+pub const PASSPHRASE_PASSES: u32 = 3;
+/// Bytes of a passphrase's salt.
+pub const SALT_BYTES: usize = 16;
 /// The longest identity a dialer may claim, in bytes.
 pub const MAX_IDENTITY_BYTES: usize = 255;
 /// The largest handshake message of the pattern (an ephemeral key, one payload byte, a tag).
@@ -127,7 +136,7 @@ impl Key {
     }
 
     pub fn to_hex(&self) -> String {
-        self.0.iter().map(|b| format!("{b:02x}")).collect()
+        hex(&self.0)
     }
 
     pub fn from_hex(text: &str) -> Option<Key> {
@@ -181,29 +190,13 @@ impl Secret {
     /// Reads a secret file, refusing one that others may read or that is too short. Trailing
     /// line breaks are not part of the secret (editors add them).
     pub fn load(path: &Path) -> Result<Secret, SecretError> {
-        use std::os::unix::fs::PermissionsExt as _;
-        let shown = path.display().to_string();
-        let read_err = |source| SecretError::Read {
-            path: shown.clone(),
-            source,
-        };
-        let mode = std::fs::metadata(path)
-            .map_err(read_err)?
-            .permissions()
-            .mode();
-        if mode & 0o077 != 0 {
-            return Err(SecretError::Exposed {
-                path: shown,
-                mode: mode & 0o777,
-            });
-        }
-        let mut bytes = std::fs::read(path).map_err(read_err)?;
+        let mut bytes = read_private(path)?;
         while bytes.last().is_some_and(|&b| b == b'\n' || b == b'\r') {
             bytes.pop();
         }
         if bytes.len() < MIN_SECRET_BYTES {
             return Err(SecretError::TooShort {
-                path: shown,
+                path: path.display().to_string(),
                 len: bytes.len(),
             });
         }
@@ -294,6 +287,56 @@ impl Role {
     }
 }
 
+/// The bytes of a file only its owner may read (a secret, a role's key); one that others may
+/// read is refused before it is read, since it must be taken as known.
+pub fn read_private(path: &Path) -> Result<Vec<u8>, SecretError> {
+    use std::os::unix::fs::PermissionsExt as _;
+    let shown = path.display().to_string();
+    let read_err = |source| SecretError::Read {
+        path: shown.clone(),
+        source,
+    };
+    let mode = std::fs::metadata(path)
+        .map_err(read_err)?
+        .permissions()
+        .mode();
+    if mode & 0o077 != 0 {
+        return Err(SecretError::Exposed {
+            path: shown,
+            mode: mode & 0o777,
+        });
+    }
+    std::fs::read(path).map_err(read_err)
+}
+
+/// A passphrase stretched into a secret of [`KEY_BYTES`] with Argon2id
+/// ([`PASSPHRASE_MEMORY_KIB`] of memory, [`PASSPHRASE_PASSES`] passes, one lane) and `salt`:
+/// an offline guesser pays that for every word it tries against a recorded handshake. The
+/// salt is not secret; the same passphrase and salt give the same secret on every computer.
+pub fn stretch_passphrase(passphrase: &[u8], salt: &[u8]) -> Result<[u8; KEY_BYTES], SecretError> {
+    use argon2::{Algorithm, Argon2, Params, Version};
+    let params = Params::new(PASSPHRASE_MEMORY_KIB, PASSPHRASE_PASSES, 1, Some(KEY_BYTES))
+        .map_err(|err| SecretError::Stretch(err.to_string()))?;
+    let mut out = [0; KEY_BYTES];
+    Argon2::new(Algorithm::Argon2id, Version::V0x13, params)
+        .hash_password_into(passphrase, salt, &mut out)
+        .map_err(|err| SecretError::Stretch(err.to_string()))?;
+    Ok(out)
+}
+
+/// `N` bytes from the system's random source (a new secret, a salt).
+pub fn random_bytes<const N: usize>() -> Result<[u8; N], SecretError> {
+    let mut bytes = [0; N];
+    getrandom::fill(&mut bytes)
+        .map_err(|err| SecretError::Stretch(format!("no randomness: {err}")))?;
+    Ok(bytes)
+}
+
+/// Bytes as lowercase hex (a secret file, a salt).
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
 /// A role's key as a file holds it (`armor secret derive`): one line, `ROLE HEX`.
 #[derive(Clone, Debug)]
 pub struct RoleKey {
@@ -309,23 +352,10 @@ impl RoleKey {
 
     /// Reads a role's key file, refusing one that others may read.
     pub fn load(path: &Path) -> Result<RoleKey, SecretError> {
-        use std::os::unix::fs::PermissionsExt as _;
         let shown = path.display().to_string();
-        let read_err = |source| SecretError::Read {
+        let text = String::from_utf8(read_private(path)?).map_err(|_| SecretError::BadRoleKey {
             path: shown.clone(),
-            source,
-        };
-        let mode = std::fs::metadata(path)
-            .map_err(read_err)?
-            .permissions()
-            .mode();
-        if mode & 0o077 != 0 {
-            return Err(SecretError::Exposed {
-                path: shown,
-                mode: mode & 0o777,
-            });
-        }
-        let text = std::fs::read_to_string(path).map_err(read_err)?;
+        })?;
         let mut words = text.split_whitespace();
         match (
             words.next().and_then(Role::parse),
@@ -1045,7 +1075,7 @@ mod tests {
     use super::*;
 
     fn secret() -> Secret {
-        Secret::from_bytes(b"0123456789abcdef0123")
+        Secret::from_bytes(b"0123456789abcdef0123456789abcdef")
     }
 
     /// Runs a whole handshake in memory.
@@ -1080,7 +1110,7 @@ mod tests {
         let err = handshake(&dial(secret.module_key("nav"), "sim", false), &listen)
             .expect_err("another name");
         assert!(matches!(err, AuthError::WrongKey(name) if name == "sim"));
-        let stranger = Secret::from_bytes(b"another secret, as long");
+        let stranger = Secret::from_bytes(b"another secret, just as long ...");
         assert!(handshake(&dial(stranger.module_key("nav"), "nav", false), &listen).is_err());
     }
 
@@ -1097,6 +1127,31 @@ mod tests {
         assert!(handshake(&dial(ticket, "observer", false), &listen).is_err());
         // A module's own key is no ticket to another's port.
         assert!(handshake(&dial(secret.module_key("nav"), "nav", false), &listen).is_err());
+    }
+
+    #[test]
+    fn a_reverse_proof_holds_on_its_own_connection_only() {
+        let secret = secret();
+        let provider = secret.module_key("sim");
+        let listen = Listen {
+            admit: Admit::LinksTo(provider.clone()),
+            encrypt: false,
+        };
+        let ticket = provider.link_key("nav");
+        let (nav, sim) = handshake(&dial(ticket.clone(), "nav", false), &listen).expect("link");
+        assert_eq!(nav.binding, sim.binding);
+        // `sim` subscribing back proves the key the agent gave it for nav's port.
+        let back = secret.module_key("nav").link_key("sim");
+        let proof = reverse_proof(&back, &sim.binding);
+        assert!(check_reverse_proof(&back, &nav.binding, &proof));
+        // Its own ticket is no proof, nor is a proof made for another connection.
+        assert!(!check_reverse_proof(
+            &back,
+            &nav.binding,
+            &reverse_proof(&ticket, &sim.binding)
+        ));
+        let (other, _) = handshake(&dial(ticket, "nav", false), &listen).expect("again");
+        assert!(!check_reverse_proof(&back, &other.binding, &proof));
     }
 
     #[test]
@@ -1155,31 +1210,6 @@ mod tests {
                 .expect("open");
         }
         assert_eq!(got, plain);
-    }
-
-    #[test]
-    fn a_reverse_proof_holds_on_its_own_connection_only() {
-        let secret = secret();
-        let provider = secret.module_key("sim");
-        let listen = Listen {
-            admit: Admit::LinksTo(provider.clone()),
-            encrypt: false,
-        };
-        let ticket = provider.link_key("nav");
-        let (nav, sim) = handshake(&dial(ticket.clone(), "nav", false), &listen).expect("link");
-        assert_eq!(nav.binding, sim.binding);
-        // `sim` subscribing back proves the key the agent gave it for nav's port.
-        let back = secret.module_key("nav").link_key("sim");
-        let proof = reverse_proof(&back, &sim.binding);
-        assert!(check_reverse_proof(&back, &nav.binding, &proof));
-        // Its own ticket is no proof, nor is a proof made for another connection.
-        assert!(!check_reverse_proof(
-            &back,
-            &nav.binding,
-            &reverse_proof(&ticket, &sim.binding)
-        ));
-        let (other, _) = handshake(&dial(ticket, "nav", false), &listen).expect("again");
-        assert!(!check_reverse_proof(&back, &other.binding, &proof));
     }
 
     #[test]
@@ -1277,7 +1307,7 @@ mod tests {
         use std::os::unix::fs::PermissionsExt as _;
         let dir = tempfile::tempdir().expect("dir");
         let file = dir.path().join("secret");
-        std::fs::write(&file, "0123456789abcdef0123\n").expect("write");
+        std::fs::write(&file, "0123456789abcdef0123456789abcdef\n").expect("write");
         std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o644)).expect("chmod");
         let err = Secret::load(&file).expect_err("exposed");
         assert!(err.to_string().contains("mode 644"), "{err}");
@@ -1286,12 +1316,41 @@ mod tests {
         // The trailing line break is not part of the secret.
         assert_eq!(
             secret.module_key("x"),
-            Secret::from_bytes(b"0123456789abcdef0123").module_key("x")
+            Secret::from_bytes(b"0123456789abcdef0123456789abcdef").module_key("x")
         );
         std::fs::write(&file, "short\n").expect("write");
         let err = Secret::load(&file).expect_err("short");
         assert!(err.to_string().contains("5 bytes long"), "{err}");
+        // Twenty bytes were enough before: no longer, whatever they are.
+        std::fs::write(&file, "0123456789abcdef0123\n").expect("write");
+        let err = Secret::load(&file).expect_err("short");
+        assert!(err.to_string().contains("20 bytes long"), "{err}");
+        assert!(err.to_string().contains("--passphrase"), "{err}");
         let err = Secret::load(&dir.path().join("none")).expect_err("missing");
         assert!(err.to_string().contains("cannot read"), "{err}");
+        // A role's key file is held to the same rule, through the same check.
+        let role = dir.path().join("role");
+        std::fs::write(&role, "observer 00\n").expect("write");
+        std::fs::set_permissions(&role, std::fs::Permissions::from_mode(0o640)).expect("chmod");
+        let err = RoleKey::load(&role).expect_err("exposed");
+        assert!(err.to_string().contains("mode 640"), "{err}");
+    }
+
+    #[test]
+    fn a_passphrase_is_stretched_the_same_way_everywhere_and_the_salt_matters() {
+        let salt = [7; SALT_BYTES];
+        let one = stretch_passphrase(b"correct horse", &salt).expect("stretch");
+        assert_eq!(
+            one,
+            stretch_passphrase(b"correct horse", &salt).expect("again")
+        );
+        assert_ne!(
+            one,
+            stretch_passphrase(b"correct horse", &[8; SALT_BYTES]).expect("salt")
+        );
+        assert_ne!(
+            one,
+            stretch_passphrase(b"correct horsf", &salt).expect("word")
+        );
     }
 }
