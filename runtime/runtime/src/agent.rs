@@ -479,3 +479,56 @@ fn register(
     }
     (FromAgent::Registered, pushes)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn acl(grants: &[(&str, Option<&str>)]) -> Acl {
+        Acl {
+            modules: grants
+                .iter()
+                .map(|(module, publish)| {
+                    (
+                        (*module).to_owned(),
+                        Permissions {
+                            publish: publish
+                                .map(|list| list.split_whitespace().map(str::to_owned).collect()),
+                            subscribe: None,
+                        },
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn a_name_belongs_to_its_module_unless_the_system_grants_it() {
+        assert_eq!(owner(None, "mux.cmd_vel"), "mux");
+        assert_eq!(owner(None, "nodot"), "nodot");
+        let acl = acl(&[
+            ("replay", Some("sim.*")),
+            ("sim", None),
+            ("nav", Some("nav.*")),
+        ]);
+        assert_eq!(owner(Some(&acl), "sim.odometry"), "replay");
+        assert_eq!(owner(Some(&acl), "nav.cmd"), "nav");
+        assert!(acl.check_publish("replay", "sim.odometry").is_ok());
+        // The grant takes the name from its module; a module may not publish another's.
+        assert!(acl.check_publish("sim", "sim.odometry").is_err());
+        assert!(acl.check_publish("nav", "mux.cmd_vel").is_err());
+        // Without a list, a module publishes its own names only.
+        let open = acl_without_lists();
+        assert!(open.check_publish("sim", "sim.odometry").is_ok());
+        assert!(open.check_publish("sim", "mux.cmd_vel").is_err());
+        // Without a list and without a secret, names are the modules' word.
+        assert!(owns_by_default(None, "rogue", "counter.count"));
+        let secret = Secret::from_bytes(&[7; 32]);
+        assert!(!owns_by_default(Some(&secret), "rogue", "counter.count"));
+        assert!(owns_by_default(Some(&secret), "counter", "counter.count"));
+    }
+
+    fn acl_without_lists() -> Acl {
+        acl(&[("sim", None), ("mux", None)])
+    }
+}
