@@ -211,29 +211,16 @@ impl Secret {
         }
     }
 
-    /// The secret as `armor run` hands it to its agent over a pipe: its pseudo-random key, hex.
+    /// The secret as `armor run` hands it to its agent over a pipe (read back by
+    /// [`Secret::from_fd_env`]): its pseudo-random key, hex.
     pub fn to_hex(&self) -> String {
         Key(*self.0).to_hex()
     }
 
-    /// A secret handed over by [`Secret::to_hex`].
-    pub fn from_hex(text: &str) -> Option<Secret> {
-        Key::from_hex(text).map(|key| Secret(Arc::new(key.0)))
-    }
-
     /// The secret handed over a descriptor named by `ARMOR_KEY_FD` (the agent `armor run`
-    /// starts), read and closed; `None` when the variable is not set.
+    /// starts), read and closed as a module's key is; `None` when the variable is not set.
     pub fn from_fd_env() -> Result<Option<Secret>, SecretError> {
-        let Some(fd) = std::env::var(ENV_KEY_FD).ok().filter(|fd| !fd.is_empty()) else {
-            return Ok(None);
-        };
-        let text = crate::hardening::take_key_fd(&fd).map_err(|source| SecretError::KeyFd {
-            fd: fd.clone(),
-            source,
-        })?;
-        Secret::from_hex(&text)
-            .map(Some)
-            .ok_or(SecretError::BadKey { fd })
+        Ok(Key::from_fd_env()?.map(|key| Secret(Arc::new(key.0))))
     }
 
     /// A secret from bytes (tests, tools): HKDF-Extract with the salt `ARMOR/1 secret`.
