@@ -368,6 +368,25 @@ pub fn ctl_status(addr: &str) -> serde_json::Value {
     serde_json::from_str(json).unwrap_or_else(|err| panic!("{err}: {text}"))
 }
 
+/// A connection to `addr` (the agent, a module's data port) as `identity`, proving `key`, not
+/// asking for encryption.
+pub fn dial_as(
+    addr: std::net::SocketAddr,
+    key: armor_module_api::auth::Key,
+    identity: &str,
+) -> Result<armor_module_api::wire::blocking::SecureStream, armor_module_api::wire::WireError> {
+    let stream = std::net::TcpStream::connect(addr)?;
+    stream.set_read_timeout(Some(PATIENCE))?;
+    armor_module_api::wire::blocking::dial(
+        stream,
+        Some(&armor_module_api::auth::Dial {
+            key,
+            identity: identity.into(),
+            encrypt: false,
+        }),
+    )
+}
+
 /// Waits until `condition` holds, checking every few milliseconds, at most `timeout`.
 pub fn wait_until(what: &str, timeout: Duration, mut condition: impl FnMut() -> bool) {
     let deadline = Instant::now() + timeout;

@@ -88,17 +88,7 @@ fn kill(pid: i32) {
 
 /// A connection to the agent as `identity`, proving `key`.
 fn agent_as(agent: SocketAddr, key: Key, identity: &str) -> blocking::SecureStream {
-    let stream = TcpStream::connect(agent).unwrap();
-    stream.set_read_timeout(Some(PATIENCE)).unwrap();
-    blocking::dial(
-        stream,
-        Some(&Dial {
-            key,
-            identity: identity.into(),
-            encrypt: false,
-        }),
-    )
-    .unwrap()
+    armor_tests::dial_as(agent, key, identity).unwrap()
 }
 
 fn ask(stream: &mut blocking::SecureStream, message: &Value) -> Value {
