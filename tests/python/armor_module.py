@@ -55,8 +55,39 @@ def log(level, text):
 
 
 # ---------------------------------------------------------------------------------------------
-# Keys (section 2.5): HKDF-SHA256. armor run gives a module K(its name) as ARMOR_KEY; the link
-# key of a dialer `d` at this module's data port is HKDF-Expand(K(self), "link:" + d, 32).
+# Keys (section 2.5): HKDF-SHA256. armor run hands a module K(its name) over the descriptor
+# named by ARMOR_KEY_FD (section 1); the link key of a dialer `d` at this module's data port is
+# HKDF-Expand(K(self), "link:" + d, 32).
+
+
+def make_non_dumpable():
+    """Section 1: first thing, before the key is read, so that a process of the same user can
+    read neither this one's memory nor its descriptors (prctl(PR_SET_DUMPABLE, 0))."""
+    import ctypes
+
+    PR_SET_DUMPABLE = 4
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0) != 0:
+        log("WARN", f"cannot make this process non-dumpable: errno {ctypes.get_errno()}")
+
+
+def take_key(env):
+    """Section 1: the key behind ARMOR_KEY_FD (64 hex digits, then end of file); the descriptor
+    is read to its end and closed (its number then stands for /dev/null)."""
+    fd = env.get("ARMOR_KEY_FD")
+    if not fd:
+        return None
+    fd = int(fd)
+    text = b""
+    while True:
+        chunk = os.read(fd, 1024)
+        if not chunk:
+            break
+        text += chunk
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, fd)  # closes the pipe
+    os.close(null)
+    return bytes.fromhex(text.decode().strip())
 
 
 def hkdf_expand(prk, info):
@@ -72,7 +103,7 @@ def link_key(own_key, dialer):
 
 def module_key(secret_file, name):
     """K(name) from the secret file, as a tool that holds the secret derives it (a module gets
-    its own as ARMOR_KEY instead). HKDF-Extract is HMAC(salt, IKM) (RFC 5869)."""
+    its own over ARMOR_KEY_FD instead). HKDF-Extract is HMAC(salt, IKM) (RFC 5869)."""
     import hashlib
     import hmac
 
@@ -337,7 +368,7 @@ class Module:
         self.agent_addr = env["ARMOR_AGENT"]
         self.epoch_ns = int(env.get("ARMOR_EPOCH_NS", time.time_ns()))
         self.time_scale = float(env.get("ARMOR_TIME_SCALE", "1"))
-        self.key = bytes.fromhex(env["ARMOR_KEY"]) if env.get("ARMOR_KEY") else None
+        self.key = take_key(env)
         self.encrypt = env.get("ARMOR_ENCRYPT") == "1"
         self.events = queue.Queue()
         self.supervisor = None
@@ -700,6 +731,7 @@ def main():
             key = link_key(key, sys.argv[4].encode())
         print(key.hex())
         return 0
+    make_non_dumpable()
     module = Module()
     log("INFO", f"started as {module.name} (secret: {module.key is not None}, "
         f"encrypt: {module.encrypt})")

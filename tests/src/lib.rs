@@ -68,6 +68,16 @@ pub struct Proc {
 }
 
 impl Proc {
+    /// Hands a module started by `command` the key `key` as `armor run` does: over a pipe on
+    /// its stdin, named by `ARMOR_KEY_FD`.
+    pub fn with_key<'a>(
+        command: &'a mut Command,
+        key: &armor_module_api::auth::Key,
+    ) -> &'a mut Command {
+        armor_runtime::supervisor::hand_over(command, &key.to_hex()).expect("a pipe");
+        command
+    }
+
     pub fn start(command: &mut Command) -> Proc {
         let name = command.get_program().to_string_lossy().into_owned();
         // Runs make their folders under the build's own temporary folder, not in the
@@ -78,8 +88,14 @@ impl Proc {
         {
             command.env(armor_runtime::run_dir::ENV_RUNS_DIR, test_runs_dir());
         }
+        // A module handed its key (`with_key`) reads it on stdin.
+        if !command
+            .get_envs()
+            .any(|(key, value)| key == armor_module_api::auth::ENV_KEY_FD && value.is_some())
+        {
+            command.stdin(Stdio::null());
+        }
         let mut child = command
-            .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -350,6 +366,25 @@ pub fn ctl_status(addr: &str) -> serde_json::Value {
     assert!(ok, "{text}");
     let json = text.find('{').map_or("", |start| &text[start..]);
     serde_json::from_str(json).unwrap_or_else(|err| panic!("{err}: {text}"))
+}
+
+/// A connection to `addr` (the agent, a module's data port) as `identity`, proving `key`, not
+/// asking for encryption.
+pub fn dial_as(
+    addr: std::net::SocketAddr,
+    key: armor_module_api::auth::Key,
+    identity: &str,
+) -> Result<armor_module_api::wire::blocking::SecureStream, armor_module_api::wire::WireError> {
+    let stream = std::net::TcpStream::connect(addr)?;
+    stream.set_read_timeout(Some(PATIENCE))?;
+    armor_module_api::wire::blocking::dial(
+        stream,
+        Some(&armor_module_api::auth::Dial {
+            key,
+            identity: identity.into(),
+            encrypt: false,
+        }),
+    )
 }
 
 /// Waits until `condition` holds, checking every few milliseconds, at most `timeout`.

@@ -122,6 +122,7 @@ fn subscribe(data_name: &str, subscriber: &str) -> ToProvider {
         max_rate_hz: None,
         pull: false,
         subscriber_addr: None,
+        proof: None,
     }
 }
 
@@ -641,9 +642,8 @@ fn a_module_with_its_own_key_cannot_claim_another_name_and_the_lists_hold() {
     // A real module process given the checker's key (as `armor run` gives it) but told it is
     // the counter: refused by the config server before any configuration.
     let mut impostor = Proc::start(
-        Command::new(bin("armor-mod-checker"))
+        Proc::with_key(&mut Command::new(bin("armor-mod-checker")), &checker_key)
             .env("ARMOR_MODULE", "counter")
-            .env("ARMOR_KEY", checker_key.to_hex())
             .env("ARMOR_AGENT", agent.to_string())
             .env("ARMOR_SUPERVISOR", config.to_string())
             .env_remove("ARMOR_SECRET_FILE"),

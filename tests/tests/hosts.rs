@@ -322,10 +322,21 @@ fn hosts_authenticate_with_the_runs_secret() {
         );
     }
     // The same secret: the link is up, data flows both ways.
-    let _host = start_host(&namespaces, &["--secret", secret.to_str().unwrap()]);
+    let host = start_host(&namespaces, &["--secret", secret.to_str().unwrap()]);
     let run = start_run(&namespaces, &file, &["--secret", secret.to_str().unwrap()]);
     run.wait_for("far_checker's report", PATIENCE, in_order("far_checker"));
     run.wait_for("near_checker's report", PATIENCE, in_order("near_checker"));
+    // The daemon handed its modules their keys over a pipe: none is in an environment, which
+    // the modules' siblings could read.
+    let modules = armor_tests::children_of(host.pid());
+    assert!(!modules.is_empty(), "the daemon's modules");
+    for pid in modules {
+        let environ = std::fs::read(format!("/proc/{pid}/environ")).unwrap_or_default();
+        let environ = String::from_utf8_lossy(&environ);
+        assert!(environ.contains("ARMOR_KEY_FD=0"), "{environ}");
+        assert!(!environ.contains("ARMOR_KEY="), "{environ}");
+        assert!(!environ.contains("ARMOR_SECRET_FILE"), "{environ}");
+    }
 }
 
 #[test]

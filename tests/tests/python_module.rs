@@ -7,12 +7,12 @@
 //! the Rust side derives, and its data port admits the agent's link key and nothing else.
 #![allow(clippy::unwrap_used)]
 
-use std::net::{SocketAddr, TcpStream};
+use std::net::SocketAddr;
 use std::os::unix::fs::PermissionsExt as _;
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-use armor_module_api::auth::{Dial, Key, Secret};
+use armor_module_api::auth::{Key, Secret};
 use armor_module_api::protocol::{Advert, FromAgent, FromProvider, ToAgent, ToProvider};
 use armor_module_api::wire::{self, blocking};
 use armor_tests::{PATIENCE, Proc, bin, bin_dir, field, workspace_root};
@@ -201,7 +201,7 @@ fn values_flow_through_the_python_module_with_a_secret() {
     );
     let port: SocketAddr = advert.addr.parse().unwrap();
     let ticket = Key::from_hex(advert.key.as_deref().unwrap()).unwrap();
-    let mut stream = dial(port, ticket, "tester").unwrap();
+    let mut stream = armor_tests::dial_as(port, ticket, "tester").unwrap();
     blocking::write_message(&mut stream, &subscribe("echo.output", "tester.input")).unwrap();
     let answer: FromProvider = blocking::read_message(&mut stream).unwrap();
     assert_eq!(answer, FromProvider::Subscribed);
@@ -212,10 +212,13 @@ fn values_flow_through_the_python_module_with_a_secret() {
         }
     }
     let wrong = secret.module_key("echo").link_key("checker");
-    assert!(dial(port, wrong, "tester").is_err(), "a wrong link key");
+    assert!(
+        armor_tests::dial_as(port, wrong, "tester").is_err(),
+        "a wrong link key"
+    );
     // Nor may a tester name another module's input.
     let ticket = Key::from_hex(advert.key.as_deref().unwrap()).unwrap();
-    let mut stream = dial(port, ticket, "tester").unwrap();
+    let mut stream = armor_tests::dial_as(port, ticket, "tester").unwrap();
     blocking::write_message(&mut stream, &subscribe("echo.output", "checker.input")).unwrap();
     let answer: FromProvider = blocking::read_message(&mut stream).unwrap();
     assert!(matches!(answer, FromProvider::Refused { .. }), "{answer:?}");
@@ -231,26 +234,9 @@ fn values_flow_through_the_python_module_with_a_secret_and_encryption() {
     assert!(output.ends_with("(authenticated, encrypted)"), "{output}");
 }
 
-fn dial(
-    addr: SocketAddr,
-    key: Key,
-    identity: &str,
-) -> Result<blocking::SecureStream, wire::WireError> {
-    let stream = TcpStream::connect(addr).unwrap();
-    stream.set_read_timeout(Some(PATIENCE)).unwrap();
-    blocking::dial(
-        stream,
-        Some(&Dial {
-            key,
-            identity: identity.into(),
-            encrypt: false,
-        }),
-    )
-}
-
 /// A provider's advert as the agent tells it to `identity` (with its link key).
 fn lookup(agent: SocketAddr, secret: &Secret, identity: &str, data_name: &str) -> Advert {
-    let mut stream = dial(agent, secret.module_key(identity), identity).unwrap();
+    let mut stream = armor_tests::dial_as(agent, secret.module_key(identity), identity).unwrap();
     let lookup = ToAgent::Lookup {
         data_name: data_name.into(),
     };
@@ -270,6 +256,7 @@ fn subscribe(data_name: &str, subscriber: &str) -> ToProvider {
         max_rate_hz: None,
         pull: false,
         subscriber_addr: None,
+        proof: None,
     }
 }
 

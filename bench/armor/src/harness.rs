@@ -112,20 +112,26 @@ impl Security {
     }
 
     /// Gives a module process named `name` its key (as `armor run` does), or none.
-    pub fn module_env(&self, command: &mut std::process::Command, name: &str) {
-        use armor_module_api::auth::{ENV_ENCRYPT, ENV_KEY, ENV_SECRET_FILE};
+    pub fn module_env(
+        &self,
+        command: &mut std::process::Command,
+        name: &str,
+    ) -> anyhow::Result<()> {
+        use armor_module_api::auth::{ENV_ENCRYPT, ENV_KEY_FD, ENV_SECRET_FILE};
         command
-            .env_remove(ENV_KEY)
+            .env_remove(ENV_KEY_FD)
             .env_remove(ENV_ENCRYPT)
             .env_remove(ENV_SECRET_FILE);
         if let Security::Secret {
             secret, encrypt, ..
         } = self
         {
-            command.env(ENV_KEY, secret.module_key(name).to_hex());
+            armor_runtime::supervisor::hand_over(command, &secret.module_key(name).to_hex())
+                .context("cannot hand the module its key")?;
             if *encrypt {
                 command.env(ENV_ENCRYPT, "1");
             }
         }
+        Ok(())
     }
 }

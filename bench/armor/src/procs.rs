@@ -58,7 +58,7 @@ pub fn spawn_echo(agent: &str, security: &crate::harness::Security) -> anyhow::R
             "input=bench.ping",
         ],
     )?;
-    security.module_env(&mut command, "echo");
+    security.module_env(&mut command, "echo")?;
     ChildGuard::spawn("armor-mod-echo", command)
 }
 
@@ -111,8 +111,14 @@ impl ChildGuard {
     }
 
     fn spawn_with(name: &str, mut command: Command, capture_stdout: bool) -> anyhow::Result<Self> {
+        // A module handed its key reads it on stdin (`Security::module_env`).
+        let keyed = command
+            .get_envs()
+            .any(|(var, value)| var == armor_module_api::auth::ENV_KEY_FD && value.is_some());
+        if !keyed {
+            command.stdin(Stdio::null());
+        }
         command
-            .stdin(Stdio::null())
             .stdout(if capture_stdout {
                 Stdio::piped()
             } else {

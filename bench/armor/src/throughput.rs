@@ -320,7 +320,7 @@ impl ArmorSide {
                         "input=bench.data",
                     ],
                 )?;
-                security.module_env(&mut command, sink);
+                security.module_env(&mut command, sink)?;
                 ChildGuard::spawn("armor-mod-sink", command)
             })
             .collect::<anyhow::Result<Vec<_>>>()?;

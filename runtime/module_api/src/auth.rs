@@ -17,7 +17,7 @@
 //! The dialer's first transport message (an empty payload, [`confirm`](Dialer::finish)) proves
 //! it holds the session's keys, so a recorded first message replayed by someone else goes no
 //! further. Keys are derived from the run's secret with HKDF-SHA256 ([`Secret`]); a module is
-//! given only its own key ([`Key`], `ARMOR_KEY`), never the secret, so it can prove no other
+//! given only its own key ([`Key`], over the descriptor `ARMOR_KEY_FD`), never the secret, so it can prove no other
 //! name than its own.
 //!
 //! **Records.** When either side asks for encryption, each side's bytes after its last
@@ -36,8 +36,11 @@ use ring::aead::{AES_256_GCM, Aad, LessSafeKey, Nonce, Tag, UnboundKey};
 /// The environment variable that names the run's secret file (tools, the studio, standalone
 /// modules).
 pub const ENV_SECRET_FILE: &str = "ARMOR_SECRET_FILE";
-/// The environment variable that holds a module's own key (64 hex digits), set by `armor run`.
-pub const ENV_KEY: &str = "ARMOR_KEY";
+/// The environment variable that names the file descriptor a module reads its own key from
+/// (64 hex digits, then end of file), set by `armor run` and `armor host`. The key itself is
+/// never in the environment: a process of the same user reads `/proc/PID/environ`. A number of
+/// a descriptor is no secret; the module reads the key and closes the descriptor at start.
+pub const ENV_KEY_FD: &str = "ARMOR_KEY_FD";
 /// Set to `1` by `armor run --encrypt`: every link of the module is encrypted.
 pub const ENV_ENCRYPT: &str = "ARMOR_ENCRYPT";
 
@@ -48,8 +51,17 @@ pub const PROLOGUE_LABEL: &[u8] = b"ARMOR/1 ";
 
 /// Bytes of a key.
 pub const KEY_BYTES: usize = 32;
-/// The shortest secret accepted, in bytes.
-pub const MIN_SECRET_BYTES: usize = 16;
+/// The shortest secret accepted, in bytes: as long as a key, so that a recorded handshake
+/// cannot be guessed offline. A shorter passphrase is stretched with Argon2id first
+/// ([`stretch_passphrase`], `armor secret new --passphrase`).
+pub const MIN_SECRET_BYTES: usize = 32;
+/// Argon2id's memory for a passphrase, in KiB (64 MiB): each guess of an offline attacker
+/// costs as much.
+pub const PASSPHRASE_MEMORY_KIB: u32 = 64 * 1024;
+/// Argon2id's passes over that memory.
+pub const PASSPHRASE_PASSES: u32 = 3;
+/// Bytes of a passphrase's salt.
+pub const SALT_BYTES: usize = 16;
 /// The longest identity a dialer may claim, in bytes.
 pub const MAX_IDENTITY_BYTES: usize = 255;
 /// The largest handshake message of the pattern (an ephemeral key, one payload byte, a tag).
@@ -76,11 +88,15 @@ pub enum SecretError {
     )]
     Exposed { path: String, mode: u32 },
     #[error(
-        "the secret in {path} is {len} bytes long; use {MIN_SECRET_BYTES} or more (for example 32 random bytes, base64)"
+        "the secret in {path} is {len} bytes long; use {MIN_SECRET_BYTES} or more: `armor secret new -o FILE` writes a random one, `armor secret new --passphrase -o FILE` stretches a shorter passphrase"
     )]
     TooShort { path: String, len: usize },
-    #[error("{ENV_KEY} must be {} hex digits", KEY_BYTES * 2)]
-    BadKey,
+    #[error("the key read from file descriptor {fd} ({ENV_KEY_FD}) must be {} hex digits", KEY_BYTES * 2)]
+    BadKey { fd: String },
+    #[error("cannot read the key from file descriptor {fd} ({ENV_KEY_FD}): {source}")]
+    KeyFd { fd: String, source: std::io::Error },
+    #[error("stretching the passphrase: {0}")]
+    Stretch(String),
     #[error(
         "{path} is not a role's key: expected one line `observer HEX` or `operator HEX` (written by armor secret derive)"
     )]
@@ -120,7 +136,7 @@ impl Key {
     }
 
     pub fn to_hex(&self) -> String {
-        self.0.iter().map(|b| format!("{b:02x}")).collect()
+        hex(&self.0)
     }
 
     pub fn from_hex(text: &str) -> Option<Key> {
@@ -135,14 +151,19 @@ impl Key {
         Some(Key(bytes))
     }
 
-    /// The module key in `ARMOR_KEY`, if set.
-    pub fn from_env() -> Result<Option<Key>, SecretError> {
-        match std::env::var(ENV_KEY) {
-            Ok(text) if !text.is_empty() => {
-                Key::from_hex(&text).map(Some).ok_or(SecretError::BadKey)
-            }
-            _ => Ok(None),
-        }
+    /// The module key behind `ARMOR_KEY_FD`, if set: read to the end, after which the
+    /// descriptor is closed (see [`crate::hardening::take_key_fd`]).
+    pub fn from_fd_env() -> Result<Option<Key>, SecretError> {
+        let Some(fd) = std::env::var(ENV_KEY_FD).ok().filter(|fd| !fd.is_empty()) else {
+            return Ok(None);
+        };
+        let text = crate::hardening::take_key_fd(&fd).map_err(|source| SecretError::KeyFd {
+            fd: fd.clone(),
+            source,
+        })?;
+        Key::from_hex(&text)
+            .map(Some)
+            .ok_or(SecretError::BadKey { fd })
     }
 }
 
@@ -169,29 +190,13 @@ impl Secret {
     /// Reads a secret file, refusing one that others may read or that is too short. Trailing
     /// line breaks are not part of the secret (editors add them).
     pub fn load(path: &Path) -> Result<Secret, SecretError> {
-        use std::os::unix::fs::PermissionsExt as _;
-        let shown = path.display().to_string();
-        let read_err = |source| SecretError::Read {
-            path: shown.clone(),
-            source,
-        };
-        let mode = std::fs::metadata(path)
-            .map_err(read_err)?
-            .permissions()
-            .mode();
-        if mode & 0o077 != 0 {
-            return Err(SecretError::Exposed {
-                path: shown,
-                mode: mode & 0o777,
-            });
-        }
-        let mut bytes = std::fs::read(path).map_err(read_err)?;
+        let mut bytes = read_private(path)?;
         while bytes.last().is_some_and(|&b| b == b'\n' || b == b'\r') {
             bytes.pop();
         }
         if bytes.len() < MIN_SECRET_BYTES {
             return Err(SecretError::TooShort {
-                path: shown,
+                path: path.display().to_string(),
                 len: bytes.len(),
             });
         }
@@ -204,6 +209,18 @@ impl Secret {
             Some(path) if !path.is_empty() => Secret::load(Path::new(&path)).map(Some),
             _ => Ok(None),
         }
+    }
+
+    /// The secret as `armor run` hands it to its agent over a pipe (read back by
+    /// [`Secret::from_fd_env`]): its pseudo-random key, hex.
+    pub fn to_hex(&self) -> String {
+        Key(*self.0).to_hex()
+    }
+
+    /// The secret handed over a descriptor named by `ARMOR_KEY_FD` (the agent `armor run`
+    /// starts), read and closed as a module's key is; `None` when the variable is not set.
+    pub fn from_fd_env() -> Result<Option<Secret>, SecretError> {
+        Ok(Key::from_fd_env()?.map(|key| Secret(Arc::new(key.0))))
     }
 
     /// A secret from bytes (tests, tools): HKDF-Extract with the salt `ARMOR/1 secret`.
@@ -257,6 +274,56 @@ impl Role {
     }
 }
 
+/// The bytes of a file only its owner may read (a secret, a role's key); one that others may
+/// read is refused before it is read, since it must be taken as known.
+pub fn read_private(path: &Path) -> Result<Vec<u8>, SecretError> {
+    use std::os::unix::fs::PermissionsExt as _;
+    let shown = path.display().to_string();
+    let read_err = |source| SecretError::Read {
+        path: shown.clone(),
+        source,
+    };
+    let mode = std::fs::metadata(path)
+        .map_err(read_err)?
+        .permissions()
+        .mode();
+    if mode & 0o077 != 0 {
+        return Err(SecretError::Exposed {
+            path: shown,
+            mode: mode & 0o777,
+        });
+    }
+    std::fs::read(path).map_err(read_err)
+}
+
+/// A passphrase stretched into a secret of [`KEY_BYTES`] with Argon2id
+/// ([`PASSPHRASE_MEMORY_KIB`] of memory, [`PASSPHRASE_PASSES`] passes, one lane) and `salt`:
+/// an offline guesser pays that for every word it tries against a recorded handshake. The
+/// salt is not secret; the same passphrase and salt give the same secret on every computer.
+pub fn stretch_passphrase(passphrase: &[u8], salt: &[u8]) -> Result<[u8; KEY_BYTES], SecretError> {
+    use argon2::{Algorithm, Argon2, Params, Version};
+    let params = Params::new(PASSPHRASE_MEMORY_KIB, PASSPHRASE_PASSES, 1, Some(KEY_BYTES))
+        .map_err(|err| SecretError::Stretch(err.to_string()))?;
+    let mut out = [0; KEY_BYTES];
+    Argon2::new(Algorithm::Argon2id, Version::V0x13, params)
+        .hash_password_into(passphrase, salt, &mut out)
+        .map_err(|err| SecretError::Stretch(err.to_string()))?;
+    Ok(out)
+}
+
+/// `N` bytes from the system's random source (a new secret, a salt).
+pub fn random_bytes<const N: usize>() -> Result<[u8; N], SecretError> {
+    let mut bytes = [0; N];
+    getrandom::fill(&mut bytes)
+        .map_err(|err| SecretError::Stretch(format!("no randomness: {err}")))?;
+    Ok(bytes)
+}
+
+/// Bytes as lowercase hex (a secret file, a salt).
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
 /// A role's key as a file holds it (`armor secret derive`): one line, `ROLE HEX`.
 #[derive(Clone, Debug)]
 pub struct RoleKey {
@@ -272,23 +339,10 @@ impl RoleKey {
 
     /// Reads a role's key file, refusing one that others may read.
     pub fn load(path: &Path) -> Result<RoleKey, SecretError> {
-        use std::os::unix::fs::PermissionsExt as _;
         let shown = path.display().to_string();
-        let read_err = |source| SecretError::Read {
+        let text = String::from_utf8(read_private(path)?).map_err(|_| SecretError::BadRoleKey {
             path: shown.clone(),
-            source,
-        };
-        let mode = std::fs::metadata(path)
-            .map_err(read_err)?
-            .permissions()
-            .mode();
-        if mode & 0o077 != 0 {
-            return Err(SecretError::Exposed {
-                path: shown,
-                mode: mode & 0o777,
-            });
-        }
-        let text = std::fs::read_to_string(path).map_err(read_err)?;
+        })?;
         let mut words = text.split_whitespace();
         match (
             words.next().and_then(Role::parse),
@@ -309,7 +363,8 @@ pub struct Credentials {
 }
 
 impl Credentials {
-    /// A module's credentials from its environment: `ARMOR_KEY` (set by `armor run`), else the
+    /// A module's credentials from its environment: the key behind `ARMOR_KEY_FD` (set by
+    /// `armor run`), else the
     /// key of `name` derived from the secret in `secret_file` or `ARMOR_SECRET_FILE`; with
     /// `ARMOR_ENCRYPT=1` (or `encrypt`), encrypted links.
     pub fn for_module(
@@ -320,7 +375,7 @@ impl Credentials {
         let encrypt = encrypt || std::env::var(ENV_ENCRYPT).is_ok_and(|value| value == "1");
         let key = match secret_file {
             Some(file) => Some(Secret::load(file)?.module_key(name)),
-            None => match Key::from_env()? {
+            None => match Key::from_fd_env()? {
                 Some(key) => Some(key),
                 None => Secret::from_env()?.map(|secret| secret.module_key(name)),
             },
@@ -408,6 +463,29 @@ pub struct Session {
     pub peer: Option<String>,
     pub sealer: Option<Sealer>,
     pub opener: Option<Opener>,
+    /// The handshake's hash, the same on both sides and on no other connection: what a
+    /// [`reverse_proof`] is bound to.
+    pub binding: Vec<u8>,
+}
+
+/// A provider's proof, sent with a subscription on a connection its subscriber opened, that it
+/// holds `link_key` (the one the agent issued it for the subscriber's data port), bound to
+/// `binding` (the connection's handshake hash): HKDF-Expand with the link key, info
+/// `reverse:` and the binding; hex. Someone who reads it learns nothing of the key and cannot
+/// use it on another connection.
+pub fn reverse_proof(link_key: &Key, binding: &[u8]) -> String {
+    expand(&link_key.0, &[b"reverse:", binding]).to_hex()
+}
+
+/// Whether `proof` is [`reverse_proof`] of `link_key` and `binding`, compared in constant time.
+pub fn check_reverse_proof(link_key: &Key, binding: &[u8], proof: &str) -> bool {
+    let expected = reverse_proof(link_key, binding);
+    expected.len() == proof.len()
+        && expected
+            .bytes()
+            .zip(proof.bytes())
+            .fold(0, |diff, (a, b)| diff | (a ^ b))
+            == 0
 }
 
 /// The dialer after its first message.
@@ -470,10 +548,12 @@ impl Dialer {
         if self.encrypt && !encrypt {
             return Err(AuthError::NotEncrypted);
         }
+        let binding = self.handshake.get_handshake_hash().to_vec();
         let (to_listener, from_listener) = self.handshake.dangerously_get_raw_split();
         let mut sealer = Sealer::new(&to_listener);
         let confirm = sealer.seal_message(&[]);
         let session = Session {
+            binding,
             peer: None,
             sealer: encrypt.then_some(sealer),
             opener: encrypt.then(|| Opener::new(&from_listener)),
@@ -485,6 +565,7 @@ impl Dialer {
 /// The listener after it answered, waiting for the dialer's confirmation.
 pub struct Listener {
     identity: String,
+    binding: Vec<u8>,
     confirm: Opener,
     opener: Option<Opener>,
 }
@@ -531,10 +612,12 @@ impl Listener {
         let mut answer = [0; MAX_HANDSHAKE_BYTES];
         let flags = if encrypt { FLAG_ENCRYPT } else { 0 };
         let len = handshake.write_message(&[flags], &mut answer)?;
+        let binding = handshake.get_handshake_hash().to_vec();
         let (from_dialer, to_dialer) = handshake.dangerously_get_raw_split();
         Ok((
             Listener {
                 identity,
+                binding,
                 confirm: Opener::new(&from_dialer),
                 opener: None,
             }
@@ -571,6 +654,7 @@ impl Listener {
             return Err(AuthError::WrongKey(self.identity));
         }
         Ok(Session {
+            binding: self.binding,
             peer: Some(self.identity),
             sealer: None,
             opener: self.opener,
@@ -978,7 +1062,7 @@ mod tests {
     use super::*;
 
     fn secret() -> Secret {
-        Secret::from_bytes(b"0123456789abcdef0123")
+        Secret::from_bytes(b"0123456789abcdef0123456789abcdef")
     }
 
     /// Runs a whole handshake in memory.
@@ -1013,7 +1097,7 @@ mod tests {
         let err = handshake(&dial(secret.module_key("nav"), "sim", false), &listen)
             .expect_err("another name");
         assert!(matches!(err, AuthError::WrongKey(name) if name == "sim"));
-        let stranger = Secret::from_bytes(b"another secret, as long");
+        let stranger = Secret::from_bytes(b"another secret, just as long ...");
         assert!(handshake(&dial(stranger.module_key("nav"), "nav", false), &listen).is_err());
     }
 
@@ -1027,9 +1111,24 @@ mod tests {
         };
         let ticket = provider.link_key("nav");
         assert!(handshake(&dial(ticket.clone(), "nav", false), &listen).is_ok());
-        assert!(handshake(&dial(ticket, "observer", false), &listen).is_err());
+        assert!(handshake(&dial(ticket.clone(), "observer", false), &listen).is_err());
         // A module's own key is no ticket to another's port.
         assert!(handshake(&dial(secret.module_key("nav"), "nav", false), &listen).is_err());
+        // The ticket admits one direction: `sim` subscribing back on nav's connection proves
+        // the ticket the agent gave it for nav's port, bound to this connection.
+        let (nav, sim) = handshake(&dial(ticket.clone(), "nav", false), &listen).expect("link");
+        assert_eq!(nav.binding, sim.binding);
+        let back = secret.module_key("nav").link_key("sim");
+        let proof = reverse_proof(&back, &sim.binding);
+        assert!(check_reverse_proof(&back, &nav.binding, &proof));
+        // Its own ticket is no proof, nor is a proof made for another connection.
+        assert!(!check_reverse_proof(
+            &back,
+            &nav.binding,
+            &reverse_proof(&ticket, &sim.binding)
+        ));
+        let (other, _) = handshake(&dial(ticket, "nav", false), &listen).expect("again");
+        assert!(!check_reverse_proof(&back, &other.binding, &proof));
     }
 
     #[test]
@@ -1185,7 +1284,7 @@ mod tests {
         use std::os::unix::fs::PermissionsExt as _;
         let dir = tempfile::tempdir().expect("dir");
         let file = dir.path().join("secret");
-        std::fs::write(&file, "0123456789abcdef0123\n").expect("write");
+        std::fs::write(&file, "0123456789abcdef0123456789abcdef\n").expect("write");
         std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o644)).expect("chmod");
         let err = Secret::load(&file).expect_err("exposed");
         assert!(err.to_string().contains("mode 644"), "{err}");
@@ -1194,12 +1293,41 @@ mod tests {
         // The trailing line break is not part of the secret.
         assert_eq!(
             secret.module_key("x"),
-            Secret::from_bytes(b"0123456789abcdef0123").module_key("x")
+            Secret::from_bytes(b"0123456789abcdef0123456789abcdef").module_key("x")
         );
         std::fs::write(&file, "short\n").expect("write");
         let err = Secret::load(&file).expect_err("short");
         assert!(err.to_string().contains("5 bytes long"), "{err}");
+        // Twenty bytes were enough before: no longer, whatever they are.
+        std::fs::write(&file, "0123456789abcdef0123\n").expect("write");
+        let err = Secret::load(&file).expect_err("short");
+        assert!(err.to_string().contains("20 bytes long"), "{err}");
+        assert!(err.to_string().contains("--passphrase"), "{err}");
         let err = Secret::load(&dir.path().join("none")).expect_err("missing");
         assert!(err.to_string().contains("cannot read"), "{err}");
+        // A role's key file is held to the same rule, through the same check.
+        let role = dir.path().join("role");
+        std::fs::write(&role, "observer 00\n").expect("write");
+        std::fs::set_permissions(&role, std::fs::Permissions::from_mode(0o640)).expect("chmod");
+        let err = RoleKey::load(&role).expect_err("exposed");
+        assert!(err.to_string().contains("mode 640"), "{err}");
+    }
+
+    #[test]
+    fn a_passphrase_is_stretched_the_same_way_everywhere_and_the_salt_matters() {
+        let salt = [7; SALT_BYTES];
+        let one = stretch_passphrase(b"correct horse", &salt).expect("stretch");
+        assert_eq!(
+            one,
+            stretch_passphrase(b"correct horse", &salt).expect("again")
+        );
+        assert_ne!(
+            one,
+            stretch_passphrase(b"correct horse", &[8; SALT_BYTES]).expect("salt")
+        );
+        assert_ne!(
+            one,
+            stretch_passphrase(b"correct horsf", &salt).expect("word")
+        );
     }
 }

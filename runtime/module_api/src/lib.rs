@@ -16,6 +16,7 @@ pub mod clock;
 mod core;
 pub mod describe;
 pub mod handshake_deadline;
+pub mod hardening;
 pub mod memory;
 mod module;
 mod net;

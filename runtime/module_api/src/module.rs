@@ -126,7 +126,7 @@ pub struct Standalone {
     /// The address subscribers reach this node on (`--host`); 127.0.0.1 when `None`.
     pub host: Option<String>,
     /// The shared secret's file, for a run started with `armor run --secret` (the node
-    /// proves the key of its name, derived from it); else `$ARMOR_KEY`, else
+    /// proves the key of its name, derived from it); else the key behind `$ARMOR_KEY_FD`, else
     /// `$ARMOR_SECRET_FILE`, else none.
     pub secret: Option<std::path::PathBuf>,
     /// Encrypt every link (`armor run --encrypt`); also set by `ARMOR_ENCRYPT=1`.
@@ -135,6 +135,9 @@ pub struct Standalone {
 
 /// Runs a module: answers `--describe`, sets up logging, connects, and runs `body`.
 pub fn run(spec: ModuleSpec, body: impl FnOnce(&mut Node) -> BodyResult) -> ExitCode {
+    // Before anything holds a key: a sibling of the same user must not read this process's
+    // memory (see `hardening`).
+    crate::hardening::make_non_dumpable();
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.iter().any(|arg| arg == "--describe") {
         let mut stdout = std::io::stdout().lock();

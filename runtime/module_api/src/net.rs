@@ -148,6 +148,11 @@ struct Conn {
     /// The peer's module: proven by the handshake for a dialer, the provider dialled for a
     /// subscription; `None` without a secret.
     peer: Option<String>,
+    /// This module opened the connection (to subscribe): the link key it proved was issued
+    /// for that direction only, so a subscription from the peer needs a proof of its own.
+    dialed: bool,
+    /// The handshake's hash, once it is over (with a secret).
+    binding: Option<Vec<u8>>,
     /// When a rate-limited subscriber was last sent a sample.
     last_sent: Option<Instant>,
     /// A subscriber pulled before its output had a sample: it gets the next one.
@@ -207,6 +212,9 @@ pub(crate) struct Net {
     name: String,
     /// Since when each input (by index) waits for peers to identify themselves.
     identify_since: FxHashMap<usize, Instant>,
+    /// With a secret, the link key the agent gave each input (by index) for its provider's
+    /// port: on a connection the provider opened, the input's subscription proves it.
+    tickets: FxHashMap<usize, Key>,
 }
 
 impl Net {
@@ -308,6 +316,7 @@ impl Net {
             pulled: Vec::new(),
             credentials,
             identify_since: FxHashMap::default(),
+            tickets: FxHashMap::default(),
             name: core.name.clone(),
         };
         if let Some((addr, stream)) = supervisor {
@@ -374,6 +383,8 @@ impl Net {
                 hello_owed: false,
                 identify_by: None,
                 peer: None,
+                dialed: false,
+                binding: None,
                 last_sent: None,
                 pull_pending: false,
                 send_buffer: 0,
@@ -400,6 +411,7 @@ impl Net {
         let stream: TcpStream = mio::net::TcpStream::connect(addr)?.into();
         let token = self.register(SealedWriter::new(stream), reader, role)?;
         if let Some(conn) = self.conns.get_mut(&token) {
+            conn.dialed = true;
             conn.out.push_encoded(&greeting);
             if dial.is_some() {
                 conn.held = Some(OutBuffer::default());
@@ -1036,6 +1048,7 @@ impl Net {
                     if step.peer.is_some() {
                         conn.peer = step.peer;
                     }
+                    conn.binding = step.binding;
                     if let Some(held) = conn.held.take() {
                         conn.out.append(held);
                     }
@@ -1137,7 +1150,7 @@ impl Net {
                     return;
                 }
             },
-            (Some(_), None) if shared.is_none() => {
+            (Some(_), None) => {
                 tracing::warn!(
                     data_name = advert.data_name,
                     "the agent gave no link key for this provider (does it run with the secret?)"
@@ -1145,8 +1158,11 @@ impl Net {
                 self.inputs[index] = retry;
                 return;
             }
-            (Some(_), None) => None,
         };
+        // Kept: a subscription on a connection the provider opened proves it.
+        if let Some(ticket) = &ticket {
+            self.tickets.insert(index, ticket.clone());
+        }
         let token = match shared {
             Some(token) => token,
             None => match self.open(
@@ -1205,7 +1221,17 @@ impl Net {
     /// Sends the subscribe of input `index` on `token`, which then feeds it.
     fn subscribe_on(&mut self, core: &Core, token: Token, index: usize) {
         let slot = &core.inputs[index];
+        // On a connection the provider opened, the link key it proved was for the other
+        // direction: this one is proven by the ticket the agent gave for it.
+        let proof = self
+            .conns
+            .get(&token)
+            .filter(|conn| !conn.dialed)
+            .and_then(|conn| conn.binding.as_deref())
+            .zip(self.tickets.get(&index))
+            .map(|(binding, ticket)| crate::auth::reverse_proof(ticket, binding));
         let subscribe = ToProvider::Subscribe {
+            proof,
             data_name: slot.source.clone().unwrap_or_default(),
             data_type: slot.data_type.clone(),
             subscriber: format!("{}.{}", core.name, slot.name),
@@ -1494,9 +1520,23 @@ impl Net {
             max_rate_hz,
             pull,
             subscriber_addr,
+            proof,
         } = message
         else {
             return;
+        };
+        // With a secret, a subscription on a connection this module opened comes from the
+        // provider it dialled, whose link key was issued for the other direction: it must
+        // prove the one the agent issued it for this module's port.
+        let unproven_reverse = match (&self.credentials, self.conns.get(&token)) {
+            (Some(credentials), Some(conn)) if conn.dialed => {
+                let binding = conn.binding.as_deref().unwrap_or_default();
+                let peer = conn.peer.as_deref().unwrap_or_default();
+                let ticket = credentials.key.link_key(peer);
+                !proof
+                    .is_some_and(|proof| crate::auth::check_reverse_proof(&ticket, binding, &proof))
+            }
+            _ => false,
         };
         // A reliable subscriber takes every sample; a rate that is not a positive number is
         // no limit.
@@ -1509,6 +1549,11 @@ impl Net {
             .position(|slot| slot.data_name == data_name);
         let proven = self.conns.get(&token).and_then(|conn| conn.peer.clone());
         let refusal = match found {
+            _ if unproven_reverse => Some(format!(
+                "`{subscriber}` subscribes back on a connection `{}` opened, without the link \
+                 key for this direction (the agent gives it only to who may subscribe)",
+                core.name
+            )),
             // With a secret, a subscriber's name is its proven module's.
             _ if proven.as_ref().is_some_and(|module| {
                 subscriber.split_once('.').map(|(name, _)| name) != Some(module.as_str())

@@ -185,6 +185,13 @@ pub enum ToProvider {
         /// another, which it does when it has no subscription on it yet.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         subscriber_addr: Option<String>,
+        /// With a secret, from a provider subscribing back on a connection its subscriber
+        /// opened: the proof that it holds the link key the agent issued it for this direction,
+        /// bound to this connection's handshake ([`crate::auth::reverse_proof`]). A connection
+        /// serves only the direction its link key was issued for, unless the other is proven
+        /// so.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        proof: Option<String>,
     },
     /// From a subscriber (in pull mode or not): send me your latest sample now, or the next one
     /// if you have sent none yet. Answered from the provider's node without waking its module.
@@ -232,6 +239,7 @@ mod tests {
             max_rate_hz: None,
             pull: true,
             subscriber_addr: None,
+            proof: None,
         };
         assert!(
             serde_json::to_string(&pulling)

@@ -121,6 +121,8 @@ pub struct AuthStep {
     pub done: bool,
     /// The identity the dialer proved (on the listener's side).
     pub peer: Option<String>,
+    /// The handshake's hash, once it is over ([`crate::auth::Session::binding`]).
+    pub binding: Option<Vec<u8>>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -499,6 +501,7 @@ impl FrameReader {
                     sealer: session.sealer,
                     done: true,
                     peer: None,
+                    binding: Some(session.binding),
                 }
             }
             (AuthState::Listening(listen), KIND_HANDSHAKE_FIRST) => {
@@ -511,6 +514,7 @@ impl FrameReader {
                     sealer,
                     done: false,
                     peer: None,
+                    binding: None,
                 }
             }
             (AuthState::Answered(listener), KIND_HANDSHAKE_CONFIRM) => {
@@ -525,6 +529,7 @@ impl FrameReader {
                     sealer: None,
                     done: true,
                     peer: session.peer,
+                    binding: Some(session.binding),
                 }
             }
             _ => return Err(WireError::Unauthenticated("a handshake frame out of turn")),

@@ -4,13 +4,20 @@
 //! agent dies. A registration lives as long as the module's connection to the agent: when a
 //! module dies its entries go with it, and when the agent restarts, modules register again.
 //!
+//! **A data name belongs to one module**: `module.output` to `module` ([`owner`]), unless the
+//! system grants it to another with an explicit `may_publish`. With a secret or an [`Acl`], the
+//! agent registers a data name only for its owner, so a module that races another's restart
+//! cannot take its names (`mux.cmd_vel` would let it drive).
+//!
 //! With an [`Acl`] (the system's `may_publish` and `may_subscribe` lists), the agent serves only
 //! the system's modules: it refuses a registration of a data name the module may not publish,
 //! and a lookup of one it may not subscribe to. Without a secret, names are the modules' own
 //! word and the lists guard against mistakes only. With a secret, a connection proves the name
 //! it claims in the handshake (its module key), registers only as that name, and each
 //! `provider` answer carries the link key with which the asker, and it alone, gets into that
-//! provider's data port: a module can reach no data port the lists do not give it.
+//! provider's data port: a module can reach no data port the lists do not give it. The link key
+//! is derived from the key of the data name's owner, not of whoever registered it: a
+//! subscriber sent to another module's port fails the handshake there.
 
 use std::collections::{BTreeMap, HashMap};
 use std::net::{SocketAddr, TcpListener};
@@ -86,7 +93,11 @@ impl Acl {
 
     fn check_publish(&self, module: &str, data_name: &str) -> Result<(), String> {
         let permissions = self.permissions(module)?;
-        if armor_model::system::allowed(permissions.publish.as_deref(), data_name) {
+        let listed = match &permissions.publish {
+            Some(patterns) => armor_model::system::allowed(Some(patterns), data_name),
+            None => true,
+        };
+        if listed && owner(Some(self), data_name) == module {
             Ok(())
         } else {
             Err(format!("module `{module}` may not publish `{data_name}`"))
@@ -110,6 +121,31 @@ impl Acl {
             .get(module)
             .ok_or_else(|| format!("no module `{module}` in this system"))
     }
+}
+
+/// The module a data name belongs to: the first module of the system (in `acl`) whose explicit
+/// `may_publish` grants it, else the module its name starts with (`module.output`).
+pub fn owner<'a>(acl: Option<&'a Acl>, data_name: &'a str) -> &'a str {
+    let granted = acl.and_then(|acl| {
+        acl.modules.iter().find_map(|(module, permissions)| {
+            let patterns = permissions.publish.as_deref()?;
+            // A module's own names are its own by default: a list naming them grants nothing.
+            (!data_name.starts_with(&format!("{module}."))
+                && armor_model::system::allowed(Some(patterns), data_name))
+            .then_some(module.as_str())
+        })
+    });
+    granted.unwrap_or_else(|| {
+        data_name
+            .split_once('.')
+            .map_or(data_name, |(module, _)| module)
+    })
+}
+
+/// Whether `module` may register `data_name` with no access list: with a secret, only names it
+/// owns; without one, names are the modules' own word.
+fn owns_by_default(secret: Option<&Secret>, module: &str, data_name: &str) -> bool {
+    secret.is_none() || owner(None, data_name) == module
 }
 
 struct Entry {
@@ -237,12 +273,15 @@ struct Conn<'a> {
 
 impl Conn<'_> {
     /// `advert` as told to `asker`: with a secret, with the link key of the asker's proven name
-    /// for the provider's data port.
-    fn for_asker(&self, entry_module: &str, advert: &Advert, asker: Option<&str>) -> Advert {
+    /// for the data port of the data name's owner (whoever registered it).
+    fn for_asker(&self, advert: &Advert, asker: Option<&str>) -> Advert {
         let key = match (self.secret, asker) {
-            (Some(secret), Some(asker)) => {
-                Some(secret.module_key(entry_module).link_key(asker).to_hex())
-            }
+            (Some(secret), Some(asker)) => Some(
+                secret
+                    .module_key(owner(self.acl, &advert.data_name))
+                    .link_key(asker)
+                    .to_hex(),
+            ),
             _ => None,
         };
         Advert {
@@ -302,14 +341,26 @@ impl Conn<'_> {
                         }
                     }
                     ToAgent::Register { module, outputs } => {
-                        let refused = acl.and_then(|acl| {
-                            outputs
+                        let refused = match acl {
+                            Some(acl) => outputs
                                 .iter()
                                 .find_map(|advert| {
                                     acl.check_publish(&module, &advert.data_name).err()
                                 })
-                                .or_else(|| acl.permissions(&module).err())
-                        });
+                                .or_else(|| acl.permissions(&module).err()),
+                            None => outputs
+                                .iter()
+                                .find(|advert| {
+                                    !owns_by_default(self.secret, &module, &advert.data_name)
+                                })
+                                .map(|advert| {
+                                    format!(
+                                        "module `{module}` may not publish `{}`: a module \
+                                         publishes its own names (`{module}.*`)",
+                                        advert.data_name
+                                    )
+                                }),
+                        };
                         match refused {
                             Some(message) => {
                                 tracing::warn!(module, "refused a registration: {message}");
@@ -320,8 +371,7 @@ impl Conn<'_> {
                                 let (reply, pushes) =
                                     register(registry, conn_id, module.clone(), outputs);
                                 for (asker, advert) in pushes {
-                                    let advert =
-                                        self.for_asker(&module, &advert, asker.identity.as_deref());
+                                    let advert = self.for_asker(&advert, asker.identity.as_deref());
                                     // An asker that went away is forgotten by its own thread.
                                     let _ = write(&asker.writer, &FromAgent::Provider(advert));
                                 }
@@ -339,11 +389,9 @@ impl Conn<'_> {
                     ToAgent::Lookup { data_name } => {
                         let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);
                         match registry.by_data_name.get(&data_name) {
-                            Some(entry) => FromAgent::Provider(self.for_asker(
-                                &entry.module,
-                                &entry.advert,
-                                identity.as_deref(),
-                            )),
+                            Some(entry) => FromAgent::Provider(
+                                self.for_asker(&entry.advert, identity.as_deref()),
+                            ),
                             None => {
                                 let askers = registry.waiting.entry(data_name.clone()).or_default();
                                 if !askers.iter().any(|asker| asker.conn_id == conn_id) {
@@ -430,4 +478,57 @@ fn register(
         );
     }
     (FromAgent::Registered, pushes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn acl(grants: &[(&str, Option<&str>)]) -> Acl {
+        Acl {
+            modules: grants
+                .iter()
+                .map(|(module, publish)| {
+                    (
+                        (*module).to_owned(),
+                        Permissions {
+                            publish: publish
+                                .map(|list| list.split_whitespace().map(str::to_owned).collect()),
+                            subscribe: None,
+                        },
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn a_name_belongs_to_its_module_unless_the_system_grants_it() {
+        assert_eq!(owner(None, "mux.cmd_vel"), "mux");
+        assert_eq!(owner(None, "nodot"), "nodot");
+        let acl = acl(&[
+            ("replay", Some("sim.*")),
+            ("sim", None),
+            ("nav", Some("nav.*")),
+        ]);
+        assert_eq!(owner(Some(&acl), "sim.odometry"), "replay");
+        assert_eq!(owner(Some(&acl), "nav.cmd"), "nav");
+        assert!(acl.check_publish("replay", "sim.odometry").is_ok());
+        // The grant takes the name from its module; a module may not publish another's.
+        assert!(acl.check_publish("sim", "sim.odometry").is_err());
+        assert!(acl.check_publish("nav", "mux.cmd_vel").is_err());
+        // Without a list, a module publishes its own names only.
+        let open = acl_without_lists();
+        assert!(open.check_publish("sim", "sim.odometry").is_ok());
+        assert!(open.check_publish("sim", "mux.cmd_vel").is_err());
+        // Without a list and without a secret, names are the modules' word.
+        assert!(owns_by_default(None, "rogue", "counter.count"));
+        let secret = Secret::from_bytes(&[7; 32]);
+        assert!(!owns_by_default(Some(&secret), "rogue", "counter.count"));
+        assert!(owns_by_default(Some(&secret), "counter", "counter.count"));
+    }
+
+    fn acl_without_lists() -> Acl {
+        acl(&[("sim", None), ("mux", None)])
+    }
 }

@@ -21,7 +21,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use armor_module_api::ENV_RUN_DIR;
-use armor_module_api::auth::{Admit, ENV_ENCRYPT, ENV_KEY, ENV_SECRET_FILE, Listen, Secret};
+use armor_module_api::auth::{Admit, ENV_ENCRYPT, ENV_KEY_FD, ENV_SECRET_FILE, Listen, Secret};
 use armor_module_api::clock::unix_now_ns;
 use armor_module_api::wire::WireError;
 use armor_module_api::wire::blocking::{self, SecureStream};
@@ -181,7 +181,7 @@ const MODULE_VARS: [&str; 8] = [
     armor_module_api::ENV_SUPERVISOR,
     armor_module_api::clock::ENV_EPOCH,
     armor_module_api::clock::ENV_TIME_SCALE,
-    ENV_KEY,
+    ENV_KEY_FD,
     ENV_ENCRYPT,
     ENV_RUN_DIR,
 ];
@@ -241,11 +241,8 @@ fn module_env(
             time_scale.to_string(),
         ),
     ];
-    if let Some(secret) = secret {
-        env.push((ENV_KEY, secret.module_key(name).to_hex()));
-        if encrypt {
-            env.push((ENV_ENCRYPT, "1".to_owned()));
-        }
+    if secret.is_some() && encrypt {
+        env.push((ENV_ENCRYPT, "1".to_owned()));
     }
     Ok(env)
 }
@@ -599,6 +596,14 @@ impl Daemon {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
+        // The module's key, derived here from the daemon's own secret, goes over a pipe: its
+        // siblings read environments.
+        if let Some(secret) = &self.secret {
+            let key = secret.module_key(&name).to_hex();
+            if let Err(err) = crate::supervisor::hand_over(&mut command, &key) {
+                return failed(format!("cannot hand {name} its key: {err:#}"));
+            }
+        }
         crate::process::die_with_parent(&mut command);
         let mut child = match command.spawn() {
             Ok(child) => child,

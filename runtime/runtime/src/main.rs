@@ -76,6 +76,22 @@ enum CtlCommand {
 
 #[derive(Subcommand)]
 enum SecretCommand {
+    /// Write a new secret for a run (mode 600): 32 random bytes, as 64 hex digits. With
+    /// --passphrase, a passphrase read from standard input stretched with Argon2id (64 MiB)
+    /// instead, for a secret a person must be able to type again on another computer.
+    New {
+        /// The secret file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Stretch a passphrase (one line on standard input) with Argon2id and a salt; the salt
+        /// is printed, and is not secret: `--salt` with it makes the same secret elsewhere.
+        #[arg(long)]
+        passphrase: bool,
+        /// With --passphrase: the salt (32 hex digits) a first `armor secret new --passphrase`
+        /// printed; without it, a new random salt.
+        #[arg(long, requires = "passphrase")]
+        salt: Option<String>,
+    },
     /// Write the key of a role at the control interface (`armor ctl --key FILE`, the studio's
     /// attach): it proves that role and reveals neither the secret nor another role's key.
     Derive {
@@ -318,6 +334,9 @@ const DEFAULT_HOLD_TIMEOUT_SECS: f64 = 300.0;
 const NULL_ISLAND_DEG: f64 = 0.1;
 
 fn main() -> ExitCode {
+    // `armor run`, its agent and `armor host` hold the run's secret: the modules they start run
+    // as the same user, and must not read it from this process's memory (`/proc/PID/mem`).
+    armor_module_api::hardening::make_non_dumpable();
     armor_runtime::console::init_logging();
     match run(Cli::parse()) {
         Ok(code) => code,
@@ -448,6 +467,14 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             });
             Ok(ExitCode::SUCCESS)
         }
+        Command::Secret {
+            command:
+                SecretCommand::New {
+                    output,
+                    passphrase,
+                    salt,
+                },
+        } => secret_new(&output, passphrase, salt.as_deref()),
         Command::Secret {
             command:
                 SecretCommand::Derive {
@@ -768,10 +795,14 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Agent { listen, secret } => {
-            let secret = secret
-                .filter(|file| !file.as_os_str().is_empty())
-                .map(|file| armor_module_api::auth::Secret::load(&file))
-                .transpose()?;
+            // `armor run` hands its agent the secret over a pipe (`ARMOR_KEY_FD`), never a path.
+            let secret = match armor_module_api::auth::Secret::from_fd_env()? {
+                Some(secret) => Some(secret),
+                None => secret
+                    .filter(|file| !file.as_os_str().is_empty())
+                    .map(|file| armor_module_api::auth::Secret::load(&file))
+                    .transpose()?,
+            };
             let listener = std::net::TcpListener::bind(listen)
                 .with_context(|| format!("cannot listen on {listen}"))?;
             let addr = listener.local_addr()?;
@@ -1033,6 +1064,57 @@ fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration, cached: bool
 
 /// Writes a file only its owner may read, through a temporary file renamed over it (a key is
 /// never readable by others, not even for a moment, and a failed write leaves the old file).
+/// `armor secret new`: a random secret, or a passphrase (standard input) stretched with
+/// Argon2id and a salt, written as hex to `output` (mode 600).
+fn secret_new(
+    output: &std::path::Path,
+    passphrase: bool,
+    salt: Option<&str>,
+) -> anyhow::Result<ExitCode> {
+    use armor_module_api::auth::{KEY_BYTES, SALT_BYTES, hex, random_bytes, stretch_passphrase};
+    let secret = if passphrase {
+        let salt = match salt {
+            Some(text) => {
+                let text = text.trim();
+                let bytes: Option<Vec<u8>> = (text.len() == SALT_BYTES * 2 && text.is_ascii())
+                    .then(|| {
+                        (0..SALT_BYTES)
+                            .map(|i| u8::from_str_radix(&text[i * 2..i * 2 + 2], 16).ok())
+                            .collect()
+                    })
+                    .flatten();
+                bytes.with_context(|| {
+                    format!("--salt {text}: expected {} hex digits", SALT_BYTES * 2)
+                })?
+            }
+            None => random_bytes::<SALT_BYTES>()?.to_vec(),
+        };
+        eprintln!("passphrase (one line, then Enter):");
+        let mut line = String::new();
+        std::io::stdin()
+            .read_line(&mut line)
+            .context("cannot read the passphrase from standard input")?;
+        let typed = line.trim_end_matches(['\n', '\r']);
+        if typed.is_empty() {
+            anyhow::bail!("an empty passphrase: type one on standard input");
+        }
+        let stretched = stretch_passphrase(typed.as_bytes(), &salt)?;
+        println!(
+            "salt {} (not secret: `armor secret new --passphrase --salt {}` makes the same secret \
+             from the same passphrase on another computer)",
+            hex(&salt),
+            hex(&salt)
+        );
+        stretched
+    } else {
+        random_bytes::<KEY_BYTES>()?
+    };
+    write_private(output, format!("{}\n", hex(&secret)).as_bytes())
+        .with_context(|| format!("cannot write {}", output.display()))?;
+    println!("wrote a new secret to {}", output.display());
+    Ok(ExitCode::SUCCESS)
+}
+
 fn write_private(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write as _;
     use std::os::unix::fs::OpenOptionsExt as _;

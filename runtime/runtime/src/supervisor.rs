@@ -4,7 +4,7 @@
 //! supervisor, which stops them in order) and die with it if it is killed (`PR_SET_PDEATHSIG`).
 
 use std::collections::BTreeMap;
-use std::io::{BufRead as _, BufReader, Read};
+use std::io::{BufRead as _, BufReader, Read, Write as _};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, ExitStatus, Stdio};
@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use armor_model::RestartPolicy;
-use armor_module_api::auth::{ENV_ENCRYPT, ENV_KEY, ENV_SECRET_FILE, Secret};
+use armor_module_api::auth::{ENV_ENCRYPT, ENV_KEY_FD, ENV_SECRET_FILE, Secret};
 use armor_module_api::clock::{ENV_EPOCH, ENV_TIME_SCALE, unix_now_ns};
 use armor_module_api::protocol::FromSupervisor;
 use armor_module_api::{Clock, ENV_AGENT, ENV_MODULE, ENV_RUN_DIR, ENV_SUPERVISOR};
@@ -266,7 +266,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     };
     let mut agent = AgentProc::start(
         options.agent_addr.map_or_else(|| local(0), Ok)?,
-        secret_file.clone(),
+        secret.clone(),
         Acl::of(&loaded.system, &observers),
     )?;
     let control = controller
@@ -967,12 +967,20 @@ impl ModuleProc {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
-        // A module gets the key of its own name, never the secret: it can prove no other.
+        // A module gets the key of its own name, never the secret: it can prove no other. The
+        // key goes over a pipe, never in the environment, which its siblings can read.
         command.env_remove(ENV_SECRET_FILE).env_remove(ENV_ENCRYPT);
-        match &env.secret {
-            Some(secret) => command.env(ENV_KEY, secret.module_key(&self.name).to_hex()),
-            None => command.env_remove(ENV_KEY),
-        };
+        command.env_remove(ENV_KEY_FD);
+        if let Some(secret) = &env.secret
+            && let Err(err) = hand_over(&mut command, &secret.module_key(&self.name).to_hex())
+        {
+            tracing::error!(
+                module = self.name,
+                "cannot hand the module its key: {err:#}"
+            );
+            self.state = ProcState::Failed;
+            return;
+        }
         if env.secret.is_some() && env.encrypt {
             command.env(ENV_ENCRYPT, "1");
         }
@@ -1154,23 +1162,19 @@ struct AgentProc {
     child: Option<Child>,
     restart_at: Option<Instant>,
     backoff: Duration,
-    secret_file: Option<PathBuf>,
+    secret: Option<Secret>,
     acl: Option<Acl>,
 }
 
 impl AgentProc {
-    fn start(
-        addr: SocketAddr,
-        secret_file: Option<PathBuf>,
-        acl: Option<Acl>,
-    ) -> anyhow::Result<Self> {
-        let (child, addr) = spawn_agent(addr, secret_file.as_deref(), acl.as_ref())?;
+    fn start(addr: SocketAddr, secret: Option<Secret>, acl: Option<Acl>) -> anyhow::Result<Self> {
+        let (child, addr) = spawn_agent(addr, secret.as_ref(), acl.as_ref())?;
         Ok(Self {
             addr,
             child: Some(child),
             restart_at: None,
             backoff: FIRST_BACKOFF,
-            secret_file,
+            secret,
             acl,
         })
     }
@@ -1203,7 +1207,7 @@ impl AgentProc {
             return;
         }
         if self.restart_at.is_some_and(|at| Instant::now() >= at) {
-            match spawn_agent(self.addr, self.secret_file.as_deref(), self.acl.as_ref()) {
+            match spawn_agent(self.addr, self.secret.as_ref(), self.acl.as_ref()) {
                 Ok((child, _)) => {
                     self.child = Some(child);
                     self.restart_at = None;
@@ -1229,18 +1233,32 @@ impl AgentProc {
     }
 }
 
-/// Gives a child the run's secret file, or makes sure it has none.
-fn pass_secret(command: &mut Command, secret_file: Option<&Path>) {
-    match secret_file {
-        Some(file) => command.env(ENV_SECRET_FILE, file),
-        None => command.env_remove(ENV_SECRET_FILE),
-    };
+/// Hands `text` (a key) to the child `command` starts through a pipe that becomes its
+/// standard input, named by `ARMOR_KEY_FD=0`: the child reads it and closes it at start, and
+/// nothing of it shows in `/proc/PID/environ` or `cmdline`. The pipe holds the few bytes
+/// until the child reads them, so they are written before it starts.
+pub fn hand_over(command: &mut Command, text: &str) -> std::io::Result<()> {
+    let (reader, mut writer) = std::io::pipe()?;
+    writer.write_all(text.as_bytes())?;
+    drop(writer);
+    command.stdin(Stdio::from(reader)).env(ENV_KEY_FD, "0");
+    Ok(())
+}
+
+/// Gives a child the run's secret over a pipe (see [`hand_over`]), or makes sure it has none;
+/// never the secret file's path, which its siblings could read in its environment.
+fn pass_secret(command: &mut Command, secret: Option<&Secret>) -> std::io::Result<()> {
+    command.env_remove(ENV_SECRET_FILE).env_remove(ENV_KEY_FD);
+    match secret {
+        Some(secret) => hand_over(command, &secret.to_hex()),
+        None => Ok(()),
+    }
 }
 
 /// Starts `armor agent` and reads the address it reports listening on.
 fn spawn_agent(
     addr: SocketAddr,
-    secret_file: Option<&Path>,
+    secret: Option<&Secret>,
     acl: Option<&Acl>,
 ) -> anyhow::Result<(Child, SocketAddr)> {
     let exe = std::env::current_exe().context("cannot find the armor executable")?;
@@ -1250,7 +1268,7 @@ fn spawn_agent(
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    pass_secret(&mut command, secret_file);
+    pass_secret(&mut command, secret).context("cannot hand the agent the secret")?;
     match acl {
         Some(acl) => command.env(ENV_ACL, serde_json::to_string(acl)?),
         None => command.env_remove(ENV_ACL),

@@ -59,6 +59,32 @@ pub fn check(
             )),
         }
     }
+    // A data name has one publisher: a module's own names are its own, and a `may_publish`
+    // that grants another module's output to a second one would let either take it (the agent
+    // gives it to the grantee, and the owner's registration is refused).
+    for grantee in &system.modules {
+        let Some(patterns) = grantee.may_publish.as_deref() else {
+            continue;
+        };
+        for module in system.modules.iter().filter(|m| m.name != grantee.name) {
+            let Some(description) = descriptions.get(&module.module_type) else {
+                continue;
+            };
+            for output in &description.outputs {
+                let data_name = format!("{}.{}", module.name, output.name);
+                if super::allowed(Some(patterns), &data_name) {
+                    problems.push(Located::new(
+                        grantee.pos,
+                        format!(
+                            "module `{}`: its may_publish covers `{data_name}`, an output of \
+                             module `{}`; a data name has one publisher",
+                            grantee.name, module.name
+                        ),
+                    ));
+                }
+            }
+        }
+    }
     // The run's health stream is an output of the runtime, not of a module.
     let health = PortSpec {
         name: "health".to_owned(),

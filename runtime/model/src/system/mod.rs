@@ -18,7 +18,9 @@
 //! A module may be limited to what it publishes and subscribes to: `may_publish` and
 //! `may_subscribe` list data names (`module.output`, `module.*` or `*`), separated by spaces or
 //! commas. The agent refuses registrations and lookups outside the lists; without a list, a
-//! module may publish its outputs and subscribe to anything.
+//! module may publish its own outputs (`its_name.*`) and subscribe to anything. A `may_publish`
+//! naming another module's names grants them (a data name has one publisher, which `check`
+//! holds to).
 //!
 //! [`SystemConfig::parse`] reports structural problems (the XML alone), [`check`] reports the
 //! problems found against the module descriptions, both with line and column. The schema is

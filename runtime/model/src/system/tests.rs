@@ -647,3 +647,25 @@ fn bad_hosts_and_rates_are_reported_where_they_are() {
         ],
     );
 }
+
+#[test]
+fn a_data_name_has_one_publisher() {
+    // A grant of another module's names (`sim.*` to the replayer) is reported where it is
+    // written; a grant of names no module of the system serves is the widening it is for.
+    check(
+        "<system name=\"s\">\n\
+         <module name=\"sim\" type=\"sim\"/>\n\
+         <module name=\"replay\" type=\"checker\" may_publish=\"sim.* lidar.scan\"/>\n\
+         </system>",
+        &[
+            "3:1: module `replay`: its may_publish covers `sim.odometry`, an output of module `sim`; a data name has one publisher",
+            "3:1: module `replay`: its may_publish covers `sim.scan`, an output of module `sim`; a data name has one publisher",
+        ],
+    );
+    check(
+        "<system name=\"s\">\n\
+         <module name=\"replay\" type=\"checker\" may_publish=\"sim.*\"/>\n\
+         </system>",
+        &[],
+    );
+}
