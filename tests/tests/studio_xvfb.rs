@@ -513,8 +513,9 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
 
     // F5 runs it: the robot leaves home at (4, 4), as the poses above the live map say.
     keys_until(studio, display, window, &["F5"], "running ");
-    // The line above the map (light on dark).
-    let poses = "660x26+300+45";
+    // The lines above the map (light on dark): the poses, estimated and true, then what the
+    // follower does, which wraps to a second line beside the localisation state.
+    let poses = "660x44+300+45";
     let text = ocr_until(display, "3-running", poses, Ink::Light, PATIENCE, |text| {
         ocr_points(text).iter().any(|(x, _)| *x > 5.0)
     });
