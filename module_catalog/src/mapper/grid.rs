@@ -177,6 +177,37 @@ impl LogOddsGrid {
         self.refresh();
     }
 
+    /// Marks a known map from echo positions, in metres: the cell of each echo is certainly
+    /// occupied, with its echo at the mean of the echoes that fall in it, and every other cell
+    /// is known and free; then brings the nearest-echo index and the field up to date. Unlike
+    /// [`LogOddsGrid::mark_map`], whose echoes sit at the cells' centres, the field peaks on
+    /// the surfaces themselves, wherever they cross the cells.
+    pub fn mark_echoes(&mut self, echoes: impl IntoIterator<Item = (f64, f64)>) {
+        self.known.fill(true);
+        self.log_odds.fill(LOG_ODDS_MIN);
+        self.cleared.clear();
+        self.echoed.clear();
+        for (x_m, y_m) in echoes {
+            let Some((col, row)) = self.cell_of(x_m, y_m) else {
+                continue;
+            };
+            let index = row * self.width + col;
+            if self.echo_counts[index] == 0 {
+                self.log_odds[index] = LOG_ODDS_MAX;
+                self.echo_sums[index] = [0.0, 0.0];
+                self.echoed.push(index);
+            }
+            let within = [
+                ((x_m - self.origin_x_m) / self.resolution_m - col as f64) as f32,
+                ((y_m - self.origin_y_m) / self.resolution_m - row as f64) as f32,
+            ];
+            self.echo_sums[index][0] += within[0];
+            self.echo_sums[index][1] += within[1];
+            self.echo_counts[index] += 1;
+        }
+        self.refresh();
+    }
+
     pub fn resolution_m(&self) -> f64 {
         self.resolution_m
     }
