@@ -241,9 +241,12 @@ struct Kidnap {
     recovered: bool,
 }
 
+/// Waypoints of a scripted drive.
+type Round = &'static [(f64, f64)];
+
 fn kidnaps(recover: bool) -> Vec<Kidnap> {
     let deg = |d: f64| d.to_radians();
-    let cases: [(&str, &'static [(f64, f64)], Pose2D); 5] = [
+    let cases: [(&str, Round, Pose2D); 5] = [
         (
             "yard.world",
             YARD_ROUND,
