@@ -674,6 +674,14 @@ fn the_explore_plan_drives_on_the_mappers_pose_in_a_building_it_has_no_map_of() 
         "{}",
         run.run.lines.join("\n")
     );
+    // The run's live line (distance left, distance driven) follows the pose the follower
+    // drives on, the mapper's, not the odometry.
+    assert!(
+        run.run
+            .any_line(|line| line.contains("subscriber=\"armor-run.mapper.pose\"")),
+        "{}",
+        run.run.lines.join("\n")
+    );
 }
 
 #[test]
