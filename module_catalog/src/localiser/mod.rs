@@ -127,9 +127,9 @@ pub fn spec() -> ModuleSpec {
         ParamSpec::new(
             "recover",
             ParamType::Bool,
-            "when lost, search the whole map (global mode; measured: 3 of 5 kidnapped robots \
-             found themselves, 1 settled on a look-alike aisle of the warehouse); off: stay lost \
-             until a set_pose",
+            "when lost, search the whole map (global mode; measured: 5 of 5 kidnapped robots \
+             found themselves, but 2 said localised on the way at a look-alike place); off: stay \
+             lost until a set_pose",
         )
         .default("false"),
     )

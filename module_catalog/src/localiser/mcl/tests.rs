@@ -355,8 +355,9 @@ fn kidnapped_robots_are_noticed_and_without_recovery_never_claim_a_wrong_place()
 }
 
 /// The measurement behind `recover` being off by default (docs/localisation.md): with it on,
-/// most kidnapped robots find themselves again, but in the warehouse, whose aisles of shelving
-/// look alike, one settled on the wrong aisle and said `localised`.
+/// the kidnapped robots find themselves again, but on the way some say `localised` at a place
+/// that only looks like theirs (measured: two of five, in the yard and along the office's
+/// corridor, before the scans corrected them).
 #[test]
 fn kidnapped_robots_mostly_recover_by_themselves_with_recovery_on() {
     let kidnaps = kidnaps(true);
@@ -368,13 +369,37 @@ fn kidnapped_robots_mostly_recover_by_themselves_with_recovery_on() {
         .filter(|k| k.wrong.is_some_and(|(_, e)| e > 1.0))
         .count();
     assert!(
-        recovered >= 3,
+        recovered >= 4,
         "{recovered} of 5 recovered:\n{}",
         lines.join("\n")
     );
     assert!(
-        wrong <= 1,
+        wrong <= 2,
         "{wrong} of 5 localised on a wrong place:\n{}",
         lines.join("\n")
     );
+}
+
+#[test]
+fn the_field_of_a_ros_map_lies_on_its_walls_and_builds_quickly() {
+    // The yard rasterised at 10 cm: its obstacles are runs of cells, hundreds of rectangles.
+    let world = world("yard-map.yaml");
+    let started = std::time::Instant::now();
+    let map = Map::new(&world, 0.1, 0.25).expect("map");
+    let took = started.elapsed();
+    // The shipping container's south face at y = 8 (x 18 to 30), in the open yard: the ridge
+    // within a cell of the map's 10 cm of it, nothing in the middle of the container.
+    let ridge = (0..=40)
+        .map(|i| 7.8 + i as f64 * 0.01)
+        .max_by(|a, b| map.field_at(24.0, *a).total_cmp(&map.field_at(24.0, *b)))
+        .expect("samples");
+    assert!((ridge - 8.0).abs() <= 0.1, "the ridge at y = {ridge}");
+    assert!(
+        map.field_at(24.0, 9.2) < 0.01,
+        "{}",
+        map.field_at(24.0, 9.2)
+    );
+    assert!(map.field_at(15.0, 4.0) < 0.01);
+    // A debug build on a loaded machine: seconds, not the minutes of asking the world.
+    assert!(took.as_secs_f64() < 20.0, "{took:?}");
 }
