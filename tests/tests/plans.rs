@@ -626,6 +626,64 @@ fn the_building_plan_looks_into_the_north_room_and_waits_in_both() {
     );
 }
 
+/// In a building the robot has no map of, it drives on the mapper's corrected pose (scan
+/// matching and loop closure) with the simulator's default odometry noise: every arrival and
+/// the no-go area are judged by the simulator's truth, as for the plans on a known map.
+#[test]
+fn the_explore_plan_drives_on_the_mappers_pose_in_a_building_it_has_no_map_of() {
+    let system_text = std::fs::read_to_string(robot_file("system-explore.xml")).unwrap();
+    let system = SystemConfig::parse(&system_text).unwrap();
+    // Only the simulator and its simulated camera are given a world, and nothing lowers the
+    // simulator's noise.
+    let with_world: Vec<&str> = system
+        .modules
+        .iter()
+        .filter(|module| module.param("world").is_some())
+        .map(|module| module.name.as_str())
+        .collect();
+    assert_eq!(with_world, ["sim", "camera"]);
+    assert!(
+        !system_text.contains("odom_noise"),
+        "the explore system keeps the simulator's default odometry noise"
+    );
+    assert!(
+        system
+            .links
+            .iter()
+            .any(|link| link.from.to_string() == "mapper.pose"
+                && link.to.to_string() == "follower.odometry"),
+        "the follower drives on the mapper's pose"
+    );
+    let run = run_example("plan-explore.xml");
+    assert_eq!((0, 0), run.check_all());
+    assert_eq!(
+        run.run.fired_names(),
+        [
+            "leg1_arrived",
+            "enter_north_arrived",
+            "leave_north_arrived",
+            "to_south_arrived",
+            "enter_south_arrived",
+            "leave_south_arrived",
+            "back_arrived"
+        ]
+    );
+    assert!(
+        run.run
+            .any_line(|line| line.starts_with("rehearsal passed by the simulator's truth")),
+        "{}",
+        run.run.lines.join("\n")
+    );
+    // The run's live line (distance left, distance driven) follows the pose the follower
+    // drives on, the mapper's, not the odometry.
+    assert!(
+        run.run
+            .any_line(|line| line.contains("subscriber=\"armor-run.mapper.pose\"")),
+        "{}",
+        run.run.lines.join("\n")
+    );
+}
+
 #[test]
 fn the_field_plan_logs_the_laser_on_one_leg_and_keeps_out_of_the_contaminated_area() {
     let run = run_example("plan-field.xml");

@@ -15,17 +15,23 @@
 //!   many particles as keep the error of the estimated distribution under `kld_err` with
 //!   probability `kld_z`, for the number of histogram bins the particles occupy, within
 //!   `min_particles..=max_particles`.
-//! - Confidence: the particles' covariance and how well the scan fits the map at the estimate
-//!   (the mean field value at the beams' ends, smoothed over scans) give [`State`]: a cloud can
-//!   be tight and wrong (a robot carried elsewhere), which only the fit shows.
+//! - Confidence: the particles' covariance, how well the scan fits the map at the estimate
+//!   (the mean field value at the beams' ends, smoothed over scans) and how many beams read
+//!   what the map says they should from there (ranges cast in the world, the beams with no
+//!   echo included) give [`State`]: a cloud can be tight and wrong (a robot carried
+//!   elsewhere), which only the scan shows.
+//! - Clusters: the particles are grouped by place; each group is resampled on its own, keeping
+//!   its weight, and the estimate is the heaviest group's mean, so that two places alike stay
+//!   two until the scans tell them apart, and a second one in the running means `uncertain`.
 //! - Global mode: particles spread over the map's free space, placed by the first scan where
-//!   it fits best of many proposals ([`Filter::propose`]). On a map with places alike (a
-//!   rectangular yard's corners, rooms of the same shape) one view cannot tell them apart and
-//!   the cloud may settle on the wrong one, so recovering by itself when lost is off by default
-//!   (`recover`): a lost localiser stays lost until an operator sets the pose.
+//!   it fits best of many proposals ([`Filter::propose`]). On a map with places alike (the
+//!   warehouse's aisles of shelving) the cloud may still settle on the wrong one, so
+//!   recovering by itself when lost is off by default (`recover`, measured in the tests): a
+//!   lost localiser stays lost until an operator sets the pose.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
+use armor_model::geo::Point;
 use armor_model::world::World;
 use armor_module_api::types::{LaserScan, Pose2D};
 
@@ -38,6 +44,11 @@ pub const FIELD_RESOLUTION_M: f64 = 0.05;
 /// Bins of the KLD histogram: position and heading.
 const KLD_BIN_M: f64 = 0.5;
 const KLD_BIN_RAD: f64 = 10.0 * std::f64::consts::PI / 180.0;
+/// The faces of the world are sampled this often along their length for the field.
+const FACE_SAMPLE_M: f64 = 0.01;
+/// A face is seen from a side when a point this far from it on that side is in the open: more
+/// than the width of the grid cells a thin wall is drawn in, on both sides of it.
+const FACE_SIDE_M: f64 = 0.08;
 /// Free space for the global mode is sampled on a lattice of this pitch.
 const FREE_PITCH_M: f64 = 0.2;
 /// The particles are resampled when their effective number (1 / Σ w²) falls below this
@@ -59,6 +70,28 @@ const SOFT_FACTOR: f64 = 0.15;
 const SPREAD_AGAIN_UPDATES: u32 = 100;
 /// How fast the scan's fit is smoothed from scan to scan (weight of the newest).
 const FIT_SMOOTHING: f64 = 0.3;
+/// Particles are clustered on cells of this side: two particles in the same or neighbouring
+/// cells are in one cluster (one hypothesis of where the robot is).
+const CLUSTER_CELL_M: f64 = 0.5;
+/// A cluster whose weight falls below this share is dropped at resampling: the scans have
+/// ruled that place out.
+const DROP_CLUSTER_WEIGHT: f64 = 1e-3;
+/// A beam agrees with the map when its range is within this of the map's.
+const AGREE_M: f64 = 0.3;
+/// Localised needs at least this share of the beams agreeing with the map (smoothed), and
+/// stays so down to `STAY_LOCALISED_AGREEMENT`: at the truth it stays above 0.95, and a robot
+/// carried to a look-alike place of the office's corridor read 0.64 to 0.86 there.
+const LOCALISED_AGREEMENT: f64 = 0.9;
+const STAY_LOCALISED_AGREEMENT: f64 = 0.85;
+/// Lost when fewer than this share of the beams agree with the map: the map says walls where
+/// the laser sees none, or none where it sees them, whatever the fit of the echoes.
+const LOST_AGREEMENT: f64 = 0.5;
+/// A second cluster holding this share of the weight or more makes the estimate uncertain,
+/// however tight the best one: the robot may be at either place.
+const SIGNIFICANT_CLUSTER: f64 = 0.05;
+/// Each cluster kept gets at least this many particles at resampling, so that a place the
+/// scans cannot yet tell from the best one keeps enough particles to follow the motion.
+const MIN_CLUSTER_PARTICLES: usize = 30;
 
 /// The filter's settings (the module's parameters).
 #[derive(Clone, Debug, PartialEq)]
@@ -163,6 +196,10 @@ pub struct Estimate {
     pub pose: Pose2D,
     pub covariance: [f64; 9],
     pub fit: f64,
+    /// The share of the scan's beams that read what the map says they should from the
+    /// estimate (a range within [`AGREE_M`] of the map's, or no echo where the map has no wall
+    /// within range), smoothed over scans.
+    pub agreement: f64,
     pub state: State,
     pub particles: usize,
 }
@@ -187,32 +224,54 @@ impl Estimate {
 pub struct Map {
     field: LogOddsGrid,
     free: Vec<(f64, f64)>,
+    /// The world itself, for the ranges the laser should read from the estimate.
+    world: World,
 }
 
 impl Map {
-    /// The map of a world: its occupied cells' edges (the faces a laser can see) make the
-    /// likelihood field, with a standard deviation of `sigma_hit_m` reaching three of them.
+    /// The map of a world: the visible faces of its walls, obstacles and boundary, sampled
+    /// every centimetre, make the likelihood field, with a standard deviation of `sigma_hit_m`
+    /// reaching three of them. The field is built from the faces themselves rather than from
+    /// the world's occupancy grid: that grid draws a face lying on a cell border in the cell
+    /// beyond it, which put the field's ridge half a cell (2.5 cm in x and in y) off the walls
+    /// the laser sees, and the estimate with it (measured on the warehouse round: a constant
+    /// (+0.025, +0.025) m offset).
     pub fn new(world: &World, sigma_hit_m: f64, robot_radius_m: f64) -> Result<Self, String> {
         let grid = world.occupancy_grid(FIELD_RESOLUTION_M)?;
         let (width, height) = (grid.width as usize, grid.height as usize);
-        let occupied = |col: isize, row: isize| {
-            col >= 0
-                && row >= 0
+        // A point beside a face is in the open when the world's occupancy grid has it free
+        // (inside the boundary, in no obstacle, on no wall): a face with the open on neither
+        // side (between two cells of a ROS map's wall, or inside a solid obstacle) cannot be
+        // seen, and leaving it out gives no credit to a beam that ends inside a wall. The grid
+        // answers at once, where asking the world would go through every obstacle of a ROS
+        // map (thousands) for every point.
+        let open = |p: Point| {
+            let col = ((p.x - grid.origin_x_m) / FIELD_RESOLUTION_M).floor();
+            let row = ((p.y - grid.origin_y_m) / FIELD_RESOLUTION_M).floor();
+            col >= 0.0
+                && row >= 0.0
                 && (col as usize) < width
                 && (row as usize) < height
-                && grid.cells[row as usize * width + col as usize] > 50
+                && grid.cells[row as usize * width + col as usize] == 0
         };
-        // An occupied cell inside a solid obstacle cannot be seen: leaving it out keeps the
-        // field small and gives no credit to a beam that ends inside a wall.
-        let mut edges = Vec::new();
-        for row in 0..height as isize {
-            for col in 0..width as isize {
-                if occupied(col, row)
-                    && [(1, 0), (-1, 0), (0, 1), (0, -1)]
-                        .iter()
-                        .any(|(dc, dr)| !occupied(col + dc, row + dr))
-                {
-                    edges.push((col as usize, row as usize));
+        let mut echoes = Vec::new();
+        for (a, b) in world.segments() {
+            let length = a.distance(b);
+            if !length.is_finite() {
+                continue;
+            }
+            let samples = (length / FACE_SAMPLE_M).ceil().max(1.0) as usize;
+            let (ux, uy) = if length > 0.0 {
+                ((b.x - a.x) / length, (b.y - a.y) / length)
+            } else {
+                (1.0, 0.0)
+            };
+            let (nx, ny) = (-uy * FACE_SIDE_M, ux * FACE_SIDE_M);
+            for i in 0..=samples {
+                let t = i as f64 / samples as f64;
+                let p = Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
+                if open(Point::new(p.x + nx, p.y + ny)) || open(Point::new(p.x - nx, p.y - ny)) {
+                    echoes.push((p.x, p.y));
                 }
             }
         }
@@ -229,8 +288,7 @@ impl Map {
             grid.origin_y_m - pad as f64 * FIELD_RESOLUTION_M,
         )?
         .with_field(sigma_cells, reach_cells)?;
-        let edges = edges.into_iter().map(|(col, row)| (col + pad, row + pad));
-        field.mark_map(edges);
+        field.mark_echoes(echoes);
         let bounds = world.bounds();
         let mut free = Vec::new();
         let mut y = bounds.min_y + FREE_PITCH_M / 2.0;
@@ -250,7 +308,11 @@ impl Map {
                 world.name()
             ));
         }
-        Ok(Self { field, free })
+        Ok(Self {
+            field,
+            free,
+            world: world.clone(),
+        })
     }
 
     /// The likelihood field at a point (1 on a wall, falling off as a Gaussian, 0 far off).
@@ -262,6 +324,13 @@ impl Map {
 #[derive(Clone, Copy, Debug)]
 struct Particle {
     pose: Pose2D,
+    weight: f64,
+}
+
+/// Particles near each other: one hypothesis of where the robot is.
+#[derive(Clone, Debug, Default)]
+struct Cluster {
+    members: Vec<usize>,
     weight: f64,
 }
 
@@ -282,11 +351,19 @@ pub struct Filter {
     since_spread: u32,
     /// The particles were spread and the next scan picks where they go ([`Filter::propose`]).
     spread_pending: bool,
+    /// The particles were spread over the map and have not found the robot yet.
+    searching: bool,
     /// Updates still to make whether the robot moves or not: after the pose is set or the
     /// particles spread, a robot standing still must still be able to find itself.
     forced_updates: u32,
     /// Beam ends in the robot's frame for the scan being weighed (reused).
     points: Vec<(f64, f64)>,
+    /// The beams used of that scan: their angle in the robot's frame and their range, None
+    /// for no echo; and the laser's range.
+    beams: Vec<(f64, Option<f64>)>,
+    range_max_m: f64,
+    /// The share of the beams that agree with the map from the estimate, smoothed.
+    agreement: f64,
     log_weights: Vec<f64>,
 }
 
@@ -305,13 +382,18 @@ impl Filter {
                 pose,
                 covariance: [0.0; 9],
                 fit: 1.0,
+                agreement: 1.0,
                 state: State::Uncertain,
                 particles: 0,
             },
             since_spread: u32::MAX,
             spread_pending: false,
+            searching: false,
             forced_updates: 0,
             points: Vec::new(),
+            beams: Vec::new(),
+            range_max_m: 0.0,
+            agreement: 1.0,
             log_weights: Vec::new(),
         };
         filter.set_pose(pose, 0.1, 0.1);
@@ -351,6 +433,8 @@ impl Filter {
             });
         }
         self.fit = 1.0;
+        self.agreement = 1.0;
+        self.searching = false;
         self.forced_updates = FORCED_UPDATES;
         self.estimate = self.summarise();
     }
@@ -376,6 +460,8 @@ impl Filter {
             });
         }
         self.fit = 0.0;
+        self.agreement = 0.0;
+        self.searching = true;
         self.since_spread = 0;
         self.spread_pending = true;
         self.forced_updates = FORCED_UPDATES;
@@ -409,11 +495,26 @@ impl Filter {
             self.weigh();
             self.resample();
         }
+        let was_lost = self.estimate.state == State::Lost;
         self.estimate = self.summarise();
+        // Without recovery, lost stays lost until an operator sets the pose: a cloud left
+        // where the robot no longer is, moved on by the odometry, can come to fit the scans of
+        // some other place by chance and would then call itself localised there.
+        // A search of the whole map (global mode) is let run to its end.
+        if was_lost && !self.settings.recover && !self.searching {
+            self.estimate.state = State::Lost;
+        }
+        if self.estimate.state == State::Localised {
+            self.searching = false;
+        }
         self.since_spread = self.since_spread.saturating_add(1);
+        // Spread again only when nothing fits: a wide estimate whose places all fit is the
+        // scans not yet telling look-alike places apart, and spreading would throw that
+        // evidence away.
         if self.estimate.state == State::Lost
             && self.settings.recover
             && self.since_spread >= SPREAD_AGAIN_UPDATES
+            && (self.fit < self.settings.thresholds.lost_fit || self.agreement < LOST_AGREEMENT)
         {
             self.spread();
         }
@@ -459,17 +560,50 @@ impl Filter {
     /// The ends of the beams used, in the robot's frame.
     fn take_points(&mut self, scan: &LaserScan) {
         self.points.clear();
+        self.beams.clear();
+        self.range_max_m = scan.range_max_m;
         let n = scan.ranges_m.len();
         let step = n.div_ceil(self.settings.beams.max(1)).max(1);
         for (i, &range) in scan.ranges_m.iter().enumerate().step_by(step) {
             let range = f64::from(range);
+            let angle = scan.angle_min_rad + i as f64 * scan.angle_increment_rad;
+            if range.is_finite() && range >= scan.range_max_m {
+                self.beams.push((angle, None));
+            }
             // No echo, or nonsense: says nothing about where the walls are.
             if !(range.is_finite() && range > 0.0 && range < scan.range_max_m) {
                 continue;
             }
-            let angle = scan.angle_min_rad + i as f64 * scan.angle_increment_rad;
+            self.beams.push((angle, Some(range)));
             self.points.push((range * angle.cos(), range * angle.sin()));
         }
+    }
+
+    /// The share of the beams that read from `pose` what the map says they should: a range
+    /// within [`AGREE_M`] of the distance to the map's first wall, or no echo where the map
+    /// has none within range. Unlike the fit, it counts the beams that saw nothing: a place
+    /// where the map has walls the laser does not see is not where the robot is.
+    fn agreement_at(&self, pose: Pose2D) -> f64 {
+        if self.beams.is_empty() {
+            return 1.0;
+        }
+        let origin = Point::new(pose.x_m, pose.y_m);
+        let range_max = self.range_max_m;
+        let agreeing = self
+            .beams
+            .iter()
+            .filter(|&&(angle, range)| {
+                let expected = self
+                    .map
+                    .world
+                    .raycast(origin, pose.theta_rad + angle, range_max);
+                match range {
+                    Some(range) => (range - expected).abs() <= AGREE_M,
+                    None => expected >= range_max - AGREE_M,
+                }
+            })
+            .count();
+        agreeing as f64 / self.beams.len() as f64
     }
 
     /// The tempering of the scan's log-likelihood: how much one scan counts.
@@ -581,7 +715,6 @@ impl Filter {
         if effective > RESAMPLE_BELOW * first as f64 {
             return;
         }
-        self.systematic(first);
         let bins: HashSet<(i64, i64, i64)> = self
             .particles
             .iter()
@@ -596,59 +729,153 @@ impl Filter {
             .collect();
         let wanted = kld_bound(bins.len(), self.settings.kld_err, self.settings.kld_z)
             .clamp(self.settings.min_particles, self.settings.max_particles);
-        if wanted != first {
-            // The resampled set is equally weighted: resampling it again to another count
-            // keeps its distribution.
-            self.systematic(wanted);
-        }
+        self.resample_clusters(wanted);
     }
 
-    /// Systematic resampling of the weighted particles into `count` equally weighted ones.
-    fn systematic(&mut self, count: usize) {
+    /// Resamples each cluster on its own, keeping its total weight: the clusters' weights are
+    /// the evidence for each place, and resampling the whole cloud at once would let one of
+    /// two places that fit equally well die out by chance (genetic drift), leaving a tight
+    /// cloud on a place the scans never preferred, which would then call itself localised.
+    /// Clusters the scans ruled out (weight under [`DROP_CLUSTER_WEIGHT`]) are dropped; every
+    /// other one gets its share of `count`, at least [`MIN_CLUSTER_PARTICLES`], the heaviest
+    /// first, within `max_particles`.
+    fn resample_clusters(&mut self, count: usize) {
+        let clusters = self.clusters();
+        let kept: Vec<&Cluster> = clusters
+            .iter()
+            .filter(|cluster| cluster.weight >= DROP_CLUSTER_WEIGHT)
+            .collect();
+        let kept_weight: f64 = kept.iter().map(|cluster| cluster.weight).sum();
+        if kept.is_empty() || kept_weight <= 0.0 {
+            return;
+        }
         self.spare.clear();
-        let step = 1.0 / count as f64;
+        let mut budget = self.settings.max_particles.max(1);
+        for cluster in kept {
+            if budget == 0 {
+                break;
+            }
+            let share = cluster.weight / kept_weight;
+            let wanted = ((share * count as f64).round() as usize)
+                .max(MIN_CLUSTER_PARTICLES)
+                .min(budget);
+            budget -= wanted;
+            self.systematic(&cluster.members, cluster.weight, wanted, share);
+        }
+        let total: f64 = self.spare.iter().map(|p| p.weight).sum();
+        if total > 0.0 {
+            for particle in &mut self.spare {
+                particle.weight /= total;
+            }
+        }
+        std::mem::swap(&mut self.particles, &mut self.spare);
+    }
+
+    /// Systematic (low-variance) resampling of the particles `members`, of total weight
+    /// `weight`, into `count` particles sharing `share` equally, pushed onto `spare`.
+    fn systematic(&mut self, members: &[usize], weight: f64, count: usize, share: f64) {
+        if count == 0 || members.is_empty() || weight <= 0.0 {
+            return;
+        }
+        let step = weight / count as f64;
+        let each = share / count as f64;
         let mut target = self.rng.uniform() * step;
         let mut cumulative = 0.0;
-        let mut source = self.particles.iter();
-        let mut current = source.next().copied();
-        while self.spare.len() < count {
+        let mut pushed = 0;
+        let mut source = members.iter().map(|&i| self.particles[i]);
+        let mut current = source.next();
+        while pushed < count {
             let Some(particle) = current else {
                 break;
             };
             if cumulative + particle.weight >= target {
                 self.spare.push(Particle {
                     pose: particle.pose,
-                    weight: step,
+                    weight: each,
                 });
+                pushed += 1;
                 target += step;
             } else {
                 cumulative += particle.weight;
-                current = source.next().copied();
+                current = source.next();
             }
         }
         // Rounding can leave the last few places: they go to the last particle.
-        while self.spare.len() < count
-            && let Some(last) = self.particles.last()
-        {
-            self.spare.push(Particle {
-                pose: last.pose,
-                weight: step,
-            });
+        if let Some(&last) = members.last() {
+            let pose = self.particles[last].pose;
+            for _ in pushed..count {
+                self.spare.push(Particle { pose, weight: each });
+            }
         }
-        std::mem::swap(&mut self.particles, &mut self.spare);
     }
 
-    /// The mean, covariance, fit and state of the particles.
+    /// The particles' clusters, heaviest first: connected groups of [`CLUSTER_CELL_M`] cells
+    /// (eight neighbours) holding particles, each with its particles and their total weight.
+    fn clusters(&self) -> Vec<Cluster> {
+        let cell = |pose: Pose2D| {
+            (
+                (pose.x_m / CLUSTER_CELL_M).floor() as i64,
+                (pose.y_m / CLUSTER_CELL_M).floor() as i64,
+            )
+        };
+        let mut cells: HashMap<(i64, i64), usize> = HashMap::new();
+        for particle in &self.particles {
+            let next = cells.len();
+            cells.entry(cell(particle.pose)).or_insert(next);
+        }
+        // Union-find over the occupied cells.
+        let mut parent: Vec<usize> = (0..cells.len()).collect();
+        fn root(parent: &mut [usize], mut i: usize) -> usize {
+            while parent[i] != i {
+                parent[i] = parent[parent[i]];
+                i = parent[i];
+            }
+            i
+        }
+        for (&(cx, cy), &i) in &cells {
+            for (dx, dy) in [(1, 0), (1, 1), (0, 1), (-1, 1)] {
+                if let Some(&j) = cells.get(&(cx + dx, cy + dy)) {
+                    let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                    if a != b {
+                        parent[a] = b;
+                    }
+                }
+            }
+        }
+        let mut index_of_root: HashMap<usize, usize> = HashMap::new();
+        let mut clusters: Vec<Cluster> = Vec::new();
+        for (i, particle) in self.particles.iter().enumerate() {
+            let r = root(&mut parent, cells[&cell(particle.pose)]);
+            let c = *index_of_root.entry(r).or_insert_with(|| {
+                clusters.push(Cluster::default());
+                clusters.len() - 1
+            });
+            clusters[c].members.push(i);
+            clusters[c].weight += particle.weight;
+        }
+        clusters.sort_by(|a, b| b.weight.total_cmp(&a.weight));
+        clusters
+    }
+
+    /// The estimate: the mean of the heaviest cluster (the mean of the whole cloud would fall
+    /// between two places, where the robot is not), the covariance of the whole cloud round
+    /// it (so that another place still in the running makes it wide), the fit there and the
+    /// state.
     fn summarise(&mut self) -> Estimate {
         let total: f64 = self.particles.iter().map(|p| p.weight).sum();
         let total = if total > 0.0 { total } else { 1.0 };
+        let clusters = self.clusters();
+        let second_weight = clusters.get(1).map_or(0.0, |c| c.weight / total);
         let (mut mx, mut my, mut ms, mut mc) = (0.0, 0.0, 0.0, 0.0);
-        for particle in &self.particles {
-            let w = particle.weight / total;
-            mx += w * particle.pose.x_m;
-            my += w * particle.pose.y_m;
-            ms += w * particle.pose.theta_rad.sin();
-            mc += w * particle.pose.theta_rad.cos();
+        if let Some(best) = clusters.first().filter(|c| c.weight > 0.0) {
+            for &i in &best.members {
+                let particle = &self.particles[i];
+                let w = particle.weight / best.weight;
+                mx += w * particle.pose.x_m;
+                my += w * particle.pose.y_m;
+                ms += w * particle.pose.theta_rad.sin();
+                mc += w * particle.pose.theta_rad.cos();
+            }
         }
         let mean_theta = ms.atan2(mc);
         let mut cov = [0.0; 9];
@@ -674,10 +901,15 @@ impl Filter {
             let fit = self.fit_at(pose);
             self.fit = FIT_SMOOTHING * fit + (1.0 - FIT_SMOOTHING) * self.fit;
         }
+        if !self.beams.is_empty() {
+            let agreement = self.agreement_at(pose);
+            self.agreement = FIT_SMOOTHING * agreement + (1.0 - FIT_SMOOTHING) * self.agreement;
+        }
         let mut estimate = Estimate {
             pose,
             covariance: cov,
             fit: self.fit,
+            agreement: self.agreement,
             state: State::Uncertain,
             particles: self.particles.len(),
         };
@@ -689,9 +921,19 @@ impl Filter {
         } else {
             1.0
         };
-        estimate.state = if estimate.sigma_m() > t.lost_sigma_m || self.fit < t.lost_fit {
+        let agreement_needed = if self.estimate.state == State::Localised {
+            STAY_LOCALISED_AGREEMENT
+        } else {
+            LOCALISED_AGREEMENT
+        };
+        estimate.state = if estimate.sigma_m() > t.lost_sigma_m
+            || self.fit < t.lost_fit
+            || self.agreement < LOST_AGREEMENT
+        {
             State::Lost
-        } else if estimate.sigma_m() <= t.localised_sigma_m * slack
+        } else if second_weight < SIGNIFICANT_CLUSTER
+            && self.agreement >= agreement_needed
+            && estimate.sigma_m() <= t.localised_sigma_m * slack
             && estimate.sigma_rad() <= t.localised_sigma_rad * slack
             && self.fit >= t.localised_fit / slack
         {

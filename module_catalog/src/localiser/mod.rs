@@ -10,10 +10,11 @@
 //! each scan.
 //!
 //! The state is reported as events on entering it: `localised` (position standard deviation at
-//! most 0.15 m on its worst axis, heading at most 0.1 rad, and the scan's fit at least 0.5),
-//! `lost` (position standard deviation above 1 m, or the fit below 0.25: a cloud can be tight
-//! and wrong, as when the robot is carried elsewhere, and only the fit shows it), `uncertain`
-//! otherwise. Lost, it stays lost until an operator sets the pose (`set_pose`), or, with
+//! most 0.15 m on its worst axis, heading at most 0.1 rad, the scan's fit at least 0.5, one
+//! cluster of particles and 90 % of the beams agreeing with the map), `lost` (position standard
+//! deviation above 1 m, the fit below 0.25 or fewer than half the beams agreeing: a cloud can be
+//! tight and wrong, as when the robot is carried elsewhere, and only the scan shows it),
+//! `uncertain` otherwise. Lost, it stays lost until an operator sets the pose (`set_pose`), or, with
 //! `recover`, spreads its particles over the map's free space (global mode).
 //!
 //! The initial pose is the world's start (the simulator's), or `x_m`, `y_m`, `heading_deg`;
@@ -44,9 +45,10 @@ pub fn spec() -> ModuleSpec {
          localisation: odometry motion model, likelihood-field laser model, KLD-adaptive \
          particle count, low-variance resampling. Publishes the pose in the map frame in place \
          of odometry, and its covariance and state: `localised` (position sigma <= 0.15 m, \
-         heading sigma <= 0.1 rad, scan fit >= 0.5), `lost` (position sigma > 1 m or scan fit \
-         < 0.25), else `uncertain`. Lost, it stays lost until set_pose (or, with recover, searches \
-         the whole map).",
+         heading sigma <= 0.1 rad, scan fit >= 0.5, one cluster of particles, 90 % of the beams \
+         agreeing with the map), `lost` (position sigma > 1 m, scan fit < 0.25 or under half \
+         the beams agreeing), else `uncertain`. Lost, it stays lost until set_pose (or, with \
+         recover, searches the whole map).",
     )
     .category(armor_module_api::Category::Navigation)
     .version(env!("CARGO_PKG_VERSION"))
@@ -125,8 +127,9 @@ pub fn spec() -> ModuleSpec {
         ParamSpec::new(
             "recover",
             ParamType::Bool,
-            "when lost, search the whole map (global mode; on a map with places alike it may \
-             settle on the wrong one); off: stay lost until a set_pose",
+            "when lost, search the whole map (global mode; measured: 5 of 5 kidnapped robots \
+             found themselves, but 2 said localised on the way at a look-alike place); off: stay \
+             lost until a set_pose",
         )
         .default("false"),
     )
@@ -194,12 +197,14 @@ pub fn spec() -> ModuleSpec {
     .event(
         "localised",
         "the estimate became trustworthy: position sigma <= 0.15 m, heading sigma <= 0.1 rad, \
-         scan fit >= 0.5",
+         scan fit >= 0.5, no second cluster of particles with 5 % of the weight, 90 % of the \
+         beams reading what the map says from the estimate",
     )
     .event("uncertain", "the estimate is neither localised nor lost")
     .event(
         "lost",
-        "position sigma > 1 m, or the scan fits the map badly at the estimate (fit < 0.25)",
+        "position sigma > 1 m, or the scan fits the map badly at the estimate (fit < 0.25, or \
+         under half the beams reading what the map says)",
     )
 }
 

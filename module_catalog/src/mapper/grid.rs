@@ -156,23 +156,34 @@ impl LogOddsGrid {
         Ok(self)
     }
 
-    /// Marks cells of a known map: `occupied` (column, row) cells as certainly occupied, with
-    /// their echo at the cell's centre, and every other cell as known and free; then brings
-    /// the nearest-echo index and the field up to date, as a scan's integration does.
-    pub fn mark_map(&mut self, occupied: impl IntoIterator<Item = (usize, usize)>) {
+    /// Marks a known map from echo positions, in metres: the cell of each echo is certainly
+    /// occupied, with its echo at the mean of the echoes that fall in it, and every other cell
+    /// is known and free; then brings the nearest-echo index and the field up to date, as a
+    /// scan's integration does. With the echoes on a map's surfaces (not at the centres of the
+    /// cells they cross) the field peaks on the surfaces themselves.
+    pub fn mark_echoes(&mut self, echoes: impl IntoIterator<Item = (f64, f64)>) {
         self.known.fill(true);
         self.log_odds.fill(LOG_ODDS_MIN);
+        self.echo_counts.fill(0);
+        self.echo_sums.fill([0.0; 2]);
         self.cleared.clear();
         self.echoed.clear();
-        for (col, row) in occupied {
-            if col >= self.width || row >= self.height {
+        for (x_m, y_m) in echoes {
+            let Some((col, row)) = self.cell_of(x_m, y_m) else {
                 continue;
-            }
+            };
             let index = row * self.width + col;
-            self.log_odds[index] = LOG_ODDS_MAX;
-            self.echo_sums[index] = [0.5, 0.5];
-            self.echo_counts[index] = 1;
-            self.echoed.push(index);
+            if self.echo_counts[index] == 0 {
+                self.log_odds[index] = LOG_ODDS_MAX;
+                self.echoed.push(index);
+            }
+            let within = [
+                ((x_m - self.origin_x_m) / self.resolution_m - col as f64) as f32,
+                ((y_m - self.origin_y_m) / self.resolution_m - row as f64) as f32,
+            ];
+            self.echo_sums[index][0] += within[0];
+            self.echo_sums[index][1] += within[1];
+            self.echo_counts[index] += 1;
         }
         self.refresh();
     }

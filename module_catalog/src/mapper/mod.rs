@@ -89,7 +89,8 @@ pub fn spec() -> ModuleSpec {
     .output::<Odometry>(
         "pose",
         "the corrected pose in the map frame (and the odometry's twist), after every integrated \
-         scan: a drop-in replacement for odometry, which jumps when a loop closes",
+         scan and at every odometry sample between (the latest scan's correction applied to \
+         it): a drop-in replacement for odometry, which jumps when a loop closes",
     )
     .output::<Pose2D>("pose_map", "the same corrected pose, for display")
     .output::<Markers>(
@@ -621,6 +622,10 @@ pub fn body(node: &mut Node) -> BodyResult {
     );
     // The latest odometry and the link that brought it.
     let mut odometry: Option<(u64, Odometry)> = None;
+    // The map pose of the odometry frame's origin at the latest scan: each odometry sample
+    // between scans is published corrected by it, so that a follower driving on `pose` gets
+    // a pose as often as it got odometry, not one per scan a scan period old.
+    let mut map_from_odom: Option<Pose2D> = None;
     let mut warned_no_odometry = false;
     let mut next_map = node.timestamp() + 1.0 / mapper.settings().map_rate_hz;
     loop {
@@ -631,8 +636,16 @@ pub fn body(node: &mut Node) -> BodyResult {
                     if odometry.is_some_and(|(link, _)| link != sample.link) {
                         tracing::warn!("the odometry restarted: matching the next scan alone");
                         mapper.forget_odometry();
+                        map_from_odom = None;
                     }
                     odometry = Some((sample.link, sample.value));
+                    if let Some(correction) = map_from_odom {
+                        let corrected = Odometry {
+                            pose_in_odom: compose(correction, sample.value.pose_in_odom),
+                            twist: sample.value.twist,
+                        };
+                        node.send(&pose_output, &corrected)?;
+                    }
                 }
             }
             Event::Input(port) if port == scan_input.id() => {
@@ -648,6 +661,10 @@ pub fn body(node: &mut Node) -> BodyResult {
                 };
                 match mapper.on_scan(&sample.value, latest.pose_in_odom) {
                     Ok(pose) => {
+                        map_from_odom = Some(compose(
+                            pose,
+                            between(latest.pose_in_odom, Pose2D::default()),
+                        ));
                         let corrected = Odometry {
                             pose_in_odom: pose,
                             twist: latest.twist,

@@ -169,7 +169,7 @@ fn push<T: armor_module_api::types::Datum>(input: &str, value: &T) -> Step {
 }
 
 #[test]
-fn the_module_publishes_a_pose_per_scan_and_the_map_on_time() {
+fn the_module_publishes_a_pose_per_scan_and_per_odometry_sample_and_the_map_on_time() {
     let mut sim = Simulator::new(room(), SimParams::default()).expect("fits");
     let mut script = vec![push("scan", &sim.scan().clone())];
     let mut truths = Vec::new();
@@ -191,16 +191,27 @@ fn the_module_publishes_a_pose_per_scan_and_the_map_on_time() {
     let mut bench = bench(&[("size_m", "20")]);
     bench.script(script);
     body(bench.node()).expect("body");
-    // The scan before any odometry is ignored; each later one gives a pose.
+    // The scan before any odometry is ignored; each later one gives a pose, and so does each
+    // odometry sample once a scan has given the correction: scan, odometry, scan, odometry,
+    // scan.
     let poses = bench.sent::<Odometry>("pose").expect("sent");
     let shown = bench.sent::<Pose2D>("pose_map").expect("sent");
-    assert_eq!(poses.len(), 3);
+    assert_eq!(poses.len(), 5);
     assert_eq!(shown.len(), 3);
-    for ((sent, shown), truth) in poses.iter().zip(&shown).zip(&truths) {
+    let per_scan = poses.iter().step_by(2);
+    for ((sent, shown), truth) in per_scan.zip(&shown).zip(&truths) {
         assert_eq!(sent.pose_in_odom, *shown);
         assert!(distance(*shown, *truth) < 0.05, "{shown:?} {truth:?}");
     }
-    assert!((poses[2].twist.linear_mps - 0.5).abs() < 0.1);
+    // Between scans, the odometry sample corrected as the scan before was: at the next scan's
+    // place, give or take the odometry's drift over one scan period.
+    for (between, truth) in poses.iter().skip(1).step_by(2).zip(&truths[1..]) {
+        assert!(
+            distance(between.pose_in_odom, *truth) < 0.05,
+            "{between:?} {truth:?}"
+        );
+    }
+    assert!((poses[4].twist.linear_mps - 0.5).abs() < 0.1);
     let maps = bench.sent::<OccupancyGrid>("map").expect("sent");
     assert_eq!(maps.len(), 2, "one per timeout");
     assert_eq!(maps[0].cells.len(), 200 * 200);

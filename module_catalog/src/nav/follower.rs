@@ -538,7 +538,7 @@ pub(crate) struct Follower {
     /// The corner of the way round the no-go areas headed for (without a path).
     via: Option<Point>,
     /// The world replanning starts from.
-    world: Option<WorldMap>,
+    pub(crate) world: Option<WorldMap>,
     /// The latest pose, and the laser's hits the world does not explain, seen from it.
     pose: Option<Pose2D>,
     seen: Vec<Point>,
