@@ -107,6 +107,7 @@ fn follower_settings(goal: Point, path: &Path, area: &Polygon) -> follower::Sett
         clearance_m: 0.1,
         replan_after_secs: 3.0,
         max_replans: 3,
+        pose_uncertainty_m: 0.0,
     }
 }
 

@@ -133,6 +133,18 @@ pub fn spec() -> ModuleSpec {
     )
     .param(
         ParamSpec::new(
+            "pose_uncertainty_m",
+            ParamType::Float,
+            "how far the true position may be from the odometry pose when no `estimate` says \
+             it (a mapper's corrected pose, say): the goal counts as reached within tolerance_m \
+             less this, and no-go areas are kept this much further",
+        )
+        .min(0.0)
+        .unit("m")
+        .default("0"),
+    )
+    .param(
+        ParamSpec::new(
             "max_speed_mps",
             ParamType::Float,
             "forward speed far from the goal when facing it (greater than 0)",
@@ -411,6 +423,8 @@ pub struct Settings {
     pub clearance_m: f64,
     pub replan_after_secs: f64,
     pub max_replans: u32,
+    /// How uncertain the pose is when no estimate says it.
+    pub pose_uncertainty_m: f64,
 }
 
 impl Settings {
@@ -432,6 +446,7 @@ impl Settings {
             clearance_m: node.param::<f64>("clearance_m")?,
             replan_after_secs: node.param::<f64>("replan_after_secs")?,
             max_replans: node.param::<u32>("max_replans")?,
+            pose_uncertainty_m: node.param::<f64>("pose_uncertainty_m")?,
         };
         let margins = settings.no_go_margins_m.len();
         if margins != 0 && margins != settings.no_go.len() {
@@ -552,8 +567,9 @@ pub(crate) struct Follower {
     best_distance_m: f64,
     last_progress: f64,
     /// How far the true position may be from the pose ([`UNCERTAINTY_SIGMAS`] standard
-    /// deviations of the latest estimate; 0 without one).
-    uncertainty_m: f64,
+    /// deviations of the latest estimate; `None` until one comes, and then `pose_uncertainty_m`
+    /// says it).
+    estimated_uncertainty_m: Option<f64>,
     /// The robot is stopped by a no-go area within its uncertainty.
     guarded: bool,
 }
@@ -573,7 +589,7 @@ impl Follower {
             blocked: false,
             best_distance_m: f64::INFINITY,
             last_progress: now,
-            uncertainty_m: 0.0,
+            estimated_uncertainty_m: None,
             guarded: false,
         };
         follower.restart(now);
@@ -696,7 +712,7 @@ impl Follower {
                 Some(area) => tracing::warn!(
                     "stopping: no-go area {} may be within the pose's uncertainty ({:.2} m)",
                     area + 1,
-                    self.uncertainty_m
+                    self.uncertainty_m()
                 ),
                 None => tracing::info!("the pose is sure enough again: driving on"),
             }
@@ -730,11 +746,18 @@ impl Follower {
     /// A localiser's estimate: how uncertain the pose is (a lost localiser's estimate counts
     /// as uncertain without bound).
     pub(crate) fn on_estimate(&mut self, estimate: &PoseEstimate) {
-        self.uncertainty_m = if estimate.state == LocalisationState::Lost {
+        self.estimated_uncertainty_m = Some(if estimate.state == LocalisationState::Lost {
             f64::INFINITY
         } else {
             UNCERTAINTY_SIGMAS * estimate.position_sigma_m()
-        };
+        });
+    }
+
+    /// How far the true position may be from the pose: the latest estimate's, or what the
+    /// system says of a pose source without one.
+    fn uncertainty_m(&self) -> f64 {
+        self.estimated_uncertainty_m
+            .unwrap_or(self.settings.pose_uncertainty_m)
     }
 
     /// How close to the goal the pose must come to report it reached: `tolerance_m` less the
@@ -744,16 +767,17 @@ impl Follower {
     /// localiser holds the mission anyway.
     fn arrival_radius_m(&self) -> f64 {
         let tolerance_m = self.settings.tolerance_m;
-        (tolerance_m - self.uncertainty_m).max(tolerance_m / 2.0)
+        (tolerance_m - self.uncertainty_m()).max(tolerance_m / 2.0)
     }
 
     /// The no-go area the robot's body may be in or touching, given the pose's uncertainty.
     fn too_close(&self, pose: Pose2D) -> Option<usize> {
-        if self.uncertainty_m <= 0.0 {
+        let uncertainty_m = self.uncertainty_m();
+        if uncertainty_m <= 0.0 {
             return None;
         }
         let here = Point::new(pose.x_m, pose.y_m);
-        let reach = self.settings.robot_radius_m + self.uncertainty_m;
+        let reach = self.settings.robot_radius_m + uncertainty_m;
         self.settings
             .no_go
             .iter()
@@ -1195,6 +1219,7 @@ mod tests {
             clearance_m: 0.1,
             replan_after_secs: 3.0,
             max_replans: 3,
+            pose_uncertainty_m: 0.0,
         }
     }
 
@@ -1402,6 +1427,20 @@ mod tests {
         assert!(control.twist.linear_mps > 0.0, "drives on: {control:?}");
         assert_eq!(
             follower.on_pose(on_axis(4.81), 2.0).report,
+            Some("goal_reached")
+        );
+
+        // A pose source without an estimate, with the uncertainty its system states.
+        let mut follower = Follower::new(
+            Settings {
+                pose_uncertainty_m: 0.15,
+                ..settings()
+            },
+            0.0,
+        );
+        assert_eq!(follower.on_pose(on_axis(4.8), 1.0).report, None);
+        assert_eq!(
+            follower.on_pose(on_axis(4.86), 2.0).report,
             Some("goal_reached")
         );
 
