@@ -325,12 +325,14 @@ fn a_sibling_reads_no_key_and_no_secret_path_in_proc() {
             bin("armor").to_str().unwrap(),
         ]);
     }
+    // The secret given as the docs show it, on the command line.
     let run = Proc::start(
         command
             .arg("run")
             .arg(&system)
             .arg("--no-run-folder")
-            .env("ARMOR_SECRET_FILE", &secret)
+            .arg("--secret")
+            .arg(&secret)
             .env("ARMOR_MODULE_PATH", bin_dir())
             .env("HOME", dir.path()),
     );

@@ -194,11 +194,15 @@ fn a_plan_run_from_the_run_view_reaches_its_final_place() {
         .centre_on(Point::new(5_000.0, 5_000.0));
     harness.run_ok();
     open_and_run(&mut harness, &file, 10.0);
+    // The title is read in the frame the robot first shows: at ten times real time on a loaded
+    // machine, the short run may have ended a few frames later.
+    let mut title = String::new();
     step_until(&mut harness, "the robot on the live map", PATIENCE, |app| {
+        title = app.title().to_owned();
         truth_x(app).is_some()
     });
+    assert_eq!(title, "plan.xml (running) — ArMoR Studio");
     harness.run_ok();
-    assert_eq!(harness.state().title(), "plan.xml (running) — ArMoR Studio");
     // The plan names the follower only: the avoider its commands pass through runs with it,
     // and its row says why.
     step_until(&mut harness, "the avoider running", PATIENCE, |app| {
@@ -942,14 +946,16 @@ fn the_pose_is_set_by_a_drag_on_the_map_and_an_observer_sees_the_tool_greyed() {
             module: module.to_owned(),
         });
     }
+    // Whatever the localiser says by then (a loaded machine can starve it into `lost` while the
+    // follower still drove), the pose set by hand below is what it takes.
     step_until(
         &mut harness,
-        "the drivers stopped and localised",
+        "the drivers stopped and an estimate shown",
         PATIENCE,
         |app| {
             module_state(app, "follower") == Some(ModuleState::Stopped)
                 && module_state(app, "observer") == Some(ModuleState::Stopped)
-                && state(app) == Some(LocalisationState::Localised)
+                && state(app).is_some()
         },
     );
     let truth = harness.state().run().live().truth.unwrap();

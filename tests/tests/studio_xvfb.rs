@@ -75,6 +75,20 @@ fn keys_until(studio: &Proc, display: &str, window: &str, keys: &[&str], said: &
     );
 }
 
+/// Opens a path dialog with `key` on a window that already has the focus, and waits until
+/// the dialog's field takes typed keys (a frame or two after it opens: the studio says when).
+/// The key is sent once: sent again on a slow frame, a second dialog would open after the
+/// first.
+fn open_path_dialog(studio: &Proc, display: &str, window: &str, key: &str) {
+    let before = studio.line_count();
+    assert!(xdotool(display, &["key", "--window", window, key]));
+    wait_until("the path field to take typed keys", PATIENCE, || {
+        studio.lines()[before..]
+            .iter()
+            .any(|line| line.contains("the path field takes what is typed"))
+    });
+}
+
 /// Like `wait_until`, but gives up quietly at the deadline.
 fn wait_until_or(timeout: Duration, mut condition: impl FnMut() -> bool) {
     let deadline = std::time::Instant::now() + timeout;
@@ -151,15 +165,7 @@ fn save_as(session: &Session, saved: &Path) {
         window,
         ..
     } = session;
-    // Typed keys reach the path field once it holds the focus, a frame or two after the dialog
-    // opens: the studio says when.
-    keys_until(
-        studio,
-        display,
-        window,
-        &["ctrl+shift+s"],
-        "the path field takes what is typed",
-    );
+    open_path_dialog(studio, display, window, "ctrl+shift+s");
     assert!(xdotool(display, &["key", "--window", window, "ctrl+a"]));
     assert!(xdotool(
         display,
@@ -482,13 +488,7 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     assert!(!text.is_empty());
 
     // Open… from the System view takes the plan too, and shows it in the Mission view.
-    keys_until(
-        studio,
-        display,
-        window,
-        &["ctrl+o"],
-        "the path field takes what is typed",
-    );
+    open_path_dialog(studio, display, window, "ctrl+o");
     assert!(xdotool(display, &["key", "--window", window, "ctrl+a"]));
     let plan = dir.path().join("plan-yard.xml");
     assert!(xdotool(

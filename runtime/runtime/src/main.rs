@@ -337,6 +337,7 @@ fn main() -> ExitCode {
     // `armor run`, its agent and `armor host` hold the run's secret: the modules they start run
     // as the same user, and must not read it from this process's memory (`/proc/PID/mem`).
     armor_module_api::hardening::make_non_dumpable();
+    hide_secret_path();
     armor_runtime::console::init_logging();
     match run(Cli::parse()) {
         Ok(code) => code,
@@ -345,6 +346,47 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `--secret FILE` leaves the secret's path in `/proc/PID/cmdline`, which every process of the
+/// same user reads (modules included): this process starts itself again, the same PID, with the
+/// path in its environment instead (`ARMOR_SECRET_FILE`, which `--secret` reads too, and which
+/// nobody else may read once the process is non-dumpable). It happens before any module or
+/// thread exists, so no module ever sees the path.
+fn hide_secret_path() {
+    use std::os::unix::process::CommandExt as _;
+    let mut args = std::env::args_os();
+    let Some(program) = args.next() else {
+        return;
+    };
+    let mut kept = Vec::new();
+    let mut path = None;
+    while let Some(arg) = args.next() {
+        if arg == "--" {
+            kept.push(arg);
+            kept.extend(args.by_ref());
+            break;
+        }
+        if arg == "--secret" {
+            path = args.next();
+            continue;
+        }
+        if let Some(value) = arg.to_str().and_then(|arg| arg.strip_prefix("--secret=")) {
+            path = Some(value.into());
+            continue;
+        }
+        kept.push(arg);
+    }
+    let Some(path) = path else {
+        return;
+    };
+    let err = std::process::Command::new("/proc/self/exe")
+        .arg0(program)
+        .args(kept)
+        .env(armor_module_api::auth::ENV_SECRET_FILE, path)
+        .exec();
+    eprintln!("error: could not start again without the secret's path in the command line: {err}");
+    std::process::exit(1);
 }
 
 fn run(cli: Cli) -> anyhow::Result<ExitCode> {
