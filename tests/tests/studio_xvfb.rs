@@ -75,12 +75,15 @@ fn keys_until(studio: &Proc, display: &str, window: &str, keys: &[&str], said: &
     );
 }
 
-/// Opens a path dialog with `key` on a window that already has the focus, and waits until
+/// Opens a path dialog with `key` (the window given the focus first), and waits until
 /// the dialog's field takes typed keys (a frame or two after it opens: the studio says when).
 /// The key is sent once: sent again on a slow frame, a second dialog would open after the
 /// first.
 fn open_path_dialog(studio: &Proc, display: &str, window: &str, key: &str) {
     let before = studio.line_count();
+    wait_until("the studio's window to take the focus", PATIENCE, || {
+        xdotool(display, &["windowfocus", "--sync", window])
+    });
     assert!(xdotool(display, &["key", "--window", window, key]));
     wait_until("the path field to take typed keys", PATIENCE, || {
         studio.lines()[before..]

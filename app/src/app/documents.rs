@@ -300,9 +300,13 @@ impl StudioApp {
             Some(PathAnswer::Cancel) => {
                 self.path_dialog = None;
                 self.after_save_as = None;
+                // This frame was drawn with the dialog: draw the next without it, now, not at
+                // the next input (the screen would show a dialog that is no longer there).
+                ctx.request_repaint();
             }
             Some(PathAnswer::Submit(path)) => {
                 self.path_dialog = None;
+                ctx.request_repaint();
                 if path.as_os_str().is_empty() {
                     self.set_status("no path given".to_owned(), true);
                     return;
