@@ -459,9 +459,19 @@ pub fn push_mm(out: &mut String, value: f64) {
         }
         return;
     }
-    let text = format!("{value:.3}");
+    out.push_str(&trimmed_decimal(value, 3));
+}
+
+/// `value` with `places` decimals, rounded as the formatter rounds, without trailing zeros
+/// (`-0` is `0`).
+pub fn trimmed_decimal(value: f64, places: usize) -> String {
+    let text = format!("{value:.places$}");
     let text = text.trim_end_matches('0').trim_end_matches('.');
-    out.push_str(if text == "-0" { "0" } else { text });
+    if text == "-0" {
+        "0".to_owned()
+    } else {
+        text.to_owned()
+    }
 }
 
 fn push_digits(out: &mut String, value: u64) {
@@ -523,17 +533,6 @@ mod tests {
     use super::*;
     use crate::planner::random::SplitMix64;
 
-    /// What `round_mm` wrote before it had a fast path: the formatter's decimal rounding.
-    fn formatted_mm(value: f64) -> String {
-        let text = format!("{value:.3}");
-        let text = text.trim_end_matches('0').trim_end_matches('.');
-        if text == "-0" {
-            "0".to_owned()
-        } else {
-            text.to_owned()
-        }
-    }
-
     #[test]
     fn millimetres_are_written_as_the_formatter_rounds_them() {
         let mut rng = SplitMix64(7);
@@ -568,7 +567,7 @@ mod tests {
             values.push((mm + 0.4995) / 1000.0);
         }
         for value in values {
-            assert_eq!(round_mm(value), formatted_mm(value), "{value:e}");
+            assert_eq!(round_mm(value), trimmed_decimal(value, 3), "{value:e}");
         }
     }
 

@@ -304,13 +304,7 @@ fn lat_lon_attrs(position: LatLon) -> String {
 }
 
 fn degrees(value: f64) -> String {
-    let text = format!("{value:.7}");
-    let text = text.trim_end_matches('0').trim_end_matches('.');
-    if text == "-0" {
-        "0".into()
-    } else {
-        text.into()
-    }
+    crate::geo::trimmed_decimal(value, 7)
 }
 
 fn write_action(out: &mut String, indent: &str, tag: &str, action: &Action) {
