@@ -140,15 +140,7 @@ impl Key {
     }
 
     pub fn from_hex(text: &str) -> Option<Key> {
-        let text = text.trim();
-        if text.len() != KEY_BYTES * 2 || !text.is_ascii() {
-            return None;
-        }
-        let mut bytes = [0; KEY_BYTES];
-        for (i, byte) in bytes.iter_mut().enumerate() {
-            *byte = u8::from_str_radix(&text[i * 2..i * 2 + 2], 16).ok()?;
-        }
-        Some(Key(bytes))
+        unhex(text).map(Key)
     }
 
     /// The module key behind `ARMOR_KEY_FD`, if set: read to the end, after which the
@@ -322,6 +314,20 @@ pub fn random_bytes<const N: usize>() -> Result<[u8; N], SecretError> {
 /// Bytes as lowercase hex (a secret file, a salt).
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Exactly `N` bytes written as hex (either case, spaces round it ignored); `None` for any
+/// other text.
+pub fn unhex<const N: usize>(text: &str) -> Option<[u8; N]> {
+    let text = text.trim();
+    if text.len() != N * 2 || !text.is_ascii() {
+        return None;
+    }
+    let mut bytes = [0; N];
+    for (i, byte) in bytes.iter_mut().enumerate() {
+        *byte = u8::from_str_radix(&text[i * 2..i * 2 + 2], 16).ok()?;
+    }
+    Some(bytes)
 }
 
 /// A role's key as a file holds it (`armor secret derive`): one line, `ROLE HEX`.

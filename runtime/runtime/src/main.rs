@@ -1104,8 +1104,6 @@ fn probe_command(paths: Vec<PathBuf>, xml: bool, timeout: Duration, cached: bool
     }
 }
 
-/// Writes a file only its owner may read, through a temporary file renamed over it (a key is
-/// never readable by others, not even for a moment, and a failed write leaves the old file).
 /// `armor secret new`: a random secret, or a passphrase (standard input) stretched with
 /// Argon2id and a salt, written as hex to `output` (mode 600).
 fn secret_new(
@@ -1113,23 +1111,15 @@ fn secret_new(
     passphrase: bool,
     salt: Option<&str>,
 ) -> anyhow::Result<ExitCode> {
-    use armor_module_api::auth::{KEY_BYTES, SALT_BYTES, hex, random_bytes, stretch_passphrase};
+    use armor_module_api::auth::{
+        KEY_BYTES, SALT_BYTES, hex, random_bytes, stretch_passphrase, unhex,
+    };
     let secret = if passphrase {
         let salt = match salt {
-            Some(text) => {
-                let text = text.trim();
-                let bytes: Option<Vec<u8>> = (text.len() == SALT_BYTES * 2 && text.is_ascii())
-                    .then(|| {
-                        (0..SALT_BYTES)
-                            .map(|i| u8::from_str_radix(&text[i * 2..i * 2 + 2], 16).ok())
-                            .collect()
-                    })
-                    .flatten();
-                bytes.with_context(|| {
-                    format!("--salt {text}: expected {} hex digits", SALT_BYTES * 2)
-                })?
-            }
-            None => random_bytes::<SALT_BYTES>()?.to_vec(),
+            Some(text) => unhex::<SALT_BYTES>(text).with_context(|| {
+                format!("--salt {text}: expected {} hex digits", SALT_BYTES * 2)
+            })?,
+            None => random_bytes::<SALT_BYTES>()?,
         };
         eprintln!("passphrase (one line, then Enter):");
         let mut line = String::new();
@@ -1157,6 +1147,8 @@ fn secret_new(
     Ok(ExitCode::SUCCESS)
 }
 
+/// Writes a file only its owner may read, through a temporary file renamed over it (a key is
+/// never readable by others, not even for a moment, and a failed write leaves the old file).
 fn write_private(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write as _;
     use std::os::unix::fs::OpenOptionsExt as _;
