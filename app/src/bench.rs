@@ -35,9 +35,9 @@ use armor_module_api::ModuleDescription;
 use armor_module_api::describe::{ParamSpec, ParamType, PortSpec};
 
 use crate::app::{Options, StudioApp};
-use crate::diagram::{Diagram, Pin, PinSide, PortRef};
-use crate::files::{self, Home};
-use crate::palette::Palette;
+use crate::common::palette::Palette;
+use crate::files::Home;
+use crate::system::diagram::{Diagram, Pin, PinSide, PortRef};
 
 pub const FRAME: &str = "studio_frame_ms_1000_blocks";
 pub const LOAD: &str = "studio_load_ms_1000_blocks";
@@ -327,7 +327,7 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
         app.view_at_scale(1.0);
         let one_to_one = measure(&mut app, 3)?;
         // The most blocks drawn as widgets: the least zoom a fit goes to.
-        app.view_at_scale(crate::viewer::DETAIL_SCALE + 0.01);
+        app.view_at_scale(crate::system::viewer::DETAIL_SCALE + 0.01);
         let most_detail = measure(&mut app, 3)?;
         let least_scale = app.canvas_transform().scaling;
         println!(
@@ -446,7 +446,7 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
     }
     if wants(LAYOUT) || wants("layout") {
         let relay = relay();
-        let catalog: crate::diagram::Catalog =
+        let catalog: crate::common::palette::Catalog =
             [(relay.module_type.clone(), relay)].into_iter().collect();
         let diagram = random_diagram(200, 300);
         let mut samples = Vec::with_capacity(rounds);
@@ -656,7 +656,7 @@ fn overview_transform(app: &StudioApp) -> egui::emath::TSTransform {
     let canvas = app.canvas_rect();
     let scaling = (canvas.width() / bounds.width())
         .min(canvas.height() / bounds.height())
-        .min(crate::viewer::DETAIL_SCALE * 0.9);
+        .min(crate::system::viewer::DETAIL_SCALE * 0.9);
     let translation = canvas.center().to_vec2() - bounds.center().to_vec2() * scaling;
     egui::emath::TSTransform::new(translation, scaling)
 }
@@ -815,8 +815,8 @@ fn load_times(file: &Path, rounds: usize) -> anyhow::Result<(f64, f64)> {
     let mut reference = Vec::new();
     for _ in 0..rounds {
         let start = Instant::now();
-        let diagram = files::open(file)?;
-        let problems = crate::validation::validate(&diagram, &catalog, &[]);
+        let diagram = crate::system::file::open(file)?;
+        let problems = crate::system::validation::validate(&diagram, &catalog, &[]);
         ours.push(start.elapsed());
         anyhow::ensure!(
             problems.is_empty(),

@@ -88,7 +88,7 @@ pub struct Mirror {
     pub system: PathBuf,
     /// The mission's copy, when the run has one.
     pub mission: Option<PathBuf>,
-    pub catalog: crate::diagram::Catalog,
+    pub catalog: crate::common::palette::Catalog,
 }
 
 /// The last part of a path written on another machine (`/robot/missions/system.xml`), or
@@ -249,7 +249,7 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
         }
         _ => None,
     };
-    let mut catalog = crate::diagram::Catalog::new();
+    let mut catalog = crate::common::palette::Catalog::new();
     for text in &files.descriptions {
         if let Ok(description) = armor_module_api::ModuleDescription::from_xml(text) {
             catalog.insert(description.module_type.clone(), description);
