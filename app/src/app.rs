@@ -370,12 +370,7 @@ impl StudioApp {
             View::Mission => self.mission_ui(ui),
             View::System => {
                 let live = self.run.module_states();
-                let viewer = ViewerContext {
-                    palette: &self.palette,
-                    system_file: self.system.path.clone(),
-                    module_states: &live,
-                    first_frame: !self.started,
-                };
+                let viewer = viewer_context(&self.palette, &self.system, &live, self.started);
                 self.system.ui(ui, &viewer);
                 self.show_system_messages();
                 self.start_ui(ui);
@@ -445,12 +440,7 @@ impl StudioApp {
     /// The Run view.
     fn run_ui(&mut self, ui: &mut Ui) {
         let live = self.run.module_states();
-        let viewer = ViewerContext {
-            palette: &self.palette,
-            system_file: self.system.path.clone(),
-            module_states: &live,
-            first_frame: !self.started,
-        };
+        let viewer = viewer_context(&self.palette, &self.system, &live, self.started);
         if self.run.ui(ui, &viewer, self.mission.as_mut()).is_some() {
             self.start_run(ui.ctx());
         }
@@ -678,4 +668,20 @@ fn is_plan(file: &Path) -> bool {
         armor_runtime::mission::document_kind(file),
         Ok(armor_runtime::mission::DocumentKind::Plan)
     )
+}
+
+/// The context the views get this frame; `live` is the state of the run's modules. A function
+/// of the window's parts, not of the window, so that a view can be borrowed beside it.
+fn viewer_context<'a>(
+    palette: &'a Palette,
+    system: &SystemView,
+    live: &'a std::collections::BTreeMap<String, armor_protocol::ModuleState>,
+    started: bool,
+) -> ViewerContext<'a> {
+    ViewerContext {
+        palette,
+        system_file: system.path.clone(),
+        module_states: live,
+        first_frame: !started,
+    }
 }

@@ -20,7 +20,6 @@
 //! [`StudioApp::ui`] in an egui_kittest harness.
 
 pub mod app;
-pub mod bench;
 pub mod command;
 pub mod common;
 pub mod dialogs;
@@ -45,6 +44,22 @@ impl eframe::App for Window {
     fn on_exit(&mut self) {
         self.0.on_exit();
     }
+}
+
+/// What a program that draws the studio's frames sets up first (`armor-studio`, and
+/// `armor-studio-bench`, so that frames are measured as the window draws them): freed heap kept
+/// for the next frame, and logs on stderr (`warn`, or `RUST_LOG`).
+pub fn init_process() {
+    // A frame's shapes and meshes are large and freed at every frame: kept, the next frame
+    // reuses their pages rather than faulting them in again (`markers_frame_ms`).
+    armor_module_api::memory::keep_freed_heap();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
 }
 
 /// Opens the studio's window, with `file` loaded if given.

@@ -394,10 +394,10 @@ fn write_script(path: &std::path::Path, text: &str) {
 /// A studio on a diagram of 400 blocks, which opens as the overview.
 fn large_diagram(dir: &std::path::Path) -> egui_kittest::Harness<'static, armor_studio::StudioApp> {
     let file = dir.join("large.xml");
-    std::fs::write(&file, armor_studio::bench::diagram(400, 600).to_xml()).unwrap();
+    std::fs::write(&file, armor_studio_bench::diagram(400, 600).to_xml()).unwrap();
     let mut options = options(&dir.join("home"), Some(file));
     options.palette = Some(armor_studio::common::palette::Palette::from_descriptions([
-        armor_studio::bench::relay(),
+        armor_studio_bench::relay(),
     ]));
     harness(options)
 }

@@ -10,7 +10,7 @@
 
 use std::time::{Duration, Instant};
 
-use armor_runtime::control::Status;
+use armor_protocol::Status;
 use armor_studio::app::View;
 use armor_studio::common::palette::Palette;
 use armor_studio::files::Home;

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use armor_runtime::control::ModuleState;
+use armor_protocol::ModuleState;
 
 use crate::common::palette::{Catalog, Palette};
 

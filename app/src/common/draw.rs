@@ -2,7 +2,7 @@
 //! the System view's blocks) and a route with its arrowhead (the Mission view's legs, the Run
 //! view's followed paths).
 
-use armor_runtime::control::ModuleState;
+use armor_protocol::ModuleState;
 use egui::{Color32, Pos2, Stroke};
 
 /// The colour of a module state, in the monitor and on the diagram.

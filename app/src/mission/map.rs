@@ -199,6 +199,12 @@ impl MissionView {
         &self.map.label_boxes
     }
 
+    /// What placing the labels took at the last frame (`armor-studio-bench`'s
+    /// `label_place_ms_500_waypoints`).
+    pub fn label_time(&self) -> std::time::Duration {
+        self.map.label_time
+    }
+
     /// Where `point` of the world frame (metres) was drawn at the last frame, and the map's
     /// area then: for tests that look for the robot.
     pub fn last_screen_of(&self, point: Point) -> Option<(Pos2, Rect)> {

@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use armor_model::plan::Origin;
 use armor_module_api::types::OccupancyGrid;
-use armor_runtime::control::{ModuleState, Request, RunFiles, Status};
+use armor_protocol::{ModuleState, Request, RunFiles, Status};
 use egui::{Color32, RichText, Stroke, Ui};
 
 use crate::common::context::ViewerContext;
@@ -165,9 +165,9 @@ impl RunView {
 
     /// Whether the studio may command the run: not with an observer's key.
     pub fn may_command(&self) -> bool {
-        self.session.as_ref().is_none_or(|session| {
-            session.shared().role != Some(armor_runtime::control::Role::Observer)
-        })
+        self.session
+            .as_ref()
+            .is_none_or(|session| session.shared().role != Some(armor_protocol::Role::Observer))
     }
 
     /// The last state the run reported; once the run is over, the modules it left at work

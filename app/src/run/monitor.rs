@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use armor_model::world::Point;
 use armor_module_api::types::{LocalisationState, OccupancyGrid, Pose2D, PoseEstimate};
-use armor_runtime::control::{FiringRecord, ModuleState, ModuleStatus, Request};
+use armor_protocol::{FiringRecord, ModuleState, ModuleStatus, Request};
 use egui::{Color32, Pos2, RichText, Stroke, Ui};
 use egui_plot::{Line, Plot, Points};
 

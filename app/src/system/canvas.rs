@@ -4,7 +4,7 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use armor_runtime::control::ModuleState;
+use armor_protocol::ModuleState;
 use egui::{Key, Ui};
 use egui_snarl::ui::SnarlWidget;
 

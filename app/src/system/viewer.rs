@@ -27,7 +27,7 @@ use crate::system::diagram::{BlockId, Diagram, GROUP_TYPE_PREFIX, Link, Pin, Pin
 use crate::system::editor::Command;
 use armor_module_api::Category;
 use armor_module_api::describe::is_identifier;
-use armor_runtime::control::ModuleState;
+use armor_protocol::ModuleState;
 
 /// Pins drawn this frame, in canvas coordinates.
 type PinSink = Rc<RefCell<Vec<(Pin, Rect)>>>;
