@@ -30,6 +30,7 @@ pub mod host_run;
 #[cfg(feature = "cli")]
 pub mod hosts;
 pub mod load;
+pub mod log_pump;
 mod mcap_read;
 pub mod mission;
 pub mod paths;

@@ -909,7 +909,7 @@ fn check(file: &std::path::Path, secret: Option<&armor_module_api::auth::Secret>
     // will find in it.
     if armor_model::ros_map::is_map_yaml(file) || file.extension().is_some_and(|ext| ext == "world")
     {
-        let loaded = armor_model::world::load(file, &mut |path| std::fs::read(path));
+        let loaded = armor_model::world_file::load(file, &mut |path| std::fs::read(path));
         drop(spinner);
         return match loaded {
             Ok(world) => {

@@ -1141,19 +1141,8 @@ fn stream_lines(name: &str, pipe: Option<impl Read + Send + 'static>) {
         return;
     };
     let prefix = format!("[{name}] ");
-    std::thread::spawn(move || {
-        let mut reader = BufReader::new(pipe);
-        let mut line = Vec::new();
-        loop {
-            line.clear();
-            match reader.read_until(b'\n', &mut line) {
-                Ok(0) | Err(_) => return,
-                Ok(_) => {
-                    let text = String::from_utf8_lossy(&line);
-                    console::out_line(&format!("{prefix}{}", text.trim_end()));
-                }
-            }
-        }
+    crate::log_pump::pump_lines(pipe, move |line| {
+        console::out_line(&format!("{prefix}{line}"));
     });
 }
 
