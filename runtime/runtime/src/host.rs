@@ -598,7 +598,7 @@ impl Daemon {
         // siblings read environments.
         if let Some(secret) = &self.secret {
             let key = secret.module_key(&name).to_hex();
-            if let Err(err) = crate::supervisor::hand_over(&mut command, &key) {
+            if let Err(err) = crate::process::hand_over(&mut command, &key) {
                 return failed(format!("cannot hand {name} its key: {err:#}"));
             }
         }

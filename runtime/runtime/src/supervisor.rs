@@ -4,7 +4,7 @@
 //! supervisor, which stops them in order) and die with it if it is killed (`PR_SET_PDEATHSIG`).
 
 use std::collections::BTreeMap;
-use std::io::{BufRead as _, BufReader, Read, Write as _};
+use std::io::{BufRead as _, BufReader, Read};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, ExitStatus, Stdio};
@@ -26,6 +26,7 @@ use crate::controller::{Controller, Outcome};
 use crate::hosts::{HostLink, ModuleChild};
 use crate::load::{Diagnostics, Loaded, load_system};
 use crate::mission::{DocumentKind, LoadedMission, document_kind, load_mission};
+use crate::process::hand_over;
 use crate::progress::{self, Progress};
 use crate::restart::{AfterCrash, Backoff, CRASH_WINDOW, FIRST_BACKOFF, MAX_BACKOFF};
 use crate::{console, control, probe, run_dir};
@@ -1222,18 +1223,6 @@ impl AgentProc {
             end_children(&mut vec![("agent".to_owned(), ModuleChild::Local(child))]);
         }
     }
-}
-
-/// Hands `text` (a key) to the child `command` starts through a pipe that becomes its
-/// standard input, named by `ARMOR_KEY_FD=0`: the child reads it and closes it at start, and
-/// nothing of it shows in `/proc/PID/environ` or `cmdline`. The pipe holds the few bytes
-/// until the child reads them, so they are written before it starts.
-pub fn hand_over(command: &mut Command, text: &str) -> std::io::Result<()> {
-    let (reader, mut writer) = std::io::pipe()?;
-    writer.write_all(text.as_bytes())?;
-    drop(writer);
-    command.stdin(Stdio::from(reader)).env(ENV_KEY_FD, "0");
-    Ok(())
 }
 
 /// Gives a child the run's secret over a pipe (see [`hand_over`]), or makes sure it has none;
