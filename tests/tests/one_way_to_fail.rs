@@ -49,7 +49,6 @@ const LEFT: &[(&str, usize)] = &[
     ("runtime/model/src/planner/mod.rs", 1),
     ("runtime/model/src/system/mod.rs", 2),
     ("runtime/model/src/world.rs", 1),
-    ("runtime/module_api/src/describe.rs", 3),
     ("runtime/module_api/src/module.rs", 1),
     ("runtime/module_api/src/types/image.rs", 1),
     ("runtime/module_api/src/xml.rs", 1),
