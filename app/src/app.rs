@@ -20,14 +20,15 @@ use egui::Ui;
 
 pub use crate::command::View;
 use crate::command::{self, UiCommand};
+use crate::common::context::ViewerContext;
+use crate::common::palette::Palette;
 use crate::dialogs::{PathDialog, PathPurpose, Replacing};
-use crate::editor::Editor;
 use crate::files::{Document, Home, Recovery};
 use crate::mission::MissionView;
-use crate::palette::Palette;
-use crate::run::{RunView, Surroundings as RunSurroundings, Target};
+use crate::run::{RunView, Target};
+use crate::system::editor::Editor;
+use crate::system::validation::Problem;
 use crate::system::{self, SystemView};
-use crate::validation::Problem;
 
 /// How the studio starts.
 pub struct Options {
@@ -179,11 +180,9 @@ impl StudioApp {
     /// Starts a run of the plan open in the Mission view, else of the system, after saving
     /// what has unsaved changes; shows the Run view.
     pub fn start_run(&mut self, ctx: &egui::Context) {
-        let target = self.run.target(&RunSurroundings {
-            mission: self.mission.as_mut(),
-            system_file: self.system.path.as_deref(),
-            catalog: &self.palette.catalog,
-        });
+        let target = self
+            .run
+            .target(self.mission.as_ref(), self.system.path.as_deref());
         let Some(target) = target else {
             self.set_status(
                 "nothing to run: open or save a system or a plan first".to_owned(),
@@ -199,12 +198,8 @@ impl StudioApp {
             _ => {}
         }
         self.set_view(View::Run);
-        let mut surroundings = RunSurroundings {
-            mission: self.mission.as_mut(),
-            system_file: self.system.path.as_deref(),
-            catalog: &self.palette.catalog,
-        };
-        self.run.start(target, &mut surroundings, ctx);
+        self.run
+            .start(target, self.mission.as_ref(), &self.palette.catalog, ctx);
     }
 
     /// Watches a run started elsewhere, through its control interface: with the open system's
@@ -215,15 +210,11 @@ impl StudioApp {
             self.run.attach_bare(control, ctx);
             return;
         };
-        let mut surroundings = RunSurroundings {
-            mission: None,
-            system_file: Some(&system),
-            catalog: &self.palette.catalog,
-        };
         self.run.attach(
-            Target::System(system.clone()),
+            Target::System(system),
             control,
-            &mut surroundings,
+            None,
+            &self.palette.catalog,
             ctx,
         );
     }
@@ -269,15 +260,11 @@ impl StudioApp {
             Some(plan) if opened == Some(plan.as_path()) => Target::Plan(plan),
             _ => Target::System(mirror.system.clone()),
         };
-        let mut surroundings = RunSurroundings {
-            mission: match target {
-                Target::Plan(_) => self.mission.as_mut(),
-                Target::System(_) => None,
-            },
-            system_file: Some(&mirror.system),
-            catalog: &catalog,
+        let mission = match target {
+            Target::Plan(_) => self.mission.as_ref(),
+            Target::System(_) => None,
         };
-        self.run.attach(target, control, &mut surroundings, ctx);
+        self.run.attach(target, control, mission, &catalog, ctx);
         self.run.keep_mirror(mirror);
         // After the attachment's own message, so that the status line says this.
         self.run.messages.push((
@@ -383,7 +370,8 @@ impl StudioApp {
             View::Mission => self.mission_ui(ui),
             View::System => {
                 let live = self.run.module_states();
-                self.system.ui(ui, &self.palette, self.started, &live);
+                let viewer = viewer_context(&self.palette, &self.system, &live, self.started);
+                self.system.ui(ui, &viewer);
                 self.show_system_messages();
                 self.start_ui(ui);
             }
@@ -451,12 +439,9 @@ impl StudioApp {
 
     /// The Run view.
     fn run_ui(&mut self, ui: &mut Ui) {
-        let mut surroundings = RunSurroundings {
-            mission: self.mission.as_mut(),
-            system_file: self.system.path.as_deref(),
-            catalog: &self.palette.catalog,
-        };
-        if self.run.ui(ui, &mut surroundings).is_some() {
+        let live = self.run.module_states();
+        let viewer = viewer_context(&self.palette, &self.system, &live, self.started);
+        if self.run.ui(ui, &viewer, self.mission.as_mut()).is_some() {
             self.start_run(ui.ctx());
         }
     }
@@ -683,4 +668,20 @@ fn is_plan(file: &Path) -> bool {
         armor_runtime::mission::document_kind(file),
         Ok(armor_runtime::mission::DocumentKind::Plan)
     )
+}
+
+/// The context the views get this frame; `live` is the state of the run's modules. A function
+/// of the window's parts, not of the window, so that a view can be borrowed beside it.
+fn viewer_context<'a>(
+    palette: &'a Palette,
+    system: &SystemView,
+    live: &'a std::collections::BTreeMap<String, armor_protocol::ModuleState>,
+    started: bool,
+) -> ViewerContext<'a> {
+    ViewerContext {
+        palette,
+        system_file: system.path.clone(),
+        module_states: live,
+        first_frame: !started,
+    }
 }

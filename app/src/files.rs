@@ -1,12 +1,10 @@
-//! Where the studio keeps its own files (recent files, the recovery copy) and how documents
-//! are read and written. Saves go through `armor_runtime::fs::write_atomically`: a failed save
-//! leaves the existing file as it was.
+//! Where the studio keeps its own files (recent files, the recovery copy). Saves go through
+//! `armor_runtime::fs::write_atomically`: a failed save leaves the existing file as it was. A
+//! view reads and writes its own documents (`system/file.rs`, the Mission view's plans).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
-
-use crate::diagram::{Catalog, Diagram};
 
 /// Overrides the folder of the studio's own files (tests use a temporary one).
 pub const ENV_STUDIO_HOME: &str = "ARMOR_STUDIO_HOME";
@@ -167,56 +165,10 @@ impl Home {
     }
 }
 
-/// Reads a system file into a diagram; the error lists every problem as `FILE:LINE:COL: message`.
-pub fn open(file: &Path) -> anyhow::Result<Diagram> {
-    let text =
-        std::fs::read_to_string(file).with_context(|| format!("cannot read {}", file.display()))?;
-    Diagram::from_xml(&text).map_err(|problems| {
-        let lines: Vec<String> = problems
-            .iter()
-            .map(|problem| format!("{}:{}: {}", file.display(), problem.pos, problem.message))
-            .collect();
-        anyhow::anyhow!("{}", lines.join("\n"))
-    })
-}
-
-/// Saves a diagram, refusing while a required parameter is unset, and naming each one.
-/// Saves `diagram` to `file` (atomically: a failed save leaves the file as it was). A system
-/// with required parameters unset is saved all the same, as a draft that `armor check` and
-/// `armor run` refuse with the reasons: the parameters unset are returned for the warning.
-pub fn save(file: &Path, diagram: &Diagram, catalog: &Catalog) -> anyhow::Result<Vec<String>> {
-    armor_runtime::fs::write_atomically(file, diagram.to_xml().as_bytes())
-        .with_context(|| format!("cannot save {}", file.display()))?;
-    Ok(diagram.all_missing_required(catalog))
-}
-
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-    use armor_module_api::ModuleDescription;
-    use armor_module_api::describe::{ParamSpec, ParamType};
-
-    #[test]
-    fn a_draft_is_saved_with_what_it_lacks_and_a_failed_save_changes_nothing() {
-        let dir = tempfile::tempdir().unwrap();
-        let file = dir.path().join("system.xml");
-        std::fs::write(&file, "the good version").unwrap();
-        let mut nav = ModuleDescription::new("nav", "drives");
-        nav.params
-            .push(ParamSpec::new("goal_m", ParamType::Float, "goal"));
-        let catalog: Catalog = [("nav".to_owned(), nav)].into_iter().collect();
-        let mut diagram = Diagram::default();
-        let id = diagram.add_block("nav", [0.0, 0.0]);
-        assert!(save(&dir.path().join("missing/system.xml"), &diagram, &catalog).is_err());
-        assert_eq!(std::fs::read_to_string(&file).unwrap(), "the good version");
-        let missing = save(&file, &diagram, &catalog).unwrap();
-        assert_eq!(missing, ["nav.goal_m"]);
-        assert_eq!(open(&file).unwrap(), diagram);
-        diagram.set_param(id, "goal_m", Some("3".into()));
-        assert!(save(&file, &diagram, &catalog).unwrap().is_empty());
-        assert_eq!(open(&file).unwrap(), diagram);
-    }
 
     #[test]
     fn recent_files_and_the_recovery_copy() {
@@ -230,18 +182,13 @@ mod tests {
             home.recent(),
             [dir.path().join("a.xml"), dir.path().join("b.xml")]
         );
-        let mut diagram = Diagram::default();
-        diagram.add_block("sink", [1.0, 2.0]);
-        home.write_recovery(
-            Document::System,
-            Some(&dir.path().join("a.xml")),
-            &diagram.to_xml(),
-        )
-        .unwrap();
+        let text = "<system name=\"s\"><module name=\"sink\" type=\"sink\"/></system>";
+        home.write_recovery(Document::System, Some(&dir.path().join("a.xml")), text)
+            .unwrap();
         assert!(home.recovery(Document::Plan).is_none());
         let recovery = home.recovery(Document::System).unwrap();
         assert_eq!(recovery.original, Some(dir.path().join("a.xml")));
-        assert_eq!(Diagram::from_xml(&recovery.text).unwrap(), diagram);
+        assert_eq!(recovery.text, text);
         home.clear_recovery(Document::System);
         assert!(home.recovery(Document::System).is_none());
     }

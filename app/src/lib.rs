@@ -1,36 +1,34 @@
-//! ArMoR Studio: a window with three views, each in its own module with its own state, which
-//! the shell ([`app`]) routes frames, menus and keys to:
+//! ArMoR Studio: a window with three views, each in its own folder with its own state, which
+//! the shell ([`app`]) routes frames, menus and keys to, handing each the same per-frame
+//! [`common::context::ViewerContext`]:
 //!
 //! - [`system`]: the block-diagram editor of a system file. Module binaries on the module path
-//!   describe themselves ([`palette`]); blocks and links are drawn on a canvas ([`viewer`], an
-//!   egui-snarl adapter over the [`diagram`] model, edited through the [`editor`]'s commands and
-//!   undo history), checked with the same function as `armor check` ([`validation`]), and
-//!   saved in the one system XML format that `armor run` runs ([`files`]).
+//!   describe themselves ([`common::palette`]); blocks and links are drawn on a canvas
+//!   ([`system::viewer`], an egui-snarl adapter over the [`system::diagram`] model, edited
+//!   through the [`system::editor`]'s commands and undo history), checked with the same
+//!   function as `armor check` ([`system::validation`]), and saved in the one system XML format
+//!   that `armor run` runs ([`files`]).
 //! - [`mission`]: a plan on an offline map, compiled and verified as `armor compile` and
 //!   `armor check` do, with the net it compiles to.
 //! - [`run`](mod@run): a run of the `armor` binary (or one attached to through its control
 //!   interface, or a recording) watched and driven live.
 //!
-//! The menus, the keys and the F1 sheet are all made from one table ([`command`]). Start the
-//! window with [`run()`] or [`run_attached`]; tests drive [`StudioApp::ui`] in an egui_kittest
-//! harness.
+//! What two views share lives in [`common`]; a view names another only by the types its room
+//! exports at its root (the Run view draws on the Mission view's `MissionView`), never its files
+//! (`tests/rooms.rs` fails otherwise). The menus, the keys and the F1 sheet are all made from
+//! one table ([`command`]). Start the window with [`run()`] or [`run_attached`]; tests drive
+//! [`StudioApp::ui`] in an egui_kittest harness.
 
 pub mod app;
-pub mod bench;
 pub mod command;
-pub mod diagram;
+pub mod common;
 pub mod dialogs;
-pub mod editor;
 pub mod export;
 pub mod files;
-pub mod layout;
 pub mod mission;
-pub mod palette;
 pub mod run;
 pub mod start;
 pub mod system;
-pub mod validation;
-pub mod viewer;
 
 pub use app::{Options, StudioApp};
 
@@ -46,6 +44,22 @@ impl eframe::App for Window {
     fn on_exit(&mut self) {
         self.0.on_exit();
     }
+}
+
+/// What a program that draws the studio's frames sets up first (`armor-studio`, and
+/// `armor-studio-bench`, so that frames are measured as the window draws them): freed heap kept
+/// for the next frame, and logs on stderr (`warn`, or `RUST_LOG`).
+pub fn init_process() {
+    // A frame's shapes and meshes are large and freed at every frame: kept, the next frame
+    // reuses their pages rather than faulting them in again (`markers_frame_ms`).
+    armor_module_api::memory::keep_freed_heap();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
 }
 
 /// Opens the studio's window, with `file` loaded if given.

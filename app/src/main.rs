@@ -1,21 +1,12 @@
 //! `armor-studio [FILE]`: ArMoR Studio — the System view (a block-diagram editor), the Mission
-//! view (plans on a map) and the Run view. `armor-studio bench` (hidden) prints the studio's
-//! timings as JSON lines for `armor-bench`.
+//! view (plans on a map) and the Run view. Its timings are `armor-studio-bench`'s
+//! (`bench/studio`).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    // A frame's shapes and meshes are large and freed at every frame: kept, the next frame
-    // reuses their pages rather than faulting them in again (`markers_frame_ms`).
-    armor_module_api::memory::keep_freed_heap();
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    armor_studio::init_process();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("--help" | "-h") => {
@@ -24,7 +15,6 @@ fn main() -> ExitCode {
             );
             Ok(())
         }
-        Some("bench") => armor_studio::bench::run(&args[1..]),
         Some("--attach") => match (args.get(1), args.get(2), args.len()) {
             (Some(addr), file, 2 | 3) => match addr.parse::<std::net::SocketAddr>() {
                 Ok(addr) => armor_studio::run_attached(file.map(PathBuf::from), Some(addr)),

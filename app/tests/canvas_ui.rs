@@ -11,9 +11,9 @@ use std::path::PathBuf;
 
 use armor_module_api::{Category, ModuleDescription};
 use armor_studio::StudioApp;
-use armor_studio::diagram::PinSide;
-use armor_studio::palette::Palette;
-use armor_studio::viewer::{self, FIT_FLOOR, ZOOM_STEP};
+use armor_studio::common::palette::Palette;
+use armor_studio::system::diagram::PinSide;
+use armor_studio::system::viewer::{self, FIT_FLOOR, ZOOM_STEP};
 use common::*;
 use egui::{Color32, Key, Modifiers, Pos2, Vec2};
 use egui_kittest::Harness;

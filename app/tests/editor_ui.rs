@@ -6,7 +6,7 @@ mod common;
 
 use std::time::Duration;
 
-use armor_studio::diagram::{Diagram, PinSide};
+use armor_studio::system::diagram::{Diagram, PinSide};
 use common::*;
 use egui::{Key, Modifiers, Pos2};
 use egui_kittest::kittest::Queryable as _;
@@ -80,7 +80,7 @@ fn build_link_set_parameters_save_and_reopen() {
     let draft = armor_model::SystemConfig::parse(&std::fs::read_to_string(&file).unwrap()).unwrap();
     let draft_problems = armor_model::check(
         &draft,
-        &armor_studio::palette::Palette::from_descriptions(descriptions()).catalog,
+        &armor_studio::common::palette::Palette::from_descriptions(descriptions()).catalog,
     );
     assert!(
         draft_problems
@@ -154,7 +154,7 @@ fn build_link_set_parameters_save_and_reopen() {
     assert_eq!(harness.state().title(), "robot.xml — ArMoR Studio");
     let text = std::fs::read_to_string(&file).unwrap();
     let system = armor_model::SystemConfig::parse(&text).unwrap();
-    let catalog = armor_studio::palette::Palette::from_descriptions(descriptions()).catalog;
+    let catalog = armor_studio::common::palette::Palette::from_descriptions(descriptions()).catalog;
     assert_eq!(armor_model::check(&system, &catalog), []);
     assert!(
         text.contains(r#"<param name="goal_x_m" value="1.5"/>"#),
@@ -309,7 +309,7 @@ fn problems_are_those_of_armor_check_and_select_their_block() {
     // The same messages as the checker gives for the same file.
     let system =
         armor_model::SystemConfig::parse(&std::fs::read_to_string(&file).unwrap()).unwrap();
-    let catalog = armor_studio::palette::Palette::from_descriptions(descriptions()).catalog;
+    let catalog = armor_studio::common::palette::Palette::from_descriptions(descriptions()).catalog;
     let mut expected: Vec<String> = armor_model::check(&system, &catalog)
         .into_iter()
         .map(|p| p.message)
@@ -394,10 +394,10 @@ fn write_script(path: &std::path::Path, text: &str) {
 /// A studio on a diagram of 400 blocks, which opens as the overview.
 fn large_diagram(dir: &std::path::Path) -> egui_kittest::Harness<'static, armor_studio::StudioApp> {
     let file = dir.join("large.xml");
-    std::fs::write(&file, armor_studio::bench::diagram(400, 600).to_xml()).unwrap();
+    std::fs::write(&file, armor_studio_bench::diagram(400, 600).to_xml()).unwrap();
     let mut options = options(&dir.join("home"), Some(file));
-    options.palette = Some(armor_studio::palette::Palette::from_descriptions([
-        armor_studio::bench::relay(),
+    options.palette = Some(armor_studio::common::palette::Palette::from_descriptions([
+        armor_studio_bench::relay(),
     ]));
     harness(options)
 }
@@ -574,7 +574,7 @@ fn copied_text(harness: &egui_kittest::Harness<'_, armor_studio::StudioApp>) -> 
 /// The blocks of the document: name, type and parameters, and its links.
 fn contents(harness: &egui_kittest::Harness<'_, armor_studio::StudioApp>) -> String {
     let diagram = &harness.state().editor().diagram;
-    armor_studio::diagram::Diagram::to_system(diagram).to_xml()
+    armor_studio::system::diagram::Diagram::to_system(diagram).to_xml()
 }
 
 #[test]

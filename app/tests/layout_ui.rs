@@ -6,8 +6,8 @@ mod common;
 
 use std::path::PathBuf;
 
-use armor_studio::diagram::Diagram;
-use armor_studio::viewer::DETAIL_SCALE;
+use armor_studio::system::diagram::Diagram;
+use armor_studio::system::viewer::DETAIL_SCALE;
 use common::*;
 use egui::{Key, Modifiers};
 use egui_kittest::kittest::Queryable as _;
@@ -60,7 +60,7 @@ fn robot_system_opens_in_layers_with_every_name_drawn() {
 }
 
 /// The modules of the behaviours' system, as their binaries describe themselves.
-fn behaviours_palette() -> armor_studio::palette::Palette {
+fn behaviours_palette() -> armor_studio::common::palette::Palette {
     use armor_module_catalog as catalog;
     let specs = [
         catalog::sim::spec(),
@@ -73,7 +73,7 @@ fn behaviours_palette() -> armor_studio::palette::Palette {
         catalog::teleop::spec(),
         catalog::mux::spec(),
     ];
-    armor_studio::palette::Palette::from_descriptions(specs.iter().map(|spec| {
+    armor_studio::common::palette::Palette::from_descriptions(specs.iter().map(|spec| {
         armor_module_api::describe::ModuleDescription::from_xml(&spec.description().to_xml())
             .unwrap()
     }))

@@ -307,7 +307,7 @@ fn a_new_plan_names_only_its_follower() {
         description.controllable = controllable;
         description
     };
-    options.palette = Some(armor_studio::palette::Palette::from_descriptions([
+    options.palette = Some(armor_studio::common::palette::Palette::from_descriptions([
         described("sim", false),
         described("follower", true),
         described("avoider", true),

@@ -6,7 +6,7 @@
 mod common;
 
 use armor_studio::StudioApp;
-use armor_studio::diagram::PinSide;
+use armor_studio::system::diagram::PinSide;
 use common::*;
 use egui::Pos2;
 use egui_kittest::Harness;

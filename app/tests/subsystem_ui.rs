@@ -7,7 +7,7 @@
 mod common;
 
 use armor_model::SystemConfig;
-use armor_studio::diagram::PinSide;
+use armor_studio::system::diagram::PinSide;
 use common::*;
 use egui::{Key, Modifiers};
 use egui_kittest::kittest::Queryable as _;

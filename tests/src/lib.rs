@@ -74,7 +74,7 @@ impl Proc {
         command: &'a mut Command,
         key: &armor_module_api::auth::Key,
     ) -> &'a mut Command {
-        armor_runtime::supervisor::hand_over(command, &key.to_hex()).expect("a pipe");
+        armor_runtime::process::hand_over(command, &key.to_hex()).expect("a pipe");
         command
     }
 

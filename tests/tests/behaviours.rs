@@ -10,7 +10,7 @@
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use armor_runtime::control::{BehaviourState, Status};
+use armor_protocol::{BehaviourState, Status};
 use armor_tests::{PATIENCE, Proc, bin, bin_dir, field, workspace_root};
 
 /// Run time is twice real time; the robot meets the crate after about 10 s of run time.

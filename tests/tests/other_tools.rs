@@ -87,7 +87,7 @@ fn plan_on(
 }
 
 fn load_world(file: &Path) -> armor_model::world::World {
-    armor_model::world::load(file, &mut |path| std::fs::read(path)).unwrap()
+    armor_model::world_file::load(file, &mut |path| std::fs::read(path)).unwrap()
 }
 
 /// Items 1 and 8: on Nav2's TurtleBot map (no `start`, no `geo_origin`), `armor check` says

@@ -264,7 +264,7 @@ fn subscribe(data_name: &str, subscriber: &str) -> ToProvider {
 fn the_python_module_says_it_applies_and_its_markers_decode_as_the_protocol_says() {
     use armor_module_api::types::{Frame, Markers, Shape};
     use armor_module_api::{Event, ModuleSpec};
-    use armor_runtime::control::{BehaviourState, Status};
+    use armor_protocol::{BehaviourState, Status};
     let setup = Setup::new();
     let (run, agent) = setup.run(&[]);
     let line = run.wait_for("the control address", PATIENCE, |line| {

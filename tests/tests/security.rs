@@ -278,10 +278,8 @@ fn an_on_path_relay_reads_nothing_of_the_control_link_and_its_rewrites_are_detec
     let control: SocketAddr = control.parse().unwrap();
     // Reading: a status through the relay, then a look at what passed.
     let reader = relay(control, false);
-    let mut client = armor_runtime::control::Client::connect(reader.addr, Some(&secret)).unwrap();
-    let reply = client
-        .call(&armor_runtime::control::Request::Status)
-        .unwrap();
+    let mut client = armor_protocol::Client::connect(reader.addr, Some(&secret)).unwrap();
+    let reply = client.call(&armor_protocol::Request::Status).unwrap();
     assert!(reply.ok, "{reply:?}");
     let seen = reader.seen.lock().unwrap().clone();
     for clear in ["status", "command", "driven", "teleop", "sim"] {
@@ -294,8 +292,8 @@ fn an_on_path_relay_reads_nothing_of_the_control_link_and_its_rewrites_are_detec
     }
     // Rewriting: the request changed on the way is not carried out, and the client learns it.
     let tamperer = relay(control, true);
-    let mut client = armor_runtime::control::Client::connect(tamperer.addr, Some(&secret)).unwrap();
-    let answer = client.call(&armor_runtime::control::Request::Status);
+    let mut client = armor_protocol::Client::connect(tamperer.addr, Some(&secret)).unwrap();
+    let answer = client.call(&armor_protocol::Request::Status);
     assert!(
         answer.is_err(),
         "a rewritten request was answered: {answer:?}"

@@ -10,10 +10,10 @@
 
 use std::time::{Duration, Instant};
 
-use armor_runtime::control::Status;
+use armor_protocol::Status;
 use armor_studio::app::View;
+use armor_studio::common::palette::Palette;
 use armor_studio::files::Home;
-use armor_studio::palette::Palette;
 use armor_studio::{Options, StudioApp};
 use armor_tests::{
     PATIENCE, Proc, bin_dir, ctl_status, driven_system, process_alive, run_with_control,

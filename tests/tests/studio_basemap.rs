@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use armor_studio::app::View;
+use armor_studio::common::palette::Palette;
 use armor_studio::files::Home;
-use armor_studio::palette::Palette;
 use armor_studio::{Options, StudioApp};
 use armor_tests::workspace_root;
 use egui::{Key, Modifiers, Pos2};

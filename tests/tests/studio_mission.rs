@@ -9,9 +9,9 @@ use std::time::Duration;
 
 use armor_model::net::{MissionNet, parse_rfc3339};
 use armor_studio::app::View;
+use armor_studio::common::palette::Palette;
 use armor_studio::files::Home;
 use armor_studio::mission::plan_edit::Selection;
-use armor_studio::palette::Palette;
 use armor_studio::{Options, StudioApp};
 use armor_tests::mission::run_mission;
 use armor_tests::workspace_root;

@@ -16,10 +16,10 @@ use std::time::{Duration, Instant};
 
 use armor_model::world::Point;
 use armor_module_api::types::LocalisationState;
-use armor_runtime::control::{ModuleState, Request, Role, RoleKey, Status};
+use armor_protocol::{ModuleState, Request, Role, RoleKey, Status};
 use armor_studio::app::View;
+use armor_studio::common::palette::Palette;
 use armor_studio::files::Home;
-use armor_studio::palette::Palette;
 use armor_studio::{Options, StudioApp};
 use armor_tests::{bin_dir, workspace_root};
 use egui::{Key, Modifiers, Pos2};
@@ -647,8 +647,8 @@ fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
     // The run requires it: its control interface refuses a client without it.
     let control = control_addr(harness.state());
     // It sends such a client not a byte: the client says what that means.
-    let refused = armor_runtime::control::request(control, &Request::Status, None)
-        .map_err(|err| format!("{err:#}"));
+    let refused =
+        armor_protocol::request(control, &Request::Status, None).map_err(|err| format!("{err:#}"));
     assert!(
         refused
             .as_ref()
@@ -656,7 +656,7 @@ fn a_run_with_a_shared_secret_is_started_and_watched_with_it() {
         "{refused:?}"
     );
     let secret = armor_module_api::auth::Secret::load(&secret_file).unwrap();
-    armor_runtime::control::request(control, &Request::Status, Some(&secret)).unwrap();
+    armor_protocol::request(control, &Request::Status, Some(&secret)).unwrap();
     harness.get_by_label("■ Stop").click();
     step_until(&mut harness, "the run to stop", PATIENCE, |app| {
         !app.run().is_running()
@@ -743,7 +743,7 @@ fn behaviours_system(dir: &Path) -> PathBuf {
 
 #[test]
 fn behaviours_take_and_give_up_control_in_the_oscilloscope_and_markers_are_switched_per_module() {
-    use armor_runtime::control::BehaviourState;
+    use armor_protocol::BehaviourState;
     let dir = tempfile::tempdir().unwrap();
     let system = behaviours_system(dir.path());
     let mut harness = harness(dir.path());

@@ -21,7 +21,7 @@ impl StudioApp {
         if view == View::System {
             self.system.frame_for_picture();
         } else if let Some(mission) = &mut self.mission {
-            mission.map.fit_requested = true;
+            mission.request_fit();
         }
         self.export_after = Some((path, view, 2));
         self.set_status("exporting the picture…".to_owned(), false);

@@ -4,7 +4,7 @@
 use egui::Pos2;
 
 use super::StudioApp;
-use crate::diagram::PinSide;
+use crate::system::diagram::PinSide;
 
 impl StudioApp {
     /// Where a block's pin is on screen (as drawn last frame): `side` is input or output.

@@ -18,7 +18,7 @@ use egui::{Color32, RichText, Ui};
 use super::plan_edit::{PlanCommand, Selection};
 use super::symbols;
 use super::{LegRoute, MissionView};
-use crate::diagram::Catalog;
+use crate::common::palette::Catalog;
 
 const ERROR: Color32 = Color32::from_rgb(230, 90, 70);
 

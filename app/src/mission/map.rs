@@ -3,8 +3,9 @@
 //! the waypoints and the unit symbols drawn over it; and the clicks and drags that edit the
 //! plan, queued as [`PlanCommand`]s.
 
+use crate::common::draw::draw_route;
+use crate::common::labels::{Importance, Label};
 use crate::mission::LegRoute;
-use crate::mission::labels::{Importance, Label};
 use armor_model::plan::{AreaKind, Graphic, GraphicKind, LatLon, Plan};
 use armor_model::world::{Point, World};
 use egui::{Color32, Pos2, Rect, RichText, Sense, Stroke, Ui, Vec2, pos2, vec2};
@@ -173,6 +174,16 @@ impl MissionView {
         self.commands.extend(out);
     }
 
+    /// Frames the plan's world at the next frame the map is drawn.
+    pub fn request_fit(&mut self) {
+        self.map.fit_requested = true;
+    }
+
+    /// The system the plan names, as read when it was opened or last changed.
+    pub fn plan_system(&self) -> Option<&armor_model::SystemConfig> {
+        self.surroundings.system.as_ref()
+    }
+
     /// Centres the map on `point` of the world frame (metres), keeping the zoom: to follow
     /// the robot.
     pub fn centre_on(&mut self, point: Point) {
@@ -186,6 +197,12 @@ impl MissionView {
     /// The boxes of the labels drawn at the last frame (none overlaps another).
     pub fn label_boxes(&self) -> &[Rect] {
         &self.map.label_boxes
+    }
+
+    /// What placing the labels took at the last frame (`armor-studio-bench`'s
+    /// `label_place_ms_500_waypoints`).
+    pub fn label_time(&self) -> std::time::Duration {
+        self.map.label_time
     }
 
     /// Where `point` of the world frame (metres) was drawn at the last frame, and the map's
@@ -721,7 +738,7 @@ impl Labels {
                 .layout_no_wrap(text.to_owned(), LABEL_FONT, Color32::BLACK)
                 .size()
         };
-        let placed = crate::mission::labels::place(
+        let placed = crate::common::labels::place(
             self.labels,
             &self.obstacles,
             painter.clip_rect(),
@@ -891,42 +908,6 @@ fn draw_legs(
             );
         }
     }
-}
-
-/// A route as a leg is drawn: a line (`dashed` or not) with an arrowhead halfway along its
-/// longest piece, when that piece is long enough to show one. Returns where the arrowhead is,
-/// for a label. The Run view draws the paths the follower follows with it.
-pub fn draw_route(
-    painter: &egui::Painter,
-    route: &[Pos2],
-    stroke: Stroke,
-    dashed: bool,
-) -> Option<Pos2> {
-    if dashed {
-        painter.extend(egui::Shape::dashed_line(route, stroke, 10.0, 6.0));
-    } else {
-        painter.add(egui::Shape::line(route.to_vec(), stroke));
-    }
-    let piece = route
-        .windows(2)
-        .max_by(|a, b| a[0].distance(a[1]).total_cmp(&b[0].distance(b[1])))?;
-    if piece[0].distance(piece[1]) <= 24.0 {
-        return None;
-    }
-    let direction = (piece[1] - piece[0]).normalized();
-    let middle = piece[0] + (piece[1] - piece[0]) * 0.5;
-    let side = direction.rot90() * 6.0;
-    let tip = middle + direction * 7.0;
-    painter.add(egui::Shape::convex_polygon(
-        vec![
-            tip,
-            middle - direction * 5.0 + side,
-            middle - direction * 5.0 - side,
-        ],
-        stroke.color,
-        Stroke::NONE,
-    ));
-    Some(middle)
 }
 
 /// Appointments and deadlines the way a plan's synchronisation matrix puts them on the map:

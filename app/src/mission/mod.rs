@@ -22,12 +22,11 @@ use armor_model::world::World;
 use armor_module_api::xml::Located;
 
 use crate::command::UiCommand;
-use crate::diagram::Catalog;
+use crate::common::palette::Catalog;
 use plan_edit::{Outcome, PlanCommand, PlanEditor, Selection};
 
 pub mod basemap;
 pub mod inspector;
-pub mod labels;
 pub mod map;
 pub mod net_view;
 pub mod plan_edit;
@@ -143,7 +142,7 @@ impl MissionView {
 
 /// The plan's surroundings: its system and its world, read from the files it names.
 #[derive(Clone, Debug, Default)]
-pub struct Surroundings {
+pub struct PlanSurroundings {
     /// The folder the plan's relative paths start from.
     pub base: PathBuf,
     pub system_file: PathBuf,
@@ -157,8 +156,8 @@ pub struct Surroundings {
     key: (PathBuf, String, String, String),
 }
 
-impl Surroundings {
-    fn load(plan: &Plan, base: &Path) -> Surroundings {
+impl PlanSurroundings {
+    fn load(plan: &Plan, base: &Path) -> PlanSurroundings {
         let system_file = base.join(&plan.system);
         let mut problems = Vec::new();
         let system = if plan.system.is_empty() {
@@ -196,7 +195,7 @@ impl Surroundings {
                 .map_err(|err| problems.push(err))
                 .ok()
         });
-        Surroundings {
+        PlanSurroundings {
             base: base.to_path_buf(),
             system_file,
             system,
@@ -268,7 +267,7 @@ pub enum LegRoute {
 }
 
 impl Checked {
-    fn of(plan: &Plan, surroundings: &Surroundings, catalog: &Catalog) -> Checked {
+    fn of(plan: &Plan, surroundings: &PlanSurroundings, catalog: &Catalog) -> Checked {
         let mut checked = Checked::default();
         if plan.waypoints.is_empty() {
             return checked;
@@ -378,7 +377,7 @@ pub struct MissionView {
     path: Option<PathBuf>,
     /// The plan as last opened or saved.
     saved: Plan,
-    pub surroundings: Surroundings,
+    pub surroundings: PlanSurroundings,
     checked: Checked,
     checked_revision: Option<u64>,
     pub(crate) commands: Vec<PlanCommand>,
@@ -400,7 +399,7 @@ impl MissionView {
             editor: PlanEditor::default(),
             path: None,
             saved: Plan::default(),
-            surroundings: Surroundings::default(),
+            surroundings: PlanSurroundings::default(),
             checked: Checked::default(),
             checked_revision: None,
             commands: Vec::new(),
@@ -668,7 +667,7 @@ impl MissionView {
             .map(folder_of)
             .unwrap_or_else(|| std::env::current_dir().unwrap_or_default());
         if force || self.surroundings.key != key_of(&self.editor.plan, &base) {
-            self.surroundings = Surroundings::load(&self.editor.plan, &base);
+            self.surroundings = PlanSurroundings::load(&self.editor.plan, &base);
             let origin = self.surroundings.origin(&self.editor.plan);
             self.map.set_world(self.surroundings.world.clone(), origin);
             let basemap = self.surroundings.basemap.as_deref().and_then(|path| {

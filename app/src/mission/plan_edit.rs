@@ -11,8 +11,8 @@ use armor_model::plan::{
     AreaKind, Graphic, GraphicKind, LatLon, Leg, Plan, Response, Unit, Waypoint,
 };
 
-use crate::editor::History;
-pub use crate::editor::Outcome;
+use crate::common::history::History;
+pub use crate::common::history::Outcome;
 
 /// What is selected, on the map or in the net.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]

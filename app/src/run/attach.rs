@@ -2,14 +2,14 @@
 //! elsewhere (`armor run` prints it: `armor run control interface at ADDR`), which the Run view
 //! then follows with the same controls as `armor ctl`. Detaching (the Stop button, Shift+F5)
 //! leaves the run going. A run attached without its system file sends its files
-//! ([`armor_runtime::control::Request::Files`]), which [`mirror`] writes into a folder of their
+//! ([`armor_protocol::Request::Files`]), which [`mirror`] writes into a folder of their
 //! own for the live map.
 
 use std::net::SocketAddr;
 use std::path::{Component, Path, PathBuf};
 
 use armor_model::SystemConfig;
-use armor_runtime::control::RunFiles;
+use armor_protocol::RunFiles;
 
 /// The prompt's state: the address typed so far, and why the last one was refused.
 #[derive(Clone, Debug, Default)]
@@ -76,7 +76,7 @@ impl AttachPrompt {
     }
 }
 
-/// The files of a run attached without them ([`armor_runtime::control::RunFiles`]), written
+/// The files of a run attached without them ([`armor_protocol::RunFiles`]), written
 /// into a folder of their own as the run's machine has them side by side, so that the Run view
 /// draws the run as if its system file had been opened: the system file, the files its
 /// parameters name (the simulated world) where it names them, the mission; and the catalog of
@@ -88,7 +88,7 @@ pub struct Mirror {
     pub system: PathBuf,
     /// The mission's copy, when the run has one.
     pub mission: Option<PathBuf>,
-    pub catalog: crate::diagram::Catalog,
+    pub catalog: crate::common::palette::Catalog,
 }
 
 /// The last part of a path written on another machine (`/robot/missions/system.xml`), or
@@ -249,7 +249,7 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
         }
         _ => None,
     };
-    let mut catalog = crate::diagram::Catalog::new();
+    let mut catalog = crate::common::palette::Catalog::new();
     for text in &files.descriptions {
         if let Ok(description) = armor_module_api::ModuleDescription::from_xml(text) {
             catalog.insert(description.module_type.clone(), description);
@@ -266,7 +266,7 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use armor_runtime::control::{BinaryFile, FileText, ParamFile};
+    use armor_protocol::{BinaryFile, FileText, ParamFile};
 
     #[test]
     fn the_runs_files_are_written_where_the_system_names_them() {

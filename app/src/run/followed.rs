@@ -1,5 +1,5 @@
 //! The paths the follower follows, on the live map: the one followed now, drawn as a leg is
-//! (`mission::map::draw_route`) in a colour of its own, and those it replaced by replanning,
+//! (`common::draw::draw_route`) in a colour of its own, and those it replaced by replanning,
 //! faint and dashed, with a marker where each replan happened ("replan 1/3").
 //!
 //! Which paths are replans is told by the plan: the follower sets out on the path the plan
@@ -123,7 +123,7 @@ impl FollowedLeg {
         let screen =
             |path: &DrawnPath| -> Vec<Pos2> { path.points.iter().map(|p| project(*p)).collect() };
         for path in self.paths.iter().filter(|path| path.replaced) {
-            crate::mission::map::draw_route(
+            crate::common::draw::draw_route(
                 painter,
                 &screen(path),
                 Stroke::new(2.0, REPLACED.gamma_multiply(0.6)),
@@ -131,7 +131,7 @@ impl FollowedLeg {
             );
         }
         if let Some(path) = self.paths.last() {
-            crate::mission::map::draw_route(
+            crate::common::draw::draw_route(
                 painter,
                 &screen(path),
                 Stroke::new(3.0, FOLLOWED),

@@ -415,7 +415,7 @@ impl Recording {
     }
 
     /// A recording of `messages`, read from `file`, shown at its end.
-    pub(crate) fn of(
+    pub fn of(
         file: &Path,
         mut messages: Vec<armor_runtime::replay::Recorded>,
     ) -> anyhow::Result<Recording> {

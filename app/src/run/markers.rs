@@ -10,7 +10,7 @@ use armor_model::world::Point;
 use armor_module_api::types::{Frame, Markers, Pose2D, Shape};
 use egui::{Color32, Pos2, Rect, Shape as EguiShape, Stroke, Ui, Vec2};
 
-use crate::mission::labels::{self, Importance, Label};
+use crate::common::labels::{self, Importance, Label};
 
 use super::untrusted::MAX_COORDINATE_M;
 

@@ -30,10 +30,12 @@ use std::time::{Duration, Instant};
 
 use armor_model::plan::Origin;
 use armor_module_api::types::OccupancyGrid;
-use armor_runtime::control::{ModuleState, Request, RunFiles, Status};
+use armor_protocol::{ModuleState, Request, RunFiles, Status};
 use egui::{Color32, RichText, Stroke, Ui};
 
-use crate::diagram::Catalog;
+use crate::common::context::ViewerContext;
+use crate::common::draw::state_colour;
+use crate::common::palette::Catalog;
 use crate::mission::{LegRoute, MissionView};
 use followed::FollowedLeg;
 use live::{LiveData, Recording, Sources};
@@ -61,15 +63,6 @@ impl Target {
             Target::Plan(path) | Target::System(path) => path,
         }
     }
-}
-
-/// What the run view needs of the rest of the studio each frame.
-pub struct Surroundings<'a> {
-    /// The Mission view, when a plan is open: its map and net are the run's.
-    pub mission: Option<&'a mut MissionView>,
-    /// The system document's file.
-    pub system_file: Option<&'a Path>,
-    pub catalog: &'a Catalog,
 }
 
 pub struct RunView {
@@ -172,9 +165,9 @@ impl RunView {
 
     /// Whether the studio may command the run: not with an observer's key.
     pub fn may_command(&self) -> bool {
-        self.session.as_ref().is_none_or(|session| {
-            session.shared().role != Some(armor_runtime::control::Role::Observer)
-        })
+        self.session
+            .as_ref()
+            .is_none_or(|session| session.shared().role != Some(armor_protocol::Role::Observer))
     }
 
     /// The last state the run reported; once the run is over, the modules it left at work
@@ -271,12 +264,13 @@ impl RunView {
     }
 
     /// The target a Run would start now.
-    pub fn target(&self, surroundings: &Surroundings) -> Option<Target> {
-        let plan = surroundings
-            .mission
-            .as_ref()
-            .and_then(|mission| mission.path());
-        let path = self.ready_target(plan, surroundings.system_file)?;
+    pub fn target(
+        &self,
+        mission: Option<&MissionView>,
+        system_file: Option<&Path>,
+    ) -> Option<Target> {
+        let plan = mission.and_then(|mission| mission.path());
+        let path = self.ready_target(plan, system_file)?;
         Some(if Some(path) == plan {
             Target::Plan(path.to_path_buf())
         } else {
@@ -297,9 +291,16 @@ impl RunView {
         }
     }
 
-    /// Starts a run of `target`; the caller saved it first.
-    pub fn start(&mut self, target: Target, surroundings: &mut Surroundings, ctx: &egui::Context) {
-        let options = self.options(&target, surroundings, ctx);
+    /// Starts a run of `target`; the caller saved it first. `mission` is the Mission view when
+    /// a plan is open: its map and net are the run's.
+    pub fn start(
+        &mut self,
+        target: Target,
+        mission: Option<&MissionView>,
+        catalog: &Catalog,
+        ctx: &egui::Context,
+    ) {
+        let options = self.options(&target, mission, catalog, ctx);
         match RunSession::start(options, ctx) {
             Ok(session) => {
                 self.messages
@@ -316,10 +317,11 @@ impl RunView {
         &mut self,
         target: Target,
         control: std::net::SocketAddr,
-        surroundings: &mut Surroundings,
+        mission: Option<&MissionView>,
+        catalog: &Catalog,
         ctx: &egui::Context,
     ) {
-        let options = self.options(&target, surroundings, ctx);
+        let options = self.options(&target, mission, catalog, ctx);
         self.session = Some(RunSession::attach(options, control, ctx));
         self.messages
             .push((true, format!("watching the run at {control}")));
@@ -369,31 +371,29 @@ impl RunView {
     fn options(
         &mut self,
         target: &Target,
-        surroundings: &mut Surroundings,
+        mission: Option<&MissionView>,
+        catalog: &Catalog,
         ctx: &egui::Context,
     ) -> RunOptions {
         self.stop();
         self.recording = None;
         let system = match target {
-            Target::Plan(_) => surroundings
-                .mission
-                .as_ref()
-                .and_then(|mission| mission.surroundings.system.clone()),
+            Target::Plan(_) => mission.and_then(|mission| mission.plan_system().cloned()),
             Target::System(path) => {
-                let mission = self.own_map(path, surroundings.catalog, ctx);
-                mission.surroundings.system.clone()
+                let mission = self.own_map(path, catalog, ctx);
+                mission.plan_system().cloned()
             }
         };
         let sources = system
             .as_ref()
-            .map(|system| Sources::of(system, |t| surroundings.catalog.get(t).cloned()))
+            .map(|system| Sources::of(system, |t| catalog.get(t).cloned()))
             .unwrap_or_default();
         self.max_replans = system
             .as_ref()
             .zip(sources.path.as_deref())
-            .and_then(|(system, path)| max_replans(system, path, surroundings.catalog));
+            .and_then(|(system, path)| max_replans(system, path, catalog));
         let start_at = match self.start_at.trim() {
-            "" => match (&target, &surroundings.mission) {
+            "" => match (&target, mission) {
                 (Target::Plan(_), Some(mission)) => mission
                     .plan()
                     .start_unix_secs
@@ -503,7 +503,14 @@ impl RunView {
 
     // ----- The frame -----
 
-    pub fn ui(&mut self, ui: &mut Ui, surroundings: &mut Surroundings) -> Option<Target> {
+    /// The view; `mission` is the Mission view when a plan is open, whose map and net the run
+    /// is drawn on. Returns the target to run when Run was clicked.
+    pub fn ui(
+        &mut self,
+        ui: &mut Ui,
+        viewer: &ViewerContext,
+        mission: Option<&mut MissionView>,
+    ) -> Option<Target> {
         let now = Instant::now();
         let frame_secs = self
             .last_frame
@@ -521,15 +528,19 @@ impl RunView {
         let status = self.status();
         let mut start = None;
         egui::Panel::top("run-tools").show(ui, |ui| {
-            start = self.toolbar_ui(ui, surroundings, status.as_ref());
+            start = self.toolbar_ui(
+                ui,
+                mission.as_deref(),
+                viewer.system_file.as_deref(),
+                status.as_ref(),
+            );
         });
         egui::Panel::left("run-modules")
             .resizable(true)
             .default_size(380.0)
             .min_size(300.0)
             .show(ui, |ui| self.modules_ui(ui, status.as_ref()));
-        let legs: Vec<(String, String, String)> = surroundings
-            .mission
+        let legs: Vec<(String, String, String)> = mission
             .as_ref()
             .map(|mission| {
                 mission
@@ -566,7 +577,7 @@ impl RunView {
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| {
-                self.map_and_net_ui(ui, surroundings, status.as_ref())
+                self.map_and_net_ui(ui, viewer, mission, status.as_ref())
             });
         self.drive_keys(ui.ctx());
         start
@@ -575,12 +586,13 @@ impl RunView {
     fn toolbar_ui(
         &mut self,
         ui: &mut Ui,
-        surroundings: &Surroundings,
+        mission: Option<&MissionView>,
+        system_file: Option<&Path>,
         status: Option<&Status>,
     ) -> Option<Target> {
         let mut start = None;
         ui.horizontal_wrapped(|ui| {
-            let target = self.target(surroundings);
+            let target = self.target(mission, system_file);
             let running = self.is_running();
             ui.add_enabled_ui(!running, |ui| {
                 match &target {
@@ -620,12 +632,7 @@ impl RunView {
                     "a file with a shared secret (readable by its owner only): every \
                      connection of the run must prove it (armor run --secret)",
                 );
-                if surroundings
-                    .mission
-                    .as_ref()
-                    .is_some_and(|m| m.path().is_some())
-                    && surroundings.system_file.is_some()
-                {
+                if mission.is_some_and(|m| m.path().is_some()) && system_file.is_some() {
                     ui.checkbox(&mut self.prefer_system, "system only");
                 }
             });
@@ -811,9 +818,9 @@ impl RunView {
         ui.separator();
         ui.heading("Rehearsal");
         let (word, colour) = if verdict.passed {
-            ("passed", monitor::state_colour(ModuleState::Running))
+            ("passed", state_colour(ModuleState::Running))
         } else {
-            ("FAILED", monitor::state_colour(ModuleState::Failed))
+            ("FAILED", state_colour(ModuleState::Failed))
         };
         ui.label(
             RichText::new(format!(" {word} by the simulator's truth "))
@@ -1119,15 +1126,16 @@ impl RunView {
     fn map_and_net_ui(
         &mut self,
         ui: &mut Ui,
-        surroundings: &mut Surroundings,
+        viewer: &ViewerContext,
+        mut mission: Option<&mut MissionView>,
         status: Option<&Status>,
     ) {
         let marking = status
             .and_then(|status| status.mission.as_ref())
             .map(|mission| mission.marking.clone());
-        let has_plan_run = marking.is_some() && surroundings.mission.is_some();
+        let has_plan_run = marking.is_some() && mission.is_some();
         if has_plan_run
-            && let Some(mission) = surroundings.mission.as_deref_mut()
+            && let Some(mission) = mission.as_deref_mut()
             && let Some(marking) = &marking
         {
             mission.net_panel_ui(ui, "run-net", 200.0, |mission, ui| {
@@ -1139,7 +1147,7 @@ impl RunView {
         }
         let live = self.live();
         let current_leg = marking.as_ref().and_then(|marking| {
-            let mission = surroundings.mission.as_deref()?;
+            let mission = mission.as_deref()?;
             let compiled = mission.checked().compiled.as_ref()?;
             marking
                 .keys()
@@ -1178,13 +1186,13 @@ impl RunView {
         }
         let mission = match (
             self.session.as_ref().map(|s| s.options.target.clone()),
-            surroundings.mission.as_deref_mut(),
+            mission,
         ) {
             (Some(target), Some(mission)) if mission.path() == Some(target.as_path()) => mission,
-            (Some(target), _) => self.own_map(&target, surroundings.catalog, ui.ctx()),
+            (Some(target), _) => self.own_map(&target, viewer.catalog(), ui.ctx()),
             (None, Some(mission)) => mission,
-            (None, None) => match surroundings.system_file {
-                Some(system) => self.own_map(system, surroundings.catalog, ui.ctx()),
+            (None, None) => match viewer.system_file.as_deref() {
+                Some(system) => self.own_map(system, viewer.catalog(), ui.ctx()),
                 None => {
                     ui.centered_and_justified(|ui| ui.label("Open a system or a plan to run it."));
                     return;
@@ -1192,7 +1200,7 @@ impl RunView {
             },
         };
         if fit {
-            mission.map.fit_requested = true;
+            mission.request_fit();
         }
         if follow && let Some(pose) = live.estimated.as_ref().or(live.truth.as_ref()) {
             mission.centre_on(armor_model::world::Point::new(pose.x_m, pose.y_m));
@@ -1216,9 +1224,9 @@ impl RunView {
             egui::Panel::top("run-map-status").show(ui, |ui| {
                 if let Some(verdict) = &verdict {
                     let colour = if verdict.passed {
-                        monitor::state_colour(ModuleState::Running)
+                        state_colour(ModuleState::Running)
                     } else {
-                        monitor::state_colour(ModuleState::Failed)
+                        state_colour(ModuleState::Failed)
                     };
                     ui.label(RichText::new(verdict.headline()).strong().color(colour));
                 }
@@ -1242,7 +1250,7 @@ impl RunView {
                 if let Some(refused) = &live.refused {
                     ui.label(
                         RichText::new(format!("not shown: {refused}"))
-                            .color(monitor::state_colour(ModuleState::Failed)),
+                            .color(state_colour(ModuleState::Failed)),
                     );
                 }
             });

@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use armor_model::world::Point;
 use armor_module_api::types::{LocalisationState, OccupancyGrid, Pose2D, PoseEstimate};
-use armor_runtime::control::{FiringRecord, ModuleState, ModuleStatus, Request};
+use armor_protocol::{FiringRecord, ModuleState, ModuleStatus, Request};
 use egui::{Color32, Pos2, RichText, Stroke, Ui};
 use egui_plot::{Line, Plot, Points};
 
@@ -15,23 +15,11 @@ use super::followed::FollowedLeg;
 use super::live::LiveData;
 use super::session::Sample;
 use super::untrusted::{self, Refused};
+use crate::common::draw::state_colour;
 
 const TRUTH: Color32 = Color32::from_rgb(20, 110, 220);
 const ESTIMATE: Color32 = Color32::from_rgb(230, 120, 0);
 const SCAN: Color32 = Color32::from_rgb(220, 30, 60);
-
-/// The colour of a module state, in the monitor and on the diagram.
-pub fn state_colour(state: ModuleState) -> Color32 {
-    match state {
-        ModuleState::Running => Color32::from_rgb(40, 160, 70),
-        ModuleState::Starting | ModuleState::Restarting => Color32::from_rgb(80, 140, 220),
-        ModuleState::Stopped | ModuleState::Exited | ModuleState::Ended => {
-            Color32::from_rgb(140, 140, 140)
-        }
-        ModuleState::Crashed => Color32::from_rgb(230, 140, 0),
-        ModuleState::Failed => Color32::from_rgb(210, 40, 40),
-    }
-}
 
 /// Rates and cycle time between the last two samples of a module's counters.
 #[derive(Clone, Debug, Default, PartialEq)]

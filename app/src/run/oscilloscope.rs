@@ -8,7 +8,7 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use armor_runtime::control::{BehaviourChange, BehaviourState, ModuleStatus, Request, Status};
+use armor_protocol::{BehaviourChange, BehaviourState, ModuleStatus, Request, Status};
 use egui::{Color32, RichText, Stroke, Ui};
 use egui_plot::{Line, Plot, VLine};
 
@@ -302,7 +302,7 @@ mod tests {
     /// the arbiter's winner said on its subsystem, the modules in none after them.
     #[test]
     fn the_tree_goes_place_subsystems_modules() {
-        use armor_runtime::control::{MissionStatus, ModuleState};
+        use armor_protocol::{MissionStatus, ModuleState};
         use egui_kittest::kittest::Queryable as _;
         let module = |name: &str, subsystems: &[&str]| ModuleStatus {
             name: name.into(),

@@ -5,7 +5,7 @@
 //! ([`Outputs`]), so it shows a recording as it shows a run.
 
 use armor_module_api::types::LaserScan;
-use armor_runtime::control::Status;
+use armor_protocol::Status;
 use egui::{RichText, Ui};
 use egui_plot::{Legend, Line, Plot, Points};
 

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use armor_model::rehearsal::{AreaJudgement, ArrivalJudgement, Verdict};
-use armor_runtime::control::{FiringRecord, MissionStatus, Request, RunFiles, Status};
+use armor_protocol::{FiringRecord, MissionStatus, Request, RunFiles, Status};
 
 use super::live::{self, Sources};
 
@@ -108,7 +108,7 @@ pub struct Shared {
     pub files: Option<RunFiles>,
     /// The role the studio proved at the run's control interface (`None`: the run has no
     /// secret, and anyone who reaches it operates).
-    pub role: Option<armor_runtime::control::Role>,
+    pub role: Option<armor_protocol::Role>,
 }
 
 impl Shared {
@@ -543,10 +543,7 @@ fn poll_control(
         }
     };
     // A role's key (an observer's, say) or the secret itself, which acts as the operator.
-    let secret = match secret_file
-        .as_deref()
-        .map(armor_runtime::control::key_from_file)
-    {
+    let secret = match secret_file.as_deref().map(armor_protocol::key_from_file) {
         Some(Ok(secret)) => Some(secret),
         Some(Err(err)) => {
             lock(shared).replies.push((false, err.to_string()));
@@ -556,7 +553,7 @@ fn poll_control(
     };
     let mut live_started = false;
     let mut next_poll = Instant::now();
-    let mut client: Option<armor_runtime::control::Client> = None;
+    let mut client: Option<armor_protocol::Client> = None;
     while !stop.load(Ordering::Relaxed) {
         let request =
             match requests.recv_timeout(next_poll.saturating_duration_since(Instant::now())) {
@@ -576,7 +573,7 @@ fn poll_control(
         // One connection for every poll and request, opened again after an error.
         let reply = match client.as_mut() {
             Some(open) => open.call(&request),
-            None => armor_runtime::control::Client::connect_with(addr, secret.as_ref()).and_then(
+            None => armor_protocol::Client::connect_with(addr, secret.as_ref()).and_then(
                 |mut opened| {
                     lock(shared).role = opened.role();
                     let reply = opened.call(&request);
@@ -652,11 +649,11 @@ fn poll_control(
 /// (the supervisor relays the operator's commands there).
 pub fn can_drive(status: &Status) -> bool {
     status.modules.iter().any(|module| {
-        module.module_type == armor_runtime::teleop_relay::TELEOP_TYPE
-            && module.state == armor_runtime::control::ModuleState::Running
+        module.module_type == armor_protocol::TELEOP_TYPE
+            && module.state == armor_protocol::ModuleState::Running
             && module
                 .endpoints
-                .contains_key(armor_runtime::teleop_relay::ENDPOINT)
+                .contains_key(armor_protocol::TELEOP_ENDPOINT)
     })
 }
 
@@ -671,8 +668,8 @@ fn drive(
     stop: &AtomicBool,
     secret_file: Option<&Path>,
 ) {
-    let secret = secret_file.and_then(|file| armor_runtime::control::key_from_file(file).ok());
-    let mut client: Option<armor_runtime::control::Client> = None;
+    let secret = secret_file.and_then(|file| armor_protocol::key_from_file(file).ok());
+    let mut client: Option<armor_protocol::Client> = None;
     let mut last_error: Option<String> = None;
     while !stop.load(Ordering::Relaxed) {
         let mut command = match commands.recv_timeout(Duration::from_millis(200)) {
@@ -697,7 +694,7 @@ fn drive(
         };
         let reply = match client.as_mut() {
             Some(open) => open.call(&request),
-            None => armor_runtime::control::Client::connect_with(addr, secret.as_ref()).and_then(
+            None => armor_protocol::Client::connect_with(addr, secret.as_ref()).and_then(
                 |mut opened| {
                     let reply = opened.call(&request);
                     client = Some(opened);
@@ -842,7 +839,7 @@ mod tests {
                 if let Some(delay) = delay.take() {
                     std::thread::sleep(delay);
                 }
-                let _ = reply.send(armor_runtime::control::Reply {
+                let _ = reply.send(armor_protocol::Reply {
                     ok: true,
                     message: "ok".to_owned(),
                     status: None,

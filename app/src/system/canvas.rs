@@ -4,15 +4,16 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use armor_runtime::control::ModuleState;
+use armor_protocol::ModuleState;
 use egui::{Key, Ui};
 use egui_snarl::ui::SnarlWidget;
 
 use super::SystemView;
 use crate::command::UiCommand;
-use crate::diagram::{BlockId, Catalog, Diagram, GROUP_TYPE_PREFIX, border_of};
-use crate::editor::Command;
-use crate::viewer::{self, CanvasEvents, DiagramViewer};
+use crate::common::palette::Catalog;
+use crate::system::diagram::{BlockId, Diagram, GROUP_TYPE_PREFIX, border_of};
+use crate::system::editor::Command;
+use crate::system::viewer::{self, CanvasEvents, DiagramViewer};
 
 /// Where the level's diagram of `real` draws the block `id` (a group's border block).
 fn real_view_pos(

@@ -1,32 +1,43 @@
-//! The System view: the block diagram of a system file. Its state is [`SystemView`]: the
-//! document and its editor, the canvas, the file it came from, its problems. `canvas.rs` reads
-//! the canvas's input (wires, drops, moves, clicks, the clipboard), `overview.rs` drags blocks
-//! in the zoomed-out overview, `params.rs` is a block's parameters dialog, `palette.rs` the
-//! panel of module types, `problems.rs` the problem list, `search.rs` "Find block". The window
-//! (`app.rs`) routes frames, files and commands here and shows what the view reports on its
-//! status line.
+//! The System view: the block diagram of a system file, whole in this folder. Its state is
+//! [`SystemView`]: the document and its editor, the canvas, the file it came from, its problems.
+//! The model: `diagram.rs` (blocks, links, subsystems in `diagram/groups.rs`), `editor.rs` (the
+//! commands and their undo), `layout.rs` (Arrange), `validation.rs` (`armor check`'s problems
+//! tied to blocks), `file.rs` (the system file read and saved); none of them knows egui. The
+//! canvas: `viewer.rs` (the egui-snarl adapter), `canvas.rs` (its input: wires, drops, moves,
+//! clicks, the clipboard), `overview.rs` (dragging blocks zoomed out). Panels and dialogs:
+//! `palette_ui.rs` (the module types), `problems.rs`, `params.rs` (a block's parameters),
+//! `search.rs` ("Find block"). The window (`app.rs`) routes frames, files and commands here and
+//! shows what the view reports on its status line.
 
 mod canvas;
+pub mod diagram;
+pub mod editor;
+pub mod file;
+pub mod layout;
 mod overview;
-mod palette;
+mod palette_ui;
 mod params;
 mod problems;
 mod search;
+pub mod validation;
+pub mod viewer;
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use egui::{Color32, Pos2, Ui};
 
 use crate::command::UiCommand;
-use crate::diagram::{BlockId, Catalog, Diagram, Pin, PinSide};
-use crate::editor::{Command, Editor, Outcome};
-use crate::files::{self, Document, Home};
-use crate::palette::Palette;
-use crate::validation::{self, Problem};
-use crate::viewer::Canvas;
-use armor_runtime::control::ModuleState;
+use crate::common::context::ViewerContext;
+use crate::common::history::Outcome;
+use crate::common::palette::Catalog;
+use crate::common::palette::Palette;
+use crate::files::{Document, Home};
+use crate::system::diagram::{BlockId, Diagram, Pin, PinSide};
+use crate::system::editor::{Command, Editor};
+use crate::system::validation::Problem;
+use crate::system::viewer::Canvas;
 
 pub(crate) const ERROR: Color32 = Color32::from_rgb(230, 90, 70);
 pub(crate) const OK: Color32 = Color32::from_rgb(90, 200, 110);
@@ -79,15 +90,10 @@ impl SystemView {
         &self.problems
     }
 
-    /// The view: palette, problems, canvas. `started` is false at the window's first frame;
-    /// `live` is the state of each module of the run shown in the Run view.
-    pub fn ui(
-        &mut self,
-        ui: &mut Ui,
-        palette: &Palette,
-        started: bool,
-        live: &BTreeMap<String, ModuleState>,
-    ) {
+    /// The view: palette, problems, canvas; blocks are coloured by the state of the modules of
+    /// the run the Run view watches.
+    pub fn ui(&mut self, ui: &mut Ui, viewer: &ViewerContext) {
+        let palette = viewer.palette;
         egui::Panel::left("palette")
             .resizable(true)
             .default_size(220.0)
@@ -110,7 +116,14 @@ impl SystemView {
         }
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
-            .show(ui, |ui| self.canvas_ui(ui, &palette.catalog, started, live));
+            .show(ui, |ui| {
+                self.canvas_ui(
+                    ui,
+                    &palette.catalog,
+                    !viewer.first_frame,
+                    viewer.module_states,
+                )
+            });
     }
 
     /// Where the canvas is in the subsystems: `System › navigation`, each level above a link
@@ -217,7 +230,7 @@ impl SystemView {
     /// Opens a system file, replacing the document (unsaved changes stay in the undo history of
     /// nobody: the caller asks first).
     pub fn open(&mut self, file: &Path, home: &Home) {
-        match files::open(file) {
+        match file::open(file) {
             Ok(diagram) => {
                 self.saved = diagram.clone();
                 self.editor.replace(diagram);
@@ -235,7 +248,7 @@ impl SystemView {
 
     /// Saves to `file`; whether it was saved.
     pub fn save(&mut self, file: PathBuf, home: &Home, catalog: &Catalog) -> bool {
-        match files::save(&file, &self.editor.diagram, catalog) {
+        match file::save(&file, &self.editor.diagram, catalog) {
             Ok(missing) => {
                 self.saved = self.editor.diagram.clone();
                 self.path = Some(file.clone());
@@ -284,7 +297,7 @@ impl SystemView {
                 self.saved = self
                     .path
                     .as_deref()
-                    .and_then(|path| files::open(path).ok())
+                    .and_then(|path| file::open(path).ok())
                     .unwrap_or_default();
                 self.editor.replace(diagram);
                 self.zoom_to_fit();
@@ -411,7 +424,7 @@ impl SystemView {
         let diagram = &self.editor.diagram;
         let border = |suffix: &str, outputs: bool| {
             let group = diagram.group_named(block.strip_suffix(suffix)?)?;
-            Some(crate::diagram::border_id(group, outputs))
+            Some(crate::system::diagram::border_id(group, outputs))
         };
         let block = diagram
             .block_named(block)
@@ -420,7 +433,7 @@ impl SystemView {
             .or_else(|| border(" outputs", true))?;
         self.canvas.pin_screen_pos(&Pin {
             side,
-            port: crate::diagram::PortRef {
+            port: crate::system::diagram::PortRef {
                 block,
                 port: port.to_owned(),
             },
@@ -450,7 +463,7 @@ impl SystemView {
             .routes(diagram, catalog)
             .into_iter()
             .map(|(link, points)| {
-                let name = |port: &crate::diagram::PortRef| {
+                let name = |port: &crate::system::diagram::PortRef| {
                     diagram
                         .block(port.block)
                         .map_or_else(String::new, |block| format!("{}.{}", block.name, port.port))

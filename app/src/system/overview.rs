@@ -4,7 +4,8 @@
 use egui::Ui;
 
 use super::SystemView;
-use crate::diagram::{BlockId, Catalog};
+use crate::common::palette::Catalog;
+use crate::system::diagram::BlockId;
 
 impl SystemView {
     /// In the overview, the block under the pointer (or the one being dragged) takes drags, on

@@ -6,8 +6,9 @@ use std::collections::BTreeMap;
 use egui::{RichText, Ui};
 
 use super::{ERROR, OK, SystemView};
-use crate::diagram::{BlockId, Catalog};
-use crate::editor::Command;
+use crate::common::palette::Catalog;
+use crate::system::diagram::BlockId;
+use crate::system::editor::Command;
 
 /// The parameters dialog of one block, with what the user is typing.
 pub(super) struct ParamsDialog {

@@ -1,10 +1,10 @@
-//! The problem list: `armor_model::check`'s problems (through `crate::validation`), each of
+//! The problem list: `armor_model::check`'s problems (through `validation`), each of
 //! which selects its block when clicked.
 
 use egui::{RichText, Ui};
 
 use super::{ERROR, OK, SystemView};
-use crate::palette::Palette;
+use crate::common::palette::Palette;
 
 impl SystemView {
     pub(super) fn problems_ui(&mut self, ui: &mut Ui, palette: &Palette) {

@@ -4,7 +4,7 @@
 use egui::{Key, Ui};
 
 use super::SystemView;
-use crate::diagram::BlockId;
+use crate::system::diagram::BlockId;
 
 impl SystemView {
     /// "Find block", over the window, while open.

@@ -7,8 +7,8 @@ use std::time::Duration;
 
 use armor_module_api::ModuleDescription;
 use armor_module_api::describe::{ParamSpec, ParamType, PortSpec};
+use armor_studio::common::palette::Palette;
 use armor_studio::files::Home;
-use armor_studio::palette::Palette;
 use armor_studio::{Options, StudioApp};
 use egui::{Modifiers, Pos2};
 use egui_kittest::Harness;
@@ -145,7 +145,7 @@ pub fn pin(
     harness: &Harness<'_, StudioApp>,
     block: &str,
     port: &str,
-    side: armor_studio::diagram::PinSide,
+    side: armor_studio::system::diagram::PinSide,
 ) -> Pos2 {
     harness
         .state()

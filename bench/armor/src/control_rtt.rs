@@ -10,7 +10,8 @@ use std::time::Instant;
 
 use armor_bench_report::Report;
 use armor_module_api::auth::Secret;
-use armor_runtime::control::{self, Client, Reply, Request};
+use armor_protocol::{Client, Reply, Request};
+use armor_runtime::control;
 
 use crate::Settings;
 
@@ -25,7 +26,7 @@ fn serve(secret: Option<Secret>) -> anyhow::Result<SocketAddr> {
             let _ = reply.send(Reply {
                 ok: true,
                 message: "status".to_owned(),
-                status: Some(control::Status::default()),
+                status: Some(armor_protocol::Status::default()),
                 files: None,
             });
         }

@@ -126,7 +126,7 @@ impl Security {
             secret, encrypt, ..
         } = self
         {
-            armor_runtime::supervisor::hand_over(command, &secret.module_key(name).to_hex())
+            armor_runtime::process::hand_over(command, &secret.module_key(name).to_hex())
                 .context("cannot hand the module its key")?;
             if *encrypt {
                 command.env(ENV_ENCRYPT, "1");

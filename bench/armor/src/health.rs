@@ -201,18 +201,13 @@ impl Run {
         let addr = self.control;
         let deadline = Instant::now() + WAIT;
         loop {
-            let reply = armor_runtime::control::request(
-                addr,
-                &armor_runtime::control::Request::Status,
-                None,
-            )?;
+            let reply = armor_protocol::request(addr, &armor_protocol::Request::Status, None)?;
             let pid = reply.status.and_then(|status| {
                 status
                     .modules
                     .into_iter()
                     .find(|row| {
-                        row.name == module
-                            && row.state == armor_runtime::control::ModuleState::Running
+                        row.name == module && row.state == armor_protocol::ModuleState::Running
                     })
                     .and_then(|row| row.pid)
             });

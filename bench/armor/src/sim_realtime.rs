@@ -121,7 +121,7 @@ pub fn run_monitor(settings: &Settings) -> anyhow::Result<Report> {
         }
     };
     let armor = sibling_binary("armor")?;
-    let studio = sibling_binary("armor-studio")?;
+    let studio = sibling_binary("armor-studio-bench")?;
     module_binary("sim")?;
     let dir = tempfile::tempdir().context("cannot make a temporary folder")?;
     std::fs::write(dir.path().join("system.xml"), without_recorder(SYSTEM_XML)?)
@@ -263,13 +263,13 @@ fn system_factor(
         Some(studio) => {
             let mut command = pinned(studio);
             command
-                .args(["bench", "monitor", &control, "system.xml"])
+                .args(["monitor", &control, "system.xml"])
                 .arg((3.0 * (timing.warm_up + timing.window).as_secs_f64() + 10.0).to_string())
                 .current_dir(dir)
                 .env_remove(ENV_SUPERVISOR)
                 .env_remove(ENV_MODULE);
             Some(ChildGuard::spawn_quiet(
-                "armor-studio bench monitor",
+                "armor-studio-bench monitor",
                 command,
             )?)
         }

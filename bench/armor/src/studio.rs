@@ -6,8 +6,8 @@
 //! diagram's frame against a bare egui-snarl viewer on the same graph, view, zoom and text; goal
 //! ≤ 0.5×) with `studio_overview_vs_bare_snarl_1000` (our overview of boxes against the bare
 //! viewer at that zoom), and
-//! `layout_ms_200_blocks` (File → Arrange on 200 blocks and 300 links; goal < 100 ms). The runtime must not depend on egui, so `armor-studio` measures them itself in
-//! its hidden `bench` mode and prints them as report lines; this relays them.
+//! `layout_ms_200_blocks` (File → Arrange on 200 blocks and 300 links; goal < 100 ms). The runtime must not depend on egui, so `armor-studio-bench` measures them and
+//! prints them as report lines; this relays them.
 
 use std::process::Command;
 
@@ -59,9 +59,9 @@ pub fn run_overview_vs_snarl(settings: &Settings) -> anyhow::Result<Report> {
 }
 
 fn relay(name: &'static str, settings: &Settings) -> anyhow::Result<Report> {
-    let studio = sibling_binary("armor-studio")?;
+    let studio = sibling_binary("armor-studio-bench")?;
     let mut command = Command::new(&studio);
-    command.arg("bench").arg(name);
+    command.arg(name);
     if settings.quick {
         command.arg("--quick");
     }
@@ -70,7 +70,7 @@ fn relay(name: &'static str, settings: &Settings) -> anyhow::Result<Report> {
         .with_context(|| format!("cannot run {}", studio.display()))?;
     anyhow::ensure!(
         output.status.success(),
-        "{} bench {name} failed ({}): {}",
+        "{} {name} failed ({}): {}",
         studio.display(),
         output.status,
         String::from_utf8_lossy(&output.stderr).trim()
@@ -79,7 +79,7 @@ fn relay(name: &'static str, settings: &Settings) -> anyhow::Result<Report> {
     let line = stdout
         .lines()
         .find(|line| line.contains(&format!("\"{name}\"")))
-        .with_context(|| format!("armor-studio printed no `{name}` line: {stdout}"))?;
+        .with_context(|| format!("armor-studio-bench printed no `{name}` line: {stdout}"))?;
     let mut fields: serde_json::Map<String, serde_json::Value> =
         serde_json::from_str(line).with_context(|| format!("not a report line: {line}"))?;
     let number = |fields: &serde_json::Map<String, serde_json::Value>, key: &str| {

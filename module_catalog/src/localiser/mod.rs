@@ -1,7 +1,7 @@
 //! `localiser`: where the robot is on a known map, by Monte Carlo localisation ([`mcl`]).
 //!
 //! The map is the plan's world (a `.world` file or a ROS map_server map, read by
-//! [`armor_model::world::load`] as the simulator and the planner read it). Each scan moves the
+//! [`armor_model::world_file::load`] as the simulator and the planner read it). Each scan moves the
 //! particles by the odometry's motion since the last update, weighs them on the scan and
 //! resamples them; the estimate is their mean and covariance. Between scans, the pose published
 //! on `pose` is the last estimate moved by the odometry since (the map-from-odometry correction

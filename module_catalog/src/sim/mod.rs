@@ -617,7 +617,7 @@ fn map_with_obstacles(map: World, obstacles: &str) -> Result<World, world::World
 
 /// Reads and checks a world file (a `.world` file or a ROS map_server `map.yaml`).
 pub fn load_world_file(path: &std::path::Path) -> Result<World, world::WorldError> {
-    world::load(path, &mut |path| std::fs::read(path))
+    armor_model::world_file::load(path, &mut |path| std::fs::read(path))
 }
 
 pub fn body(node: &mut Node) -> BodyResult {

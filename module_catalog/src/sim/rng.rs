@@ -2,6 +2,8 @@
 //! samples. Written here rather than taken from a crate so that a seed gives the same run on every
 //! platform and with every dependency version, for ever.
 
+use armor_model::random::SplitMix64;
+
 /// A deterministic stream of random numbers.
 #[derive(Clone, Debug)]
 pub struct Rng {
@@ -14,16 +16,14 @@ impl Rng {
     /// A stream determined entirely by `seed` (and `stream`, to give independent streams for
     /// different noise sources from one seed).
     pub fn new(seed: u64, stream: u64) -> Self {
-        let mut mix = seed ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
-        let mut next = || {
-            mix = mix.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = mix;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        };
+        let mut mix = SplitMix64(seed ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03));
         Self {
-            state: [next(), next(), next(), next()],
+            state: [
+                mix.next_u64(),
+                mix.next_u64(),
+                mix.next_u64(),
+                mix.next_u64(),
+            ],
             spare: None,
         }
     }

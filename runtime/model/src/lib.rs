@@ -23,10 +23,12 @@ mod json_positions;
 pub mod net;
 pub mod plan;
 pub mod planner;
+pub mod random;
 pub mod rehearsal;
 pub mod ros_map;
 pub mod system;
 pub mod world;
+pub mod world_file;
 
 pub use net::{
     Analysis, Condition, Engine, EngineError, EventRef, Firing, Marking, MissionNet, Place,

@@ -1411,28 +1411,6 @@ impl World {
     }
 }
 
-/// Reads the world file at `path`: a `.world` file, or a ROS map_server map (`.yaml`, see
-/// [`crate::ros_map`]) and its image; `read` does the reading, so that this crate does none.
-pub fn load(
-    path: &std::path::Path,
-    read: &mut dyn FnMut(&std::path::Path) -> std::io::Result<Vec<u8>>,
-) -> Result<World, WorldError> {
-    if crate::ros_map::is_map_yaml(path) {
-        return crate::ros_map::load_world(path, read);
-    }
-    let file_name = path.display().to_string();
-    let fail = |message: String| WorldError {
-        file: file_name.clone(),
-        line: 0,
-        col: 0,
-        message,
-    };
-    let bytes = read(path).map_err(|err| fail(format!("cannot read the world file: {err}")))?;
-    let text =
-        String::from_utf8(bytes).map_err(|_| fail("the world file is not UTF-8 text".into()))?;
-    World::parse(&text, &file_name)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

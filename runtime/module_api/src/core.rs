@@ -145,6 +145,31 @@ pub(crate) struct InputSlot {
 }
 
 impl InputSlot {
+    /// An input fed by `source` (when linked), with nothing received yet: best-effort, pushed.
+    pub fn new(
+        name: String,
+        data_type: String,
+        source: Option<String>,
+        max_rate_hz: Option<f64>,
+    ) -> InputSlot {
+        InputSlot {
+            name,
+            data_type,
+            source,
+            raw: false,
+            reliable: false,
+            latest: None,
+            queue: VecDeque::new(),
+            queued_bytes: 0,
+            link: 0,
+            notified: false,
+            received: 0,
+            received_bytes: 0,
+            max_rate_hz,
+            pull: false,
+        }
+    }
+
     pub fn has_room(&self) -> bool {
         !self.reliable
             || (self.queue.len() < RELIABLE_QUEUE_LEN && self.queued_bytes < RELIABLE_QUEUE_BYTES)
@@ -195,21 +220,13 @@ impl Core {
         let inputs = description
             .inputs
             .iter()
-            .map(|port| InputSlot {
-                name: port.name.clone(),
-                data_type: port.data_type.clone(),
-                source: config.inputs.get(&port.name).cloned(),
-                raw: false,
-                reliable: false,
-                latest: None,
-                queue: VecDeque::new(),
-                queued_bytes: 0,
-                link: 0,
-                notified: false,
-                received: 0,
-                received_bytes: 0,
-                max_rate_hz: config.input_rates.get(&port.name).copied(),
-                pull: false,
+            .map(|port| {
+                InputSlot::new(
+                    port.name.clone(),
+                    port.data_type.clone(),
+                    config.inputs.get(&port.name).cloned(),
+                    config.input_rates.get(&port.name).copied(),
+                )
             })
             .collect();
         let outputs = description

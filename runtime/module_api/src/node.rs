@@ -23,7 +23,7 @@
 //! });
 //! ```
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::marker::PhantomData;
 use std::str::FromStr;
 use std::time::{Duration, Instant};
@@ -498,20 +498,14 @@ impl Node {
         check_data_name(data_name)?;
         let index = self.core.inputs.len();
         self.core.inputs.push(InputSlot {
-            name: data_name.to_owned(),
-            data_type: String::new(),
-            source: Some(data_name.to_owned()),
             raw: true,
             reliable,
-            latest: None,
-            queue: VecDeque::new(),
-            queued_bytes: 0,
-            link: 0,
-            notified: false,
-            received: 0,
-            received_bytes: 0,
-            max_rate_hz,
-            pull: false,
+            ..InputSlot::new(
+                data_name.to_owned(),
+                String::new(),
+                Some(data_name.to_owned()),
+                max_rate_hz,
+            )
         });
         if let Transport::Net(net) = &mut self.transport {
             net.add_input(&self.core, index);

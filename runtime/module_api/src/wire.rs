@@ -400,7 +400,7 @@ impl FrameReader {
             let before = large.payload.len();
             // `read_to_end` reads into the spare capacity without zeroing it when `source`
             // implements `read_buf` (std's `TcpStream` does, mio's does not: the connections
-            // in `net.rs` are std streams), and keeps what it read when the socket runs dry
+            // in `net/` are std streams), and keeps what it read when the socket runs dry
             // (`WouldBlock`), which is then only "drained".
             let result = source.take(room as u64).read_to_end(&mut large.payload);
             let got = large.payload.len() - before;

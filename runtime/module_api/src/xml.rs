@@ -296,6 +296,19 @@ fn pos_from_start(text: &str, offset: usize) -> Pos {
 /// Documents larger than this are refused before parsing: no configuration is anywhere near it.
 pub const MAX_DOCUMENT_BYTES: usize = 64 * 1024 * 1024;
 
+/// Reads a document whose top element must be `<root>`: another is the one problem reported,
+/// at that element. Every format of ours (system, mission, plan, PNML, GPX, KML) starts so.
+pub fn parse_document<'a>(text: &'a str, root: &str) -> Result<Element<'a>, Vec<Located>> {
+    let element = parse(text).map_err(|err| vec![err])?;
+    if &*element.name != root {
+        return Err(vec![Located::new(
+            element.pos,
+            format!("expected <{root}> at the top, found <{}>", element.name),
+        )]);
+    }
+    Ok(element)
+}
+
 /// Reads a whole document into an element tree. The error carries the position of the problem.
 pub fn parse(text: &str) -> Result<Element<'_>, Located> {
     if text.len() > MAX_DOCUMENT_BYTES {

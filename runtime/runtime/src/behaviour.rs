@@ -6,35 +6,10 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Instant;
 
-use serde::{Deserialize, Serialize};
+use armor_protocol::BehaviourState;
 
 /// The most state changes kept for the time line (the oldest go first).
 pub const MAX_CHANGES: usize = 512;
-
-/// A behaviour's state. Modules that never said whether they apply have none.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum BehaviourState {
-    /// Not activated (stopped by the mission or the operator).
-    Slept,
-    /// Active, its preconditions not met.
-    Checking,
-    /// Applicable, not chosen by an arbiter.
-    Ready,
-    /// Applicable and in control: an arbiter chose its command.
-    Winner,
-}
-
-impl BehaviourState {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            BehaviourState::Slept => "slept",
-            BehaviourState::Checking => "checking",
-            BehaviourState::Ready => "ready",
-            BehaviourState::Winner => "winner",
-        }
-    }
-}
 
 /// One change of a module's behaviour state, at `at`.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -13,7 +13,7 @@ use armor_module_api::Clock;
 use serde_json::json;
 
 use crate::config_server::{ConfigServer, Control};
-use crate::control::{Enabled, FiringRecord, MissionStatus, Request};
+use armor_protocol::{Enabled, FiringRecord, MissionStatus, Request};
 
 /// How a mission ended.
 #[derive(Clone, Debug, PartialEq)]
@@ -606,7 +606,7 @@ impl Controller {
     pub fn write_report(
         &self,
         file: &Path,
-        behaviour_changes: &[crate::control::BehaviourChange],
+        behaviour_changes: &[armor_protocol::BehaviourChange],
         rehearsal: Option<&serde_json::Value>,
     ) -> std::io::Result<()> {
         let mut report = json!({

@@ -12,7 +12,7 @@
 //! [`crate::hosts`].
 
 use std::collections::HashMap;
-use std::io::{BufRead as _, BufReader, Read};
+use std::io::Read;
 use std::net::TcpListener;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
@@ -40,8 +40,6 @@ pub const PING_EVERY: Duration = Duration::from_millis(250);
 /// Milliseconds added to the time the daemon reports (`time`): a clock that is off, made on
 /// purpose, for the tests of the supervisor's skew check. Never set it on a robot.
 pub const ENV_CLOCK_OFFSET_MS: &str = "ARMOR_HOST_CLOCK_OFFSET_MS";
-/// A line of a module's output longer than this is cut.
-const MAX_LOG_LINE: usize = 16 * 1024;
 
 /// From the supervisor to a host daemon.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -600,7 +598,7 @@ impl Daemon {
         // siblings read environments.
         if let Some(secret) = &self.secret {
             let key = secret.module_key(&name).to_hex();
-            if let Err(err) = crate::supervisor::hand_over(&mut command, &key) {
+            if let Err(err) = crate::process::hand_over(&mut command, &key) {
                 return failed(format!("cannot hand {name} its key: {err:#}"));
             }
         }
@@ -661,24 +659,11 @@ fn forward_lines(
     pipe: Option<impl Read + Send + 'static>,
     tx: Sender<FromHost>,
 ) -> Option<std::thread::JoinHandle<()>> {
-    let pipe = pipe?;
     let name = name.to_owned();
-    Some(std::thread::spawn(move || {
-        let mut reader = BufReader::new(pipe);
-        let mut line = Vec::new();
-        loop {
-            line.clear();
-            match reader.read_until(b'\n', &mut line) {
-                Ok(0) | Err(_) => return,
-                Ok(_) => {
-                    line.truncate(MAX_LOG_LINE);
-                    let text = String::from_utf8_lossy(&line).trim_end().to_owned();
-                    let _ = tx.send(FromHost::Log {
-                        name: name.clone(),
-                        line: text,
-                    });
-                }
-            }
-        }
+    Some(crate::log_pump::pump_lines(pipe?, move |line| {
+        let _ = tx.send(FromHost::Log {
+            name: name.clone(),
+            line,
+        });
     }))
 }

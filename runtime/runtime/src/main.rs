@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use armor_model::plural;
-use armor_runtime::{agent, control, load, mission, probe, replay, supervisor};
+use armor_runtime::{agent, load, mission, probe, replay, supervisor};
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -207,7 +207,7 @@ enum Command {
     /// transition by hand.
     Ctl {
         /// The run's control interface (printed by `armor run`; default: $ARMOR_CONTROL).
-        #[arg(long, env = armor_runtime::control::ENV_CONTROL)]
+        #[arg(long, env = armor_protocol::ENV_CONTROL)]
         addr: SocketAddr,
         /// The run's shared secret, when it was started with one (acts as the operator).
         #[arg(long, value_name = "FILE", env = armor_module_api::auth::ENV_SECRET_FILE)]
@@ -545,7 +545,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             request,
         } => {
             let secret = match key.filter(|file| !file.as_os_str().is_empty()) {
-                Some(file) => Some(control::key_from_file(&file)?),
+                Some(file) => Some(armor_protocol::key_from_file(&file)?),
                 None => secret
                     .filter(|file| !file.as_os_str().is_empty())
                     .map(|file| armor_module_api::auth::Secret::load(&file))
@@ -566,20 +566,20 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 return ctl_teleop(addr, secret.as_ref(), &linear, angular, for_secs, module);
             }
             let request = match request {
-                CtlCommand::Status { .. } => control::Request::Status,
-                CtlCommand::Start { module } => control::Request::StartModule { module },
-                CtlCommand::Stop { module } => control::Request::StopModule { module },
-                CtlCommand::Release { module } => control::Request::ReleaseModule { module },
-                CtlCommand::Pause => control::Request::Pause,
-                CtlCommand::Resume => control::Request::Resume,
-                CtlCommand::Abort => control::Request::Abort,
-                CtlCommand::Fire { transition } => control::Request::Fire { transition },
+                CtlCommand::Status { .. } => armor_protocol::Request::Status,
+                CtlCommand::Start { module } => armor_protocol::Request::StartModule { module },
+                CtlCommand::Stop { module } => armor_protocol::Request::StopModule { module },
+                CtlCommand::Release { module } => armor_protocol::Request::ReleaseModule { module },
+                CtlCommand::Pause => armor_protocol::Request::Pause,
+                CtlCommand::Resume => armor_protocol::Request::Resume,
+                CtlCommand::Abort => armor_protocol::Request::Abort,
+                CtlCommand::Fire { transition } => armor_protocol::Request::Fire { transition },
                 CtlCommand::SetPose {
                     x_m,
                     y_m,
                     heading_deg,
                     module,
-                } => control::Request::SetPose {
+                } => armor_protocol::Request::SetPose {
                     x_m,
                     y_m,
                     heading_deg,
@@ -587,7 +587,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 },
                 CtlCommand::Teleop { .. } => unreachable!("answered above"),
             };
-            let reply = control::Client::connect_with(addr, secret.as_ref())?.call(&request)?;
+            let reply =
+                armor_protocol::Client::connect_with(addr, secret.as_ref())?.call(&request)?;
             // With --json, stdout is the JSON alone (for jq and scripts).
             if json {
                 eprintln!("{}", reply.message);
@@ -908,7 +909,7 @@ fn check(file: &std::path::Path, secret: Option<&armor_module_api::auth::Secret>
     // will find in it.
     if armor_model::ros_map::is_map_yaml(file) || file.extension().is_some_and(|ext| ext == "world")
     {
-        let loaded = armor_model::world::load(file, &mut |path| std::fs::read(path));
+        let loaded = armor_model::world_file::load(file, &mut |path| std::fs::read(path));
         drop(spinner);
         return match loaded {
             Ok(world) => {
@@ -1198,8 +1199,8 @@ fn ctl_teleop(
                 .map_err(|_| anyhow::anyhow!("--for {secs}: expected seconds, 0 or more"))
         })
         .transpose()?;
-    let mut client = control::Client::connect_with(addr, secret)?;
-    let request = |linear, angular| control::Request::Teleop {
+    let mut client = armor_protocol::Client::connect_with(addr, secret)?;
+    let request = |linear, angular| armor_protocol::Request::Teleop {
         linear,
         angular,
         module: module.clone(),
@@ -1225,7 +1226,7 @@ fn ctl_teleop(
 }
 
 /// A run's status as `armor ctl status` prints it.
-fn status_text(status: &control::Status) -> String {
+fn status_text(status: &armor_protocol::Status) -> String {
     use std::fmt::Write as _;
     let mut out = format!(
         "system `{}` at {:.1} s of run time (×{})\n",

@@ -353,7 +353,7 @@ pub fn plan_world(
     };
     let path = paths::resolve(&name, base, module_path, "worlds")
         .map_err(|err| format!("the world: {err}"))?;
-    armor_model::world::load(&path, &mut |path| std::fs::read(path))
+    armor_model::world_file::load(&path, &mut |path| std::fs::read(path))
         .map(Some)
         .map_err(|err| format!("the world does not load: {err}"))
 }

@@ -1,9 +1,13 @@
-//! Child processes that never outlive their parent, and signals: the few operating-system calls
-//! std does not offer, in one audited place (the workspace denies `unsafe` everywhere else).
+//! Child processes that never outlive their parent, signals, and a key handed to a child: the
+//! few operating-system calls std does not offer, in one audited place (the workspace denies
+//! `unsafe` everywhere else).
 #![allow(unsafe_code)]
 
+use std::io::Write as _;
 use std::os::unix::process::CommandExt as _;
-use std::process::Command;
+use std::process::{Command, Stdio};
+
+use armor_module_api::auth::ENV_KEY_FD;
 
 /// Makes the child its own process group (so a terminal's Ctrl-C reaches only the supervisor,
 /// which then stops children in order) and has the kernel kill it when the supervisor dies,
@@ -32,4 +36,16 @@ pub fn kill(pid: libc::pid_t, signal: libc::c_int) {
     unsafe {
         libc::kill(pid, signal);
     }
+}
+
+/// Hands `text` (a key) to the child `command` starts through a pipe that becomes its
+/// standard input, named by `ARMOR_KEY_FD=0`: the child reads it and closes it at start, and
+/// nothing of it shows in `/proc/PID/environ` or `cmdline`. The pipe holds the few bytes
+/// until the child reads them, so they are written before it starts.
+pub fn hand_over(command: &mut Command, text: &str) -> std::io::Result<()> {
+    let (reader, mut writer) = std::io::pipe()?;
+    writer.write_all(text.as_bytes())?;
+    drop(writer);
+    command.stdin(Stdio::from(reader)).env(ENV_KEY_FD, "0");
+    Ok(())
 }

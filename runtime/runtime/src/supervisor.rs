@@ -4,7 +4,7 @@
 //! supervisor, which stops them in order) and die with it if it is killed (`PR_SET_PDEATHSIG`).
 
 use std::collections::BTreeMap;
-use std::io::{BufRead as _, BufReader, Read, Write as _};
+use std::io::{BufRead as _, BufReader, Read};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, ExitStatus, Stdio};
@@ -26,6 +26,7 @@ use crate::controller::{Controller, Outcome};
 use crate::hosts::{HostLink, ModuleChild};
 use crate::load::{Diagnostics, Loaded, load_system};
 use crate::mission::{DocumentKind, LoadedMission, document_kind, load_mission};
+use crate::process::hand_over;
 use crate::progress::{self, Progress};
 use crate::restart::{AfterCrash, Backoff, CRASH_WINDOW, FIRST_BACKOFF, MAX_BACKOFF};
 use crate::{console, control, probe, run_dir};
@@ -404,15 +405,17 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         }
         while let Ok((request, reply)) = requests.try_recv() {
             let (ok, message) = match request {
-                control::Request::Status => (true, "status".to_owned()),
-                control::Request::StartModule { module } => {
+                armor_protocol::Request::Status => (true, "status".to_owned()),
+                armor_protocol::Request::StartModule { module } => {
                     set_override(&server, &module, Some(true))
                 }
-                control::Request::StopModule { module } => {
+                armor_protocol::Request::StopModule { module } => {
                     set_override(&server, &module, Some(false))
                 }
-                control::Request::ReleaseModule { module } => set_override(&server, &module, None),
-                control::Request::SetPose {
+                armor_protocol::Request::ReleaseModule { module } => {
+                    set_override(&server, &module, None)
+                }
+                armor_protocol::Request::SetPose {
                     x_m,
                     y_m,
                     heading_deg,
@@ -424,7 +427,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                         Err(why) => (false, why),
                     }
                 }
-                control::Request::Teleop {
+                armor_protocol::Request::Teleop {
                     linear,
                     angular,
                     module,
@@ -456,7 +459,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                         Err(message) => (false, message),
                     }
                 }
-                control::Request::Files => {
+                armor_protocol::Request::Files => {
                     let _ = reply.send(run_files(&options.file, &system_file, &server));
                     continue;
                 }
@@ -469,7 +472,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 controller.note_demand(&server);
             }
             let status = run_status(&modules, &server, controller.as_ref(), &env, &clock);
-            let _ = reply.send(control::Reply {
+            let _ = reply.send(armor_protocol::Reply {
                 ok,
                 message,
                 status: Some(status),
@@ -657,14 +660,14 @@ fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (b
     }
 }
 
-/// The run's files, for a client that attaches without them ([`control::Request::Files`]): the
+/// The run's files, for a client that attaches without them ([`armor_protocol::Request::Files`]): the
 /// system file and the mission (`target`, when it is not the system file itself) as they are
 /// now, and the files the system's `file` parameters name, as the run found them. A file that
 /// is not text (a ROS map's image) is left out.
-fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> control::Reply {
+fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> armor_protocol::Reply {
     let read = |path: &Path| {
         std::fs::read_to_string(path)
-            .map(|text| control::FileText {
+            .map(|text| armor_protocol::FileText {
                 path: path.display().to_string(),
                 text,
             })
@@ -688,7 +691,7 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> contro
                 }
                 let path = Path::new(param.value.trim());
                 match read(path) {
-                    Ok(file) => params.push(control::ParamFile {
+                    Ok(file) => params.push(armor_protocol::ParamFile {
                         module: module.name.clone(),
                         param: param.name.clone(),
                         beside: files_beside(path, &file.text),
@@ -698,7 +701,7 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> contro
                 }
             }
         }
-        Ok::<_, String>(control::RunFiles {
+        Ok::<_, String>(armor_protocol::RunFiles {
             system,
             mission,
             params,
@@ -710,13 +713,13 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> contro
         })
     })();
     match files {
-        Ok(files) => control::Reply {
+        Ok(files) => armor_protocol::Reply {
             ok: true,
             message: format!("the run's files ({})", files.system.path),
             status: None,
             files: Some(files),
         },
-        Err(message) => control::Reply {
+        Err(message) => armor_protocol::Reply {
             ok: false,
             message,
             status: None,
@@ -727,7 +730,7 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> contro
 
 /// The files a parameter's file names in turn: a ROS map's image (the only such file a world
 /// has), read as bytes.
-fn files_beside(path: &Path, text: &str) -> Vec<control::BinaryFile> {
+fn files_beside(path: &Path, text: &str) -> Vec<armor_protocol::BinaryFile> {
     use base64::Engine as _;
     let is_yaml = path
         .extension()
@@ -740,7 +743,7 @@ fn files_beside(path: &Path, text: &str) -> Vec<control::BinaryFile> {
     };
     let folder = path.parent().unwrap_or_else(|| Path::new("."));
     match std::fs::read(folder.join(&map.image)) {
-        Ok(bytes) => vec![control::BinaryFile {
+        Ok(bytes) => vec![armor_protocol::BinaryFile {
             name: map.image,
             base64: base64::engine::general_purpose::STANDARD.encode(bytes),
         }],
@@ -755,10 +758,10 @@ fn files_beside(path: &Path, text: &str) -> Vec<control::BinaryFile> {
 fn behaviour_changes(
     behaviours: &crate::behaviour::Behaviours,
     clock: &Clock,
-) -> Vec<control::BehaviourChange> {
+) -> Vec<armor_protocol::BehaviourChange> {
     behaviours
         .changes()
-        .map(|change| control::BehaviourChange {
+        .map(|change| armor_protocol::BehaviourChange {
             run_secs: clock.at(change.at),
             module: change.module.clone(),
             state: change.state,
@@ -773,7 +776,7 @@ fn run_status(
     controller: Option<&Controller>,
     env: &RunEnv,
     clock: &Clock,
-) -> control::Status {
+) -> armor_protocol::Status {
     let loaded = server.loaded();
     let activity = server.activity();
     let demand = server.demand();
@@ -786,16 +789,16 @@ fn run_status(
             let (active, manual) = activity.get(&module.name).copied().unwrap_or_default();
             let state = match module.state {
                 ProcState::Running if !module.configured && module.restarts > 0 => {
-                    control::ModuleState::Restarting
+                    armor_protocol::ModuleState::Restarting
                 }
-                ProcState::Running if !module.configured => control::ModuleState::Starting,
-                ProcState::Running if active => control::ModuleState::Running,
-                ProcState::Running => control::ModuleState::Stopped,
-                ProcState::Restarting(_) => control::ModuleState::Crashed,
-                ProcState::Failed => control::ModuleState::Failed,
-                ProcState::Exited => control::ModuleState::Exited,
+                ProcState::Running if !module.configured => armor_protocol::ModuleState::Starting,
+                ProcState::Running if active => armor_protocol::ModuleState::Running,
+                ProcState::Running => armor_protocol::ModuleState::Stopped,
+                ProcState::Restarting(_) => armor_protocol::ModuleState::Crashed,
+                ProcState::Failed => armor_protocol::ModuleState::Failed,
+                ProcState::Exited => armor_protocol::ModuleState::Exited,
             };
-            control::ModuleStatus {
+            armor_protocol::ModuleStatus {
                 name: module.name.clone(),
                 module_type: module.module_type.clone(),
                 state,
@@ -823,7 +826,7 @@ fn run_status(
         })
         .collect();
     let behaviour_changes = behaviour_changes(&behaviours, clock);
-    control::Status {
+    armor_protocol::Status {
         system: loaded.system.name.clone(),
         run_secs: clock.now_secs(),
         time_scale: env.time_scale,
@@ -1139,19 +1142,8 @@ fn stream_lines(name: &str, pipe: Option<impl Read + Send + 'static>) {
         return;
     };
     let prefix = format!("[{name}] ");
-    std::thread::spawn(move || {
-        let mut reader = BufReader::new(pipe);
-        let mut line = Vec::new();
-        loop {
-            line.clear();
-            match reader.read_until(b'\n', &mut line) {
-                Ok(0) | Err(_) => return,
-                Ok(_) => {
-                    let text = String::from_utf8_lossy(&line);
-                    console::out_line(&format!("{prefix}{}", text.trim_end()));
-                }
-            }
-        }
+    crate::log_pump::pump_lines(pipe, move |line| {
+        console::out_line(&format!("{prefix}{line}"));
     });
 }
 
@@ -1231,18 +1223,6 @@ impl AgentProc {
             end_children(&mut vec![("agent".to_owned(), ModuleChild::Local(child))]);
         }
     }
-}
-
-/// Hands `text` (a key) to the child `command` starts through a pipe that becomes its
-/// standard input, named by `ARMOR_KEY_FD=0`: the child reads it and closes it at start, and
-/// nothing of it shows in `/proc/PID/environ` or `cmdline`. The pipe holds the few bytes
-/// until the child reads them, so they are written before it starts.
-pub fn hand_over(command: &mut Command, text: &str) -> std::io::Result<()> {
-    let (reader, mut writer) = std::io::pipe()?;
-    writer.write_all(text.as_bytes())?;
-    drop(writer);
-    command.stdin(Stdio::from(reader)).env(ENV_KEY_FD, "0");
-    Ok(())
 }
 
 /// Gives a child the run's secret over a pipe (see [`hand_over`]), or makes sure it has none;

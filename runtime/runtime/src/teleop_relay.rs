@@ -19,12 +19,8 @@ use std::time::Duration;
 use armor_module_api::auth::{Dial, Secret};
 use armor_module_api::wire::blocking::{self, SecureStream};
 
-use crate::control::Reply;
+use armor_protocol::{Reply, TELEOP_ENDPOINT, TELEOP_TYPE};
 
-/// The module type whose command port the relay drives.
-pub const TELEOP_TYPE: &str = "teleop";
-/// The endpoint name the teleop module says it listens at.
-pub const ENDPOINT: &str = "teleop";
 /// How long the module may take to accept a connection, and to answer a command (it answers
 /// within a tick of its loop, 50 ms of run time).
 const TIMEOUT: Duration = Duration::from_secs(2);
@@ -87,7 +83,7 @@ pub fn target<'a>(
     }
     let address = endpoints
         .get(chosen.name)
-        .and_then(|endpoints| endpoints.get(ENDPOINT))
+        .and_then(|endpoints| endpoints.get(TELEOP_ENDPOINT))
         .ok_or_else(|| {
             format!(
                 "the teleop module `{}` has not said where it listens yet",
@@ -262,7 +258,7 @@ mod tests {
             .map(|(module, addr)| {
                 (
                     (*module).to_owned(),
-                    BTreeMap::from([(ENDPOINT.to_owned(), (*addr).to_owned())]),
+                    BTreeMap::from([(TELEOP_ENDPOINT.to_owned(), (*addr).to_owned())]),
                 )
             })
             .collect()

@@ -327,6 +327,28 @@ fn read_bool(field: Field<'_>, what: &str) -> Result<bool, Located> {
     }
 }
 
+/// Writes a transition's priority (unless 0) and condition as attributes, each
+/// ` name="value"`, in the order both formats give them: the mission XML's `<transition>` and
+/// the `<condition>` of PNML's tool-specific data.
+pub(crate) fn write_condition_attrs(out: &mut String, priority: i32, condition: &Condition) {
+    use std::fmt::Write as _;
+    if priority != 0 {
+        let _ = write!(out, " priority=\"{priority}\"");
+    }
+    if let Some(event) = &condition.event {
+        let _ = write!(out, " event=\"{}\"", crate::fields::escape(event));
+    }
+    if let Some(delay) = condition.delay_secs {
+        let _ = write!(out, " delay_secs=\"{delay}\"");
+    }
+    if let Some(at) = condition.at_unix_secs {
+        let _ = write!(out, " at=\"{}\"", format_date(at));
+    }
+    if condition.operator {
+        out.push_str(" operator=\"true\"");
+    }
+}
+
 /// Writes a date in the form [`read_date`] reads, in UTC.
 pub(crate) fn format_date(unix_secs: f64) -> String {
     date::format_rfc3339(unix_secs)

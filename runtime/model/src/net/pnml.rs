@@ -38,8 +38,9 @@ use std::fmt::Write as _;
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
 use super::{
-    Arc, Condition, MissionNet, Place, PlaceParam, Transition, check_structure, format_date,
-    read_date, read_delay, read_event, read_operator, read_priority, read_tokens, read_weight,
+    Arc, Condition, MissionNet, Place, PlaceParam, Transition, check_structure, read_date,
+    read_delay, read_event, read_operator, read_priority, read_tokens, read_weight,
+    write_condition_attrs,
 };
 use crate::fields::{
     Field, escape, finish, identifier, no_children, no_text, optional, read_identifier, required,
@@ -126,21 +127,7 @@ pub fn to_pnml(net: &MissionNet) -> String {
         let condition = &transition.condition;
         if transition.priority != 0 || !condition.is_empty() {
             let _ = write!(out, "        {tool}\n          <condition");
-            if transition.priority != 0 {
-                let _ = write!(out, " priority=\"{}\"", transition.priority);
-            }
-            if let Some(event) = &condition.event {
-                let _ = write!(out, " event=\"{}\"", e(event));
-            }
-            if let Some(delay) = condition.delay_secs {
-                let _ = write!(out, " delay_secs=\"{delay}\"");
-            }
-            if let Some(at) = condition.at_unix_secs {
-                let _ = write!(out, " at=\"{}\"", format_date(at));
-            }
-            if condition.operator {
-                out.push_str(" operator=\"true\"");
-            }
+            write_condition_attrs(&mut out, transition.priority, condition);
             out.push_str("/>\n        </toolspecific>\n");
         }
         out.push_str("      </transition>\n");
@@ -296,16 +283,7 @@ pub fn from_pnml(text: &str) -> Result<MissionNet, Vec<Located>> {
 /// place/transition net; its nodes are named after their `<name>` labels (or ids) made into
 /// names, and the places of its `<finalmarkings>` become final places.
 pub fn read_pnml(text: &str) -> Result<(MissionNet, Vec<Located>), Vec<Located>> {
-    let root = tree::parse(text).map_err(|err| vec![err])?;
-    if root.name != "pnml" {
-        return Err(vec![Located::new(
-            root.pos,
-            format!(
-                "expected <pnml> at the top of a PNML document, found <{}>",
-                root.name
-            ),
-        )]);
-    }
+    let root = tree::parse_document(text, "pnml")?;
     if let Some(namespace) = root.attr("xmlns")
         && namespace.value != PNML_NAMESPACE
     {
@@ -1047,7 +1025,7 @@ mod tests {
         check("<pnml/>", &["1:1: the document holds no <net>"]);
         check(
             "<mission name=\"m\"/>",
-            &["1:1: expected <pnml> at the top of a PNML document, found <mission>"],
+            &["1:1: expected <pnml> at the top, found <mission>"],
         );
         check(
             "<pnml xmlns=\"http://www.pnml.org/version-2009/grammar/pnmlcoremodel\"/>",

@@ -7,9 +7,9 @@ use std::fmt::Write as _;
 use armor_module_api::xml::{self as tree, Element, Located, Pos};
 
 use super::{
-    Arc, Condition, MissionNet, Place, PlaceParam, Transition, check_structure, format_date,
-    read_date, read_delay, read_event, read_final, read_operator, read_priority, read_tokens,
-    read_weight,
+    Arc, Condition, MissionNet, Place, PlaceParam, Transition, check_structure, read_date,
+    read_delay, read_event, read_final, read_operator, read_priority, read_tokens, read_weight,
+    write_condition_attrs,
 };
 use crate::fields::{escape, finish, identifier, no_children, no_text, optional, required};
 
@@ -19,13 +19,7 @@ impl MissionNet {
     /// without input), sorted by position. Whether the modules and events exist is checked
     /// against a system by [`super::check_names`].
     pub fn parse(text: &str) -> Result<MissionNet, Vec<Located>> {
-        let root = tree::parse(text).map_err(|err| vec![err])?;
-        if root.name != "mission" {
-            return Err(vec![Located::new(
-                root.pos,
-                format!("expected <mission> at the top, found <{}>", root.name),
-            )]);
-        }
+        let root = tree::parse_document(text, "mission")?;
         let mut problems = Vec::new();
         problems.extend(root.unknown_attrs(&["name", "system"]));
         problems.extend(root.unknown_children(&["place", "transition"]));
@@ -90,22 +84,7 @@ impl MissionNet {
         }
         for transition in &self.transitions {
             let _ = write!(out, "  <transition name=\"{}\"", escape(&transition.name));
-            if transition.priority != 0 {
-                let _ = write!(out, " priority=\"{}\"", transition.priority);
-            }
-            let condition = &transition.condition;
-            if let Some(event) = &condition.event {
-                let _ = write!(out, " event=\"{}\"", escape(event));
-            }
-            if let Some(delay) = condition.delay_secs {
-                let _ = write!(out, " delay_secs=\"{delay}\"");
-            }
-            if let Some(at) = condition.at_unix_secs {
-                let _ = write!(out, " at=\"{}\"", format_date(at));
-            }
-            if condition.operator {
-                out.push_str(" operator=\"true\"");
-            }
+            write_condition_attrs(&mut out, transition.priority, &transition.condition);
             out.push_str(">\n");
             for (tag, arcs) in [
                 ("input", &transition.inputs),

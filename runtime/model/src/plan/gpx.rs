@@ -31,13 +31,7 @@ pub const SAME_POINT_M: f64 = 1.0;
 
 /// Reads a GPX file into a plan called `name` over the system file `system`.
 pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>> {
-    let root = tree::parse(text).map_err(|err| vec![err])?;
-    if local(&root.name) != "gpx" {
-        return Err(vec![Located::new(
-            root.pos,
-            format!("expected <gpx> at the top, found <{}>", root.name),
-        )]);
-    }
+    let root = tree::parse_document(text, "gpx")?;
     let mut problems = Vec::new();
     let mut names = Names::default();
     let mut plan = Plan {

@@ -318,13 +318,7 @@ fn coordinates(points: &[LatLon]) -> String {
 
 /// Reads a KML file into a plan called `name` over the system file `system`.
 pub fn import(text: &str, name: &str, system: &str) -> Result<Plan, Vec<Located>> {
-    let root = tree::parse(text).map_err(|err| vec![err])?;
-    if &*root.name != "kml" {
-        return Err(vec![Located::new(
-            root.pos,
-            format!("expected <kml> at the top, found <{}>", root.name),
-        )]);
-    }
+    let root = tree::parse_document(text, "kml")?;
     let mut placemarks = Vec::new();
     collect_placemarks(&root, &mut placemarks);
     let mut problems = Vec::new();

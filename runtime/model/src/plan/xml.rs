@@ -24,13 +24,7 @@ impl Plan {
     /// waypoints or do not join up), sorted by position. Whether it fits its world and system is
     /// checked by [`super::compile`].
     pub fn parse(text: &str) -> Result<Plan, Vec<Located>> {
-        let root = tree::parse(text).map_err(|err| vec![err])?;
-        if root.name != "plan" {
-            return Err(vec![Located::new(
-                root.pos,
-                format!("expected <plan> at the top, found <{}>", root.name),
-            )]);
-        }
+        let root = tree::parse_document(text, "plan")?;
         let mut problems = Vec::new();
         let p = &mut problems;
         p.extend(root.unknown_attrs(&["name", "system", "world", "start"]));

@@ -196,7 +196,8 @@ fn a_map_is_a_world_the_robot_and_its_laser_live_in() {
     pgm.extend(rows.iter().flatten());
     let yaml = "image: room.pgm\nresolution: 0.5\norigin: [-1.0, -1.0, 0.0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\nnegate: 0\ngeo_origin: [48.85, 2.35]\n";
     let files = files(&[("room.yaml", yaml.as_bytes()), ("room.pgm", &pgm)]);
-    let world = crate::world::load(Path::new("room.yaml"), &mut reader(&files)).expect("a world");
+    let world =
+        crate::world_file::load(Path::new("room.yaml"), &mut reader(&files)).expect("a world");
     assert_eq!(world.name(), "room");
     assert_eq!(world.origin_lat_lon(), (48.85, 2.35));
     let bounds = world.bounds();

@@ -14,13 +14,7 @@ use crate::fields::{escape, identifier, no_children, no_text, required};
 impl SystemConfig {
     /// Reads a system configuration, reporting every structural problem, sorted by position.
     pub fn parse(text: &str) -> Result<SystemConfig, Vec<Located>> {
-        let root = xml::parse(text).map_err(|err| vec![err])?;
-        if root.name != "system" {
-            return Err(vec![Located::new(
-                root.pos,
-                format!("expected <system> at the top, found <{}>", root.name),
-            )]);
-        }
+        let root = xml::parse_document(text, "system")?;
         let mut problems = Vec::new();
         problems.extend(root.unknown_attrs(&["name", "host"]));
         problems.extend(root.unknown_children(&["host", "module", "link", "subsystem"]));

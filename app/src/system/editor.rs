@@ -6,70 +6,12 @@ use std::collections::BTreeSet;
 
 use armor_model::plural;
 
-use crate::diagram::{BlockId, Catalog, Clip, Diagram, Link, Pin, PortRef};
-
-/// How many steps Ctrl+Z can go back.
-const HISTORY_LIMIT: usize = 200;
+use super::diagram::{BlockId, Clip, Diagram, Link, Pin, PortRef};
+use crate::common::history::{History, Outcome};
+use crate::common::palette::Catalog;
 
 /// Where pasted and duplicated blocks land, relative to their originals.
 const PASTE_OFFSET: [f32; 2] = [40.0, 40.0];
-
-/// Snapshots of the document before each edit: whole copies. A diagram of a thousand blocks is
-/// a few hundred kilobytes, so 200 steps stay within tens of megabytes, and copies cannot get
-/// out of step with the edits the way inverse operations can. The mission view keeps its plan's
-/// history the same way.
-#[derive(Debug)]
-pub struct History<T = Diagram> {
-    undo: Vec<T>,
-    redo: Vec<T>,
-}
-
-impl<T> Default for History<T> {
-    fn default() -> Self {
-        Self {
-            undo: Vec::new(),
-            redo: Vec::new(),
-        }
-    }
-}
-
-impl<T> History<T> {
-    pub fn record(&mut self, before: T) {
-        self.undo.push(before);
-        if self.undo.len() > HISTORY_LIMIT {
-            self.undo.remove(0);
-        }
-        self.redo.clear();
-    }
-
-    pub fn can_undo(&self) -> bool {
-        !self.undo.is_empty()
-    }
-
-    pub fn can_redo(&self) -> bool {
-        !self.redo.is_empty()
-    }
-
-    pub fn undo(&mut self, current: &mut T) -> bool {
-        match self.undo.pop() {
-            Some(before) => {
-                self.redo.push(std::mem::replace(current, before));
-                true
-            }
-            None => false,
-        }
-    }
-
-    pub fn redo(&mut self, current: &mut T) -> bool {
-        match self.redo.pop() {
-            Some(after) => {
-                self.undo.push(std::mem::replace(current, after));
-                true
-            }
-            None => false,
-        }
-    }
-}
 
 /// An edit, queued by the user interface during a frame and applied after it.
 #[derive(Clone, Debug)]
@@ -123,18 +65,10 @@ pub enum Command {
     Redo,
 }
 
-/// What applying a command did, for the status line.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Outcome {
-    Nothing,
-    Done(String),
-    Refused(String),
-}
-
 #[derive(Debug, Default)]
 pub struct Editor {
     pub diagram: Diagram,
-    pub history: History,
+    pub history: History<Diagram>,
     pub selection: BTreeSet<BlockId>,
     pub clipboard: Clip,
     /// The subsystem whose inside the canvas shows (`None`: the top).

@@ -1,6 +1,8 @@
-//! `armor-studio bench`: the studio's own timings, printed as JSON lines in `armor-bench`'s
+//! `armor-studio-bench`: the studio's own timings, printed as JSON lines in `armor-bench`'s
 //! format (`bench`, `ours`, `reference`, `unit`, `ratio`), which `armor-bench` runs and relays
-//! (the runtime must not depend on egui, so the measuring happens here).
+//! (the runtime must not depend on egui, so the measuring happens here). A crate of its own, so
+//! that the product, `armor-studio`, links neither its renderer (`egui_kittest`) nor its
+//! fixtures.
 //!
 //! - `studio_frame_ms_1000_blocks`: time of one UI frame on one thread (layout, the canvas and
 //!   its 1,500 wires, tessellation) in a headless egui context, on a 1,000-block diagram, at the
@@ -34,10 +36,10 @@ use anyhow::Context as _;
 use armor_module_api::ModuleDescription;
 use armor_module_api::describe::{ParamSpec, ParamType, PortSpec};
 
-use crate::app::{Options, StudioApp};
-use crate::diagram::{Diagram, Pin, PinSide, PortRef};
-use crate::files::{self, Home};
-use crate::palette::Palette;
+use armor_studio::app::{Options, StudioApp};
+use armor_studio::common::palette::Palette;
+use armor_studio::files::Home;
+use armor_studio::system::diagram::{Diagram, Pin, PinSide, PortRef};
 
 pub const FRAME: &str = "studio_frame_ms_1000_blocks";
 pub const LOAD: &str = "studio_load_ms_1000_blocks";
@@ -49,7 +51,7 @@ pub const VS_SNARL: &str = "studio_vs_bare_snarl_1000";
 pub const VS_SNARL_OVERVIEW: &str = "studio_overview_vs_bare_snarl_1000";
 pub const LAYOUT: &str = "layout_ms_200_blocks";
 const LAYOUT_GOAL_MS: f64 = 100.0;
-/// `armor-studio bench monitor CONTROL SYSTEM SECS`: the Run view watching a run for
+/// `armor-studio-bench monitor CONTROL SYSTEM SECS`: the Run view watching a run for
 /// `armor-bench`'s `monitor_overhead` (no line printed).
 pub const MONITOR: &str = "monitor";
 /// The frame rate the monitor is drawn at, as a window would while the robot moves.
@@ -327,7 +329,7 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
         app.view_at_scale(1.0);
         let one_to_one = measure(&mut app, 3)?;
         // The most blocks drawn as widgets: the least zoom a fit goes to.
-        app.view_at_scale(crate::viewer::DETAIL_SCALE + 0.01);
+        app.view_at_scale(armor_studio::system::viewer::DETAIL_SCALE + 0.01);
         let most_detail = measure(&mut app, 3)?;
         let least_scale = app.canvas_transform().scaling;
         println!(
@@ -446,7 +448,7 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
     }
     if wants(LAYOUT) || wants("layout") {
         let relay = relay();
-        let catalog: crate::diagram::Catalog =
+        let catalog: armor_studio::common::palette::Catalog =
             [(relay.module_type.clone(), relay)].into_iter().collect();
         let diagram = random_diagram(200, 300);
         let mut samples = Vec::with_capacity(rounds);
@@ -493,12 +495,12 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
         for _ in 0..rounds {
             frame_time(&ctx, &mut app, 1);
             if let Some(mission) = app.mission() {
-                placing.push(mission.map.label_time);
+                placing.push(mission.label_time());
             }
         }
         let placed = app
             .mission()
-            .map_or(0, |mission| mission.map.label_boxes.len());
+            .map_or(0, |mission| mission.label_boxes().len());
         let mission = app.mission().context("the mission view did not open")?;
         let plan = mission.plan();
         anyhow::ensure!(
@@ -656,7 +658,7 @@ fn overview_transform(app: &StudioApp) -> egui::emath::TSTransform {
     let canvas = app.canvas_rect();
     let scaling = (canvas.width() / bounds.width())
         .min(canvas.height() / bounds.height())
-        .min(crate::viewer::DETAIL_SCALE * 0.9);
+        .min(armor_studio::system::viewer::DETAIL_SCALE * 0.9);
     let translation = canvas.center().to_vec2() - bounds.center().to_vec2() * scaling;
     egui::emath::TSTransform::new(translation, scaling)
 }
@@ -692,7 +694,7 @@ fn bare_frame_time(ctx: &egui::Context, bare: &mut Bare, frames: usize) -> f64 {
 /// subscribed to the robot's data, every frame drawn (headless, tessellated) at 30 Hz.
 fn monitor(args: &[String]) -> anyhow::Result<()> {
     let [control, system, secs] = args else {
-        anyhow::bail!("usage: armor-studio bench monitor CONTROL_ADDR SYSTEM_FILE SECONDS");
+        anyhow::bail!("usage: armor-studio-bench monitor CONTROL_ADDR SYSTEM_FILE SECONDS");
     };
     let control: std::net::SocketAddr = control.parse().context("the control address")?;
     let secs: f64 = secs.parse().context("the seconds")?;
@@ -706,7 +708,7 @@ fn monitor(args: &[String]) -> anyhow::Result<()> {
     options.palette = Some(Palette::from_descriptions(descriptions));
     options.file = Some(system.to_path_buf());
     let mut app = StudioApp::new(options);
-    app.set_view(crate::app::View::Run);
+    app.set_view(armor_studio::app::View::Run);
     frame_time(&ctx, &mut app, 1);
     app.attach_run(control, &ctx);
     let end = Instant::now() + Duration::from_secs_f64(secs);
@@ -815,8 +817,8 @@ fn load_times(file: &Path, rounds: usize) -> anyhow::Result<(f64, f64)> {
     let mut reference = Vec::new();
     for _ in 0..rounds {
         let start = Instant::now();
-        let diagram = files::open(file)?;
-        let problems = crate::validation::validate(&diagram, &catalog, &[]);
+        let diagram = armor_studio::system::file::open(file)?;
+        let problems = armor_studio::system::validation::validate(&diagram, &catalog, &[]);
         ours.push(start.elapsed());
         anyhow::ensure!(
             problems.is_empty(),

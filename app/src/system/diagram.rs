@@ -11,15 +11,13 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use armor_model::system::{Endpoint, Link as SystemLink, ModuleInstance, ParamValue, SystemConfig};
-use armor_module_api::ModuleDescription;
 use armor_module_api::describe::is_identifier;
 use armor_module_api::xml::Located;
 
+use crate::common::palette::Catalog;
+
 mod groups;
 pub use groups::{BORDER_TYPE_PREFIX, GROUP_TYPE_PREFIX, Group, border_id, border_of};
-
-/// The module descriptions the studio knows, keyed by module type.
-pub type Catalog = BTreeMap<String, ModuleDescription>;
 
 /// The comment that carries block positions.
 const LAYOUT_TAG: &str = "armor-studio layout:";
@@ -600,7 +598,7 @@ impl Diagram {
     }
 
     /// Lays the blocks out left to right by data flow, in layers (sources left, sinks right),
-    /// with crossings reduced (see [`crate::layout`]). Block sizes come from their ports: from
+    /// with crossings reduced (see [`super::layout`]). Block sizes come from their ports: from
     /// `catalog` where it describes the block's type, else from the ports the links name.
     pub fn arrange(&mut self, catalog: Option<&Catalog>) {
         // Each level on its own: the top, and the inside of each group.
@@ -636,7 +634,7 @@ impl Diagram {
                     Some((*index.get(&from)?, *index.get(&to)?))
                 })
                 .collect();
-            let positions = crate::layout::layered(&sizes, &edges, [40.0, 40.0]);
+            let positions = crate::system::layout::layered(&sizes, &edges, [40.0, 40.0]);
             for (id, pos) in ids.into_iter().zip(positions) {
                 self.move_block(id, [pos[0].round(), pos[1].round()]);
             }
@@ -832,6 +830,7 @@ fn read_layout(text: &str) -> BTreeMap<&str, [f32; 2]> {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+    use armor_module_api::ModuleDescription;
     use armor_module_api::describe::{ParamSpec, ParamType, PortSpec};
 
     fn catalog() -> Catalog {

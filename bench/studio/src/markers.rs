@@ -14,9 +14,9 @@ use armor_module_api::types::{Frame, Marker, Markers, Pose2D, Shape};
 use armor_runtime::replay::Recorded;
 
 use super::{FRAME_BUDGET_MS, frame_time, line, round};
-use crate::app::{Options, StudioApp, View};
-use crate::files::Home;
-use crate::run::live::Recording;
+use armor_studio::app::{Options, StudioApp, View};
+use armor_studio::files::Home;
+use armor_studio::run::live::Recording;
 
 pub const NAME: &str = "markers_frame_ms";
 const MODULES: usize = 20;

@@ -15,7 +15,8 @@ use armor_model::system::{Endpoint, ExposedPort, Member, Subsystem};
 use armor_module_api::ModuleDescription;
 use armor_module_api::describe::{PortSpec, is_identifier};
 
-use super::{Block, BlockId, Catalog, Diagram, Link, PinSide, PortRef, new_instance};
+use super::{Block, BlockId, Diagram, Link, PinSide, PortRef, new_instance};
+use crate::common::palette::Catalog;
 
 /// The prefix of a group's made-up module type in [`Diagram::at_level`]'s catalog.
 pub const GROUP_TYPE_PREFIX: &str = "subsystem ";

@@ -5,7 +5,8 @@
 use armor_model::SystemConfig;
 use armor_module_api::xml::Pos;
 
-use crate::diagram::{BlockId, Catalog, Diagram};
+use crate::common::palette::{BrokenType, Catalog};
+use crate::system::diagram::{BlockId, Diagram};
 
 /// One problem, as `armor check` words it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -15,14 +16,6 @@ pub struct Problem {
     pub message: String,
     /// The block it is about (a link's problem is its input's block).
     pub block: Option<BlockId>,
-}
-
-/// A module type whose binary is on the module path but failed to describe itself.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct BrokenType {
-    pub module_type: String,
-    pub binary: String,
-    pub error: String,
 }
 
 /// Every problem of the diagram against the catalog, sorted by position in the saved file.

@@ -1,13 +1,13 @@
-//! The palette panel: the module types found on the module path (described by `crate::palette`
-//! on background threads), dragged or added onto the canvas.
+//! The palette panel: the module types found on the module path (described by
+//! `common::palette` on background threads), dragged or added onto the canvas.
 
 use egui::{RichText, Ui};
 
 use super::canvas::PaletteDrag;
 use super::{ERROR, SystemView};
-use crate::editor::Command;
-use crate::palette::{Entry, Palette};
-use crate::viewer;
+use crate::common::palette::{Entry, Palette};
+use crate::system::editor::Command;
+use crate::system::viewer;
 use armor_module_api::{Category, ModuleDescription};
 
 impl SystemView {

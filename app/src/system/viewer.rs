@@ -21,12 +21,13 @@ use egui::{Color32, Pos2, Rect, RichText, Stroke, Ui, Vec2};
 use egui_snarl::ui::{PinInfo, PinWireInfo, SnarlPin, SnarlStyle, SnarlViewer};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 
-use crate::diagram::{BlockId, Catalog, Diagram, GROUP_TYPE_PREFIX, Link, Pin, PinSide, PortRef};
-use crate::editor::Command;
-use crate::run::monitor::state_colour;
+use crate::common::draw::state_colour;
+use crate::common::palette::Catalog;
+use crate::system::diagram::{BlockId, Diagram, GROUP_TYPE_PREFIX, Link, Pin, PinSide, PortRef};
+use crate::system::editor::Command;
 use armor_module_api::Category;
 use armor_module_api::describe::is_identifier;
-use armor_runtime::control::ModuleState;
+use armor_protocol::ModuleState;
 
 /// Pins drawn this frame, in canvas coordinates.
 type PinSink = Rc<RefCell<Vec<(Pin, Rect)>>>;
@@ -758,7 +759,7 @@ impl DiagramViewer<'_> {
     /// screen, and a dot for each port, at the edge where its pin is zoomed in.
     fn paint_overview_block(
         &self,
-        block: &crate::diagram::Block,
+        block: &crate::system::diagram::Block,
         rect: Rect,
         style: &egui::Style,
         painter: &egui::Painter,
@@ -845,7 +846,7 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                 Some("subsystem · double-click to open")
             } else if block
                 .module_type
-                .starts_with(crate::diagram::BORDER_TYPE_PREFIX)
+                .starts_with(crate::system::diagram::BORDER_TYPE_PREFIX)
             {
                 Some("the subsystem's border")
             } else {
@@ -1012,7 +1013,7 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
         snarl: &mut Snarl<BlockId>,
     ) {
         let id = snarl[node];
-        if crate::diagram::border_of(id).is_some() {
+        if crate::system::diagram::border_of(id).is_some() {
             ui.label("the subsystem's border: its ports, linked inside");
             return;
         }
@@ -1085,7 +1086,7 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
             self.pin(snarl, to.id.node, to.id.input, PinSide::Input),
         ) {
             self.commands
-                .push(Command::RemoveLink(crate::diagram::Link {
+                .push(Command::RemoveLink(crate::system::diagram::Link {
                     from: from.port,
                     to: to.port,
                     fallback: 0,

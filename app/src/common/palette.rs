@@ -2,6 +2,7 @@
 //! describe mode on background threads, so that a slow or broken binary never freezes the
 //! window. A binary that fails to describe itself stays in the list as an error entry.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, TryRecvError, channel};
 use std::time::Duration;
@@ -9,8 +10,16 @@ use std::time::Duration;
 use armor_module_api::ModuleDescription;
 use armor_runtime::probe;
 
-use crate::diagram::Catalog;
-use crate::validation::BrokenType;
+/// The module descriptions the studio knows, keyed by module type.
+pub type Catalog = BTreeMap<String, ModuleDescription>;
+
+/// A module type whose binary is on the module path but failed to describe itself.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BrokenType {
+    pub module_type: String,
+    pub binary: String,
+    pub error: String,
+}
 
 /// One binary of the module path, described or not.
 #[derive(Clone, Debug)]

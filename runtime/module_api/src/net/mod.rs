@@ -17,6 +17,12 @@
 //! drains. The loop blocks in `epoll_wait` between events and never spins: measured on a 2-core
 //! machine, a spin before blocking cost more than it saved whenever the two ends shared a core
 //! (`docs/performance.md`, "Transport speed").
+//!
+//! This file holds the connections and the loop (accepting, reading, timers, closing); each
+//! role's messages are in a file of its own: `agent.rs` (the agent's and the supervisor's
+//! links: registering, lookups, configuration), `provider.rs` (this module's outputs: publishing
+//! to subscribers, pulls) and `subscriber.rs` (its inputs: linking to providers, answers,
+//! relinking).
 
 use std::io::{self, ErrorKind};
 use std::net::{SocketAddr, TcpStream};
@@ -36,6 +42,10 @@ use crate::protocol::{
     Advert, FromAgent, FromProvider, FromSupervisor, ToAgent, ToProvider, ToSupervisor,
 };
 use crate::wire::{Frame, FrameReader, OutBuffer, WireError};
+
+mod agent;
+mod provider;
+mod subscriber;
 
 const LISTENER: Token = Token(0);
 const AGENT_RETRY: Duration = Duration::from_millis(250);
@@ -338,20 +348,12 @@ impl Net {
         Ok(net)
     }
 
-    pub fn subscriber_count(&self, output: usize) -> usize {
-        self.subscribers.get(output).map_or(0, Vec::len)
-    }
-
     /// How many data connections this module has with others, linked or not yet.
     pub fn data_connections(&self) -> usize {
         self.conns
             .values()
             .filter(|conn| matches!(conn.role, Role::Peer(_)))
             .count()
-    }
-
-    pub fn is_linked(&self, input: usize) -> bool {
-        matches!(self.inputs.get(input), Some(InputLink::Linked(_)))
     }
 
     /// Registers a connection whose reader is set up.
@@ -426,61 +428,6 @@ impl Net {
         Ok(token)
     }
 
-    /// Everything this module serves, for the agent (a registration replaces the previous one).
-    fn registration(&self, core: &Core) -> ToAgent {
-        ToAgent::Register {
-            module: core.name.clone(),
-            outputs: core
-                .outputs
-                .iter()
-                .map(|slot| Advert {
-                    data_name: slot.data_name.clone(),
-                    data_type: slot.data_type.clone(),
-                    addr: self.listen_addr.to_string(),
-                    key: None,
-                })
-                .collect(),
-        }
-    }
-
-    /// A raw input was added to `core` at `index`: look its provider up.
-    pub fn add_input(&mut self, core: &Core, index: usize) {
-        debug_assert_eq!(index, self.inputs.len());
-        self.inputs.push(resolve_or_unbound(&core.inputs[index]));
-    }
-
-    /// A raw output was added to `core` (last): register everything again, so that the agent
-    /// knows it (if the agent is unreachable, the next connection registers it).
-    pub fn add_output(&mut self, core: &Core) {
-        self.subscribers.push(Vec::new());
-        if let Link::Up(token) = self.agent {
-            let register = self.registration(core);
-            self.queue_message(token, &register);
-        }
-    }
-
-    fn connect_agent(&mut self, core: &mut Core) {
-        match self.open(self.agent_addr, Role::Agent, None) {
-            Ok(token) => {
-                self.agent = Link::Up(token);
-                let register = self.registration(core);
-                self.queue_message(token, &register);
-                // Lookups that were waiting for the agent go out now.
-                for link in &mut self.inputs {
-                    if let InputLink::Asked { .. } = link {
-                        *link = InputLink::Resolve { at: Instant::now() };
-                    }
-                }
-            }
-            Err(err) => {
-                tracing::debug!(agent = %self.agent_addr, "cannot connect to the agent: {err}");
-                self.agent = Link::Down {
-                    retry_at: Instant::now() + AGENT_RETRY,
-                };
-            }
-        }
-    }
-
     fn queue_message<T: serde::Serialize>(&mut self, token: Token, message: &T) {
         if let Some(conn) = self.conns.get_mut(&token)
             && let Err(err) = conn
@@ -490,247 +437,6 @@ impl Net {
                 .push_message(message)
         {
             tracing::error!("cannot encode a control message: {err}");
-        }
-    }
-
-    pub fn tell_supervisor(&mut self, message: &ToSupervisor) {
-        match self.supervisor {
-            Link::Up(token) => self.queue_message(token, message),
-            Link::Down { .. } if self.supervisor_addr.is_some() => {
-                tracing::warn!(?message, "supervisor unreachable; report lost");
-            }
-            Link::Down { .. } => tracing::debug!(?message, "no supervisor (standalone run)"),
-        }
-    }
-
-    /// Drops the current link of an input and looks its provider up again.
-    pub fn relink(&mut self, core: &mut Core, input: usize) {
-        if let Some(InputLink::Connecting(token) | InputLink::Linked(token)) =
-            self.inputs.get(input).copied()
-        {
-            self.inputs[input] = InputLink::Unbound;
-            self.unsubscribe(core, token);
-        }
-        if let Some(link) = self.inputs.get_mut(input) {
-            *link = resolve_or_unbound(&core.inputs[input]);
-        }
-    }
-
-    /// Sends a frame, given in `parts` (the whole frame, or a header and the caller's payload),
-    /// to every subscriber of `output`.
-    pub fn publish(
-        &mut self,
-        core: &mut Core,
-        output: usize,
-        parts: &[&[u8]],
-    ) -> Result<(), ApiError> {
-        let frame_len: usize = parts.iter().map(|part| part.len()).sum();
-        let mut stalled = Vec::new();
-        let mut unfinished = Vec::new();
-        let mut now = None;
-        for &token in &self.subscribers[output] {
-            let Some(conn) = self.conns.get_mut(&token) else {
-                continue;
-            };
-            let Role::Peer(PeerLink {
-                serving:
-                    Some(Serving {
-                        reliable,
-                        min_interval,
-                        pull,
-                        ..
-                    }),
-                ..
-            }) = conn.role
-            else {
-                continue;
-            };
-            // A pull subscriber gets a sample only when it asked before there was one; a
-            // failed write shows as the connection's error at the next poll.
-            let pulled = std::mem::take(&mut conn.pull_pending);
-            if pull {
-                if pulled {
-                    conn.out.push_frame_parts(parts, false);
-                    let _ = conn.flush();
-                }
-                continue;
-            }
-            if let Some(min_interval) = min_interval {
-                let now = *now.get_or_insert_with(Instant::now);
-                if conn
-                    .last_sent
-                    .is_some_and(|last| now.saturating_duration_since(last) < min_interval)
-                {
-                    continue;
-                }
-                conn.last_sent = Some(now);
-            }
-            if reliable && frame_len >= BATCH_BYTES {
-                conn.make_room_for(frame_len);
-            }
-            if reliable
-                && conn.out.is_empty()
-                && frame_len >= BATCH_BYTES
-                && conn.link.is_sealing()
-                && conn.link.seal_frame(parts)
-            {
-                // An encrypted link: the frame is sealed from the caller's buffers into the
-                // records that wait for the socket.
-                if let Err(err) = conn.link.flush_pending()
-                    && err.kind() != ErrorKind::WouldBlock
-                {
-                    stalled.push(token);
-                    continue;
-                }
-            } else if reliable
-                && conn.out.is_empty()
-                && frame_len >= BATCH_BYTES
-                && !conn.link.is_sealing()
-            {
-                // A large frame with nothing queued before it goes out from the caller's
-                // buffers, all of it: what the socket does not take now is written as it drains
-                // (`finish_large_frame`), as a blocking write would, rather than copied. (A
-                // best-effort subscriber's queue may drop frames not yet started, so its frames
-                // are always queued whole.)
-                let slices: Vec<std::io::IoSlice<'_>> = parts
-                    .iter()
-                    .map(|part| std::io::IoSlice::new(part))
-                    .collect();
-                match std::io::Write::write_vectored(conn.stream(), &slices) {
-                    Ok(written) if written == frame_len => {}
-                    Ok(written) => {
-                        conn.writing_parts = true;
-                        unfinished.push((token, written));
-                    }
-                    Err(err) if err.kind() == ErrorKind::WouldBlock => {
-                        conn.writing_parts = true;
-                        unfinished.push((token, 0));
-                    }
-                    Err(_) => stalled.push(token),
-                }
-                continue;
-            } else {
-                conn.out.push_frame_parts(parts, !reliable);
-            }
-            let large_left = reliable && frame_len >= BATCH_BYTES && conn.pending_bytes() > 0;
-            if large_left || conn.out.pending_bytes() >= BATCH_BYTES {
-                match conn.flush() {
-                    Ok(_) if reliable && conn.pending_bytes() > backlog_limit(frame_len) => {
-                        stalled.push(token)
-                    }
-                    Ok(_) => {}
-                    Err(_) => stalled.push(token),
-                }
-            }
-        }
-        for (token, written) in unfinished {
-            self.finish_large_frame(core, token, parts, written)?;
-        }
-        for token in stalled {
-            self.wait_for_subscriber(core, token, backlog_limit(frame_len))?;
-        }
-        Ok(())
-    }
-
-    /// Writes the rest of a large frame (`parts`, of which `written` bytes went out) from the
-    /// publisher's buffers as the socket takes it, keeping the loop turning meanwhile (other
-    /// connections, this one's reads) as [`Net::wait_for_subscriber`] does; nothing else is
-    /// written to this socket until the frame is whole. A subscriber stuck for
-    /// [`RELIABLE_STALL`] is dropped.
-    fn finish_large_frame(
-        &mut self,
-        core: &mut Core,
-        token: Token,
-        parts: &[&[u8]],
-        mut written: usize,
-    ) -> Result<(), ApiError> {
-        let frame_len: usize = parts.iter().map(|part| part.len()).sum();
-        let give_up = Instant::now() + RELIABLE_STALL;
-        loop {
-            let Some(conn) = self.conns.get_mut(&token) else {
-                return Ok(());
-            };
-            let rest = unwritten(parts, written);
-            let slices: Vec<std::io::IoSlice<'_>> = rest
-                .iter()
-                .map(|part| std::io::IoSlice::new(part))
-                .collect();
-            match std::io::Write::write_vectored(conn.stream(), &slices) {
-                Ok(0) => {}
-                Ok(more) => {
-                    written += more;
-                    if written >= frame_len {
-                        conn.writing_parts = false;
-                        // What was queued for this connection meanwhile (answers) follows.
-                        if let Err(err) = conn.flush() {
-                            tracing::info!("subscriber went away: {err}");
-                            self.close(core, token);
-                        }
-                        return Ok(());
-                    }
-                    continue;
-                }
-                Err(err) if err.kind() == ErrorKind::WouldBlock => {}
-                Err(err) if err.kind() == ErrorKind::Interrupted => continue,
-                Err(err) => {
-                    tracing::info!("subscriber went away: {err}");
-                    conn.writing_parts = false;
-                    self.close(core, token);
-                    return Ok(());
-                }
-            }
-            if Instant::now() >= give_up {
-                tracing::warn!(
-                    "a reliable subscriber has not read for {RELIABLE_STALL:?}; dropping it"
-                );
-                conn.writing_parts = false;
-                self.close(core, token);
-                return Ok(());
-            }
-            // Wait for the socket to drain even when the module has events waiting (the loop
-            // turns without waiting then): they are kept, first, for its next `next_event`.
-            let waiting = std::mem::take(&mut core.events);
-            let polled = self.poll_once(core, Some(Instant::now() + Duration::from_millis(50)));
-            let arrived = std::mem::replace(&mut core.events, waiting);
-            core.events.extend(arrived);
-            if let Err(err) = polled {
-                // Half a frame went out: the connection cannot carry anything else.
-                self.close(core, token);
-                return Err(err);
-            }
-        }
-    }
-
-    /// Back-pressure for a reliable subscriber: keep the loop turning (other connections too)
-    /// until its backlog drains, or drop it if it stays stuck.
-    fn wait_for_subscriber(
-        &mut self,
-        core: &mut Core,
-        token: Token,
-        limit: usize,
-    ) -> Result<(), ApiError> {
-        let give_up = Instant::now() + RELIABLE_STALL;
-        loop {
-            let Some(conn) = self.conns.get_mut(&token) else {
-                return Ok(());
-            };
-            match conn.flush() {
-                Ok(_) if conn.pending_bytes() <= limit => return Ok(()),
-                Ok(_) => {}
-                Err(err) => {
-                    tracing::info!("subscriber went away: {err}");
-                    self.close(core, token);
-                    return Ok(());
-                }
-            }
-            if Instant::now() >= give_up {
-                tracing::warn!(
-                    "a reliable subscriber has not read for {RELIABLE_STALL:?}; dropping it"
-                );
-                self.close(core, token);
-                return Ok(());
-            }
-            self.poll_once(core, Some(Instant::now() + Duration::from_millis(50)))?;
         }
     }
 
@@ -1071,216 +777,6 @@ impl Net {
         }
     }
 
-    fn on_agent(&mut self, core: &mut Core, message: FromAgent) {
-        match message {
-            FromAgent::Registered => {
-                self.agent_lost_logged = false;
-                tracing::debug!("registered with the agent");
-            }
-            FromAgent::Provider(advert) => {
-                // An answer, or the agent telling of a provider asked for in vain before.
-                for index in 0..self.inputs.len() {
-                    let waiting = matches!(
-                        self.inputs[index],
-                        InputLink::Asked { .. } | InputLink::Resolve { .. }
-                    ) && core.inputs[index].source.as_deref()
-                        == Some(advert.data_name.as_str());
-                    if waiting {
-                        self.connect_input(core, index, &advert);
-                    }
-                }
-            }
-            FromAgent::Unknown { data_name } => {
-                for index in 0..self.inputs.len() {
-                    if matches!(self.inputs[index], InputLink::Asked { .. })
-                        && core.inputs[index].source.as_deref() == Some(data_name.as_str())
-                    {
-                        self.inputs[index] = InputLink::Resolve {
-                            at: Instant::now() + UNKNOWN_RETRY,
-                        };
-                    }
-                }
-            }
-            FromAgent::Error { message } => tracing::warn!("agent: {message}"),
-        }
-    }
-
-    /// Subscribes input `index` to the provider `advert` tells of: on a connection that
-    /// provider already has with this module (it subscribed here) if that carries no input yet,
-    /// else on a new one.
-    fn connect_input(&mut self, core: &mut Core, index: usize, advert: &Advert) {
-        let retry = InputLink::Resolve {
-            at: Instant::now() + RELINK_DELAY,
-        };
-        let Ok(addr) = advert.addr.parse::<SocketAddr>() else {
-            tracing::warn!(addr = advert.addr, "agent gave an unreadable address");
-            self.inputs[index] = retry;
-            return;
-        };
-        // A subscribe from that provider may be waiting on a connection not accepted yet.
-        self.accept_all(core);
-        let shared = self
-            .conns
-            .iter()
-            .find_map(|(&token, conn)| match conn.role {
-                Role::Peer(PeerLink {
-                    input: None,
-                    peer_addr: Some(peer),
-                    ..
-                }) if peer == addr => Some(token),
-                _ => None,
-            });
-        if shared.is_none() && self.awaits_identification() {
-            // At most IDENTIFY_WAIT_MAX in all, whoever keeps connecting.
-            let since = *self
-                .identify_since
-                .entry(index)
-                .or_insert_with(Instant::now);
-            if since.elapsed() < IDENTIFY_WAIT_MAX {
-                self.inputs[index] = InputLink::Resolve {
-                    at: Instant::now() + IDENTIFY_POLL,
-                };
-                return;
-            }
-        }
-        self.identify_since.remove(&index);
-        let ticket = match (&self.credentials, &advert.key) {
-            (None, _) => None,
-            (Some(_), Some(key)) => match Key::from_hex(key) {
-                Some(key) => Some(key),
-                None => {
-                    tracing::warn!(
-                        data_name = advert.data_name,
-                        "agent gave an unreadable link key"
-                    );
-                    self.inputs[index] = retry;
-                    return;
-                }
-            },
-            (Some(_), None) => {
-                tracing::warn!(
-                    data_name = advert.data_name,
-                    "the agent gave no link key for this provider (does it run with the secret?)"
-                );
-                self.inputs[index] = retry;
-                return;
-            }
-        };
-        // Kept: a subscription on a connection the provider opened proves it.
-        if let Some(ticket) = &ticket {
-            self.tickets.insert(index, ticket.clone());
-        }
-        let token = match shared {
-            Some(token) => token,
-            None => match self.open(
-                addr,
-                Role::Peer(PeerLink {
-                    peer_addr: Some(addr),
-                    ..PeerLink::default()
-                }),
-                ticket,
-            ) {
-                Ok(token) => {
-                    if let Some(conn) = self.conns.get_mut(&token) {
-                        conn.peer = self
-                            .credentials
-                            .as_ref()
-                            .and(advert.data_name.split_once('.'))
-                            .map(|(module, _)| module.to_owned());
-                    }
-                    token
-                }
-                Err(err) => {
-                    tracing::debug!(%addr, "cannot connect to provider: {err}");
-                    self.inputs[index] = retry;
-                    return;
-                }
-            },
-        };
-        let slot = &mut core.inputs[index];
-        if slot.raw {
-            // A raw input takes whatever its provider serves.
-            slot.data_type.clone_from(&advert.data_type);
-        }
-        self.subscribe_on(core, token, index);
-    }
-
-    /// Whether, with a shared secret, a peer whose first handshake message proved a key less
-    /// than [`IDENTIFY_WAIT`] ago has not subscribed yet (it is in the middle of the
-    /// handshake). A connection that has sent nothing valid, a stranger's, never counts; the
-    /// wait is bounded in all by [`IDENTIFY_WAIT_MAX`].
-    fn awaits_identification(&self) -> bool {
-        let now = Instant::now();
-        self.credentials.is_some()
-            && self.conns.values().any(|conn| {
-                matches!(
-                    conn.role,
-                    Role::Peer(PeerLink {
-                        input: None,
-                        serving: None,
-                        peer_addr: None,
-                        ..
-                    })
-                ) && conn.identify_by.is_some_and(|until| until > now)
-            })
-    }
-
-    /// Sends the subscribe of input `index` on `token`, which then feeds it.
-    fn subscribe_on(&mut self, core: &Core, token: Token, index: usize) {
-        let slot = &core.inputs[index];
-        // On a connection the provider opened, the link key it proved was for the other
-        // direction: this one is proven by the ticket the agent gave for it.
-        let proof = self
-            .conns
-            .get(&token)
-            .filter(|conn| !conn.dialed)
-            .and_then(|conn| conn.binding.as_deref())
-            .zip(self.tickets.get(&index))
-            .map(|(binding, ticket)| crate::auth::reverse_proof(ticket, binding));
-        let subscribe = ToProvider::Subscribe {
-            proof,
-            data_name: slot.source.clone().unwrap_or_default(),
-            data_type: slot.data_type.clone(),
-            subscriber: format!("{}.{}", core.name, slot.name),
-            reliable: slot.reliable,
-            max_rate_hz: slot.max_rate_hz,
-            pull: slot.pull,
-            subscriber_addr: Some(self.listen_addr.to_string()),
-        };
-        self.queue_message(token, &subscribe);
-        if let Some(conn) = self.conns.get_mut(&token) {
-            if let Role::Peer(link) = &mut conn.role {
-                link.input = Some(index);
-            }
-            // Out at once: a peer subscribing here at the same moment sees this first (see
-            // `join_peer_connection`). A failed write shows at the next poll.
-            let _ = conn.flush();
-        }
-        self.inputs[index] = InputLink::Connecting(token);
-    }
-
-    fn on_supervisor(&mut self, core: &mut Core, token: Token, message: FromSupervisor) {
-        match message {
-            FromSupervisor::Config(config) => {
-                for input in core.apply_config(config) {
-                    self.relink(core, input);
-                }
-                self.queue_message(token, &ToSupervisor::Ready);
-            }
-            FromSupervisor::Start => core.set_active(true),
-            FromSupervisor::Stop => core.set_active(false),
-            FromSupervisor::Shutdown => core.events.push_back(crate::Event::Shutdown),
-            FromSupervisor::Ping => self.queue_message(
-                token,
-                &ToSupervisor::Pong {
-                    stats: Some(core.stats()),
-                },
-            ),
-            FromSupervisor::Error { message } => tracing::error!("supervisor: {message}"),
-            FromSupervisor::Health { seq, health } => core.on_health(seq, &health),
-        }
-    }
-
     fn on_peer(
         &mut self,
         core: &mut Core,
@@ -1344,79 +840,6 @@ impl Net {
         Ok(())
     }
 
-    /// The provider's answer to the subscribe of input `index`.
-    fn on_answer(&mut self, core: &mut Core, token: Token, index: usize, answer: FromProvider) {
-        match answer {
-            FromProvider::Subscribed => {
-                if self.joined_peer_connection(core, token, index) {
-                    return;
-                }
-                core.inputs[index].link += 1;
-                tracing::info!(
-                    input = core.inputs[index].name,
-                    source = core.inputs[index].source.as_deref().unwrap_or_default(),
-                    "input linked"
-                );
-                self.inputs[index] = InputLink::Linked(token);
-            }
-            FromProvider::Refused { reason } => {
-                tracing::warn!(
-                    input = core.inputs[index].name,
-                    "provider refused: {reason}"
-                );
-                self.drop_input_link(token);
-                self.inputs[index] = InputLink::Resolve {
-                    at: Instant::now() + Duration::from_secs(1),
-                };
-            }
-            // Taken in `on_peer`, since it answers no subscription.
-            FromProvider::Unsubscribed => {}
-        }
-    }
-
-    /// The input fed on `token` is given up: a connection that also serves the peer stays up
-    /// (the peer is asked to stop sending, and what it sent meanwhile is dropped); any other
-    /// closes.
-    fn unsubscribe(&mut self, core: &mut Core, token: Token) {
-        let Some(conn) = self.conns.get_mut(&token) else {
-            return;
-        };
-        let Role::Peer(link) = &mut conn.role else {
-            return;
-        };
-        if link.serving.is_none() {
-            self.close(core, token);
-            return;
-        }
-        link.input = None;
-        link.unsubscribing = link.unsubscribing.saturating_add(1);
-        // A reliable input that stopped reading holds nothing back any more: what the peer
-        // sent is read now (and dropped), or the answer could wait behind it for ever.
-        let paused = std::mem::take(&mut conn.paused);
-        self.queue_message(token, &ToProvider::Unsubscribe);
-        if paused {
-            self.read_conn(core, token, UntilBlocked::Always);
-        }
-    }
-
-    /// The subscriber on `token` gives its subscription up: the connection stays for the other
-    /// direction.
-    fn on_unsubscribe(&mut self, core: &Core, token: Token) {
-        let Some(conn) = self.conns.get_mut(&token) else {
-            return;
-        };
-        conn.pull_pending = false;
-        conn.last_sent = None;
-        if let Role::Peer(link) = &mut conn.role
-            && let Some(Serving { output, .. }) = link.serving.take()
-        {
-            self.subscribers[output].retain(|&other| other != token);
-            tracing::info!(output = core.outputs[output].name, "subscriber left");
-        }
-        self.queue_message(token, &FromProvider::Unsubscribed);
-        self.close_if_idle(token);
-    }
-
     /// Closes `token` once it carries nothing either way (both sides gave their subscriptions
     /// up), after writing what is queued.
     fn close_if_idle(&mut self, token: Token) {
@@ -1433,251 +856,6 @@ impl Net {
         });
         if idle && let Some(mut conn) = self.remove_conn(token) {
             let _ = conn.flush();
-        }
-    }
-
-    /// The connection `token` no longer feeds an input: closed, unless it serves the peer.
-    fn drop_input_link(&mut self, token: Token) {
-        match self.conns.get_mut(&token).map(|conn| &mut conn.role) {
-            Some(Role::Peer(link)) if link.serving.is_some() => link.input = None,
-            _ => {
-                self.remove_conn(token);
-            }
-        }
-    }
-
-    /// A subscriber asks for the latest sample of `output`: written now if there is one, else
-    /// the next one sent.
-    fn on_pull(&mut self, token: Token, output: usize) {
-        if self.pulled.len() <= output {
-            self.pulled.resize(output + 1, false);
-        }
-        self.pulled[output] = true;
-        let Some(conn) = self.conns.get_mut(&token) else {
-            return;
-        };
-        match self.latest.get(output).filter(|frame| !frame.is_empty()) {
-            Some(frame) => {
-                conn.out.push_frame(frame, false);
-                // A failed write shows as the connection's error at the next poll.
-                let _ = conn.flush();
-            }
-            None => conn.pull_pending = true,
-        }
-    }
-
-    /// Whether the latest frame of `output` is worth a copy: it has a pull-mode subscriber, or
-    /// was pulled before. (A frame encoded in the node's buffer is kept anyway, by a swap.)
-    fn wants_latest_copy(&self, output: usize) -> bool {
-        self.pulled.get(output).copied().unwrap_or(false)
-            || self.subscribers[output].iter().any(|token| {
-                self.conns.get(token).is_some_and(|conn| {
-                    matches!(
-                        conn.role,
-                        Role::Peer(PeerLink {
-                            serving: Some(Serving { pull: true, .. }),
-                            ..
-                        })
-                    )
-                })
-            })
-    }
-
-    /// Keeps the frame in `parts`, just published on `output`, as its latest: copied if
-    /// [`Net::wants_latest_copy`], else none is kept (a pull then gets the next one).
-    pub fn keep_latest_parts(&mut self, output: usize, parts: &[&[u8]]) {
-        let copy = self.wants_latest_copy(output);
-        if self.latest.len() <= output {
-            self.latest.resize_with(output + 1, Vec::new);
-        }
-        let latest = &mut self.latest[output];
-        latest.clear();
-        if copy {
-            for part in parts {
-                latest.extend_from_slice(part);
-            }
-        }
-    }
-
-    /// Keeps `frame`, just published on `output`, as its latest (taking the buffer and giving
-    /// back the previous one, cleared).
-    pub fn keep_latest(&mut self, output: usize, frame: &mut Vec<u8>) {
-        if self.latest.len() <= output {
-            self.latest.resize_with(output + 1, Vec::new);
-        }
-        std::mem::swap(&mut self.latest[output], frame);
-        frame.clear();
-    }
-
-    /// Asks the provider of `input` for its latest sample; `false` if it is not linked.
-    pub fn pull(&mut self, input: usize) -> bool {
-        let Some(InputLink::Linked(token)) = self.inputs.get(input).copied() else {
-            return false;
-        };
-        self.queue_message(token, &ToProvider::Pull);
-        true
-    }
-
-    fn on_subscribe(&mut self, core: &mut Core, token: Token, message: ToProvider) {
-        let ToProvider::Subscribe {
-            data_name,
-            data_type,
-            subscriber,
-            reliable,
-            max_rate_hz,
-            pull,
-            subscriber_addr,
-            proof,
-        } = message
-        else {
-            return;
-        };
-        // With a secret, a subscription on a connection this module opened comes from the
-        // provider it dialled, whose link key was issued for the other direction: it must
-        // prove the one the agent issued it for this module's port.
-        let unproven_reverse = match (&self.credentials, self.conns.get(&token)) {
-            (Some(credentials), Some(conn)) if conn.dialed => {
-                let binding = conn.binding.as_deref().unwrap_or_default();
-                let peer = conn.peer.as_deref().unwrap_or_default();
-                let ticket = credentials.key.link_key(peer);
-                !proof
-                    .is_some_and(|proof| crate::auth::check_reverse_proof(&ticket, binding, &proof))
-            }
-            _ => false,
-        };
-        // A reliable subscriber takes every sample; a rate that is not a positive number is
-        // no limit.
-        let min_interval = max_rate_hz
-            .filter(|rate| !reliable && rate.is_finite() && *rate > 0.0)
-            .and_then(|rate| Duration::try_from_secs_f64(1.0 / rate).ok());
-        let found = core
-            .outputs
-            .iter()
-            .position(|slot| slot.data_name == data_name);
-        let proven = self.conns.get(&token).and_then(|conn| conn.peer.clone());
-        let refusal = match found {
-            _ if unproven_reverse => Some(format!(
-                "`{subscriber}` subscribes back on a connection `{}` opened, without the link \
-                 key for this direction (the agent gives it only to who may subscribe)",
-                core.name
-            )),
-            // With a secret, a subscriber's name is its proven module's.
-            _ if proven.as_ref().is_some_and(|module| {
-                subscriber.split_once('.').map(|(name, _)| name) != Some(module.as_str())
-            }) =>
-            {
-                Some(format!(
-                    "`{subscriber}` is not an input of `{}`, which this connection proved to be",
-                    proven.unwrap_or_default()
-                ))
-            }
-            None => Some(format!("`{}` does not serve `{data_name}`", core.name)),
-            Some(output) if core.outputs[output].data_type != data_type => Some(format!(
-                "`{data_name}` carries {}, not {data_type}",
-                core.outputs[output].data_type
-            )),
-            Some(_) => None,
-        };
-        let reply = match &refusal {
-            Some(reason) => FromProvider::Refused {
-                reason: reason.clone(),
-            },
-            None => FromProvider::Subscribed,
-        };
-        self.queue_message(token, &reply);
-        let Some(conn) = self.conns.get_mut(&token) else {
-            return;
-        };
-        let _ = conn.flush();
-        let Role::Peer(link) = &mut conn.role else {
-            return;
-        };
-        match (refusal, found) {
-            (None, Some(output)) => {
-                link.serving = Some(Serving {
-                    output,
-                    reliable,
-                    min_interval,
-                    pull,
-                });
-                let peer_addr = subscriber_addr.and_then(|addr| match addr.parse::<SocketAddr>() {
-                    Ok(addr) => Some(addr),
-                    Err(_) => {
-                        tracing::warn!(subscriber, addr, "unreadable subscriber_addr: not shared");
-                        None
-                    }
-                });
-                if link.peer_addr.is_none() {
-                    link.peer_addr = peer_addr;
-                }
-                conn.handshake_deadline = None;
-                self.subscribers[output].push(token);
-                tracing::info!(subscriber, data_name, "subscriber linked");
-                if let Some(peer_addr) = peer_addr {
-                    self.join_peer_connection(core, token, peer_addr);
-                }
-            }
-            (refusal, _) => {
-                tracing::warn!(subscriber, "refused: {}", refusal.unwrap_or_default());
-                if link.input.is_none() {
-                    self.remove_conn(token);
-                }
-            }
-        }
-    }
-
-    /// Input `index` is answered on `token`, a connection this module opened: if the peer
-    /// subscribed here on a connection of its own in the meantime (sent before this answer, so
-    /// already pending), the input moves to that one, and `true` is returned.
-    fn joined_peer_connection(&mut self, core: &mut Core, token: Token, index: usize) -> bool {
-        let peer_addr = match self.conns.get(&token).map(|conn| conn.role) {
-            Some(Role::Peer(PeerLink {
-                serving: None,
-                peer_addr: Some(addr),
-                ..
-            })) => addr,
-            _ => return false,
-        };
-        if self.listen_addr <= peer_addr {
-            return false;
-        }
-        self.accept_all(core);
-        self.inputs[index] != InputLink::Connecting(token)
-    }
-
-    /// Two modules that subscribe to each other at the same moment open a connection each.
-    /// Both see the peer's subscribe arrive on the peer's connection; the one with the higher
-    /// data address then gives its own connection up, if its subscription there is still
-    /// unanswered (so no sample of it has been taken), and subscribes again on the peer's.
-    /// The other keeps its own, so both choose the same connection.
-    fn join_peer_connection(&mut self, core: &Core, token: Token, peer_addr: SocketAddr) {
-        let free = matches!(
-            self.conns.get(&token).map(|conn| conn.role),
-            Some(Role::Peer(PeerLink { input: None, .. }))
-        );
-        if self.listen_addr <= peer_addr || !free {
-            return;
-        }
-        let own = self
-            .conns
-            .iter()
-            .find_map(|(&other, conn)| match conn.role {
-                Role::Peer(PeerLink {
-                    input: Some(index),
-                    serving: None,
-                    peer_addr: Some(addr),
-                    ..
-                }) if other != token
-                    && addr == peer_addr
-                    && self.inputs[index] == InputLink::Connecting(other) =>
-                {
-                    Some((other, index))
-                }
-                _ => None,
-            });
-        if let Some((other, index)) = own {
-            self.remove_conn(other);
-            self.subscribe_on(core, token, index);
         }
     }
 
@@ -1762,28 +940,30 @@ enum UntilBlocked {
     Always,
 }
 
-/// What is left of `parts` after its first `written` bytes.
-fn unwritten<'a>(parts: &[&'a [u8]], mut written: usize) -> Vec<&'a [u8]> {
-    let mut rest = Vec::with_capacity(parts.len());
-    for part in parts {
-        if written >= part.len() {
-            written -= part.len();
-        } else {
-            rest.push(&part[written..]);
-            written = 0;
-        }
-    }
-    rest
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::InputSlot;
 
-/// How much a reliable subscriber may have queued before the publisher waits for it. Small
-/// frames are batched up to [`RELIABLE_BACKLOG_BYTES`]; after a large one the publisher waits
-/// until the queue is written, so that the next large frame goes out from the sender's buffer
-/// instead of being copied behind it.
-fn backlog_limit(frame_len: usize) -> usize {
-    if frame_len >= BATCH_BYTES {
-        0
-    } else {
-        RELIABLE_BACKLOG_BYTES
+    #[test]
+    fn an_input_is_looked_up_only_when_the_agent_can_name_its_provider() {
+        let slot = |source: Option<&str>| {
+            InputSlot::new(
+                "scan".to_owned(),
+                "LaserScan".to_owned(),
+                source.map(str::to_owned),
+                None,
+            )
+        };
+        assert_eq!(resolve_or_unbound(&slot(None)), InputLink::Unbound);
+        // The run's health stream comes on the supervisor's connection, not from a provider.
+        assert_eq!(
+            resolve_or_unbound(&slot(Some(crate::protocol::HEALTH))),
+            InputLink::Unbound
+        );
+        assert!(matches!(
+            resolve_or_unbound(&slot(Some("sim.scan"))),
+            InputLink::Resolve { .. }
+        ));
     }
 }

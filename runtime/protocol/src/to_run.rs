@@ -1,0 +1,66 @@
+//! From a client to the run: the requests, and each one's number on the link.
+
+use armor_module_api::auth::Role;
+use serde::{Deserialize, Serialize};
+
+/// The environment variable that gives `armor ctl` the run's control address.
+pub const ENV_CONTROL: &str = "ARMOR_CONTROL";
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "command", rename_all = "snake_case")]
+pub enum Request {
+    Status,
+    Pause,
+    Resume,
+    Abort,
+    Fire {
+        transition: String,
+    },
+    /// Start a controllable module by hand, whatever the mission wants, until released.
+    StartModule {
+        module: String,
+    },
+    /// Stop a controllable module by hand, until released.
+    StopModule {
+        module: String,
+    },
+    /// Give a module back to the mission (or, without one, to running).
+    ReleaseModule {
+        module: String,
+    },
+    /// Drive the robot: relayed to the run's teleop module (`module`, or the only module of
+    /// type `teleop`), which holds the command for its dead-man time: an operator sends it again
+    /// while driving. Zero speeds are sent as `stop`.
+    Teleop {
+        linear: f64,
+        angular: f64,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        module: Option<String>,
+    },
+    /// The run's files, for a client that attaches without them: the system file, the
+    /// mission's and the files the system's parameters name ([`RunFiles`]).
+    Files,
+    /// Tell the localiser where the robot is (rviz's "2D Pose Estimate"): its `set_pose`
+    /// parameter is set to `X Y HEADING_DEG` over the system file's, for the rest of the run.
+    /// `module`, or the only module of type `localiser`.
+    SetPose {
+        x_m: f64,
+        y_m: f64,
+        heading_deg: f64,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        module: Option<String>,
+    },
+}
+
+/// A request on the control link, numbered by the client from 1: the run answers only the
+/// next number, so a request replayed, reordered or dropped on the way ends the connection.
+#[derive(Debug, Serialize, Deserialize)]
+pub struct ToRun {
+    pub seq: u64,
+    pub request: Request,
+}
+
+/// Whether a role may make a request: an observer only reads.
+pub fn allowed(role: Role, request: &Request) -> bool {
+    role == Role::Operator || matches!(request, Request::Status | Request::Files)
+}
