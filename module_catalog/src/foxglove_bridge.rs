@@ -171,7 +171,7 @@ struct Settings {
 
 impl Settings {
     fn read(node: &Node) -> Result<Self, BodyError> {
-        let topics = parse_topics(&node.param::<String>("topics")?)?;
+        let topics = crate::recorder::data_names("topics", &node.param::<String>("topics")?)?;
         let listen = loopback(node.param::<String>("listen")?.trim())?;
         let robot_pose = node.param::<String>("robot_pose")?.trim().to_owned();
         let robot_pose = if robot_pose.is_empty() {
@@ -192,25 +192,6 @@ impl Settings {
             max_rate_hz: node.param::<f64>("max_rate_hz")?,
         })
     }
-}
-
-/// The data names of `topics`, each once, in order.
-fn parse_topics(value: &str) -> Result<Vec<String>, BodyError> {
-    let mut topics: Vec<String> = Vec::new();
-    for name in value.split(',').map(str::trim) {
-        if name.is_empty() {
-            continue;
-        }
-        if !topics.iter().any(|known| known == name) {
-            topics.push(name.to_owned());
-        }
-    }
-    if topics.is_empty() {
-        return Err(
-            "`topics` names no data: give data names such as `sim.pose_truth,sim.scan`".into(),
-        );
-    }
-    Ok(topics)
 }
 
 /// `listen` as a loopback address: Foxglove's clients cannot authenticate, so nothing else.

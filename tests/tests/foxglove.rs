@@ -34,60 +34,50 @@ const TOPICS: [(&str, &str); 8] = [
     ("/tf", "foxglove.FrameTransform"),
 ];
 
-/// The yard's robot, mapping and localising, with the bridge.
+/// The bundled robot system of the yard (`missions/robot/system.xml`), its files given by
+/// their full paths, its follower given a path as a compiled plan gives it (it then publishes
+/// the path it follows), with a mapper and the bridge added.
 fn system(dir: &Path) -> PathBuf {
     let world = workspace_root().join("assets/worlds/yard.world");
-    let world = world.display();
     let topics: Vec<&str> = TOPICS
         .iter()
         .map(|(topic, _)| *topic)
         .filter(|topic| !topic.starts_with('/'))
         .collect();
-    let file = dir.join("foxglove.xml");
-    std::fs::write(
-        &file,
-        format!(
-            r#"<system name="foxglove-yard">
-  <module name="sim" type="sim"><param name="world" value="{world}"/></module>
-  <module name="localiser" type="localiser"><param name="world" value="{world}"/></module>
-  <module name="mapper" type="mapper"/>
-  <module name="follower" type="follower">
-    <param name="world" value="{world}"/>
-    <param name="goal_x_m" value="16"/>
-    <param name="goal_y_m" value="4"/>
-    <!-- As a compiled plan gives it: the follower publishes the path it follows. -->
-    <param name="path" value="4,4 16,4"/>
-  </module>
-  <module name="avoider" type="avoider"/>
-  <module name="camera" type="camera-sim">
-    <param name="world" value="{world}"/>
-    <param name="encoding" value="jpeg"/>
-    <param name="max_real_hz" value="10"/>
-  </module>
-  <module name="mux" type="mux"/>
+    let added = format!(
+        r#"  <module name="mapper" type="mapper"/>
   <module name="fox" type="foxglove">
     <param name="topics" value="{}"/>
     <param name="listen" value="127.0.0.1:0"/>
     <param name="robot_pose" value="sim.pose_truth"/>
   </module>
-  <link from="sim.pose_truth" to="camera.pose"/>
-  <link from="sim.odometry" to="localiser.odometry"/>
-  <link from="sim.scan" to="localiser.scan"/>
   <link from="sim.odometry" to="mapper.odometry"/>
   <link from="sim.scan" to="mapper.scan"/>
-  <link from="localiser.pose" to="follower.odometry"/>
-  <link from="localiser.estimate" to="follower.estimate"/>
-  <link from="sim.scan" to="avoider.scan"/>
-  <link from="sim.scan" to="follower.scan"/>
-  <link from="follower.cmd_desired" to="avoider.cmd_desired"/>
-  <link from="avoider.cmd_vel" to="mux.auto"/>
-  <link from="mux.cmd_vel" to="sim.cmd_vel"/>
-</system>
-"#,
-            topics.join(",")
+</system>"#,
+        topics.join(",")
+    );
+    let mut text =
+        std::fs::read_to_string(workspace_root().join("missions/robot/system.xml")).unwrap();
+    for (from, to) in [
+        (
+            r#"value="yard.world""#.to_owned(),
+            format!(r#"value="{}""#, world.display()),
         ),
-    )
-    .unwrap();
+        (
+            r#"value="truth.mcap""#.to_owned(),
+            format!(r#"value="{}""#, dir.join("truth.mcap").display()),
+        ),
+        (
+            r#"<param name="goal_y_m" value="4"/>"#.to_owned(),
+            r#"<param name="goal_y_m" value="4"/><param name="path" value="4,4 16,4"/>"#.to_owned(),
+        ),
+        ("</system>".to_owned(), added),
+    ] {
+        assert!(text.contains(&from), "system.xml has no `{from}`");
+        text = text.replace(&from, &to);
+    }
+    let file = dir.join("foxglove.xml");
+    std::fs::write(&file, text).unwrap();
     file
 }
 

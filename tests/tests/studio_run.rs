@@ -174,6 +174,25 @@ fn stop_the_drivers(harness: &mut Harness<'_, StudioApp>) {
     });
 }
 
+/// The robot system running at `time_scale` in a studio, every module up, the follower and
+/// the observer stopped: the operator drives alone, with the pad on screen.
+fn ready_to_drive(dir: &Path, time_scale: f64) -> Harness<'static, StudioApp> {
+    let system = robot_system(dir);
+    let mut harness = harness(dir);
+    open_and_run(&mut harness, &system, time_scale);
+    step_until(&mut harness, "every module running", PATIENCE, |app| {
+        app.run().live().truth.is_some()
+            && status(app)
+                .modules
+                .iter()
+                .all(|module| module.state == ModuleState::Running)
+    });
+    stop_the_drivers(&mut harness);
+    harness.run_ok();
+    harness.get_by_label("forward");
+    harness
+}
+
 fn truth_x(app: &StudioApp) -> Option<f64> {
     app.run().live().truth.map(|pose| pose.x_m)
 }
@@ -427,19 +446,7 @@ fn a_module_killed_from_outside_shows_crashed_then_running_again() {
 #[test]
 fn the_robot_is_driven_with_the_keys_and_its_recording_replays() {
     let dir = tempfile::tempdir().unwrap();
-    let system = robot_system(dir.path());
-    let mut harness = harness(dir.path());
-    open_and_run(&mut harness, &system, 1.0);
-    step_until(&mut harness, "every module running", PATIENCE, |app| {
-        app.run().live().truth.is_some()
-            && status(app)
-                .modules
-                .iter()
-                .all(|module| module.state == ModuleState::Running)
-    });
-    stop_the_drivers(&mut harness);
-    harness.run_ok();
-    harness.get_by_label("forward");
+    let mut harness = ready_to_drive(dir.path(), 1.0);
     let rest = Instant::now() + Duration::from_millis(800);
     step_until(&mut harness, "the robot at rest", PATIENCE, |_| {
         Instant::now() > rest
@@ -492,19 +499,7 @@ fn mux_switches(app: &StudioApp) -> Vec<String> {
 #[test]
 fn at_ten_times_real_time_a_held_arrow_keeps_teleop_in_control_and_release_stops_the_robot() {
     let dir = tempfile::tempdir().unwrap();
-    let system = robot_system(dir.path());
-    let mut harness = harness(dir.path());
-    open_and_run(&mut harness, &system, 10.0);
-    step_until(&mut harness, "every module running", PATIENCE, |app| {
-        app.run().live().truth.is_some()
-            && status(app)
-                .modules
-                .iter()
-                .all(|module| module.state == ModuleState::Running)
-    });
-    stop_the_drivers(&mut harness);
-    harness.run_ok();
-    harness.get_by_label("forward");
+    let mut harness = ready_to_drive(dir.path(), 10.0);
     let start = truth_pose(harness.state()).unwrap();
 
     // Left turns on the spot: the yard's walls cannot stop the robot in the operator's stead.
