@@ -1262,16 +1262,22 @@ mod tests {
             "a leg planned on the map is not a recovery"
         );
         let points = follower.pursuit.as_ref().expect("path").points().to_vec();
-        // Round both walls at once: north of the first, south of the second.
-        let crossing = |x: f64| {
-            points.windows(2).find_map(|pair| {
-                let (a, b) = (pair[0], pair[1]);
-                ((a.x - x) * (b.x - x) <= 0.0 && a.x != b.x)
-                    .then(|| a.y + (b.y - a.y) * (x - a.x) / (b.x - a.x))
+        // Round both walls at once (the way round the second, still unseen beyond the map's
+        // walls, is taken as open): every point of the path as far from every wall as the
+        // robot keeps, but for the cells' half width.
+        let walls = follower.live_map.as_ref().expect("a map").walls().to_vec();
+        let samples = points.windows(2).flat_map(|pair| {
+            let (a, b) = (pair[0], pair[1]);
+            let steps = (geo::distance(a, b) / 0.05).ceil().max(1.0) as usize;
+            (0..=steps).map(move |i| {
+                let t = i as f64 / steps as f64;
+                Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t)
             })
-        };
-        assert!(crossing(4.0).is_some_and(|y| y > 7.3), "{points:?}");
-        assert!(crossing(8.0).is_some_and(|y| y < 2.7), "{points:?}");
+        });
+        let nearest = samples
+            .flat_map(|p| walls.iter().map(move |w| geo::distance(p, *w)))
+            .fold(f64::INFINITY, f64::min);
+        assert!(nearest >= 0.35 - 0.05, "{nearest} m: {points:?}");
         // The same map again: the path keeps clear of it, nothing to plan.
         follower.on_map(live_grid(|x, y| {
             ((x - 4.0).abs() < 0.1 && y < 7.0) || ((x - 8.0).abs() < 0.1 && y > 3.0)
