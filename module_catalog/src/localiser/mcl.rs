@@ -1047,7 +1047,7 @@ impl Filter {
             || self.agreement < LOST_AGREEMENT
         {
             State::Lost
-        } else if scanned
+        } else if (scanned || self.estimate.state == State::Localised)
             && second_weight < SIGNIFICANT_CLUSTER
             && self.agreement >= agreement_needed
             && estimate.sigma_m() <= t.localised_sigma_m * slack

@@ -18,7 +18,7 @@
 //! `recover`, spreads its particles over the map's free space (global mode); a place found so
 //! must hold while the robot drives on before it is called `localised`. When the scans stop
 //! coming ([`SCANS_LATE_SECS`]), the filter goes on on the odometry alone, its covariance
-//! growing, and publishes that estimate (never `localised` without a scan).
+//! growing, and publishes that estimate (never becoming `localised` without a scan).
 //!
 //! The initial pose is the world's start (the simulator's), or `x_m`, `y_m`, `heading_deg`;
 //! `global` starts in global mode. `set_pose` ("X Y HEADING_DEG", tunable live) puts the
@@ -497,5 +497,68 @@ pub fn body(node: &mut Node) -> BodyResult {
             Event::Shutdown => return Ok(()),
             _ => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::tour::{Tour, WAREHOUSE_ROUND};
+    use crate::sim::{SimParams, Simulator};
+    use armor_module_api::testing::{Step, TestBench};
+
+    fn push<T: armor_module_api::types::Datum>(input: &str, value: &T) -> Step {
+        Step::push(input, value).expect("encode")
+    }
+
+    /// The module with a laser that goes quiet: estimates at each scan, then, once the scans
+    /// are more than a second late, at each odometry sample that moved the robot, their
+    /// covariance growing; the corrected pose at every odometry sample throughout.
+    #[test]
+    fn without_scans_the_module_goes_on_on_odometry_its_uncertainty_growing() {
+        let world = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../assets/worlds/warehouse.world");
+        let world = world.to_str().expect("a UTF-8 path").to_owned();
+        let mut sim = Simulator::new(
+            crate::sim::load_world_file(world.as_ref()).expect("the warehouse"),
+            SimParams::default(),
+        )
+        .expect("sim");
+        let mut tour = Tour::new(WAREHOUSE_ROUND, 200_000);
+        let mut script = Vec::new();
+        let (scanning, quiet) = (20, 40);
+        for scan in 0..scanning + quiet {
+            let report = tour.next_scan(&mut sim).expect("the round goes on");
+            script.push(Step::Advance(0.1));
+            script.push(push("odometry", &report.odometry));
+            if scan < scanning {
+                script.push(push("scan", &sim.scan().clone()));
+            }
+        }
+        let mut bench = TestBench::new(&spec(), &[("world", &world)]).expect("bench");
+        bench.script(script);
+        body(bench.node()).expect("body");
+        let estimates = bench.sent::<PoseEstimate>("estimate").expect("sent");
+        let poses = bench.sent::<Odometry>("pose").expect("sent");
+        // A pose per odometry sample but the first, which came before any scan.
+        assert_eq!(poses.len(), scanning + quiet - 1);
+        // A scan each for the first, then one per sample that moved once the scans were a
+        // second late (ten periods): thirty or so of the forty.
+        let quiet_estimates = &estimates[scanning..];
+        assert!(
+            (25..=31).contains(&quiet_estimates.len()),
+            "{} estimates without scans",
+            quiet_estimates.len()
+        );
+        let first = estimates[scanning - 1].position_sigma_m();
+        let last = quiet_estimates[quiet_estimates.len() - 1].position_sigma_m();
+        assert!(last > 1.5 * first, "sigma {first:.3} m, then {last:.3} m");
+        let truth = sim.truth();
+        let at = quiet_estimates[quiet_estimates.len() - 1].pose_in_map;
+        let error = (at.x_m - truth.x_m).hypot(at.y_m - truth.y_m);
+        assert!(
+            error < 3.0 * last + 0.05,
+            "{error:.3} m off, sigma {last:.3} m"
+        );
     }
 }
