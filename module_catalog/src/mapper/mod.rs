@@ -446,17 +446,7 @@ impl Mapper {
         };
         Some(PoseEstimate {
             pose_in_map: pose,
-            covariance: [
-                sigma_m * sigma_m,
-                0.0,
-                0.0,
-                0.0,
-                sigma_m * sigma_m,
-                0.0,
-                0.0,
-                0.0,
-                sigma_rad * sigma_rad,
-            ],
+            covariance: PoseEstimate::diagonal_covariance(sigma_m, sigma_rad),
             fit: self.match_score,
             state,
         })

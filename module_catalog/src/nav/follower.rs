@@ -1172,20 +1172,24 @@ mod tests {
         )
     }
 
-    #[test]
-    fn a_path_seen_blocked_ahead_is_planned_again_round_what_is_seen() {
-        let mut follower = follower_on("0,5 15,5", 15.0);
-        let at = |x_m| Pose2D {
+    /// The pose at `x_m` on the line y = 5, facing east.
+    fn east_at(x_m: f64) -> Pose2D {
+        Pose2D {
             x_m,
             y_m: 5.0,
             theta_rad: 0.0,
-        };
-        assert!(!follower.on_pose(at(1.0), 1.0).new_path);
+        }
+    }
+
+    #[test]
+    fn a_path_seen_blocked_ahead_is_planned_again_round_what_is_seen() {
+        let mut follower = follower_on("0,5 15,5", 15.0);
+        assert!(!follower.on_pose(east_at(1.0), 1.0).new_path);
         // A wall across the way 2 m ahead, from y 0 to 7 (no world: the laser alone).
         follower.seen = (0..=70)
             .map(|i| Point::new(3.0, f64::from(i) * 0.1))
             .collect();
-        let control = follower.on_pose(at(1.0), 1.1);
+        let control = follower.on_pose(east_at(1.0), 1.1);
         assert!(control.new_path, "{control:?}");
         let points = follower.pursuit.as_ref().expect("path").points().to_vec();
         assert!(
@@ -1204,14 +1208,14 @@ mod tests {
         follower.pursuit = follower.settings.pursuit();
         // Walled in by what the laser sees, but not on the map: the laser may be placed off
         // (odometry drifts), so the path is kept and the avoider keeps the robot safe.
-        let control = follower.on_pose(at(1.0), 5.0);
+        let control = follower.on_pose(east_at(1.0), 5.0);
         assert_eq!(control.report, None);
         assert!(!control.new_path);
         assert_eq!(follower.replans, 2);
         // The goal in a no-go area: the map alone has no way, `blocked` at once.
         follower.settings.no_go = geo::parse_polygons("14,4 16,4 16,6 14,6").expect("polygon");
         follower.last_replan = f64::NEG_INFINITY;
-        let control = follower.on_pose(at(1.0), 9.0);
+        let control = follower.on_pose(east_at(1.0), 9.0);
         assert_eq!(control.report, Some("blocked"));
         assert_eq!(control.twist, Twist::default());
     }
@@ -1245,17 +1249,12 @@ mod tests {
     #[test]
     fn a_leg_is_planned_on_the_live_map_at_once_without_using_up_replans() {
         let mut follower = follower_on("1,5 15,5", 15.0);
-        let at = |x_m| Pose2D {
-            x_m,
-            y_m: 5.0,
-            theta_rad: 0.0,
-        };
         // Two walls the mapper has seen across the way: at x = 4 from y 0 to 7, at x = 8
         // from y 3 to 10. The laser in view of neither: nothing seen in the way.
         follower.on_map(live_grid(|x, y| {
             ((x - 4.0).abs() < 0.1 && y < 7.0) || ((x - 8.0).abs() < 0.1 && y > 3.0)
         }));
-        let control = follower.on_pose(at(1.0), 1.0);
+        let control = follower.on_pose(east_at(1.0), 1.0);
         assert!(control.new_path, "{control:?}");
         assert_eq!(
             follower.replans, 0,
@@ -1282,7 +1281,7 @@ mod tests {
         follower.on_map(live_grid(|x, y| {
             ((x - 4.0).abs() < 0.1 && y < 7.0) || ((x - 8.0).abs() < 0.1 && y > 3.0)
         }));
-        assert!(!follower.on_pose(at(1.05), 10.0).new_path);
+        assert!(!follower.on_pose(east_at(1.05), 10.0).new_path);
         // What the laser sees is left to the map.
         follower.seen = vec![Point::new(4.0, 6.0)];
         let scan = LaserScan {
@@ -1590,17 +1589,7 @@ mod tests {
         };
         let estimate = |sigma_m: f64, state| PoseEstimate {
             pose_in_map: Pose2D::default(),
-            covariance: [
-                sigma_m * sigma_m,
-                0.0,
-                0.0,
-                0.0,
-                sigma_m * sigma_m,
-                0.0,
-                0.0,
-                0.0,
-                0.01,
-            ],
+            covariance: PoseEstimate::diagonal_covariance(sigma_m, 0.1),
             fit: 0.9,
             state,
         };
