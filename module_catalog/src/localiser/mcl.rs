@@ -519,8 +519,10 @@ impl Filter {
     /// with the way driven as the motion model says (Nav2's AMCL does the same). Made in steps
     /// of the update's distance or turn, as the scans would have, so that a curve driven
     /// without scans is followed as a curve, not one straight line from where the last scan
-    /// was. Without a scan the estimate is never `localised`: `uncertain`, and `lost` once the
-    /// position's standard deviation passes `lost_sigma_m`. Returns whether the particles moved.
+    /// was. Without a scan the estimate never becomes `localised`; it stays so while its
+    /// covariance allows (a scan late on a busy machine is no news), then says `uncertain`, and
+    /// `lost` once the position's standard deviation passes `lost_sigma_m`. Returns whether the
+    /// particles moved.
     pub fn predict_only(&mut self, odom: Pose2D) -> bool {
         let Some(last) = self.last_odom else {
             return false;

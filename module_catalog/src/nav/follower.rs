@@ -21,6 +21,12 @@
 //! When it replans, it keeps each no-go area's own margin (`no_go_margins_m`, as the plan was
 //! checked with), not one for all.
 //!
+//! With a mapper's live `map` linked (a robot with no `world`), the path left is checked
+//! against the map's walls at a leg's start and at each map taken (one per [`MAP_EVERY_M`]
+//! driven); when it comes nearer one than the robot keeps, the leg is planned again on the map,
+//! every wall seen so far at once, and that plan does not count among `max_replans`. The laser's
+//! raw hits are then left to the map.
+//!
 //! With a localiser's `estimate` linked, the follower also keeps the pose's uncertainty from
 //! the no-go areas: while its body is closer to one than [`UNCERTAINTY_SIGMAS`] standard
 //! deviations of the position (on its worst axis), it stops rather than guess, until the
