@@ -41,12 +41,15 @@
 //!   no camera is a clear error and a normal end, not a crash loop.
 //! - [`recorder`]: records every sample of the data names in `record`, with stamp and type,
 //!   into an MCAP file while active (JSON for the built-in types); `armor replay` plays it back.
+//! - [`foxglove_bridge`]: `foxglove`, serves the data names in `topics` to Foxglove over its
+//!   WebSocket protocol, in Foxglove's schemas, on loopback only (not controllable).
 
 pub mod arbiter;
 pub mod camera;
 pub mod checker;
 pub mod counter;
 pub mod echo;
+pub mod foxglove_bridge;
 pub mod localiser;
 pub mod mapper;
 pub mod monitor;

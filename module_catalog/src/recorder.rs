@@ -269,6 +269,12 @@ impl Settings {
 
 /// The data names of the `record` parameter, in order, each once.
 fn parse_record(value: &str) -> Result<Vec<String>, BodyError> {
+    data_names("record", value)
+}
+
+/// The data names of the comma-separated list in parameter `param`, in order, each once (the
+/// recorder's `record`, the Foxglove bridge's `topics`).
+pub(crate) fn data_names(param: &str, value: &str) -> Result<Vec<String>, BodyError> {
     let mut names: Vec<String> = Vec::new();
     for name in value
         .split(',')
@@ -276,16 +282,17 @@ fn parse_record(value: &str) -> Result<Vec<String>, BodyError> {
         .filter(|name| !name.is_empty())
     {
         if name.chars().any(char::is_whitespace) {
-            return Err(format!("parameter `record`: `{name}` is not a data name").into());
+            return Err(format!("parameter `{param}`: `{name}` is not a data name").into());
         }
         if !names.iter().any(|known| known == name) {
             names.push(name.to_owned());
         }
     }
     if names.is_empty() {
-        return Err(
-            "parameter `record` names no data (expected e.g. `sim.odometry,sim.scan`)".into(),
-        );
+        return Err(format!(
+            "parameter `{param}` names no data (expected e.g. `sim.odometry,sim.scan`)"
+        )
+        .into());
     }
     Ok(names)
 }

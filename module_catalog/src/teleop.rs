@@ -16,14 +16,26 @@
 //! a message frame. The supervisor's relay is such a client; a process without a key is
 //! closed without a byte and drives nothing.
 //!
-//! A command is held for `deadman_secs` of run time: an operator who stops sending stops the
-//! robot. The module publishes the current command 20 times per second of run time, and serves
-//! its clients from the same loop, with non-blocking sockets. It is an operator interface, so
-//! the mission controller never stops it.
+//! A command is held for `deadman_secs` of *wall-clock* time: an operator who stops sending
+//! stops the robot. The operator lives in wall time (the studio and `armor ctl teleop` send
+//! ten commands a second of it, whatever the run's time scale), so a dead-man in run time
+//! expired between two of their commands at high scales (at ×10 half a second of run time is
+//! 50 ms) and the mux switched between teleop and the other sources many times a second. The
+//! price of wall time is that a lost link drives on for `deadman_secs × scale` of run time:
+//! with the default half a second at ×10, five simulated seconds, at most 2.5 simulated metres
+//! at the default `max_speed_mps` (0.25 m on a robot at ×1). Half a second is kept knowingly:
+//! a studio drawing its frames slowly (software rendering) may miss a send or two, and a
+//! shorter time would stop and restart the robot under the operator's finger.
+//!
+//! The module publishes the current command at least 20 times per second of wall time and at
+//! least 20 times per second of run time (the faster of the two): the mux judges its inputs'
+//! freshness in run time, and a release is seen within 50 ms of wall time at any scale. It
+//! serves its clients from the same loop, with non-blocking sockets. It is an operator
+//! interface, so the mission controller never stops it.
 
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use armor_module_api::auth::{Listen, Sealer};
 use armor_module_api::handshake_deadline::HandshakeDeadline;
@@ -38,7 +50,8 @@ pub const TYPE: &str = "teleop";
 /// supervisor relays `armor ctl teleop`.
 pub const ENDPOINT: &str = "teleop";
 
-/// How often, in run time, the module serves its clients and publishes the command.
+/// How often the module serves its clients and publishes the command, in wall time and in run
+/// time, whichever comes first.
 const TICK_SECS: f64 = 0.05;
 /// Longest command line accepted, in bytes.
 const MAX_LINE: usize = 256;
@@ -51,16 +64,16 @@ pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
         TYPE,
         "Operator velocity commands over TCP: lines `v LINEAR ANGULAR` or `stop`, answered `ok` \
-         or `error: ...`; commands are clamped and held for deadman_secs, after which it \
-         commands zero.",
+         or `error: ...`; commands are clamped and held for deadman_secs of wall time, after \
+         which it commands zero.",
     )
     .category(armor_module_api::Category::Operator)
     .version(env!("CARGO_PKG_VERSION"))
     .not_controllable()
     .output::<Twist>(
         "cmd_vel",
-        "the operator's command, 20 times per second of run time (zero when no command arrived \
-         within deadman_secs)",
+        "the operator's command, 20 times per second of wall time and at least 20 per second \
+         of run time (zero when no command arrived within deadman_secs of wall time)",
     )
     .param(
         ParamSpec::new(
@@ -99,8 +112,9 @@ pub fn spec() -> ModuleSpec {
         ParamSpec::new(
             "deadman_secs",
             ParamType::Float,
-            "a command is held this long in run time, then zero is commanded until the next one \
-             (greater than 0)",
+            "a command is held this long in wall-clock time, whatever the run's time scale, \
+             then zero is commanded until the next one (greater than 0; a lost link drives on \
+             for this times the time scale in run time)",
         )
         .above(0.0)
         .unit("s")
@@ -130,15 +144,16 @@ fn serve(node: &mut Node, mut server: Server) -> BodyResult {
     let output = node.output::<Twist>("cmd_vel")?;
     let mut limits = Limits::read(node)?;
     let mut command = Command::default();
-    let mut next_tick = node.timestamp();
+    // Wall time: the operator's time (see the module's documentation).
+    let tick = tick_period(node.clock().scale());
+    let mut deadline = Instant::now();
     loop {
-        let deadline = node.clock().instant_at(next_tick);
         match node.next_event_until(deadline)? {
             Event::Timeout => {
-                let now = node.timestamp();
-                next_tick = now + TICK_SECS;
+                let now = Instant::now();
+                deadline = now + tick;
                 server.poll(|line| command.handle(line, &limits, now));
-                node.send(&output, &command.current(now, limits.deadman_secs))?;
+                node.send(&output, &command.current(now, limits.deadman()))?;
             }
             Event::ParamsChanged(names) => {
                 if names.iter().any(|name| name == "listen") {
@@ -153,6 +168,17 @@ fn serve(node: &mut Node, mut server: Server) -> BodyResult {
             _ => {}
         }
     }
+}
+
+/// How long between two ticks in wall time: [`TICK_SECS`] of wall time, or of run time when
+/// that is shorter (a run faster than real time).
+fn tick_period(scale: f64) -> Duration {
+    let run_tick_secs = if scale.is_finite() && scale > 1.0 {
+        TICK_SECS / scale
+    } else {
+        TICK_SECS
+    };
+    Duration::from_secs_f64(run_tick_secs)
 }
 
 /// The teleop's tunable parameters.
@@ -171,18 +197,24 @@ impl Limits {
             deadman_secs: node.param::<f64>("deadman_secs")?,
         })
     }
+
+    /// The dead-man time in wall time (the parameter is checked above 0 where it is read; a
+    /// huge value saturates rather than panics).
+    fn deadman(&self) -> Duration {
+        Duration::try_from_secs_f64(self.deadman_secs).unwrap_or(Duration::MAX)
+    }
 }
 
-/// The operator's latest command and when it came, in run time.
+/// The operator's latest command and when it came, in wall time.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Command {
     twist: Twist,
-    at: Option<f64>,
+    at: Option<Instant>,
 }
 
 impl Command {
     /// Takes one command line; returns the reply (without its newline).
-    fn handle(&mut self, line: &str, limits: &Limits, now: f64) -> String {
+    fn handle(&mut self, line: &str, limits: &Limits, now: Instant) -> String {
         match parse(line, limits) {
             Ok(twist) => {
                 self.twist = twist;
@@ -193,10 +225,10 @@ impl Command {
         }
     }
 
-    /// What to publish at `now`: the command, or zero once it is older than `deadman_secs`.
-    fn current(&self, now: f64, deadman_secs: f64) -> Twist {
+    /// What to publish at `now`: the command, or zero once it is `deadman` old.
+    fn current(&self, now: Instant, deadman: Duration) -> Twist {
         match self.at {
-            Some(at) if now - at < deadman_secs => self.twist,
+            Some(at) if now.saturating_duration_since(at) < deadman => self.twist,
             _ => Twist::default(),
         }
     }
@@ -557,37 +589,60 @@ mod tests {
         assert_eq!(parse("stop", &limits), Ok(Twist::default()));
     }
 
+    /// `secs` seconds after `start`.
+    fn at(start: Instant, secs: f64) -> Instant {
+        start + Duration::from_secs_f64(secs)
+    }
+
     #[test]
     fn garbage_is_an_error_and_leaves_the_command_alone() {
         let limits = limits();
+        let start = Instant::now();
         let mut command = Command::default();
-        assert_eq!(command.handle("v 0.2 0.1", &limits, 1.0), "ok");
+        assert_eq!(command.handle("v 0.2 0.1", &limits, at(start, 1.0)), "ok");
         for garbage in [
             "fly", "v", "v 1", "v 1 2 3", "v one 2", "v NaN 0", "v 0 inf", "stop now",
         ] {
-            let reply = command.handle(garbage, &limits, 1.1);
+            let reply = command.handle(garbage, &limits, at(start, 1.1));
             assert!(reply.starts_with("error: "), "{garbage}: {reply}");
         }
-        assert_eq!(command.current(1.2, limits.deadman_secs), twist(0.2, 0.1));
+        assert_eq!(
+            command.current(at(start, 1.2), limits.deadman()),
+            twist(0.2, 0.1)
+        );
     }
 
     #[test]
     fn the_dead_man_zeroes_an_old_command() {
         let limits = limits();
+        let deadman = limits.deadman();
+        let start = Instant::now();
         let mut command = Command::default();
         assert_eq!(
-            command.current(0.0, 0.5),
+            command.current(start, deadman),
             Twist::default(),
             "no command yet"
         );
-        command.handle("v 0.3 0.2", &limits, 10.0);
-        assert_eq!(command.current(10.0, 0.5), twist(0.3, 0.2));
-        assert_eq!(command.current(10.49, 0.5), twist(0.3, 0.2));
-        assert_eq!(command.current(10.5, 0.5), Twist::default());
-        command.handle("v 0.1 0", &limits, 11.0);
-        assert_eq!(command.current(11.2, 0.5), twist(0.1, 0.0), "a new command");
-        command.handle("stop", &limits, 11.3);
-        assert_eq!(command.current(11.4, 0.5), Twist::default());
+        command.handle("v 0.3 0.2", &limits, at(start, 10.0));
+        assert_eq!(command.current(at(start, 10.0), deadman), twist(0.3, 0.2));
+        assert_eq!(command.current(at(start, 10.49), deadman), twist(0.3, 0.2));
+        assert_eq!(command.current(at(start, 10.5), deadman), Twist::default());
+        command.handle("v 0.1 0", &limits, at(start, 11.0));
+        assert_eq!(
+            command.current(at(start, 11.2), deadman),
+            twist(0.1, 0.0),
+            "a new command"
+        );
+        command.handle("stop", &limits, at(start, 11.3));
+        assert_eq!(command.current(at(start, 11.4), deadman), Twist::default());
+    }
+
+    #[test]
+    fn ticks_twenty_times_a_second_of_wall_time_or_of_run_time_when_faster() {
+        assert_eq!(tick_period(1.0), Duration::from_millis(50));
+        assert_eq!(tick_period(0.1), Duration::from_millis(50), "slower runs");
+        assert_eq!(tick_period(10.0), Duration::from_millis(5));
+        assert_eq!(tick_period(f64::NAN), Duration::from_millis(50));
     }
 
     /// A server whose client has sent `lines`, already received on the server's side.

@@ -40,6 +40,7 @@ fn the_mapper_describes_its_ports_and_params() {
             ("map", "OccupancyGrid"),
             ("pose", "Odometry"),
             ("pose_map", "Pose2D"),
+            ("estimate", "PoseEstimate"),
             ("markers", "Markers"),
         ]
     );

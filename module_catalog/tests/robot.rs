@@ -55,6 +55,7 @@ const MODULES: &[Expected] = &[
             ("odometry", "Odometry"),
             ("estimate", "PoseEstimate"),
             ("scan", "LaserScan"),
+            ("map", "OccupancyGrid"),
         ],
         outputs: &[
             ("path", "Text"),

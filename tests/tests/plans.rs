@@ -654,6 +654,24 @@ fn the_explore_plan_drives_on_the_mappers_pose_in_a_building_it_has_no_map_of() 
                 && link.to.to_string() == "follower.odometry"),
         "the follower drives on the mapper's pose"
     );
+    // ... with the mapper's covariance as its uncertainty and the mapper's live map to plan
+    // its legs on; no stated uncertainty, and the default bound of replans.
+    for (from, to) in [
+        ("mapper.estimate", "follower.estimate"),
+        ("mapper.map", "follower.map"),
+    ] {
+        assert!(
+            system
+                .links
+                .iter()
+                .any(|link| link.from.to_string() == from && link.to.to_string() == to),
+            "{from} -> {to}"
+        );
+    }
+    assert!(
+        !system_text.contains("pose_uncertainty_m") && !system_text.contains("max_replans"),
+        "the explore system's follower keeps its defaults"
+    );
     let run = run_example("plan-explore.xml");
     assert_eq!((0, 0), run.check_all());
     assert_eq!(

@@ -2,13 +2,14 @@
 //! accelerated time to its final place; a run paused (the robot holds), resumed, advanced by
 //! hand and aborted; a module killed from outside shown crashed, then running again; the robot
 //! driven with the arrow keys through the teleop module, and the recording of that drive opened
-//! into the same map; a crate only the sim knows of replanned round, the path followed and the
-//! one replaced drawn; the robot driven by its camera (the video panel holding the arrow keys)
-//! and the recorded video played back in the same panel; the localiser's estimate and the
-//! simulator's truth side by side (issue 33): a robot carried away mid-leg shown `localised`
-//! then `lost`, its rehearsal failing in words with the leg's true error, never a bare
-//! "complete"; the pose set by a drag on the map (rviz's "2D Pose Estimate"), the tool greyed
-//! for a studio attached with an observer's key.
+//! into the same map; an arrow held at ×10 keeping teleop in control, the robot stopped within
+//! half a second of wall time once it is let go; a crate only the sim knows of replanned round,
+//! the path followed and the one replaced drawn; the robot driven by its camera (the video
+//! panel holding the arrow keys) and the recorded video played back in the same panel; the
+//! localiser's estimate and the simulator's truth side by side (issue 33): a robot carried away
+//! mid-leg shown `localised` then `lost`, its rehearsal failing in words with the leg's true
+//! error, never a bare "complete"; the pose set by a drag on the map (rviz's "2D Pose
+//! Estimate"), the tool greyed for a studio attached with an observer's key.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -171,6 +172,25 @@ fn stop_the_drivers(harness: &mut Harness<'_, StudioApp>) {
         module_state(app, "follower") == Some(ModuleState::Stopped)
             && module_state(app, "observer") == Some(ModuleState::Stopped)
     });
+}
+
+/// The robot system running at `time_scale` in a studio, every module up, the follower and
+/// the observer stopped: the operator drives alone, with the pad on screen.
+fn ready_to_drive(dir: &Path, time_scale: f64) -> Harness<'static, StudioApp> {
+    let system = robot_system(dir);
+    let mut harness = harness(dir);
+    open_and_run(&mut harness, &system, time_scale);
+    step_until(&mut harness, "every module running", PATIENCE, |app| {
+        app.run().live().truth.is_some()
+            && status(app)
+                .modules
+                .iter()
+                .all(|module| module.state == ModuleState::Running)
+    });
+    stop_the_drivers(&mut harness);
+    harness.run_ok();
+    harness.get_by_label("forward");
+    harness
 }
 
 fn truth_x(app: &StudioApp) -> Option<f64> {
@@ -426,19 +446,7 @@ fn a_module_killed_from_outside_shows_crashed_then_running_again() {
 #[test]
 fn the_robot_is_driven_with_the_keys_and_its_recording_replays() {
     let dir = tempfile::tempdir().unwrap();
-    let system = robot_system(dir.path());
-    let mut harness = harness(dir.path());
-    open_and_run(&mut harness, &system, 1.0);
-    step_until(&mut harness, "every module running", PATIENCE, |app| {
-        app.run().live().truth.is_some()
-            && status(app)
-                .modules
-                .iter()
-                .all(|module| module.state == ModuleState::Running)
-    });
-    stop_the_drivers(&mut harness);
-    harness.run_ok();
-    harness.get_by_label("forward");
+    let mut harness = ready_to_drive(dir.path(), 1.0);
     let rest = Instant::now() + Duration::from_millis(800);
     step_until(&mut harness, "the robot at rest", PATIENCE, |_| {
         Instant::now() > rest
@@ -464,6 +472,97 @@ fn the_robot_is_driven_with_the_keys_and_its_recording_replays() {
     assert!(live.truth.is_some(), "the recording's last pose is shown");
     assert!(live.trail.len() >= 2, "with the path driven");
     harness.get_by_label_contains("Recording truth.mcap");
+}
+
+/// The robot's true pose as a triple, so that a turn on the spot counts as a move.
+fn truth_pose(app: &StudioApp) -> Option<(f64, f64, f64)> {
+    app.run()
+        .live()
+        .truth
+        .map(|pose| (pose.x_m, pose.y_m, pose.theta_rad))
+}
+
+/// The mux's "in control: …" lines so far, in the studio's log of the run.
+fn mux_switches(app: &StudioApp) -> Vec<String> {
+    app.run()
+        .log_of("mux")
+        .into_iter()
+        .filter(|line| line.contains("in control: "))
+        .collect()
+}
+
+/// Issue 37: at ×10 the teleop's dead-man (half a second of run time, 50 ms of wall time)
+/// expired between two of the studio's commands (ten a second of wall time), and the mux
+/// switched between teleop and the others 21 times in 2 s. Held for 3 s of wall time, the
+/// arrow must keep teleop in control throughout, and the robot must stand still within half
+/// a second of wall time once it is let go.
+#[test]
+fn at_ten_times_real_time_a_held_arrow_keeps_teleop_in_control_and_release_stops_the_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = ready_to_drive(dir.path(), 10.0);
+    let start = truth_pose(harness.state()).unwrap();
+
+    // Left turns on the spot: the yard's walls cannot stop the robot in the operator's stead.
+    harness.key_down(Key::ArrowLeft);
+    step_until(&mut harness, "teleop in control", PATIENCE, |app| {
+        mux_switches(app)
+            .last()
+            .is_some_and(|line| line.ends_with("in control: teleop"))
+    });
+    let taken_over = mux_switches(harness.state()).len();
+    let held_until = Instant::now() + Duration::from_secs(3);
+    // The angle turned, summed over the poses seen (the heading wraps round).
+    let mut heading = start.2;
+    let mut turned_rad = 0.0;
+    step_until(&mut harness, "3 s of the arrow held", PATIENCE, |app| {
+        let now = truth_pose(app).unwrap().2;
+        turned_rad += armor_module_catalog::wrap_angle(now - heading).abs();
+        heading = now;
+        Instant::now() >= held_until
+    });
+    let while_held = mux_switches(harness.state());
+    assert_eq!(
+        while_held.len(),
+        taken_over,
+        "the mux switched while the arrow was held: {:?}",
+        &while_held[taken_over - 1..]
+    );
+    assert!(
+        turned_rad > 1.0,
+        "the robot turned only {turned_rad} rad in 3 s at ×10"
+    );
+    let turned = truth_pose(harness.state()).unwrap();
+
+    harness.key_up(Key::ArrowLeft);
+    let released = Instant::now();
+    let mut last = turned;
+    let mut last_move = released;
+    step_until(
+        &mut harness,
+        "the robot still for a second",
+        PATIENCE,
+        |app| {
+            let now = truth_pose(app).unwrap();
+            if now != last {
+                last = now;
+                last_move = Instant::now();
+            }
+            last_move.elapsed() > Duration::from_secs(1)
+        },
+    );
+    let stopped_after = last_move.saturating_duration_since(released);
+    eprintln!(
+        "held 3 s at ×10 with {} switches of the mux; still {stopped_after:?} after release",
+        while_held.len() - taken_over
+    );
+    assert!(
+        stopped_after <= Duration::from_millis(500),
+        "the robot still moved {stopped_after:?} of wall time after the arrow was let go"
+    );
+    harness.get_by_label("■ Stop").click();
+    step_until(&mut harness, "the run to stop", PATIENCE, |app| {
+        !app.run().is_running()
+    });
 }
 
 #[test]

@@ -217,6 +217,20 @@ impl RunView {
         }
     }
 
+    /// The lines `source` (a module's name, or `armor` for the supervisor) wrote to the
+    /// current run's log so far, oldest first.
+    pub fn log_of(&self, source: &str) -> Vec<String> {
+        self.session.as_ref().map_or_else(Vec::new, |session| {
+            session
+                .shared()
+                .logs
+                .iter()
+                .filter(|line| line.source == source)
+                .map(|line| line.text.clone())
+                .collect()
+        })
+    }
+
     /// The outputs the live views show: the recording's channels, or the run's outputs.
     pub fn sources(&self) -> Option<Sources> {
         match (&self.session, &self.recording) {

@@ -59,7 +59,8 @@ use armor_bench_report::{Bench, run_benches};
     about = "Measures ArMoR against references measured in the same run (raw TCP, plain process spawns, other crates doing the same work), one JSON line per benchmark"
 )]
 struct Cli {
-    /// Benchmarks to run, in this order (default: all; see --list).
+    /// Benchmarks to run, in this order (default: all but those --list marks as run only when
+    /// named).
     names: Vec<String>,
     /// Tiny iteration counts: checks that everything runs, measures nothing worth keeping.
     #[arg(long)]
@@ -371,13 +372,15 @@ const BENCHES: &[Bench] = &[
                 played at 10 Hz, every layer shown, vs a 60 Hz frame budget (ms; goal < 16)",
         run: studio::run_markers,
     },
-    Bench {
-        name: fuzz::NAME,
-        about: "inputs run through each parser's fuzz target by fuzz/run.sh, with the crashes \
-                found (must be 0); needs cargo-fuzz",
-        run: fuzz::run,
-    },
 ];
+
+/// Lines that need more than the README's two commands install; each runs only when named.
+const ON_REQUEST: &[Bench] = &[Bench {
+    name: fuzz::NAME,
+    about: "inputs run through each parser's fuzz target by fuzz/run.sh, with the crashes \
+            found (must be 0); needs cargo-fuzz (`cargo install cargo-fuzz --locked`, as .ci/run does)",
+    run: fuzz::run,
+}];
 
 fn main() -> ExitCode {
     if benchprobe::invoked_as_module() {
@@ -419,6 +422,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     }
     Ok(run_benches(
         BENCHES,
+        ON_REQUEST,
         &cli.names,
         Settings { quick: cli.quick },
         cli.list,

@@ -143,7 +143,7 @@ fn main() -> ExitCode {
     if let Some(args) = &cli.zenoh_peer {
         return zenoh_bench::peer_main(args);
     }
-    run_benches(BENCHES, &cli.names, Settings { quick: cli.quick }, cli.list)
+    run_benches(BENCHES, &[], &cli.names, Settings { quick: cli.quick }, cli.list)
 }
 
 /// Four significant digits, for the figures inside a report's details.

@@ -178,30 +178,43 @@ pub struct Bench {
     pub run: fn(&Settings) -> anyhow::Result<Report>,
 }
 
-/// Lists `benches` (with `list`), or runs those `names` asks for (all when empty) and prints a
-/// JSON line for each. A failing benchmark does not hide the others; the exit status tells (2
-/// for an unknown name, 1 when any failed).
+/// Lists `benches` and `on_request` (with `list`), or runs those `names` asks for and prints a
+/// JSON line for each. With no names, every one of `benches` runs: the lines that need what the
+/// README's two commands do not install (`on_request`) run only when named, and a message says
+/// so. A failing benchmark does not hide the others; the exit status tells (2 for an unknown
+/// name, 1 when any failed).
 pub fn run_benches(
     benches: &[Bench],
+    on_request: &[Bench],
     names: &[String],
     settings: Settings,
     list: bool,
 ) -> ExitCode {
+    let every = || benches.iter().chain(on_request);
     if list {
         for bench in benches {
             println!("{:<26} {}", bench.name, bench.about);
+        }
+        for bench in on_request {
+            println!("{:<26} {} (only when named)", bench.name, bench.about);
         }
         return ExitCode::SUCCESS;
     }
     let mut selected = Vec::new();
     if names.is_empty() {
         selected.extend(benches.iter());
+        for bench in on_request {
+            eprintln!(
+                "note: `{}` runs only when named ({})",
+                bench.name, bench.about
+            );
+        }
     }
     for name in names {
-        match benches.iter().find(|bench| bench.name == name.as_str()) {
+        match every().find(|bench| bench.name == name.as_str()) {
             Some(bench) => selected.push(bench),
             None => {
-                let known: Vec<&str> = benches.iter().map(|bench| bench.name).collect();
+                let known: Vec<&str> = every().map(|bench| bench.name).collect();
                 eprintln!(
                     "error: unknown benchmark `{name}` (known: {})",
                     known.join(", ")

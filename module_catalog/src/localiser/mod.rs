@@ -15,7 +15,10 @@
 //! deviation above 1 m, the fit below 0.25 or fewer than half the beams agreeing: a cloud can be
 //! tight and wrong, as when the robot is carried elsewhere, and only the scan shows it),
 //! `uncertain` otherwise. Lost, it stays lost until an operator sets the pose (`set_pose`), or, with
-//! `recover`, spreads its particles over the map's free space (global mode).
+//! `recover`, spreads its particles over the map's free space (global mode); a place found so
+//! must hold while the robot drives on before it is called `localised`. When the scans stop
+//! coming ([`SCANS_LATE_SECS`]), the filter goes on on the odometry alone, its covariance
+//! growing, and publishes that estimate (never becoming `localised` without a scan).
 //!
 //! The initial pose is the world's start (the simulator's), or `x_m`, `y_m`, `heading_deg`;
 //! `global` starts in global mode. `set_pose` ("X Y HEADING_DEG", tunable live) puts the
@@ -34,6 +37,13 @@ use mcl::{Filter, Map, Settings, State};
 
 pub const TYPE: &str = "localiser";
 
+/// A scan this late (run time since the last one; ten periods of the simulator's laser) means
+/// the laser went quiet: the filter then goes on on the odometry alone
+/// ([`mcl::Filter::predict_only`]), its covariance growing with the way driven, and publishes
+/// that estimate at each step, as Nav2's AMCL keeps its estimate on odometry. Without it, the
+/// estimate would stay as sure as at the last scan while the robot drives on.
+pub const SCANS_LATE_SECS: f64 = 1.0;
+
 /// The spread of the particles round a pose given by a parameter or by hand.
 const SET_POSE_SIGMA_M: f64 = 0.2;
 const SET_POSE_SIGMA_RAD: f64 = 0.15;
@@ -48,7 +58,8 @@ pub fn spec() -> ModuleSpec {
          heading sigma <= 0.1 rad, scan fit >= 0.5, one cluster of particles, 90 % of the beams \
          agreeing with the map), `lost` (position sigma > 1 m, scan fit < 0.25 or under half \
          the beams agreeing), else `uncertain`. Lost, it stays lost until set_pose (or, with \
-         recover, searches the whole map).",
+         recover, searches the whole map). Without scans for a second, it goes on on the \
+         odometry alone, its uncertainty growing.",
     )
     .category(armor_module_api::Category::Navigation)
     .version(env!("CARGO_PKG_VERSION"))
@@ -127,9 +138,9 @@ pub fn spec() -> ModuleSpec {
         ParamSpec::new(
             "recover",
             ParamType::Bool,
-            "when lost, search the whole map (global mode; measured: 5 of 5 kidnapped robots \
-             found themselves, but 2 said localised on the way at a look-alike place); off: stay \
-             lost until a set_pose",
+            "when lost, search the whole map (global mode; a place found must hold for 5 m of \
+             driving before it is called localised; measured: 13 of 20 kidnapped robots found \
+             themselves, none said localised at a wrong place); off: stay lost until a set_pose",
         )
         .default("false"),
     )
@@ -325,6 +336,45 @@ impl Localiser {
         }
         estimate
     }
+
+    /// An odometry sample while the scans are late ([`SCANS_LATE_SECS`]): the filter on the
+    /// odometry alone; its estimate when the particles moved. The correction published on
+    /// `pose` stays the last scan's: the particles' mean moves as the odometry does.
+    pub fn on_odometry_without_scans(&mut self, odom: Pose2D) -> Option<mcl::Estimate> {
+        self.filter
+            .predict_only(odom)
+            .then(|| self.filter.estimate())
+    }
+}
+
+/// Reports the state when it changed since the last one reported.
+fn report_state(
+    node: &mut Node,
+    reported: &mut Option<State>,
+    estimate: &mcl::Estimate,
+    why: &str,
+) -> Result<(), BodyError> {
+    if *reported == Some(estimate.state) {
+        return Ok(());
+    }
+    *reported = Some(estimate.state);
+    let text = format!(
+        "{} at ({:.2}, {:.2}): sigma {:.2} m, {:.2} rad; fit {:.2}; {} particles{why}",
+        estimate.state.event(),
+        estimate.pose.x_m,
+        estimate.pose.y_m,
+        estimate.sigma_m(),
+        estimate.sigma_rad(),
+        estimate.fit,
+        estimate.particles
+    );
+    if estimate.state == State::Lost {
+        tracing::warn!("{text}");
+    } else {
+        tracing::info!("{text}");
+    }
+    node.report(estimate.state.event())?;
+    Ok(())
 }
 
 pub fn body(node: &mut Node) -> BodyResult {
@@ -373,6 +423,9 @@ pub fn body(node: &mut Node) -> BodyResult {
     let mut localiser = Localiser::new(filter);
     let mut latest: Option<Odometry> = None;
     let mut reported: Option<State> = None;
+    // Run time of the last scan, and whether the scans are late (said once per silence).
+    let mut scanned_at: Option<f64> = None;
+    let mut quiet = false;
     loop {
         match node.next_event(None)? {
             Event::Input(port) if port == odometry_input.id() => {
@@ -387,6 +440,22 @@ pub fn body(node: &mut Node) -> BodyResult {
                     };
                     node.send(&pose_output, &pose)?;
                 }
+                let now = node.timestamp();
+                if scanned_at.is_some_and(|at| now - at > SCANS_LATE_SECS) {
+                    if !quiet {
+                        quiet = true;
+                        tracing::warn!(
+                            "no scan for {SCANS_LATE_SECS} s: going on on the odometry alone, \
+                             the uncertainty growing"
+                        );
+                    }
+                    if let Some(estimate) =
+                        localiser.on_odometry_without_scans(sample.value.pose_in_odom)
+                    {
+                        node.send(&estimate_output, &message(&estimate))?;
+                        report_state(node, &mut reported, &estimate, " (no scans)")?;
+                    }
+                }
             }
             Event::Input(port) if port == scan_input.id() => {
                 let Some(sample) = node.take(&scan_input)? else {
@@ -395,32 +464,14 @@ pub fn body(node: &mut Node) -> BodyResult {
                 let Some(odometry) = latest else {
                     continue;
                 };
+                if quiet {
+                    quiet = false;
+                    tracing::info!("scans again");
+                }
+                scanned_at = Some(node.timestamp());
                 let estimate = localiser.on_scan(odometry.pose_in_odom, &sample.value);
                 node.send(&estimate_output, &message(&estimate))?;
-                if reported != Some(estimate.state) {
-                    reported = Some(estimate.state);
-                    let level = if estimate.state == State::Lost {
-                        tracing::Level::WARN
-                    } else {
-                        tracing::Level::INFO
-                    };
-                    let text = format!(
-                        "{} at ({:.2}, {:.2}): sigma {:.2} m, {:.2} rad; fit {:.2}; {} particles",
-                        estimate.state.event(),
-                        estimate.pose.x_m,
-                        estimate.pose.y_m,
-                        estimate.sigma_m(),
-                        estimate.sigma_rad(),
-                        estimate.fit,
-                        estimate.particles
-                    );
-                    if level == tracing::Level::WARN {
-                        tracing::warn!("{text}");
-                    } else {
-                        tracing::info!("{text}");
-                    }
-                    node.report(estimate.state.event())?;
-                }
+                report_state(node, &mut reported, &estimate, "")?;
             }
             Event::ParamsChanged(_) => {
                 let text: String = node.param("set_pose")?;
@@ -446,5 +497,68 @@ pub fn body(node: &mut Node) -> BodyResult {
             Event::Shutdown => return Ok(()),
             _ => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::tour::{Tour, WAREHOUSE_ROUND};
+    use crate::sim::{SimParams, Simulator};
+    use armor_module_api::testing::{Step, TestBench};
+
+    fn push<T: armor_module_api::types::Datum>(input: &str, value: &T) -> Step {
+        Step::push(input, value).expect("encode")
+    }
+
+    /// The module with a laser that goes quiet: estimates at each scan, then, once the scans
+    /// are more than a second late, at each odometry sample that moved the robot, their
+    /// covariance growing; the corrected pose at every odometry sample throughout.
+    #[test]
+    fn without_scans_the_module_goes_on_on_odometry_its_uncertainty_growing() {
+        let world = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../assets/worlds/warehouse.world");
+        let world = world.to_str().expect("a UTF-8 path").to_owned();
+        let mut sim = Simulator::new(
+            crate::sim::load_world_file(world.as_ref()).expect("the warehouse"),
+            SimParams::default(),
+        )
+        .expect("sim");
+        let mut tour = Tour::new(WAREHOUSE_ROUND, 200_000);
+        let mut script = Vec::new();
+        let (scanning, quiet) = (20, 40);
+        for scan in 0..scanning + quiet {
+            let report = tour.next_scan(&mut sim).expect("the round goes on");
+            script.push(Step::Advance(0.1));
+            script.push(push("odometry", &report.odometry));
+            if scan < scanning {
+                script.push(push("scan", &sim.scan().clone()));
+            }
+        }
+        let mut bench = TestBench::new(&spec(), &[("world", &world)]).expect("bench");
+        bench.script(script);
+        body(bench.node()).expect("body");
+        let estimates = bench.sent::<PoseEstimate>("estimate").expect("sent");
+        let poses = bench.sent::<Odometry>("pose").expect("sent");
+        // A pose per odometry sample but the first, which came before any scan.
+        assert_eq!(poses.len(), scanning + quiet - 1);
+        // A scan each for the first, then one per sample that moved once the scans were a
+        // second late (ten periods): thirty or so of the forty.
+        let quiet_estimates = &estimates[scanning..];
+        assert!(
+            (25..=31).contains(&quiet_estimates.len()),
+            "{} estimates without scans",
+            quiet_estimates.len()
+        );
+        let first = estimates[scanning - 1].position_sigma_m();
+        let last = quiet_estimates[quiet_estimates.len() - 1].position_sigma_m();
+        assert!(last > 1.5 * first, "sigma {first:.3} m, then {last:.3} m");
+        let truth = sim.truth();
+        let at = quiet_estimates[quiet_estimates.len() - 1].pose_in_map;
+        let error = (at.x_m - truth.x_m).hypot(at.y_m - truth.y_m);
+        assert!(
+            error < 3.0 * last + 0.05,
+            "{error:.3} m off, sigma {last:.3} m"
+        );
     }
 }

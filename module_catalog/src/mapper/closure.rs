@@ -131,6 +131,9 @@ pub struct LoopCloser {
     /// Loop edges added, and optimisations run.
     closures: u64,
     optimisations: u64,
+    /// The shortest way through the graph from the newest keyframe to the first (the map
+    /// frame's origin, where the pose is known exactly): what its error grew over.
+    origin_way_m: f64,
 }
 
 impl LoopCloser {
@@ -147,6 +150,17 @@ impl LoopCloser {
     pub fn forget_odometry(&mut self) {
         if let Some(last) = self.keyframes.last_mut() {
             last.odometry = None;
+        }
+    }
+
+    /// The way the pose's error grew over: the shortest way through the graph from the first
+    /// keyframe to the newest (a loop edge costs nothing: a place seen again is as sure as it
+    /// was then), and the way travelled since the newest. Before any keyframe, the way
+    /// travelled.
+    pub fn way_from_origin_m(&self) -> f64 {
+        match self.keyframes.last() {
+            Some(newest) => self.origin_way_m + (self.travelled_m - newest.travelled_m),
+            None => self.travelled_m,
         }
     }
 
@@ -223,7 +237,9 @@ impl LoopCloser {
                 });
             }
         }
-        self.close_loop(node, resolution_m)
+        let closed = self.close_loop(node, resolution_m);
+        self.origin_way_m = self.shortest_ways(node)[0];
+        closed
     }
 
     /// Looks for a loop from the keyframe `node` (the newest), and optimises the graph when one

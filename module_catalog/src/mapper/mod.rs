@@ -40,7 +40,8 @@ pub mod matcher;
 use std::time::Instant;
 
 use armor_module_api::types::{
-    Frame, LaserScan, Marker, Markers, OccupancyGrid, Odometry, Pose2D, Shape,
+    Frame, LaserScan, LocalisationState, Marker, Markers, OccupancyGrid, Odometry, Pose2D,
+    PoseEstimate, Shape,
 };
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
@@ -59,6 +60,23 @@ pub const MIN_RANGE_M: f64 = 0.05;
 pub const MIN_MATCH_SCORE: f64 = 0.1;
 /// Scans with fewer echoes than this are not matched (placed at the prediction).
 pub const MIN_MATCH_POINTS: usize = 20;
+/// The corrected pose's standard deviation, in position and heading: a base, plus so much per
+/// metre of the way its error grew over ([`LoopCloser::way_from_origin_m`]: from the map
+/// frame's origin through the keyframes, a closed loop cutting it short), plus the odometry's
+/// own drift per metre driven on the prediction alone (scans not matched) since the last loop
+/// correction. Measured round the office floor with the simulator's default noise (the test
+/// `the_mappers_covariance_holds_its_true_error`, three seeds): the true error is within two
+/// standard deviations at 95 % of the scans and within 2.5 at every one.
+pub const SIGMA_BASE_M: f64 = 0.06;
+pub const SIGMA_PER_M: f64 = 0.002;
+pub const SIGMA_BASE_RAD: f64 = 0.01;
+pub const SIGMA_RAD_PER_M: f64 = 0.001;
+pub const SIGMA_UNMATCHED_PER_M: f64 = 0.05;
+/// The state the estimate reports, from its position's standard deviation alone (the same
+/// thresholds as the localiser's): `localised` up to this ...
+pub const LOCALISED_SIGMA_M: f64 = 0.15;
+/// ... `lost` above this, `uncertain` between.
+pub const LOST_SIGMA_M: f64 = 1.0;
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
@@ -93,6 +111,13 @@ pub fn spec() -> ModuleSpec {
          it): a drop-in replacement for odometry, which jumps when a loop closes",
     )
     .output::<Pose2D>("pose_map", "the same corrected pose, for display")
+    .output::<PoseEstimate>(
+        "estimate",
+        "the corrected pose with its covariance (x, y, heading) after every integrated scan, as \
+         the localiser's estimate: its standard deviation grows with the way driven since the \
+         map's origin through the keyframes (a closed loop cuts it short); the fit is the last \
+         match's score; the state `localised` up to 0.15 m, `lost` beyond 1 m",
+    )
     .output::<Markers>(
         "markers",
         "the last scan placed, drawn from the corrected pose (the map's frame), five times a \
@@ -342,6 +367,12 @@ pub struct Mapper {
     stats: Stats,
     beams: Vec<(f64, f64, bool)>,
     points: Vec<(f64, f64)>,
+    /// The way travelled by the corrected pose, and the part of it placed at the odometry's
+    /// prediction (no match) since the last loop correction.
+    travelled_m: f64,
+    unmatched_m: f64,
+    /// The last match's score (0 when placed at the prediction).
+    match_score: f64,
 }
 
 impl Mapper {
@@ -356,6 +387,9 @@ impl Mapper {
             stats: Stats::default(),
             beams: Vec::new(),
             points: Vec::new(),
+            travelled_m: 0.0,
+            unmatched_m: 0.0,
+            match_score: 0.0,
         })
     }
 
@@ -391,6 +425,31 @@ impl Mapper {
     /// The corrected pose of the last integrated scan.
     pub fn pose(&self) -> Option<Pose2D> {
         self.last.map(|(pose, _)| pose)
+    }
+
+    /// The corrected pose of the last integrated scan with its covariance ([`SIGMA_PER_M`]).
+    pub fn estimate(&self) -> Option<PoseEstimate> {
+        let pose = self.pose()?;
+        let way_m = if self.settings.loop_closure {
+            self.closer.way_from_origin_m()
+        } else {
+            self.travelled_m
+        };
+        let sigma_m = SIGMA_BASE_M + SIGMA_PER_M * way_m + SIGMA_UNMATCHED_PER_M * self.unmatched_m;
+        let sigma_rad = SIGMA_BASE_RAD + SIGMA_RAD_PER_M * way_m;
+        let state = if sigma_m <= LOCALISED_SIGMA_M {
+            LocalisationState::Localised
+        } else if sigma_m <= LOST_SIGMA_M {
+            LocalisationState::Uncertain
+        } else {
+            LocalisationState::Lost
+        };
+        Some(PoseEstimate {
+            pose_in_map: pose,
+            covariance: PoseEstimate::diagonal_covariance(sigma_m, sigma_rad),
+            fit: self.match_score,
+            state,
+        })
     }
 
     /// The grid, once a scan has been integrated.
@@ -429,11 +488,22 @@ impl Mapper {
             }
         };
         self.integrate_at(pose)?;
+        if let Some((previous, _)) = self.last {
+            let step_m = (pose.x_m - previous.x_m).hypot(pose.y_m - previous.y_m);
+            self.travelled_m += step_m;
+            if self.match_score <= 0.0 {
+                self.unmatched_m += step_m;
+            }
+        }
+        let corrections = self.closer.closures().1;
         let pose = if self.settings.loop_closure {
             self.close_loops(pose, odometry)?
         } else {
             pose
         };
+        if self.closer.closures().1 > corrections {
+            self.unmatched_m = 0.0;
+        }
         self.last = Some((pose, Some(odometry)));
         self.stats.scans += 1;
         self.stats.busy_secs += started.elapsed().as_secs_f64();
@@ -536,6 +606,7 @@ impl Mapper {
     /// The pose the matcher finds around the prediction, or the prediction when the match is
     /// not to be trusted.
     fn corrected(&mut self, predicted: Pose2D) -> Pose2D {
+        self.match_score = 0.0;
         let Some(grid) = &self.grid else {
             return predicted;
         };
@@ -549,6 +620,7 @@ impl Mapper {
         {
             Some(found) if found.score >= MIN_MATCH_SCORE && found.points >= MIN_MATCH_POINTS => {
                 self.stats.matched += 1;
+                self.match_score = found.score;
                 found.pose
             }
             _ => predicted,
@@ -609,6 +681,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let map_output = node.output::<OccupancyGrid>("map")?;
     let pose_output = node.output::<Odometry>("pose")?;
     let pose_map_output = node.output::<Pose2D>("pose_map")?;
+    let estimate_output = node.output::<PoseEstimate>("estimate")?;
     let markers_output = node.output::<Markers>("markers")?;
     let mut markers_sent = f64::NEG_INFINITY;
     let mut mapper = Mapper::new(Settings::read(node)?)?;
@@ -671,6 +744,9 @@ pub fn body(node: &mut Node) -> BodyResult {
                         };
                         node.send(&pose_output, &corrected)?;
                         node.send(&pose_map_output, &pose)?;
+                        if let Some(estimate) = mapper.estimate() {
+                            node.send(&estimate_output, &estimate)?;
+                        }
                         if node.timestamp() - markers_sent >= MARKERS_EVERY_SECS {
                             markers_sent = node.timestamp();
                             node.send(&markers_output, &placed_scan(&sample.value, pose))?;

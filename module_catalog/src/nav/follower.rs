@@ -21,6 +21,12 @@
 //! When it replans, it keeps each no-go area's own margin (`no_go_margins_m`, as the plan was
 //! checked with), not one for all.
 //!
+//! With a mapper's live `map` linked (a robot with no `world`), the path left is checked
+//! against the map's walls at a leg's start and at each map taken (one per [`MAP_EVERY_M`]
+//! driven); when it comes nearer one than the robot keeps, the leg is planned again on the map,
+//! every wall seen so far at once, and that plan does not count among `max_replans`. The laser's
+//! raw hits are then left to the map.
+//!
 //! With a localiser's `estimate` linked, the follower also keeps the pose's uncertainty from
 //! the no-go areas: while its body is closer to one than [`UNCERTAINTY_SIGMAS`] standard
 //! deviations of the position (on its worst axis), it stops rather than guess, until the
@@ -32,13 +38,13 @@ use armor_model::geo::{self, Polygon};
 use armor_model::planner::{self, Keepout, Path, Robot};
 use armor_model::world::Point;
 use armor_module_api::types::{
-    Frame, LaserScan, LocalisationState, Marker, Markers, Odometry, Pose2D, PoseEstimate, Shape,
-    Text, Twist,
+    Frame, LaserScan, LocalisationState, Marker, Markers, OccupancyGrid, Odometry, Pose2D,
+    PoseEstimate, Shape, Text, Twist,
 };
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use super::pursuit::{Limits, Pursuit};
-use super::replan::{self, WorldMap};
+use super::replan::{self, LiveMap, WorldMap};
 use super::wrap_angle;
 use crate::BodyError;
 
@@ -61,6 +67,11 @@ const SWITCH_M: f64 = 1.0;
 const VIA_REACHED_M: f64 = 0.4;
 /// How far the way round a no-go area keeps from it (what plans are compiled with).
 pub const CLEARANCE_M: f64 = armor_model::plan::CLEARANCE_M;
+/// A new live map is taken once the robot has moved this far since the last one taken (or at
+/// a leg's start): the map grows as the laser sees more, which it does as the robot moves, and
+/// a mapper's grid is large (decoding 60 m at 0.1 m took 24 ms in a debug build, which at
+/// twenty times real time and a map a second of run time left the follower's commands late).
+const MAP_EVERY_M: f64 = 2.0;
 /// How many standard deviations of the estimated position the robot's body keeps from the
 /// no-go areas (two: about 95 % along the worst axis).
 pub const UNCERTAINTY_SIGMAS: f64 = 2.0;
@@ -87,6 +98,12 @@ pub fn spec() -> ModuleSpec {
         "scan",
         "the laser scan (optional): with a path, what it sees on the way is gone round when \
          replanning",
+    )
+    .input::<OccupancyGrid>(
+        "map",
+        "a mapper's live map, in the frame of the pose (optional; for a robot with no `world`): \
+         with a path, every wall it holds is planned round at once, whenever the path left \
+         comes near one (at the leg's start and at each new map)",
     )
     .output::<Text>(
         "path",
@@ -274,6 +291,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let odometry = node.input::<Odometry>("odometry")?;
     let scan = node.input::<LaserScan>("scan")?;
     let estimate = node.input::<PoseEstimate>("estimate")?;
+    let map = node.input::<OccupancyGrid>("map")?;
     let path_output = node.output::<Text>("path")?;
     let output = node.output::<Twist>("cmd_desired")?;
     let markers_output = node.output::<Markers>("markers")?;
@@ -290,6 +308,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let mut next_tick = node.timestamp() + TICK_SECS;
     let mut path_sent = f64::NEG_INFINITY;
     let mut applicable = true;
+    let mut map_waiting = false;
     loop {
         let event = if node.is_active() {
             let deadline = node.clock().instant_at(next_tick);
@@ -302,6 +321,12 @@ pub fn body(node: &mut Node) -> BodyResult {
                 let Some(sample) = node.take(&odometry)? else {
                     continue;
                 };
+                if map_waiting && follower.wants_map() {
+                    map_waiting = false;
+                    if let Some(sample) = node.take(&map)? {
+                        follower.on_map(sample.value);
+                    }
+                }
                 if node.is_active() {
                     let control = follower.on_pose(sample.value.pose_in_odom, node.timestamp());
                     if control.new_path {
@@ -326,6 +351,8 @@ pub fn body(node: &mut Node) -> BodyResult {
                     follower.on_scan(&sample.value);
                 }
             }
+            // The newest map waits in its input until the follower wants one (see MAP_EVERY_M).
+            Event::Input(port) if port == map.id() => map_waiting = true,
             Event::Input(port) if port == estimate.id() => {
                 if let Some(sample) = node.take(&estimate)? {
                     follower.on_estimate(&sample.value);
@@ -557,6 +584,13 @@ pub(crate) struct Follower {
     /// The latest pose, and the laser's hits the world does not explain, seen from it.
     pose: Option<Pose2D>,
     seen: Vec<Point>,
+    /// A mapper's live map, and whether the path left comes near one of its walls (checked at
+    /// the first pose of a leg and at each new map).
+    live_map: Option<LiveMap>,
+    /// Where the robot was when the live map was taken.
+    map_taken_at: Option<Point>,
+    map_in_the_way: bool,
+    map_checked: bool,
     /// Replans since the last (re)start, and when the last one was.
     replans: u32,
     last_replan: f64,
@@ -583,6 +617,10 @@ impl Follower {
             world: None,
             pose: None,
             seen: Vec::new(),
+            live_map: None,
+            map_taken_at: None,
+            map_in_the_way: false,
+            map_checked: false,
             replans: 0,
             last_replan: f64::NEG_INFINITY,
             reached: false,
@@ -609,6 +647,8 @@ impl Follower {
         }
         self.via = None;
         self.seen.clear();
+        self.map_in_the_way = false;
+        self.map_checked = false;
         self.replans = 0;
         self.last_replan = f64::NEG_INFINITY;
         self.reached = false;
@@ -724,6 +764,9 @@ impl Follower {
                 new_path: false,
             };
         }
+        if !self.map_checked {
+            self.check_map();
+        }
         let progress = remaining_m < self.best_distance_m - PROGRESS_M;
         if let Some(control) = self.replan_if_stuck(pose, progress, now) {
             return control;
@@ -784,9 +827,14 @@ impl Follower {
             .position(|area| area.contains(here) || area.distance_to_outline(here) < reach)
     }
 
-    /// The laser's hits that the world does not explain, placed from the latest pose.
+    /// The laser's hits that the world does not explain, placed from the latest pose. With a
+    /// live map they are left to the map: the mapper places each scan where its matcher puts
+    /// it, where the follower would place it from the pose it has when the scan arrives, which
+    /// may be late (on a busy machine, at a high time scale, a scan taken while the robot
+    /// turns was placed askew across a doorway it then replanned round, 20 m the long way).
     pub(crate) fn on_scan(&mut self, scan: &LaserScan) {
-        if self.pursuit.is_none() {
+        if self.pursuit.is_none() || self.live_map.is_some() {
+            self.seen.clear();
             return;
         }
         if let Some(pose) = self.pose {
@@ -795,27 +843,85 @@ impl Follower {
         }
     }
 
+    /// Whether a newer live map is wanted: none yet, a leg not checked against one yet, or
+    /// the robot [`MAP_EVERY_M`] from where the last was taken.
+    pub(crate) fn wants_map(&self) -> bool {
+        let moved = match (self.map_taken_at, self.pose) {
+            (Some(at), Some(pose)) => geo::distance(at, Point::new(pose.x_m, pose.y_m)),
+            _ => f64::INFINITY,
+        };
+        self.live_map.is_none()
+            || (self.pursuit.is_some() && !self.map_checked)
+            || moved >= MAP_EVERY_M
+    }
+
+    /// A mapper's live map: kept for replanning, and the path left checked against it.
+    pub(crate) fn on_map(&mut self, grid: OccupancyGrid) {
+        match LiveMap::new(grid) {
+            Some(live) => {
+                self.live_map = Some(live);
+                self.map_taken_at = self.pose.map(|pose| Point::new(pose.x_m, pose.y_m));
+                self.check_map();
+            }
+            None => tracing::warn!("ignored a map whose cells do not match its size"),
+        }
+    }
+
+    /// Whether the path left comes nearer a wall of the live map than the robot keeps (with
+    /// half its clearance to spare, as for what the laser sees): then the leg is planned
+    /// again on the map at the next pose.
+    fn check_map(&mut self) {
+        let (Some(live), Some(pursuit), Some(pose)) = (&self.live_map, &self.pursuit, self.pose)
+        else {
+            return;
+        };
+        self.map_checked = true;
+        let here = Point::new(pose.x_m, pose.y_m);
+        let keep_m = self.settings.robot_radius_m + self.settings.clearance_m * 0.5;
+        self.map_in_the_way =
+            replan::blocked_within(&pursuit.ahead(here), live.walls(), keep_m, f64::INFINITY);
+    }
+
+    /// The world replanning is done on: the `world` given, else the live map's round `from`
+    /// and the goal, else none (the open box round what the laser sees).
+    fn plan_world(&self, from: Point) -> Option<WorldMap> {
+        if let Some(world) = &self.world {
+            return Some(world.clone());
+        }
+        self.live_map
+            .as_ref()
+            .and_then(|live| live.world(from, self.settings.goal()))
+    }
+
     /// With a path: plans again when the robot has made no progress for `replan_after_secs`
     /// or the laser sees the path blocked ahead, at most `max_replans` times per leg. `None`
     /// when nothing was done; a replan that finds no way reports `blocked` and stops.
     fn replan_if_stuck(&mut self, pose: Pose2D, progress: bool, now: f64) -> Option<Control> {
         let settings = &self.settings;
         let pursuit = self.pursuit.as_ref()?;
-        if self.replans >= settings.max_replans || self.blocked {
+        if self.blocked {
             return None;
         }
         let here = Point::new(pose.x_m, pose.y_m);
-        let stuck = !progress
+        // Replans for lack of progress or what the laser sees are recoveries, bounded by
+        // `max_replans`; one for a wall of the live map is the leg planned on what is known,
+        // bounded only by `replan_after_secs` between two.
+        let recovering = self.replans < settings.max_replans;
+        let stuck = recovering
+            && !progress
             && self.best_distance_m.is_finite()
             && now - self.last_progress >= settings.replan_after_secs;
-        let seen_in_the_way = !self.seen.is_empty()
+        let seen_in_the_way = recovering
+            && !self.seen.is_empty()
             && now - self.last_replan >= settings.replan_after_secs
             && replan::blocked_ahead(
                 &pursuit.ahead(here),
                 &self.seen,
                 settings.robot_radius_m + settings.clearance_m * 0.5,
             );
-        if !stuck && !seen_in_the_way {
+        let map_in_the_way =
+            self.map_in_the_way && now - self.last_replan >= settings.replan_after_secs;
+        if !stuck && !seen_in_the_way && !map_in_the_way {
             return None;
         }
         let robot = Robot {
@@ -825,13 +931,20 @@ impl Follower {
         let keepouts = settings.keepouts();
         let why = if stuck {
             "no progress"
-        } else {
+        } else if seen_in_the_way {
             "the laser sees something in the way"
+        } else {
+            "the live map has a wall in the way"
         };
-        self.replans += 1;
+        if stuck || seen_in_the_way {
+            self.replans += 1;
+        }
+        self.map_in_the_way = false;
         self.last_replan = now;
+        let world = self.plan_world(here);
+        let settings = &self.settings;
         match replan::replan(
-            self.world.as_ref(),
+            world.as_ref(),
             &robot,
             &keepouts,
             &self.seen,
@@ -861,7 +974,7 @@ impl Follower {
             Err(err)
                 if !self.seen.is_empty()
                     && replan::replan(
-                        self.world.as_ref(),
+                        world.as_ref(),
                         &robot,
                         &keepouts,
                         &[],
@@ -876,6 +989,13 @@ impl Follower {
                     self.replans,
                     settings.max_replans
                 );
+                None
+            }
+            // A live map is drawn from scans placed by a pose that drifts too, and a doorway
+            // seen from afar may look closed on it: the path planned on what the operator drew
+            // is kept, and the laser and the next map decide.
+            Err(err) if !stuck && !seen_in_the_way => {
+                tracing::warn!("replanning on the live map found no way ({err}); keeping the path");
                 None
             }
             Err(err) => {
@@ -1058,20 +1178,24 @@ mod tests {
         )
     }
 
-    #[test]
-    fn a_path_seen_blocked_ahead_is_planned_again_round_what_is_seen() {
-        let mut follower = follower_on("0,5 15,5", 15.0);
-        let at = |x_m| Pose2D {
+    /// The pose at `x_m` on the line y = 5, facing east.
+    fn east_at(x_m: f64) -> Pose2D {
+        Pose2D {
             x_m,
             y_m: 5.0,
             theta_rad: 0.0,
-        };
-        assert!(!follower.on_pose(at(1.0), 1.0).new_path);
+        }
+    }
+
+    #[test]
+    fn a_path_seen_blocked_ahead_is_planned_again_round_what_is_seen() {
+        let mut follower = follower_on("0,5 15,5", 15.0);
+        assert!(!follower.on_pose(east_at(1.0), 1.0).new_path);
         // A wall across the way 2 m ahead, from y 0 to 7 (no world: the laser alone).
         follower.seen = (0..=70)
             .map(|i| Point::new(3.0, f64::from(i) * 0.1))
             .collect();
-        let control = follower.on_pose(at(1.0), 1.1);
+        let control = follower.on_pose(east_at(1.0), 1.1);
         assert!(control.new_path, "{control:?}");
         let points = follower.pursuit.as_ref().expect("path").points().to_vec();
         assert!(
@@ -1090,16 +1214,90 @@ mod tests {
         follower.pursuit = follower.settings.pursuit();
         // Walled in by what the laser sees, but not on the map: the laser may be placed off
         // (odometry drifts), so the path is kept and the avoider keeps the robot safe.
-        let control = follower.on_pose(at(1.0), 5.0);
+        let control = follower.on_pose(east_at(1.0), 5.0);
         assert_eq!(control.report, None);
         assert!(!control.new_path);
         assert_eq!(follower.replans, 2);
         // The goal in a no-go area: the map alone has no way, `blocked` at once.
         follower.settings.no_go = geo::parse_polygons("14,4 16,4 16,6 14,6").expect("polygon");
         follower.last_replan = f64::NEG_INFINITY;
-        let control = follower.on_pose(at(1.0), 9.0);
+        let control = follower.on_pose(east_at(1.0), 9.0);
         assert_eq!(control.report, Some("blocked"));
         assert_eq!(control.twist, Twist::default());
+    }
+
+    /// A mapper's grid of the box 0..20 × 0..10 at 0.1 m, unknown but for the cells given as
+    /// walls (100) and the row y = 5 seen free.
+    fn live_grid(walls: impl Fn(f64, f64) -> bool) -> OccupancyGrid {
+        let (width, height) = (200_u32, 100_u32);
+        let mut cells = vec![-1_i8; (width * height) as usize];
+        for row in 0..height {
+            for col in 0..width {
+                let (x, y) = (f64::from(col) * 0.1 + 0.05, f64::from(row) * 0.1 + 0.05);
+                let index = (row * width + col) as usize;
+                if walls(x, y) {
+                    cells[index] = 100;
+                } else if (y - 5.0).abs() < 0.1 {
+                    cells[index] = 0;
+                }
+            }
+        }
+        OccupancyGrid {
+            resolution_m: 0.1,
+            width,
+            height,
+            origin_x_m: 0.0,
+            origin_y_m: 0.0,
+            cells,
+        }
+    }
+
+    #[test]
+    fn a_leg_is_planned_on_the_live_map_at_once_without_using_up_replans() {
+        let mut follower = follower_on("1,5 15,5", 15.0);
+        // Two walls the mapper has seen across the way: at x = 4 from y 0 to 7, at x = 8
+        // from y 3 to 10. The laser in view of neither: nothing seen in the way.
+        follower.on_map(live_grid(|x, y| {
+            ((x - 4.0).abs() < 0.1 && y < 7.0) || ((x - 8.0).abs() < 0.1 && y > 3.0)
+        }));
+        let control = follower.on_pose(east_at(1.0), 1.0);
+        assert!(control.new_path, "{control:?}");
+        assert_eq!(
+            follower.replans, 0,
+            "a leg planned on the map is not a recovery"
+        );
+        let points = follower.pursuit.as_ref().expect("path").points().to_vec();
+        // Round both walls at once (the way round the second, still unseen beyond the map's
+        // walls, is taken as open): every point of the path as far from every wall as the
+        // robot keeps, but for the cells' half width.
+        let walls = follower.live_map.as_ref().expect("a map").walls().to_vec();
+        let samples = points.windows(2).flat_map(|pair| {
+            let (a, b) = (pair[0], pair[1]);
+            let steps = (geo::distance(a, b) / 0.05).ceil().max(1.0) as usize;
+            (0..=steps).map(move |i| {
+                let t = i as f64 / steps as f64;
+                Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t)
+            })
+        });
+        let nearest = samples
+            .flat_map(|p| walls.iter().map(move |w| geo::distance(p, *w)))
+            .fold(f64::INFINITY, f64::min);
+        assert!(nearest >= 0.35 - 0.05, "{nearest} m: {points:?}");
+        // The same map again: the path keeps clear of it, nothing to plan.
+        follower.on_map(live_grid(|x, y| {
+            ((x - 4.0).abs() < 0.1 && y < 7.0) || ((x - 8.0).abs() < 0.1 && y > 3.0)
+        }));
+        assert!(!follower.on_pose(east_at(1.05), 10.0).new_path);
+        // What the laser sees is left to the map.
+        follower.seen = vec![Point::new(4.0, 6.0)];
+        let scan = LaserScan {
+            angle_min_rad: 0.0,
+            angle_increment_rad: 0.1,
+            range_max_m: 8.0,
+            ranges_m: vec![3.0],
+        };
+        follower.on_scan(&scan);
+        assert!(follower.seen.is_empty(), "{:?}", follower.seen);
     }
 
     #[test]
@@ -1397,17 +1595,7 @@ mod tests {
         };
         let estimate = |sigma_m: f64, state| PoseEstimate {
             pose_in_map: Pose2D::default(),
-            covariance: [
-                sigma_m * sigma_m,
-                0.0,
-                0.0,
-                0.0,
-                sigma_m * sigma_m,
-                0.0,
-                0.0,
-                0.0,
-                0.01,
-            ],
+            covariance: PoseEstimate::diagonal_covariance(sigma_m, 0.1),
             fit: 0.9,
             state,
         };

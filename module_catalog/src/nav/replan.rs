@@ -7,6 +7,11 @@
 //! with drifts, and a wall seen a little off would otherwise narrow every door on the way.
 //! Without a world the map is the open box round the robot, the goal and the hits.
 //!
+//! A mapper's live map ([`LiveMap`], the follower's `map` input) stands in for the world where
+//! there is none: the walls it has seen, placed from its corrected pose, are planned round all
+//! at once, where the laser's hits alone show only the walls in view, and a replan round them
+//! would meet the next ones one by one.
+//!
 //! Pure: the world's text comes in as text, the scan as a value.
 
 use armor_model::geo;
@@ -14,7 +19,7 @@ use armor_model::planner::{
     Costmap, CostmapSettings, Keepout, Path, PathError, Planner, Robot, open_extent,
 };
 use armor_model::world::{Point, Shape, World};
-use armor_module_api::types::{LaserScan, Pose2D};
+use armor_module_api::types::{LaserScan, OccupancyGrid, Pose2D};
 
 /// A hit this close to the world's walls and outlines is the world, not a new obstacle.
 pub const EXPLAINED_M: f64 = 0.3;
@@ -25,6 +30,10 @@ const HIT_CELL_M: f64 = 0.1;
 const HIT_RADIUS_M: f64 = 0.05;
 /// How far ahead along the path the laser is watched for obstacles in the way.
 pub const AHEAD_M: f64 = 3.0;
+/// A live map's cell is a wall from this value on (as a ROS map's `occupied_thresh` of 0.5).
+const LIVE_WALL_FROM: i8 = 50;
+/// The world made of a live map reaches this far beyond its walls, the robot and the goal.
+const LIVE_MARGIN_M: f64 = 2.0;
 /// How far round the robot a free place to set off from is sought when its own place is too
 /// close to what it sees (the avoider stops it near obstacles).
 const SET_OFF_SEARCH_M: f64 = 1.0;
@@ -42,6 +51,117 @@ impl WorldMap {
             file_name: world.file_name().to_owned(),
             world,
         }
+    }
+}
+
+/// A mapper's occupancy grid as the follower plans on it: its walls (cells of
+/// [`LIVE_WALL_FROM`] or more), and every other cell, seen free or not seen yet, open. A
+/// building nobody mapped is explored on the hope that what the laser has not seen is open:
+/// the laser and the map's next update say when it is not.
+#[derive(Clone, Debug)]
+pub struct LiveMap {
+    grid: OccupancyGrid,
+    /// The centres of the wall cells.
+    walls: Vec<Point>,
+}
+
+impl LiveMap {
+    /// The live map of a grid; `None` for a grid whose cells do not match its size or whose
+    /// geometry is not finite.
+    pub fn new(grid: OccupancyGrid) -> Option<LiveMap> {
+        let (width, height) = (grid.width as usize, grid.height as usize);
+        let sane = grid.cells.len() == width * height
+            && grid.resolution_m.is_finite()
+            && grid.resolution_m > 0.0
+            && grid.origin_x_m.is_finite()
+            && grid.origin_y_m.is_finite();
+        if !sane {
+            return None;
+        }
+        let resolution = grid.resolution_m;
+        let walls = grid
+            .cells
+            .iter()
+            .enumerate()
+            .filter(|(_, value)| **value >= LIVE_WALL_FROM)
+            .map(|(index, _)| {
+                Point::new(
+                    grid.origin_x_m + ((index % width) as f64 + 0.5) * resolution,
+                    grid.origin_y_m + ((index / width) as f64 + 0.5) * resolution,
+                )
+            })
+            .collect();
+        Some(LiveMap { grid, walls })
+    }
+
+    /// The centres of the wall cells.
+    pub fn walls(&self) -> &[Point] {
+        &self.walls
+    }
+
+    /// The world to plan on from `from` to `goal`: the box round the walls, `from` and `goal`
+    /// with [`LIVE_MARGIN_M`] to spare, each run of wall cells an obstacle (as a ROS map
+    /// becomes a world), the rest open.
+    pub fn world(&self, from: Point, goal: Point) -> Option<WorldMap> {
+        let g = &self.grid;
+        let resolution = g.resolution_m;
+        let (mut min_x, mut min_y) = (from.x.min(goal.x), from.y.min(goal.y));
+        let (mut max_x, mut max_y) = (from.x.max(goal.x), from.y.max(goal.y));
+        for wall in &self.walls {
+            min_x = min_x.min(wall.x);
+            min_y = min_y.min(wall.y);
+            max_x = max_x.max(wall.x);
+            max_y = max_y.max(wall.y);
+        }
+        let (min_x, min_y) = (min_x - LIVE_MARGIN_M, min_y - LIVE_MARGIN_M);
+        let (max_x, max_y) = (max_x + LIVE_MARGIN_M, max_y + LIVE_MARGIN_M);
+        if ![min_x, min_y, max_x, max_y].iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        // The box on the grid's own cells, so that each wall cell stays where it was.
+        let first_col = ((min_x - g.origin_x_m) / resolution).floor() as i64;
+        let first_row = ((min_y - g.origin_y_m) / resolution).floor() as i64;
+        let width = (((max_x - g.origin_x_m) / resolution).ceil() as i64 - first_col).max(1);
+        let height = (((max_y - g.origin_y_m) / resolution).ceil() as i64 - first_row).max(1);
+        if width * height > 4_000_000 {
+            return None;
+        }
+        let (source_width, source_height) = (g.width as i64, g.height as i64);
+        let mut cells = vec![0_i8; (width * height) as usize];
+        for row in 0..height {
+            for col in 0..width {
+                let (c, r) = (first_col + col, first_row + row);
+                if (0..source_width).contains(&c)
+                    && (0..source_height).contains(&r)
+                    && g.cells[(r * source_width + c) as usize] >= LIVE_WALL_FROM
+                {
+                    cells[(row * width + col) as usize] = 100;
+                }
+            }
+        }
+        let crop = OccupancyGrid {
+            resolution_m: resolution,
+            width: width as u32,
+            height: height as u32,
+            origin_x_m: g.origin_x_m + first_col as f64 * resolution,
+            origin_y_m: g.origin_y_m + first_row as f64 * resolution,
+            cells,
+        };
+        let start = Pose2D {
+            x_m: from.x,
+            y_m: from.y,
+            theta_rad: 0.0,
+        };
+        armor_model::ros_map::world_of_grid(
+            &crop,
+            "live map",
+            "the mapper's map",
+            (0.0, 0.0),
+            Some(start),
+        )
+        .map_err(|err| tracing::warn!("the live map as a world: {err}"))
+        .ok()
+        .map(WorldMap::new)
     }
 }
 
@@ -87,7 +207,12 @@ pub fn unexplained(world: Option<&World>, hits: &[Point]) -> Vec<Point> {
 /// Whether one of `hits` lies on the path ahead: within `keep_m` of it, from `here`'s
 /// projection up to [`AHEAD_M`] along it.
 pub fn blocked_ahead(path_ahead: &[Point], hits: &[Point], keep_m: f64) -> bool {
-    let mut left_m = AHEAD_M;
+    blocked_within(path_ahead, hits, keep_m, AHEAD_M)
+}
+
+/// Whether one of `hits` lies within `keep_m` of the first `ahead_m` of `path_ahead`.
+pub fn blocked_within(path_ahead: &[Point], hits: &[Point], keep_m: f64, ahead_m: f64) -> bool {
+    let mut left_m = ahead_m;
     for pair in path_ahead.windows(2) {
         let (a, b) = (pair[0], pair[1]);
         let length_m = geo::distance(a, b);

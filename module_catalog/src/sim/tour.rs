@@ -116,6 +116,11 @@ impl Tour {
         self.next == self.waypoints.len()
     }
 
+    /// Goes on from waypoint `next` (a robot carried elsewhere on the tour's way).
+    pub fn resume_at(&mut self, next: usize) {
+        self.next = next.min(self.waypoints.len());
+    }
+
     pub fn steps(&self) -> u64 {
         self.steps
     }

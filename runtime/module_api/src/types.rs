@@ -168,6 +168,16 @@ pub struct PoseEstimate {
 postcard_datum!(PoseEstimate, "PoseEstimate");
 
 impl PoseEstimate {
+    /// The covariance of independent errors: `sigma_m` in x and in y, `sigma_rad` in heading.
+    pub fn diagonal_covariance(sigma_m: f64, sigma_rad: f64) -> [f64; 9] {
+        let (position, heading) = (sigma_m * sigma_m, sigma_rad * sigma_rad);
+        [
+            position, 0.0, 0.0, //
+            0.0, position, 0.0, //
+            0.0, 0.0, heading,
+        ]
+    }
+
     /// The standard deviation of the position along its most uncertain axis (the square root
     /// of the largest eigenvalue of the covariance's position block).
     pub fn position_sigma_m(&self) -> f64 {

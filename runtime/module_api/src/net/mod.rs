@@ -475,15 +475,18 @@ impl Net {
         {
             return Err(err.into());
         }
-        let ready: Vec<(Token, bool, bool)> = self
+        let ready: Vec<(Token, Readable, bool)> = self
             .events
             .iter()
             .map(|event| {
-                (
-                    event.token(),
-                    event.is_readable() || event.is_read_closed() || event.is_error(),
-                    event.is_writable(),
-                )
+                let readable = if event.is_read_closed() || event.is_error() {
+                    Readable::ToTheEnd
+                } else if event.is_readable() {
+                    Readable::Yes
+                } else {
+                    Readable::No
+                };
+                (event.token(), readable, event.is_writable())
             })
             .collect();
         for (token, readable, writable) in ready {
@@ -500,8 +503,10 @@ impl Net {
                     }
                 }
             }
-            if readable {
-                self.read_conn(core, token);
+            match readable {
+                Readable::No => {}
+                Readable::Yes => self.read_conn(core, token, UntilBlocked::OrShortRead),
+                Readable::ToTheEnd => self.read_conn(core, token, UntilBlocked::Always),
             }
         }
         self.run_timers(core);
@@ -631,7 +636,7 @@ impl Net {
             }
         }
         for token in accepted {
-            self.read_conn(core, token);
+            self.read_conn(core, token, UntilBlocked::Always);
         }
     }
 
@@ -670,14 +675,16 @@ impl Net {
             if let Some(conn) = self.conns.get_mut(&token) {
                 conn.paused = false;
             }
-            self.read_conn(core, token);
+            // The socket's edges while paused were not acted on: read until it blocks.
+            self.read_conn(core, token, UntilBlocked::Always);
         }
     }
 
     /// Handles what is buffered, then reads until the socket is drained (edge-triggered),
     /// handling each complete frame. A paused reliable input stops reading; whatever it already
-    /// holds is handled first when it resumes.
-    fn read_conn(&mut self, core: &mut Core, token: Token) {
+    /// holds is handled first when it resumes. `until` says whether a short read may be taken
+    /// for drained (see [`UntilBlocked`]).
+    fn read_conn(&mut self, core: &mut Core, token: Token, until: UntilBlocked) {
         loop {
             if let Err(err) = self.handle_frames(core, token) {
                 self.fail(core, token, &err);
@@ -704,7 +711,7 @@ impl Net {
             }
             // A short read drained the socket: handle what came, and let readiness tell of more
             // (saves a read that would only say "would block").
-            if conn.reader.drained() {
+            if until == UntilBlocked::OrShortRead && conn.reader.drained() {
                 if let Err(err) = self.handle_frames(core, token) {
                     self.fail(core, token, &err);
                     return;
@@ -910,6 +917,27 @@ impl Net {
             }
         }
     }
+}
+
+/// What a readiness event said of a connection's reading side.
+#[derive(Clone, Copy)]
+enum Readable {
+    No,
+    Yes,
+    /// The peer closed (or the socket failed): the end must be read, however short the data
+    /// before it.
+    ToTheEnd,
+}
+
+/// How far [`Net::read_conn`] reads. Readiness is edge-triggered: an edge not acted on does not
+/// come again, so a short read may be taken for "drained" only when the event that woke the
+/// loop said nothing of the peer closing. A connection's end that is already in the socket
+/// (the peer closed while its input was paused, or before it was accepted, or in the same
+/// event as its last data) must be read now, or the link would wait for ever on a dead peer.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum UntilBlocked {
+    OrShortRead,
+    Always,
 }
 
 #[cfg(test)]

@@ -229,7 +229,7 @@ impl Net {
         let paused = std::mem::take(&mut conn.paused);
         self.queue_message(token, &ToProvider::Unsubscribe);
         if paused {
-            self.read_conn(core, token);
+            self.read_conn(core, token, UntilBlocked::Always);
         }
     }
 
