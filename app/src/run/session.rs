@@ -582,6 +582,8 @@ fn poll_control(
                 },
             ),
         };
+        // As anyhow, so that `{err:#}` shows the causes.
+        let reply = reply.map_err(anyhow::Error::from);
         if reply.is_err() {
             client = None;
         }
@@ -702,7 +704,7 @@ fn drive(
                 },
             ),
         };
-        let error = match reply {
+        let error = match reply.map_err(anyhow::Error::from) {
             Ok(reply) if reply.ok => None,
             Ok(reply) => Some(reply.message),
             Err(err) => {

@@ -121,7 +121,9 @@ impl SystemView {
                                             Ok(None)
                                         }
                                     } else {
-                                        spec.check_value(&trimmed).map(|()| Some(trimmed))
+                                        spec.check_value(&trimmed)
+                                            .map(|()| Some(trimmed))
+                                            .map_err(|why| why.to_string())
                                     };
                                     match &verdict {
                                         Ok(_) => ui.colored_label(OK, "ok"),

@@ -79,7 +79,7 @@ pub(crate) fn check_param(spec: &ParamSpec, value: &str) -> Result<(), ApiError>
         .map_err(|reason| ApiError::BadParam {
             name: spec.name.clone(),
             value: value.to_owned(),
-            reason,
+            reason: reason.to_string(),
         })?;
     spec.check_value(value).map_err(|_| ApiError::OutOfRange {
         name: spec.name.clone(),

@@ -29,7 +29,7 @@ impl ParamType {
     }
 
     /// Checks that `value` is a valid literal of this type; the error says why in words.
-    pub fn check_value(self, value: &str) -> Result<(), String> {
+    pub fn check_value(self, value: &str) -> Result<(), ValueError> {
         let ok = match self {
             ParamType::Bool => matches!(value.trim(), "true" | "false"),
             ParamType::Int => value.trim().parse::<i64>().is_ok(),
@@ -45,10 +45,33 @@ impl ParamType {
                 ParamType::Float => "a finite number",
                 ParamType::String => "text",
             };
-            Err(format!("`{value}` is not {expected}"))
+            Err(ValueError::NotOfType {
+                value: value.to_owned(),
+                expected,
+            })
         }
     }
 }
+
+/// Why a value does not fit a parameter, in the words a user reads: "`-5` is not greater than
+/// 0°".
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ValueError {
+    /// Not a literal of the parameter's type (`expected`: "a whole number").
+    #[error("`{value}` is not {expected}")]
+    NotOfType {
+        value: String,
+        expected: &'static str,
+    },
+    /// Of its type, but outside its range, `nonzero` or choices (`allowed`, in words).
+    #[error("`{value}` is not {allowed}")]
+    NotAllowed { value: String, allowed: String },
+}
+
+/// A parameter type's name that is none of ours.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown parameter type `{0}` (expected bool, int, float or string)")]
+pub struct UnknownParamType(pub String);
 
 impl fmt::Display for ParamType {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -57,16 +80,14 @@ impl fmt::Display for ParamType {
 }
 
 impl FromStr for ParamType {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownParamType;
+    fn from_str(s: &str) -> Result<Self, UnknownParamType> {
         match s {
             "bool" => Ok(ParamType::Bool),
             "int" => Ok(ParamType::Int),
             "float" => Ok(ParamType::Float),
             "string" => Ok(ParamType::String),
-            other => Err(format!(
-                "unknown parameter type `{other}` (expected bool, int, float or string)"
-            )),
+            other => Err(UnknownParamType(other.to_owned())),
         }
     }
 }
@@ -204,7 +225,7 @@ impl ParamSpec {
 
     /// Checks that `value` is a valid literal of the parameter's type and within its range,
     /// `nonzero` and choices; the error says why in words: "`-5` is not greater than 0°".
-    pub fn check_value(&self, value: &str) -> Result<(), String> {
+    pub fn check_value(&self, value: &str) -> Result<(), ValueError> {
         self.param_type.check_value(value)?;
         match self.param_type {
             ParamType::Int | ParamType::Float => {
@@ -220,14 +241,20 @@ impl ParamSpec {
                 if low && high && !(self.nonzero && number == 0.0) {
                     Ok(())
                 } else {
-                    Err(format!("`{}` is not {}", value.trim(), self.range_text()))
+                    Err(ValueError::NotAllowed {
+                        value: value.trim().to_owned(),
+                        allowed: self.range_text(),
+                    })
                 }
             }
             ParamType::String if !self.choices.is_empty() => {
                 if self.choices.iter().any(|choice| choice == value) {
                     Ok(())
                 } else {
-                    Err(format!("`{value}` is not {}", self.range_text()))
+                    Err(ValueError::NotAllowed {
+                        value: value.to_owned(),
+                        allowed: self.range_text(),
+                    })
                 }
             }
             ParamType::Bool | ParamType::String => Ok(()),
@@ -590,7 +617,9 @@ fn read_param(child: &Element, doc: String, problems: &mut Vec<Located>) -> Opti
     let param_type: ParamType = type_attr
         .value
         .parse()
-        .map_err(|err| problems.push(Located::new(type_attr.pos, err)))
+        .map_err(|err: UnknownParamType| {
+            problems.push(Located::new(type_attr.pos, err.to_string()))
+        })
         .ok()?;
     let default = child.attr("default");
     let required = child.attr("required");
@@ -870,7 +899,11 @@ mod tests {
             ModuleDescription::from_xml(&description.to_xml()),
             Ok(description.clone())
         );
-        let refusal = |param: usize, value: &str| description.params[param].check_value(value);
+        let refusal = |param: usize, value: &str| {
+            description.params[param]
+                .check_value(value)
+                .map_err(|err| err.to_string())
+        };
         assert_eq!(refusal(0, "1000"), Ok(()));
         assert_eq!(
             refusal(0, "0"),
@@ -933,8 +966,10 @@ mod tests {
     fn parameter_values_are_checked_by_type() {
         assert!(ParamType::Int.check_value("42").is_ok());
         assert_eq!(
-            ParamType::Int.check_value("4.2"),
-            Err("`4.2` is not a whole number".into())
+            ParamType::Int
+                .check_value("4.2")
+                .map_err(|err| err.to_string()),
+            Err("`4.2` is not a whole number".to_owned())
         );
         assert!(ParamType::Float.check_value("inf").is_err());
         assert!(ParamType::Bool.check_value("yes").is_err());

@@ -55,7 +55,7 @@ impl TestBench {
                 .map_err(|reason| ApiError::BadParam {
                     name: (*param).to_owned(),
                     value: (*value).to_owned(),
-                    reason,
+                    reason: reason.to_string(),
                 })?;
             config
                 .params

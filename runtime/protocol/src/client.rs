@@ -9,6 +9,38 @@ use armor_module_api::wire::{MAX_FRAME_BYTES, WireError};
 use crate::frame::{closed, read_bounded};
 use crate::{FromRun, REPLY_TIMEOUT, Reply, Request, ToRun};
 
+/// Why a request to a run got no reply. Printed with its causes (`{err:#}`), it tells the user
+/// what to do.
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    #[error("cannot reach the run's control interface at {addr}")]
+    Unreachable {
+        addr: SocketAddr,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("the run refused the handshake: it holds another secret, or runs without one")]
+    Refused,
+    #[error("cannot open the control link at {addr} (is it a run's?)")]
+    Handshake {
+        addr: SocketAddr,
+        #[source]
+        source: WireError,
+    },
+    #[error(
+        "the run closed the connection without a word: it requires the shared secret (armor ctl --secret FILE, or --key FILE)"
+    )]
+    SecretRequired,
+    #[error("no reply from the run")]
+    NoReply(#[source] WireError),
+    #[error("the run answered request {answered} where {due} was due: the link was tampered with")]
+    OutOfStep { answered: u64, due: u64 },
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    #[error(transparent)]
+    Wire(#[from] WireError),
+}
+
 /// The key a control client proves, from a file: a role's key (`armor secret derive`), or the
 /// run's secret itself, which acts as the operator.
 pub fn key_from_file(
@@ -32,7 +64,7 @@ pub fn request(
     addr: SocketAddr,
     request: &Request,
     secret: Option<&Secret>,
-) -> anyhow::Result<Reply> {
+) -> Result<Reply, ClientError> {
     Client::connect(addr, secret)?.call(request)
 }
 
@@ -54,7 +86,7 @@ fn dial_role(dial: &Dial) -> Role {
 
 impl Client {
     /// Connects to the control interface at `addr`; with a `secret`, as the operator.
-    pub fn connect(addr: SocketAddr, secret: Option<&Secret>) -> anyhow::Result<Client> {
+    pub fn connect(addr: SocketAddr, secret: Option<&Secret>) -> Result<Client, ClientError> {
         let key = secret.map(|secret| RoleKey {
             role: Role::Operator,
             key: secret.role_key(Role::Operator),
@@ -64,10 +96,9 @@ impl Client {
 
     /// Connects to the control interface at `addr`; with a role's `key`, proves it (and checks
     /// the run's proof) and encrypts the link.
-    pub fn connect_with(addr: SocketAddr, key: Option<&RoleKey>) -> anyhow::Result<Client> {
-        use anyhow::Context as _;
+    pub fn connect_with(addr: SocketAddr, key: Option<&RoleKey>) -> Result<Client, ClientError> {
         let stream = TcpStream::connect_timeout(&addr, REPLY_TIMEOUT)
-            .with_context(|| format!("cannot reach the run's control interface at {addr}"))?;
+            .map_err(|source| ClientError::Unreachable { addr, source })?;
         stream.set_read_timeout(Some(REPLY_TIMEOUT * 2))?;
         stream.set_nodelay(true)?;
         let dial = key.map(|key| Dial {
@@ -90,14 +121,8 @@ impl Client {
         };
         let stream = match blocking::dial(stream, Some(&dial)) {
             Ok(stream) => stream,
-            Err(WireError::HandshakeRefused(_)) => anyhow::bail!(
-                "the run refused the handshake: it holds another secret, or runs without one"
-            ),
-            Err(err) => {
-                return Err(err).with_context(|| {
-                    format!("cannot open the control link at {addr} (is it a run's?)")
-                });
-            }
+            Err(WireError::HandshakeRefused(_)) => return Err(ClientError::Refused),
+            Err(source) => return Err(ClientError::Handshake { addr, source }),
         };
         let (reader, writer) = stream.split();
         Ok(Client {
@@ -116,8 +141,7 @@ impl Client {
 
     /// Sends one request and waits for its reply. After an error the connection is in an
     /// unknown state: connect again.
-    pub fn call(&mut self, request: &Request) -> anyhow::Result<Reply> {
-        use anyhow::Context as _;
+    pub fn call(&mut self, request: &Request) -> Result<Reply, ClientError> {
         self.seq += 1;
         blocking::write_message(
             &mut self.writer,
@@ -135,17 +159,16 @@ impl Client {
             hello.and_then(|()| read_bounded::<FromRun>(&mut self.reader, MAX_FRAME_BYTES));
         let answer = match answer {
             Ok(answer) => answer,
-            Err(err) if self.role.is_none() && self.seq == 1 && closed(&err) => anyhow::bail!(
-                "the run closed the connection without a word: it requires the shared secret (armor ctl --secret FILE, or --key FILE)"
-            ),
-            Err(err) => return Err(err).context("no reply from the run"),
+            Err(err) if self.role.is_none() && self.seq == 1 && closed(&err) => {
+                return Err(ClientError::SecretRequired);
+            }
+            Err(err) => return Err(ClientError::NoReply(err)),
         };
         if answer.seq != self.seq {
-            anyhow::bail!(
-                "the run answered request {} where {} was due: the link was tampered with",
-                answer.seq,
-                self.seq
-            );
+            return Err(ClientError::OutOfStep {
+                answered: answer.seq,
+                due: self.seq,
+            });
         }
         Ok(answer.reply)
     }

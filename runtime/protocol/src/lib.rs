@@ -27,7 +27,7 @@ pub mod from_run;
 pub mod to_run;
 
 pub use armor_module_api::auth::{Role, RoleKey};
-pub use client::{Client, key_from_file, request};
+pub use client::{Client, ClientError, key_from_file, request};
 pub use from_run::{
     BehaviourChange, BehaviourState, BinaryFile, Enabled, FileText, FiringRecord, FromRun,
     MissionStatus, ModuleState, ModuleStatus, ParamFile, Reply, RunFiles, Status, TELEOP_ENDPOINT,

@@ -91,7 +91,7 @@ impl Acl {
         }
     }
 
-    fn check_publish(&self, module: &str, data_name: &str) -> Result<(), String> {
+    fn check_publish(&self, module: &str, data_name: &str) -> Result<(), Refusal> {
         let permissions = self.permissions(module)?;
         let listed = match &permissions.publish {
             Some(patterns) => armor_model::system::allowed(Some(patterns), data_name),
@@ -100,27 +100,45 @@ impl Acl {
         if listed && owner(Some(self), data_name) == module {
             Ok(())
         } else {
-            Err(format!("module `{module}` may not publish `{data_name}`"))
+            Err(Refusal::MayNotPublish {
+                module: module.to_owned(),
+                data_name: data_name.to_owned(),
+            })
         }
     }
 
-    fn check_subscribe(&self, module: Option<&str>, data_name: &str) -> Result<(), String> {
-        let module = module.ok_or("register before looking a provider up")?;
+    fn check_subscribe(&self, module: Option<&str>, data_name: &str) -> Result<(), Refusal> {
+        let module = module.ok_or(Refusal::NotRegistered)?;
         let permissions = self.permissions(module)?;
         if armor_model::system::allowed(permissions.subscribe.as_deref(), data_name) {
             Ok(())
         } else {
-            Err(format!(
-                "module `{module}` may not subscribe to `{data_name}`"
-            ))
+            Err(Refusal::MayNotSubscribe {
+                module: module.to_owned(),
+                data_name: data_name.to_owned(),
+            })
         }
     }
 
-    fn permissions(&self, module: &str) -> Result<&Permissions, String> {
+    fn permissions(&self, module: &str) -> Result<&Permissions, Refusal> {
         self.modules
             .get(module)
-            .ok_or_else(|| format!("no module `{module}` in this system"))
+            .ok_or_else(|| Refusal::UnknownModule(module.to_owned()))
     }
+}
+
+/// Why the access lists refuse a module's registration or lookup: its text is what the module
+/// is told.
+#[derive(Debug, PartialEq, thiserror::Error)]
+pub enum Refusal {
+    #[error("register before looking a provider up")]
+    NotRegistered,
+    #[error("no module `{0}` in this system")]
+    UnknownModule(String),
+    #[error("module `{module}` may not publish `{data_name}`")]
+    MayNotPublish { module: String, data_name: String },
+    #[error("module `{module}` may not subscribe to `{data_name}`")]
+    MayNotSubscribe { module: String, data_name: String },
 }
 
 /// The module a data name belongs to: the first module of the system (in `acl`) whose explicit
@@ -347,7 +365,8 @@ impl Conn<'_> {
                                 .find_map(|advert| {
                                     acl.check_publish(&module, &advert.data_name).err()
                                 })
-                                .or_else(|| acl.permissions(&module).err()),
+                                .or_else(|| acl.permissions(&module).err())
+                                .map(|refusal| refusal.to_string()),
                             None => outputs
                                 .iter()
                                 .find(|advert| {
@@ -384,7 +403,9 @@ impl Conn<'_> {
                             acl.map(|acl| acl.check_subscribe(identity.as_deref(), &data_name)) =>
                     {
                         tracing::warn!(module = identity.as_deref(), "refused a lookup: {message}");
-                        FromAgent::Error { message }
+                        FromAgent::Error {
+                            message: message.to_string(),
+                        }
                     }
                     ToAgent::Lookup { data_name } => {
                         let mut registry = registry.lock().unwrap_or_else(PoisonError::into_inner);

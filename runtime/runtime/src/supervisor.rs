@@ -456,7 +456,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                             });
                             continue;
                         }
-                        Err(message) => (false, message),
+                        Err(why) => (false, why.to_string()),
                     }
                 }
                 armor_protocol::Request::Files => {

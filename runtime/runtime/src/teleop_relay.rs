@@ -44,15 +44,32 @@ pub struct Candidate<'a> {
     pub up: bool,
 }
 
+/// Why an operator's driving command finds no teleop module to go to, in the operator's words.
+#[derive(Debug, PartialEq, thiserror::Error)]
+pub enum NoTarget {
+    #[error("this run has no teleop module `{0}`")]
+    NoSuchModule(String),
+    #[error("this run has no teleop module (type `teleop`)")]
+    NoTeleop,
+    #[error("this run has several teleop modules ({}): say which", .0.join(", "))]
+    Several(Vec<String>),
+    #[error("the teleop module `{0}` is not up (starting, restarting or failed)")]
+    NotUp(String),
+    #[error("the teleop module `{0}` has not said where it listens yet")]
+    NoAddress(String),
+    #[error("the teleop module `{module}` listens at `{address}`, which is not an address")]
+    BadAddress { module: String, address: String },
+}
+
 /// The teleop module to drive and its command port: `wanted` by name, else the only module of
-/// type `teleop`; an error in the operator's words when there is none, it is not up, or it has
-/// not said where it listens.
+/// type `teleop`; why not when there is none, it is not up, or it has not said where it
+/// listens.
 pub fn target<'a>(
     modules: impl IntoIterator<Item = Candidate<'a>>,
     endpoints: &HashMap<String, BTreeMap<String, String>>,
     wanted: Option<&str>,
-) -> Result<(String, SocketAddr), String> {
-    let teleops: Vec<Candidate<'a>> = modules
+) -> Result<(String, SocketAddr), NoTarget> {
+    let mut teleops: Vec<Candidate<'a>> = modules
         .into_iter()
         .filter(|module| module.module_type == TELEOP_TYPE)
         .collect();
@@ -60,41 +77,27 @@ pub fn target<'a>(
         Some(wanted) => teleops
             .into_iter()
             .find(|module| module.name == wanted)
-            .ok_or_else(|| format!("this run has no teleop module `{wanted}`"))?,
-        None => {
-            let names: Vec<&str> = teleops.iter().map(|module| module.name).collect();
-            match names.len() {
-                0 => return Err("this run has no teleop module (type `teleop`)".to_owned()),
-                1 => teleops.into_iter().next().ok_or("no teleop module")?,
-                _ => {
-                    return Err(format!(
-                        "this run has several teleop modules ({}): say which",
-                        names.join(", ")
-                    ));
-                }
-            }
+            .ok_or_else(|| NoTarget::NoSuchModule(wanted.to_owned()))?,
+        None if teleops.len() > 1 => {
+            return Err(NoTarget::Several(
+                teleops
+                    .iter()
+                    .map(|module| module.name.to_owned())
+                    .collect(),
+            ));
         }
+        None => teleops.pop().ok_or(NoTarget::NoTeleop)?,
     };
     if !chosen.up {
-        return Err(format!(
-            "the teleop module `{}` is not up (starting, restarting or failed)",
-            chosen.name
-        ));
+        return Err(NoTarget::NotUp(chosen.name.to_owned()));
     }
     let address = endpoints
         .get(chosen.name)
         .and_then(|endpoints| endpoints.get(TELEOP_ENDPOINT))
-        .ok_or_else(|| {
-            format!(
-                "the teleop module `{}` has not said where it listens yet",
-                chosen.name
-            )
-        })?;
-    let addr = address.parse().map_err(|_| {
-        format!(
-            "the teleop module `{}` listens at `{address}`, which is not an address",
-            chosen.name
-        )
+        .ok_or_else(|| NoTarget::NoAddress(chosen.name.to_owned()))?;
+    let addr = address.parse().map_err(|_| NoTarget::BadAddress {
+        module: chosen.name.to_owned(),
+        address: address.clone(),
     })?;
     Ok((chosen.name.to_owned(), addr))
 }
@@ -310,7 +313,9 @@ mod tests {
             ),
         ];
         for (modules, wanted, expected) in cases {
-            let err = target(modules, &known, wanted).expect_err(expected);
+            let err = target(modules, &known, wanted)
+                .expect_err(expected)
+                .to_string();
             assert!(err.contains(expected), "{err} (expected {expected})");
         }
     }
