@@ -415,6 +415,18 @@ fn a_waypoint_is_placed_by_typing_metres_or_degrees_in_the_inspector() {
     assert!((x2 - 10.5).abs() < 1e-6);
 }
 
+/// Draws a no-go area corner by corner (metres), as the N tool does.
+fn no_go_area(harness: &mut Harness<'_, StudioApp>, corners: &[(f64, f64)]) {
+    harness.key_press(Key::N);
+    harness.run();
+    for &(x, y) in corners {
+        let p = at(harness, x, y);
+        tap(harness, p);
+    }
+    harness.key_press(Key::Enter);
+    harness.run();
+}
+
 /// Issue 37, defect 9: with a route on the map whose leg is blocked, the net panel never says
 /// "No net yet: draw a route…": it names the leg and what blocks it.
 #[test]
@@ -424,14 +436,10 @@ fn with_a_blocked_leg_the_net_panel_says_what_is_blocked_not_to_draw_a_route() {
     draw_route(&mut harness, &[(4.0, 4.0), (16.0, 4.0), (16.0, 14.0)]);
     assert!(harness.state().mission().unwrap().checked().net().is_some());
     // A no-go area right round the last waypoint: the second leg cannot reach it.
-    harness.key_press(Key::N);
-    harness.run();
-    for (x, y) in [(14.0, 12.0), (18.0, 12.0), (18.0, 16.0), (14.0, 16.0)] {
-        let p = at(&harness, x, y);
-        tap(&mut harness, p);
-    }
-    harness.key_press(Key::Enter);
-    harness.run();
+    no_go_area(
+        &mut harness,
+        &[(14.0, 12.0), (18.0, 12.0), (18.0, 16.0), (14.0, 16.0)],
+    );
     let mission = harness.state().mission().unwrap();
     assert!(
         mission.checked().net().is_none(),
@@ -463,14 +471,10 @@ fn each_leg_shows_its_path_and_a_leg_with_no_way_through_is_drawn_and_said_so() 
     draw_route(&mut harness, &[(4.0, 4.0), (16.0, 4.0)]);
     // A no-go area across the yard from its west boundary to its east one, between the two
     // waypoints... once moved north of it: the leg cannot get through.
-    harness.key_press(Key::N);
-    harness.run();
-    for (x, y) in [(0.2, 8.0), (39.8, 8.0), (39.8, 9.0), (0.2, 9.0)] {
-        let p = at(&harness, x, y);
-        tap(&mut harness, p);
-    }
-    harness.key_press(Key::Enter);
-    harness.run();
+    no_go_area(
+        &mut harness,
+        &[(0.2, 8.0), (39.8, 8.0), (39.8, 9.0), (0.2, 9.0)],
+    );
     let mission = harness.state().mission().unwrap();
     assert!(
         matches!(&mission.checked().legs[0], armor_studio::mission::LegRoute::Path { length_m, .. } if (length_m - 12.0).abs() < 0.5),

@@ -303,21 +303,26 @@ fn attached_without_its_file_the_studio_draws_the_run_from_the_runs_own_files() 
     assert!(process_alive(run.pid()), "detaching stopped the run");
 }
 
+/// The bundled robot system's text, its world and its recording given as absolute paths (the
+/// recording in `dir`), so that it runs from any folder.
+fn yard_system(dir: &std::path::Path) -> String {
+    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
+    std::fs::read_to_string(armor_tests::workspace_root().join("missions/robot/system.xml"))
+        .unwrap()
+        .replace(
+            r#"value="yard.world""#,
+            &format!(r#"value="{}""#, world.display()),
+        )
+        .replace(
+            r#"value="truth.mcap""#,
+            &format!(r#"value="{}""#, dir.join("truth.mcap").display()),
+        )
+}
+
 #[test]
 fn attached_without_its_file_to_a_plans_run_the_studio_opens_the_runs_plan() {
     let dir = tempfile::tempdir().unwrap();
-    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
-    let system =
-        std::fs::read_to_string(armor_tests::workspace_root().join("missions/robot/system.xml"))
-            .unwrap()
-            .replace(
-                r#"value="yard.world""#,
-                &format!(r#"value="{}""#, world.display()),
-            )
-            .replace(
-                r#"value="truth.mcap""#,
-                &format!(r#"value="{}""#, dir.path().join("truth.mcap").display()),
-            );
+    let system = yard_system(dir.path());
     std::fs::create_dir(dir.path().join("robot")).unwrap();
     std::fs::create_dir(dir.path().join("plans")).unwrap();
     std::fs::write(dir.path().join("robot/system.xml"), system).unwrap();
@@ -508,18 +513,7 @@ fn shown_time_scale(harness: &Harness<'_, StudioApp>) -> Option<f64> {
 #[test]
 fn detached_nothing_on_screen_lies_and_attached_again_from_the_menu_the_plan_is_drawn() {
     let dir = tempfile::tempdir().unwrap();
-    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
-    let system =
-        std::fs::read_to_string(armor_tests::workspace_root().join("missions/robot/system.xml"))
-            .unwrap()
-            .replace(
-                r#"value="yard.world""#,
-                &format!(r#"value="{}""#, world.display()),
-            )
-            .replace(
-                r#"value="truth.mcap""#,
-                &format!(r#"value="{}""#, dir.path().join("truth.mcap").display()),
-            );
+    let system = yard_system(dir.path());
     std::fs::write(dir.path().join("system.xml"), system).unwrap();
     let plan = dir.path().join("gate.xml");
     // A long leg, so that the run outlives the test.
