@@ -107,11 +107,16 @@ pub struct StudioApp {
     discard_on_exit: bool,
     /// A run to attach to at the first frame (`--attach`).
     attach_at_start: Option<std::net::SocketAddr>,
+    /// The editing view shown last (System or Mission): its document is the one a Run starts.
+    document_view: View,
+    /// F5's prompt (what runs, at what time scale), while it is open.
+    run_prompt: Option<crate::run::prompt::RunPrompt>,
 }
 
 impl StudioApp {
     pub fn new(options: Options) -> StudioApp {
-        let run = RunView::new(options.module_path.clone());
+        let mut run = RunView::new(options.module_path.clone());
+        run.time_scale = options.home.time_scale();
         let palette = options.palette.unwrap_or_else(|| {
             Palette::probe(&options.module_path, armor_runtime::probe::DEFAULT_TIMEOUT)
         });
@@ -144,6 +149,8 @@ impl StudioApp {
             quitting: false,
             discard_on_exit: false,
             attach_at_start: options.attach,
+            document_view: View::System,
+            run_prompt: None,
         };
         if options.attach.is_some() {
             app.start = None;
@@ -151,6 +158,7 @@ impl StudioApp {
         if let Some(file) = options.file {
             if is_plan(&file) {
                 app.view = View::Mission;
+                app.document_view = View::Mission;
                 app.plan_to_open = Some(file);
             } else {
                 app.open(&file);
@@ -165,7 +173,30 @@ impl StudioApp {
 
     pub fn set_view(&mut self, view: View) {
         self.view = view;
+        if view != View::Run {
+            self.document_view = view;
+        }
         self.seen_revision = None;
+    }
+
+    /// What a Run starts now: the document of the view shown, or in the Run view that of the
+    /// editing view left last (the plan in the Mission view, the system in the System view).
+    pub fn run_target(&self) -> Option<Target> {
+        // A copy of an attached run's files is the run's, not a document to run again.
+        let target = match self.document_view {
+            View::Mission => self
+                .mission
+                .as_ref()
+                .and_then(MissionView::path)
+                .map(|plan| Target::Plan(plan.to_path_buf())),
+            _ => self.system.path.clone().map(Target::System),
+        };
+        target.filter(|target| !self.run.is_mirror_copy(target.path()))
+    }
+
+    /// F5's prompt, while it is open: what it runs and at what time scale.
+    pub fn run_prompt(&self) -> Option<&crate::run::prompt::RunPrompt> {
+        self.run_prompt.as_ref()
     }
 
     /// The Run view.
@@ -177,17 +208,11 @@ impl StudioApp {
         &mut self.run
     }
 
-    /// Starts a run of the plan open in the Mission view, else of the system, after saving
-    /// what has unsaved changes; shows the Run view.
+    /// Starts a run of the document of the view shown ([`Self::run_target`]) at the Run view's
+    /// time scale, after saving it if it has unsaved changes; shows the Run view.
     pub fn start_run(&mut self, ctx: &egui::Context) {
-        let target = self
-            .run
-            .target(self.mission.as_ref(), self.system.path.as_deref());
-        let Some(target) = target else {
-            self.set_status(
-                "nothing to run: open or save a system or a plan first".to_owned(),
-                true,
-            );
+        let Some(target) = self.run_target() else {
+            self.nothing_to_run();
             return;
         };
         match &target {
@@ -200,6 +225,57 @@ impl StudioApp {
         self.set_view(View::Run);
         self.run
             .start(target, self.mission.as_ref(), &self.palette.catalog, ctx);
+    }
+
+    /// Says why a Run starts nothing: the view's document was never saved.
+    fn nothing_to_run(&mut self) {
+        let text = match self.document_view {
+            View::Mission => "nothing to run: open or save a plan first (Ctrl+S)",
+            _ => "nothing to run: open or save a system first (Ctrl+S)",
+        };
+        self.set_status(text.to_owned(), true);
+    }
+
+    /// F5 and the Run entries: asks the time scale for a run of the view's document, offering
+    /// the one asked last.
+    fn ask_run(&mut self) {
+        if self.run.is_running() {
+            return;
+        }
+        match self.run_target() {
+            Some(target) => {
+                self.run_prompt = Some(crate::run::prompt::RunPrompt::new(
+                    target,
+                    self.run.time_scale,
+                ));
+            }
+            None => self.nothing_to_run(),
+        }
+    }
+
+    /// Runs the view's document at `time_scale`, remembered for the next run.
+    fn run_at(&mut self, time_scale: f64, ctx: &egui::Context) {
+        self.run.time_scale = time_scale;
+        if let Err(err) = self.home.set_time_scale(time_scale) {
+            // The run goes on at the scale asked; only the next session's default is lost.
+            tracing::warn!("cannot remember the time scale: {err:#}");
+        }
+        self.start_run(ctx);
+    }
+
+    /// F5's prompt, while it is open.
+    fn run_prompt_ui(&mut self, ctx: &egui::Context) {
+        let Some(prompt) = &mut self.run_prompt else {
+            return;
+        };
+        match prompt.ui(ctx) {
+            None => {}
+            Some(crate::run::prompt::Answer::Cancel) => self.run_prompt = None,
+            Some(crate::run::prompt::Answer::Run(time_scale)) => {
+                self.run_prompt = None;
+                self.run_at(time_scale, ctx);
+            }
+        }
     }
 
     /// Watches a run started elsewhere, through its control interface: with the open system's
@@ -236,10 +312,15 @@ impl StudioApp {
         };
         let mut catalog = self.palette.catalog.clone();
         catalog.extend(mirror.catalog.clone());
+        // The Mission view is free for the run's plan unless it holds a plan of the user's: a
+        // copy of the run attached to before (a second attach) is the studio's, not the user's.
         let free = self
             .mission
             .as_ref()
-            .is_none_or(|mission| mission.path().is_none() && !mission.is_dirty());
+            .is_none_or(|mission| match mission.path() {
+                Some(path) => self.run.is_mirror_copy(path),
+                None => !mission.is_dirty(),
+            });
         let plan = mirror
             .mission
             .clone()
@@ -385,6 +466,7 @@ impl StudioApp {
         self.recovery_ui(ui);
         self.unsaved_ui(ui);
         self.attach_ui(&ctx);
+        self.run_prompt_ui(&ctx);
 
         self.system.apply_commands(&ctx, &self.palette.catalog);
         self.show_system_messages();
@@ -441,8 +523,12 @@ impl StudioApp {
     fn run_ui(&mut self, ui: &mut Ui) {
         let live = self.run.module_states();
         let viewer = viewer_context(&self.palette, &self.system, &live, self.started);
-        if self.run.ui(ui, &viewer, self.mission.as_mut()).is_some() {
-            self.start_run(ui.ctx());
+        let target = self.run_target();
+        // The toolbar's time scale is beside its Run button: it runs at once, at that scale.
+        if let Some(target) = self.run.ui(ui, &viewer, self.mission.as_mut(), target) {
+            tracing::debug!("run {} from the toolbar", target.path().display());
+            let time_scale = self.run.time_scale;
+            self.run_at(time_scale, ui.ctx());
         }
     }
 
@@ -460,6 +546,8 @@ impl StudioApp {
         {
             let state = if self.run.is_running() {
                 "running"
+            } else if self.run.is_detached() {
+                "detached: the run goes on"
             } else {
                 "run ended"
             };
@@ -467,9 +555,8 @@ impl StudioApp {
         }
         if self.view == View::Run {
             // What a Run would start, as the toolbar says.
-            let plan = self.mission.as_ref().and_then(|mission| mission.path());
-            if let Some(target) = self.run.ready_target(plan, self.system.path.as_deref()) {
-                return format!("{} — ArMoR Studio", name(Some(target)));
+            if let Some(target) = self.run_target() {
+                return format!("{} — ArMoR Studio", name(Some(target.path())));
             }
         }
         let (path, dirty) = match (self.view, &self.mission) {
@@ -508,6 +595,10 @@ impl StudioApp {
     /// clipboard and the Mission view's tool keys (`mission::TOOL_KEYS`, which its toolbar
     /// shows).
     fn shortcuts(&mut self, ctx: &egui::Context) {
+        // A prompt open owns the keys: its Escape is no "clear the selection" under it.
+        if self.run_prompt.is_some() || self.run.attach_prompt.is_some() {
+            return;
+        }
         // File shortcuts work while typing too; the others would steal the text field's keys.
         let typing = ctx.egui_wants_keyboard_input();
         let held = typing || (self.view == View::Mission && self.mission.is_none());
@@ -544,11 +635,7 @@ impl StudioApp {
                     .unwrap_or_default();
                 self.run.attach_prompt = Some(crate::run::attach::AttachPrompt::new(&last));
             }
-            (_, UiCommand::Run) => {
-                if !self.run.is_running() {
-                    self.start_run(ctx);
-                }
-            }
+            (_, UiCommand::Run) => self.ask_run(),
             // The menu entry opens the sheet; F1 opens and closes it.
             (_, UiCommand::Help) => self.help_open = from_menu || !self.help_open,
             (_, UiCommand::Quit) => ctx.send_viewport_cmd(egui::ViewportCommand::Close),

@@ -124,7 +124,9 @@ impl UiCommand {
             UiCommand::ZoomToFit => "Zoom to fit",
             UiCommand::Find => "Find block…",
             UiCommand::Help => "Keyboard shortcuts",
-            UiCommand::Run => "Run",
+            UiCommand::Run if mission => "Run plan…",
+            UiCommand::Run if view == View::System => "Run system…",
+            UiCommand::Run => "Run…",
             UiCommand::Stop => "Stop",
             UiCommand::Attach => "Attach…",
         }
@@ -207,7 +209,10 @@ impl UiCommand {
             UiCommand::ZoomToFit => "zoom to fit",
             UiCommand::Find => "find a block",
             UiCommand::Help => "this sheet",
-            UiCommand::Run => "run the open plan, else the system (Run view)",
+            UiCommand::Run => {
+                "run the document of the view shown (the plan in the Mission view, the system in \
+                 the System view; in the Run view, that of the view left), asking the time scale"
+            }
             UiCommand::Stop => "stop the run (detach from one attached to)",
             UiCommand::Attach => "watch and operate a run started elsewhere (its control address)",
             UiCommand::New => "a new document",
@@ -350,6 +355,7 @@ const SYSTEM_MENUS: &[Menu] = &[
             Item(UiCommand::SaveAs),
             Item(UiCommand::ExportPng),
             Item(UiCommand::Arrange),
+            Item(UiCommand::Run),
             Item(UiCommand::Quit),
         ],
     },
@@ -396,6 +402,7 @@ const MISSION_MENUS: &[Menu] = &[
             Item(UiCommand::ExportPnml),
             Item(UiCommand::ExportPng),
             Separator,
+            Item(UiCommand::Run),
             Item(UiCommand::Quit),
         ],
     },
@@ -550,6 +557,7 @@ mod tests {
             "Save as…",
             "Export PNG…",
             "Arrange",
+            "Run system…",
             "Quit",
         ];
         let system_edit = [
@@ -577,6 +585,7 @@ mod tests {
             "Export PNML…",
             "Export map PNG…",
             "---",
+            "Run plan…",
             "Quit",
         ];
         assert_eq!(
@@ -618,7 +627,7 @@ mod tests {
             [
                 (
                     "Run",
-                    vec!["Run", "Stop", "Attach…", "---", "Open recording…"]
+                    vec!["Run…", "Stop", "Attach…", "---", "Open recording…"]
                 ),
                 (
                     "View",

@@ -77,6 +77,25 @@ impl Home {
         self.dir.join("recent.txt")
     }
 
+    fn time_scale_file(&self) -> PathBuf {
+        self.dir.join("time-scale.txt")
+    }
+
+    /// The time scale the last run was asked for; ×1 when none was, or the file is unreadable.
+    pub fn time_scale(&self) -> f64 {
+        std::fs::read_to_string(self.time_scale_file())
+            .ok()
+            .and_then(|text| text.trim().parse::<f64>().ok())
+            .filter(|scale| scale.is_finite() && *scale > 0.0)
+            .unwrap_or(1.0)
+    }
+
+    /// Remembers the time scale a run was started at, for the next run, in this session or a
+    /// later one.
+    pub fn set_time_scale(&self, scale: f64) -> anyhow::Result<()> {
+        self.write(&self.time_scale_file(), format!("{scale}\n").as_bytes())
+    }
+
     pub fn recovery_file(&self, document: Document) -> PathBuf {
         self.dir.join(document.recovery_name())
     }

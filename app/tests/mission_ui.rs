@@ -415,6 +415,55 @@ fn a_waypoint_is_placed_by_typing_metres_or_degrees_in_the_inspector() {
     assert!((x2 - 10.5).abs() < 1e-6);
 }
 
+/// Draws a no-go area corner by corner (metres), as the N tool does.
+fn no_go_area(harness: &mut Harness<'_, StudioApp>, corners: &[(f64, f64)]) {
+    harness.key_press(Key::N);
+    harness.run();
+    for &(x, y) in corners {
+        let p = at(harness, x, y);
+        tap(harness, p);
+    }
+    harness.key_press(Key::Enter);
+    harness.run();
+}
+
+/// Issue 37, defect 9: with a route on the map whose leg is blocked, the net panel never says
+/// "No net yet: draw a route…": it names the leg and what blocks it.
+#[test]
+fn with_a_blocked_leg_the_net_panel_says_what_is_blocked_not_to_draw_a_route() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = yard(dir.path());
+    draw_route(&mut harness, &[(4.0, 4.0), (16.0, 4.0), (16.0, 14.0)]);
+    assert!(harness.state().mission().unwrap().checked().net().is_some());
+    // A no-go area right round the last waypoint: the second leg cannot reach it.
+    no_go_area(
+        &mut harness,
+        &[(14.0, 12.0), (18.0, 12.0), (18.0, 16.0), (14.0, 16.0)],
+    );
+    let mission = harness.state().mission().unwrap();
+    assert!(
+        mission.checked().net().is_none(),
+        "the plan still compiles: {:?}",
+        mission.checked().legs
+    );
+    assert!(
+        harness.query_by_label_contains("draw a route").is_none(),
+        "the net panel asks for a route with three waypoints on the map"
+    );
+    harness.get_by_label_contains("No net: the plan does not compile");
+    let leg = &harness.state().mission().unwrap().plan().legs[1];
+    let said = format!(
+        "leg `{}` ({} → {}) is blocked: ",
+        leg.name, leg.from, leg.to
+    );
+    assert!(
+        harness.query_by_label_contains(&said).is_some(),
+        "`{said}` not shown; legs {:?}, errors {:?}",
+        harness.state().mission().unwrap().checked().legs,
+        harness.state().mission().unwrap().checked().errors
+    );
+}
+
 #[test]
 fn each_leg_shows_its_path_and_a_leg_with_no_way_through_is_drawn_and_said_so() {
     let dir = tempfile::tempdir().unwrap();
@@ -422,14 +471,10 @@ fn each_leg_shows_its_path_and_a_leg_with_no_way_through_is_drawn_and_said_so() 
     draw_route(&mut harness, &[(4.0, 4.0), (16.0, 4.0)]);
     // A no-go area across the yard from its west boundary to its east one, between the two
     // waypoints... once moved north of it: the leg cannot get through.
-    harness.key_press(Key::N);
-    harness.run();
-    for (x, y) in [(0.2, 8.0), (39.8, 8.0), (39.8, 9.0), (0.2, 9.0)] {
-        let p = at(&harness, x, y);
-        tap(&mut harness, p);
-    }
-    harness.key_press(Key::Enter);
-    harness.run();
+    no_go_area(
+        &mut harness,
+        &[(0.2, 8.0), (39.8, 8.0), (39.8, 9.0), (0.2, 9.0)],
+    );
     let mission = harness.state().mission().unwrap();
     assert!(
         matches!(&mission.checked().legs[0], armor_studio::mission::LegRoute::Path { length_m, .. } if (length_m - 12.0).abs() < 0.5),

@@ -303,21 +303,26 @@ fn attached_without_its_file_the_studio_draws_the_run_from_the_runs_own_files() 
     assert!(process_alive(run.pid()), "detaching stopped the run");
 }
 
+/// The bundled robot system's text, its world and its recording given as absolute paths (the
+/// recording in `dir`), so that it runs from any folder.
+fn yard_system(dir: &std::path::Path) -> String {
+    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
+    std::fs::read_to_string(armor_tests::workspace_root().join("missions/robot/system.xml"))
+        .unwrap()
+        .replace(
+            r#"value="yard.world""#,
+            &format!(r#"value="{}""#, world.display()),
+        )
+        .replace(
+            r#"value="truth.mcap""#,
+            &format!(r#"value="{}""#, dir.join("truth.mcap").display()),
+        )
+}
+
 #[test]
 fn attached_without_its_file_to_a_plans_run_the_studio_opens_the_runs_plan() {
     let dir = tempfile::tempdir().unwrap();
-    let world = armor_tests::workspace_root().join("assets/worlds/yard.world");
-    let system =
-        std::fs::read_to_string(armor_tests::workspace_root().join("missions/robot/system.xml"))
-            .unwrap()
-            .replace(
-                r#"value="yard.world""#,
-                &format!(r#"value="{}""#, world.display()),
-            )
-            .replace(
-                r#"value="truth.mcap""#,
-                &format!(r#"value="{}""#, dir.path().join("truth.mcap").display()),
-            );
+    let system = yard_system(dir.path());
     std::fs::create_dir(dir.path().join("robot")).unwrap();
     std::fs::create_dir(dir.path().join("plans")).unwrap();
     std::fs::write(dir.path().join("robot/system.xml"), system).unwrap();
@@ -491,4 +496,120 @@ fn ctl_status_with(addr: &std::net::SocketAddr, secret: &std::path::Path) -> ser
         .next()
         .and_then(Result::ok)
         .unwrap_or_else(|| panic!("no status: {output:?}"))
+}
+
+/// The time scale the Run view's toolbar shows: the number box highest in the window.
+fn shown_time_scale(harness: &Harness<'_, StudioApp>) -> Option<f64> {
+    harness
+        .query_all_by_role(egui::accesskit::Role::SpinButton)
+        .min_by(|a, b| a.rect().min.y.total_cmp(&b.rect().min.y))
+        .and_then(|node| node.accesskit_node().numeric_value())
+}
+
+/// Issue 37, defect 6: attached to a plan's run at ×5 without its files, the toolbar shows ×5;
+/// once detached, neither the title, the modules, the status line nor the toolbar says the
+/// run is still watched, ended, or offers to run the copy of its files; attached again from
+/// the menu (Enter answering the prompt), the run's plan is drawn again.
+#[test]
+fn detached_nothing_on_screen_lies_and_attached_again_from_the_menu_the_plan_is_drawn() {
+    let dir = tempfile::tempdir().unwrap();
+    let system = yard_system(dir.path());
+    std::fs::write(dir.path().join("system.xml"), system).unwrap();
+    let plan = dir.path().join("gate.xml");
+    // A long leg, so that the run outlives the test.
+    std::fs::write(
+        &plan,
+        r#"<plan name="gate" system="system.xml">
+  <navigation module="follower" speed_mps="0.2"/>
+  <waypoint name="home" lat="43.5615360" lon="1.4690496"/>
+  <waypoint name="gate" lat="43.5615360" lon="1.4691986"/>
+  <leg name="advance" from="home" to="gate"/>
+  <leg name="back" from="gate" to="home"/>
+</plan>"#,
+    )
+    .unwrap();
+    let run = Proc::start(
+        std::process::Command::new(armor_tests::bin("armor"))
+            .arg("run")
+            .arg(&plan)
+            .arg("--no-run-folder")
+            .args(["--time-scale", "5"])
+            .env("ARMOR_MODULE_PATH", bin_dir()),
+    );
+    let addr: std::net::SocketAddr = armor_tests::control_address(&run).parse().unwrap();
+    let mut harness = harness(dir.path(), addr);
+    let plan_drawn = |h: &mut Harness<'_, StudioApp>| {
+        let app = h.state();
+        let mission = app.mission().and_then(|mission| mission.path());
+        mission.is_some_and(|path| path.ends_with("gate.xml"))
+            && app.run().session_target() == mission
+            && status(app).mission.is_some()
+            && truth(app).is_some()
+    };
+    step_until(&mut harness, "the run's plan drawn", plan_drawn);
+    assert_eq!(shown_time_scale(&harness), Some(5.0), "the run's own scale");
+    assert!(!status(harness.state()).modules.is_empty());
+    assert!(
+        harness
+            .query_all_by_label_contains("running")
+            .next()
+            .is_some()
+    );
+
+    harness.get_by_label("⏏ Detach").click();
+    step_until(&mut harness, "the studio detached", |h| {
+        !h.state().run().is_running()
+    });
+    harness.run_ok();
+    assert!(process_alive(run.pid()), "detaching stopped the run");
+    let title = harness.state().title().to_owned();
+    assert!(
+        title.contains("detached") && !title.contains("ended"),
+        "{title}"
+    );
+    assert!(
+        harness.query_all_by_label("running").next().is_none(),
+        "no module reads running once the studio stopped watching"
+    );
+    assert!(has_label(&harness, "Detached: the run goes on"));
+    let said = &harness.state().status().text;
+    assert!(
+        said.starts_with(&format!("detached from the run at {addr}")),
+        "{said}"
+    );
+    // No Run of the copy of the run's files the studio was shown.
+    for button in harness
+        .query_all_by_role(egui::accesskit::Role::Button)
+        .filter(|node| {
+            node.accesskit_node()
+                .label()
+                .is_some_and(|label| label.starts_with("▶ Run"))
+        })
+    {
+        assert!(
+            button.accesskit_node().is_disabled(),
+            "{:?} offered after detaching",
+            button.accesskit_node().label()
+        );
+    }
+
+    // Run → Attach…, the last address offered, Enter: the plan is drawn again.
+    harness
+        .get_all_by_label("Run")
+        .find(|node| node.accesskit_node().toggled().is_none())
+        .expect("the Run menu")
+        .click();
+    harness.run_ok();
+    harness.get_by_label("Attach…").click();
+    harness.run_ok();
+    assert!(has_label(&harness, "The run's control address"));
+    harness.key_press(egui::Key::Enter);
+    harness.run_ok();
+    assert!(
+        !has_label(&harness, "The run's control address"),
+        "Enter answers the prompt"
+    );
+    step_until(&mut harness, "the run's plan drawn again", plan_drawn);
+    assert_eq!(shown_time_scale(&harness), Some(5.0));
+    drop(run);
 }

@@ -25,7 +25,7 @@ use armor_studio::{Options, StudioApp};
 use armor_tests::{bin_dir, workspace_root};
 use egui::{Key, Modifiers, Pos2};
 use egui_kittest::Harness;
-use egui_kittest::kittest::Queryable as _;
+use egui_kittest::kittest::{NodeT as _, Queryable as _};
 
 const PATIENCE: Duration = Duration::from_secs(40);
 
@@ -151,7 +151,13 @@ fn open_and_run(harness: &mut Harness<'_, StudioApp>, file: &Path, time_scale: f
     // "untitled").
     let name = file.file_name().unwrap().to_string_lossy();
     assert_eq!(harness.state().title(), format!("{name} — ArMoR Studio"));
-    harness.get_by_label("▶ Run").click();
+    // The button says what it runs: the document of the view left last.
+    let run = if file.ends_with("plan.xml") {
+        "▶ Run plan"
+    } else {
+        "▶ Run system"
+    };
+    harness.get_by_label(run).click();
     harness.run_ok();
     assert!(
         harness.state().run().is_running(),
@@ -195,6 +201,127 @@ fn ready_to_drive(dir: &Path, time_scale: f64) -> Harness<'static, StudioApp> {
 
 fn truth_x(app: &StudioApp) -> Option<f64> {
     app.run().live().truth.map(|pose| pose.x_m)
+}
+
+/// Waits for the run to end after Shift+F5.
+fn stop_with_shift_f5(harness: &mut Harness<'_, StudioApp>) {
+    harness.key_press_modifiers(Modifiers::SHIFT, Key::F5);
+    step_until(harness, "the run stopped", PATIENCE, |app| {
+        !app.run().is_running()
+    });
+}
+
+/// The time scale F5's prompt offers, which says what it runs in `words`: the number box just
+/// below those words.
+fn prompt_scale(harness: &Harness<'_, StudioApp>, words: &str) -> f64 {
+    let said = harness
+        .get_by_label(&format!("Run the {words} with armor run"))
+        .rect();
+    harness
+        .query_all_by_role(egui::accesskit::Role::SpinButton)
+        .find(|node| {
+            let rect = node.rect();
+            rect.min.y > said.min.y && rect.min.y < said.max.y + 60.0
+        })
+        .and_then(|node| node.accesskit_node().numeric_value())
+        .expect("the prompt's time scale")
+}
+
+/// Issue 37, defects 2 and 8: F5 runs the document of the view shown (the system in the System
+/// view even with a plan open in the Mission view, the plan in the Mission view), the menu and
+/// F5's prompt say which, and the prompt asks the time scale, offering the last one asked,
+/// in this session and the next (F5 never falls back to ×1).
+#[test]
+fn f5_runs_the_document_of_the_view_shown_at_the_time_scale_asked_and_remembered() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan_file = plan(dir.path(), "");
+    let system_file = dir.path().join("system.xml");
+    let mut harness = harness(dir.path());
+    // A plan opened in the Mission view first, then the system in the System view.
+    harness.state_mut().set_view(View::Mission);
+    harness.run_ok();
+    harness.state_mut().open_plan(&plan_file);
+    harness.run_ok();
+    harness.state_mut().set_view(View::System);
+    harness.run_ok();
+    harness.state_mut().open(&system_file);
+    harness.run_ok();
+
+    harness.key_press(Key::F5);
+    harness.run_ok();
+    assert!(
+        !harness.state().run().is_running(),
+        "F5 runs at once, without asking the time scale: {:?}",
+        harness.state().run().session_target()
+    );
+    assert_eq!(prompt_scale(&harness, "system `system.xml`"), 1.0);
+    // The time scale is typed into the prompt, and Enter runs.
+    harness
+        .get_by_role(egui::accesskit::Role::SpinButton)
+        .click();
+    harness.run_ok();
+    harness.key_press_modifiers(Modifiers::COMMAND, Key::A);
+    harness
+        .get_by_role(egui::accesskit::Role::SpinButton)
+        .type_text("5");
+    harness.run_ok();
+    harness.key_press(Key::Enter);
+    harness.run_ok();
+    assert!(
+        harness.state().run().is_running(),
+        "{:?}",
+        harness.state().status()
+    );
+    assert_eq!(harness.state().view(), View::Run);
+    assert_eq!(
+        harness.state().run().session_target(),
+        Some(system_file.as_path())
+    );
+    step_until(&mut harness, "the run's status", PATIENCE, |app| {
+        app.run().status().is_some()
+    });
+    assert_eq!(status(harness.state()).time_scale, 5.0);
+    // The Run view's button says what it runs (greyed during the run).
+    harness.get_by_label("▶ Run system");
+    stop_with_shift_f5(&mut harness);
+
+    // In the Mission view, the File menu and F5 run the plan, at the scale asked last.
+    harness.state_mut().set_view(View::Mission);
+    harness.run_ok();
+    harness.get_by_label("File").click();
+    harness.run_ok();
+    harness.get_by_label("Run plan…");
+    harness.key_press(Key::Escape);
+    harness.run_ok();
+    harness.key_press(Key::F5);
+    harness.run_ok();
+    assert_eq!(prompt_scale(&harness, "plan `plan.xml`"), 5.0);
+    harness.key_press(Key::Enter);
+    harness.run_ok();
+    assert_eq!(
+        harness.state().run().session_target(),
+        Some(plan_file.as_path())
+    );
+    harness.get_by_label("▶ Run plan");
+    stop_with_shift_f5(&mut harness);
+    drop(harness);
+
+    // A new session offers the scale asked last; Escape runs nothing.
+    let mut harness = self::harness(dir.path());
+    harness.state_mut().open(&system_file);
+    harness.run_ok();
+    harness.get_by_label("File").click();
+    harness.run_ok();
+    harness.get_by_label("Run system…");
+    harness.key_press(Key::Escape);
+    harness.run_ok();
+    harness.key_press(Key::F5);
+    harness.run_ok();
+    assert_eq!(prompt_scale(&harness, "system `system.xml`"), 5.0);
+    harness.key_press(Key::Escape);
+    harness.run_ok();
+    assert!(harness.query_by_label_contains("with armor run").is_none());
+    assert!(!harness.state().run().is_running());
 }
 
 #[test]

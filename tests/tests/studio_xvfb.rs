@@ -266,7 +266,7 @@ fn the_run_view_starts_and_stops_a_run_from_the_keyboard() {
         ..
     } = &session;
     // F5 runs the open system with `armor run`, a child of the studio, and its modules under it.
-    keys_until(studio, display, window, &["F5"], "running ");
+    keys_until(studio, display, window, &["F5", "Return"], "running ");
     let modules = || -> Vec<i32> {
         armor_tests::children_of(studio.pid())
             .into_iter()
@@ -515,7 +515,7 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     );
 
     // F5 runs it: the robot leaves home at (4, 4), as the poses above the live map say.
-    keys_until(studio, display, window, &["F5"], "running ");
+    keys_until(studio, display, window, &["F5", "Return"], "running ");
     // The lines above the map (light on dark): the poses, estimated and true, then what the
     // follower does, which wraps to a second line beside the localisation state.
     let poses = "660x44+300+45";

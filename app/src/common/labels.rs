@@ -145,11 +145,14 @@ pub fn place(
             continue;
         }
         twins.extend(label.anchors.iter().copied());
+        // Only anchors on the map: the label of a point off it would stand at the map's edge,
+        // where it names nothing seen (a map made small, by the net enlarged, would pile
+        // them up there).
         let anchors: Vec<Pos2> = label
             .anchors
             .iter()
             .copied()
-            .filter(|anchor| bounds.expand(CELL).contains(*anchor))
+            .filter(|anchor| bounds.contains(*anchor))
             .collect();
         if anchors.is_empty() {
             continue;

@@ -334,6 +334,51 @@ impl Checked {
         self.compiled.as_ref().map(|compiled| &compiled.net)
     }
 
+    /// Why `plan` has no net, for the net panel: what to draw when it has no route yet, else
+    /// what keeps it from compiling, each blocked leg named with what blocks it.
+    pub fn no_net_reasons(&self, plan: &Plan) -> (String, Vec<String>) {
+        if plan.legs.is_empty() {
+            return (
+                "No net yet: draw a route of at least two waypoints on the map.".to_owned(),
+                Vec::new(),
+            );
+        }
+        let mut reasons = Vec::new();
+        let mut said = BTreeSet::new();
+        for (leg, route) in plan.legs.iter().zip(&self.legs) {
+            let named = format!("leg `{}` ({} → {}) is blocked", leg.name, leg.from, leg.to);
+            match route {
+                LegRoute::Path { .. } => {}
+                LegRoute::Cut { why, .. } => reasons.push(format!("{named}: {why}")),
+                // An end that cannot be placed (off the world, in a no-go area) is what
+                // `armor check` reports of that waypoint.
+                LegRoute::Unplaced => {
+                    for (index, error) in self.errors.iter().enumerate() {
+                        let about_an_end = [&leg.from, &leg.to]
+                            .iter()
+                            .any(|end| error.message.contains(&format!("`{end}`")));
+                        if about_an_end {
+                            reasons.push(format!("{named}: {}", error.message));
+                            said.insert(index);
+                        }
+                    }
+                }
+            }
+        }
+        // Then what `armor check` says besides.
+        reasons.extend(
+            self.errors
+                .iter()
+                .enumerate()
+                .filter(|(index, _)| !said.contains(index))
+                .map(|(_, error)| error.message.clone()),
+        );
+        (
+            "No net: the plan does not compile. Once this is fixed, the net is drawn:".to_owned(),
+            reasons,
+        )
+    }
+
     /// The verification in words.
     pub fn summary(&self) -> Vec<String> {
         let (Some(compiled), Some(analysis)) = (&self.compiled, &self.analysis) else {
@@ -812,7 +857,15 @@ impl MissionView {
     pub fn net_ui(&mut self, ui: &mut egui::Ui) {
         let highlighted = self.highlighted();
         let Some(net) = self.checked.net() else {
-            ui.label("No net yet: draw a route of at least two waypoints on the map.");
+            let (heading, reasons) = self.checked.no_net_reasons(&self.editor.plan);
+            ui.label(heading);
+            egui::ScrollArea::vertical()
+                .id_salt("mission-no-net")
+                .show(ui, |ui| {
+                    for reason in reasons {
+                        ui.colored_label(ui.visuals().error_fg_color, reason);
+                    }
+                });
             return;
         };
         let scroll = self.net_scrolled_for.as_ref() != Some(&self.editor.selection);

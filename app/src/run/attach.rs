@@ -47,9 +47,13 @@ impl AttachPrompt {
                         .desired_width(260.0)
                         .hint_text("10.0.0.2:7420"),
                 );
-                field.request_focus();
-                let enter =
-                    field.lost_focus() && ui.input(|input| input.key_pressed(egui::Key::Enter));
+                // Any Enter while the prompt is open answers it: the field gives up its focus on
+                // Enter, and a field that never had it (a window without a focused widget yet,
+                // the prompt just opened from the menu) would otherwise drop the key.
+                let enter = ui.input(|input| input.key_pressed(egui::Key::Enter));
+                if !enter {
+                    field.request_focus();
+                }
                 if let Some(error) = &self.error {
                     ui.colored_label(ui.visuals().error_fg_color, error);
                 }
@@ -83,12 +87,20 @@ impl AttachPrompt {
 /// the run's own module descriptions, for the live views' sources even where the studio's
 /// machine has no module binaries. The folder goes when this does.
 pub struct Mirror {
-    _folder: tempfile::TempDir,
+    folder: tempfile::TempDir,
     /// The system file's copy.
     pub system: PathBuf,
     /// The mission's copy, when the run has one.
     pub mission: Option<PathBuf>,
     pub catalog: crate::common::palette::Catalog,
+}
+
+impl Mirror {
+    /// Whether `path` is one of these copies: a document the studio did not open, which a Run
+    /// must not offer to start once detached.
+    pub fn holds(&self, path: &Path) -> bool {
+        path.starts_with(self.folder.path())
+    }
 }
 
 /// The last part of a path written on another machine (`/robot/missions/system.xml`), or
@@ -259,7 +271,7 @@ pub fn mirror(files: &RunFiles) -> anyhow::Result<Mirror> {
         system: folder.path().join(system_at),
         mission,
         catalog,
-        _folder: folder,
+        folder,
     })
 }
 

@@ -18,6 +18,7 @@ pub mod live;
 pub mod markers;
 pub mod monitor;
 pub mod oscilloscope;
+pub mod prompt;
 pub mod sensors_motors;
 pub mod session;
 pub mod untrusted;
@@ -75,8 +76,6 @@ pub struct RunView {
     pub secret_file: String,
     pub working_dir: PathBuf,
     pub module_path: Vec<PathBuf>,
-    /// Run the system even when a plan is open.
-    pub prefer_system: bool,
     pub log_filter: String,
     /// Only this module's lines (all when `None`).
     pub log_module: Option<String>,
@@ -131,7 +130,6 @@ impl RunView {
             secret_file: std::env::var(armor_module_api::auth::ENV_SECRET_FILE).unwrap_or_default(),
             working_dir: std::env::current_dir().unwrap_or_else(|_| PathBuf::from(".")),
             module_path,
-            prefer_system: false,
             log_filter: String::new(),
             log_module: None,
             log_min_level: Level::Info,
@@ -170,9 +168,36 @@ impl RunView {
             .is_none_or(|session| session.shared().role != Some(armor_protocol::Role::Observer))
     }
 
-    /// The last state the run reported; once the run is over, the modules it left at work
+    /// Whether the studio stopped watching a run started elsewhere (Detach): the run goes on,
+    /// and what the studio saw of it last is no longer its state.
+    pub fn is_detached(&self) -> bool {
+        self.session
+            .as_ref()
+            .is_some_and(|session| session.is_attached() && !session.is_running())
+    }
+
+    /// The control address of the run attached to (or detached from).
+    fn control_addr(&self) -> Option<std::net::SocketAddr> {
+        self.session
+            .as_ref()
+            .and_then(|session| session.shared().control_addr)
+    }
+
+    /// Whether `path` is a copy of an attached run's files ([`attach::Mirror`]), not a document
+    /// of the user's.
+    pub fn is_mirror_copy(&self, path: &Path) -> bool {
+        self.attach_mirror
+            .as_ref()
+            .is_some_and(|mirror| mirror.holds(path))
+    }
+
+    /// The last state the run reported (none once detached from it: the run goes on unseen);
+    /// once the run is over, the modules it left at work
     /// read "ended with the run" (the run stopped them), and the crashed and failed stay so.
     pub fn status(&self) -> Option<Status> {
+        if self.is_detached() {
+            return None;
+        }
         let session = self.session.as_ref()?;
         let mut status = session.shared().status.clone()?;
         if !session.is_running() && session.shared().ended.is_some() {
@@ -275,34 +300,6 @@ impl RunView {
                 .any(|module| module.module_type == LOCALISER)
         });
         by_status || self.sources().is_some_and(|s| s.estimate.is_some())
-    }
-
-    /// The target a Run would start now.
-    pub fn target(
-        &self,
-        mission: Option<&MissionView>,
-        system_file: Option<&Path>,
-    ) -> Option<Target> {
-        let plan = mission.and_then(|mission| mission.path());
-        let path = self.ready_target(plan, system_file)?;
-        Some(if Some(path) == plan {
-            Target::Plan(path.to_path_buf())
-        } else {
-            Target::System(path.to_path_buf())
-        })
-    }
-
-    /// Of the plan and the system file open, the one a Run would start now.
-    pub fn ready_target<'a>(
-        &self,
-        plan: Option<&'a Path>,
-        system: Option<&'a Path>,
-    ) -> Option<&'a Path> {
-        if self.prefer_system {
-            system.or(plan)
-        } else {
-            plan.or(system)
-        }
     }
 
     /// Starts a run of `target`; the caller saved it first. `mission` is the Mission view when
@@ -430,8 +427,21 @@ impl RunView {
 
     /// Asks the run to stop (its modules are stopped in order).
     pub fn stop(&mut self) {
+        let detaching = self
+            .session
+            .as_ref()
+            .is_some_and(|session| session.is_attached() && session.is_running());
         if let Some(session) = &mut self.session {
             session.stop();
+        }
+        if detaching {
+            let at = self
+                .control_addr()
+                .map_or_else(String::new, |addr| format!(" at {addr}"));
+            self.messages.push((
+                true,
+                format!("detached from the run{at}: it goes on without the studio"),
+            ));
         }
     }
 
@@ -518,12 +528,14 @@ impl RunView {
     // ----- The frame -----
 
     /// The view; `mission` is the Mission view when a plan is open, whose map and net the run
-    /// is drawn on. Returns the target to run when Run was clicked.
+    /// is drawn on; `target` is what a Run would start (the document of the view left last).
+    /// Returns the target to run when Run was clicked.
     pub fn ui(
         &mut self,
         ui: &mut Ui,
         viewer: &ViewerContext,
         mission: Option<&mut MissionView>,
+        target: Option<Target>,
     ) -> Option<Target> {
         let now = Instant::now();
         let frame_secs = self
@@ -542,12 +554,7 @@ impl RunView {
         let status = self.status();
         let mut start = None;
         egui::Panel::top("run-tools").show(ui, |ui| {
-            start = self.toolbar_ui(
-                ui,
-                mission.as_deref(),
-                viewer.system_file.as_deref(),
-                status.as_ref(),
-            );
+            start = self.toolbar_ui(ui, target, status.as_ref());
         });
         egui::Panel::left("run-modules")
             .resizable(true)
@@ -600,19 +607,17 @@ impl RunView {
     fn toolbar_ui(
         &mut self,
         ui: &mut Ui,
-        mission: Option<&MissionView>,
-        system_file: Option<&Path>,
+        target: Option<Target>,
         status: Option<&Status>,
     ) -> Option<Target> {
         let mut start = None;
         ui.horizontal_wrapped(|ui| {
-            let target = self.target(mission, system_file);
             let running = self.is_running();
             ui.add_enabled_ui(!running, |ui| {
                 match &target {
                     Some(target) => {
                         let run = ui
-                            .button("▶ Run")
+                            .button(run_label(target))
                             .on_hover_text(format!("armor run {} (F5)", target.path().display()));
                         if run.clicked() {
                             start = Some(target.clone());
@@ -624,12 +629,12 @@ impl RunView {
                     }
                 }
                 ui.label("×");
-                ui.add(
-                    egui::DragValue::new(&mut self.time_scale)
-                        .range(0.1..=200.0)
-                        .speed(0.1),
-                )
-                .on_hover_text("time scale: run time passes this many times faster");
+                // While a run goes on, the box shows its own scale (an attached run's may be
+                // any); the next run's is kept for when it ends.
+                let mut run_scale = status.filter(|_| running).map(|status| status.time_scale);
+                let scale = run_scale.as_mut().unwrap_or(&mut self.time_scale);
+                ui.add(egui::DragValue::new(scale).range(0.1..=200.0).speed(0.1))
+                    .on_hover_text("time scale: run time passes this many times faster");
                 ui.label("start at");
                 ui.add(
                     egui::TextEdit::singleline(&mut self.start_at)
@@ -646,9 +651,6 @@ impl RunView {
                     "a file with a shared secret (readable by its owner only): every \
                      connection of the run must prove it (armor run --secret)",
                 );
-                if mission.is_some_and(|m| m.path().is_some()) && system_file.is_some() {
-                    ui.checkbox(&mut self.prefer_system, "system only");
-                }
             });
             let attached = self.session.as_ref().is_some_and(RunSession::is_attached);
             let (stop_label, stop_hover) = if attached {
@@ -705,9 +707,18 @@ impl RunView {
                     status.system, status.run_secs, status.time_scale
                 ),
                 (Some(session), None) if session.is_running() => "starting…".to_owned(),
+                (Some(session), _) if session.is_attached() => {
+                    let at = session
+                        .shared()
+                        .control_addr
+                        .map_or_else(String::new, |addr| format!(" at {addr}"));
+                    format!("detached from the run{at}: it goes on without the studio")
+                }
                 _ => match (self.ended(), &target) {
                     (Some(ended), _) => format!("the run {ended}"),
-                    (None, Some(target)) => format!("ready to run {}", target.path().display()),
+                    (None, Some(target)) => {
+                        format!("ready to run the {}", prompt::target_words(target))
+                    }
                     (None, None) => "nothing to run".to_owned(),
                 },
             };
@@ -719,7 +730,14 @@ impl RunView {
     fn modules_ui(&mut self, ui: &mut Ui, status: Option<&Status>) {
         ui.heading("Modules");
         let Some(status) = status else {
-            ui.label("Run the system or a plan to see its modules here.");
+            if self.is_detached() {
+                ui.label(
+                    "Detached: the run goes on without the studio, its modules unseen. \
+                     Run → Attach… watches it again.",
+                );
+            } else {
+                ui.label("Run the system or a plan to see its modules here.");
+            }
             return;
         };
         let Some(session) = &self.session else {
@@ -1448,4 +1466,12 @@ fn recording_ui(ui: &mut Ui, recording: &mut Recording) {
             recording.seek(at);
         }
     });
+}
+
+/// The Run button's text: what it runs ("▶ Run plan", "▶ Run system"), its file in the hover.
+pub fn run_label(target: &Target) -> &'static str {
+    match target {
+        Target::Plan(_) => "▶ Run plan",
+        Target::System(_) => "▶ Run system",
+    }
 }
