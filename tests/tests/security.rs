@@ -736,3 +736,148 @@ fn an_operator_behind_a_slow_link_gets_in() {
         "{closed:?}"
     );
 }
+
+/// The run's status read with `armor ctl --key KEY status --json`.
+fn status_with_key(control: &str, key: &Path) -> serde_json::Value {
+    let (ok, text, _) = ctl(&[
+        "--addr",
+        control,
+        "--key",
+        key.to_str().unwrap(),
+        "status",
+        "--json",
+    ]);
+    assert!(ok, "{text}");
+    let json = text.find('{').map_or("", |start| &text[start..]);
+    serde_json::Deserializer::from_str(json)
+        .into_iter()
+        .next()
+        .and_then(Result::ok)
+        .unwrap_or_else(|| panic!("no status: {text}"))
+}
+
+/// What the agent answers `message` on a connection proving `key` as `identity`.
+fn ask_agent(
+    agent: SocketAddr,
+    key: armor_module_api::auth::Key,
+    identity: &str,
+    message: &armor_module_api::protocol::ToAgent,
+) -> armor_module_api::protocol::FromAgent {
+    let mut stream = armor_tests::dial_as(agent, key, identity).unwrap();
+    blocking::write_message(&mut stream, message).unwrap();
+    blocking::read_message(&mut stream).unwrap()
+}
+
+/// An observer's key (`armor secret derive --role observer`) reads the run's live data through
+/// the agent and the providers' ports, as the studio attached with it does: the robot's true
+/// pose and its laser scan. It publishes nothing, takes no module's name and commands
+/// nothing; a stranger without a key gets not a byte from the agent.
+#[test]
+fn an_observer_key_reads_live_data_and_nothing_more() {
+    use armor_module_api::protocol::{Advert, FromAgent, ToAgent};
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let observer = role_key(&secret, "observer");
+    let (_run, control) = run_with_secret(&driven_system(dir.path()), &secret);
+    let agent: SocketAddr = status_with_key(&control, &observer)["agent"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+
+    // Reads: a node holding the observer's key, under the observer's reader name.
+    let mut node = armor_module_api::Node::connect(
+        armor_module_api::ModuleSpec::new("watcher", "Reads a run with an observer's key."),
+        armor_module_api::Standalone {
+            name: Some("role:observer".to_owned()),
+            agent: Some(agent.to_string()),
+            secret: Some(observer.clone()),
+            ..armor_module_api::Standalone::default()
+        },
+    )
+    .unwrap();
+    let truth = node.subscribe_raw_at_most("sim.pose_truth", 30.0).unwrap();
+    let scan = node.subscribe_raw_at_most("sim.scan", 30.0).unwrap();
+    let (mut got_truth, mut got_scan) = (false, false);
+    let deadline = Instant::now() + PATIENCE;
+    while !(got_truth && got_scan) {
+        assert!(
+            Instant::now() < deadline,
+            "the observer's live data within {PATIENCE:?}: pose {got_truth}, scan {got_scan}"
+        );
+        if let armor_module_api::Event::Input(id) =
+            node.next_event(Some(Duration::from_millis(100))).unwrap()
+        {
+            if id == truth.id() {
+                got_truth |= node.take_raw(&truth).is_some();
+            } else if id == scan.id() {
+                got_scan |= node.take_raw(&scan).is_some();
+            }
+        }
+    }
+    drop(node);
+
+    // Publishes nothing, neither under its own name nor under a module's.
+    let key = armor_module_api::auth::RoleKey::load(&observer)
+        .unwrap()
+        .key;
+    let advert = |data_name: &str| Advert {
+        data_name: data_name.to_owned(),
+        data_type: "Twist".to_owned(),
+        addr: "127.0.0.1:9".to_owned(),
+        key: None,
+    };
+    for (module, data_name) in [("role:observer", "pad.cmd_vel"), ("pad", "pad.cmd_vel")] {
+        let answer = ask_agent(
+            agent,
+            key.clone(),
+            "role:observer",
+            &ToAgent::Register {
+                module: module.to_owned(),
+                outputs: vec![advert(data_name)],
+            },
+        );
+        assert!(
+            matches!(answer, FromAgent::Error { .. }),
+            "the observer registered {data_name} as {module}: {answer:?}"
+        );
+    }
+    // Takes no module's name: its key proves only its reader name.
+    for module in ["pad", "sim", "observer"] {
+        assert!(
+            armor_tests::dial_as(agent, key.clone(), module).is_err(),
+            "the observer's key passed as `{module}` at the agent"
+        );
+    }
+    // Commands nothing.
+    for command in [&["abort"][..], &["teleop", "0.3", "0"]] {
+        let mut args = vec![
+            "--addr",
+            control.as_str(),
+            "--key",
+            observer.to_str().unwrap(),
+        ];
+        args.extend_from_slice(command);
+        let (ok, text, _) = ctl(&args);
+        assert!(!ok && text.contains("observer"), "{command:?}: {text}");
+    }
+    // A stranger without a key gets nothing from the agent, not even its hello.
+    let mut stranger = TcpStream::connect(agent).unwrap();
+    let mut asked = blocking_hello();
+    asked.extend_from_slice(b"{\"type\":\"lookup\",\"data_name\":\"sim.pose_truth\"}");
+    stranger.write_all(&asked).unwrap();
+    let (got, closed) = read_until_closed(&mut stranger, STRANGER_CLOSED_WITHIN * 2);
+    assert!(
+        got.is_empty(),
+        "the agent sent a stranger {} bytes",
+        got.len()
+    );
+    assert!(closed.is_some(), "the agent kept a stranger");
+}
+
+/// The hello every connection starts with.
+fn blocking_hello() -> Vec<u8> {
+    let mut hello = Vec::new();
+    blocking::write_hello(&mut hello).unwrap();
+    hello
+}
