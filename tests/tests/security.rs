@@ -881,3 +881,151 @@ fn blocking_hello() -> Vec<u8> {
     blocking::write_hello(&mut hello).unwrap();
     hello
 }
+
+/// Strangers that hold `count` connections to `target`, each of which said its hello and
+/// nothing more, opening new ones as the run closes them; each connection counted in `made`.
+fn strangers_after_hello(
+    target: SocketAddr,
+    count: usize,
+    stop: &Arc<AtomicBool>,
+    made: &Arc<AtomicUsize>,
+) -> std::thread::JoinHandle<()> {
+    let stop = Arc::clone(stop);
+    let made = Arc::clone(made);
+    std::thread::spawn(move || {
+        let mut held: Vec<TcpStream> = Vec::new();
+        let mut buf = [0; 64];
+        while !stop.load(Ordering::Relaxed) {
+            // The run's hello is read; a connection the run closed is replaced.
+            held.retain(|stream| {
+                loop {
+                    match (&*stream).read(&mut buf) {
+                        Ok(0) => return false,
+                        Ok(_) => {}
+                        Err(err) => return err.kind() == std::io::ErrorKind::WouldBlock,
+                    }
+                }
+            });
+            while held.len() < count {
+                let Ok(mut stream) = TcpStream::connect(target) else {
+                    break;
+                };
+                if stream.write_all(&blocking_hello()).is_err()
+                    || stream.set_nonblocking(true).is_err()
+                {
+                    continue;
+                }
+                made.fetch_add(1, Ordering::Relaxed);
+                held.push(stream);
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    })
+}
+
+/// A process's threads (`/proc/PID/task`) and resident memory in KiB (`VmRSS`).
+fn threads_and_rss_kib(pid: i32) -> (usize, u64) {
+    let threads = std::fs::read_dir(format!("/proc/{pid}/task")).map_or(0, Iterator::count);
+    let rss = std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .ok()
+        .and_then(|status| {
+            status
+                .lines()
+                .find_map(|line| line.strip_prefix("VmRSS:"))
+                .and_then(|value| value.split_whitespace().next()?.parse().ok())
+        })
+        .unwrap_or(0);
+    (threads, rss)
+}
+
+/// The most threads, and resident memory, that 1,000 idle strangers at each of the agent and
+/// the control interface may add to its process: a thread or two of the run's own come and
+/// go, and a stranger costs a socket and a small buffer, not a thread.
+const STRANGERS_THREAD_BUDGET: usize = 8;
+const STRANGERS_RSS_BUDGET_KIB: u64 = 8 * 1024;
+
+/// Without a secret, 1,000 strangers at the agent and 1,000 at the control interface that
+/// complete the hello and say nothing more get no thread: the agent and `armor run` stay
+/// within a stated budget of threads and memory, and `armor ctl abort` gets in within 2 s,
+/// 10 times out of 10 (a run each: an abort ends its run).
+#[test]
+fn a_thousand_idle_strangers_cost_no_thread_and_the_operator_gets_in() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("system.xml"),
+        r#"<system name="held">
+  <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
+</system>
+"#,
+    )
+    .unwrap();
+    let mission = dir.path().join("mission.xml");
+    std::fs::write(
+        &mission,
+        r#"<mission name="long" system="system.xml">
+  <place name="counting" tokens="1"><module name="counter"/></place>
+  <place name="done" final="true"/>
+  <transition name="later" delay_secs="3600"><input place="counting"/><output place="done"/></transition>
+</mission>
+"#,
+    )
+    .unwrap();
+    for round in 1..=10 {
+        let (mut run, control) = armor_tests::run_with_control(&mission);
+        let status = armor_tests::ctl_status(&control);
+        let agent: SocketAddr = status["agent"].as_str().unwrap().parse().unwrap();
+        let agent_pid = children_of(run.pid())
+            .into_iter()
+            .find(|&pid| {
+                std::fs::read(format!("/proc/{pid}/cmdline"))
+                    .is_ok_and(|line| line.split(|&b| b == 0).nth(1) == Some(b"agent"))
+            })
+            .unwrap();
+        let before = [
+            threads_and_rss_kib(run.pid()),
+            threads_and_rss_kib(agent_pid),
+        ];
+        let stop = Arc::new(AtomicBool::new(false));
+        let at_control = Arc::new(AtomicUsize::new(0));
+        let at_agent = Arc::new(AtomicUsize::new(0));
+        let holders = [
+            strangers_after_hello(control.parse().unwrap(), 1000, &stop, &at_control),
+            strangers_after_hello(agent, 1000, &stop, &at_agent),
+        ];
+        wait_until("1,000 strangers at each port", PATIENCE, || {
+            at_control.load(Ordering::Relaxed) >= 1000 && at_agent.load(Ordering::Relaxed) >= 1000
+        });
+        let during = [
+            threads_and_rss_kib(run.pid()),
+            threads_and_rss_kib(agent_pid),
+        ];
+        let (ok, text, took) = ctl(&["--addr", &control, "abort"]);
+        stop.store(true, Ordering::Relaxed);
+        for holder in holders {
+            holder.join().unwrap();
+        }
+        println!(
+            "round {round}: threads and KiB of [armor run, the agent] before {before:?}, \
+             with the strangers {during:?}; abort took {took:?}"
+        );
+        assert!(ok, "round {round}: abort: {text}");
+        assert!(
+            took <= STRANGER_CLOSED_WITHIN,
+            "round {round}: abort took {took:?}: {text}"
+        );
+        for (what, (threads_before, rss_before), (threads, rss)) in [
+            ("armor run", before[0], during[0]),
+            ("the agent", before[1], during[1]),
+        ] {
+            assert!(
+                threads <= threads_before + STRANGERS_THREAD_BUDGET,
+                "round {round}: {what} went from {threads_before} to {threads} threads"
+            );
+            assert!(
+                rss <= rss_before + STRANGERS_RSS_BUDGET_KIB,
+                "round {round}: {what} went from {rss_before} to {rss} KiB"
+            );
+        }
+        run.wait_exit(PATIENCE);
+    }
+}

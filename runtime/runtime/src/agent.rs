@@ -191,7 +191,7 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>, acl: Option<Acl>) {
         encrypt: true,
     });
     let open = Arc::new(std::sync::atomic::AtomicUsize::new(0));
-    crate::gate::serve(listener, listen, |stream, identity| {
+    crate::gate::serve_requests(listener, listen, MAX_REQUEST_BYTES, |stream, identity| {
         use std::sync::atomic::Ordering;
         // Each open connection has a thread: without a secret, whoever says hello is one, so
         // their number is bounded.
