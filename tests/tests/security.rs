@@ -377,19 +377,17 @@ fn strangers(target: SocketAddr, count: usize, stop: &Arc<AtomicBool>, made: &Ar
     });
 }
 
-#[test]
-fn slow_clients_and_strangers_do_not_lock_the_operator_out() {
-    let dir = tempfile::tempdir().unwrap();
-    let secret = secret_file(dir.path());
+/// A mission in `dir` that counts for an hour: it waits for the operator.
+fn waiting_mission(dir: &Path) -> std::path::PathBuf {
     std::fs::write(
-        dir.path().join("system.xml"),
+        dir.join("system.xml"),
         r#"<system name="held">
   <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
 </system>
 "#,
     )
     .unwrap();
-    let mission = dir.path().join("mission.xml");
+    let mission = dir.join("mission.xml");
     std::fs::write(
         &mission,
         r#"<mission name="long" system="system.xml">
@@ -400,6 +398,14 @@ fn slow_clients_and_strangers_do_not_lock_the_operator_out() {
 "#,
     )
     .unwrap();
+    mission
+}
+
+#[test]
+fn slow_clients_and_strangers_do_not_lock_the_operator_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let mission = waiting_mission(dir.path());
     let (_run, control) = run_with_secret(&mission, &secret);
     let target: SocketAddr = control.parse().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
@@ -951,25 +957,7 @@ const STRANGERS_RSS_BUDGET_KIB: u64 = 8 * 1024;
 #[test]
 fn a_thousand_idle_strangers_cost_no_thread_and_the_operator_gets_in() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(
-        dir.path().join("system.xml"),
-        r#"<system name="held">
-  <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
-</system>
-"#,
-    )
-    .unwrap();
-    let mission = dir.path().join("mission.xml");
-    std::fs::write(
-        &mission,
-        r#"<mission name="long" system="system.xml">
-  <place name="counting" tokens="1"><module name="counter"/></place>
-  <place name="done" final="true"/>
-  <transition name="later" delay_secs="3600"><input place="counting"/><output place="done"/></transition>
-</mission>
-"#,
-    )
-    .unwrap();
+    let mission = waiting_mission(dir.path());
     for round in 1..=10 {
         let (mut run, control) = armor_tests::run_with_control(&mission);
         let status = armor_tests::ctl_status(&control);
