@@ -377,19 +377,17 @@ fn strangers(target: SocketAddr, count: usize, stop: &Arc<AtomicBool>, made: &Ar
     });
 }
 
-#[test]
-fn slow_clients_and_strangers_do_not_lock_the_operator_out() {
-    let dir = tempfile::tempdir().unwrap();
-    let secret = secret_file(dir.path());
+/// A mission in `dir` that counts for an hour: it waits for the operator.
+fn waiting_mission(dir: &Path) -> std::path::PathBuf {
     std::fs::write(
-        dir.path().join("system.xml"),
+        dir.join("system.xml"),
         r#"<system name="held">
   <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
 </system>
 "#,
     )
     .unwrap();
-    let mission = dir.path().join("mission.xml");
+    let mission = dir.join("mission.xml");
     std::fs::write(
         &mission,
         r#"<mission name="long" system="system.xml">
@@ -400,6 +398,14 @@ fn slow_clients_and_strangers_do_not_lock_the_operator_out() {
 "#,
     )
     .unwrap();
+    mission
+}
+
+#[test]
+fn slow_clients_and_strangers_do_not_lock_the_operator_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let mission = waiting_mission(dir.path());
     let (_run, control) = run_with_secret(&mission, &secret);
     let target: SocketAddr = control.parse().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
@@ -735,4 +741,279 @@ fn an_operator_behind_a_slow_link_gets_in() {
         closed <= STRANGER_CLOSED_WITHIN + Duration::from_secs(1),
         "{closed:?}"
     );
+}
+
+/// The run's status read with `armor ctl --key KEY status --json`.
+fn status_with_key(control: &str, key: &Path) -> serde_json::Value {
+    let (ok, text, _) = ctl(&[
+        "--addr",
+        control,
+        "--key",
+        key.to_str().unwrap(),
+        "status",
+        "--json",
+    ]);
+    assert!(ok, "{text}");
+    let json = text.find('{').map_or("", |start| &text[start..]);
+    serde_json::Deserializer::from_str(json)
+        .into_iter()
+        .next()
+        .and_then(Result::ok)
+        .unwrap_or_else(|| panic!("no status: {text}"))
+}
+
+/// What the agent answers `message` on a connection proving `key` as `identity`.
+fn ask_agent(
+    agent: SocketAddr,
+    key: armor_module_api::auth::Key,
+    identity: &str,
+    message: &armor_module_api::protocol::ToAgent,
+) -> armor_module_api::protocol::FromAgent {
+    let mut stream = armor_tests::dial_as(agent, key, identity).unwrap();
+    blocking::write_message(&mut stream, message).unwrap();
+    blocking::read_message(&mut stream).unwrap()
+}
+
+/// An observer's key (`armor secret derive --role observer`) reads the run's live data through
+/// the agent and the providers' ports, as the studio attached with it does: the robot's true
+/// pose and its laser scan. It publishes nothing, takes no module's name and commands
+/// nothing; a stranger without a key gets not a byte from the agent.
+#[test]
+fn an_observer_key_reads_live_data_and_nothing_more() {
+    use armor_module_api::protocol::{Advert, FromAgent, ToAgent};
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let observer = role_key(&secret, "observer");
+    let (_run, control) = run_with_secret(&driven_system(dir.path()), &secret);
+    let agent: SocketAddr = status_with_key(&control, &observer)["agent"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+
+    // Reads: a node holding the observer's key, under the observer's reader name.
+    let mut node = armor_module_api::Node::connect(
+        armor_module_api::ModuleSpec::new("watcher", "Reads a run with an observer's key."),
+        armor_module_api::Standalone {
+            name: Some("role:observer".to_owned()),
+            agent: Some(agent.to_string()),
+            secret: Some(observer.clone()),
+            ..armor_module_api::Standalone::default()
+        },
+    )
+    .unwrap();
+    let truth = node.subscribe_raw_at_most("sim.pose_truth", 30.0).unwrap();
+    let scan = node.subscribe_raw_at_most("sim.scan", 30.0).unwrap();
+    let (mut got_truth, mut got_scan) = (false, false);
+    let deadline = Instant::now() + PATIENCE;
+    while !(got_truth && got_scan) {
+        assert!(
+            Instant::now() < deadline,
+            "the observer's live data within {PATIENCE:?}: pose {got_truth}, scan {got_scan}"
+        );
+        if let armor_module_api::Event::Input(id) =
+            node.next_event(Some(Duration::from_millis(100))).unwrap()
+        {
+            if id == truth.id() {
+                got_truth |= node.take_raw(&truth).is_some();
+            } else if id == scan.id() {
+                got_scan |= node.take_raw(&scan).is_some();
+            }
+        }
+    }
+    drop(node);
+
+    // Publishes nothing, neither under its own name nor under a module's.
+    let key = armor_module_api::auth::RoleKey::load(&observer)
+        .unwrap()
+        .key;
+    let advert = |data_name: &str| Advert {
+        data_name: data_name.to_owned(),
+        data_type: "Twist".to_owned(),
+        addr: "127.0.0.1:9".to_owned(),
+        key: None,
+    };
+    for (module, data_name) in [("role:observer", "pad.cmd_vel"), ("pad", "pad.cmd_vel")] {
+        let answer = ask_agent(
+            agent,
+            key.clone(),
+            "role:observer",
+            &ToAgent::Register {
+                module: module.to_owned(),
+                outputs: vec![advert(data_name)],
+            },
+        );
+        assert!(
+            matches!(answer, FromAgent::Error { .. }),
+            "the observer registered {data_name} as {module}: {answer:?}"
+        );
+    }
+    // Takes no module's name: its key proves only its reader name.
+    for module in ["pad", "sim", "observer"] {
+        assert!(
+            armor_tests::dial_as(agent, key.clone(), module).is_err(),
+            "the observer's key passed as `{module}` at the agent"
+        );
+    }
+    // Commands nothing.
+    for command in [&["abort"][..], &["teleop", "0.3", "0"]] {
+        let mut args = vec![
+            "--addr",
+            control.as_str(),
+            "--key",
+            observer.to_str().unwrap(),
+        ];
+        args.extend_from_slice(command);
+        let (ok, text, _) = ctl(&args);
+        assert!(!ok && text.contains("observer"), "{command:?}: {text}");
+    }
+    // A stranger without a key gets nothing from the agent, not even its hello.
+    let mut stranger = TcpStream::connect(agent).unwrap();
+    let mut asked = blocking_hello();
+    asked.extend_from_slice(b"{\"type\":\"lookup\",\"data_name\":\"sim.pose_truth\"}");
+    stranger.write_all(&asked).unwrap();
+    let (got, closed) = read_until_closed(&mut stranger, STRANGER_CLOSED_WITHIN * 2);
+    assert!(
+        got.is_empty(),
+        "the agent sent a stranger {} bytes",
+        got.len()
+    );
+    assert!(closed.is_some(), "the agent kept a stranger");
+}
+
+/// The hello every connection starts with.
+fn blocking_hello() -> Vec<u8> {
+    let mut hello = Vec::new();
+    blocking::write_hello(&mut hello).unwrap();
+    hello
+}
+
+/// Strangers that hold `count` connections to `target`, each of which said its hello and
+/// nothing more, opening new ones as the run closes them; each connection counted in `made`.
+fn strangers_after_hello(
+    target: SocketAddr,
+    count: usize,
+    stop: &Arc<AtomicBool>,
+    made: &Arc<AtomicUsize>,
+) -> std::thread::JoinHandle<()> {
+    let stop = Arc::clone(stop);
+    let made = Arc::clone(made);
+    std::thread::spawn(move || {
+        let mut held: Vec<TcpStream> = Vec::new();
+        let mut buf = [0; 64];
+        while !stop.load(Ordering::Relaxed) {
+            // The run's hello is read; a connection the run closed is replaced.
+            held.retain(|stream| {
+                loop {
+                    match (&*stream).read(&mut buf) {
+                        Ok(0) => return false,
+                        Ok(_) => {}
+                        Err(err) => return err.kind() == std::io::ErrorKind::WouldBlock,
+                    }
+                }
+            });
+            while held.len() < count {
+                let Ok(mut stream) = TcpStream::connect(target) else {
+                    break;
+                };
+                if stream.write_all(&blocking_hello()).is_err()
+                    || stream.set_nonblocking(true).is_err()
+                {
+                    continue;
+                }
+                made.fetch_add(1, Ordering::Relaxed);
+                held.push(stream);
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    })
+}
+
+/// A process's threads (`/proc/PID/task`) and resident memory in KiB (`VmRSS`).
+fn threads_and_rss_kib(pid: i32) -> (usize, u64) {
+    let threads = std::fs::read_dir(format!("/proc/{pid}/task")).map_or(0, Iterator::count);
+    let rss = std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .ok()
+        .and_then(|status| {
+            status
+                .lines()
+                .find_map(|line| line.strip_prefix("VmRSS:"))
+                .and_then(|value| value.split_whitespace().next()?.parse().ok())
+        })
+        .unwrap_or(0);
+    (threads, rss)
+}
+
+/// The most threads, and resident memory, that 1,000 idle strangers at each of the agent and
+/// the control interface may add to its process: a thread or two of the run's own come and
+/// go, and a stranger costs a socket and a small buffer, not a thread.
+const STRANGERS_THREAD_BUDGET: usize = 8;
+const STRANGERS_RSS_BUDGET_KIB: u64 = 8 * 1024;
+
+/// Without a secret, 1,000 strangers at the agent and 1,000 at the control interface that
+/// complete the hello and say nothing more get no thread: the agent and `armor run` stay
+/// within a stated budget of threads and memory, and `armor ctl abort` gets in within 2 s,
+/// 10 times out of 10 (a run each: an abort ends its run).
+#[test]
+fn a_thousand_idle_strangers_cost_no_thread_and_the_operator_gets_in() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = waiting_mission(dir.path());
+    for round in 1..=10 {
+        let (mut run, control) = armor_tests::run_with_control(&mission);
+        let status = armor_tests::ctl_status(&control);
+        let agent: SocketAddr = status["agent"].as_str().unwrap().parse().unwrap();
+        let agent_pid = children_of(run.pid())
+            .into_iter()
+            .find(|&pid| {
+                std::fs::read(format!("/proc/{pid}/cmdline"))
+                    .is_ok_and(|line| line.split(|&b| b == 0).nth(1) == Some(b"agent"))
+            })
+            .unwrap();
+        let before = [
+            threads_and_rss_kib(run.pid()),
+            threads_and_rss_kib(agent_pid),
+        ];
+        let stop = Arc::new(AtomicBool::new(false));
+        let at_control = Arc::new(AtomicUsize::new(0));
+        let at_agent = Arc::new(AtomicUsize::new(0));
+        let holders = [
+            strangers_after_hello(control.parse().unwrap(), 1000, &stop, &at_control),
+            strangers_after_hello(agent, 1000, &stop, &at_agent),
+        ];
+        wait_until("1,000 strangers at each port", PATIENCE, || {
+            at_control.load(Ordering::Relaxed) >= 1000 && at_agent.load(Ordering::Relaxed) >= 1000
+        });
+        let during = [
+            threads_and_rss_kib(run.pid()),
+            threads_and_rss_kib(agent_pid),
+        ];
+        let (ok, text, took) = ctl(&["--addr", &control, "abort"]);
+        stop.store(true, Ordering::Relaxed);
+        for holder in holders {
+            holder.join().unwrap();
+        }
+        println!(
+            "round {round}: threads and KiB of [armor run, the agent] before {before:?}, \
+             with the strangers {during:?}; abort took {took:?}"
+        );
+        assert!(ok, "round {round}: abort: {text}");
+        assert!(
+            took <= STRANGER_CLOSED_WITHIN,
+            "round {round}: abort took {took:?}: {text}"
+        );
+        for (what, (threads_before, rss_before), (threads, rss)) in [
+            ("armor run", before[0], during[0]),
+            ("the agent", before[1], during[1]),
+        ] {
+            assert!(
+                threads <= threads_before + STRANGERS_THREAD_BUDGET,
+                "round {round}: {what} went from {threads_before} to {threads} threads"
+            );
+            assert!(
+                rss <= rss_before + STRANGERS_RSS_BUDGET_KIB,
+                "round {round}: {what} went from {rss_before} to {rss} KiB"
+            );
+        }
+        run.wait_exit(PATIENCE);
+    }
 }

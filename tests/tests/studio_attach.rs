@@ -407,7 +407,7 @@ fn attached_without_its_file_to_a_run_on_a_ros_map_the_studio_has_the_maps_image
 }
 
 /// The studio attached with an observer's key (`armor secret derive --role observer`) reads the
-/// run, says it is an observer, and greys every command it may not give: pause, abort, firing
+/// run and its live data, says it is an observer, and greys every command it may not give: pause, abort, firing
 /// a transition, starting and stopping modules; it offers no driving pad.
 #[test]
 fn attached_with_an_observers_key_the_studio_reads_and_greys_its_commands() {
@@ -455,6 +455,12 @@ fn attached_with_an_observers_key_the_studio_reads_and_greys_its_commands() {
     });
     assert!(!harness.state().run().may_command());
     assert!(has_label(&harness, "attached as an observer: reading only"));
+    // It shows the run's live data as an operator's studio does: the robot's pose and its
+    // laser scan on the map of the run's world.
+    step_until(&mut harness, "the observer's live pose and scan", |h| {
+        let live = h.state().run().live();
+        live.truth.is_some() && live.scan.is_some()
+    });
     for command in ["⏸ Pause", "⏹ Abort", "⏭ finish"] {
         assert!(
             harness.get_by_label(command).accesskit_node().is_disabled(),

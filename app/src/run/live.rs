@@ -357,10 +357,16 @@ fn watch(
     ctx: &egui::Context,
 ) -> anyhow::Result<()> {
     let spec = ModuleSpec::new(NODE_NAME, "ArMoR Studio's run view.");
+    // Attached with a role's key (an observer's, say) rather than the secret, the node proves
+    // the role's reader name, which the agent lets look data up and nothing more.
+    let name = secret
+        .as_deref()
+        .and_then(|file| armor_module_api::auth::RoleKey::load(file).ok())
+        .map_or(NODE_NAME, |key| key.role.data_identity());
     let mut node = Node::connect(
         spec,
         Standalone {
-            name: Some(NODE_NAME.to_owned()),
+            name: Some(name.to_owned()),
             agent: Some(agent.to_string()),
             secret,
             ..Standalone::default()

@@ -101,6 +101,13 @@ pub enum SecretError {
         "{path} is not a role's key: expected one line `observer HEX` or `operator HEX` (written by armor secret derive)"
     )]
     BadRoleKey { path: String },
+    #[error("{path} holds the {role} key, which proves only the name `{identity}`, not `{name}`")]
+    RoleKeyForAnotherName {
+        path: String,
+        role: &'static str,
+        identity: &'static str,
+        name: String,
+    },
 }
 
 /// Why a handshake failed.
@@ -264,6 +271,23 @@ impl Role {
             _ => None,
         }
     }
+
+    /// The name a holder of this role's key proves at the agent and at data ports, to read the
+    /// run's data. It is not an identifier, so no module of a system can bear it, and the agent
+    /// knows it for a reader: it registers nothing for it.
+    pub fn data_identity(self) -> &'static str {
+        match self {
+            Role::Observer => "role:observer",
+            Role::Operator => "role:operator",
+        }
+    }
+
+    /// The role whose [`Role::data_identity`] `identity` is.
+    pub fn of_data_identity(identity: &str) -> Option<Role> {
+        [Role::Observer, Role::Operator]
+            .into_iter()
+            .find(|role| role.data_identity() == identity)
+    }
 }
 
 /// The bytes of a file only its owner may read (a secret, a role's key); one that others may
@@ -380,7 +404,28 @@ impl Credentials {
     ) -> Result<Option<Credentials>, SecretError> {
         let encrypt = encrypt || std::env::var(ENV_ENCRYPT).is_ok_and(|value| value == "1");
         let key = match secret_file {
-            Some(file) => Some(Secret::load(file)?.module_key(name)),
+            // A role's key (`armor secret derive`) proves the role's reader name only.
+            Some(file) => match RoleKey::load(file) {
+                Ok(role_key) if Role::of_data_identity(name) == Some(role_key.role) => {
+                    Some(role_key.key)
+                }
+                Ok(role_key) => {
+                    return Err(SecretError::RoleKeyForAnotherName {
+                        path: file.display().to_string(),
+                        role: role_key.role.as_str(),
+                        identity: role_key.role.data_identity(),
+                        name: name.to_owned(),
+                    });
+                }
+                Err(SecretError::BadRoleKey { .. }) => {
+                    let secret = Secret::load(file)?;
+                    Some(match Role::of_data_identity(name) {
+                        Some(role) => secret.role_key(role),
+                        None => secret.module_key(name),
+                    })
+                }
+                Err(err) => return Err(err),
+            },
             None => match Key::from_fd_env()? {
                 Some(key) => Some(key),
                 None => Secret::from_env()?.map(|secret| secret.module_key(name)),
@@ -410,8 +455,12 @@ impl Credentials {
 /// How a listener finds the pre-shared key for the identity a dialer claims.
 #[derive(Clone, Debug)]
 pub enum Admit {
-    /// The agent and the config server: the claimed name's module key.
+    /// The config server and `armor host`: the claimed name's module key.
     Modules(Secret),
+    /// The agent: the claimed name's module key, or for a role's reader name
+    /// ([`Role::data_identity`]) that role's key, so that an observer or an operator may look
+    /// data up (and nothing more: the agent registers nothing for it).
+    Agent(Secret),
     /// A module's data port: the link key of this module's key for the claimed name.
     LinksTo(Key),
     /// The control interface: the identity names the role (`observer`, else `operator`), and
@@ -423,6 +472,10 @@ impl Admit {
     fn key_for(&self, identity: &str) -> Key {
         match self {
             Admit::Modules(secret) => secret.module_key(identity),
+            Admit::Agent(secret) => match Role::of_data_identity(identity) {
+                Some(role) => secret.role_key(role),
+                None => secret.module_key(identity),
+            },
             Admit::LinksTo(key) => key.link_key(identity),
             Admit::Control { operator, observer } => match Role::parse(identity) {
                 Some(Role::Observer) => observer.clone(),

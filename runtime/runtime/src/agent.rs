@@ -23,7 +23,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::net::{SocketAddr, TcpListener};
 use std::sync::{Arc, Mutex, PoisonError};
 
-use armor_module_api::auth::{Admit, Listen, Secret};
+use armor_module_api::auth::{Admit, Listen, Role, Secret};
 use armor_module_api::protocol::{Advert, FromAgent, ToAgent};
 use armor_module_api::wire::blocking::{SecureStream, SecureWriter};
 use armor_module_api::wire::{WireError, blocking};
@@ -205,11 +205,11 @@ pub fn serve(listener: TcpListener, secret: Option<Secret>, acl: Option<Acl>) {
     let acl = acl.map(Arc::new);
     // The agent's answers carry link keys: its links are always encrypted.
     let listen = secret.clone().map(|secret| Listen {
-        admit: Admit::Modules(secret),
+        admit: Admit::Agent(secret),
         encrypt: true,
     });
     let open = Arc::new(std::sync::atomic::AtomicUsize::new(0));
-    crate::gate::serve(listener, listen, |stream, identity| {
+    crate::gate::serve_requests(listener, listen, MAX_REQUEST_BYTES, |stream, identity| {
         use std::sync::atomic::Ordering;
         // Each open connection has a thread: without a secret, whoever says hello is one, so
         // their number is bounded.
@@ -320,6 +320,9 @@ impl Conn<'_> {
         let writer: Writer = Arc::new(Mutex::new(writer));
         // The module this connection registered as; with a secret, the name it proved.
         let mut identity: Option<String> = proven.clone();
+        // With a secret, a role's key holder (an attached studio, say) proves its role's reader
+        // name: it may look any data name up, and register none.
+        let reader = proven.as_deref().and_then(Role::of_data_identity);
         loop {
             let reply =
                 match blocking::read_message_at_most::<ToAgent>(&mut stream, MAX_REQUEST_BYTES)? {
@@ -347,6 +350,18 @@ impl Conn<'_> {
                         );
                         tracing::warn!("refused a registration: {message}");
                         FromAgent::Error { message }
+                    }
+                    ToAgent::Register { outputs, .. } if let Some(role) = reader => {
+                        if outputs.is_empty() {
+                            FromAgent::Registered
+                        } else {
+                            let message = format!(
+                                "an {}'s key reads the run's data: it publishes none",
+                                role.as_str()
+                            );
+                            tracing::warn!("refused a registration: {message}");
+                            FromAgent::Error { message }
+                        }
                     }
                     ToAgent::Register { module, outputs }
                         if module.len() > MAX_NAME_BYTES
@@ -399,8 +414,10 @@ impl Conn<'_> {
                         }
                     }
                     ToAgent::Lookup { data_name }
-                        if let Some(Err(message)) =
-                            acl.map(|acl| acl.check_subscribe(identity.as_deref(), &data_name)) =>
+                        if reader.is_none()
+                            && let Some(Err(message)) = acl.map(|acl| {
+                                acl.check_subscribe(identity.as_deref(), &data_name)
+                            }) =>
                     {
                         tracing::warn!(module = identity.as_deref(), "refused a lookup: {message}");
                         FromAgent::Error {

@@ -54,28 +54,33 @@ pub fn serve(
     });
     let open = Arc::new(AtomicUsize::new(0));
     std::thread::spawn(move || {
-        crate::gate::serve(listener, listen, move |stream, proven| {
-            // Without a secret there is no role to prove: whoever reaches the (loopback)
-            // port operates.
-            let role = match proven.as_deref().map(Role::parse) {
-                None => Role::Operator,
-                Some(Some(role)) => role,
-                Some(None) => return,
-            };
-            if open.load(Ordering::Relaxed) >= MAX_CLIENTS {
-                tracing::warn!("{MAX_CLIENTS} control clients are connected: refused another");
-                return;
-            }
-            open.fetch_add(1, Ordering::Relaxed);
-            let requests = requests.clone();
-            let open = Arc::clone(&open);
-            std::thread::spawn(move || {
-                if let Err(err) = serve_client(stream, role, &requests) {
-                    tracing::warn!("control client ({}): {err:#}", role.as_str());
+        crate::gate::serve_requests(
+            listener,
+            listen,
+            MAX_REQUEST_BYTES,
+            move |stream, proven| {
+                // Without a secret there is no role to prove: whoever reaches the (loopback)
+                // port operates.
+                let role = match proven.as_deref().map(Role::parse) {
+                    None => Role::Operator,
+                    Some(Some(role)) => role,
+                    Some(None) => return,
+                };
+                if open.load(Ordering::Relaxed) >= MAX_CLIENTS {
+                    tracing::warn!("{MAX_CLIENTS} control clients are connected: refused another");
+                    return;
                 }
-                open.fetch_sub(1, Ordering::Relaxed);
-            });
-        });
+                open.fetch_add(1, Ordering::Relaxed);
+                let requests = requests.clone();
+                let open = Arc::clone(&open);
+                std::thread::spawn(move || {
+                    if let Err(err) = serve_client(stream, role, &requests) {
+                        tracing::warn!("control client ({}): {err:#}", role.as_str());
+                    }
+                    open.fetch_sub(1, Ordering::Relaxed);
+                });
+            },
+        );
     });
     Ok(local)
 }

@@ -7,9 +7,14 @@
 //! pass, and a round trip more once it proved a key. A thousand idle connections thus cost a
 //! few hundred kilobytes and never keep a module or an operator from getting in. With a secret,
 //! the door sends nothing, not even its hello, before a valid first handshake message.
+//!
+//! Without a secret there is no key to tell a stranger by, so [`serve_requests`] (the agent, the
+//! control interface) opens a connection only once its first request has arrived whole, within
+//! the first message's deadline: a module registers and `armor ctl` asks right behind their
+//! hello, while a peer that says its hello and nothing more costs no thread and is closed.
 
 use std::collections::HashMap;
-use std::io::{ErrorKind, Write as _};
+use std::io::{ErrorKind, Read as _, Write as _};
 use std::net::TcpStream;
 use std::os::fd::AsRawFd as _;
 use std::time::Instant;
@@ -36,6 +41,17 @@ struct Pending {
     /// a stranger gets not a byte.
     hello_owed: bool,
     deadline: HandshakeDeadline,
+    /// Without a secret, for [`serve_requests`]: the bytes of the first request as they arrive
+    /// (the hello taken), until it is whole.
+    first_request: Option<Vec<u8>>,
+}
+
+/// How a connection is opened, and what it may send first.
+#[derive(Clone, Copy)]
+struct Opening {
+    /// Without a secret, wait for the first request before opening, and refuse one longer
+    /// than this (bytes).
+    first_request_at_most: Option<usize>,
 }
 
 /// Accepts on `listener` until the process ends, and hands each connection that is open (hello
@@ -46,7 +62,28 @@ pub fn serve(
     listen: Option<Listen>,
     mut handle: impl FnMut(SecureStream, Option<String>),
 ) {
-    if let Err(err) = run(listener, listen, &mut handle) {
+    let opening = Opening {
+        first_request_at_most: None,
+    };
+    if let Err(err) = run(listener, listen, opening, &mut handle) {
+        tracing::error!("a server stopped accepting connections: {err}");
+    }
+}
+
+/// [`serve`] for a service whose clients send a request at once (the agent, the control
+/// interface): without a secret, a connection is handed over only once its first request (at
+/// most `max_request_bytes`) has arrived whole, so that a peer that says its hello and nothing
+/// more costs no thread.
+pub fn serve_requests(
+    listener: std::net::TcpListener,
+    listen: Option<Listen>,
+    max_request_bytes: usize,
+    mut handle: impl FnMut(SecureStream, Option<String>),
+) {
+    let opening = Opening {
+        first_request_at_most: listen.is_none().then_some(max_request_bytes),
+    };
+    if let Err(err) = run(listener, listen, opening, &mut handle) {
         tracing::error!("a server stopped accepting connections: {err}");
     }
 }
@@ -54,6 +91,7 @@ pub fn serve(
 fn run(
     listener: std::net::TcpListener,
     listen: Option<Listen>,
+    opening: Opening,
     handle: &mut impl FnMut(SecureStream, Option<String>),
 ) -> std::io::Result<()> {
     listener.set_nonblocking(true)?;
@@ -93,7 +131,7 @@ fn run(
             let Some(conn) = pending.get_mut(&token) else {
                 continue;
             };
-            match advance(conn) {
+            match advance(conn, opening) {
                 Ok(false) => {}
                 Ok(true) => {
                     if let Some(conn) = remove(&poll, &mut pending, token)
@@ -185,6 +223,7 @@ fn accept_all(
             peer: None,
             hello_owed: listen.is_some(),
             deadline: HandshakeDeadline::accepted(Instant::now()),
+            first_request: None,
         };
         // The hello (if any yet) is six bytes: a new socket takes them at once.
         if let Err(err) = conn.out.flush_to(&mut conn.stream) {
@@ -201,11 +240,20 @@ fn accept_all(
 
 /// Reads what the peer sent and answers the handshake; `Ok(true)` once the connection is open.
 /// Frames of the service that came with the handshake stay undecoded in the reader.
-fn advance(conn: &mut Pending) -> Result<bool, WireError> {
+fn advance(conn: &mut Pending, opening: Opening) -> Result<bool, WireError> {
+    if conn.first_request.is_some() {
+        return first_request(conn, opening);
+    }
     loop {
         if conn.reader.take_hello()? {
             if conn.reader.is_open() {
-                return Ok(true);
+                if opening.first_request_at_most.is_none() {
+                    return Ok(true);
+                }
+                // What came with the hello is the start of the first request.
+                let (received, _) = std::mem::take(&mut conn.reader).into_parts();
+                conn.first_request = Some(received);
+                return first_request(conn, opening);
             }
             if let Some(frame) = conn.reader.next_frame()? {
                 // Before the connection is open only the handshake's steps come out.
@@ -227,6 +275,43 @@ fn advance(conn: &mut Pending) -> Result<bool, WireError> {
         match conn.reader.fill_from(&mut conn.stream) {
             Ok(0) => return Err(WireError::Closed),
             Ok(_) => {}
+            Err(err) if err.kind() == ErrorKind::WouldBlock => return Ok(false),
+            Err(err) if err.kind() == ErrorKind::Interrupted => {}
+            Err(err) => return Err(err.into()),
+        }
+    }
+}
+
+/// The length of a frame, from the four bytes that start it.
+const FRAME_LENGTH_BYTES: usize = 4;
+
+/// Reads the first request of a connection without a secret, a little at a time (a peer costs
+/// what it sent, never what it announces); `Ok(true)` once it is whole, with the reader
+/// holding it.
+fn first_request(conn: &mut Pending, opening: Opening) -> Result<bool, WireError> {
+    let max_bytes = opening.first_request_at_most.unwrap_or(usize::MAX);
+    let Some(received) = conn.first_request.as_mut() else {
+        return Ok(true);
+    };
+    let mut chunk = [0; 1024];
+    loop {
+        if let Some(header) = received.first_chunk::<FRAME_LENGTH_BYTES>() {
+            let frame_bytes = u32::from_le_bytes(*header) as usize;
+            if frame_bytes > max_bytes {
+                return Err(WireError::Io(std::io::Error::new(
+                    ErrorKind::InvalidData,
+                    format!("a first request of {frame_bytes} bytes (at most {max_bytes})"),
+                )));
+            }
+            if received.len() >= FRAME_LENGTH_BYTES + frame_bytes {
+                conn.reader = FrameReader::resume(received, None);
+                conn.first_request = None;
+                return Ok(true);
+            }
+        }
+        match conn.stream.read(&mut chunk) {
+            Ok(0) => return Err(WireError::Closed),
+            Ok(got) => received.extend_from_slice(&chunk[..got]),
             Err(err) if err.kind() == ErrorKind::WouldBlock => return Ok(false),
             Err(err) if err.kind() == ErrorKind::Interrupted => {}
             Err(err) => return Err(err.into()),
