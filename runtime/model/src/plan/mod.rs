@@ -52,13 +52,14 @@ use armor_module_api::xml::{Located, Pos};
 mod compile;
 pub mod gpx;
 pub mod kml;
+pub mod objectives;
 pub mod qgc;
 mod xml;
 
 pub use crate::geo::LatLon;
 pub use compile::{
-    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, robot,
-    robot_explained,
+    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, plan_pairs,
+    robot, robot_explained,
 };
 pub use xml::DEFAULT_LOCALISER;
 
@@ -83,6 +84,8 @@ pub struct Plan {
     pub throughout: Option<Action>,
     pub waypoints: Vec<Waypoint>,
     pub legs: Vec<Leg>,
+    /// What the operator wants done, for `armor plan` to turn into legs (`<objectives>`).
+    pub objectives: Option<objectives::Objectives>,
     /// Contingencies for every leg that does not say otherwise.
     pub contingencies: Vec<Contingency>,
     pub graphics: Vec<Graphic>,

@@ -41,6 +41,7 @@ impl Plan {
             "throughout",
             "waypoint",
             "leg",
+            "objectives",
             "contingency",
             "phase_line",
             "boundary",
@@ -114,6 +115,15 @@ impl Plan {
                 "leg" => {
                     let index = plan.legs.len();
                     plan.legs.push(read_leg(child, index, p));
+                }
+                "objectives" => {
+                    if plan.objectives.is_some() {
+                        p.push(Located::new(
+                            child.pos,
+                            "the plan has one <objectives> at most",
+                        ));
+                    }
+                    plan.objectives = Some(super::objectives::read(child, plan.start_unix_secs, p));
                 }
                 "contingency" => plan.contingencies.extend(read_contingency(child, p)),
                 "phase_line" | "boundary" | "area" => plan.graphics.push(read_graphic(child, p)),
@@ -246,6 +256,9 @@ impl Plan {
             }
             out.push_str("  </leg>\n");
         }
+        if let Some(objectives) = &self.objectives {
+            super::objectives::write(&mut out, objectives);
+        }
         for contingency in &self.contingencies {
             write_contingency(&mut out, "  ", contingency);
         }
@@ -295,7 +308,7 @@ fn graphic_tag(kind: GraphicKind) -> &'static str {
 }
 
 /// Seven decimals of a degree: about a centimetre.
-fn lat_lon_attrs(position: LatLon) -> String {
+pub(super) fn lat_lon_attrs(position: LatLon) -> String {
     format!(
         "lat=\"{}\" lon=\"{}\"",
         degrees(position.lat_deg),
@@ -307,7 +320,7 @@ fn degrees(value: f64) -> String {
     crate::geo::trimmed_decimal(value, 7)
 }
 
-fn write_action(out: &mut String, indent: &str, tag: &str, action: &Action) {
+pub(super) fn write_action(out: &mut String, indent: &str, tag: &str, action: &Action) {
     let _ = write!(out, "{indent}<{tag}");
     if let Some(until) = &action.until {
         let _ = write!(out, " until=\"{}\"", escape(until));
@@ -384,7 +397,7 @@ fn date(name: &'static str) -> fn(Field<'_>) -> Result<f64, Located> {
     }
 }
 
-fn named_date(field: Field<'_>, name: &str) -> Result<f64, Located> {
+pub(super) fn named_date(field: Field<'_>, name: &str) -> Result<f64, Located> {
     read_date(field).map_err(|err| {
         Located::new(
             err.pos,
@@ -394,7 +407,7 @@ fn named_date(field: Field<'_>, name: &str) -> Result<f64, Located> {
 }
 
 /// A number of seconds, 0 or more, or a speed above 0: finite decimals only.
-fn seconds(field: Field<'_>) -> Result<f64, Located> {
+pub(super) fn seconds(field: Field<'_>) -> Result<f64, Located> {
     match field.value.trim().parse::<f64>() {
         Ok(value) if value.is_finite() && value >= 0.0 && is_decimal(field.value) => Ok(value),
         _ => Err(Located::new(
@@ -441,7 +454,7 @@ fn metres(name: &'static str) -> fn(Field<'_>) -> Result<f64, Located> {
     }
 }
 
-fn lat_lon(element: &Element, problems: &mut Vec<Located>) -> Option<LatLon> {
+pub(super) fn lat_lon(element: &Element, problems: &mut Vec<Located>) -> Option<LatLon> {
     let mut read = |name: &str, limit: f64, what: &str| -> Option<f64> {
         let field = required(element, name, problems)?;
         match field.value.trim().parse::<f64>() {
@@ -613,7 +626,7 @@ fn read_leg(element: &Element, index: usize, p: &mut Vec<Located>) -> Leg {
     leg
 }
 
-fn read_action(element: &Element, p: &mut Vec<Located>) -> Action {
+pub(super) fn read_action(element: &Element, p: &mut Vec<Located>) -> Action {
     let arrival = element.name == "arrival";
     if arrival {
         p.extend(element.unknown_attrs(&["until", "for_secs"]));
@@ -994,6 +1007,14 @@ fn check_references(plan: &Plan, p: &mut Vec<Located>) {
         }
     }
     let defined = |name: &str| names.get(name).is_some_and(|&(kind, _)| kind == "waypoint");
+    if let Some(objectives) = &plan.objectives {
+        let waypoints: BTreeMap<&str, Pos> = plan
+            .waypoints
+            .iter()
+            .map(|waypoint| (waypoint.name.as_str(), waypoint.pos))
+            .collect();
+        super::objectives::check_references(objectives, &waypoints, p);
+    }
     let waypoint_names = || {
         let names: Vec<&str> = plan.waypoints.iter().map(|w| w.name.as_str()).collect();
         if names.is_empty() {
@@ -1094,10 +1115,12 @@ fn check_references(plan: &Plan, p: &mut Vec<Located>) {
             seen.insert(key, contingency.pos);
         }
     }
-    if plan.legs.is_empty() {
+    // A plan of objectives gets its legs from `armor plan`.
+    if plan.legs.is_empty() && plan.objectives.is_none() {
         p.push(Located::new(
             plan.pos,
-            "the plan has no leg: add <leg from=\"...\" to=\"...\"/>",
+            "the plan has no leg: add <leg from=\"...\" to=\"...\"/> (or <objectives> for \
+             `armor plan` to make them)",
         ));
     }
 }
@@ -1406,7 +1429,10 @@ mod tests {
         assert_eq!(problems("<plan name=\"p\"").len(), 1);
         assert_eq!(
             problems("<plan name=\"p\" system=\"s\"/>"),
-            ["1:1: the plan has no leg: add <leg from=\"...\" to=\"...\"/>"]
+            [
+                "1:1: the plan has no leg: add <leg from=\"...\" to=\"...\"/> (or \
+                 <objectives> for `armor plan` to make them)"
+            ]
         );
     }
 }
