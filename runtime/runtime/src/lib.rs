@@ -5,6 +5,7 @@
 //! these. Nothing here knows egui.
 
 pub mod agent;
+pub mod autoplan;
 pub mod basemap;
 pub mod behaviour;
 pub mod config_server;
