@@ -30,7 +30,23 @@ pub struct Instance {
     /// The plan's start (Unix seconds): the problem's time 0.
     pub start_unix_secs: Option<f64>,
     pub speed_mps: f64,
+    /// The fastest the robot may drive (its modules' least `max_speed_mps`), at least
+    /// `speed_mps`: a leg that waits for a window leaves as late as this speed allows, so that
+    /// the robot never arrives before the window opens (driving slower, it arrives later than
+    /// planned). The planner's own times are at `speed_mps`.
+    pub fastest_mps: f64,
     pub keepouts: Vec<Keepout>,
+}
+
+impl Instance {
+    /// The way from node `from` to node `to` (0: the start, then the tasks, then the end), in
+    /// metres; 0 to an end that is wherever the robot is.
+    pub fn length(&self, from: usize, to: usize) -> Option<f64> {
+        match (self.points.get(from), self.points.get(to)) {
+            (Some(_), Some(_)) => self.length_m[from][to],
+            _ => Some(0.0),
+        }
+    }
 }
 
 /// Deciseconds from seconds, rounded up (a travel time never shorter than it is).
@@ -274,6 +290,7 @@ pub fn instance(
         cut,
         start_unix_secs: start,
         speed_mps,
+        fastest_mps: speed_mps,
         keepouts: legs.keepouts,
     })
 }

@@ -41,9 +41,12 @@ pub fn plan(plan: &Plan, instance: &Instance, route: &Route) -> Plan {
     for (&task, &arrival_ds) in route.order.iter().zip(&route.arrival_ds) {
         let objective = &instance.objectives.objectives[task];
         let next = crate::Problem::node(task);
-        let travel = problem.travel_ds[node][next].unwrap_or(0);
-        // The robot waits where it is for the window, rather than at the objective early.
-        let leave_ds = arrival_ds - travel;
+        // The robot waits where it is for the window, rather than at the objective early, and
+        // leaves late enough to arrive no sooner driving as fast as it can.
+        let fastest_ds = instance.length(node, next).map_or(0, |length| {
+            crate::instance::ds(length / instance.fastest_mps).max(0)
+        });
+        let leave_ds = arrival_ds - fastest_ds;
         let not_before = (objective.not_before_unix_secs.is_some() && leave_ds > left_ds)
             .then(|| at_date(leave_ds))
             .flatten();
@@ -197,6 +200,7 @@ fn numbers(instance: &Instance, conflict: &Conflict) -> Option<String> {
         .iter()
         .filter_map(Constraint::task)
         .collect();
+    tasks.sort_unstable();
     tasks.dedup();
     match tasks.as_slice() {
         [task] => {
@@ -221,22 +225,40 @@ fn numbers(instance: &Instance, conflict: &Conflict) -> Option<String> {
             let mut reasons = Vec::new();
             for (first, then) in [(*a, *b), (*b, *a)] {
                 let (x, y) = (crate::Problem::node(first), crate::Problem::node(then));
-                let open = problem.tasks[first].not_before_ds.unwrap_or(0);
+                // The earliest the robot can be at the first: its window's opening, or the way
+                // there from the start.
+                let open = problem.tasks[first]
+                    .not_before_ds
+                    .unwrap_or(0)
+                    .max(problem.travel_ds[0][x].unwrap_or(0));
                 let Some(by) = problem.tasks[then].by_ds else {
                     continue;
                 };
                 let service = problem.tasks[first].service_ds;
                 match problem.travel_ds[x][y] {
-                    Some(_) => reasons.push(format!(
-                        "{}{}, the windows leave {}",
-                        way_words(instance, x, y),
-                        if service > 0 {
-                            format!(" after {} there", secs(service))
-                        } else {
-                            String::new()
-                        },
-                        secs((by - open).max(0))
-                    )),
+                    Some(_) => {
+                        let left = by - open - service;
+                        reasons.push(format!(
+                            "`{}` is reached at {} at the earliest, then {}{}: {}",
+                            instance.objectives.objectives[first].name,
+                            time_words(instance, open),
+                            way_words(instance, x, y),
+                            if service > 0 {
+                                format!(" after {} there", secs(service))
+                            } else {
+                                String::new()
+                            },
+                            if left > 0 {
+                                format!("the windows leave {}", secs(left))
+                            } else {
+                                format!(
+                                    "`{}` must be reached by {}, before that",
+                                    instance.objectives.objectives[then].name,
+                                    time_words(instance, by)
+                                )
+                            }
+                        ));
+                    }
                     None => reasons.push(way_words(instance, x, y)),
                 }
             }

@@ -55,12 +55,13 @@ fn prepare(file: &Path, module_path: &[PathBuf]) -> Result<Prepared, Diagnostics
         .map_err(|message| fail(vec![Located::new(plan.pos, message)]))?;
     let robot = plan::robot(&plan, Some(&system.system), &system.descriptions);
     // Times at the speed the robot really drives, as `armor check` checks them.
-    let speed_mps = match mission::speed_limit(&plan, &system) {
-        Some((limit, _)) => plan.navigation.speed_mps.min(limit),
-        None => plan.navigation.speed_mps,
-    };
-    let instance =
+    let limit = mission::speed_limit(&plan, &system).map(|(limit, _)| limit);
+    let speed_mps = limit.map_or(plan.navigation.speed_mps, |limit| {
+        plan.navigation.speed_mps.min(limit)
+    });
+    let mut instance =
         armor_autoplan::instance(&plan, world.as_ref(), &robot, speed_mps).map_err(fail)?;
+    instance.fastest_mps = limit.map_or(speed_mps, |limit| limit.max(speed_mps));
     Ok(Prepared {
         plan,
         base,
