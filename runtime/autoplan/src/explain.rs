@@ -34,6 +34,8 @@ pub enum Constraint {
     MaxDistance,
     /// The plan takes no longer than its endurance.
     MaxTime,
+    /// The plan uses no more of the battery than its share.
+    MaxCharge,
 }
 
 impl Constraint {
@@ -124,7 +126,7 @@ fn check(
         .iter()
         .map(|&at| selectors[at].1.get_true_predicate())
         .collect();
-    let mut brancher = model.brancher(problem);
+    let mut brancher = model.brancher(problem, None);
     let mut resolver = ResolutionResolver::default();
     let mut termination = TimeBudget::starting_now(limit);
     match model.solver.satisfy_under_assumptions(

@@ -279,6 +279,8 @@ pub fn instance(
             .max_distance_m
             .map(|metres| (metres * 10.0).floor() as i32),
         max_time_ds: objectives.max_secs.map(|secs| (secs * 10.0).floor() as i32),
+        // Set by the caller, who knows the battery (`ChargeLimit::new`).
+        max_charge: None,
     };
     Ok(Instance {
         problem,

@@ -25,7 +25,7 @@ mod tests;
 
 pub use explain::{Conflict, Constraint, explain};
 pub use instance::{Instance, instance};
-pub use solve::{Outcome, Solved, solve};
+pub use solve::{Outcome, Solved, solve, solve_from};
 
 /// One objective as the solver sees it (times from the plan's start, in deciseconds).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -58,6 +58,39 @@ pub struct Problem {
     pub max_distance_dm: Option<i32>,
     /// The latest the robot may arrive at the end.
     pub max_time_ds: Option<i32>,
+    /// The most of the battery the plan may use.
+    pub max_charge: Option<ChargeLimit>,
+}
+
+/// A limit on the battery's charge used: `per_dm × distance + per_ds × end time ≤ max`, in
+/// ten-millionths of a full charge.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ChargeLimit {
+    pub per_dm: i32,
+    pub per_ds: i32,
+    pub max: i32,
+}
+
+/// The unit of [`ChargeLimit`]: a full charge.
+pub const FULL_CHARGE: f64 = 1e7;
+
+impl ChargeLimit {
+    /// The limit of a battery that drains `per_m` of a full charge a metre and `per_hour` an
+    /// hour, of which the plan may use `share` (the drains rounded up, the share down, so that
+    /// the limit errs on the side of the battery).
+    pub fn new(per_m: f64, per_hour: f64, share: f64) -> ChargeLimit {
+        let scaled = |value: f64| value.clamp(0.0, f64::from(i32::MAX / 4)) as i32;
+        ChargeLimit {
+            per_dm: scaled((per_m / 10.0 * FULL_CHARGE).ceil()),
+            per_ds: scaled((per_hour / 36_000.0 * FULL_CHARGE).ceil()),
+            max: scaled((share * FULL_CHARGE).floor()),
+        }
+    }
+
+    /// The charge a route of `distance_dm` ending at `end_ds` uses.
+    pub fn used(&self, distance_dm: i64, end_ds: i64) -> i64 {
+        i64::from(self.per_dm) * distance_dm + i64::from(self.per_ds) * end_ds
+    }
 }
 
 impl Problem {
@@ -151,6 +184,9 @@ impl Problem {
             .max_distance_dm
             .is_some_and(|max| distance > i64::from(max))
             || self.max_time_ds.is_some_and(|max| time > i64::from(max))
+            || self
+                .max_charge
+                .is_some_and(|limit| limit.used(distance, time) > i64::from(limit.max))
         {
             return None;
         }

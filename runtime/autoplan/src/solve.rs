@@ -22,6 +22,7 @@ use std::time::{Duration, Instant};
 use pumpkin_conflict_resolvers::resolvers::ResolutionResolver;
 use pumpkin_core::Solver;
 use pumpkin_core::branching::branchers::dynamic_brancher::DynamicBrancher;
+use pumpkin_core::branching::branchers::warm_start::WarmStart;
 use pumpkin_core::branching::{Brancher, BrancherEvent, SelectionContext};
 use pumpkin_core::optimisation::OptimisationDirection;
 use pumpkin_core::optimisation::linear_sat_unsat::LinearSatUnsat;
@@ -384,6 +385,19 @@ impl Model {
                 ))
                 .implied_by(on);
         }
+        if let Some(limit) = problem.max_charge {
+            let on = selector(&mut solver, Constraint::MaxCharge);
+            solver
+                .add_constraint(pumpkin_constraints::less_than_or_equals(
+                    vec![
+                        distance.scaled(limit.per_dm),
+                        time[end].scaled(limit.per_ds),
+                    ],
+                    limit.max,
+                    tag,
+                ))
+                .implied_by(on);
+        }
         let priority = solver.new_bounded_integer(0, max_priority);
         priority_terms.push(priority.scaled(-1));
         solver
@@ -436,14 +450,30 @@ impl Model {
     /// search set the times. The first route is found as a dispatcher would; the clauses learnt
     /// on the way turn the later branches down (kept through the proof, this search proved the
     /// least lateness of seven tasks three times faster than the activity-based one alone).
-    pub(crate) fn brancher(&self, problem: &Problem) -> DynamicBrancher {
-        DynamicBrancher::new(vec![
+    pub(crate) fn brancher(&self, problem: &Problem, seed: Option<&Route>) -> DynamicBrancher {
+        let mut branchers: Vec<Box<dyn Brancher>> = Vec::new();
+        if let Some(seed) = seed {
+            // The seed's successors first: its route, then the tasks it drops.
+            let mut values = vec![0; self.succ.len()];
+            for (node, value) in values.iter_mut().enumerate() {
+                *value = node as i32;
+            }
+            let mut node = 0;
+            for &task in &seed.order {
+                values[node] = (task + 1) as i32;
+                node = task + 1;
+            }
+            values[node] = self.succ.len() as i32;
+            branchers.push(Box::new(WarmStart::new(&self.succ, &values)));
+        }
+        branchers.extend([
             Box::new(RouteBrancher {
                 succ: self.succ.clone(),
                 travel_ds: problem.travel_ds.clone(),
             }),
-            Box::new(self.solver.default_brancher()),
-        ])
+            Box::new(self.solver.default_brancher()) as Box<dyn Brancher>,
+        ]);
+        DynamicBrancher::new(branchers)
     }
 
     /// The order of the tasks a solution serves, following the successors from the start.
@@ -465,13 +495,21 @@ impl Model {
 
 /// The best route within `limit`, in the lexicographic order of [`crate::Cost::key`].
 pub fn solve(problem: &Problem, limit: Duration) -> Outcome {
+    solve_from(problem, limit, None)
+}
+
+/// [`solve`], the search tried first along `seed` (a route found otherwise, such as
+/// [`crate::heuristic`]'s), which the answer is never worse than.
+pub fn solve_from(problem: &Problem, limit: Duration, seed: Option<&Route>) -> Outcome {
     let started = Instant::now();
     let mut bounds = Bounds::default();
     let mut best: Option<Route> = None;
     let mut first_found: Option<Duration> = None;
     let mut optimal = true;
-    for phase in 0..3 {
-        let left = limit.saturating_sub(started.elapsed());
+    for phase in 0..3u32 {
+        // Each phase may take its share of what is left (a third, a half, all): a first phase
+        // that cannot prove its best within the limit leaves the others time to improve.
+        let left = limit.saturating_sub(started.elapsed()) / (3 - phase);
         let mut model = Model::build(problem, Selectors::Hold, bounds);
         let objective = match phase {
             0 => model.priority,
@@ -483,7 +521,7 @@ pub fn solve(problem: &Problem, limit: Duration) -> Outcome {
         } else {
             OptimisationDirection::Minimise
         };
-        let mut brancher = model.brancher(problem);
+        let mut brancher = model.brancher(problem, seed);
         let mut resolver = ResolutionResolver::default();
         let mut termination = TimeBudget::starting_now(left);
         let mut found = |_: &Solver, _: SolutionReference, _: &_, _: &_| {
@@ -536,6 +574,15 @@ pub fn solve(problem: &Problem, limit: Duration) -> Outcome {
         {
             best = Some(route);
         }
+    }
+    // The seed, when the search found nothing better in its time.
+    if let Some(seed) = seed.and_then(|seed| problem.evaluate(&seed.order))
+        && best
+            .as_ref()
+            .is_none_or(|best| seed.cost.key() < best.cost.key())
+    {
+        optimal = false;
+        best = Some(seed);
     }
     match best {
         Some(route) => Outcome::Solved(Solved {

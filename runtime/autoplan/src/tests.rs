@@ -7,7 +7,7 @@ use std::time::Duration;
 use armor_model::planner::random::SplitMix64;
 
 use crate::explain::Constraint;
-use crate::{Outcome, Problem, Route, Task, explain, heuristic, solve};
+use crate::{ChargeLimit, Outcome, Problem, Route, Task, explain, heuristic, solve};
 
 /// Proving the least lateness of eight tasks took the solver up to 14 s on these machines.
 const LIMIT: Duration = Duration::from_secs(60);
@@ -63,6 +63,7 @@ fn random_problem(seed: u64, n: usize) -> Problem {
         precedences,
         max_distance_dm,
         max_time_ds: None,
+        max_charge: (pick(0.0, 1.0) < 0.3).then(|| ChargeLimit::new(0.002, 0.1, pick(0.3, 0.6))),
     }
 }
 
@@ -128,6 +129,9 @@ fn only(problem: &Problem, keep: &[Constraint]) -> Problem {
     }
     if !keep.contains(&Constraint::MaxTime) {
         relaxed.max_time_ds = None;
+    }
+    if !keep.contains(&Constraint::MaxCharge) {
+        relaxed.max_charge = None;
     }
     relaxed
 }

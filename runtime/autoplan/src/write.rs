@@ -135,6 +135,13 @@ pub fn constraint_words(instance: &Instance, constraint: Constraint) -> String {
             "the plan ends by {}",
             time_words(instance, problem.max_time_ds.unwrap_or(0))
         ),
+        Constraint::MaxCharge => format!(
+            "the plan uses at most {} % of the battery",
+            round_mm(
+                f64::from(problem.max_charge.map_or(0, |limit| limit.max)) / crate::FULL_CHARGE
+                    * 100.0
+            )
+        ),
     }
 }
 

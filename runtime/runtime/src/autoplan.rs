@@ -62,12 +62,49 @@ fn prepare(file: &Path, module_path: &[PathBuf]) -> Result<Prepared, Diagnostics
     let mut instance =
         armor_autoplan::instance(&plan, world.as_ref(), &robot, speed_mps).map_err(fail)?;
     instance.fastest_mps = limit.map_or(speed_mps, |limit| limit.max(speed_mps));
+    if let Some(share) = instance.objectives.max_charge {
+        let (per_m, per_hour) = battery_drain(&system).ok_or_else(|| {
+            fail(vec![Located::new(
+                instance.objectives.pos,
+                "`max_charge` needs a battery model: no module of the system has \
+                 battery_drain_per_m and battery_drain_per_hour (the simulator `sim` has)",
+            )])
+        })?;
+        instance.problem.max_charge =
+            Some(armor_autoplan::ChargeLimit::new(per_m, per_hour, share));
+    }
     Ok(Prepared {
         plan,
         base,
         instance,
         on_world: world.is_some(),
         radius_m: robot.radius_m,
+    })
+}
+
+/// How the system's battery drains (per metre, per hour): the parameters of its first module
+/// that has them (the simulator's), given in the system file or by default.
+fn battery_drain(system: &crate::load::Loaded) -> Option<(f64, f64)> {
+    system.system.modules.iter().find_map(|module| {
+        let value = |name: &str| -> Option<f64> {
+            let text = match module.param(name) {
+                Some(param) => param.value.clone(),
+                None => system
+                    .descriptions
+                    .get(&module.module_type)?
+                    .param(name)?
+                    .default
+                    .clone()?,
+            };
+            text.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 0.0)
+        };
+        Some((
+            value("battery_drain_per_m")?,
+            value("battery_drain_per_hour")?,
+        ))
     })
 }
 
@@ -124,7 +161,10 @@ pub fn run(request: &Request) -> anyhow::Result<ExitCode> {
     // to blame optional (the least priority first) until a plan can be made.
     let mut dropped_must: Vec<String> = Vec::new();
     let solved = loop {
-        match armor_autoplan::solve(&instance.problem, request.limit) {
+        // The dispatcher's answer (nearest neighbour, 2-opt) is where the search starts: the
+        // plan is never worse than it.
+        let seed = armor_autoplan::heuristic::nearest_neighbour_2opt(&instance.problem);
+        match armor_autoplan::solve_from(&instance.problem, request.limit, seed.as_ref()) {
             Outcome::Solved(solved) => break solved,
             Outcome::Unknown => {
                 println!(

@@ -1102,6 +1102,31 @@ impl<'a> Builder<'a> {
                 &target,
             );
         }
+        self.low_battery(index, leg, drive, suffix);
+    }
+
+    /// The transition out of `drive` on a low battery, when the plan listens for one.
+    fn low_battery(&mut self, index: usize, leg: &Leg, drive: &str, suffix: &str) {
+        let low = self
+            .plan
+            .contingency_on(leg, |trigger| matches!(trigger, Trigger::LowBattery { .. }))
+            .cloned();
+        if let Some(contingency) = low
+            && let Trigger::LowBattery { module } = &contingency.trigger
+        {
+            let target = self.respond(index, leg, &contingency.response);
+            self.transition(
+                &format!("{}_low_battery{suffix}", leg.name),
+                Origin::Leg(index),
+                contingency.pos,
+                Condition {
+                    event: Some(format!("{module}.low_battery")),
+                    ..Condition::default()
+                },
+                drive,
+                &target,
+            );
+        }
     }
 
     fn response(&self, leg: &Leg, trigger: &Trigger) -> Option<Response> {

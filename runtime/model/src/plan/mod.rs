@@ -353,6 +353,9 @@ pub enum Trigger {
     /// The localiser `module` reports that it does not know where the robot is (its `lost`
     /// event; the module is `localiser` unless the contingency names another).
     Lost { module: String },
+    /// The battery runs low: the module that models or measures it (`sim` unless named) reports
+    /// `low_battery`. Its response is to return to where the plan starts unless it says.
+    LowBattery { module: String },
 }
 
 impl Trigger {
@@ -362,6 +365,7 @@ impl Trigger {
             Trigger::Failed { module } => format!("failed (module `{module}`)"),
             Trigger::Late => "late".into(),
             Trigger::Lost { module } => format!("lost (module `{module}`)"),
+            Trigger::LowBattery { module } => format!("low_battery (module `{module}`)"),
         }
     }
 }

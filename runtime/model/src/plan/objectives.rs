@@ -20,7 +20,8 @@
 //! `priority` (1 by default) weighs it when not everything fits; an `optional` one may be
 //! dropped, the others must be served. A `<precedence>` says which of two is served first when
 //! both are. The robot leaves `from` at the plan's start and ends at `to` (when given), and may
-//! drive at most `max_distance_m` and take at most `max_secs` (its endurance).
+//! drive at most `max_distance_m`, take at most `max_secs` and use at most `max_charge` of its
+//! battery (its endurance).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -42,6 +43,9 @@ pub struct Objectives {
     pub max_distance_m: Option<f64>,
     /// The longest the whole plan may take (its endurance in time).
     pub max_secs: Option<f64>,
+    /// The share of the battery's charge the plan may use (its endurance in charge, from 0 to
+    /// 1), by the battery's drain with distance and time (the simulator's model).
+    pub max_charge: Option<f64>,
     pub objectives: Vec<Objective>,
     pub precedences: Vec<Precedence>,
     pub pos: Pos,
@@ -118,7 +122,7 @@ pub(crate) fn read(
     start_unix_secs: Option<f64>,
     p: &mut Vec<Located>,
 ) -> Objectives {
-    p.extend(element.unknown_attrs(&["from", "to", "max_distance_m", "max_secs"]));
+    p.extend(element.unknown_attrs(&["from", "to", "max_distance_m", "max_secs", "max_charge"]));
     p.extend(element.unknown_children(&["objective", "precedence"]));
     crate::fields::no_text(element, p);
     let mut objectives = Objectives {
@@ -128,6 +132,7 @@ pub(crate) fn read(
             .and_then(|_| identifier(element, "to", "waypoint name", p)),
         max_distance_m: optional(element, "max_distance_m", positive("max_distance_m"), p),
         max_secs: optional(element, "max_secs", positive("max_secs"), p),
+        max_charge: optional(element, "max_charge", charge, p),
         pos: element.pos,
         ..Objectives::default()
     };
@@ -333,6 +338,20 @@ fn positive(name: &'static str) -> fn(Field<'_>) -> Result<f64, Located> {
     }
 }
 
+fn charge(field: Field<'_>) -> Result<f64, Located> {
+    match field.value.trim().parse::<f64>() {
+        Ok(value) if value > 0.0 && value <= 1.0 && is_decimal(field.value) => Ok(value),
+        _ => Err(Located::new(
+            field.pos,
+            format!(
+                "`max_charge` must be the share of the battery the plan may use, above 0 and at \
+                 most 1 (like 0.3), not `{}`",
+                field.value
+            ),
+        )),
+    }
+}
+
 fn priority(field: Field<'_>) -> Result<u32, Located> {
     match field.value.trim().parse::<u32>() {
         Ok(value) if (1..=1000).contains(&value) => Ok(value),
@@ -529,6 +548,9 @@ pub(crate) fn write(out: &mut String, objectives: &Objectives) {
     }
     if let Some(secs) = objectives.max_secs {
         let _ = write!(out, " max_secs=\"{secs}\"");
+    }
+    if let Some(charge) = objectives.max_charge {
+        let _ = write!(out, " max_charge=\"{charge}\"");
     }
     out.push_str(">\n");
     for objective in &objectives.objectives {

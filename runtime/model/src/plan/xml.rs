@@ -133,6 +133,7 @@ impl Plan {
         }
         // The tree is no longer needed: its memory serves the checks.
         drop(root);
+        resolve_start_returns(&mut plan);
         check_references(&plan, p);
         finish(plan, problems)
     }
@@ -377,6 +378,8 @@ fn write_contingency(out: &mut String, indent: &str, contingency: &Contingency) 
         Trigger::Failed { module } => format!("failed\" module=\"{}", escape(module)),
         Trigger::Lost { module } if module == DEFAULT_LOCALISER => "lost".to_owned(),
         Trigger::Lost { module } => format!("lost\" module=\"{}", escape(module)),
+        Trigger::LowBattery { module } if module == DEFAULT_BATTERY => "low_battery".to_owned(),
+        Trigger::LowBattery { module } => format!("low_battery\" module=\"{}", escape(module)),
     };
     let response = match &contingency.response {
         Response::Skip => "skip".to_owned(),
@@ -789,13 +792,22 @@ fn read_modules(element: &Element, p: &mut Vec<Located>) -> Vec<ActionModule> {
 
 /// The module a `lost` contingency listens to when it names none.
 pub const DEFAULT_LOCALISER: &str = "localiser";
+/// The module a `low_battery` contingency listens to when it names none: the simulator, which
+/// models the battery.
+pub const DEFAULT_BATTERY: &str = "sim";
 
 fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingency> {
     p.extend(element.unknown_attrs(&["on", "module", "do", "waypoint"]));
     no_children(element, p);
     no_text(element, p);
     let on = required(element, "on", p);
-    let response = required(element, "do", p);
+    // A low battery returns to the start unless the plan says otherwise.
+    let low_battery = on.is_some_and(|field| field.value.trim() == "low_battery");
+    let response = if low_battery && element.attr("do").is_none() {
+        None
+    } else {
+        required(element, "do", p)
+    };
     let trigger = match on.map(|field| (field.value.trim(), field.pos)) {
         Some(("blocked", _)) => Some(Trigger::Blocked),
         Some(("late", _)) => Some(Trigger::Late),
@@ -810,23 +822,37 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             };
             module.map(|module| Trigger::Lost { module })
         }
+        Some(("low_battery", _)) => {
+            let module = if element.attr("module").is_some() {
+                identifier(element, "module", "module name", p)
+            } else {
+                Some(DEFAULT_BATTERY.to_owned())
+            };
+            module.map(|module| Trigger::LowBattery { module })
+        }
         Some((other, pos)) => {
             p.push(Located::new(
                 pos,
-                format!("`on` must be `blocked`, `failed`, `late` or `lost`, not `{other}`"),
+                format!(
+                    "`on` must be `blocked`, `failed`, `late`, `lost` or `low_battery`, not \
+                     `{other}`"
+                ),
             ));
             None
         }
         None => None,
     };
     if trigger.is_some()
-        && !matches!(trigger, Some(Trigger::Failed { .. } | Trigger::Lost { .. }))
+        && !matches!(
+            trigger,
+            Some(Trigger::Failed { .. } | Trigger::Lost { .. } | Trigger::LowBattery { .. })
+        )
         && let Some(module) = element.attr("module")
     {
         p.push(Located::new(
             module.pos,
-            "`module` is only for on=\"failed\" (the module whose failure it handles) and \
-             on=\"lost\" (the localiser)",
+            "`module` is only for on=\"failed\" (the module whose failure it handles), \
+             on=\"lost\" (the localiser) and on=\"low_battery\" (what reports it)",
         ));
     }
     let response = match response.map(|field| (field.value.trim(), field.pos)) {
@@ -850,8 +876,15 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
                      cannot drive back (use hold or skip)",
                 ));
             }
-            identifier(element, "waypoint", "waypoint name", p)
-                .map(|waypoint| Response::Return { waypoint })
+            if low_battery && element.attr("waypoint").is_none() {
+                // Where the plan starts, once its legs are read (`resolve_start_returns`).
+                Some(Response::Return {
+                    waypoint: String::new(),
+                })
+            } else {
+                identifier(element, "waypoint", "waypoint name", p)
+                    .map(|waypoint| Response::Return { waypoint })
+            }
         }
         Some((other, pos)) => {
             p.push(Located::new(
@@ -860,6 +893,9 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             ));
             None
         }
+        None if low_battery => Some(Response::Return {
+            waypoint: String::new(),
+        }),
         None => None,
     };
     if !matches!(response, Some(Response::Return { .. }))
@@ -961,6 +997,29 @@ fn read_unit(element: &Element, p: &mut Vec<Located>) -> Unit {
         sidc: symbol(element, "sidc", p).unwrap_or_default(),
         position: lat_lon(element, p).unwrap_or_default(),
         pos: element.pos,
+    }
+}
+
+/// A `low_battery` contingency that says nowhere to return to returns to where the plan starts:
+/// its first leg's origin, or its objectives' start.
+fn resolve_start_returns(plan: &mut Plan) {
+    let start = plan
+        .legs
+        .first()
+        .map(|leg| leg.from.clone())
+        .or_else(|| plan.objectives.as_ref().map(|o| o.from.clone()))
+        .unwrap_or_default();
+    let contingencies = plan.contingencies.iter_mut().chain(
+        plan.legs
+            .iter_mut()
+            .flat_map(|leg| leg.contingencies.iter_mut()),
+    );
+    for contingency in contingencies {
+        if let Response::Return { waypoint } = &mut contingency.response
+            && waypoint.is_empty()
+        {
+            waypoint.clone_from(&start);
+        }
     }
 }
 
