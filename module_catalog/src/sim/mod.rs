@@ -977,16 +977,19 @@ boundary 0,0 10,0 10,10 0,10 0,0
             ("battery_drain_per_hour", "0.36"),
             ("battery_low", "0.95"),
         ]);
-        let mut bench = bench(&world, &params);
-        // 1 m/s for 4 s (pushed every 0.4 s): 4 m driven in 4 s.
-        let mut script = Vec::new();
-        for _ in 0..10 {
-            script.extend([push(twist(1.0, 0.0)), Step::Timeouts(20)]);
-        }
-        // Then 2 s standing.
-        script.push(Step::Timeouts(100));
-        bench.script(script);
-        body(bench.node()).expect("body");
+        // 1 m/s for 4 s (pushed every 0.4 s): 4 m driven in 4 s, then 2 s standing.
+        let drive = |params: &[(&str, &str)]| {
+            let mut bench = bench(&world, params);
+            let mut script = Vec::new();
+            for _ in 0..10 {
+                script.extend([push(twist(1.0, 0.0)), Step::Timeouts(20)]);
+            }
+            script.push(Step::Timeouts(100));
+            bench.script(script);
+            body(bench.node()).expect("body");
+            bench
+        };
+        let bench = drive(&params);
         let charges: Vec<f64> = bench
             .sent::<Battery>("battery")
             .expect("sent")
@@ -1010,15 +1013,7 @@ boundary 0,0 10,0 10,10 0,10 0,0
         let mut higher = params.clone();
         higher.retain(|(name, _)| *name != "battery_low");
         higher.push(("battery_low", "0.97"));
-        let mut bench = self::bench(&world, &higher);
-        let mut script = Vec::new();
-        for _ in 0..10 {
-            script.extend([push(twist(1.0, 0.0)), Step::Timeouts(20)]);
-        }
-        script.push(Step::Timeouts(100));
-        bench.script(script);
-        body(bench.node()).expect("body");
-        assert_eq!(bench.reported(), ["low_battery"]);
+        assert_eq!(drive(&higher).reported(), ["low_battery"]);
     }
 
     #[test]

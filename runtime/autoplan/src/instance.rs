@@ -49,6 +49,23 @@ impl Instance {
     }
 }
 
+/// The waypoints of the objectives with a place of their own, named after them and at their
+/// line: what a written plan adds to the plan's waypoints.
+pub fn own_waypoints(objectives: &Objectives) -> impl Iterator<Item = Waypoint> + '_ {
+    objectives
+        .objectives
+        .iter()
+        .filter_map(|objective| match objective.place {
+            Place::At(position) => Some(Waypoint {
+                name: objective.name.clone(),
+                position,
+                symbol: None,
+                pos: objective.pos,
+            }),
+            Place::Waypoint(_) => None,
+        })
+}
+
 /// Deciseconds from seconds, rounded up (a travel time never shorter than it is).
 pub fn ds_up(secs: f64) -> i32 {
     (secs * 10.0).ceil().clamp(0.0, f64::from(i32::MAX / 4)) as i32
@@ -80,16 +97,7 @@ pub fn instance(
     // objective's line, so that one in a wall is reported there.
     let mut placed = plan.clone();
     placed.legs.clear();
-    for objective in &objectives.objectives {
-        if let Place::At(position) = objective.place {
-            placed.waypoints.push(Waypoint {
-                name: objective.name.clone(),
-                position,
-                symbol: None,
-                pos: objective.pos,
-            });
-        }
-    }
+    placed.waypoints.extend(own_waypoints(&objectives));
     let legs = plan::plan_legs(&placed, world, robot);
     let mut problems = Vec::new();
     for problem in legs.problems {

@@ -2,8 +2,7 @@
 //! planner found said in the operator's words.
 
 use armor_model::geo::round_mm;
-use armor_model::plan::objectives::Place;
-use armor_model::plan::{Leg, Plan, Waypoint};
+use armor_model::plan::{Leg, Plan};
 
 use crate::explain::{Conflict, Constraint};
 use crate::{Instance, Route};
@@ -17,16 +16,9 @@ pub fn plan(plan: &Plan, instance: &Instance, route: &Route) -> Plan {
     let mut written = plan.clone();
     written.objectives = None;
     written.legs.clear();
-    for objective in &instance.objectives.objectives {
-        if let Place::At(position) = objective.place {
-            written.waypoints.push(Waypoint {
-                name: objective.name.clone(),
-                position,
-                symbol: None,
-                pos: objective.pos,
-            });
-        }
-    }
+    written
+        .waypoints
+        .extend(crate::instance::own_waypoints(&instance.objectives));
     let problem = &instance.problem;
     let mut from = instance.start.clone();
     let mut node = 0;
