@@ -108,7 +108,8 @@ struct Measured {
     best: Duration,
     /// The matrix and the heuristic.
     heuristic: Duration,
-    ours: armor_autoplan::Cost,
+    /// `None`: no plan within the limit.
+    ours: Option<armor_autoplan::Cost>,
     theirs: Option<armor_autoplan::Cost>,
     /// The solver seeded with the heuristic's plan, within the same limit.
     seeded: armor_autoplan::Cost,
@@ -122,9 +123,11 @@ fn measure(world: &World, text: &str) -> anyhow::Result<Measured> {
         .map_err(|problems| anyhow!("the bench's objectives: {problems:?}"))?;
     let matrix = began.elapsed();
     let began = Instant::now();
+    // No plan within the limit counts as the limit for the first plan, and as worse.
     let solved = match armor_autoplan::solve(&instance.problem, LIMIT) {
-        Outcome::Solved(solved) => solved,
-        other => bail!("the bench's instance was not solved: {other:?}"),
+        Outcome::Solved(solved) => Some(solved),
+        Outcome::Unknown => None,
+        Outcome::Infeasible => bail!("the bench's instance is infeasible"),
     };
     let solving = began.elapsed();
     let began = Instant::now();
@@ -135,13 +138,13 @@ fn measure(world: &World, text: &str) -> anyhow::Result<Measured> {
         other => bail!("the bench's instance was not solved from the heuristic's: {other:?}"),
     };
     Ok(Measured {
-        first: matrix + solved.first_found,
+        first: matrix + solved.as_ref().map_or(LIMIT, |solved| solved.first_found),
         best: matrix + solving,
         heuristic: matrix + heuristic,
-        ours: solved.route.cost,
+        ours: solved.as_ref().map(|solved| solved.route.cost),
         theirs: theirs.map(|route| route.cost),
         seeded,
-        proven: solved.optimal,
+        proven: solved.is_some_and(|solved| solved.optimal),
     })
 }
 
@@ -194,6 +197,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
 pub fn run_quality(settings: &Settings) -> anyhow::Result<Report> {
     let measured = measure_all(settings)?;
     let (mut better, mut equal, mut worse, mut heuristic_failed) = (0, 0, 0, 0);
+    let mut nothing = 0;
     let (mut seeded_better, mut seeded_equal, mut seeded_worse) = (0, 0, 0);
     let (mut ours_m, mut theirs_m) = (Vec::new(), Vec::new());
     for m in &measured {
@@ -202,24 +206,29 @@ pub fn run_quality(settings: &Settings) -> anyhow::Result<Report> {
             better += 1;
             continue;
         };
-        match m.ours.key().cmp(&theirs.key()) {
-            std::cmp::Ordering::Less => better += 1,
-            std::cmp::Ordering::Equal => equal += 1,
-            std::cmp::Ordering::Greater => worse += 1,
-        }
         match m.seeded.key().cmp(&theirs.key()) {
             std::cmp::Ordering::Less => seeded_better += 1,
             std::cmp::Ordering::Equal => seeded_equal += 1,
             std::cmp::Ordering::Greater => seeded_worse += 1,
         }
-        if (m.ours.priority, m.ours.lateness_ds) == (theirs.priority, theirs.lateness_ds) {
-            ours_m.push(f64::from(m.ours.distance_dm) / 10.0);
+        let Some(ours) = m.ours else {
+            worse += 1;
+            nothing += 1;
+            continue;
+        };
+        match ours.key().cmp(&theirs.key()) {
+            std::cmp::Ordering::Less => better += 1,
+            std::cmp::Ordering::Equal => equal += 1,
+            std::cmp::Ordering::Greater => worse += 1,
+        }
+        if (ours.priority, ours.lateness_ds) == (theirs.priority, theirs.lateness_ds) {
+            ours_m.push(f64::from(ours.distance_dm) / 10.0);
             theirs_m.push(f64::from(theirs.distance_dm) / 10.0);
         }
     }
     let ours_priority: Vec<f64> = measured
         .iter()
-        .map(|m| f64::from(m.ours.priority))
+        .map(|m| f64::from(m.ours.map_or(0, |cost| cost.priority)))
         .collect();
     let theirs_priority: Vec<f64> = measured
         .iter()
@@ -239,6 +248,7 @@ pub fn run_quality(settings: &Settings) -> anyhow::Result<Report> {
     .with("solver_better", better)
     .with("solver_equal", equal)
     .with("solver_worse", worse)
+    .with("solver_found_nothing_in_2s", nothing)
     .with("seeded_better", seeded_better)
     .with("seeded_equal", seeded_equal)
     .with("seeded_worse", seeded_worse)

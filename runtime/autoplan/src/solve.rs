@@ -17,6 +17,7 @@
 //! each endurance) is posted under a *selector* literal: true in the plain model, and an
 //! assumption when looking for a conflict ([`crate::explain`]).
 
+use std::cell::Cell;
 use std::time::{Duration, Instant};
 
 use pumpkin_conflict_resolvers::resolvers::ResolutionResolver;
@@ -29,7 +30,7 @@ use pumpkin_core::optimisation::linear_sat_unsat::LinearSatUnsat;
 use pumpkin_core::predicate;
 use pumpkin_core::predicates::Predicate;
 use pumpkin_core::results::{OptimisationResult, ProblemSolution, SolutionReference};
-use pumpkin_core::termination::TimeBudget;
+use pumpkin_core::termination::TerminationCondition;
 use pumpkin_core::variables::{AffineView, DomainId, Literal, TransformableVariable};
 
 use crate::explain::Constraint;
@@ -507,9 +508,12 @@ pub fn solve_from(problem: &Problem, limit: Duration, seed: Option<&Route>) -> O
     let mut first_found: Option<Duration> = None;
     let mut optimal = true;
     for phase in 0..3u32 {
-        // Each phase may take its share of what is left (a third, a half, all): a first phase
-        // that cannot prove its best within the limit leaves the others time to improve.
-        let left = limit.saturating_sub(started.elapsed()) / (3 - phase);
+        // Each phase may take its share of what is left (a third, a half, all) once it has a
+        // solution: a first phase that cannot prove its best within the limit leaves the
+        // others time to improve; one with no solution yet may take all the time left.
+        let left = limit.saturating_sub(started.elapsed());
+        let share = left / (3 - phase);
+        let phase_found = Cell::new(false);
         let mut model = Model::build(problem, Selectors::Hold, bounds);
         let objective = match phase {
             0 => model.priority,
@@ -523,8 +527,14 @@ pub fn solve_from(problem: &Problem, limit: Duration, seed: Option<&Route>) -> O
         };
         let mut brancher = model.brancher(problem, seed);
         let mut resolver = ResolutionResolver::default();
-        let mut termination = TimeBudget::starting_now(left);
+        let mut termination = Share {
+            started: Instant::now(),
+            share,
+            left,
+            found: &phase_found,
+        };
         let mut found = |_: &Solver, _: SolutionReference, _: &_, _: &_| {
+            phase_found.set(true);
             if first_found.is_none() {
                 first_found = Some(started.elapsed());
             }
@@ -591,6 +601,21 @@ pub fn solve_from(problem: &Problem, limit: Duration, seed: Option<&Route>) -> O
             first_found: first_found.unwrap_or_default(),
         }),
         None => Outcome::Unknown,
+    }
+}
+
+/// A phase's time: its share once it has a solution, all that is left until then.
+struct Share<'a> {
+    started: Instant,
+    share: Duration,
+    left: Duration,
+    found: &'a Cell<bool>,
+}
+
+impl TerminationCondition for Share<'_> {
+    fn should_stop(&mut self) -> bool {
+        let elapsed = self.started.elapsed();
+        elapsed >= self.left || (self.found.get() && elapsed >= self.share)
     }
 }
 
