@@ -84,10 +84,16 @@ struct Example {
 
 impl Example {
     fn load(name: &str) -> Example {
-        let file = robot_file(name);
+        Example::load_file(robot_file(name))
+    }
+
+    /// A plan anywhere (one `armor plan` wrote), its system named from its folder.
+    fn load_file(file: PathBuf) -> Example {
+        let name = file.display().to_string();
         let text = std::fs::read_to_string(&file).unwrap();
         let plan = Plan::parse(&text).unwrap_or_else(|err| panic!("{name}: {err:?}"));
-        let system_text = std::fs::read_to_string(robot_file(&plan.system)).unwrap();
+        let system_text =
+            std::fs::read_to_string(file.parent().unwrap().join(&plan.system)).unwrap();
         let system = SystemConfig::parse(&system_text).unwrap();
         let world_name = if plan.world.is_empty() {
             system
@@ -155,9 +161,10 @@ impl Example {
             "{}: the test adds the recorders' compression itself",
             self.file.display()
         );
+        let system = self.file.parent().unwrap().join(&self.plan.system);
         let mut text = self.text.replacen(
             &format!("system=\"{}\"", self.plan.system),
-            &format!("system=\"{}\"", robot_file(&self.plan.system).display()),
+            &format!("system=\"{}\"", system.display()),
             1,
         );
         let key = "<param name=\"file\" value=\"";
@@ -214,7 +221,11 @@ struct PlanRun {
 /// Runs an example plan to its end, headless at accelerated time, from a copy in a temporary
 /// folder; it must end in `done` with the robot never touching anything nor being blocked.
 fn run_example(name: &str) -> PlanRun {
-    let example = Example::load(name);
+    run_plan(Example::load(name))
+}
+
+/// [`run_example`] of a loaded plan.
+fn run_plan(example: Example) -> PlanRun {
     let dir = tempfile::tempdir().unwrap();
     let copy = example.copy_into(dir.path());
     let plan_tag = &example.text[example.text.find("<plan ").unwrap()..];
@@ -1346,4 +1357,175 @@ fn bad_places_are_refused_at_check_time_with_their_lines() {
         line_of(&text, "name=\"home\""),
         &["waypoint `home` at (2, 2) m is in the no-go area `pit`"],
     );
+}
+
+/// `armor plan` on the yard's objectives (issue 40): the plan it writes passes `armor check`,
+/// runs to completion in the simulator with the rehearsal passed by the simulator's truth, and
+/// every objective is truly reached within its window.
+#[test]
+fn a_plan_made_from_objectives_runs_to_completion_and_meets_its_windows() {
+    let dir = tempfile::tempdir().unwrap();
+    let planned = dir.path().join("yard-planned.xml");
+    let output = armor(&[
+        "plan".as_ref(),
+        robot_file("objectives-yard.xml").as_os_str(),
+        "-o".as_ref(),
+        planned.as_os_str(),
+    ]);
+    let said = output_text(&output);
+    assert!(output.status.success(), "{said}");
+    assert!(said.contains("4 of 4 objectives served"), "{said}");
+    assert!(said.contains("proven the best"), "{said}");
+    let check = armor(&["check".as_ref(), planned.as_os_str()]);
+    assert!(check.status.success(), "{}", output_text(&check));
+
+    let objectives =
+        Plan::parse(&std::fs::read_to_string(robot_file("objectives-yard.xml")).unwrap())
+            .unwrap()
+            .objectives
+            .unwrap();
+    let run = run_plan(Example::load_file(planned));
+    run.check_all();
+    assert_eq!(
+        run.run.report["rehearsal"]["verdict"], "passed",
+        "{:#}",
+        run.run.report["rehearsal"]
+    );
+    let legs = &run.example.plan.legs;
+    for objective in &objectives.objectives {
+        let index = legs
+            .iter()
+            .position(|leg| leg.name == format!("to_{}", objective.name))
+            .unwrap_or_else(|| panic!("no leg to `{}`", objective.name));
+        let arrived = run.arrival(index);
+        // The truth agrees (check_visits_in_order): the robot was there when it arrived.
+        if let Some(not_before) = objective.not_before_unix_secs {
+            let opens = run.example.run_secs(not_before);
+            assert!(
+                arrived >= opens,
+                "`{}` reached at {arrived} s, before its window opens at {opens} s",
+                objective.name
+            );
+        }
+        if let Some(by) = objective.by_unix_secs {
+            let closes = run.example.run_secs(by);
+            assert!(
+                arrived <= closes,
+                "`{}` reached at {arrived} s, after its window closed at {closes} s",
+                objective.name
+            );
+        }
+    }
+    // The precedence: the east side before the low wall.
+    let position = |name: &str| legs.iter().position(|leg| leg.name == format!("to_{name}"));
+    assert!(position("east_side") < position("low_wall"));
+}
+
+/// Bad objectives are refused at their line by `armor plan` and `armor check`, and no plan is
+/// written: an objective in a wall (the yard's container), a window that ends before it
+/// starts, a precedence cycle.
+#[test]
+fn bad_objectives_are_refused_where_they_are_written() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, body, needle, says) in [
+        (
+            "in-a-wall",
+            r#"  <objectives from="home">
+    <objective name="inside" lat="43.5615828" lon="1.4692976"/>
+  </objectives>"#,
+            "inside",
+            &["objective `inside`"][..],
+        ),
+        (
+            "window",
+            r#"  <objectives from="home">
+    <objective name="late" at="gate" not_before="2026-11-23T08:05:00Z" by="2026-11-23T08:04:00Z"/>
+  </objectives>"#,
+            "late",
+            &["its window ends", "before it starts"][..],
+        ),
+        (
+            "cycle",
+            r#"  <objectives from="home">
+    <objective name="a" at="gate"/>
+    <objective name="b" lat="43.5616" lon="1.4693"/>
+    <precedence first="a" then="b"/>
+    <precedence first="b" then="a"/>
+  </objectives>"#,
+            r#"first="b""#,
+            &["cycle", "`a` before `b` before `a`"][..],
+        ),
+    ] {
+        let (file, text) = yard_plan(dir.path(), name, body);
+        let line = line_of(&text, needle);
+        let written = dir.path().join(format!("{name}-planned.xml"));
+        let output = armor(&[
+            "plan".as_ref(),
+            file.as_os_str(),
+            "-o".as_ref(),
+            written.as_os_str(),
+        ]);
+        assert_refused(&output, &file, line, says);
+        assert!(!written.exists(), "{name}: a plan was written");
+        assert_refused(
+            &armor(&["check".as_ref(), file.as_os_str()]),
+            &file,
+            line,
+            says,
+        );
+    }
+}
+
+/// Objectives that cannot all be served: `armor plan` names the conflicting constraints in the
+/// operator's words with the numbers behind them, says what it dropped, and writes the plan of
+/// what fits; the exit status says that not everything asked is done.
+#[test]
+fn conflicting_objectives_are_explained_and_what_was_dropped_is_said() {
+    let dir = tempfile::tempdir().unwrap();
+    // The gate by 08:00:40 and the post by 08:01:05: each can be reached in time alone (the
+    // gate in 24 s, the post in 62 s), not both: the 27 m between them take 54 s.
+    let (file, _) = yard_plan(
+        dir.path(),
+        "conflict",
+        r#"  <objectives from="home">
+    <objective name="gate_look" at="gate" by="2026-11-23T08:00:40Z" priority="2"/>
+    <objective name="post" lat="43.5616439" lon="1.4693909" by="2026-11-23T08:01:05Z"/>
+    <objective name="spare" lat="43.5616799" lon="1.4692482" optional="true"/>
+  </objectives>"#,
+    );
+    let written = dir.path().join("conflict-planned.xml");
+    let output = armor(&[
+        "plan".as_ref(),
+        file.as_os_str(),
+        "-o".as_ref(),
+        written.as_os_str(),
+    ]);
+    let said = output_text(&output);
+    assert_eq!(output.status.code(), Some(1), "{said}");
+    let conflict = said
+        .lines()
+        .find(|line| line.starts_with("cannot serve every objective: "))
+        .unwrap_or_else(|| panic!("no conflict said:\n{said}"));
+    for words in [
+        "`gate_look` must be served",
+        "`post` must be served",
+        "`gate_look` by 08:00:40",
+        "`post` by 08:01:05",
+        "`gate_look` is reached at 08:00:24.1 at the earliest, then the",
+        "m from `gate_look` to `post` take",
+        "the windows leave",
+    ] {
+        assert!(conflict.contains(words), "`{words}` not in: {conflict}");
+    }
+    assert!(
+        said.contains("to make a plan, `post` may be dropped"),
+        "{said}"
+    );
+    assert!(said.contains("not served: `post`"), "{said}");
+    // The plan of what fits is an ordinary plan that passes `armor check`.
+    let check = armor(&["check".as_ref(), written.as_os_str()]);
+    assert!(check.status.success(), "{}", output_text(&check));
+    let plan = Plan::parse(&std::fs::read_to_string(&written).unwrap()).unwrap();
+    let legs: Vec<&str> = plan.legs.iter().map(|leg| leg.name.as_str()).collect();
+    assert_eq!(legs, ["to_gate_look", "to_spare"]);
 }

@@ -15,6 +15,7 @@
 //! under `armor run` (see `benchprobe.rs`).
 
 mod arbiter_switch;
+mod auto_plan;
 mod benchprobe;
 mod camera_sim;
 mod compile_plan;
@@ -243,6 +244,20 @@ const BENCHES: &[Bench] = &[
                 pairs, vs the pathfinding crate's A* on the same grid and costs (ms; goal p99 < \
                 50, ratio <= 1)",
         run: path_plan::run,
+    },
+    Bench {
+        name: auto_plan::NAME,
+        about: "the constraint planner on 20 objectives on that world: the first plan proven \
+                feasible, the distance matrix included, vs nearest neighbour + 2-opt (ms; goal \
+                p99 < 200), and the best within 2 s",
+        run: auto_plan::run,
+    },
+    Bench {
+        name: auto_plan::NAME_QUALITY,
+        about: "the constraint planner's plans within 2 s against nearest neighbour + 2-opt on \
+                the same instances: better, equal, worse in the lexicographic order, and the \
+                distance driven (goal: never worse)",
+        run: auto_plan::run_quality,
     },
     Bench {
         name: path_plan::NAME_CHECK,

@@ -17,7 +17,7 @@ pub use armor_model::world;
 
 use std::path::{Path, PathBuf};
 
-use armor_module_api::types::{LaserScan, Odometry, Pose2D, Twist};
+use armor_module_api::types::{Battery, LaserScan, Odometry, Pose2D, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
 
 use crate::BodyError;
@@ -237,6 +237,56 @@ pub fn spec() -> ModuleSpec {
         )
         .default(""),
     )
+    .output::<Battery>(
+        "battery",
+        "what is left of the battery's charge (1 full, 0 empty), once a second of simulated \
+         time: it drains by battery_drain_per_m for every metre driven and battery_drain_per_hour \
+         for every hour that passes",
+    )
+    .param(
+        ParamSpec::new(
+            "battery_drain_per_m",
+            ParamType::Float,
+            "the charge (of 1) driving one metre uses (0 or more; the default gives 500 m on a \
+             full charge)",
+        )
+        .min(0.0)
+        .default("0.002"),
+    )
+    .param(
+        ParamSpec::new(
+            "battery_drain_per_hour",
+            ParamType::Float,
+            "the charge (of 1) an hour uses, driving or not (the computers, the sensors; 0 or \
+             more)",
+        )
+        .min(0.0)
+        .default("0.1"),
+    )
+    .param(
+        ParamSpec::new(
+            "battery_low",
+            ParamType::Float,
+            "the charge below which the event low_battery is reported (once), from 0 to 1",
+        )
+        .min(0.0)
+        .max(1.0)
+        .default("0.2"),
+    )
+    .param(
+        ParamSpec::new(
+            "battery_start",
+            ParamType::Float,
+            "the charge at the start, from 0 to 1",
+        )
+        .min(0.0)
+        .max(1.0)
+        .default("1"),
+    )
+    .event(
+        "low_battery",
+        "the battery's charge fell below battery_low (once)",
+    )
     .event(
         "collision",
         "the robot ran into a wall, an obstacle or the boundary and stopped at the contact \
@@ -260,6 +310,28 @@ pub struct SimParams {
     pub robot_radius_m: f64,
     /// When (simulated seconds) and where the robot is carried ([`Simulator::kidnap`]).
     pub kidnap: Option<(f64, Pose2D)>,
+    pub battery: BatteryModel,
+}
+
+/// How the simulated battery drains: by distance driven and by time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BatteryModel {
+    pub drain_per_m: f64,
+    pub drain_per_hour: f64,
+    /// Below this charge, `low_battery` is reported.
+    pub low: f64,
+    pub start: f64,
+}
+
+impl Default for BatteryModel {
+    fn default() -> Self {
+        Self {
+            drain_per_m: 0.002,
+            drain_per_hour: 0.1,
+            low: 0.2,
+            start: 1.0,
+        }
+    }
 }
 
 impl Default for SimParams {
@@ -281,6 +353,7 @@ impl Default for SimParams {
             max_turn_radps: 1.5,
             robot_radius_m: 0.25,
             kidnap: None,
+            battery: BatteryModel::default(),
         }
     }
 }
@@ -339,6 +412,12 @@ impl SimParams {
             max_turn_radps: node.param::<f64>("max_turn_radps")?,
             robot_radius_m: node.param::<f64>("robot_radius_m")?,
             kidnap: parse_kidnap(&node.param::<String>("kidnap")?)?,
+            battery: BatteryModel {
+                drain_per_m: node.param::<f64>("battery_drain_per_m")?,
+                drain_per_hour: node.param::<f64>("battery_drain_per_hour")?,
+                low: node.param::<f64>("battery_low")?,
+                start: node.param::<f64>("battery_start")?,
+            },
         })
     }
 }
@@ -379,6 +458,8 @@ pub struct StepReport {
     pub scanned: bool,
     /// The robot has just run into something.
     pub collision: bool,
+    /// The battery's charge has just fallen below its low mark.
+    pub low_battery: bool,
 }
 
 /// The simulation without a node: a world, a robot and its laser, advanced one fixed step at a
@@ -398,12 +479,15 @@ pub struct Simulator {
     /// The command in force (within the limits) and the simulated time it arrived.
     command: Twist,
     command_time: f64,
+    /// What is left of the battery (1 full).
+    charge: f64,
 }
 
 impl Simulator {
     /// A robot at the world's start pose. Refuses a start pose where the robot does not fit.
     pub fn new(world: World, params: SimParams) -> Result<Self, BodyError> {
         world.check_start(params.robot_radius_m)?;
+        let start_charge = params.battery.start;
         let robot = Robot::new(
             world.start(),
             params.robot_radius_m,
@@ -428,6 +512,7 @@ impl Simulator {
             collisions: 0,
             command: Twist::default(),
             command_time: f64::NEG_INFINITY,
+            charge: start_charge,
         })
     }
 
@@ -454,6 +539,11 @@ impl Simulator {
 
     pub fn collisions(&self) -> u64 {
         self.collisions
+    }
+
+    /// What is left of the battery's charge (1 full, 0 empty).
+    pub fn charge(&self) -> f64 {
+        self.charge
     }
 
     /// The true pose (world frame).
@@ -528,8 +618,15 @@ impl Simulator {
         } else {
             Twist::default()
         };
+        let before = self.robot.truth;
         let outcome = self.robot.step(&self.world, cmd, dt);
         self.steps += 1;
+        let battery = self.params.battery;
+        let driven_m = (self.robot.truth.x_m - before.x_m).hypot(self.robot.truth.y_m - before.y_m);
+        let was = self.charge;
+        self.charge =
+            (self.charge - battery.drain_per_m * driven_m - battery.drain_per_hour * dt / 3600.0)
+                .max(0.0);
         if outcome.new_contact {
             self.collisions += 1;
         }
@@ -553,6 +650,7 @@ impl Simulator {
             truth: self.robot.truth,
             scanned,
             collision: outcome.new_contact,
+            low_battery: was >= battery.low && self.charge < battery.low,
         }
     }
 }
@@ -627,6 +725,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let odometry = node.output::<Odometry>("odometry")?;
     let scan = node.output::<LaserScan>("scan")?;
     let pose_truth = node.output::<Pose2D>("pose_truth")?;
+    let battery = node.output::<Battery>("battery")?;
     tracing::info!(
         "world `{}` ({}): {} shapes, start at ({:.2}, {:.2}); stepping at {} Hz, scanning {} beams at {} Hz",
         world.name(),
@@ -653,6 +752,19 @@ pub fn body(node: &mut Node) -> BodyResult {
                 node.send(&pose_truth, &report.truth)?;
                 if report.scanned {
                     node.send(&scan, sim.scan())?;
+                }
+                // The charge once a second of simulated time, from the first step.
+                if (sim.steps() - 1) % (sim.params().rate_hz.round().max(1.0) as u64) == 0 {
+                    node.send(
+                        &battery,
+                        &Battery {
+                            charge: sim.charge(),
+                        },
+                    )?;
+                }
+                if report.low_battery {
+                    tracing::warn!("low battery: {:.0} % left", sim.charge() * 100.0);
+                    node.report("low_battery")?;
                 }
                 if report.collision {
                     let at = report.truth;
@@ -853,6 +965,55 @@ boundary 0,0 10,0 10,10 0,10 0,0
         );
         assert!((truth[19].x_m - 5.2).abs() < 1e-9, "{:?}", truth[19]);
         assert_eq!(truth[29], truth[19], "infinite: stop at once");
+    }
+
+    #[test]
+    fn the_battery_drains_by_distance_and_time_and_says_when_it_runs_low() {
+        let world = world_file(ROOM);
+        // 1 % a metre, 36 % an hour (0.01 % a second), low below 95 %.
+        let mut params = EXACT.to_vec();
+        params.extend([
+            ("battery_drain_per_m", "0.01"),
+            ("battery_drain_per_hour", "0.36"),
+            ("battery_low", "0.95"),
+        ]);
+        // 1 m/s for 4 s (pushed every 0.4 s): 4 m driven in 4 s, then 2 s standing.
+        let drive = |params: &[(&str, &str)]| {
+            let mut bench = bench(&world, params);
+            let mut script = Vec::new();
+            for _ in 0..10 {
+                script.extend([push(twist(1.0, 0.0)), Step::Timeouts(20)]);
+            }
+            script.push(Step::Timeouts(100));
+            bench.script(script);
+            body(bench.node()).expect("body");
+            bench
+        };
+        let bench = drive(&params);
+        let charges: Vec<f64> = bench
+            .sent::<Battery>("battery")
+            .expect("sent")
+            .iter()
+            .map(|battery| battery.charge)
+            .collect();
+        // Once a second of simulated time: 300 steps at 50 Hz, from the first.
+        assert_eq!(charges.len(), 6, "{charges:?}");
+        let driven_m = last_truth(&bench).x_m - 5.0;
+        let expected = 1.0 - 0.01 * driven_m - 0.0001 * 6.0;
+        let last = *charges.last().expect("a charge");
+        // The last sample is a second before the end: at most a second's drain off.
+        assert!(
+            (last - expected).abs() < 0.0002 && driven_m > 3.5,
+            "{charges:?} after {driven_m} m, expected {expected}"
+        );
+        assert!(charges.windows(2).all(|pair| pair[1] <= pair[0]));
+        // Above its low mark (95 %) all along: no event. The same drive with the mark at 97 %
+        // falls below it once.
+        assert_eq!(bench.reported(), Vec::<String>::new(), "{charges:?}");
+        let mut higher = params.clone();
+        higher.retain(|(name, _)| *name != "battery_low");
+        higher.push(("battery_low", "0.97"));
+        assert_eq!(drive(&higher).reported(), ["low_battery"]);
     }
 
     #[test]

@@ -83,6 +83,14 @@ pub fn postcard_decode<T: for<'de> Deserialize<'de>>(
 pub struct Counter(pub u64);
 postcard_datum!(Counter, "Counter");
 
+/// A battery's state: what is left of its charge.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Battery {
+    /// From 1 (full) to 0 (empty).
+    pub charge: f64,
+}
+postcard_datum!(Battery, "Battery");
+
 /// A line of text.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Text(pub String);

@@ -11,6 +11,7 @@
 //! client are `armor_protocol`'s.
 
 pub mod agent;
+pub mod autoplan;
 pub mod basemap;
 pub mod behaviour;
 #[cfg(feature = "cli")]

@@ -203,6 +203,18 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Plan a plan file's objectives: order and time them within their windows, priorities,
+    /// precedences and the robot's endurance, and write the best plan found (docs/plans.md).
+    Plan {
+        /// The plan file with `<objectives>`.
+        objectives: PathBuf,
+        /// The plan file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// How long to search for a better plan, in seconds.
+        #[arg(long, value_name = "SECS", default_value_t = 10.0)]
+        time_limit: f64,
+    },
     /// Operate a run: status, start and stop modules; pause, resume, abort a mission, or fire a
     /// transition by hand.
     Ctl {
@@ -617,6 +629,17 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             Ok(probe_command(paths, xml, timeout, !no_cache))
         }
         Command::Compile { plan, output } => compile(&plan, &output),
+        Command::Plan {
+            objectives,
+            output,
+            time_limit,
+        } => armor_runtime::autoplan::run(&armor_runtime::autoplan::Request {
+            objectives,
+            output,
+            limit: Duration::try_from_secs_f64(time_limit)
+                .context("--time-limit must be a number of seconds, 0 or more")?,
+            module_path: probe::module_path(),
+        }),
         Command::Export {
             ros_map: true,
             file,
@@ -935,6 +958,17 @@ fn check(file: &std::path::Path, secret: Option<&armor_module_api::auth::Secret>
                 eprintln!("1 problem");
                 ExitCode::FAILURE
             }
+        };
+    }
+    // A plan of objectives is checked for what `armor plan` starts from.
+    if let Some(checked) = armor_runtime::autoplan::check(file, &module_path) {
+        drop(spinner);
+        return match checked {
+            Ok(summary) => {
+                println!("{}: ok ({summary})", file.display());
+                ExitCode::SUCCESS
+            }
+            Err(diagnostics) => report(diagnostics),
         };
     }
     let summary = match mission::document_kind(file) {

@@ -249,7 +249,7 @@ fn simulators(loaded: &Loaded) -> impl Iterator<Item = &armor_model::ModuleInsta
 
 /// The fastest the robot drives on the plan's legs: the least `max_speed_mps` of its navigation
 /// module, their companions and the simulator, and which module sets it, in words.
-fn speed_limit(plan: &Plan, loaded: &Loaded) -> Option<(f64, String)> {
+pub fn speed_limit(plan: &Plan, loaded: &Loaded) -> Option<(f64, String)> {
     let navigation = &plan.navigation;
     let drivers = std::iter::once(navigation.module.as_str())
         .chain(navigation.companions.iter().map(String::as_str))

@@ -352,31 +352,13 @@ pub fn plan_legs(plan: &Plan, world: Option<&World>, robot: &Robot) -> LegPaths 
         .map(|leg| Some((*positions.get(&leg.from)?, *positions.get(&leg.to)?)))
         .collect();
     let pairs: Vec<(Point, Point)> = ends.iter().flatten().copied().collect();
-    let mut planned: Vec<Result<Path, PathError>> = match world {
-        Some(_) if pairs.is_empty() => Vec::new(),
-        Some(world) => {
-            match Costmap::for_world(world, robot, &keepouts, &CostmapSettings::default()) {
-                Ok(costmap) => Planner::new(costmap).plan_many(&pairs),
-                Err(err) => {
-                    problems.push(Located::new(
-                        plan.pos,
-                        format!("the world cannot be mapped for planning: {err}"),
-                    ));
-                    Vec::new()
-                }
-            }
-        }
-        None => pairs
-            .iter()
-            .map(|&(from, to)| {
-                if planner::clear_of_keepouts(robot, &keepouts, from, to) {
-                    Ok(Path::new(vec![from, to]))
-                } else {
-                    planner::plan_path(None, robot, &keepouts, from, to)
-                }
-            })
-            .collect(),
-    };
+    let mut planned = plan_pairs(world, robot, &keepouts, &pairs).unwrap_or_else(|err| {
+        problems.push(Located::new(
+            plan.pos,
+            format!("the world cannot be mapped for planning: {err}"),
+        ));
+        Vec::new()
+    });
     planned.reverse();
     let mut paths = Vec::with_capacity(plan.legs.len());
     for (leg, ends) in plan.legs.iter().zip(&ends) {
@@ -398,6 +380,34 @@ pub fn plan_legs(plan: &Plan, world: Option<&World>, robot: &Robot) -> LegPaths 
         problems,
         keepouts,
     }
+}
+
+/// Plans the way between each pair of points for `robot` on `world` (all on one costmap), or
+/// round the no-go areas only when there is no world: the paths a plan's legs get, in the order
+/// of `pairs`.
+pub fn plan_pairs(
+    world: Option<&World>,
+    robot: &Robot,
+    keepouts: &[Keepout],
+    pairs: &[(Point, Point)],
+) -> Result<Vec<Result<Path, PathError>>, planner::CostmapError> {
+    Ok(match world {
+        Some(_) if pairs.is_empty() => Vec::new(),
+        Some(world) => {
+            let costmap = Costmap::for_world(world, robot, keepouts, &CostmapSettings::default())?;
+            Planner::new(costmap).plan_many(pairs)
+        }
+        None => pairs
+            .iter()
+            .map(|&(from, to)| {
+                if planner::clear_of_keepouts(robot, keepouts, from, to) {
+                    Ok(Path::new(vec![from, to]))
+                } else {
+                    planner::plan_path(None, robot, keepouts, from, to)
+                }
+            })
+            .collect(),
+    })
 }
 
 /// What the robot keeps from things, in words: `0.35 m from obstacles and 1 m from the no-go
@@ -1086,6 +1096,31 @@ impl<'a> Builder<'a> {
                 contingency.pos,
                 Condition {
                     event: Some(format!("{module}.lost")),
+                    ..Condition::default()
+                },
+                drive,
+                &target,
+            );
+        }
+        self.low_battery(index, leg, drive, suffix);
+    }
+
+    /// The transition out of `drive` on a low battery, when the plan listens for one.
+    fn low_battery(&mut self, index: usize, leg: &Leg, drive: &str, suffix: &str) {
+        let low = self
+            .plan
+            .contingency_on(leg, |trigger| matches!(trigger, Trigger::LowBattery { .. }))
+            .cloned();
+        if let Some(contingency) = low
+            && let Trigger::LowBattery { module } = &contingency.trigger
+        {
+            let target = self.respond(index, leg, &contingency.response);
+            self.transition(
+                &format!("{}_low_battery{suffix}", leg.name),
+                Origin::Leg(index),
+                contingency.pos,
+                Condition {
+                    event: Some(format!("{module}.low_battery")),
                     ..Condition::default()
                 },
                 drive,

@@ -52,13 +52,14 @@ use armor_module_api::xml::{Located, Pos};
 mod compile;
 pub mod gpx;
 pub mod kml;
+pub mod objectives;
 pub mod qgc;
 mod xml;
 
 pub use crate::geo::LatLon;
 pub use compile::{
-    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, robot,
-    robot_explained,
+    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, plan_pairs,
+    robot, robot_explained,
 };
 pub use xml::DEFAULT_LOCALISER;
 
@@ -83,6 +84,8 @@ pub struct Plan {
     pub throughout: Option<Action>,
     pub waypoints: Vec<Waypoint>,
     pub legs: Vec<Leg>,
+    /// What the operator wants done, for `armor plan` to turn into legs (`<objectives>`).
+    pub objectives: Option<objectives::Objectives>,
     /// Contingencies for every leg that does not say otherwise.
     pub contingencies: Vec<Contingency>,
     pub graphics: Vec<Graphic>,
@@ -350,6 +353,9 @@ pub enum Trigger {
     /// The localiser `module` reports that it does not know where the robot is (its `lost`
     /// event; the module is `localiser` unless the contingency names another).
     Lost { module: String },
+    /// The battery runs low: the module that models or measures it (`sim` unless named) reports
+    /// `low_battery`. Its response is to return to where the plan starts unless it says.
+    LowBattery { module: String },
 }
 
 impl Trigger {
@@ -359,6 +365,7 @@ impl Trigger {
             Trigger::Failed { module } => format!("failed (module `{module}`)"),
             Trigger::Late => "late".into(),
             Trigger::Lost { module } => format!("lost (module `{module}`)"),
+            Trigger::LowBattery { module } => format!("low_battery (module `{module}`)"),
         }
     }
 }

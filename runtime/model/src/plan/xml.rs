@@ -35,6 +35,7 @@ impl Plan {
             "throughout",
             "waypoint",
             "leg",
+            "objectives",
             "contingency",
             "phase_line",
             "boundary",
@@ -109,6 +110,15 @@ impl Plan {
                     let index = plan.legs.len();
                     plan.legs.push(read_leg(child, index, p));
                 }
+                "objectives" => {
+                    if plan.objectives.is_some() {
+                        p.push(Located::new(
+                            child.pos,
+                            "the plan has one <objectives> at most",
+                        ));
+                    }
+                    plan.objectives = Some(super::objectives::read(child, plan.start_unix_secs, p));
+                }
                 "contingency" => plan.contingencies.extend(read_contingency(child, p)),
                 "phase_line" | "boundary" | "area" => plan.graphics.push(read_graphic(child, p)),
                 "unit" => plan.units.push(read_unit(child, p)),
@@ -117,6 +127,7 @@ impl Plan {
         }
         // The tree is no longer needed: its memory serves the checks.
         drop(root);
+        resolve_start_returns(&mut plan);
         check_references(&plan, p);
         finish(plan, problems)
     }
@@ -240,6 +251,9 @@ impl Plan {
             }
             out.push_str("  </leg>\n");
         }
+        if let Some(objectives) = &self.objectives {
+            super::objectives::write(&mut out, objectives);
+        }
         for contingency in &self.contingencies {
             write_contingency(&mut out, "  ", contingency);
         }
@@ -289,7 +303,7 @@ fn graphic_tag(kind: GraphicKind) -> &'static str {
 }
 
 /// Seven decimals of a degree: about a centimetre.
-fn lat_lon_attrs(position: LatLon) -> String {
+pub(super) fn lat_lon_attrs(position: LatLon) -> String {
     format!(
         "lat=\"{}\" lon=\"{}\"",
         degrees(position.lat_deg),
@@ -301,7 +315,7 @@ fn degrees(value: f64) -> String {
     crate::geo::trimmed_decimal(value, 7)
 }
 
-fn write_action(out: &mut String, indent: &str, tag: &str, action: &Action) {
+pub(super) fn write_action(out: &mut String, indent: &str, tag: &str, action: &Action) {
     let _ = write!(out, "{indent}<{tag}");
     if let Some(until) = &action.until {
         let _ = write!(out, " until=\"{}\"", escape(until));
@@ -358,6 +372,8 @@ fn write_contingency(out: &mut String, indent: &str, contingency: &Contingency) 
         Trigger::Failed { module } => format!("failed\" module=\"{}", escape(module)),
         Trigger::Lost { module } if module == DEFAULT_LOCALISER => "lost".to_owned(),
         Trigger::Lost { module } => format!("lost\" module=\"{}", escape(module)),
+        Trigger::LowBattery { module } if module == DEFAULT_BATTERY => "low_battery".to_owned(),
+        Trigger::LowBattery { module } => format!("low_battery\" module=\"{}", escape(module)),
     };
     let response = match &contingency.response {
         Response::Skip => "skip".to_owned(),
@@ -378,7 +394,7 @@ fn date(name: &'static str) -> fn(Field<'_>) -> Result<f64, Located> {
     }
 }
 
-fn named_date(field: Field<'_>, name: &str) -> Result<f64, Located> {
+pub(super) fn named_date(field: Field<'_>, name: &str) -> Result<f64, Located> {
     read_date(field).map_err(|err| {
         Located::new(
             err.pos,
@@ -388,7 +404,7 @@ fn named_date(field: Field<'_>, name: &str) -> Result<f64, Located> {
 }
 
 /// A number of seconds, 0 or more, or a speed above 0: finite decimals only.
-fn seconds(field: Field<'_>) -> Result<f64, Located> {
+pub(super) fn seconds(field: Field<'_>) -> Result<f64, Located> {
     match field.value.trim().parse::<f64>() {
         Ok(value) if value.is_finite() && value >= 0.0 && is_decimal(field.value) => Ok(value),
         _ => Err(Located::new(
@@ -435,7 +451,7 @@ fn metres(name: &'static str) -> fn(Field<'_>) -> Result<f64, Located> {
     }
 }
 
-fn lat_lon(element: &Element, problems: &mut Vec<Located>) -> Option<LatLon> {
+pub(super) fn lat_lon(element: &Element, problems: &mut Vec<Located>) -> Option<LatLon> {
     let mut read = |name: &str, limit: f64, what: &str| -> Option<f64> {
         let field = required(element, name, problems)?;
         match field.value.trim().parse::<f64>() {
@@ -607,7 +623,7 @@ fn read_leg(element: &Element, index: usize, p: &mut Vec<Located>) -> Leg {
     leg
 }
 
-fn read_action(element: &Element, p: &mut Vec<Located>) -> Action {
+pub(super) fn read_action(element: &Element, p: &mut Vec<Located>) -> Action {
     let arrival = element.name == "arrival";
     if arrival {
         p.extend(element.unknown_attrs(&["until", "for_secs"]));
@@ -770,13 +786,22 @@ fn read_modules(element: &Element, p: &mut Vec<Located>) -> Vec<ActionModule> {
 
 /// The module a `lost` contingency listens to when it names none.
 pub const DEFAULT_LOCALISER: &str = "localiser";
+/// The module a `low_battery` contingency listens to when it names none: the simulator, which
+/// models the battery.
+pub const DEFAULT_BATTERY: &str = "sim";
 
 fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingency> {
     p.extend(element.unknown_attrs(&["on", "module", "do", "waypoint"]));
     no_children(element, p);
     no_text(element, p);
     let on = required(element, "on", p);
-    let response = required(element, "do", p);
+    // A low battery returns to the start unless the plan says otherwise.
+    let low_battery = on.is_some_and(|field| field.value.trim() == "low_battery");
+    let response = if low_battery && element.attr("do").is_none() {
+        None
+    } else {
+        required(element, "do", p)
+    };
     let trigger = match on.map(|field| (field.value.trim(), field.pos)) {
         Some(("blocked", _)) => Some(Trigger::Blocked),
         Some(("late", _)) => Some(Trigger::Late),
@@ -791,23 +816,37 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             };
             module.map(|module| Trigger::Lost { module })
         }
+        Some(("low_battery", _)) => {
+            let module = if element.attr("module").is_some() {
+                identifier(element, "module", "module name", p)
+            } else {
+                Some(DEFAULT_BATTERY.to_owned())
+            };
+            module.map(|module| Trigger::LowBattery { module })
+        }
         Some((other, pos)) => {
             p.push(Located::new(
                 pos,
-                format!("`on` must be `blocked`, `failed`, `late` or `lost`, not `{other}`"),
+                format!(
+                    "`on` must be `blocked`, `failed`, `late`, `lost` or `low_battery`, not \
+                     `{other}`"
+                ),
             ));
             None
         }
         None => None,
     };
     if trigger.is_some()
-        && !matches!(trigger, Some(Trigger::Failed { .. } | Trigger::Lost { .. }))
+        && !matches!(
+            trigger,
+            Some(Trigger::Failed { .. } | Trigger::Lost { .. } | Trigger::LowBattery { .. })
+        )
         && let Some(module) = element.attr("module")
     {
         p.push(Located::new(
             module.pos,
-            "`module` is only for on=\"failed\" (the module whose failure it handles) and \
-             on=\"lost\" (the localiser)",
+            "`module` is only for on=\"failed\" (the module whose failure it handles), \
+             on=\"lost\" (the localiser) and on=\"low_battery\" (what reports it)",
         ));
     }
     let response = match response.map(|field| (field.value.trim(), field.pos)) {
@@ -831,8 +870,15 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
                      cannot drive back (use hold or skip)",
                 ));
             }
-            identifier(element, "waypoint", "waypoint name", p)
-                .map(|waypoint| Response::Return { waypoint })
+            if low_battery && element.attr("waypoint").is_none() {
+                // Where the plan starts, once its legs are read (`resolve_start_returns`).
+                Some(Response::Return {
+                    waypoint: String::new(),
+                })
+            } else {
+                identifier(element, "waypoint", "waypoint name", p)
+                    .map(|waypoint| Response::Return { waypoint })
+            }
         }
         Some((other, pos)) => {
             p.push(Located::new(
@@ -841,6 +887,9 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             ));
             None
         }
+        None if low_battery => Some(Response::Return {
+            waypoint: String::new(),
+        }),
         None => None,
     };
     if !matches!(response, Some(Response::Return { .. }))
@@ -945,6 +994,29 @@ fn read_unit(element: &Element, p: &mut Vec<Located>) -> Unit {
     }
 }
 
+/// A `low_battery` contingency that says nowhere to return to returns to where the plan starts:
+/// its first leg's origin, or its objectives' start.
+fn resolve_start_returns(plan: &mut Plan) {
+    let start = plan
+        .legs
+        .first()
+        .map(|leg| leg.from.clone())
+        .or_else(|| plan.objectives.as_ref().map(|o| o.from.clone()))
+        .unwrap_or_default();
+    let contingencies = plan.contingencies.iter_mut().chain(
+        plan.legs
+            .iter_mut()
+            .flat_map(|leg| leg.contingencies.iter_mut()),
+    );
+    for contingency in contingencies {
+        if let Response::Return { waypoint } = &mut contingency.response
+            && waypoint.is_empty()
+        {
+            waypoint.clone_from(&start);
+        }
+    }
+}
+
 /// Names used twice, legs that name missing waypoints or do not join up, contingencies that
 /// return to missing waypoints.
 fn check_references(plan: &Plan, p: &mut Vec<Located>) {
@@ -988,6 +1060,14 @@ fn check_references(plan: &Plan, p: &mut Vec<Located>) {
         }
     }
     let defined = |name: &str| names.get(name).is_some_and(|&(kind, _)| kind == "waypoint");
+    if let Some(objectives) = &plan.objectives {
+        let waypoints: BTreeMap<&str, Pos> = plan
+            .waypoints
+            .iter()
+            .map(|waypoint| (waypoint.name.as_str(), waypoint.pos))
+            .collect();
+        super::objectives::check_references(objectives, &waypoints, p);
+    }
     let waypoint_names = || {
         let names: Vec<&str> = plan.waypoints.iter().map(|w| w.name.as_str()).collect();
         if names.is_empty() {
@@ -1088,10 +1168,12 @@ fn check_references(plan: &Plan, p: &mut Vec<Located>) {
             seen.insert(key, contingency.pos);
         }
     }
-    if plan.legs.is_empty() {
+    // A plan of objectives gets its legs from `armor plan`.
+    if plan.legs.is_empty() && plan.objectives.is_none() {
         p.push(Located::new(
             plan.pos,
-            "the plan has no leg: add <leg from=\"...\" to=\"...\"/>",
+            "the plan has no leg: add <leg from=\"...\" to=\"...\"/> (or <objectives> for \
+             `armor plan` to make them)",
         ));
     }
 }
@@ -1400,7 +1482,10 @@ mod tests {
         assert_eq!(problems("<plan name=\"p\"").len(), 1);
         assert_eq!(
             problems("<plan name=\"p\" system=\"s\"/>"),
-            ["1:1: the plan has no leg: add <leg from=\"...\" to=\"...\"/>"]
+            [
+                "1:1: the plan has no leg: add <leg from=\"...\" to=\"...\"/> (or \
+                 <objectives> for `armor plan` to make them)"
+            ]
         );
     }
 }

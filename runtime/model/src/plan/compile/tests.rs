@@ -793,3 +793,35 @@ fn a_lost_localiser_holds_the_leg_it_drives_or_skips_it_as_the_leg_says() {
     let without = picture(&compiled(r#"<leg from="home" to="gate"/>"#).net);
     assert!(!without.contains(".lost"), "{without}");
 }
+
+#[test]
+fn a_low_battery_returns_to_the_start_unless_the_plan_says_otherwise() {
+    let plan = plan(
+        r#"<leg from="home" to="gate"/>
+<leg from="gate" to="hill">
+  <contingency on="low_battery" module="bms" do="hold"/>
+</leg>
+<contingency on="low_battery"/>"#,
+    );
+    // No `do`: return to where the plan starts, written out in full.
+    assert!(
+        plan.to_xml()
+            .contains(r#"<contingency on="low_battery" do="return" waypoint="home"/>"#),
+        "{}",
+        plan.to_xml()
+    );
+    let with = picture(
+        &compile(&plan, Some(&world()))
+            .unwrap_or_else(|problems| panic!("{problems:?}"))
+            .net,
+    );
+    for line in [
+        "leg1_low_battery: leg1_drive -> leg1_return sim.low_battery",
+        "leg2_low_battery: leg2_drive -> leg2_hold bms.low_battery",
+    ] {
+        assert!(with.lines().any(|l| l == line), "no `{line}` in\n{with}");
+    }
+    // Without one nothing listens to the battery.
+    let without = picture(&compiled(r#"<leg from="home" to="gate"/>"#).net);
+    assert!(!without.contains("low_battery"), "{without}");
+}
