@@ -513,7 +513,14 @@ fn each_leg_shows_its_path_and_a_leg_with_no_way_through_is_drawn_and_said_so() 
     );
     harness.state_mut().mission_mut().unwrap().editor.selection = Selection::Leg(0);
     harness.run();
-    harness.get_by_label_contains("no way through: the narrowest passage");
+    // Said twice: in the inspector of the selected leg and in the net panel, which names every
+    // blocked leg and what blocks it.
+    assert_eq!(
+        harness
+            .query_all_by_label_contains("no way through: the narrowest passage")
+            .count(),
+        2
+    );
 }
 
 /// The studio on a bundled plan, in the Mission view, its net fitted.

@@ -56,6 +56,7 @@ fn describes_ports_params_units_and_event() {
             ("odometry".to_owned(), "Odometry".to_owned()),
             ("scan".to_owned(), "LaserScan".to_owned()),
             ("pose_truth".to_owned(), "Pose2D".to_owned()),
+            ("battery".to_owned(), "Battery".to_owned()),
         ]
     );
     let world = description.param("world").expect("world");
@@ -74,6 +75,10 @@ fn describes_ports_params_units_and_event() {
         ("max_speed_mps", "m/s", "1.0"),
         ("max_turn_radps", "rad/s", "1.5"),
         ("robot_radius_m", "m", "0.25"),
+        ("battery_drain_per_m", "", "0.002"),
+        ("battery_drain_per_hour", "", "0.1"),
+        ("battery_low", "", "0.2"),
+        ("battery_start", "", "1"),
     ];
     for (name, unit, default) in expected {
         let param = description
@@ -91,6 +96,7 @@ fn describes_ports_params_units_and_event() {
     assert_eq!(kidnap.default.as_deref(), Some(""));
     assert_eq!(description.params.len(), expected.len() + 3);
     assert!(description.event("collision").is_some());
+    assert!(description.event("low_battery").is_some());
 }
 
 #[test]
