@@ -124,6 +124,20 @@ fn paused(addr: std::net::SocketAddr) -> bool {
         .unwrap()
 }
 
+/// Run → Attach…: the Run menu (the other "Run" is the view's tab, toggled on), then its
+/// Attach item; the prompt for the run's control address is open.
+fn open_attach_prompt(harness: &mut Harness<'_, StudioApp>) {
+    harness
+        .get_all_by_label("Run")
+        .find(|node| node.accesskit_node().toggled().is_none())
+        .expect("the Run menu")
+        .click();
+    harness.run_ok();
+    harness.get_by_label("Attach…").click();
+    harness.run_ok();
+    assert!(has_label(harness, "The run's control address"));
+}
+
 fn has_label(harness: &Harness<'_, StudioApp>, text: &str) -> bool {
     harness.query_by_label_contains(text).is_some()
 }
@@ -167,16 +181,7 @@ fn the_studio_attaches_pauses_resumes_and_detaches_without_stopping_the_run() {
     assert_eq!(after["mission"]["outcome"], serde_json::Value::Null);
 
     // Run → Attach…: the prompt offers the last address; attach again.
-    // The Run menu (the other "Run" is the view's tab, toggled on).
-    harness
-        .get_all_by_label("Run")
-        .find(|node| node.accesskit_node().toggled().is_none())
-        .expect("the Run menu")
-        .click();
-    harness.run_ok();
-    harness.get_by_label("Attach…").click();
-    harness.run_ok();
-    assert!(has_label(&harness, "The run's control address"));
+    open_attach_prompt(&mut harness);
     harness.get_by_label("Attach").click();
     step_until(&mut harness, "attached again", |h| {
         h.state().run().is_running() && status(h.state()).mission.is_some()
@@ -600,15 +605,7 @@ fn detached_nothing_on_screen_lies_and_attached_again_from_the_menu_the_plan_is_
     }
 
     // Run → Attach…, the last address offered, Enter: the plan is drawn again.
-    harness
-        .get_all_by_label("Run")
-        .find(|node| node.accesskit_node().toggled().is_none())
-        .expect("the Run menu")
-        .click();
-    harness.run_ok();
-    harness.get_by_label("Attach…").click();
-    harness.run_ok();
-    assert!(has_label(&harness, "The run's control address"));
+    open_attach_prompt(&mut harness);
     harness.key_press(egui::Key::Enter);
     harness.run_ok();
     assert!(
