@@ -174,7 +174,10 @@ fn save_as(session: &Session, saved: &Path) {
         display,
         &["type", "--window", window, &saved.display().to_string()]
     ));
-    keys_until(studio, display, window, &["Return"], "saved ");
+    // The whole path: a bare "saved " could be an earlier save's line, printed late on a
+    // loaded machine.
+    let said = format!("saved {}", saved.display());
+    keys_until(studio, display, window, &["Return"], &said);
     wait_until("the saved file", PATIENCE, || saved.exists());
 }
 
@@ -498,7 +501,9 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
         display,
         &["type", "--window", window, &plan.display().to_string()]
     ));
-    keys_until(studio, display, window, &["Return"], "opened ");
+    // The whole path: the system's own "opened" line can be printed late on a loaded machine.
+    let said = format!("opened {}", plan.display());
+    keys_until(studio, display, window, &["Return"], &said);
     // The plan's waypoints are named on the map (`gate`, on the phase line, reads to a person
     // but not to tesseract).
     ocr_until(
