@@ -1017,3 +1017,297 @@ fn a_thousand_idle_strangers_cost_no_thread_and_the_operator_gets_in() {
         run.wait_exit(PATIENCE);
     }
 }
+
+/// `armor host` on loopback without a secret, as a user would start one beside a run, and the
+/// address it listens on.
+fn loopback_host_without_secret() -> (Proc, SocketAddr) {
+    let host = Proc::start(
+        Command::new(bin("armor"))
+            .args(["host", "--name", "robot1", "--listen", "127.0.0.1:0"])
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .env_remove(armor_module_api::auth::ENV_SECRET_FILE),
+    );
+    let line = host.wait_for("its address", PATIENCE, |line| {
+        line.starts_with(armor_runtime::host::HOST_READY_PREFIX)
+    });
+    let addr = line
+        .trim_start_matches(armor_runtime::host::HOST_READY_PREFIX)
+        .trim()
+        .parse()
+        .unwrap();
+    (host, addr)
+}
+
+/// The config server's port of a run without a secret: of the two ports `armor run` itself
+/// listens on, the one that is not the control interface's.
+fn config_server_port(run: &Proc, control: &str) -> SocketAddr {
+    let control: SocketAddr = control.parse().unwrap();
+    let others: Vec<u16> = listening_ports(&[run.pid()])
+        .into_iter()
+        .filter(|&port| port != control.port())
+        .collect();
+    assert_eq!(
+        others.len(),
+        1,
+        "armor run listens on {others:?} besides control"
+    );
+    SocketAddr::from(([127, 0, 0, 1], others[0]))
+}
+
+/// The pid of the module `name` when the run's status shows it running.
+fn running_pid(control: &str, name: &str) -> Option<u64> {
+    armor_tests::ctl_status(control)["modules"]
+        .as_array()?
+        .iter()
+        .find(|module| module["name"] == name && module["state"] == "running")?["pid"]
+        .as_u64()
+}
+
+/// Without a secret, 1,000 strangers at a run's config server that complete the hello and say
+/// nothing more get no thread of `armor run`, and a module that starts meanwhile (the counter,
+/// killed and started again by the run) is configured at once.
+#[test]
+fn a_thousand_hello_only_strangers_at_the_config_server_cost_no_thread() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = waiting_mission(dir.path());
+    let (run, control) = armor_tests::run_with_control(&mission);
+    let mut first_pid = None;
+    wait_until("the counter running", PATIENCE, || {
+        first_pid = running_pid(&control, "counter");
+        first_pid.is_some()
+    });
+    let config_server = config_server_port(&run, &control);
+    let before = threads_and_rss_kib(run.pid());
+    let stop = Arc::new(AtomicBool::new(false));
+    let made = Arc::new(AtomicUsize::new(0));
+    let holder = strangers_after_hello(config_server, 1000, &stop, &made);
+    wait_until("1,000 strangers at the config server", PATIENCE, || {
+        made.load(Ordering::Relaxed) >= 1000
+    });
+    let during = threads_and_rss_kib(run.pid());
+    // A module that connects now, as a restarted one does, is served among the strangers.
+    armor_tests::signal(i32::try_from(first_pid.unwrap()).unwrap(), libc::SIGKILL);
+    let killed = Instant::now();
+    wait_until("the counter configured again", PATIENCE, || {
+        running_pid(&control, "counter").is_some_and(|pid| Some(pid) != first_pid)
+    });
+    let back_after = killed.elapsed();
+    let after = threads_and_rss_kib(run.pid());
+    stop.store(true, Ordering::Relaxed);
+    holder.join().unwrap();
+    println!(
+        "threads and KiB of armor run: before {before:?}, with 1,000 strangers at its config \
+         server {during:?}, after the counter's restart among them {after:?}; the killed \
+         counter was running again after {back_after:?}"
+    );
+    assert!(
+        during.0 <= before.0 + STRANGERS_THREAD_BUDGET,
+        "the strangers took armor run from {} to {} threads",
+        before.0,
+        during.0
+    );
+    assert!(
+        during.1 <= before.1 + STRANGERS_RSS_BUDGET_KIB,
+        "the strangers took armor run from {} to {} KiB",
+        before.1,
+        during.1
+    );
+}
+
+/// Without a secret, 1,000 strangers at a loopback `armor host` that complete the hello and
+/// say nothing more get no thread of the daemon, and a real supervisor is served at once:
+/// `armor check` asks the host its module types, and `armor run` starts its module there.
+#[test]
+fn a_thousand_hello_only_strangers_at_a_loopback_host_cost_no_thread() {
+    let dir = tempfile::tempdir().unwrap();
+    let (host, addr) = loopback_host_without_secret();
+    let system = dir.path().join("system.xml");
+    std::fs::write(
+        &system,
+        format!(
+            r#"<system name="hosted">
+  <host name="robot1" address="127.0.0.1" port="{}"/>
+  <module name="counter" type="counter" host="robot1"><param name="period_secs" value="0.1"/></module>
+</system>
+"#,
+            addr.port()
+        ),
+    )
+    .unwrap();
+    let before = threads_and_rss_kib(host.pid());
+    let stop = Arc::new(AtomicBool::new(false));
+    let made = Arc::new(AtomicUsize::new(0));
+    let holder = strangers_after_hello(addr, 1000, &stop, &made);
+    wait_until("1,000 strangers at the host", PATIENCE, || {
+        made.load(Ordering::Relaxed) >= 1000
+    });
+    let during = threads_and_rss_kib(host.pid());
+    // A supervisor's questions (`armor check`), then a run that places its counter there.
+    let started = Instant::now();
+    let check = Command::new(bin("armor"))
+        .arg("check")
+        .arg(&system)
+        .env("ARMOR_MODULE_PATH", bin_dir())
+        .env_remove(armor_module_api::auth::ENV_SECRET_FILE)
+        .output()
+        .unwrap();
+    let check_took = started.elapsed();
+    let check_said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&check.stdout),
+        String::from_utf8_lossy(&check.stderr)
+    );
+    let (_run, control) = armor_tests::run_with_control(&system);
+    let started = Instant::now();
+    wait_until("the counter running on the host", PATIENCE, || {
+        running_pid(&control, "counter").is_some()
+    });
+    let run_took = started.elapsed();
+    stop.store(true, Ordering::Relaxed);
+    holder.join().unwrap();
+    println!(
+        "threads and KiB of armor host: before {before:?}, with 1,000 strangers {during:?}; \
+         armor check took {check_took:?}; the run's counter ran there {run_took:?} after the \
+         run's control interface"
+    );
+    assert!(
+        check.status.success() && !check_said.contains("not asked"),
+        "armor check among the strangers: {check_said}"
+    );
+    assert!(
+        check_took <= STRANGER_CLOSED_WITHIN,
+        "armor check took {check_took:?} among the strangers"
+    );
+    assert!(
+        during.0 <= before.0 + STRANGERS_THREAD_BUDGET,
+        "the strangers took armor host from {} to {} threads",
+        before.0,
+        during.0
+    );
+    assert!(
+        during.1 <= before.1 + STRANGERS_RSS_BUDGET_KIB,
+        "the strangers took armor host from {} to {} KiB",
+        before.1,
+        during.1
+    );
+}
+
+/// How many control clients a run keeps open (`armor_runtime::control`'s table).
+const CONTROL_CLIENTS: usize = 64;
+
+/// A control client without a key, as an attacker on the same machine writes one: the hello
+/// and a `status` request (number 1), its reply read, then nothing more. `None` when the run
+/// closed it instead of answering.
+fn idle_status_client(control: SocketAddr) -> Option<TcpStream> {
+    use armor_protocol::{FromRun, Request, ToRun};
+    let mut stream = TcpStream::connect(control).ok()?;
+    stream.set_read_timeout(Some(PATIENCE)).unwrap();
+    blocking::write_hello(&mut stream).ok()?;
+    let status = ToRun {
+        seq: 1,
+        request: Request::Status,
+    };
+    blocking::write_message(&mut stream, &status).ok()?;
+    blocking::read_hello(&mut stream).ok()?;
+    let reply: FromRun = blocking::read_message(&mut stream).ok()?;
+    (reply.seq == 1 && reply.reply.ok).then_some(stream)
+}
+
+/// What an idle control client got since its last reply, within `wait`: the run's messages
+/// (replies it did not ask for yet), and whether the run closed the connection.
+fn what_an_idle_client_got(stream: &mut TcpStream, wait: Duration) -> (Vec<String>, bool) {
+    let (bytes, closed) = read_until_closed(stream, wait);
+    let mut messages = Vec::new();
+    let mut rest = bytes.as_slice();
+    while !rest.is_empty() {
+        match blocking::read_message::<armor_protocol::FromRun>(&mut rest) {
+            Ok(answer) => messages.push(format!(
+                "{} (ok {}): {}",
+                answer.seq, answer.reply.ok, answer.reply.message
+            )),
+            Err(err) => {
+                messages.push(format!("undecodable: {err}"));
+                break;
+            }
+        }
+    }
+    (messages, closed.is_some())
+}
+
+/// Without a secret, 70 clients that each asked for the status and then idle (more than the
+/// run keeps open), and 1,000 strangers that said their hello, do not keep `armor ctl abort`
+/// out: it gets in within 2 s, 10 times out of 10 (a run each: an abort ends its run). The
+/// clients that idled the longest make room, each told why and closed at once, not left to hang;
+/// the others stay open.
+#[test]
+fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = waiting_mission(dir.path());
+    let clients = CONTROL_CLIENTS + 6;
+    for round in 1..=10 {
+        let (mut run, control) = armor_tests::run_with_control(&mission);
+        let target: SocketAddr = control.parse().unwrap();
+        let mut idle: Vec<Option<TcpStream>> =
+            (0..clients).map(|_| idle_status_client(target)).collect();
+        let answered = idle.iter().filter(|client| client.is_some()).count();
+        // Those that did not idle the longest are still open, with nothing to read.
+        let open_after_the_last = idle
+            .iter()
+            .skip(clients - CONTROL_CLIENTS)
+            .flatten()
+            .filter(|client| {
+                let mut stream: &TcpStream = client;
+                let mut byte = [0];
+                stream.set_nonblocking(true).is_ok()
+                    && matches!(stream.read(&mut byte), Err(err) if err.kind() == std::io::ErrorKind::WouldBlock)
+                    && stream.set_nonblocking(false).is_ok()
+            })
+            .count();
+        let stop = Arc::new(AtomicBool::new(false));
+        let made = Arc::new(AtomicUsize::new(0));
+        let holder = strangers_after_hello(target, 1000, &stop, &made);
+        wait_until("1,000 strangers at the control port", PATIENCE, || {
+            made.load(Ordering::Relaxed) >= 1000
+        });
+        let (ok, text, took) = ctl(&["--addr", &control, "abort"]);
+        stop.store(true, Ordering::Relaxed);
+        holder.join().unwrap();
+        // The abort took the place of one more idle client: the oldest seven made room.
+        let made_room = clients + 1 - CONTROL_CLIENTS;
+        let mut told = Vec::new();
+        for (index, client) in idle.iter_mut().take(made_room).enumerate() {
+            let Some(client) = client else { continue };
+            told.push((
+                index,
+                what_an_idle_client_got(client, STRANGER_CLOSED_WITHIN),
+            ));
+        }
+        println!(
+            "round {round}: {answered} of {clients} idle clients answered; abort took {took:?}; \
+             the oldest said {:?}",
+            told.first()
+        );
+        assert!(ok, "round {round}: abort: {text}");
+        assert!(
+            took <= STRANGER_CLOSED_WITHIN,
+            "round {round}: abort took {took:?}: {text}"
+        );
+        assert_eq!(
+            answered, clients,
+            "round {round}: a client without a secret was refused while others idled"
+        );
+        assert_eq!(
+            open_after_the_last, CONTROL_CLIENTS,
+            "round {round}: of the {CONTROL_CLIENTS} newest idle clients, only \
+             {open_after_the_last} were still open"
+        );
+        for (index, (messages, closed)) in told {
+            assert!(
+                closed && messages.iter().any(|message| message.contains("idle")),
+                "round {round}: idle client {index} was not told why it was closed: \
+                 {messages:?}, closed: {closed}"
+            );
+        }
+        run.wait_exit(PATIENCE);
+    }
+}
