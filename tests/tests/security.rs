@@ -1114,6 +1114,59 @@ fn a_thousand_hello_only_strangers_at_the_config_server_cost_no_thread() {
     );
 }
 
+/// Without a secret, peers that say a module's `hello` to the config server (the counter's,
+/// on 300 connections kept open) cost one thread for the name, not one each: a module has one
+/// connection, and a newer one closes the older.
+#[test]
+fn peers_that_say_a_modules_hello_cost_one_thread_for_the_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = waiting_mission(dir.path());
+    let (run, control) = armor_tests::run_with_control(&mission);
+    wait_until("the counter running", PATIENCE, || {
+        running_pid(&control, "counter").is_some()
+    });
+    let config_server = config_server_port(&run, &control);
+    let mut said = blocking_hello();
+    let hello = serde_json::json!({"type": "hello", "module": "counter", "pid": 1});
+    blocking::write_message(&mut said, &hello).unwrap();
+    let before = threads_and_rss_kib(run.pid());
+    // Each is served (it reads the counter's configuration) before the next connects.
+    let held: Vec<TcpStream> = (0..300)
+        .map(|_| {
+            let mut stream = TcpStream::connect(config_server).unwrap();
+            stream.set_read_timeout(Some(PATIENCE)).unwrap();
+            stream.write_all(&said).unwrap();
+            blocking::read_hello(&mut stream).unwrap();
+            let config: serde_json::Value = blocking::read_message(&mut stream).unwrap();
+            assert_eq!(config["type"], "config", "{config}");
+            stream
+        })
+        .collect();
+    // Polled until it is back within budget, or the deadline: the older connections' threads
+    // end once the newer ones close them.
+    let deadline = Instant::now() + PATIENCE;
+    let mut most = before.0;
+    let now = loop {
+        let now = threads_and_rss_kib(run.pid());
+        most = most.max(now.0);
+        if now.0 <= before.0 + STRANGERS_THREAD_BUDGET || Instant::now() >= deadline {
+            break now;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    println!(
+        "threads and KiB of armor run: before {before:?}, with 300 peers that said the \
+         counter's hello {now:?} (at most {most} threads on the way)"
+    );
+    assert!(
+        now.0 <= before.0 + STRANGERS_THREAD_BUDGET,
+        "300 peers that said the counter's hello hold {} threads of armor run ({} before)",
+        now.0,
+        before.0
+    );
+    drop(held);
+}
+
 /// Without a secret, 1,000 strangers at a loopback `armor host` that complete the hello and
 /// say nothing more get no thread of the daemon, and a real supervisor is served at once:
 /// `armor check` asks the host its module types, and `armor run` starts its module there.
@@ -1234,10 +1287,11 @@ fn what_an_idle_client_got(stream: &mut TcpStream, wait: Duration) -> (Vec<Strin
     (messages, closed.is_some())
 }
 
-/// Without a secret, 70 clients that each asked for the status and then idle (more than the
+/// Without a secret, 71 clients that each asked for the status and then idle (more than the
 /// run keeps open), and 1,000 strangers that said their hello, do not keep `armor ctl abort`
 /// out: it gets in within 2 s, 10 times out of 10 (a run each: an abort ends its run). The
-/// clients that idled the longest make room, each told why and closed at once, not left to hang;
+/// clients that idled the longest make room, each told why and closed at once, not left to
+/// hang (a client kept as the studio keeps one hears it as the reply to its next request);
 /// the others stay open.
 #[test]
 fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
@@ -1247,6 +1301,9 @@ fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
     for round in 1..=10 {
         let (mut run, control) = armor_tests::run_with_control(&mission);
         let target: SocketAddr = control.parse().unwrap();
+        // The oldest is a client as the studio keeps one: it is told why at its next request.
+        let mut kept = armor_protocol::Client::connect(target, None).unwrap();
+        assert!(kept.call(&armor_protocol::Request::Status).unwrap().ok);
         let mut idle: Vec<Option<TcpStream>> =
             (0..clients).map(|_| idle_status_client(target)).collect();
         let answered = idle.iter().filter(|client| client.is_some()).count();
@@ -1263,6 +1320,9 @@ fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
                     && stream.set_nonblocking(false).is_ok()
             })
             .count();
+        let asked = Instant::now();
+        let kept_told = kept.call(&armor_protocol::Request::Status);
+        let kept_told_within = asked.elapsed();
         let stop = Arc::new(AtomicBool::new(false));
         let made = Arc::new(AtomicUsize::new(0));
         let holder = strangers_after_hello(target, 1000, &stop, &made);
@@ -1284,7 +1344,8 @@ fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
         }
         println!(
             "round {round}: {answered} of {clients} idle clients answered; abort took {took:?}; \
-             the oldest said {:?}",
+             the studio-like client was told {kept_told:?} within {kept_told_within:?}, \
+             the oldest of the others {:?}",
             told.first()
         );
         assert!(ok, "round {round}: abort: {text}");
@@ -1300,6 +1361,13 @@ fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
             open_after_the_last, CONTROL_CLIENTS,
             "round {round}: of the {CONTROL_CLIENTS} newest idle clients, only \
              {open_after_the_last} were still open"
+        );
+        let kept_told = kept_told.map(|reply| (reply.ok, reply.message));
+        assert!(
+            matches!(&kept_told, Ok((false, message)) if message.contains("idle"))
+                && kept_told_within <= STRANGER_CLOSED_WITHIN,
+            "round {round}: the client idle the longest was told {kept_told:?} within \
+             {kept_told_within:?}"
         );
         for (index, (messages, closed)) in told {
             assert!(

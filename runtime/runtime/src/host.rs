@@ -283,17 +283,24 @@ pub fn serve(options: HostOptions) {
             .and_then(|ms| ms.trim().parse::<i64>().ok())
             .map_or(0, |ms| ms.saturating_mul(1_000_000)),
     });
-    crate::gate::serve(options.listener, listen, move |stream, proven| {
-        if authenticated && proven.as_deref() != Some(SUPERVISOR_IDENTITY) {
-            tracing::warn!(
-                ?proven,
-                "refused a connection that is not a supervisor's ({SUPERVISOR_IDENTITY})"
-            );
-            return;
-        }
-        let daemon = Arc::clone(&daemon);
-        std::thread::spawn(move || daemon.session(stream));
-    });
+    // A supervisor sends its `hello` right behind the wire's: without a secret, a peer that
+    // does not costs no thread.
+    crate::gate::serve_requests(
+        options.listener,
+        listen,
+        crate::gate::MAX_HELLO_BYTES,
+        move |stream, proven| {
+            if authenticated && proven.as_deref() != Some(SUPERVISOR_IDENTITY) {
+                tracing::warn!(
+                    ?proven,
+                    "refused a connection that is not a supervisor's ({SUPERVISOR_IDENTITY})"
+                );
+                return;
+            }
+            let daemon = Arc::clone(&daemon);
+            std::thread::spawn(move || daemon.session(stream));
+        },
+    );
 }
 
 impl Daemon {
