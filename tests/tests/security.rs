@@ -150,20 +150,7 @@ fn a_default_host_listens_on_loopback_and_refuses_the_network_without_a_secret()
 /// cannot choose the module's environment: the daemon builds it itself.
 #[test]
 fn a_spawn_request_cannot_choose_the_modules_environment() {
-    let host = Proc::start(
-        Command::new(bin("armor"))
-            .args(["host", "--name", "robot1", "--listen", "127.0.0.1:0"])
-            .env("ARMOR_MODULE_PATH", bin_dir())
-            .env_remove(armor_module_api::auth::ENV_SECRET_FILE),
-    );
-    let line = host.wait_for("its address", PATIENCE, |line| {
-        line.starts_with("armor host listening on ")
-    });
-    let addr: SocketAddr = line
-        .trim_start_matches("armor host listening on ")
-        .trim()
-        .parse()
-        .unwrap();
+    let (_host, addr) = loopback_host_without_secret();
     let stream = TcpStream::connect(addr).unwrap();
     stream.set_read_timeout(Some(PATIENCE)).unwrap();
     let mut stream = blocking::dial(stream, None).unwrap();
@@ -1242,6 +1229,58 @@ fn a_thousand_hello_only_strangers_at_a_loopback_host_cost_no_thread() {
         "the strangers took armor host from {} to {} KiB",
         before.1,
         during.1
+    );
+}
+
+/// Without a secret, peers that say a query's `hello` to a loopback `armor host` (as
+/// `armor check` does) and then idle, on 300 connections kept open, hold no more than a few
+/// threads of the daemon: it answers a few queries at once and refuses more, saying why.
+#[test]
+fn idle_queries_at_a_loopback_host_hold_a_few_threads() {
+    let (host, addr) = loopback_host_without_secret();
+    let mut said = blocking_hello();
+    let hello =
+        serde_json::json!({"op": "hello", "run": "stranger", "orphan_ms": 0, "query": true});
+    blocking::write_message(&mut said, &hello).unwrap();
+    let before = threads_and_rss_kib(host.pid());
+    // Each is answered (it reads the daemon's welcome) before the next connects.
+    let held: Vec<TcpStream> = (0..300)
+        .map(|_| {
+            let mut stream = TcpStream::connect(addr).unwrap();
+            stream.set_read_timeout(Some(PATIENCE)).unwrap();
+            stream.write_all(&said).unwrap();
+            blocking::read_hello(&mut stream).unwrap();
+            let welcome: serde_json::Value = blocking::read_message(&mut stream).unwrap();
+            assert_eq!(welcome["op"], "welcome", "{welcome}");
+            stream
+        })
+        .collect();
+    // Polled until it is back within budget, or 2 s (well inside the 10 s after which the
+    // daemon closes a quiet query): the refused queries' threads end as they are told.
+    let deadline = Instant::now() + STRANGER_CLOSED_WITHIN;
+    let during = loop {
+        let during = threads_and_rss_kib(host.pid());
+        if during.0 <= before.0 + STRANGERS_THREAD_BUDGET || Instant::now() >= deadline {
+            break during;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    // The last one was refused, and told why.
+    let mut last = held.last().unwrap();
+    let told = blocking::read_message::<serde_json::Value>(&mut last);
+    println!(
+        "threads and KiB of armor host: before {before:?}, with 300 idle queries {during:?}; \
+         the last was told {told:?}"
+    );
+    assert!(
+        during.0 <= before.0 + STRANGERS_THREAD_BUDGET,
+        "300 idle queries hold {} threads of armor host ({} before)",
+        during.0,
+        before.0
+    );
+    assert!(
+        told.as_ref().is_ok_and(|told| told["op"] == "refused"),
+        "the last query was told {told:?}"
     );
 }
 
