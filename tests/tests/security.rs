@@ -3,7 +3,10 @@
 //! on-path relay that reads and rewrites the control link; slow clients and strangers that try
 //! to lock the operator out; a process without a key at the teleop port; oversized lookups;
 //! and, for every socket a run under `--secret` listens on, a stranger that gets not a byte
-//! and is closed within 2 s. Real processes and sockets on loopback.
+//! and is closed within 2 s. Without a secret: strangers that say only their hello at every
+//! listener, control clients that ask once and idle, peers that say a module's hello to the
+//! config server again and again, and idle queries at `armor host`, none of which may cost a
+//! thread each or keep the operator out. Real processes and sockets on loopback.
 #![allow(clippy::unwrap_used)]
 
 use std::collections::HashSet;
@@ -937,6 +940,20 @@ fn threads_and_rss_kib(pid: i32) -> (usize, u64) {
 const STRANGERS_THREAD_BUDGET: usize = 8;
 const STRANGERS_RSS_BUDGET_KIB: u64 = 8 * 1024;
 
+/// Asserts that strangers took the process `what` from `before` to `during` (threads, KiB)
+/// within the budgets above.
+fn assert_within_strangers_budget(what: &str, before: (usize, u64), during: (usize, u64)) {
+    let ((threads_before, rss_before), (threads, rss)) = (before, during);
+    assert!(
+        threads <= threads_before + STRANGERS_THREAD_BUDGET,
+        "{what} went from {threads_before} to {threads} threads"
+    );
+    assert!(
+        rss <= rss_before + STRANGERS_RSS_BUDGET_KIB,
+        "{what} went from {rss_before} to {rss} KiB"
+    );
+}
+
 /// Without a secret, 1,000 strangers at the agent and 1,000 at the control interface that
 /// complete the hello and say nothing more get no thread: the agent and `armor run` stay
 /// within a stated budget of threads and memory, and `armor ctl abort` gets in within 2 s,
@@ -988,18 +1005,11 @@ fn a_thousand_idle_strangers_cost_no_thread_and_the_operator_gets_in() {
             took <= STRANGER_CLOSED_WITHIN,
             "round {round}: abort took {took:?}: {text}"
         );
-        for (what, (threads_before, rss_before), (threads, rss)) in [
+        for (what, before, during) in [
             ("armor run", before[0], during[0]),
             ("the agent", before[1], during[1]),
         ] {
-            assert!(
-                threads <= threads_before + STRANGERS_THREAD_BUDGET,
-                "round {round}: {what} went from {threads_before} to {threads} threads"
-            );
-            assert!(
-                rss <= rss_before + STRANGERS_RSS_BUDGET_KIB,
-                "round {round}: {what} went from {rss_before} to {rss} KiB"
-            );
+            assert_within_strangers_budget(&format!("round {round}: {what}"), before, during);
         }
         run.wait_exit(PATIENCE);
     }
@@ -1064,14 +1074,8 @@ fn a_thousand_hello_only_strangers_at_the_config_server_cost_no_thread() {
         first_pid.is_some()
     });
     let config_server = config_server_port(&run, &control);
-    let before = threads_and_rss_kib(run.pid());
     let stop = Arc::new(AtomicBool::new(false));
-    let made = Arc::new(AtomicUsize::new(0));
-    let holder = strangers_after_hello(config_server, 1000, &stop, &made);
-    wait_until("1,000 strangers at the config server", PATIENCE, || {
-        made.load(Ordering::Relaxed) >= 1000
-    });
-    let during = threads_and_rss_kib(run.pid());
+    let (before, during, holder) = thousand_strangers_at(config_server, run.pid(), &stop);
     // A module that connects now, as a restarted one does, is served among the strangers.
     armor_tests::signal(i32::try_from(first_pid.unwrap()).unwrap(), libc::SIGKILL);
     let killed = Instant::now();
@@ -1087,18 +1091,62 @@ fn a_thousand_hello_only_strangers_at_the_config_server_cost_no_thread() {
          server {during:?}, after the counter's restart among them {after:?}; the killed \
          counter was running again after {back_after:?}"
     );
-    assert!(
-        during.0 <= before.0 + STRANGERS_THREAD_BUDGET,
-        "the strangers took armor run from {} to {} threads",
-        before.0,
-        during.0
-    );
-    assert!(
-        during.1 <= before.1 + STRANGERS_RSS_BUDGET_KIB,
-        "the strangers took armor run from {} to {} KiB",
-        before.1,
-        during.1
-    );
+    assert_within_strangers_budget("armor run", before, during);
+}
+
+/// 1,000 strangers at `target` that say their hello and nothing more (see
+/// [`strangers_after_hello`]), until `stop`: the threads and KiB of the process `pid` before
+/// they came and once they are there, and the thread that holds them.
+fn thousand_strangers_at(
+    target: SocketAddr,
+    pid: i32,
+    stop: &Arc<AtomicBool>,
+) -> ((usize, u64), (usize, u64), std::thread::JoinHandle<()>) {
+    let before = threads_and_rss_kib(pid);
+    let made = Arc::new(AtomicUsize::new(0));
+    let holder = strangers_after_hello(target, 1000, stop, &made);
+    wait_until("1,000 strangers", PATIENCE, || {
+        made.load(Ordering::Relaxed) >= 1000
+    });
+    (before, threads_and_rss_kib(pid), holder)
+}
+
+/// `count` connections to `target` that each said the hello and then `first`, and were
+/// answered (a message whose `field` is `value`) before the next connected.
+fn peers_answered(
+    target: SocketAddr,
+    first: &serde_json::Value,
+    count: usize,
+    (field, value): (&str, &str),
+) -> Vec<TcpStream> {
+    let mut said = blocking_hello();
+    blocking::write_message(&mut said, first).unwrap();
+    (0..count)
+        .map(|_| {
+            let mut stream = TcpStream::connect(target).unwrap();
+            stream.set_read_timeout(Some(PATIENCE)).unwrap();
+            stream.write_all(&said).unwrap();
+            blocking::read_hello(&mut stream).unwrap();
+            let answer: serde_json::Value = blocking::read_message(&mut stream).unwrap();
+            assert_eq!(answer[field], value, "{answer}");
+            stream
+        })
+        .collect()
+}
+
+/// The threads and KiB of `pid` once its threads are back within the strangers' budget over
+/// `before`, or after `within`; and the most threads seen on the way.
+fn threads_once_settled(pid: i32, before: (usize, u64), within: Duration) -> ((usize, u64), usize) {
+    let deadline = Instant::now() + within;
+    let mut most = before.0;
+    loop {
+        let now = threads_and_rss_kib(pid);
+        most = most.max(now.0);
+        if now.0 <= before.0 + STRANGERS_THREAD_BUDGET || Instant::now() >= deadline {
+            return (now, most);
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
 }
 
 /// Without a secret, peers that say a module's `hello` to the config server (the counter's,
@@ -1113,34 +1161,11 @@ fn peers_that_say_a_modules_hello_cost_one_thread_for_the_name() {
         running_pid(&control, "counter").is_some()
     });
     let config_server = config_server_port(&run, &control);
-    let mut said = blocking_hello();
     let hello = serde_json::json!({"type": "hello", "module": "counter", "pid": 1});
-    blocking::write_message(&mut said, &hello).unwrap();
     let before = threads_and_rss_kib(run.pid());
-    // Each is served (it reads the counter's configuration) before the next connects.
-    let held: Vec<TcpStream> = (0..300)
-        .map(|_| {
-            let mut stream = TcpStream::connect(config_server).unwrap();
-            stream.set_read_timeout(Some(PATIENCE)).unwrap();
-            stream.write_all(&said).unwrap();
-            blocking::read_hello(&mut stream).unwrap();
-            let config: serde_json::Value = blocking::read_message(&mut stream).unwrap();
-            assert_eq!(config["type"], "config", "{config}");
-            stream
-        })
-        .collect();
-    // Polled until it is back within budget, or the deadline: the older connections' threads
-    // end once the newer ones close them.
-    let deadline = Instant::now() + PATIENCE;
-    let mut most = before.0;
-    let now = loop {
-        let now = threads_and_rss_kib(run.pid());
-        most = most.max(now.0);
-        if now.0 <= before.0 + STRANGERS_THREAD_BUDGET || Instant::now() >= deadline {
-            break now;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    };
+    let held = peers_answered(config_server, &hello, 300, ("type", "config"));
+    // Within the deadline: the older connections' threads end once the newer ones close them.
+    let (now, most) = threads_once_settled(run.pid(), before, PATIENCE);
     println!(
         "threads and KiB of armor run: before {before:?}, with 300 peers that said the \
          counter's hello {now:?} (at most {most} threads on the way)"
@@ -1174,14 +1199,8 @@ fn a_thousand_hello_only_strangers_at_a_loopback_host_cost_no_thread() {
         ),
     )
     .unwrap();
-    let before = threads_and_rss_kib(host.pid());
     let stop = Arc::new(AtomicBool::new(false));
-    let made = Arc::new(AtomicUsize::new(0));
-    let holder = strangers_after_hello(addr, 1000, &stop, &made);
-    wait_until("1,000 strangers at the host", PATIENCE, || {
-        made.load(Ordering::Relaxed) >= 1000
-    });
-    let during = threads_and_rss_kib(host.pid());
+    let (before, during, holder) = thousand_strangers_at(addr, host.pid(), &stop);
     // A supervisor's questions (`armor check`), then a run that places its counter there.
     let started = Instant::now();
     let check = Command::new(bin("armor"))
@@ -1218,18 +1237,7 @@ fn a_thousand_hello_only_strangers_at_a_loopback_host_cost_no_thread() {
         check_took <= STRANGER_CLOSED_WITHIN,
         "armor check took {check_took:?} among the strangers"
     );
-    assert!(
-        during.0 <= before.0 + STRANGERS_THREAD_BUDGET,
-        "the strangers took armor host from {} to {} threads",
-        before.0,
-        during.0
-    );
-    assert!(
-        during.1 <= before.1 + STRANGERS_RSS_BUDGET_KIB,
-        "the strangers took armor host from {} to {} KiB",
-        before.1,
-        during.1
-    );
+    assert_within_strangers_budget("armor host", before, during);
 }
 
 /// Without a secret, peers that say a query's `hello` to a loopback `armor host` (as
@@ -1238,33 +1246,13 @@ fn a_thousand_hello_only_strangers_at_a_loopback_host_cost_no_thread() {
 #[test]
 fn idle_queries_at_a_loopback_host_hold_a_few_threads() {
     let (host, addr) = loopback_host_without_secret();
-    let mut said = blocking_hello();
     let hello =
         serde_json::json!({"op": "hello", "run": "stranger", "orphan_ms": 0, "query": true});
-    blocking::write_message(&mut said, &hello).unwrap();
     let before = threads_and_rss_kib(host.pid());
-    // Each is answered (it reads the daemon's welcome) before the next connects.
-    let held: Vec<TcpStream> = (0..300)
-        .map(|_| {
-            let mut stream = TcpStream::connect(addr).unwrap();
-            stream.set_read_timeout(Some(PATIENCE)).unwrap();
-            stream.write_all(&said).unwrap();
-            blocking::read_hello(&mut stream).unwrap();
-            let welcome: serde_json::Value = blocking::read_message(&mut stream).unwrap();
-            assert_eq!(welcome["op"], "welcome", "{welcome}");
-            stream
-        })
-        .collect();
-    // Polled until it is back within budget, or 2 s (well inside the 10 s after which the
-    // daemon closes a quiet query): the refused queries' threads end as they are told.
-    let deadline = Instant::now() + STRANGER_CLOSED_WITHIN;
-    let during = loop {
-        let during = threads_and_rss_kib(host.pid());
-        if during.0 <= before.0 + STRANGERS_THREAD_BUDGET || Instant::now() >= deadline {
-            break during;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    };
+    let held = peers_answered(addr, &hello, 300, ("op", "welcome"));
+    // Within 2 s, well inside the 10 s after which the daemon closes a quiet query: the
+    // refused queries' threads end as they are told.
+    let (during, _) = threads_once_settled(host.pid(), before, STRANGER_CLOSED_WITHIN);
     // The last one was refused, and told why.
     let mut last = held.last().unwrap();
     let told = blocking::read_message::<serde_json::Value>(&mut last);
