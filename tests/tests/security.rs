@@ -6,7 +6,8 @@
 //! and is closed within 2 s. Without a secret: strangers that say only their hello at every
 //! listener, control clients that ask once and idle, peers that say a module's hello to the
 //! config server again and again, and idle queries at `armor host`, none of which may cost a
-//! thread each or keep the operator out. Real processes and sockets on loopback.
+//! thread each or keep the operator out; with a secret, an idle operator is never closed to
+//! make room. Real processes and sockets on loopback.
 #![allow(clippy::unwrap_used)]
 
 use std::collections::HashSet;
@@ -1405,4 +1406,43 @@ fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
         }
         run.wait_exit(PATIENCE);
     }
+}
+
+/// With a secret nothing is closed to make room: an operator who connected first and idles
+/// keeps its connection while 70 observers come (those beyond the table are refused), and
+/// aborts through it.
+#[test]
+fn with_a_secret_an_idle_operator_is_not_closed_to_make_room() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let observer = armor_protocol::key_from_file(&role_key(&secret, "observer")).unwrap();
+    let mission = waiting_mission(dir.path());
+    let (_run, control) = run_with_secret(&mission, &secret);
+    let target: SocketAddr = control.parse().unwrap();
+    let operator_secret = Secret::load(&secret).unwrap();
+    let mut operator = armor_protocol::Client::connect(target, Some(&operator_secret)).unwrap();
+    assert!(operator.call(&armor_protocol::Request::Status).unwrap().ok);
+    let observers: Vec<Result<armor_protocol::Client, String>> = (0..CONTROL_CLIENTS + 6)
+        .map(|_| {
+            let mut client = armor_protocol::Client::connect_with(target, Some(&observer))
+                .map_err(|err| format!("{err:#}"))?;
+            let reply = client
+                .call(&armor_protocol::Request::Status)
+                .map_err(|err| format!("{err:#}"))?;
+            reply.ok.then_some(client).ok_or(reply.message)
+        })
+        .collect();
+    let answered = observers.iter().filter(|client| client.is_ok()).count();
+    let abort = operator
+        .call(&armor_protocol::Request::Abort)
+        .map(|reply| (reply.ok, reply.message));
+    println!(
+        "{answered} of {} observers answered besides the idle operator; its abort: {abort:?}",
+        observers.len()
+    );
+    assert_eq!(answered, CONTROL_CLIENTS - 1, "observers answered");
+    assert!(
+        abort.as_ref().is_ok_and(|(ok, _)| *ok),
+        "the operator's abort on its idle connection: {abort:?}"
+    );
 }

@@ -12,9 +12,9 @@
 //! Without a secret there is no key to tell a stranger by, so [`serve_requests`] opens a
 //! connection only once its first request has arrived whole, within the first message's
 //! deadline: every client of these servers sends one right behind its hello (a module its
-//! `hello` to the agent and to the config server, `armor ctl` its request, a supervisor its
-//! `hello` to `armor host`), while a peer that says its hello and nothing more costs no thread
-//! and is closed.
+//! registration to the agent and its `hello` to the config server, `armor ctl` its request, a
+//! supervisor its `hello` to `armor host`), while a peer that says its hello and nothing more
+//! costs no thread and is closed.
 
 use std::collections::HashMap;
 use std::io::{ErrorKind, Read as _, Write as _};
