@@ -3,7 +3,11 @@
 //! on-path relay that reads and rewrites the control link; slow clients and strangers that try
 //! to lock the operator out; a process without a key at the teleop port; oversized lookups;
 //! and, for every socket a run under `--secret` listens on, a stranger that gets not a byte
-//! and is closed within 2 s. Real processes and sockets on loopback.
+//! and is closed within 2 s. Without a secret: strangers that say only their hello at every
+//! listener, control clients that ask once and idle, peers that say a module's hello to the
+//! config server again and again, and idle queries at `armor host`, none of which may cost a
+//! thread each or keep the operator out; with a secret, an idle operator is never closed to
+//! make room. Real processes and sockets on loopback.
 #![allow(clippy::unwrap_used)]
 
 use std::collections::HashSet;
@@ -150,20 +154,7 @@ fn a_default_host_listens_on_loopback_and_refuses_the_network_without_a_secret()
 /// cannot choose the module's environment: the daemon builds it itself.
 #[test]
 fn a_spawn_request_cannot_choose_the_modules_environment() {
-    let host = Proc::start(
-        Command::new(bin("armor"))
-            .args(["host", "--name", "robot1", "--listen", "127.0.0.1:0"])
-            .env("ARMOR_MODULE_PATH", bin_dir())
-            .env_remove(armor_module_api::auth::ENV_SECRET_FILE),
-    );
-    let line = host.wait_for("its address", PATIENCE, |line| {
-        line.starts_with("armor host listening on ")
-    });
-    let addr: SocketAddr = line
-        .trim_start_matches("armor host listening on ")
-        .trim()
-        .parse()
-        .unwrap();
+    let (_host, addr) = loopback_host_without_secret();
     let stream = TcpStream::connect(addr).unwrap();
     stream.set_read_timeout(Some(PATIENCE)).unwrap();
     let mut stream = blocking::dial(stream, None).unwrap();
@@ -950,6 +941,20 @@ fn threads_and_rss_kib(pid: i32) -> (usize, u64) {
 const STRANGERS_THREAD_BUDGET: usize = 8;
 const STRANGERS_RSS_BUDGET_KIB: u64 = 8 * 1024;
 
+/// Asserts that strangers took the process `what` from `before` to `during` (threads, KiB)
+/// within the budgets above.
+fn assert_within_strangers_budget(what: &str, before: (usize, u64), during: (usize, u64)) {
+    let ((threads_before, rss_before), (threads, rss)) = (before, during);
+    assert!(
+        threads <= threads_before + STRANGERS_THREAD_BUDGET,
+        "{what} went from {threads_before} to {threads} threads"
+    );
+    assert!(
+        rss <= rss_before + STRANGERS_RSS_BUDGET_KIB,
+        "{what} went from {rss_before} to {rss} KiB"
+    );
+}
+
 /// Without a secret, 1,000 strangers at the agent and 1,000 at the control interface that
 /// complete the hello and say nothing more get no thread: the agent and `armor run` stay
 /// within a stated budget of threads and memory, and `armor ctl abort` gets in within 2 s,
@@ -1001,19 +1006,443 @@ fn a_thousand_idle_strangers_cost_no_thread_and_the_operator_gets_in() {
             took <= STRANGER_CLOSED_WITHIN,
             "round {round}: abort took {took:?}: {text}"
         );
-        for (what, (threads_before, rss_before), (threads, rss)) in [
+        for (what, before, during) in [
             ("armor run", before[0], during[0]),
             ("the agent", before[1], during[1]),
         ] {
+            assert_within_strangers_budget(&format!("round {round}: {what}"), before, during);
+        }
+        run.wait_exit(PATIENCE);
+    }
+}
+
+/// `armor host` on loopback without a secret, as a user would start one beside a run, and the
+/// address it listens on.
+fn loopback_host_without_secret() -> (Proc, SocketAddr) {
+    let host = Proc::start(
+        Command::new(bin("armor"))
+            .args(["host", "--name", "robot1", "--listen", "127.0.0.1:0"])
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .env_remove(armor_module_api::auth::ENV_SECRET_FILE),
+    );
+    let line = host.wait_for("its address", PATIENCE, |line| {
+        line.starts_with(armor_runtime::host::HOST_READY_PREFIX)
+    });
+    let addr = line
+        .trim_start_matches(armor_runtime::host::HOST_READY_PREFIX)
+        .trim()
+        .parse()
+        .unwrap();
+    (host, addr)
+}
+
+/// The config server's port of a run without a secret: of the two ports `armor run` itself
+/// listens on, the one that is not the control interface's.
+fn config_server_port(run: &Proc, control: &str) -> SocketAddr {
+    let control: SocketAddr = control.parse().unwrap();
+    let others: Vec<u16> = listening_ports(&[run.pid()])
+        .into_iter()
+        .filter(|&port| port != control.port())
+        .collect();
+    assert_eq!(
+        others.len(),
+        1,
+        "armor run listens on {others:?} besides control"
+    );
+    SocketAddr::from(([127, 0, 0, 1], others[0]))
+}
+
+/// The pid of the module `name` when the run's status shows it running.
+fn running_pid(control: &str, name: &str) -> Option<u64> {
+    armor_tests::ctl_status(control)["modules"]
+        .as_array()?
+        .iter()
+        .find(|module| module["name"] == name && module["state"] == "running")?["pid"]
+        .as_u64()
+}
+
+/// Without a secret, 1,000 strangers at a run's config server that complete the hello and say
+/// nothing more get no thread of `armor run`, and a module that starts meanwhile (the counter,
+/// killed and started again by the run) is configured at once.
+#[test]
+fn a_thousand_hello_only_strangers_at_the_config_server_cost_no_thread() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = waiting_mission(dir.path());
+    let (run, control) = armor_tests::run_with_control(&mission);
+    let mut first_pid = None;
+    wait_until("the counter running", PATIENCE, || {
+        first_pid = running_pid(&control, "counter");
+        first_pid.is_some()
+    });
+    let config_server = config_server_port(&run, &control);
+    let stop = Arc::new(AtomicBool::new(false));
+    let (before, during, holder) = thousand_strangers_at(config_server, run.pid(), &stop);
+    // A module that connects now, as a restarted one does, is served among the strangers.
+    armor_tests::signal(i32::try_from(first_pid.unwrap()).unwrap(), libc::SIGKILL);
+    let killed = Instant::now();
+    wait_until("the counter configured again", PATIENCE, || {
+        running_pid(&control, "counter").is_some_and(|pid| Some(pid) != first_pid)
+    });
+    let back_after = killed.elapsed();
+    let after = threads_and_rss_kib(run.pid());
+    stop.store(true, Ordering::Relaxed);
+    holder.join().unwrap();
+    println!(
+        "threads and KiB of armor run: before {before:?}, with 1,000 strangers at its config \
+         server {during:?}, after the counter's restart among them {after:?}; the killed \
+         counter was running again after {back_after:?}"
+    );
+    assert_within_strangers_budget("armor run", before, during);
+}
+
+/// 1,000 strangers at `target` that say their hello and nothing more (see
+/// [`strangers_after_hello`]), until `stop`: the threads and KiB of the process `pid` before
+/// they came and once they are there, and the thread that holds them.
+fn thousand_strangers_at(
+    target: SocketAddr,
+    pid: i32,
+    stop: &Arc<AtomicBool>,
+) -> ((usize, u64), (usize, u64), std::thread::JoinHandle<()>) {
+    let before = threads_and_rss_kib(pid);
+    let made = Arc::new(AtomicUsize::new(0));
+    let holder = strangers_after_hello(target, 1000, stop, &made);
+    wait_until("1,000 strangers", PATIENCE, || {
+        made.load(Ordering::Relaxed) >= 1000
+    });
+    (before, threads_and_rss_kib(pid), holder)
+}
+
+/// `count` connections to `target` that each said the hello and then `first`, and were
+/// answered (a message whose `field` is `value`) before the next connected.
+fn peers_answered(
+    target: SocketAddr,
+    first: &serde_json::Value,
+    count: usize,
+    (field, value): (&str, &str),
+) -> Vec<TcpStream> {
+    let mut said = blocking_hello();
+    blocking::write_message(&mut said, first).unwrap();
+    (0..count)
+        .map(|_| {
+            let mut stream = TcpStream::connect(target).unwrap();
+            stream.set_read_timeout(Some(PATIENCE)).unwrap();
+            stream.write_all(&said).unwrap();
+            blocking::read_hello(&mut stream).unwrap();
+            let answer: serde_json::Value = blocking::read_message(&mut stream).unwrap();
+            assert_eq!(answer[field], value, "{answer}");
+            stream
+        })
+        .collect()
+}
+
+/// The threads and KiB of `pid` once its threads are back within the strangers' budget over
+/// `before`, or after `within`; and the most threads seen on the way.
+fn threads_once_settled(pid: i32, before: (usize, u64), within: Duration) -> ((usize, u64), usize) {
+    let deadline = Instant::now() + within;
+    let mut most = before.0;
+    loop {
+        let now = threads_and_rss_kib(pid);
+        most = most.max(now.0);
+        if now.0 <= before.0 + STRANGERS_THREAD_BUDGET || Instant::now() >= deadline {
+            return (now, most);
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Without a secret, peers that say a module's `hello` to the config server (the counter's,
+/// on 300 connections kept open) cost one thread for the name, not one each: a module has one
+/// connection, and a newer one closes the older.
+#[test]
+fn peers_that_say_a_modules_hello_cost_one_thread_for_the_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = waiting_mission(dir.path());
+    let (run, control) = armor_tests::run_with_control(&mission);
+    wait_until("the counter running", PATIENCE, || {
+        running_pid(&control, "counter").is_some()
+    });
+    let config_server = config_server_port(&run, &control);
+    let hello = serde_json::json!({"type": "hello", "module": "counter", "pid": 1});
+    let before = threads_and_rss_kib(run.pid());
+    let held = peers_answered(config_server, &hello, 300, ("type", "config"));
+    // Within the deadline: the older connections' threads end once the newer ones close them.
+    let (now, most) = threads_once_settled(run.pid(), before, PATIENCE);
+    println!(
+        "threads and KiB of armor run: before {before:?}, with 300 peers that said the \
+         counter's hello {now:?} (at most {most} threads on the way)"
+    );
+    assert!(
+        now.0 <= before.0 + STRANGERS_THREAD_BUDGET,
+        "300 peers that said the counter's hello hold {} threads of armor run ({} before)",
+        now.0,
+        before.0
+    );
+    drop(held);
+}
+
+/// Without a secret, 1,000 strangers at a loopback `armor host` that complete the hello and
+/// say nothing more get no thread of the daemon, and a real supervisor is served at once:
+/// `armor check` asks the host its module types, and `armor run` starts its module there.
+#[test]
+fn a_thousand_hello_only_strangers_at_a_loopback_host_cost_no_thread() {
+    let dir = tempfile::tempdir().unwrap();
+    let (host, addr) = loopback_host_without_secret();
+    let system = dir.path().join("system.xml");
+    std::fs::write(
+        &system,
+        format!(
+            r#"<system name="hosted">
+  <host name="robot1" address="127.0.0.1" port="{}"/>
+  <module name="counter" type="counter" host="robot1"><param name="period_secs" value="0.1"/></module>
+</system>
+"#,
+            addr.port()
+        ),
+    )
+    .unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (before, during, holder) = thousand_strangers_at(addr, host.pid(), &stop);
+    // A supervisor's questions (`armor check`), then a run that places its counter there.
+    let started = Instant::now();
+    let check = Command::new(bin("armor"))
+        .arg("check")
+        .arg(&system)
+        .env("ARMOR_MODULE_PATH", bin_dir())
+        .env_remove(armor_module_api::auth::ENV_SECRET_FILE)
+        .output()
+        .unwrap();
+    let check_took = started.elapsed();
+    let check_said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&check.stdout),
+        String::from_utf8_lossy(&check.stderr)
+    );
+    let (_run, control) = armor_tests::run_with_control(&system);
+    let started = Instant::now();
+    wait_until("the counter running on the host", PATIENCE, || {
+        running_pid(&control, "counter").is_some()
+    });
+    let run_took = started.elapsed();
+    stop.store(true, Ordering::Relaxed);
+    holder.join().unwrap();
+    println!(
+        "threads and KiB of armor host: before {before:?}, with 1,000 strangers {during:?}; \
+         armor check took {check_took:?}; the run's counter ran there {run_took:?} after the \
+         run's control interface"
+    );
+    assert!(
+        check.status.success() && !check_said.contains("not asked"),
+        "armor check among the strangers: {check_said}"
+    );
+    assert!(
+        check_took <= STRANGER_CLOSED_WITHIN,
+        "armor check took {check_took:?} among the strangers"
+    );
+    assert_within_strangers_budget("armor host", before, during);
+}
+
+/// Without a secret, peers that say a query's `hello` to a loopback `armor host` (as
+/// `armor check` does) and then idle, on 300 connections kept open, hold no more than a few
+/// threads of the daemon: it answers a few queries at once and refuses more, saying why.
+#[test]
+fn idle_queries_at_a_loopback_host_hold_a_few_threads() {
+    let (host, addr) = loopback_host_without_secret();
+    let hello =
+        serde_json::json!({"op": "hello", "run": "stranger", "orphan_ms": 0, "query": true});
+    let before = threads_and_rss_kib(host.pid());
+    let held = peers_answered(addr, &hello, 300, ("op", "welcome"));
+    // Within 2 s, well inside the 10 s after which the daemon closes a quiet query: the
+    // refused queries' threads end as they are told.
+    let (during, _) = threads_once_settled(host.pid(), before, STRANGER_CLOSED_WITHIN);
+    // The last one was refused, and told why.
+    let mut last = held.last().unwrap();
+    let told = blocking::read_message::<serde_json::Value>(&mut last);
+    println!(
+        "threads and KiB of armor host: before {before:?}, with 300 idle queries {during:?}; \
+         the last was told {told:?}"
+    );
+    assert!(
+        during.0 <= before.0 + STRANGERS_THREAD_BUDGET,
+        "300 idle queries hold {} threads of armor host ({} before)",
+        during.0,
+        before.0
+    );
+    assert!(
+        told.as_ref().is_ok_and(|told| told["op"] == "refused"),
+        "the last query was told {told:?}"
+    );
+}
+
+/// How many control clients a run keeps open (`armor_runtime::control`'s table).
+const CONTROL_CLIENTS: usize = 64;
+
+/// A control client without a key, as an attacker on the same machine writes one: the hello
+/// and a `status` request (number 1), its reply read, then nothing more. `None` when the run
+/// closed it instead of answering.
+fn idle_status_client(control: SocketAddr) -> Option<TcpStream> {
+    use armor_protocol::{FromRun, Request, ToRun};
+    let mut stream = TcpStream::connect(control).ok()?;
+    stream.set_read_timeout(Some(PATIENCE)).unwrap();
+    blocking::write_hello(&mut stream).ok()?;
+    let status = ToRun {
+        seq: 1,
+        request: Request::Status,
+    };
+    blocking::write_message(&mut stream, &status).ok()?;
+    blocking::read_hello(&mut stream).ok()?;
+    let reply: FromRun = blocking::read_message(&mut stream).ok()?;
+    (reply.seq == 1 && reply.reply.ok).then_some(stream)
+}
+
+/// What an idle control client got since its last reply, within `wait`: the run's messages
+/// (replies it did not ask for yet), and whether the run closed the connection.
+fn what_an_idle_client_got(stream: &mut TcpStream, wait: Duration) -> (Vec<String>, bool) {
+    let (bytes, closed) = read_until_closed(stream, wait);
+    let mut messages = Vec::new();
+    let mut rest = bytes.as_slice();
+    while !rest.is_empty() {
+        match blocking::read_message::<armor_protocol::FromRun>(&mut rest) {
+            Ok(answer) => messages.push(format!(
+                "{} (ok {}): {}",
+                answer.seq, answer.reply.ok, answer.reply.message
+            )),
+            Err(err) => {
+                messages.push(format!("undecodable: {err}"));
+                break;
+            }
+        }
+    }
+    (messages, closed.is_some())
+}
+
+/// Without a secret, 71 clients that each asked for the status and then idle (more than the
+/// run keeps open), and 1,000 strangers that said their hello, do not keep `armor ctl abort`
+/// out: it gets in within 2 s, 10 times out of 10 (a run each: an abort ends its run). The
+/// clients that idled the longest make room, each told why and closed at once, not left to
+/// hang (a client kept as the studio keeps one hears it as the reply to its next request);
+/// the others stay open.
+#[test]
+fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
+    let dir = tempfile::tempdir().unwrap();
+    let mission = waiting_mission(dir.path());
+    let clients = CONTROL_CLIENTS + 6;
+    for round in 1..=10 {
+        let (mut run, control) = armor_tests::run_with_control(&mission);
+        let target: SocketAddr = control.parse().unwrap();
+        // The oldest is a client as the studio keeps one: it is told why at its next request.
+        let mut kept = armor_protocol::Client::connect(target, None).unwrap();
+        assert!(kept.call(&armor_protocol::Request::Status).unwrap().ok);
+        let mut idle: Vec<Option<TcpStream>> =
+            (0..clients).map(|_| idle_status_client(target)).collect();
+        let answered = idle.iter().filter(|client| client.is_some()).count();
+        // Those that did not idle the longest are still open, with nothing to read.
+        let open_after_the_last = idle
+            .iter()
+            .skip(clients - CONTROL_CLIENTS)
+            .flatten()
+            .filter(|client| {
+                let mut stream: &TcpStream = client;
+                let mut byte = [0];
+                stream.set_nonblocking(true).is_ok()
+                    && matches!(stream.read(&mut byte), Err(err) if err.kind() == std::io::ErrorKind::WouldBlock)
+                    && stream.set_nonblocking(false).is_ok()
+            })
+            .count();
+        let asked = Instant::now();
+        let kept_told = kept.call(&armor_protocol::Request::Status);
+        let kept_told_within = asked.elapsed();
+        let stop = Arc::new(AtomicBool::new(false));
+        let made = Arc::new(AtomicUsize::new(0));
+        let holder = strangers_after_hello(target, 1000, &stop, &made);
+        wait_until("1,000 strangers at the control port", PATIENCE, || {
+            made.load(Ordering::Relaxed) >= 1000
+        });
+        let (ok, text, took) = ctl(&["--addr", &control, "abort"]);
+        stop.store(true, Ordering::Relaxed);
+        holder.join().unwrap();
+        // The abort took the place of one more idle client: the oldest seven made room.
+        let made_room = clients + 1 - CONTROL_CLIENTS;
+        let mut told = Vec::new();
+        for (index, client) in idle.iter_mut().take(made_room).enumerate() {
+            let Some(client) = client else { continue };
+            told.push((
+                index,
+                what_an_idle_client_got(client, STRANGER_CLOSED_WITHIN),
+            ));
+        }
+        println!(
+            "round {round}: {answered} of {clients} idle clients answered; abort took {took:?}; \
+             the studio-like client was told {kept_told:?} within {kept_told_within:?}, \
+             the oldest of the others {:?}",
+            told.first()
+        );
+        assert!(ok, "round {round}: abort: {text}");
+        assert!(
+            took <= STRANGER_CLOSED_WITHIN,
+            "round {round}: abort took {took:?}: {text}"
+        );
+        assert_eq!(
+            answered, clients,
+            "round {round}: a client without a secret was refused while others idled"
+        );
+        assert_eq!(
+            open_after_the_last, CONTROL_CLIENTS,
+            "round {round}: of the {CONTROL_CLIENTS} newest idle clients, only \
+             {open_after_the_last} were still open"
+        );
+        let kept_told = kept_told.map(|reply| (reply.ok, reply.message));
+        assert!(
+            matches!(&kept_told, Ok((false, message)) if message.contains("idle"))
+                && kept_told_within <= STRANGER_CLOSED_WITHIN,
+            "round {round}: the client idle the longest was told {kept_told:?} within \
+             {kept_told_within:?}"
+        );
+        for (index, (messages, closed)) in told {
             assert!(
-                threads <= threads_before + STRANGERS_THREAD_BUDGET,
-                "round {round}: {what} went from {threads_before} to {threads} threads"
-            );
-            assert!(
-                rss <= rss_before + STRANGERS_RSS_BUDGET_KIB,
-                "round {round}: {what} went from {rss_before} to {rss} KiB"
+                closed && messages.iter().any(|message| message.contains("idle")),
+                "round {round}: idle client {index} was not told why it was closed: \
+                 {messages:?}, closed: {closed}"
             );
         }
         run.wait_exit(PATIENCE);
     }
+}
+
+/// With a secret nothing is closed to make room: an operator who connected first and idles
+/// keeps its connection while 70 observers come (those beyond the table are refused), and
+/// aborts through it.
+#[test]
+fn with_a_secret_an_idle_operator_is_not_closed_to_make_room() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = secret_file(dir.path());
+    let observer = armor_protocol::key_from_file(&role_key(&secret, "observer")).unwrap();
+    let mission = waiting_mission(dir.path());
+    let (_run, control) = run_with_secret(&mission, &secret);
+    let target: SocketAddr = control.parse().unwrap();
+    let operator_secret = Secret::load(&secret).unwrap();
+    let mut operator = armor_protocol::Client::connect(target, Some(&operator_secret)).unwrap();
+    assert!(operator.call(&armor_protocol::Request::Status).unwrap().ok);
+    let observers: Vec<Result<armor_protocol::Client, String>> = (0..CONTROL_CLIENTS + 6)
+        .map(|_| {
+            let mut client = armor_protocol::Client::connect_with(target, Some(&observer))
+                .map_err(|err| format!("{err:#}"))?;
+            let reply = client
+                .call(&armor_protocol::Request::Status)
+                .map_err(|err| format!("{err:#}"))?;
+            reply.ok.then_some(client).ok_or(reply.message)
+        })
+        .collect();
+    let answered = observers.iter().filter(|client| client.is_ok()).count();
+    let abort = operator
+        .call(&armor_protocol::Request::Abort)
+        .map(|reply| (reply.ok, reply.message));
+    println!(
+        "{answered} of {} observers answered besides the idle operator; its abort: {abort:?}",
+        observers.len()
+    );
+    assert_eq!(answered, CONTROL_CLIENTS - 1, "observers answered");
+    assert!(
+        abort.as_ref().is_ok_and(|(ok, _)| *ok),
+        "the operator's abort on its idle connection: {abort:?}"
+    );
 }

@@ -470,10 +470,17 @@ impl ConfigServer {
             admit: Admit::Modules(secret),
             encrypt: true,
         });
-        crate::gate::serve(listener, listen, |stream, proven| {
-            let server = self.clone();
-            std::thread::spawn(move || server.serve(stream, proven));
-        });
+        // A module sends its `hello` right behind the wire's: without a secret, a peer that
+        // does not costs no thread.
+        crate::gate::serve_requests(
+            listener,
+            listen,
+            crate::gate::MAX_HELLO_BYTES,
+            |stream, proven| {
+                let server = self.clone();
+                std::thread::spawn(move || server.serve(stream, proven));
+            },
+        );
     }
 
     fn serve(&self, stream: SecureStream, proven: Option<String>) {
@@ -550,7 +557,7 @@ impl ConfigServer {
             blocking::write_message(&mut writer, &FromSupervisor::Config(config.clone()))?;
             writer.get_ref().set_write_timeout(Some(WRITE_TIMEOUT))?;
             state.health.connected(&name);
-            state.conns.insert(
+            let older = state.conns.insert(
                 name.clone(),
                 ModuleConn {
                     conn_id,
@@ -562,6 +569,12 @@ impl ConfigServer {
                     peer,
                 },
             );
+            // A module has one connection: an older one under its name (a process that is
+            // gone, or without a secret any peer that said the name) is closed, so that its
+            // thread ends and a name costs one thread however often it is said.
+            if let Some(older) = older {
+                let _ = older.writer.get_ref().shutdown(std::net::Shutdown::Both);
+            }
         }
         *module = Some(name.clone());
         let _ = self.events.send(ServerEvent::Connected {

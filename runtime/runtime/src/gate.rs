@@ -1,6 +1,7 @@
 //! The door of every server of a run (agent, config server, control interface) and of
 //! `armor host`: connections are accepted on one thread, without blocking, and get a thread of
-//! their own only once they have said their hello and, with a secret, passed the handshake.
+//! their own only once they have passed the handshake (with a secret) or sent their first
+//! request whole behind their hello (without).
 //! Until then a peer costs a socket and at most a kilobyte of buffer; at most [`MAX_PENDING`]
 //! are kept, the oldest that has not proved a key dropped first for a new one, and none longer
 //! than its [`HandshakeDeadline`]: a short one for the first message, which a stranger does not
@@ -8,10 +9,12 @@
 //! few hundred kilobytes and never keep a module or an operator from getting in. With a secret,
 //! the door sends nothing, not even its hello, before a valid first handshake message.
 //!
-//! Without a secret there is no key to tell a stranger by, so [`serve_requests`] (the agent, the
-//! control interface) opens a connection only once its first request has arrived whole, within
-//! the first message's deadline: a module registers and `armor ctl` asks right behind their
-//! hello, while a peer that says its hello and nothing more costs no thread and is closed.
+//! Without a secret there is no key to tell a stranger by, so [`serve_requests`] opens a
+//! connection only once its first request has arrived whole, within the first message's
+//! deadline: every client of these servers sends one right behind its hello (a module its
+//! registration to the agent and its `hello` to the config server, `armor ctl` its request, a
+//! supervisor its `hello` to `armor host`), while a peer that says its hello and nothing more
+//! costs no thread and is closed.
 
 use std::collections::HashMap;
 use std::io::{ErrorKind, Read as _, Write as _};
@@ -29,6 +32,11 @@ use mio::{Events, Interest, Poll, Token};
 /// The most connections kept before their handshake is over.
 pub const MAX_PENDING: usize = 256;
 
+/// The most a first message that says who is there (a module's `hello` to the config server, a
+/// supervisor's to `armor host`: a name and a few numbers) may weigh before the connection is
+/// open, without a secret.
+pub const MAX_HELLO_BYTES: usize = 64 * 1024;
+
 const LISTENER: Token = Token(0);
 
 struct Pending {
@@ -41,8 +49,8 @@ struct Pending {
     /// a stranger gets not a byte.
     hello_owed: bool,
     deadline: HandshakeDeadline,
-    /// Without a secret, for [`serve_requests`]: the bytes of the first request as they arrive
-    /// (the hello taken), until it is whole.
+    /// Without a secret: the bytes of the first request as they arrive (the hello taken),
+    /// until it is whole.
     first_request: Option<Vec<u8>>,
 }
 
@@ -54,26 +62,11 @@ struct Opening {
     first_request_at_most: Option<usize>,
 }
 
-/// Accepts on `listener` until the process ends, and hands each connection that is open (hello
-/// received, handshake passed with `listen`) to `handle`, with the peer's proven identity.
-/// Refusals are logged at `warn` with what the peer did wrong.
-pub fn serve(
-    listener: std::net::TcpListener,
-    listen: Option<Listen>,
-    mut handle: impl FnMut(SecureStream, Option<String>),
-) {
-    let opening = Opening {
-        first_request_at_most: None,
-    };
-    if let Err(err) = run(listener, listen, opening, &mut handle) {
-        tracing::error!("a server stopped accepting connections: {err}");
-    }
-}
-
-/// [`serve`] for a service whose clients send a request at once (the agent, the control
-/// interface): without a secret, a connection is handed over only once its first request (at
-/// most `max_request_bytes`) has arrived whole, so that a peer that says its hello and nothing
-/// more costs no thread.
+/// Accepts on `listener` until the process ends, and hands each connection that is open to
+/// `handle`, with the peer's proven identity: with `listen`, once the handshake passed; without,
+/// once its first request (at most `max_request_bytes`) has arrived whole with its hello, so
+/// that a peer that says its hello and nothing more costs no thread. Refusals are logged at
+/// `warn` with what the peer did wrong.
 pub fn serve_requests(
     listener: std::net::TcpListener,
     listen: Option<Listen>,

@@ -35,6 +35,10 @@ pub const HOST_READY_PREFIX: &str = "armor host listening on ";
 pub const SUPERVISOR_IDENTITY: &str = "armor.run";
 /// How long the daemon keeps its modules without hearing from the supervisor, by default.
 pub const DEFAULT_ORPHAN: Duration = Duration::from_secs(3);
+/// The most connections that only ask questions (`armor check`) served at once: each holds two
+/// threads until it has been quiet for a while, and without a secret anyone on the machine may
+/// ask. One more is refused, and told why.
+const MAX_QUERIES: usize = 4;
 /// How often the supervisor says it is alive.
 pub const PING_EVERY: Duration = Duration::from_millis(250);
 /// Milliseconds added to the time the daemon reports (`time`): a clock that is off, made on
@@ -260,6 +264,8 @@ struct Daemon {
     modules: Mutex<HashMap<String, Running>>,
     /// The connection serving now (its number); an older one stops when it sees a newer.
     session: Mutex<u64>,
+    /// Connections that only ask questions, open now (at most [`MAX_QUERIES`]).
+    queries: std::sync::atomic::AtomicUsize,
     /// Added to the time reported ([`ENV_CLOCK_OFFSET_MS`]).
     clock_offset_ns: i64,
 }
@@ -278,22 +284,30 @@ pub fn serve(options: HostOptions) {
         orphan: options.orphan,
         modules: Mutex::new(HashMap::new()),
         session: Mutex::new(0),
+        queries: std::sync::atomic::AtomicUsize::new(0),
         clock_offset_ns: std::env::var(ENV_CLOCK_OFFSET_MS)
             .ok()
             .and_then(|ms| ms.trim().parse::<i64>().ok())
             .map_or(0, |ms| ms.saturating_mul(1_000_000)),
     });
-    crate::gate::serve(options.listener, listen, move |stream, proven| {
-        if authenticated && proven.as_deref() != Some(SUPERVISOR_IDENTITY) {
-            tracing::warn!(
-                ?proven,
-                "refused a connection that is not a supervisor's ({SUPERVISOR_IDENTITY})"
-            );
-            return;
-        }
-        let daemon = Arc::clone(&daemon);
-        std::thread::spawn(move || daemon.session(stream));
-    });
+    // A supervisor sends its `hello` right behind the wire's: without a secret, a peer that
+    // does not costs no thread.
+    crate::gate::serve_requests(
+        options.listener,
+        listen,
+        crate::gate::MAX_HELLO_BYTES,
+        move |stream, proven| {
+            if authenticated && proven.as_deref() != Some(SUPERVISOR_IDENTITY) {
+                tracing::warn!(
+                    ?proven,
+                    "refused a connection that is not a supervisor's ({SUPERVISOR_IDENTITY})"
+                );
+                return;
+            }
+            let daemon = Arc::clone(&daemon);
+            std::thread::spawn(move || daemon.session(stream));
+        },
+    );
 }
 
 impl Daemon {
@@ -359,6 +373,17 @@ impl Daemon {
             }
         };
         if query {
+            use std::sync::atomic::Ordering;
+            if self.queries.fetch_add(1, Ordering::Relaxed) >= MAX_QUERIES {
+                self.queries.fetch_sub(1, Ordering::Relaxed);
+                tracing::warn!(?peer, "{MAX_QUERIES} queries are open: refused another");
+                let _ = tx.send(FromHost::Refused {
+                    message: format!(
+                        "{MAX_QUERIES} connections are asking this host questions already: try again"
+                    ),
+                });
+                return;
+            }
             while let Ok(message) = blocking::read_message::<ToHost>(&mut reader) {
                 if matches!(
                     message,
@@ -367,6 +392,7 @@ impl Daemon {
                     self.handle(message, &tx);
                 }
             }
+            self.queries.fetch_sub(1, Ordering::Relaxed);
             return;
         }
         let id = {
