@@ -1408,11 +1408,11 @@ fn without_a_secret_idle_control_clients_make_room_for_the_operator() {
     }
 }
 
-/// With a secret nothing is closed to make room: an operator who connected first and idles
+/// With a secret an operator is never closed to make room: one who connected first and idles
 /// keeps its connection while 70 observers come (those beyond the table are refused), and
-/// aborts through it.
+/// aborts through it; a second operator arriving then closes the observer idle the longest.
 #[test]
-fn with_a_secret_an_idle_operator_is_not_closed_to_make_room() {
+fn with_a_secret_an_idle_operator_is_not_closed_and_a_new_one_replaces_an_observer() {
     let dir = tempfile::tempdir().unwrap();
     let secret = secret_file(dir.path());
     let observer = armor_protocol::key_from_file(&role_key(&secret, "observer")).unwrap();
@@ -1433,14 +1433,29 @@ fn with_a_secret_an_idle_operator_is_not_closed_to_make_room() {
         })
         .collect();
     let answered = observers.iter().filter(|client| client.is_ok()).count();
+    // A second operator arriving at the full table takes the place of the observer idle the
+    // longest: observers' keys cannot shut an operator out.
+    let latecomer = armor_protocol::Client::connect(target, Some(&operator_secret))
+        .map_err(|err| format!("{err:#}"))
+        .and_then(|mut client| {
+            client
+                .call(&armor_protocol::Request::Status)
+                .map(|reply| (reply.ok, reply.message))
+                .map_err(|err| format!("{err:#}"))
+        });
     let abort = operator
         .call(&armor_protocol::Request::Abort)
         .map(|reply| (reply.ok, reply.message));
     println!(
-        "{answered} of {} observers answered besides the idle operator; its abort: {abort:?}",
+        "{answered} of {} observers answered besides the idle operator; a second operator's \
+         status: {latecomer:?}; the first's abort: {abort:?}",
         observers.len()
     );
     assert_eq!(answered, CONTROL_CLIENTS - 1, "observers answered");
+    assert!(
+        latecomer.as_ref().is_ok_and(|(ok, _)| *ok),
+        "an operator arriving at a table full of observers: {latecomer:?}"
+    );
     assert!(
         abort.as_ref().is_ok_and(|(ok, _)| *ok),
         "the operator's abort on its idle connection: {abort:?}"

@@ -9,8 +9,9 @@
 //! system file needs to draw the run (`armor_protocol::RunFiles`).
 //!
 //! Room for the operator: an open client has a thread, and at most [`MAX_CLIENTS`] are open.
-//! With a secret only key holders get that far, and one more is refused while the table is
-//! full (an operator is never closed to make room for an observer). Without a secret every
+//! With a secret only key holders get that far; while the table is full, a new operator closes
+//! the observer idle the longest (so observers' keys cannot shut the operator out), and
+//! anyone else is refused (an operator is never closed to make room). Without a secret every
 //! client is equal (the port is the local machine's), so a full table makes room as OpenSSH's
 //! `MaxStartups` and a web server's keep-alive do: a new client closes the one that has been
 //! waiting on its peer the longest (idle since its last reply, or not reading that reply),
@@ -94,7 +95,7 @@ pub fn serve(
                         return;
                     }
                 };
-                let Some(id) = clients.admit(socket, make_room) else {
+                let Some(id) = clients.admit(socket, role, make_room) else {
                     tracing::warn!("{MAX_CLIENTS} control clients are connected: refused another");
                     return;
                 };
@@ -126,6 +127,7 @@ enum Doing {
 struct Client {
     /// The connection's socket, to wake its thread and close it.
     socket: TcpStream,
+    role: Role,
     doing: Doing,
     /// Since when the client has been idle: its last reply, or its connect.
     idle_since: Instant,
@@ -149,21 +151,22 @@ impl Clients {
         self.table.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
-    /// Takes a new client in; when the table is full, with `make_room`, closes the one that has
-    /// waited on its peer the longest first. `None` when there is no room.
-    fn admit(&self, socket: TcpStream, make_room: bool) -> Option<u64> {
+    /// Takes a new client in. When the table is full, closes first the client that has waited
+    /// on its peer the longest among those it may replace: anyone with `make_room` (no
+    /// secret), an observer for an operator. `None` when there is no room.
+    fn admit(&self, socket: TcpStream, role: Role, make_room: bool) -> Option<u64> {
         let mut table = self.table();
         if table.open.len() >= MAX_CLIENTS {
-            let oldest = make_room
-                .then(|| {
-                    table
-                        .open
-                        .iter()
-                        .filter(|(_, client)| client.doing != Doing::Answering)
-                        .min_by_key(|(_, client)| client.idle_since)
-                        .map(|(&id, _)| id)
-                })
-                .flatten()?;
+            let replaceable = |client: &Client| {
+                client.doing != Doing::Answering
+                    && (make_room || (role == Role::Operator && client.role == Role::Observer))
+            };
+            let oldest = table
+                .open
+                .iter()
+                .filter(|(_, client)| replaceable(client))
+                .min_by_key(|(_, client)| client.idle_since)
+                .map(|(&id, _)| id)?;
             if let Some(client) = table.open.remove(&oldest) {
                 tracing::info!(
                     peer = ?client.socket.peer_addr().ok(),
@@ -185,6 +188,7 @@ impl Clients {
             id,
             Client {
                 socket,
+                role,
                 doing: Doing::Reading,
                 idle_since: Instant::now(),
             },
