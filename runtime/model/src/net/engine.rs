@@ -77,6 +77,8 @@ pub enum EngineError {
     UnknownTransition { name: String, known: String },
     #[error("transition `{name}` cannot fire: {why}")]
     NotEnabled { name: String, why: String },
+    #[error("no place `{name}` in this mission (places: {known})")]
+    UnknownPlace { name: String, known: String },
 }
 
 #[derive(Debug)]
@@ -315,6 +317,53 @@ impl Engine {
             engine.refresh(t, false, now);
         }
         engine
+    }
+
+    /// An engine on `net` in `marking` (place → tokens; the net's own initial tokens are not
+    /// used) at run-time `now_secs`, taking over what `before` (an engine on an earlier version
+    /// of the mission) knew of the transitions both have: a transition of the same name enabled
+    /// in both keeps the time it became enabled, so a delay goes on where it was, and, with
+    /// `keep_events`, its latched event. Its date origin is `before`'s. This is how a running
+    /// mission moves to an updated net between two firings. A place `net` does not have is an
+    /// error naming it.
+    pub fn resume(
+        net: &MissionNet,
+        marking: &Marking,
+        before: &Engine,
+        keep_events: bool,
+        now_secs: f64,
+    ) -> Result<Engine, EngineError> {
+        let mut compiled = CompiledNet::new(net);
+        for place in &mut compiled.places {
+            place.tokens = 0;
+        }
+        for (name, &tokens) in marking {
+            let Some(&p) = compiled.place_index.get(name.as_str()) else {
+                return Err(EngineError::UnknownPlace {
+                    name: name.clone(),
+                    known: listing(compiled.places.iter().map(|place| &*place.name)),
+                });
+            };
+            compiled.places[p].tokens = tokens;
+        }
+        let now = before
+            .now
+            .max(if now_secs.is_finite() { now_secs } else { 0.0 });
+        let mut engine = Engine::start_compiled(&Shared::new(compiled), now)
+            .with_date_origin(before.date_origin);
+        for t in 0..engine.net.transitions.len() {
+            if engine.enabled_since[t].is_none() {
+                continue;
+            }
+            let name = &engine.net.transitions[t].name;
+            if let Some(old) = before.transition_index(name)
+                && let Some(since) = before.enabled_since[old]
+            {
+                engine.enabled_since[t] = Some(since);
+                engine.latched[t] = keep_events && before.latched[old];
+            }
+        }
+        Ok(engine)
     }
 
     /// Sets the Unix time (seconds since 1970-01-01T00:00:00Z) of run-time 0, against which the
