@@ -209,10 +209,18 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         || options.file.clone(),
         |mission| mission.system_file.clone(),
     );
-    // A plan's legs, for the summary printed when the run ends.
-    let plan_legs = mission
+    // A plan's legs, for the summary printed when the run ends; updates replace them.
+    let mut plan_legs = mission
         .as_ref()
         .and_then(|mission| Some((mission.plan.clone()?, mission.compiled.clone()?)));
+    let mut running_plan = mission.as_ref().and_then(|mission| {
+        Some(crate::update::Running {
+            file: options.file.clone(),
+            system_file: mission.system_file.clone(),
+            plan: mission.plan.clone()?,
+            compiled: mission.compiled.clone()?,
+        })
+    });
     let mut controller = mission.map(|mission| {
         let controllable = loaded
             .system
@@ -296,7 +304,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         secret.clone(),
     )
     .context("cannot start the control interface")?;
-    tracing::info!(addr = %control_addr, "control interface listening (armor ctl --addr {control_addr} status|start|stop|pause|resume|abort|fire NAME)");
+    tracing::info!(addr = %control_addr, "control interface listening (armor ctl --addr {control_addr} status|start|stop|pause|resume|abort|fire NAME|update PLAN)");
     console::out_line(&format!("{}{control_addr}", crate::CONTROL_READY_PREFIX));
     let env = RunEnv {
         agent_addr: agent.addr,
@@ -463,6 +471,36 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     let _ = reply.send(run_files(&options.file, &system_file, &server));
                     continue;
                 }
+                armor_protocol::Request::Update { file, text } => {
+                    match (&mut controller, &mut running_plan) {
+                        (Some(controller), Some(running)) => {
+                            let answer = crate::update::handle(
+                                controller,
+                                running,
+                                progress.as_mut(),
+                                &file,
+                                &text,
+                                &crate::update::Context {
+                                    module_path: &options.module_path,
+                                    server: &server,
+                                    start_unix_secs,
+                                    run_secs: clock.now_secs(),
+                                },
+                            );
+                            if answer.0 {
+                                plan_legs = Some((running.plan.clone(), running.compiled.clone()));
+                            }
+                            answer
+                        }
+                        (Some(controller), None) => {
+                            let why = "this run plays a mission net, not a plan: only a plan \
+                                       is updated";
+                            let number = controller.refuse_update(&file, why);
+                            (false, format!("update {number} refused: {why}"))
+                        }
+                        (None, _) => (false, "this run has no mission".to_owned()),
+                    }
+                }
                 mission_request => match &mut controller {
                     Some(controller) => controller.handle(mission_request, &server),
                     None => (false, "this run has no mission".to_owned()),
@@ -585,6 +623,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             controller.outcome().map_or("not finished", Outcome::as_str),
             crate::summary::table(&legs, truth.as_ref())
         );
+        for line in crate::summary::update_lines(controller.updates()) {
+            summary.push_str(&line);
+            summary.push('\n');
+        }
         for line in truth.iter().flat_map(crate::summary::truth_lines) {
             summary.push_str(&line);
             summary.push('\n');

@@ -345,6 +345,7 @@ fn check_refusal(
     old: &Compiled,
     marking: &Marking,
     new_plan: &Plan,
+    new: &Compiled,
     refusal: &Refusal,
 ) -> Result<(), String> {
     let in_force = marking.keys().find_map(|place| match old.trace.get(place) {
@@ -371,7 +372,12 @@ fn check_refusal(
                 .then_some(())
                 .ok_or_else(|| "refused for the legs done, which match".to_owned())
         }
-        (Refusal::PlaceGone { place, .. }, Some(_)) => Ok(drop(place)),
+        (Refusal::PlaceGone { place, .. }, Some(_)) => new
+            .net
+            .place(place)
+            .is_none()
+            .then_some(())
+            .ok_or_else(|| format!("refused as `{place}` gone, which the update has")),
         (refusal, _) => Err(format!("unexpected refusal: {refusal}")),
     }
 }
@@ -472,7 +478,9 @@ fn migrations_of_random_plans_under_random_edits_keep_done_legs_done_seed_3901()
             }
             Err(refusal) => {
                 refused += 1;
-                if let Err(why) = check_refusal(&old_plan, &old, &marking, &new_plan, &refusal) {
+                if let Err(why) =
+                    check_refusal(&old_plan, &old, &marking, &new_plan, &new, &refusal)
+                {
                     panic!("{why}\n{}", context());
                 }
             }
