@@ -309,8 +309,9 @@ impl Controller {
         for place in self.engine.marking().into_keys() {
             self.first_marked.entry(place).or_insert(now);
         }
-        let number = self.note_update(file, true, message);
+        let (number, run_secs) = self.note_update(file, true, message);
         let mut entry = json!({
+            "run_secs": run_secs,
             "number": number,
             "file": file,
             "taken": true,
@@ -331,25 +332,34 @@ impl Controller {
     /// Records a plan update refused, with `why`; the mission goes on unchanged. Its number is
     /// returned.
     pub fn refuse_update(&mut self, file: &str, why: &str) -> u32 {
-        let number = self.note_update(file, false, why);
+        let (number, run_secs) = self.note_update(file, false, why);
         self.record(
             "update",
-            json!({ "number": number, "file": file, "taken": false, "message": why }),
+            json!({
+                "run_secs": run_secs,
+                "number": number,
+                "file": file,
+                "taken": false,
+                "message": why,
+            }),
         );
         tracing::warn!("plan update {number} ({file}) refused: {why}");
         number
     }
 
-    fn note_update(&mut self, file: &str, taken: bool, message: &str) -> u32 {
+    /// Numbers an update and keeps it for the status and the report; its number and run time
+    /// (the timeline's entry says the same time).
+    fn note_update(&mut self, file: &str, taken: bool, message: &str) -> (u32, f64) {
         let number = u32::try_from(self.updates.len() + 1).unwrap_or(u32::MAX);
+        let run_secs = self.clock.now_secs();
         self.updates.push(UpdateRecord {
             number,
-            run_secs: self.clock.now_secs(),
+            run_secs,
             file: file.to_owned(),
             taken,
             message: message.to_owned(),
         });
-        number
+        (number, run_secs)
     }
 
     /// When the loop must wake for a delay or a date, if ever.
