@@ -13,7 +13,7 @@
 //! * The refusal rules the run itself applies (beyond those of `armor_model::plan::migrate`,
 //!   unit tested there), through `armor_runtime::update::prepare` on files: a mission net
 //!   rather than a plan, another system, and a leg in force replaced with no way from where the
-//!   robot is.
+//!   robot is; and a run that plays a net, not a plan, refuses any update.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -579,4 +579,47 @@ fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_
         "{}",
         prepared.message
     );
+}
+
+#[test]
+fn a_run_that_plays_a_net_refuses_updates_and_numbers_them() {
+    let yard = Yard::new();
+    let dir = yard.dir.path();
+    std::fs::write(
+        dir.join("counting.xml"),
+        r#"<system name="counting">
+  <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
+</system>
+"#,
+    )
+    .unwrap();
+    let mission = dir.join("mission.xml");
+    std::fs::write(
+        &mission,
+        r#"<mission name="long" system="counting.xml">
+  <place name="counting" tokens="1"><module name="counter"/></place>
+  <place name="done" final="true"/>
+  <transition name="later" delay_secs="3600"><input place="counting"/><output place="done"/></transition>
+</mission>
+"#,
+    )
+    .unwrap();
+    let plan = yard.write("plan-yard.xml", &yard.plan_text);
+    let (mut run, addr) = armor_tests::run_with_control(&mission);
+    let (taken, said) = ctl(&addr, &["update", plan.to_str().unwrap()]);
+    assert!(!taken, "{said}");
+    assert!(
+        said.starts_with(
+            "update 1 refused: this run plays a mission net, not a plan: only a plan is updated"
+        ),
+        "{said}"
+    );
+    let status = armor_tests::ctl_status(&addr);
+    assert_eq!(status["mission"]["updates"][0]["number"], 1);
+    assert_eq!(status["mission"]["updates"][0]["taken"], false);
+    // The run goes on in its place.
+    assert_eq!(marked(&status), ["counting"]);
+    let (aborted, said) = ctl(&addr, &["abort"]);
+    assert!(aborted, "{said}");
+    run.wait_exit(RUN_DEADLINE);
 }

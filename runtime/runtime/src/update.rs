@@ -297,12 +297,6 @@ pub fn handle(
         let number = controller.refuse_update(file, &why);
         (false, format!("update {number} refused: {why}"))
     };
-    if let Some(outcome) = controller.outcome() {
-        return refuse(
-            controller,
-            format!("the mission has ended ({})", outcome.as_str()),
-        );
-    }
     let now = Now {
         robot_at: progress.as_ref().and_then(|progress| progress.robot_at()),
         unix_secs: context.start_unix_secs + context.run_secs,

@@ -600,3 +600,19 @@ fn the_leg_in_force_goes_on_unchanged_or_is_replaced_when_it_changed() {
         Err(Refusal::NotInALeg { .. })
     ));
 }
+
+#[test]
+fn a_marking_in_two_legs_is_ambiguous() {
+    let (plan, compiled) = yard(Point::new(50.0, 50.0), Vec::new());
+    let both: Marking = [
+        ("first_drive".to_owned(), 1),
+        ("second_drive".to_owned(), 1),
+    ]
+    .into();
+    let refusal = migrate(&plan, &compiled, &both, &plan, &compiled).expect_err("refused");
+    assert_eq!(
+        refusal.to_string(),
+        "the marking ({first_drive, second_drive}) is in several legs at once: which one is in \
+         force is ambiguous"
+    );
+}
