@@ -27,7 +27,7 @@ use armor_model::plan::{self, Plan};
 use armor_model::world::{Point, World};
 use armor_module_api::Datum as _;
 use armor_module_api::types::Pose2D;
-use armor_runtime::update::{Now, Running, prepare};
+use armor_runtime::update::{Now, Running, check, prepare};
 use armor_tests::mcap::read_mcap;
 use armor_tests::{
     Proc, bin, bin_dir, control_address, ctl, role_key, secret_file, wait_until, workspace_root,
@@ -508,7 +508,8 @@ fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_
         unix_secs: armor_model::net::parse_rfc3339("2026-11-23T08:01:40Z").unwrap(),
     };
     let refused = |file: &str, text: &str, marking: &Marking, now: Now| {
-        prepare(&running, file, text, &[bin_dir()], marking, now)
+        check(&running, file, text, &[bin_dir()])
+            .and_then(|checked| prepare(&running, checked, &[bin_dir()], marking, now))
             .map(|prepared| prepared.message)
             .expect_err("refused")
     };
@@ -559,15 +560,8 @@ fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_
         robot_at: Some(Point::new(17.0, 4.5)),
         ..now
     };
-    let prepared = prepare(
-        &running,
-        "boxed.xml",
-        &boxed,
-        &[bin_dir()],
-        &driving_cross,
-        elsewhere,
-    )
-    .unwrap();
+    let checked = check(&running, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
+    let prepared = prepare(&running, checked, &[bin_dir()], &driving_cross, elsewhere).unwrap();
     assert!(prepared.migration.changed);
     let path = &prepared.compiled.routes[prepared.migration.index];
     let start = path.first().copied().unwrap();

@@ -357,6 +357,8 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     let teleop = crate::teleop_relay::start(secret.clone());
     let mut ready: Vec<String> = Vec::new();
     let mut all_ready_logged = false;
+    // Plan updates asked for, taken one a turn of the loop (see `checked` below).
+    let mut queued_updates = std::collections::VecDeque::new();
     let outcome = loop {
         if stop.load(Ordering::Relaxed) {
             tracing::info!("stop requested");
@@ -471,36 +473,19 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     let _ = reply.send(run_files(&options.file, &system_file, &server));
                     continue;
                 }
-                armor_protocol::Request::Update { file, text } => {
-                    match (&mut controller, &mut running_plan) {
-                        (Some(controller), Some(running)) => {
-                            let answer = crate::update::handle(
-                                controller,
-                                running,
-                                progress.as_mut(),
-                                &file,
-                                &text,
-                                &crate::update::Context {
-                                    module_path: &options.module_path,
-                                    server: &server,
-                                    start_unix_secs,
-                                    run_secs: clock.now_secs(),
-                                },
-                            );
-                            if answer.0 {
-                                plan_legs = Some((running.plan.clone(), running.compiled.clone()));
-                            }
-                            answer
-                        }
-                        (Some(controller), None) => {
-                            let why = "this run plays a mission net, not a plan: only a plan \
-                                       is updated";
-                            let number = controller.refuse_update(&file, why);
-                            (false, format!("update {number} refused: {why}"))
-                        }
-                        (None, _) => (false, "this run has no mission".to_owned()),
+                armor_protocol::Request::Update { file, text } => match &mut controller {
+                    // Taken below, once the events before it are played: see `checked`.
+                    Some(_) if running_plan.is_some() => {
+                        queued_updates.push_back((file, text, reply));
+                        continue;
                     }
-                }
+                    Some(controller) => crate::update::refuse(
+                        controller,
+                        &file,
+                        "this run plays a mission net, not a plan: only a plan is updated",
+                    ),
+                    None => (false, "this run has no mission".to_owned()),
+                },
                 mission_request => match &mut controller {
                     Some(controller) => controller.handle(mission_request, &server),
                     None => (false, "this run has no mission".to_owned()),
@@ -517,58 +502,122 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 files: None,
             });
         }
+        // A plan update is checked and compiled first (the slow part); the module events that
+        // came meanwhile are then all played on the running net, and only then is the update
+        // migrated and swapped in: an event of the old leg (its `goal_reached`) is never taken
+        // for one of the new.
+        let mut checked = None;
+        if let Some((file, text, reply)) = queued_updates.pop_front()
+            && let (Some(controller), Some(running)) = (&mut controller, &running_plan)
+        {
+            match crate::update::check(running, &file, &text, &options.module_path) {
+                Ok(update) => checked = Some((update, reply)),
+                Err(why) => {
+                    let (ok, message) = crate::update::refuse(controller, &file, &why);
+                    let status = run_status(&modules, &server, Some(controller), &env, &clock);
+                    let _ = reply.send(armor_protocol::Reply {
+                        ok,
+                        message,
+                        status: Some(status),
+                        files: None,
+                    });
+                }
+            }
+        }
         let wake = controller.as_ref().and_then(Controller::next_wake);
-        let timeout = wake.map_or(TICK, |at| {
-            at.saturating_duration_since(Instant::now()).min(TICK)
-        });
-        match events.recv_timeout(timeout) {
-            Ok(ServerEvent::Connected { module, pid }) => {
-                tracing::debug!(module, pid, "module connected")
-            }
-            Ok(ServerEvent::Ready { module }) => {
-                if let Some(process) = modules.get_mut(&module) {
-                    process.configured = true;
+        let timeout = if checked.is_some() {
+            Duration::ZERO
+        } else {
+            wake.map_or(TICK, |at| {
+                at.saturating_duration_since(Instant::now()).min(TICK)
+            })
+        };
+        let mut next_event = events.recv_timeout(timeout);
+        loop {
+            match next_event {
+                Ok(ServerEvent::Connected { module, pid }) => {
+                    tracing::debug!(module, pid, "module connected")
                 }
-                if !ready.contains(&module) {
-                    ready.push(module);
+                Ok(ServerEvent::Ready { module }) => {
+                    if let Some(process) = modules.get_mut(&module) {
+                        process.configured = true;
+                    }
+                    if !ready.contains(&module) {
+                        ready.push(module);
+                    }
+                    if !all_ready_logged && modules.keys().all(|name| ready.contains(name)) {
+                        all_ready_logged = true;
+                        tracing::info!(
+                            elapsed_ms = (started.elapsed().as_secs_f64() * 1e4).round() / 10.0,
+                            "all {} modules configured",
+                            modules.len()
+                        );
+                    }
                 }
-                if !all_ready_logged && modules.keys().all(|name| ready.contains(name)) {
-                    all_ready_logged = true;
-                    tracing::info!(
-                        elapsed_ms = (started.elapsed().as_secs_f64() * 1e4).round() / 10.0,
-                        "all {} modules configured",
-                        modules.len()
-                    );
+                Ok(ServerEvent::Event { module, name }) => {
+                    tracing::info!("event {module}.{name}");
+                    if let Some(progress) = &mut progress {
+                        progress.on_event(&format!("{module}.{name}"));
+                    }
+                    if let Some(controller) = &mut controller {
+                        controller.on_event(&format!("{module}.{name}"), &server);
+                    }
                 }
-            }
-            Ok(ServerEvent::Event { module, name }) => {
-                tracing::info!("event {module}.{name}");
-                if let Some(progress) = &mut progress {
-                    progress.on_event(&format!("{module}.{name}"));
+                Ok(ServerEvent::Disconnected { module }) => {
+                    tracing::debug!(module, "module disconnected")
                 }
-                if let Some(controller) = &mut controller {
-                    controller.on_event(&format!("{module}.{name}"), &server);
-                }
-            }
-            Ok(ServerEvent::Disconnected { module }) => {
-                tracing::debug!(module, "module disconnected")
-            }
-            Ok(ServerEvent::Unresponsive { module, silent_for }) => {
-                if let Some(process) = modules.get_mut(&module) {
-                    tracing::error!(
-                        "module `{module}` has not answered for {:.1} s (stopped or stuck): \
+                Ok(ServerEvent::Unresponsive { module, silent_for }) => {
+                    if let Some(process) = modules.get_mut(&module) {
+                        tracing::error!(
+                            "module `{module}` has not answered for {:.1} s (stopped or stuck): \
                          killing it",
-                        silent_for.as_secs_f64()
-                    );
-                    process.kill();
+                            silent_for.as_secs_f64()
+                        );
+                        process.kill();
+                    }
                 }
+                Ok(ServerEvent::Reloaded(loaded)) => {
+                    agent.set_acl(Acl::of(&loaded.system, &observers));
+                    apply_reload(&mut modules, &loaded, &env, &server);
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
             }
-            Ok(ServerEvent::Reloaded(loaded)) => {
-                agent.set_acl(Acl::of(&loaded.system, &observers));
-                apply_reload(&mut modules, &loaded, &env, &server);
+            if checked.is_none() {
+                break;
             }
-            Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
+            next_event = match events.try_recv() {
+                Ok(event) => Ok(event),
+                Err(mpsc::TryRecvError::Empty) => break,
+                Err(mpsc::TryRecvError::Disconnected) => Err(RecvTimeoutError::Disconnected),
+            };
+        }
+        if let Some((update, reply)) = checked
+            && let (Some(controller), Some(running)) = (&mut controller, &mut running_plan)
+        {
+            let (ok, message) = crate::update::take(
+                controller,
+                running,
+                progress.as_mut(),
+                update,
+                &crate::update::Context {
+                    module_path: &options.module_path,
+                    server: &server,
+                    start_unix_secs,
+                    run_secs: clock.now_secs(),
+                },
+            );
+            if ok {
+                plan_legs = Some((running.plan.clone(), running.compiled.clone()));
+            }
+            controller.note_demand(&server);
+            let status = run_status(&modules, &server, Some(controller), &env, &clock);
+            let _ = reply.send(armor_protocol::Reply {
+                ok,
+                message,
+                status: Some(status),
+                files: None,
+            });
         }
         crate::host_run::take_notes(&env.hosts, &server);
         for module in modules.values_mut() {

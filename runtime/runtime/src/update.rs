@@ -20,7 +20,7 @@ use serde_json::json;
 
 use crate::config_server::ConfigServer;
 use crate::controller::Controller;
-use crate::mission::{load_mission_text, plan_world};
+use crate::mission::{LoadedMission, load_mission_text, plan_world};
 use crate::progress::{self, Progress};
 
 /// The plan a run plays, as it stands after the updates taken so far.
@@ -57,20 +57,29 @@ pub struct Now {
     pub unix_secs: f64,
 }
 
-/// Checks, compiles and migrates `text` (named `file` by the operator) against the `running`
-/// plan in `marking`; the error is why the update is refused, in words.
-pub fn prepare(
+/// An update checked and compiled: what does not depend on where the mission stands.
+#[derive(Debug)]
+pub struct Checked {
+    /// The file the operator sent, as named.
+    pub file: String,
+    pub loaded: LoadedMission,
+    plan: Plan,
+    compiled: Compiled,
+}
+
+/// Checks and compiles `text` (named `file` by the operator) as an update of the `running`
+/// plan: the slow part of an update, which the run does before it looks at the mission's
+/// marking. The error is why the update is refused, in words.
+pub fn check(
     running: &Running,
     file: &str,
     text: &str,
     module_path: &[PathBuf],
-    marking: &Marking,
-    now: Now,
-) -> Result<Prepared, String> {
+) -> Result<Checked, String> {
     let base = running.file.parent().unwrap_or_else(|| Path::new("."));
     let loaded = load_mission_text(Path::new(file), text, base, module_path)
         .map_err(|diagnostics| format!("the update does not check: {diagnostics}"))?;
-    let (Some(plan), Some(mut compiled)) = (loaded.plan.clone(), loaded.compiled.clone()) else {
+    let (Some(plan), Some(compiled)) = (loaded.plan.clone(), loaded.compiled.clone()) else {
         return Err(
             "the update is a mission net, not a plan: a running plan is updated with a plan"
                 .to_owned(),
@@ -84,6 +93,30 @@ pub fn prepare(
             running.system_file.display()
         ));
     }
+    Ok(Checked {
+        file: file.to_owned(),
+        loaded,
+        plan,
+        compiled,
+    })
+}
+
+/// Migrates a `checked` update of the `running` plan from `marking`, the leg in force that
+/// changed planned again from where the robot is; the error is why the update is refused.
+pub fn prepare(
+    running: &Running,
+    checked: Checked,
+    module_path: &[PathBuf],
+    marking: &Marking,
+    now: Now,
+) -> Result<Prepared, String> {
+    let Checked {
+        loaded,
+        plan,
+        mut compiled,
+        ..
+    } = checked;
+    let base = running.file.parent().unwrap_or_else(|| Path::new("."));
     let migration = migrate::migrate(&running.plan, &running.compiled, marking, &plan, &compiled)
         .map_err(|refusal| refusal.to_string())?;
     let leg = &plan.legs[migration.index];
@@ -281,36 +314,33 @@ pub struct Context<'a> {
     pub run_secs: f64,
 }
 
-/// Answers `armor ctl update`: takes the update (the controller swaps the nets, the progress
-/// line and the rehearsal's judge follow the new legs and areas, `running` becomes the new
-/// plan) or refuses it; either way it is numbered and recorded. Returns whether it was taken
-/// and what to tell the operator.
-pub fn handle(
+/// Takes a `checked` update (the controller swaps the nets, the progress line and the
+/// rehearsal's judge follow the new legs and areas, `running` becomes the new plan) or refuses
+/// it; either way it is numbered and recorded. The supervisor calls it once the module events
+/// that came before it have been played on the running net, so that an event of the old leg
+/// is never taken for one of the new. Returns whether it was taken and what to tell the
+/// operator.
+pub fn take(
     controller: &mut Controller,
     running: &mut Running,
     progress: Option<&mut Progress>,
-    file: &str,
-    text: &str,
+    checked: Checked,
     context: &Context<'_>,
 ) -> (bool, String) {
-    let refuse = |controller: &mut Controller, why: String| {
-        let number = controller.refuse_update(file, &why);
-        (false, format!("update {number} refused: {why}"))
-    };
+    let file = checked.file.clone();
     let now = Now {
         robot_at: progress.as_ref().and_then(|progress| progress.robot_at()),
         unix_secs: context.start_unix_secs + context.run_secs,
     };
     let prepared = match prepare(
         running,
-        file,
-        text,
+        checked,
         context.module_path,
         &controller.marking(),
         now,
     ) {
         Ok(prepared) => prepared,
-        Err(why) => return refuse(controller, why),
+        Err(why) => return refuse(controller, &file, &why),
     };
     let Prepared {
         plan,
@@ -327,7 +357,7 @@ pub fn handle(
         "replaced": migration.changed,
     });
     let taken = crate::controller::Update {
-        file,
+        file: &file,
         message: &message,
         details,
     };
@@ -349,6 +379,12 @@ pub fn handle(
             running.compiled = compiled;
             (true, format!("update {number} taken: {message}"))
         }
-        Err(why) => refuse(controller, why),
+        Err(why) => refuse(controller, &file, &why),
     }
+}
+
+/// Records an update refused (numbered) and says so.
+pub fn refuse(controller: &mut Controller, file: &str, why: &str) -> (bool, String) {
+    let number = controller.refuse_update(file, why);
+    (false, format!("update {number} refused: {why}"))
 }
