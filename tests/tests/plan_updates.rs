@@ -21,14 +21,12 @@ use std::process::Command;
 use std::sync::{Mutex, PoisonError};
 use std::time::Duration;
 
-use armor_model::geo::{LatLon, Polygon};
+use armor_model::geo::LatLon;
 use armor_model::net::Marking;
 use armor_model::plan::{self, Plan};
 use armor_model::world::{Point, World};
-use armor_module_api::Datum as _;
-use armor_module_api::types::Pose2D;
 use armor_runtime::update::{Now, Running, check, prepare};
-use armor_tests::mcap::read_mcap;
+use armor_tests::truth::{footprint_gap_m, recorded_truth};
 use armor_tests::{
     Proc, bin, bin_dir, control_address, ctl, role_key, secret_file, wait_until, workspace_root,
 };
@@ -174,36 +172,6 @@ fn update(addr: &str, secret: &Path, file: &Path) -> (bool, String) {
             file.to_str().unwrap(),
         ],
     )
-}
-
-/// The true poses the recorder wrote in `file`, in time order: (run seconds, position).
-fn recorded_truth(file: &Path) -> Vec<(f64, Point)> {
-    let mut truth: Vec<(f64, Point)> = read_mcap(file)
-        .into_iter()
-        .filter(|((topic, _), _)| topic == "sim.pose_truth")
-        .flat_map(|((_, encoding), messages)| {
-            messages.into_iter().map(move |(log_time, data)| {
-                let pose = match encoding.as_str() {
-                    "json" => serde_json::from_slice::<Pose2D>(&data).unwrap(),
-                    _ => Pose2D::decode(&data).unwrap(),
-                };
-                (log_time as f64 / 1e9, Point::new(pose.x_m, pose.y_m))
-            })
-        })
-        .collect();
-    truth.sort_by(|a, b| a.0.total_cmp(&b.0));
-    assert!(truth.len() > 1000, "{} true poses", truth.len());
-    truth
-}
-
-/// Least distance between a disc of `radius_m` round `at` and `area`, negative inside.
-fn footprint_gap_m(area: &Polygon, at: Point, radius_m: f64) -> f64 {
-    let outline = area
-        .edges()
-        .map(|(a, b)| armor_model::geo::segment_distance(at, a, b))
-        .fold(f64::INFINITY, f64::min);
-    let centre = if area.contains(at) { -outline } else { outline };
-    centre - radius_m
 }
 
 /// The run time the transition `name` fired at, by the report's timeline.
@@ -393,18 +361,7 @@ fn the_yard_run_takes_three_updates_while_driving_and_refuses_the_wrong_ones() {
         .filter(|entry| entry["kind"] == "fired")
         .map(|entry| entry["transition"].as_str().unwrap())
         .collect();
-    assert_eq!(
-        fired,
-        [
-            "advance_arrived",
-            "advance_arrival_done",
-            "cross_appointment",
-            "cross_arrived",
-            "cross_waited",
-            "climb_arrived",
-            "regroup_arrived"
-        ]
-    );
+    assert_eq!(fired, armor_tests::mission::YARD_FIRINGS);
     // The gate was left at the new appointment, 110 s after the start, not at the old one.
     assert!(fired_at(&report, "cross_appointment") >= 110.0);
     // The report lists the updates with their times, in the timeline too.
@@ -578,26 +535,9 @@ fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_
 #[test]
 fn a_run_that_plays_a_net_refuses_updates_and_numbers_them() {
     let yard = Yard::new();
-    let dir = yard.dir.path();
-    std::fs::write(
-        dir.join("counting.xml"),
-        r#"<system name="counting">
-  <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
-</system>
-"#,
-    )
-    .unwrap();
-    let mission = dir.join("mission.xml");
-    std::fs::write(
-        &mission,
-        r#"<mission name="long" system="counting.xml">
-  <place name="counting" tokens="1"><module name="counter"/></place>
-  <place name="done" final="true"/>
-  <transition name="later" delay_secs="3600"><input place="counting"/><output place="done"/></transition>
-</mission>
-"#,
-    )
-    .unwrap();
+    // The net's folder is its own: the yard's plan sent is over another system file.
+    let net_dir = tempfile::tempdir().unwrap();
+    let mission = armor_tests::waiting_mission(net_dir.path());
     let plan = yard.write("plan-yard.xml", &yard.plan_text);
     let (mut run, addr) = armor_tests::run_with_control(&mission);
     let (taken, said) = ctl(&addr, &["update", plan.to_str().unwrap()]);

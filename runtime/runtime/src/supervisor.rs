@@ -494,13 +494,12 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             if let Some(controller) = &mut controller {
                 controller.note_demand(&server);
             }
-            let status = run_status(&modules, &server, controller.as_ref(), &env, &clock);
-            let _ = reply.send(armor_protocol::Reply {
+            answer(
+                &reply,
                 ok,
                 message,
-                status: Some(status),
-                files: None,
-            });
+                run_status(&modules, &server, controller.as_ref(), &env, &clock),
+            );
         }
         // A plan update is checked and compiled first (the slow part); the module events that
         // came meanwhile are then all played on the running net, and only then is the update
@@ -514,13 +513,12 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 Ok(update) => checked = Some((update, reply)),
                 Err(why) => {
                     let (ok, message) = crate::update::refuse(controller, &file, &why);
-                    let status = run_status(&modules, &server, Some(controller), &env, &clock);
-                    let _ = reply.send(armor_protocol::Reply {
+                    answer(
+                        &reply,
                         ok,
                         message,
-                        status: Some(status),
-                        files: None,
-                    });
+                        run_status(&modules, &server, Some(controller), &env, &clock),
+                    );
                 }
             }
         }
@@ -611,13 +609,12 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 plan_legs = Some((running.plan.clone(), running.compiled.clone()));
             }
             controller.note_demand(&server);
-            let status = run_status(&modules, &server, Some(controller), &env, &clock);
-            let _ = reply.send(armor_protocol::Reply {
+            answer(
+                &reply,
                 ok,
                 message,
-                status: Some(status),
-                files: None,
-            });
+                run_status(&modules, &server, Some(controller), &env, &clock),
+            );
         }
         crate::host_run::take_notes(&env.hosts, &server);
         for module in modules.values_mut() {
@@ -715,6 +712,21 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         console::close_log();
     }
     Ok(outcome)
+}
+
+/// Answers a client's request with the run's status (a client gone is nothing to answer).
+fn answer(
+    reply: &mpsc::Sender<armor_protocol::Reply>,
+    ok: bool,
+    message: String,
+    status: armor_protocol::Status,
+) {
+    let _ = reply.send(armor_protocol::Reply {
+        ok,
+        message,
+        status: Some(status),
+        files: None,
+    });
 }
 
 /// Puts on the health stream what supervising `module` changed since it was `before`: a

@@ -210,20 +210,16 @@ fn gone_why(leg: &str, place: &str) -> String {
 
 /// Whether two places run the same modules with the same parameters.
 fn same_work(a: &Place, b: &Place) -> bool {
-    let modules = |place: &Place| place.modules.iter().cloned().collect::<BTreeSet<_>>();
-    let params = |place: &Place| {
+    fn modules(place: &Place) -> BTreeSet<&String> {
+        place.modules.iter().collect()
+    }
+    fn params(place: &Place) -> BTreeSet<(&String, &String, &String)> {
         place
             .params
             .iter()
-            .map(|param| {
-                (
-                    param.module.clone(),
-                    param.name.clone(),
-                    param.value.clone(),
-                )
-            })
-            .collect::<BTreeSet<_>>()
-    };
+            .map(|param| (&param.module, &param.name, &param.value))
+            .collect()
+    }
     modules(a) == modules(b) && params(a) == params(b)
 }
 

@@ -255,6 +255,14 @@ fn reachable(engine: &Engine) -> Vec<(Marking, Vec<String>)> {
     found
 }
 
+/// The first marked place that comes from a leg, and that leg's index.
+fn in_force(old: &Compiled, marking: &Marking) -> Option<(String, usize)> {
+    marking.keys().find_map(|place| match old.trace.get(place) {
+        Some(Origin::Leg(index)) => Some((place.clone(), *index)),
+        _ => None,
+    })
+}
+
 /// What any migration must give, judged from the plans and the nets alone: the legs done are
 /// the new plan's first legs by name, the marking is in the first undone leg of the new plan
 /// (the one in force), no transition of a leg done is enabled in any marking reachable from
@@ -267,13 +275,7 @@ fn check(
     new: &Compiled,
     migration: &Migration,
 ) -> Result<(), String> {
-    let in_force = marking
-        .keys()
-        .find_map(|place| match old.trace.get(place) {
-            Some(Origin::Leg(index)) => Some(*index),
-            _ => None,
-        })
-        .ok_or("the old marking is in no leg")?;
+    let (_, in_force) = in_force(old, marking).ok_or("the old marking is in no leg")?;
     let done_before: Vec<&str> = old_plan.legs[..in_force]
         .iter()
         .map(|leg| leg.name.as_str())
@@ -348,11 +350,7 @@ fn check_refusal(
     new: &Compiled,
     refusal: &Refusal,
 ) -> Result<(), String> {
-    let in_force = marking.keys().find_map(|place| match old.trace.get(place) {
-        Some(Origin::Leg(index)) => Some(*index),
-        _ => None,
-    });
-    match (refusal, in_force) {
+    match (refusal, in_force(old, marking).map(|(_, index)| index)) {
         (Refusal::NotInALeg { .. }, None) => Ok(()),
         (Refusal::LegInForceRemoved { leg, .. }, Some(index)) => {
             (old_plan.legs[index].name == *leg && !new_plan.legs.iter().any(|new| new.name == *leg))
@@ -391,12 +389,7 @@ fn by_position(
     new_plan: &Plan,
     new: &Compiled,
 ) -> Option<Migration> {
-    let (place, index) = marking
-        .keys()
-        .find_map(|place| match old.trace.get(place) {
-            Some(Origin::Leg(index)) => Some((place.clone(), *index)),
-            _ => None,
-        })?;
+    let (place, index) = in_force(old, marking)?;
     let leg = new_plan.legs.get(index)?;
     let old_leg = &old_plan.legs[index];
     let after = place.replacen(&old_leg.name, &leg.name, 1);
@@ -423,12 +416,7 @@ fn from_the_start(
     _new_plan: &Plan,
     new: &Compiled,
 ) -> Option<Migration> {
-    let (place, index) = marking
-        .keys()
-        .find_map(|place| match old.trace.get(place) {
-            Some(Origin::Leg(index)) => Some((place.clone(), *index)),
-            _ => None,
-        })?;
+    let (place, index) = in_force(old, marking)?;
     Some(Migration {
         marking: new.net.initial_marking(),
         done: old_plan.legs[..index]
