@@ -520,9 +520,17 @@ fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_
     let checked = check(&running, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
     let prepared = prepare(&running, checked, &[bin_dir()], &driving_cross, elsewhere).unwrap();
     assert!(prepared.migration.changed);
-    let path = &prepared.compiled.routes[prepared.migration.index];
-    let start = path.first().copied().unwrap();
-    assert!(start.distance(Point::new(17.0, 4.5)) < 0.05, "{start:?}");
+    let path = prepared
+        .net
+        .place("cross_drive")
+        .unwrap()
+        .params
+        .iter()
+        .find(|param| param.module == "follower" && param.name == "path")
+        .map(|param| param.value.clone())
+        .unwrap();
+    let start = armor_model::planner::Path::parse(&path).unwrap().points[0];
+    assert!(start.distance(Point::new(17.0, 4.5)) < 0.05, "{path}");
     assert!(
         prepared
             .message

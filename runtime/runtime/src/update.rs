@@ -39,7 +39,8 @@ pub struct Running {
 pub struct Prepared {
     pub plan: Plan,
     /// The new plan compiled, with the path of a leg in force that changed planned again from
-    /// where the robot is.
+    /// where the robot is in its places (its route, which the summary's table measures, is
+    /// the one from the leg's start).
     pub compiled: Compiled,
     /// The net to play: the compiled one, with its places naming subsystems expanded.
     pub net: MissionNet,
@@ -61,8 +62,8 @@ pub struct Now {
 #[derive(Debug)]
 pub struct Checked {
     /// The file the operator sent, as named.
-    pub file: String,
-    pub loaded: LoadedMission,
+    file: String,
+    loaded: LoadedMission,
     plan: Plan,
     compiled: Compiled,
 }
@@ -179,9 +180,6 @@ pub fn prepare(
                     geo::round_mm((geo::path_length(&path.points) * 10.0).round() / 10.0),
                     leg.to
                 ));
-                if let Some(route) = compiled.routes.get_mut(migration.index) {
-                    *route = path.points;
-                }
             }
             None => how.push_str(
                 ", from its start (where the robot is is not known: no odometry is followed)",

@@ -743,6 +743,43 @@ mod tests {
     }
 
     #[test]
+    fn a_resumed_engine_keeps_the_timers_of_the_transitions_both_nets_have() {
+        let before_net = net(&[
+            "<place name=\"wait\" tokens=\"1\"/><place name=\"done\" final=\"true\"/>",
+            "<transition name=\"waited\" delay_secs=\"10\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+            "<transition name=\"seen\" event=\"eye.seen\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+        ]);
+        let mut before = Engine::start_at(&before_net, 2.0).with_date_origin(100.0);
+        assert_eq!(before.report_event("eye.seen", 4.0), ["seen"]);
+        // The update waits longer, sees the same event, and adds a way out by a date.
+        let after_net = net(&[
+            "<place name=\"wait\"/><place name=\"done\" final=\"true\"/>",
+            "<transition name=\"waited\" delay_secs=\"20\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+            "<transition name=\"seen\" event=\"eye.seen\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+            "<transition name=\"dated\" at=\"1970-01-01T00:02:30Z\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+        ]);
+        let marking: Marking = [("wait".to_owned(), 1)].into();
+        let resumed = Engine::resume(&after_net, &marking, &before, false, 5.0).unwrap();
+        // The delay counts from 2 s, when `waited` became enabled, with its new length; the
+        // event latched before is dropped; the date is the date (150 s, 50 s of run time).
+        assert_eq!(resumed.enabled_since("waited"), Some(2.0));
+        assert!(!resumed.event_latched("seen"));
+        assert_eq!(resumed.enabled_since("dated"), Some(5.0));
+        assert_eq!(resumed.date_origin(), 100.0);
+        assert_eq!(resumed.next_deadline(), Some(22.0));
+        let mut kept = Engine::resume(&after_net, &marking, &before, true, 5.0).unwrap();
+        assert!(kept.event_latched("seen"));
+        assert_eq!(fired(&kept.step(5.0)), ["seen@5"]);
+        // A marking in a place the new net does not have is refused.
+        let gone: Marking = [("elsewhere".to_owned(), 1)].into();
+        let err = Engine::resume(&after_net, &gone, &before, false, 5.0).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "no place `elsewhere` in this mission (places: wait, done)"
+        );
+    }
+
+    #[test]
     fn delays_count_from_when_the_transition_became_enabled() {
         let mut engine = Engine::new(&net(&[
             "<place name=\"a\" tokens=\"1\"/><place name=\"b\"/><place name=\"done\"/>",
