@@ -359,6 +359,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     let mut all_ready_logged = false;
     // Plan updates asked for, taken one a turn of the loop (see `checked` below).
     let mut queued_updates = std::collections::VecDeque::new();
+    let mut checked = None;
     let outcome = loop {
         if stop.load(Ordering::Relaxed) {
             tracing::info!("stop requested");
@@ -502,11 +503,11 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             );
         }
         // A plan update is checked and compiled first (the slow part); the module events that
-        // came meanwhile are then all played on the running net, and only then is the update
-        // migrated and swapped in: an event of the old leg (its `goal_reached`) is never taken
-        // for one of the new.
-        let mut checked = None;
-        if let Some((file, text, reply)) = queued_updates.pop_front()
+        // came meanwhile are then played on the running net, one a turn as always, and only
+        // once none is left is the update migrated and swapped in: an event of the old leg (its
+        // `goal_reached`) is never taken for one of the new.
+        if checked.is_none()
+            && let Some((file, text, reply)) = queued_updates.pop_front()
             && let (Some(controller), Some(running)) = (&mut controller, &running_plan)
         {
             match crate::update::check(running, &file, &text, &options.module_path) {
@@ -530,67 +531,59 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 at.saturating_duration_since(Instant::now()).min(TICK)
             })
         };
-        let mut next_event = events.recv_timeout(timeout);
-        loop {
-            match next_event {
-                Ok(ServerEvent::Connected { module, pid }) => {
-                    tracing::debug!(module, pid, "module connected")
+        let event = events.recv_timeout(timeout);
+        let no_event_left = matches!(event, Err(RecvTimeoutError::Timeout));
+        match event {
+            Ok(ServerEvent::Connected { module, pid }) => {
+                tracing::debug!(module, pid, "module connected")
+            }
+            Ok(ServerEvent::Ready { module }) => {
+                if let Some(process) = modules.get_mut(&module) {
+                    process.configured = true;
                 }
-                Ok(ServerEvent::Ready { module }) => {
-                    if let Some(process) = modules.get_mut(&module) {
-                        process.configured = true;
-                    }
-                    if !ready.contains(&module) {
-                        ready.push(module);
-                    }
-                    if !all_ready_logged && modules.keys().all(|name| ready.contains(name)) {
-                        all_ready_logged = true;
-                        tracing::info!(
-                            elapsed_ms = (started.elapsed().as_secs_f64() * 1e4).round() / 10.0,
-                            "all {} modules configured",
-                            modules.len()
-                        );
-                    }
+                if !ready.contains(&module) {
+                    ready.push(module);
                 }
-                Ok(ServerEvent::Event { module, name }) => {
-                    tracing::info!("event {module}.{name}");
-                    if let Some(progress) = &mut progress {
-                        progress.on_event(&format!("{module}.{name}"));
-                    }
-                    if let Some(controller) = &mut controller {
-                        controller.on_event(&format!("{module}.{name}"), &server);
-                    }
+                if !all_ready_logged && modules.keys().all(|name| ready.contains(name)) {
+                    all_ready_logged = true;
+                    tracing::info!(
+                        elapsed_ms = (started.elapsed().as_secs_f64() * 1e4).round() / 10.0,
+                        "all {} modules configured",
+                        modules.len()
+                    );
                 }
-                Ok(ServerEvent::Disconnected { module }) => {
-                    tracing::debug!(module, "module disconnected")
+            }
+            Ok(ServerEvent::Event { module, name }) => {
+                tracing::info!("event {module}.{name}");
+                if let Some(progress) = &mut progress {
+                    progress.on_event(&format!("{module}.{name}"));
                 }
-                Ok(ServerEvent::Unresponsive { module, silent_for }) => {
-                    if let Some(process) = modules.get_mut(&module) {
-                        tracing::error!(
-                            "module `{module}` has not answered for {:.1} s (stopped or stuck): \
+                if let Some(controller) = &mut controller {
+                    controller.on_event(&format!("{module}.{name}"), &server);
+                }
+            }
+            Ok(ServerEvent::Disconnected { module }) => {
+                tracing::debug!(module, "module disconnected")
+            }
+            Ok(ServerEvent::Unresponsive { module, silent_for }) => {
+                if let Some(process) = modules.get_mut(&module) {
+                    tracing::error!(
+                        "module `{module}` has not answered for {:.1} s (stopped or stuck): \
                          killing it",
-                            silent_for.as_secs_f64()
-                        );
-                        process.kill();
-                    }
+                        silent_for.as_secs_f64()
+                    );
+                    process.kill();
                 }
-                Ok(ServerEvent::Reloaded(loaded)) => {
-                    agent.set_acl(Acl::of(&loaded.system, &observers));
-                    apply_reload(&mut modules, &loaded, &env, &server);
-                }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
             }
-            if checked.is_none() {
-                break;
+            Ok(ServerEvent::Reloaded(loaded)) => {
+                agent.set_acl(Acl::of(&loaded.system, &observers));
+                apply_reload(&mut modules, &loaded, &env, &server);
             }
-            next_event = match events.try_recv() {
-                Ok(event) => Ok(event),
-                Err(mpsc::TryRecvError::Empty) => break,
-                Err(mpsc::TryRecvError::Disconnected) => Err(RecvTimeoutError::Disconnected),
-            };
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
         }
-        if let Some((update, reply)) = checked
+        if no_event_left
+            && let Some((update, reply)) = checked.take()
             && let (Some(controller), Some(running)) = (&mut controller, &mut running_plan)
         {
             let (ok, message) = crate::update::take(
