@@ -13,7 +13,8 @@
 //! * The refusal rules the run itself applies (beyond those of `armor_model::plan::migrate`,
 //!   unit tested there), through `armor_runtime::update::prepare` on files: a mission net
 //!   rather than a plan, another system, and a leg in force replaced with no way from where the
-//!   robot is; and a run that plays a net, not a plan, refuses any update.
+//!   robot is; a leg replaced gets its path from where the robot is, and keeps it through an
+//!   update that leaves it unchanged. A run that plays a net, not a plan, refuses any update.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -456,7 +457,7 @@ fn running(yard: &Yard) -> (Running, PathBuf) {
 }
 
 #[test]
-fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_robot() {
+fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot() {
     let yard = Yard::new();
     let (running, _) = running(&yard);
     let driving_cross: Marking = [("cross_drive".to_owned(), 1)].into();
@@ -466,7 +467,15 @@ fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_
     };
     let refused = |file: &str, text: &str, marking: &Marking, now: Now| {
         check(&running, file, text, &[bin_dir()])
-            .and_then(|checked| prepare(&running, checked, &[bin_dir()], marking, now))
+            .and_then(|checked| {
+                prepare(
+                    &running,
+                    checked,
+                    &[bin_dir()],
+                    (&running.compiled.net, marking),
+                    now,
+                )
+            })
             .map(|prepared| prepared.message)
             .expect_err("refused")
     };
@@ -518,17 +527,18 @@ fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_
         ..now
     };
     let checked = check(&running, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
-    let prepared = prepare(&running, checked, &[bin_dir()], &driving_cross, elsewhere).unwrap();
+    let prepared = prepare(
+        &running,
+        checked,
+        &[bin_dir()],
+        (&running.compiled.net, &driving_cross),
+        elsewhere,
+    )
+    .unwrap();
     assert!(prepared.migration.changed);
-    let path = prepared
-        .net
-        .place("cross_drive")
-        .unwrap()
-        .params
-        .iter()
-        .find(|param| param.module == "follower" && param.name == "path")
-        .map(|param| param.value.clone())
-        .unwrap();
+    let path =
+        armor_model::plan::migrate::param_of(&prepared.net, "cross_drive", ("follower", "path"))
+            .unwrap();
     let start = armor_model::planner::Path::parse(&path).unwrap().points[0];
     assert!(start.distance(Point::new(17.0, 4.5)) < 0.05, "{path}");
     assert!(
@@ -537,6 +547,41 @@ fn the_run_refuses_a_net_another_system_and_a_leg_in_force_with_no_way_from_the_
             .contains("its path planned again from where the robot is, (17, 4.5)"),
         "{}",
         prepared.message
+    );
+    // Taken, then the same plan sent again: the leg goes on unchanged, on the path the run gave
+    // it from where the robot was, not back on the plan's from `gate`.
+    let taken = Running {
+        plan: prepared.plan.clone(),
+        compiled: prepared.compiled.clone(),
+        ..running.clone()
+    };
+    let checked = check(&taken, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
+    let again = prepare(
+        &taken,
+        checked,
+        &[bin_dir()],
+        (&prepared.net, &driving_cross),
+        Now {
+            robot_at: Some(Point::new(19.0, 3.0)),
+            ..now
+        },
+    )
+    .unwrap();
+    assert!(!again.migration.changed);
+    assert!(
+        again
+            .message
+            .starts_with("leg `cross` in force goes on unchanged in `cross_drive`"),
+        "{}",
+        again.message
+    );
+    let follower_path = |net: &armor_model::net::MissionNet| {
+        armor_model::plan::migrate::param_of(net, "cross_drive", ("follower", "path"))
+    };
+    assert_eq!(follower_path(&again.net), Some(path));
+    assert_ne!(
+        follower_path(&again.net),
+        follower_path(&again.compiled.net)
     );
 }
 

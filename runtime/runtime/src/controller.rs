@@ -270,6 +270,11 @@ impl Controller {
         self.outcome.as_ref()
     }
 
+    /// The net played (a plan update's once taken).
+    pub fn net(&self) -> &MissionNet {
+        &self.net
+    }
+
     /// The places that hold tokens now.
     pub fn marking(&self) -> Marking {
         self.engine.marking()

@@ -38,11 +38,12 @@ pub struct Running {
 #[derive(Debug)]
 pub struct Prepared {
     pub plan: Plan,
-    /// The new plan compiled, with the path of a leg in force that changed planned again from
-    /// where the robot is in its places (its route, which the summary's table measures, is
-    /// the one from the leg's start).
+    /// The new plan compiled, as it is: what the next update is compared with, and whose
+    /// routes the summary's table measures.
     pub compiled: Compiled,
-    /// The net to play: the compiled one, with its places naming subsystems expanded.
+    /// The net to play: the compiled one, its places naming subsystems expanded, and the leg
+    /// in force driven on the path planned from where the robot is (replaced) or on the one
+    /// the run gave it (unchanged).
     pub net: MissionNet,
     pub migration: Migration,
     /// What the update does, in one sentence.
@@ -108,15 +109,17 @@ pub fn prepare(
     running: &Running,
     checked: Checked,
     module_path: &[PathBuf],
-    marking: &Marking,
+    mission: (&MissionNet, &Marking),
     now: Now,
 ) -> Result<Prepared, String> {
     let Checked {
         loaded,
         plan,
-        mut compiled,
+        compiled,
         ..
     } = checked;
+    let (played, marking) = mission;
+    let mut net = compiled.net.with_subsystems_expanded(&loaded.system.system);
     let base = running.file.parent().unwrap_or_else(|| Path::new("."));
     let migration = migrate::migrate(&running.plan, &running.compiled, marking, &plan, &compiled)
         .map_err(|refusal| refusal.to_string())?;
@@ -136,6 +139,18 @@ pub fn prepare(
     } else {
         format!("goes on unchanged in `{}`", migration.place_after)
     };
+    let path_param = (navigation.as_str(), "path");
+    if !migration.changed {
+        // The leg goes on as the run plays it: with the path an earlier update planned from
+        // where the robot was, if one did, not the plan's from the leg's start.
+        migrate::set_leg_param(
+            &mut net,
+            &compiled.trace,
+            migration.index,
+            path_param,
+            |place| migrate::param_of(played, place, path_param),
+        );
+    }
     if migration.changed && drives {
         match now.robot_at {
             Some(here) => {
@@ -166,12 +181,13 @@ pub fn prepare(
                     }
                     None => return Err("the planner planned nothing".to_owned()),
                 };
+                let value = path.format();
                 migrate::set_leg_param(
-                    &mut compiled,
+                    &mut net,
+                    &compiled.trace,
                     migration.index,
-                    &navigation,
-                    "path",
-                    &path.format(),
+                    path_param,
+                    |_| Some(value.clone()),
                 );
                 how.push_str(&format!(
                     ", its path planned again from where the robot is, ({}, {}): {} m to `{}`",
@@ -208,7 +224,6 @@ pub fn prepare(
     parts.extend(listed("no-go areas added", &added));
     parts.extend(listed("no-go areas removed", &removed));
     parts.extend(times(&plan, &migration, now.unix_secs));
-    let net = compiled.net.with_subsystems_expanded(&loaded.system.system);
     Ok(Prepared {
         plan,
         compiled,
@@ -334,7 +349,7 @@ pub fn take(
         running,
         checked,
         context.module_path,
-        &controller.marking(),
+        (controller.net(), &controller.marking()),
         now,
     ) {
         Ok(prepared) => prepared,

@@ -13,9 +13,9 @@
 //! against the run's clock by the new net's own `LEG_late`. Pure: the caller plays the result
 //! ([`crate::net::Engine::resume`]).
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
-use crate::net::{Marking, Place};
+use crate::net::{Marking, MissionNet, Place};
 
 use super::{Compiled, Origin, Plan};
 
@@ -223,30 +223,40 @@ fn same_work(a: &Place, b: &Place) -> bool {
     modules(a) == modules(b) && params(a) == params(b)
 }
 
-/// Sets `module`'s `param` to `value` in every place of leg `index` of `compiled` that sets it
-/// (a leg's drive places, late or by an alternative way, give the navigation module its
-/// `path`): how a leg replaced under way gets the path planned from where the robot is.
-/// Returns how many places were changed.
+/// Sets `module`'s `param` in every place of `net` that comes from leg `index` (by `trace`)
+/// and sets it, to what `value` gives for the place's name (nothing: left as it is). A leg's
+/// drive places, late or by an alternative way, give the navigation module its `path`: this is
+/// how a leg replaced under way gets the path planned from where the robot is, and how a leg
+/// that goes on unchanged keeps the path the run gave it.
 pub fn set_leg_param(
-    compiled: &mut Compiled,
+    net: &mut MissionNet,
+    trace: &BTreeMap<String, Origin>,
     index: usize,
-    module: &str,
-    param: &str,
-    value: &str,
-) -> usize {
-    let mut changed = 0;
-    for place in &mut compiled.net.places {
-        if compiled.trace.get(&place.name) != Some(&Origin::Leg(index)) {
+    (module, param): (&str, &str),
+    value: impl Fn(&str) -> Option<String>,
+) {
+    for place in &mut net.places {
+        if trace.get(&place.name) != Some(&Origin::Leg(index)) {
             continue;
         }
+        let Some(value) = value(&place.name) else {
+            continue;
+        };
         for given in &mut place.params {
             if given.module == module && given.name == param {
-                given.value = value.to_owned();
-                changed += 1;
+                given.value.clone_from(&value);
             }
         }
     }
-    changed
+}
+
+/// The value of `module`'s `param` in the place `place` of `net`, if it sets one.
+pub fn param_of(net: &MissionNet, place: &str, (module, param): (&str, &str)) -> Option<String> {
+    net.place(place)?
+        .params
+        .iter()
+        .find(|given| given.module == module && given.name == param)
+        .map(|given| given.value.clone())
 }
 
 #[cfg(test)]
