@@ -574,6 +574,36 @@ fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot()
         "{}",
         again.message
     );
+    // What `armor check` warns of comes with the answer, a line each, at the operator's file.
+    let hurried = edited(
+        &yard.plan_text,
+        "arrive_by=\"2026-11-23T08:06:00Z\"",
+        "arrive_by=\"2026-11-23T08:02:00Z\"",
+    );
+    let checked = check(&running, "hurried.xml", &hurried, &[bin_dir()]).unwrap();
+    let warned = prepare(
+        &running,
+        checked,
+        &[bin_dir()],
+        (&running.compiled.net, &driving_cross),
+        now,
+    )
+    .unwrap();
+    let mut lines = warned.message.lines();
+    assert!(
+        lines
+            .next()
+            .unwrap()
+            .starts_with("leg `cross` in force goes on unchanged")
+    );
+    let warning = lines.next().unwrap_or_default();
+    assert!(
+        warning.starts_with("hurried.xml:")
+            && warning.contains(": warning: ")
+            && warning.contains("regroup"),
+        "{}",
+        warned.message
+    );
     let follower_path = |net: &armor_model::net::MissionNet| {
         armor_model::plan::migrate::param_of(net, "cross_drive", ("follower", "path"))
     };

@@ -46,7 +46,8 @@ pub struct Prepared {
     /// the run gave it (unchanged).
     pub net: MissionNet,
     pub migration: Migration,
-    /// What the update does, in one sentence.
+    /// What the update does, in one sentence; then, a line each, the warnings `armor check`
+    /// would print for the plan (time constraints that cannot all be met).
     pub message: String,
 }
 
@@ -229,7 +230,17 @@ pub fn prepare(
         compiled,
         net,
         migration,
-        message: parts.join("; "),
+        message: std::iter::once(parts.join("; "))
+            .chain(loaded.warnings().iter().map(|warning| {
+                format!(
+                    "{}:{}: warning: {}",
+                    loaded.file.display(),
+                    warning.pos,
+                    warning.message
+                )
+            }))
+            .collect::<Vec<_>>()
+            .join("\n"),
     })
 }
 
