@@ -3,13 +3,15 @@
 //! sleep), and kill every process a test started when it ends, even if it fails. [`mission`]
 //! runs a mission or plan headless and reads its report; [`mcap`] reads what a recorder wrote;
 //! [`check`] runs the one-shot commands (`armor check`, `armor compile`) and reads their errors;
-//! [`tools`] finds the programs and Python modules from outside that the suites run.
+//! [`tools`] finds the programs and Python modules from outside that the suites run; [`truth`]
+//! reads the simulator's truth from a recording.
 #![allow(clippy::unwrap_used)]
 
 pub mod check;
 pub mod mcap;
 pub mod mission;
 pub mod tools;
+pub mod truth;
 
 use std::io::{BufRead as _, BufReader, Read};
 use std::path::{Path, PathBuf};
@@ -448,4 +450,29 @@ pub fn role_key(secret: &Path, role: &str) -> PathBuf {
         String::from_utf8_lossy(&output.stderr)
     );
     key
+}
+
+/// A mission in `dir` that waits an hour in its one place, running one counter: a run that stays
+/// up until the test ends it (`armor ctl abort`).
+pub fn waiting_mission(dir: &Path) -> PathBuf {
+    std::fs::write(
+        dir.join("system.xml"),
+        r#"<system name="held">
+  <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
+</system>
+"#,
+    )
+    .unwrap();
+    let mission = dir.join("mission.xml");
+    std::fs::write(
+        &mission,
+        r#"<mission name="long" system="system.xml">
+  <place name="counting" tokens="1"><module name="counter"/></place>
+  <place name="done" final="true"/>
+  <transition name="later" delay_secs="3600"><input place="counting"/><output place="done"/></transition>
+</mission>
+"#,
+    )
+    .unwrap();
+    mission
 }

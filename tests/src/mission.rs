@@ -18,6 +18,18 @@ pub const TIME_SCALE: &str = "20";
 /// idle machine.
 pub const MISSION_DEADLINE: Duration = Duration::from_secs(60);
 
+/// The transitions the bundled yard reconnaissance (`missions/robot/plan-yard.xml`) fires when
+/// all goes as planned, in order.
+pub const YARD_FIRINGS: [&str; 7] = [
+    "advance_arrived",
+    "advance_arrival_done",
+    "cross_appointment",
+    "cross_arrived",
+    "cross_waited",
+    "climb_arrived",
+    "regroup_arrived",
+];
+
 /// `armor run MISSION --time-scale TIME_SCALE --report REPORT EXTRA…`, with the workspace's
 /// modules.
 pub fn armor_run(mission: &Path, report: &Path, extra: &[&str]) -> Proc {

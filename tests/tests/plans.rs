@@ -581,18 +581,7 @@ fn the_yard_plan_waits_for_its_appointment_and_goes_round_the_minefield() {
     assert_eq!((1, 1), run.check_all());
     assert!(run.example.world.name().contains("yard"));
     let names = run.run.fired_names();
-    assert_eq!(
-        names,
-        [
-            "advance_arrived",
-            "advance_arrival_done",
-            "cross_appointment",
-            "cross_arrived",
-            "cross_waited",
-            "climb_arrived",
-            "regroup_arrived"
-        ]
-    );
+    assert_eq!(names, armor_tests::mission::YARD_FIRINGS);
     // The appointment is at 08:01:30, the run starting at 08:00:00.
     assert!(run.run.fired_at("cross_appointment").unwrap() >= 90.0);
     // The run ends with a table of the legs: when each set off and arrived, against its

@@ -20,10 +20,8 @@ use std::time::Duration;
 use armor_model::geo::{LatLon, Polygon};
 use armor_model::plan::{self, Plan};
 use armor_model::world::{Point, World};
-use armor_module_api::Datum as _;
-use armor_module_api::types::Pose2D;
-use armor_tests::mcap::read_mcap;
 use armor_tests::mission::armor_run;
+use armor_tests::truth::{footprint_gap_m, recorded_truth};
 use armor_tests::workspace_root;
 
 /// How long a run may take in real time: the warehouse round, four minutes of run time, takes
@@ -125,37 +123,6 @@ fn load_world(file: &Path) -> World {
         &file.display().to_string(),
     )
     .unwrap()
-}
-
-/// Least distance between a disc of `radius_m` round `at` and `area`, negative inside: what the
-/// rehearsal reports, computed here from the definitions.
-fn footprint_gap_m(area: &Polygon, at: Point, radius_m: f64) -> f64 {
-    let outline = area
-        .edges()
-        .map(|(a, b)| armor_model::geo::segment_distance(at, a, b))
-        .fold(f64::INFINITY, f64::min);
-    let centre = if area.contains(at) { -outline } else { outline };
-    centre - radius_m
-}
-
-/// The true poses the recorder wrote in `file`, in time order: (run seconds, position).
-fn recorded_truth(file: &Path) -> Vec<(f64, Point)> {
-    let mut truth: Vec<(f64, Point)> = read_mcap(file)
-        .into_iter()
-        .filter(|((topic, _), _)| topic == "sim.pose_truth")
-        .flat_map(|((_, encoding), messages)| {
-            messages.into_iter().map(move |(log_time, data)| {
-                let pose = match encoding.as_str() {
-                    "json" => serde_json::from_slice::<Pose2D>(&data).unwrap(),
-                    _ => Pose2D::decode(&data).unwrap(),
-                };
-                (log_time as f64 / 1e9, Point::new(pose.x_m, pose.y_m))
-            })
-        })
-        .collect();
-    truth.sort_by(|a, b| a.0.total_cmp(&b.0));
-    assert!(truth.len() > 1000, "{} true poses", truth.len());
-    truth
 }
 
 /// The warehouse round, driven with the simulator's default odometry noise, is judged by its

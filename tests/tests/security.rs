@@ -23,7 +23,7 @@ use armor_module_api::auth::Secret;
 use armor_module_api::wire::blocking;
 use armor_tests::{
     PATIENCE, Proc, bin, bin_dir, children_of, control_address, driven_system, role_key,
-    secret_file, start_agent, wait_until,
+    secret_file, start_agent, wait_until, waiting_mission,
 };
 
 /// What the brief allows a stranger: closed within this, having received nothing.
@@ -366,30 +366,6 @@ fn strangers(target: SocketAddr, count: usize, stop: &Arc<AtomicBool>, made: &Ar
             std::thread::sleep(Duration::from_millis(100));
         }
     });
-}
-
-/// A mission in `dir` that counts for an hour: it waits for the operator.
-fn waiting_mission(dir: &Path) -> std::path::PathBuf {
-    std::fs::write(
-        dir.join("system.xml"),
-        r#"<system name="held">
-  <module name="counter" type="counter"><param name="period_secs" value="0.1"/></module>
-</system>
-"#,
-    )
-    .unwrap();
-    let mission = dir.join("mission.xml");
-    std::fs::write(
-        &mission,
-        r#"<mission name="long" system="system.xml">
-  <place name="counting" tokens="1"><module name="counter"/></place>
-  <place name="done" final="true"/>
-  <transition name="later" delay_secs="3600"><input place="counting"/><output place="done"/></transition>
-</mission>
-"#,
-    )
-    .unwrap();
-    mission
 }
 
 #[test]

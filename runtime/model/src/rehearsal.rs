@@ -203,6 +203,20 @@ struct AreaTrack {
     least: Option<(f64, f64)>,
     first_met_secs: Option<f64>,
     poses_met: usize,
+    /// Taken out of the plan by an update: judged up to then, no longer after.
+    retired: bool,
+}
+
+impl AreaTrack {
+    fn new(area: NoGoArea) -> Self {
+        Self {
+            area,
+            least: None,
+            first_met_secs: None,
+            poses_met: 0,
+            retired: false,
+        }
+    }
 }
 
 /// An arrival with the true pose nearest to it in time so far; `settled` once a pose at or after
@@ -243,15 +257,7 @@ impl Judge {
     pub fn new(areas: Vec<NoGoArea>, rules: Rules) -> Self {
         Self {
             rules,
-            areas: areas
-                .into_iter()
-                .map(|area| AreaTrack {
-                    area,
-                    least: None,
-                    first_met_secs: None,
-                    poses_met: 0,
-                })
-                .collect(),
+            areas: areas.into_iter().map(AreaTrack::new).collect(),
             arrivals: Vec::new(),
             recent: VecDeque::new(),
             newest_secs: f64::NEG_INFINITY,
@@ -265,7 +271,7 @@ impl Judge {
             return;
         }
         self.poses += 1;
-        for track in &mut self.areas {
+        for track in self.areas.iter_mut().filter(|track| !track.retired) {
             let distance = footprint_distance_m(&track.area.polygon, pose.at, self.rules.radius_m);
             if track.least.is_none_or(|(least, _)| distance < least) {
                 track.least = Some((distance, pose.at_secs));
@@ -291,6 +297,25 @@ impl Judge {
             .is_some_and(|oldest| oldest.at_secs < self.newest_secs - WINDOW_SECS)
         {
             self.recent.pop_front();
+        }
+    }
+
+    /// The plan was updated while it ran: its no-go areas are now `areas`. An area the plan
+    /// had before, by name and outline, goes on being judged as it was; a new one (or a new
+    /// outline) is judged from now on, since the robot was not kept from it before; one the
+    /// update took out keeps its judgement so far and is no longer judged.
+    pub fn set_areas(&mut self, areas: Vec<NoGoArea>) {
+        for track in self.areas.iter_mut().filter(|track| !track.retired) {
+            track.retired = !areas.contains(&track.area);
+        }
+        for area in areas {
+            if !self
+                .areas
+                .iter()
+                .any(|track| !track.retired && track.area == area)
+            {
+                self.areas.push(AreaTrack::new(area));
+            }
         }
     }
 

@@ -45,6 +45,22 @@ pub struct MissionStatus {
     pub firings_total: usize,
     /// `complete`, `aborted`, `deadlock` or `failed` once the mission has ended.
     pub outcome: Option<String>,
+    /// The plan updates asked for (`armor ctl update`), taken or refused, oldest first.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub updates: Vec<UpdateRecord>,
+}
+
+/// A plan update asked of a running mission, numbered from 1 in the order they came.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct UpdateRecord {
+    pub number: u32,
+    pub run_secs: f64,
+    /// The file the operator sent, as named.
+    pub file: String,
+    /// Whether the mission moved to it.
+    pub taken: bool,
+    /// What it changed, or why it was refused.
+    pub message: String,
 }
 
 /// An enabled transition and what it still waits for (an event, the rest of a delay, a date,

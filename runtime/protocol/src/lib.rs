@@ -31,9 +31,9 @@ pub use client::{Client, ClientError, key_from_file, request};
 pub use from_run::{
     BehaviourChange, BehaviourState, BinaryFile, Enabled, FileText, FiringRecord, FromRun,
     MissionStatus, ModuleState, ModuleStatus, ParamFile, Reply, RunFiles, Status, TELEOP_ENDPOINT,
-    TELEOP_TYPE,
+    TELEOP_TYPE, UpdateRecord,
 };
-pub use to_run::{ENV_CONTROL, Request, ToRun, allowed};
+pub use to_run::{ENV_CONTROL, MAX_UPDATE_BYTES, Request, ToRun, allowed};
 
 /// How long a client waits to reach the run, and the run for its own answer to a request.
 pub const REPLY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);

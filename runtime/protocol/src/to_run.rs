@@ -50,7 +50,20 @@ pub enum Request {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         module: Option<String>,
     },
+    /// Update the running plan (`armor ctl update PLAN.xml`): the run checks `text` as `armor
+    /// check` does (its relative names resolved from the running plan's folder), compiles it
+    /// and moves the mission to it between two firings (`docs/plans.md`, "Updates to a running
+    /// mission"), or refuses it with the reason and goes on unchanged. `file` is the name the
+    /// operator gave, for the messages.
+    Update {
+        file: String,
+        text: String,
+    },
 }
+
+/// The largest plan `armor ctl update` sends: a request, with its JSON escapes, must fit in
+/// the 64 KiB the control interface reads of one.
+pub const MAX_UPDATE_BYTES: usize = 48 * 1024;
 
 /// A request on the control link, numbered by the client from 1: the run answers only the
 /// next number, so a request replayed, reordered or dropped on the way ends the connection.

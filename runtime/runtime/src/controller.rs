@@ -7,13 +7,13 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use armor_model::net::{Engine, Firing, MissionNet, Place};
+use armor_model::net::{Engine, Firing, Marking, MissionNet, Place};
 use armor_model::system::Reason;
 use armor_module_api::Clock;
 use serde_json::json;
 
 use crate::config_server::{ConfigServer, Control};
-use armor_protocol::{Enabled, FiringRecord, MissionStatus, Request};
+use armor_protocol::{Enabled, FiringRecord, MissionStatus, Request, UpdateRecord};
 
 /// How a mission ended.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,6 +47,16 @@ impl Outcome {
     }
 }
 
+/// A plan update being taken, as the controller records it.
+pub struct Update<'a> {
+    /// The file the operator sent, as named.
+    pub file: &'a str,
+    /// What it does, in one sentence.
+    pub message: &'a str,
+    /// More for the timeline's entry (the legs done, the places before and after).
+    pub details: serde_json::Value,
+}
+
 pub struct Controller {
     net: MissionNet,
     engine: Engine,
@@ -74,6 +84,8 @@ pub struct Controller {
     hold_timeout: Option<Duration>,
     /// Since when (real time) only an operator can take the mission on.
     held_since: Option<Instant>,
+    /// The plan updates asked for, taken or refused, numbered from 1.
+    updates: Vec<UpdateRecord>,
 }
 
 /// The modules that every place of `net` runs, each with the same parameters in all: a plan's
@@ -142,6 +154,7 @@ impl Controller {
             running: BTreeMap::new(),
             hold_timeout: None,
             held_since: None,
+            updates: Vec::new(),
         };
         let at = controller.clock.now_secs();
         controller.first_marked = controller
@@ -255,6 +268,103 @@ impl Controller {
 
     pub fn outcome(&self) -> Option<&Outcome> {
         self.outcome.as_ref()
+    }
+
+    /// The net played (a plan update's once taken).
+    pub fn net(&self) -> &MissionNet {
+        &self.net
+    }
+
+    /// The places that hold tokens now.
+    pub fn marking(&self) -> Marking {
+        self.engine.marking()
+    }
+
+    /// The plan updates asked for so far, oldest first.
+    pub fn updates(&self) -> &[UpdateRecord] {
+        &self.updates
+    }
+
+    /// Moves the mission to `net` (an updated plan's), in `marking`, between two firings: what
+    /// the two nets share of the enabled transitions keeps its timers (a delay goes on, a date is
+    /// judged against the run's clock as always), the events latched so far with `keep_events`
+    /// only. The modules are told what changed at once (the follower takes a new path or goal
+    /// live, without a restart), then whatever can fire in the new net fires. The update is
+    /// numbered and recorded with `details`; its number is returned.
+    pub fn update(
+        &mut self,
+        net: MissionNet,
+        marking: &Marking,
+        keep_events: bool,
+        update: Update<'_>,
+        server: &ConfigServer,
+    ) -> Result<u32, String> {
+        let Update {
+            file,
+            message,
+            details,
+        } = update;
+        let now = self.clock.now_secs();
+        let engine = Engine::resume(&net, marking, &self.engine, keep_events, now)
+            .map_err(|err| format!("the updated net cannot start in {marking:?}: {err}"))?;
+        self.engine = engine;
+        self.steady = steady_modules(&net);
+        self.net = net;
+        self.held_since = None;
+        for place in self.engine.marking().into_keys() {
+            self.first_marked.entry(place).or_insert(now);
+        }
+        let (number, run_secs) = self.note_update(file, true, message);
+        let mut entry = json!({
+            "run_secs": run_secs,
+            "number": number,
+            "file": file,
+            "taken": true,
+            "message": message,
+            "marking": self.engine.marking(),
+        });
+        if let (Some(entry), serde_json::Value::Object(details)) = (entry.as_object_mut(), details)
+        {
+            entry.extend(details);
+        }
+        self.record("update", entry);
+        tracing::info!("plan update {number} ({file}) taken: {message}");
+        self.tell(server);
+        self.step(server);
+        Ok(number)
+    }
+
+    /// Records a plan update refused, with `why`; the mission goes on unchanged. Its number is
+    /// returned.
+    pub fn refuse_update(&mut self, file: &str, why: &str) -> u32 {
+        let (number, run_secs) = self.note_update(file, false, why);
+        self.record(
+            "update",
+            json!({
+                "run_secs": run_secs,
+                "number": number,
+                "file": file,
+                "taken": false,
+                "message": why,
+            }),
+        );
+        tracing::warn!("plan update {number} ({file}) refused: {why}");
+        number
+    }
+
+    /// Numbers an update and keeps it for the status and the report; its number and run time
+    /// (the timeline's entry says the same time).
+    fn note_update(&mut self, file: &str, taken: bool, message: &str) -> (u32, f64) {
+        let number = u32::try_from(self.updates.len() + 1).unwrap_or(u32::MAX);
+        let run_secs = self.clock.now_secs();
+        self.updates.push(UpdateRecord {
+            number,
+            run_secs,
+            file: file.to_owned(),
+            taken,
+            message: message.to_owned(),
+        });
+        (number, run_secs)
     }
 
     /// When the loop must wake for a delay or a date, if ever.
@@ -495,6 +605,7 @@ impl Controller {
                 .outcome
                 .as_ref()
                 .map(|outcome| outcome.as_str().to_owned()),
+            updates: self.updates.clone(),
         }
     }
 
@@ -543,6 +654,7 @@ impl Controller {
             | Request::ReleaseModule { .. }
             | Request::Teleop { .. }
             | Request::SetPose { .. }
+            | Request::Update { .. }
             | Request::Files => (false, "not a mission request".to_owned()),
             Request::Pause if self.paused => (false, "already paused".to_owned()),
             Request::Pause => {
@@ -615,6 +727,7 @@ impl Controller {
             "timeline": self.timeline.as_deref().unwrap_or_default(),
             "timeline_dropped": self.timeline_dropped,
             "behaviour_changes": behaviour_changes,
+            "updates": self.updates,
         });
         if let Some(rehearsal) = rehearsal {
             report["rehearsal"] = rehearsal.clone();

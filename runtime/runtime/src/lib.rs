@@ -50,6 +50,8 @@ pub mod summary;
 pub mod supervisor;
 #[cfg(feature = "cli")]
 pub mod teleop_relay;
+#[cfg(feature = "cli")]
+pub mod update;
 
 /// The agent's first line on stdout, followed by the address it listens on.
 pub const AGENT_READY_PREFIX: &str = "armor agent listening on ";

@@ -44,6 +44,16 @@ enum CtlCommand {
     Abort,
     /// Fire an enabled transition now, whatever its condition.
     Fire { transition: String },
+    /// Update the running plan: the run checks PLAN as `armor check` does (its system, world
+    /// and base map found from the running plan's folder) and moves the mission to it between
+    /// two firings: legs done stay done, the leg in force goes on or is replaced at once, new
+    /// legs and areas take effect. A plan that does not check, or whose legs done are not its
+    /// first legs by name, is refused with the reason and the run goes on unchanged
+    /// (docs/plans.md, "Updates to a running mission").
+    Update {
+        /// The updated plan file.
+        plan: PathBuf,
+    },
     /// Tell the localiser where the robot is (as rviz's "2D Pose Estimate"): `set-pose X Y
     /// HEADING_DEG` in the map frame (metres, degrees counter-clockwise from east).
     #[command(allow_negative_numbers = true)]
@@ -215,8 +225,8 @@ enum Command {
         #[arg(long, value_name = "SECS", default_value_t = 10.0)]
         time_limit: f64,
     },
-    /// Operate a run: status, start and stop modules; pause, resume, abort a mission, or fire a
-    /// transition by hand.
+    /// Operate a run: status, start and stop modules; pause, resume, abort a mission, fire a
+    /// transition by hand, or update its plan.
     Ctl {
         /// The run's control interface (printed by `armor run`; default: $ARMOR_CONTROL).
         #[arg(long, env = armor_protocol::ENV_CONTROL)]
@@ -586,6 +596,22 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 CtlCommand::Resume => armor_protocol::Request::Resume,
                 CtlCommand::Abort => armor_protocol::Request::Abort,
                 CtlCommand::Fire { transition } => armor_protocol::Request::Fire { transition },
+                CtlCommand::Update { plan } => {
+                    let text = std::fs::read_to_string(&plan)
+                        .with_context(|| format!("cannot read {}", plan.display()))?;
+                    if text.len() > armor_protocol::MAX_UPDATE_BYTES {
+                        anyhow::bail!(
+                            "{} is {} bytes: an update sent to a run holds at most {} bytes",
+                            plan.display(),
+                            text.len(),
+                            armor_protocol::MAX_UPDATE_BYTES
+                        );
+                    }
+                    armor_protocol::Request::Update {
+                        file: plan.display().to_string(),
+                        text,
+                    }
+                }
                 CtlCommand::SetPose {
                     x_m,
                     y_m,
@@ -1313,6 +1339,9 @@ fn status_text(status: &armor_protocol::Status) -> String {
         );
         for enabled in &mission.enabled {
             let _ = writeln!(out, "  enabled: {enabled}");
+        }
+        for line in armor_runtime::summary::update_lines(&mission.updates) {
+            let _ = writeln!(out, "  {line}");
         }
     }
     out

@@ -96,12 +96,36 @@ fn load_mission_inner(
     file: &Path,
     module_path: &[PathBuf],
 ) -> Result<LoadedMission, (Box<Diagnostics>, Option<usize>)> {
+    let text = read_source(file).map_err(|diagnostics| (Box::new(diagnostics), None))?;
+    let base = file.parent().unwrap_or_else(|| Path::new("."));
+    load_text(file, &text, base, module_path)
+}
+
+/// Checks a mission given as `text` as [`load_mission`] checks a file, its relative names (the
+/// system, the world, the base map) found from `base` rather than from the file's folder:
+/// a plan update sent to a run is checked against the running plan's folder, and its problems
+/// are said at `file`, the name the operator gave.
+pub fn load_mission_text(
+    file: &Path,
+    text: &str,
+    base: &Path,
+    module_path: &[PathBuf],
+) -> Result<LoadedMission, Diagnostics> {
+    load_text(file, text, base, module_path).map_err(|(diagnostics, _)| *diagnostics)
+}
+
+fn load_text(
+    file: &Path,
+    text: &str,
+    base: &Path,
+    module_path: &[PathBuf],
+) -> Result<LoadedMission, (Box<Diagnostics>, Option<usize>)> {
     let unanalysed = |diagnostics: Diagnostics| (Box::new(diagnostics), None);
     let fail = |problems| Diagnostics {
         file: file.to_path_buf(),
         problems,
     };
-    let text = read_source(file).map_err(unanalysed)?;
+    let text = text.to_owned();
     // A plan is compiled once its system (and so its world) is known.
     let source = match kind_of(file, &text).map_err(unanalysed)? {
         DocumentKind::Plan => Err(Plan::parse(&text).map_err(fail).map_err(unanalysed)?),
@@ -124,7 +148,6 @@ fn load_mission_inner(
             },
         )])));
     }
-    let base = file.parent().unwrap_or_else(|| Path::new("."));
     let system_file = base.join(&system_name);
     if let Err(err) = std::fs::metadata(&system_file) {
         return Err(unanalysed(fail(vec![Located::new(

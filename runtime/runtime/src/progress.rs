@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use armor_model::geo::{self, Point};
 use armor_model::plan::{Compiled, Plan};
-use armor_model::rehearsal::{Arrival, Judge, TruePose, Verdict};
+use armor_model::rehearsal::{Arrival, Judge, NoGoArea, TruePose, Verdict};
 use armor_module_api::types::{Datum, Odometry, Pose2D};
 use armor_module_api::{Event, ModuleSpec, Node, Standalone};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -322,6 +322,49 @@ impl Progress {
             .map_or_else(Odometer::default, |shared| {
                 *shared.lock().unwrap_or_else(PoisonError::into_inner)
             })
+    }
+
+    /// Where the robot believes it is (its odometry's latest pose), if the run's node has it.
+    pub fn robot_at(&self) -> Option<Point> {
+        self.odometer().at
+    }
+
+    /// The plan was updated while it ran: its legs are now `legs` and its no-go areas `areas`.
+    /// What each leg of the same name did so far (set off, arrived, driven, its events) is
+    /// kept; a leg not arrived yet is judged, when it arrives, against its new waypoint.
+    pub fn update(&mut self, legs: Vec<LegPlan>, areas: Vec<NoGoArea>) {
+        let before = |index: Option<usize>, values: &[Option<f64>]| {
+            index.and_then(|index| values.get(index).copied().flatten())
+        };
+        let old = std::mem::take(&mut self.legs);
+        let position = |name: &str| old.iter().position(|leg| leg.name == name);
+        let mut extras = Vec::with_capacity(legs.len());
+        let (mut odo_started, mut odo_arrived, mut started, mut arrived) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for leg in &legs {
+            let index = position(&leg.name);
+            odo_started.push(before(index, &self.odo_started));
+            odo_arrived.push(before(index, &self.odo_arrived));
+            started.push(before(index, &self.started));
+            arrived.push(before(index, &self.arrived));
+            extras.push(
+                index
+                    .and_then(|index| self.extras.get(index).cloned())
+                    .unwrap_or_default(),
+            );
+        }
+        self.legs = legs;
+        self.odo_started = odo_started;
+        self.odo_arrived = odo_arrived;
+        self.started = started;
+        self.arrived = arrived;
+        self.extras = extras;
+        if let Some(judge) = &self.judge {
+            judge
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .set_areas(areas);
+        }
     }
 
     /// Takes in the controller's first markings and firings at run time `now_secs`, and redraws

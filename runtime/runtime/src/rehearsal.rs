@@ -71,21 +71,25 @@ pub fn judge(
     system: &SystemConfig,
     descriptions: &BTreeMap<String, ModuleDescription>,
 ) -> Judge {
-    let areas = compiled
+    Judge::new(
+        areas(compiled),
+        Rules {
+            radius_m: compiled.robot.radius_m,
+            tolerance_m: tolerance_m(plan, system, descriptions),
+        },
+    )
+}
+
+/// The no-go areas of `compiled` as the truth judges them: their outlines, not their margins.
+pub fn areas(compiled: &Compiled) -> Vec<NoGoArea> {
+    compiled
         .keepouts
         .iter()
         .map(|keepout| NoGoArea {
             name: keepout.name.clone(),
             polygon: keepout.polygon.clone(),
         })
-        .collect();
-    Judge::new(
-        areas,
-        Rules {
-            radius_m: compiled.robot.radius_m,
-            tolerance_m: tolerance_m(plan, system, descriptions),
-        },
-    )
+        .collect()
 }
 
 /// The verdict as the report's `rehearsal` section, saying what it was judged by.

@@ -114,6 +114,25 @@ pub fn truth_lines(truth: &Verdict) -> Vec<String> {
     lines
 }
 
+/// The plan updates asked for during the run, one line each: `update 1 at 35.2 s
+/// (plan-east.xml): taken: leg `cross` in force goes on unchanged …` (a refusal's first line
+/// only: a plan that does not check says all its problems in the log and the report).
+pub fn update_lines(updates: &[armor_protocol::UpdateRecord]) -> Vec<String> {
+    updates
+        .iter()
+        .map(|update| {
+            format!(
+                "update {} at {:.1} s ({}): {}: {}",
+                update.number,
+                update.run_secs,
+                update.file,
+                if update.taken { "taken" } else { "refused" },
+                update.message.lines().next().unwrap_or_default()
+            )
+        })
+        .collect()
+}
+
 /// The legs as a table, one line each; with `truth` (a simulated run), each arrival's true
 /// error in a column of its own.
 pub fn table(legs: &[LegRun], truth: Option<&Verdict>) -> String {

@@ -209,10 +209,18 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         || options.file.clone(),
         |mission| mission.system_file.clone(),
     );
-    // A plan's legs, for the summary printed when the run ends.
-    let plan_legs = mission
+    // A plan's legs, for the summary printed when the run ends; updates replace them.
+    let mut plan_legs = mission
         .as_ref()
         .and_then(|mission| Some((mission.plan.clone()?, mission.compiled.clone()?)));
+    let mut running_plan = mission.as_ref().and_then(|mission| {
+        Some(crate::update::Running {
+            file: options.file.clone(),
+            system_file: mission.system_file.clone(),
+            plan: mission.plan.clone()?,
+            compiled: mission.compiled.clone()?,
+        })
+    });
     let mut controller = mission.map(|mission| {
         let controllable = loaded
             .system
@@ -296,7 +304,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         secret.clone(),
     )
     .context("cannot start the control interface")?;
-    tracing::info!(addr = %control_addr, "control interface listening (armor ctl --addr {control_addr} status|start|stop|pause|resume|abort|fire NAME)");
+    tracing::info!(addr = %control_addr, "control interface listening (armor ctl --addr {control_addr} status|start|stop|pause|resume|abort|fire NAME|update PLAN)");
     console::out_line(&format!("{}{control_addr}", crate::CONTROL_READY_PREFIX));
     let env = RunEnv {
         agent_addr: agent.addr,
@@ -349,6 +357,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     let teleop = crate::teleop_relay::start(secret.clone());
     let mut ready: Vec<String> = Vec::new();
     let mut all_ready_logged = false;
+    // Plan updates asked for, taken one a turn of the loop (see `checked` below).
+    let mut queued_updates = std::collections::VecDeque::new();
+    let mut checked = None;
     let outcome = loop {
         if stop.load(Ordering::Relaxed) {
             tracing::info!("stop requested");
@@ -463,6 +474,19 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     let _ = reply.send(run_files(&options.file, &system_file, &server));
                     continue;
                 }
+                armor_protocol::Request::Update { file, text } => match &mut controller {
+                    // Taken below, once the events before it are played: see `checked`.
+                    Some(_) if running_plan.is_some() => {
+                        queued_updates.push_back((file, text, reply));
+                        continue;
+                    }
+                    Some(controller) => crate::update::refuse(
+                        controller,
+                        &file,
+                        "this run plays a mission net, not a plan: only a plan is updated",
+                    ),
+                    None => (false, "this run has no mission".to_owned()),
+                },
                 mission_request => match &mut controller {
                     Some(controller) => controller.handle(mission_request, &server),
                     None => (false, "this run has no mission".to_owned()),
@@ -471,19 +495,45 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             if let Some(controller) = &mut controller {
                 controller.note_demand(&server);
             }
-            let status = run_status(&modules, &server, controller.as_ref(), &env, &clock);
-            let _ = reply.send(armor_protocol::Reply {
+            answer(
+                &reply,
                 ok,
                 message,
-                status: Some(status),
-                files: None,
-            });
+                run_status(&modules, &server, controller.as_ref(), &env, &clock),
+            );
+        }
+        // A plan update is checked and compiled first (the slow part); the module events that
+        // came meanwhile are then played on the running net, one a turn as always, and only
+        // once none is left is the update migrated and swapped in: an event of the old leg (its
+        // `goal_reached`) is never taken for one of the new.
+        if checked.is_none()
+            && let Some((file, text, reply)) = queued_updates.pop_front()
+            && let (Some(controller), Some(running)) = (&mut controller, &running_plan)
+        {
+            match crate::update::check(running, &file, &text, &options.module_path) {
+                Ok(update) => checked = Some((update, reply)),
+                Err(why) => {
+                    let (ok, message) = crate::update::refuse(controller, &file, &why);
+                    answer(
+                        &reply,
+                        ok,
+                        message,
+                        run_status(&modules, &server, Some(controller), &env, &clock),
+                    );
+                }
+            }
         }
         let wake = controller.as_ref().and_then(Controller::next_wake);
-        let timeout = wake.map_or(TICK, |at| {
-            at.saturating_duration_since(Instant::now()).min(TICK)
-        });
-        match events.recv_timeout(timeout) {
+        let timeout = if checked.is_some() {
+            Duration::ZERO
+        } else {
+            wake.map_or(TICK, |at| {
+                at.saturating_duration_since(Instant::now()).min(TICK)
+            })
+        };
+        let event = events.recv_timeout(timeout);
+        let no_event_left = matches!(event, Err(RecvTimeoutError::Timeout));
+        match event {
             Ok(ServerEvent::Connected { module, pid }) => {
                 tracing::debug!(module, pid, "module connected")
             }
@@ -531,6 +581,33 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => bail!("the config server stopped"),
+        }
+        if no_event_left
+            && let Some((update, reply)) = checked.take()
+            && let (Some(controller), Some(running)) = (&mut controller, &mut running_plan)
+        {
+            let (ok, message) = crate::update::take(
+                controller,
+                running,
+                progress.as_mut(),
+                update,
+                &crate::update::Context {
+                    module_path: &options.module_path,
+                    server: &server,
+                    start_unix_secs,
+                    run_secs: clock.now_secs(),
+                },
+            );
+            if ok {
+                plan_legs = Some((running.plan.clone(), running.compiled.clone()));
+            }
+            controller.note_demand(&server);
+            answer(
+                &reply,
+                ok,
+                message,
+                run_status(&modules, &server, Some(controller), &env, &clock),
+            );
         }
         crate::host_run::take_notes(&env.hosts, &server);
         for module in modules.values_mut() {
@@ -585,6 +662,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             controller.outcome().map_or("not finished", Outcome::as_str),
             crate::summary::table(&legs, truth.as_ref())
         );
+        for line in crate::summary::update_lines(controller.updates()) {
+            summary.push_str(&line);
+            summary.push('\n');
+        }
         for line in truth.iter().flat_map(crate::summary::truth_lines) {
             summary.push_str(&line);
             summary.push('\n');
@@ -624,6 +705,21 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         console::close_log();
     }
     Ok(outcome)
+}
+
+/// Answers a client's request with the run's status (a client gone is nothing to answer).
+fn answer(
+    reply: &mpsc::Sender<armor_protocol::Reply>,
+    ok: bool,
+    message: String,
+    status: armor_protocol::Status,
+) {
+    let _ = reply.send(armor_protocol::Reply {
+        ok,
+        message,
+        status: Some(status),
+        files: None,
+    });
 }
 
 /// Puts on the health stream what supervising `module` changed since it was `before`: a

@@ -77,6 +77,8 @@ pub enum EngineError {
     UnknownTransition { name: String, known: String },
     #[error("transition `{name}` cannot fire: {why}")]
     NotEnabled { name: String, why: String },
+    #[error("no place `{name}` in this mission (places: {known})")]
+    UnknownPlace { name: String, known: String },
 }
 
 #[derive(Debug)]
@@ -315,6 +317,53 @@ impl Engine {
             engine.refresh(t, false, now);
         }
         engine
+    }
+
+    /// An engine on `net` in `marking` (place → tokens; the net's own initial tokens are not
+    /// used) at run-time `now_secs`, taking over what `before` (an engine on an earlier version
+    /// of the mission) knew of the transitions both have: a transition of the same name enabled
+    /// in both keeps the time it became enabled, so a delay goes on where it was, and, with
+    /// `keep_events`, its latched event. Its date origin is `before`'s. This is how a running
+    /// mission moves to an updated net between two firings. A place `net` does not have is an
+    /// error naming it.
+    pub fn resume(
+        net: &MissionNet,
+        marking: &Marking,
+        before: &Engine,
+        keep_events: bool,
+        now_secs: f64,
+    ) -> Result<Engine, EngineError> {
+        let mut compiled = CompiledNet::new(net);
+        for place in &mut compiled.places {
+            place.tokens = 0;
+        }
+        for (name, &tokens) in marking {
+            let Some(&p) = compiled.place_index.get(name.as_str()) else {
+                return Err(EngineError::UnknownPlace {
+                    name: name.clone(),
+                    known: listing(compiled.places.iter().map(|place| &*place.name)),
+                });
+            };
+            compiled.places[p].tokens = tokens;
+        }
+        let now = before
+            .now
+            .max(if now_secs.is_finite() { now_secs } else { 0.0 });
+        let mut engine = Engine::start_compiled(&Shared::new(compiled), now)
+            .with_date_origin(before.date_origin);
+        for t in 0..engine.net.transitions.len() {
+            if engine.enabled_since[t].is_none() {
+                continue;
+            }
+            let name = &engine.net.transitions[t].name;
+            if let Some(old) = before.transition_index(name)
+                && let Some(since) = before.enabled_since[old]
+            {
+                engine.enabled_since[t] = Some(since);
+                engine.latched[t] = keep_events && before.latched[old];
+            }
+        }
+        Ok(engine)
     }
 
     /// Sets the Unix time (seconds since 1970-01-01T00:00:00Z) of run-time 0, against which the
@@ -691,6 +740,43 @@ mod tests {
         assert!(!engine.is_dead());
         assert_eq!(engine.next_deadline(), None);
         assert!(engine.step(100.0).is_empty());
+    }
+
+    #[test]
+    fn a_resumed_engine_keeps_the_timers_of_the_transitions_both_nets_have() {
+        let before_net = net(&[
+            "<place name=\"wait\" tokens=\"1\"/><place name=\"done\" final=\"true\"/>",
+            "<transition name=\"waited\" delay_secs=\"10\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+            "<transition name=\"seen\" event=\"eye.seen\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+        ]);
+        let mut before = Engine::start_at(&before_net, 2.0).with_date_origin(100.0);
+        assert_eq!(before.report_event("eye.seen", 4.0), ["seen"]);
+        // The update waits longer, sees the same event, and adds a way out by a date.
+        let after_net = net(&[
+            "<place name=\"wait\"/><place name=\"done\" final=\"true\"/>",
+            "<transition name=\"waited\" delay_secs=\"20\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+            "<transition name=\"seen\" event=\"eye.seen\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+            "<transition name=\"dated\" at=\"1970-01-01T00:02:30Z\"><input place=\"wait\"/><output place=\"done\"/></transition>",
+        ]);
+        let marking: Marking = [("wait".to_owned(), 1)].into();
+        let resumed = Engine::resume(&after_net, &marking, &before, false, 5.0).unwrap();
+        // The delay counts from 2 s, when `waited` became enabled, with its new length; the
+        // event latched before is dropped; the date is the date (150 s, 50 s of run time).
+        assert_eq!(resumed.enabled_since("waited"), Some(2.0));
+        assert!(!resumed.event_latched("seen"));
+        assert_eq!(resumed.enabled_since("dated"), Some(5.0));
+        assert_eq!(resumed.date_origin(), 100.0);
+        assert_eq!(resumed.next_deadline(), Some(22.0));
+        let mut kept = Engine::resume(&after_net, &marking, &before, true, 5.0).unwrap();
+        assert!(kept.event_latched("seen"));
+        assert_eq!(fired(&kept.step(5.0)), ["seen@5"]);
+        // A marking in a place the new net does not have is refused.
+        let gone: Marking = [("elsewhere".to_owned(), 1)].into();
+        let err = Engine::resume(&after_net, &gone, &before, false, 5.0).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "no place `elsewhere` in this mission (places: wait, done)"
+        );
     }
 
     #[test]

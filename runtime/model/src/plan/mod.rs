@@ -52,6 +52,7 @@ use armor_module_api::xml::{Located, Pos};
 mod compile;
 pub mod gpx;
 pub mod kml;
+pub mod migrate;
 pub mod objectives;
 pub mod qgc;
 mod xml;

@@ -277,3 +277,49 @@ fn a_long_run_keeps_only_a_window_of_poses_but_every_area_meeting() {
     assert_eq!(verdict.areas[0].first_met_secs, Some(0.0));
     assert_eq!(verdict.true_poses, 180_001);
 }
+
+#[test]
+fn an_area_added_by_an_update_is_judged_from_then_and_one_taken_out_until_then() {
+    // The robot drives through the square (y = 1) from 0 s to 20 s; the square is added at
+    // 5 s, before it gets there, and taken out again at 9 s, as it is about to enter.
+    let through: Vec<TruePose> = (0..=1000)
+        .map(|step| {
+            let t = f64::from(step) * 0.02;
+            pose(t, t, 1.0)
+        })
+        .collect();
+    let mut judge = Judge::new(Vec::new(), RULES);
+    let feed = |judge: &mut Judge, from: f64, to: f64| {
+        for pose in through
+            .iter()
+            .filter(|pose| pose.at_secs >= from && pose.at_secs < to)
+        {
+            judge.observe(*pose);
+        }
+    };
+    feed(&mut judge, 0.0, 5.0);
+    judge.set_areas(vec![square()]);
+    feed(&mut judge, 5.0, 9.0);
+    judge.set_areas(Vec::new());
+    feed(&mut judge, 9.0, 21.0);
+    let verdict = judge.verdict();
+    // Up to 9 s the footprint (radius 0.35) came to 0.65 m of the square, never in.
+    assert!(verdict.passed, "{verdict:#?}");
+    let least = verdict.areas[0].least_distance_m.expect("judged");
+    assert!((least - 0.65).abs() < 0.03, "{least}");
+    // Kept in the plan, the same drive meets it.
+    let mut judge = Judge::new(Vec::new(), RULES);
+    feed(&mut judge, 0.0, 5.0);
+    judge.set_areas(vec![square()]);
+    // The same area again changes nothing.
+    judge.set_areas(vec![square()]);
+    feed(&mut judge, 5.0, 21.0);
+    let verdict = judge.verdict();
+    assert_eq!(verdict.areas.len(), 1);
+    assert!(!verdict.passed);
+    assert!(
+        verdict.areas[0]
+            .first_met_secs
+            .is_some_and(|first| first >= 9.0)
+    );
+}

@@ -1,0 +1,414 @@
+//! Plan updates sent to a running mission (`armor ctl update PLAN.xml`, [`Request::Update`]):
+//! the new plan is checked as `armor check` checks a file (its relative names found from the
+//! running plan's folder), compiled, and the mission moved to its net between two firings
+//! (`armor_model::plan::migrate` says where; the controller swaps the nets). A leg in force that
+//! changed gets its path planned again from where the robot believes it is (its odometry), so
+//! that the follower does not drive back to the leg's start. Anything that keeps the update from
+//! being taken is said in words, and the mission goes on unchanged; every update, taken or
+//! not, is numbered and recorded (`docs/plans.md`, "Updates to a running mission").
+//!
+//! [`Request::Update`]: armor_protocol::Request::Update
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use armor_model::geo::{self, Point};
+use armor_model::net::{Marking, MissionNet};
+use armor_model::plan::migrate::{self, Migration};
+use armor_model::plan::{Compiled, Plan};
+use serde_json::json;
+
+use crate::config_server::ConfigServer;
+use crate::controller::Controller;
+use crate::mission::{LoadedMission, load_mission_text, plan_world};
+use crate::progress::{self, Progress};
+
+/// The plan a run plays, as it stands after the updates taken so far.
+#[derive(Clone, Debug)]
+pub struct Running {
+    /// The plan file the run was started with: an update's relative names are found from its
+    /// folder.
+    pub file: PathBuf,
+    pub system_file: PathBuf,
+    pub plan: Plan,
+    pub compiled: Compiled,
+}
+
+/// An update checked, compiled and migrated, ready to be swapped in.
+#[derive(Debug)]
+pub struct Prepared {
+    pub plan: Plan,
+    /// The new plan compiled, as it is: what the next update is compared with, and whose
+    /// routes the summary's table measures.
+    pub compiled: Compiled,
+    /// The net to play: the compiled one, its places naming subsystems expanded, and the leg
+    /// in force driven on the path planned from where the robot is (replaced) or on the one
+    /// the run gave it (unchanged).
+    pub net: MissionNet,
+    pub migration: Migration,
+    /// What the update does, in one sentence; then, a line each, the warnings `armor check`
+    /// would print for the plan (time constraints that cannot all be met).
+    pub message: String,
+}
+
+/// Where the robot is and when it is, for the update.
+#[derive(Clone, Copy, Debug)]
+pub struct Now {
+    /// Where the robot believes it is (its odometry), when the run's node has it.
+    pub robot_at: Option<Point>,
+    /// The run's clock as a date (Unix seconds), against which the plan's dates are judged.
+    pub unix_secs: f64,
+}
+
+/// An update checked and compiled: what does not depend on where the mission stands.
+#[derive(Debug)]
+pub struct Checked {
+    /// The file the operator sent, as named.
+    file: String,
+    loaded: LoadedMission,
+    plan: Plan,
+    compiled: Compiled,
+}
+
+/// Checks and compiles `text` (named `file` by the operator) as an update of the `running`
+/// plan: the slow part of an update, which the run does before it looks at the mission's
+/// marking. The error is why the update is refused, in words.
+pub fn check(
+    running: &Running,
+    file: &str,
+    text: &str,
+    module_path: &[PathBuf],
+) -> Result<Checked, String> {
+    let base = running.file.parent().unwrap_or_else(|| Path::new("."));
+    let loaded = load_mission_text(Path::new(file), text, base, module_path)
+        .map_err(|diagnostics| format!("the update does not check: {diagnostics}"))?;
+    let (Some(plan), Some(compiled)) = (loaded.plan.clone(), loaded.compiled.clone()) else {
+        return Err(
+            "the update is a mission net, not a plan: a running plan is updated with a plan"
+                .to_owned(),
+        );
+    };
+    if !same_file(&loaded.system_file, &running.system_file) {
+        return Err(format!(
+            "the update is over the system `{}`, the run over `{}`: an update cannot change the \
+             system (stop the run and start the new one)",
+            loaded.system_file.display(),
+            running.system_file.display()
+        ));
+    }
+    Ok(Checked {
+        file: file.to_owned(),
+        loaded,
+        plan,
+        compiled,
+    })
+}
+
+/// Migrates a `checked` update of the `running` plan from `marking`, the leg in force that
+/// changed planned again from where the robot is; the error is why the update is refused.
+pub fn prepare(
+    running: &Running,
+    checked: Checked,
+    module_path: &[PathBuf],
+    mission: (&MissionNet, &Marking),
+    now: Now,
+) -> Result<Prepared, String> {
+    let Checked {
+        loaded,
+        plan,
+        compiled,
+        ..
+    } = checked;
+    let (played, marking) = mission;
+    let mut net = compiled.net.with_subsystems_expanded(&loaded.system.system);
+    let base = running.file.parent().unwrap_or_else(|| Path::new("."));
+    let migration = migrate::migrate(&running.plan, &running.compiled, marking, &plan, &compiled)
+        .map_err(|refusal| refusal.to_string())?;
+    let leg = &plan.legs[migration.index];
+    let navigation = plan.navigation.module.clone();
+    let drives = compiled
+        .net
+        .place(&migration.place_after)
+        .is_some_and(|place| {
+            place
+                .params
+                .iter()
+                .any(|param| param.module == navigation && param.name == "path")
+        });
+    let mut how = if migration.changed {
+        format!("replaced at once in `{}`", migration.place_after)
+    } else {
+        format!("goes on unchanged in `{}`", migration.place_after)
+    };
+    let path_param = (navigation.as_str(), "path");
+    if !migration.changed {
+        // The leg goes on as the run plays it: with the path an earlier update planned from
+        // where the robot was, if one did, not the plan's from the leg's start.
+        migrate::set_leg_param(
+            &mut net,
+            &compiled.trace,
+            migration.index,
+            path_param,
+            |place| migrate::param_of(played, place, path_param),
+        );
+    }
+    if migration.changed && drives {
+        match now.robot_at {
+            Some(here) => {
+                let goal = *compiled.positions.get(&leg.to).ok_or_else(|| {
+                    format!("waypoint `{}` of leg `{}` is not placed", leg.to, leg.name)
+                })?;
+                let system_dir = loaded.system_file.parent().unwrap_or(base);
+                let world =
+                    plan_world(&plan, &loaded.system.system, base, system_dir, module_path)?;
+                let planned = armor_model::plan::plan_pairs(
+                    world.as_ref(),
+                    &compiled.robot,
+                    &compiled.keepouts,
+                    &[(here, goal)],
+                )
+                .map_err(|err| format!("the world cannot be mapped for planning: {err}"))?;
+                let path = match planned.into_iter().next() {
+                    Some(Ok(path)) => path,
+                    Some(Err(err)) => {
+                        return Err(format!(
+                            "leg `{}` in force changed, and there is no way from where the \
+                             robot is, ({}, {}), to `{}`: {err}",
+                            leg.name,
+                            geo::round_mm(here.x),
+                            geo::round_mm(here.y),
+                            leg.to
+                        ));
+                    }
+                    None => return Err("the planner planned nothing".to_owned()),
+                };
+                let value = path.format();
+                migrate::set_leg_param(
+                    &mut net,
+                    &compiled.trace,
+                    migration.index,
+                    path_param,
+                    |_| Some(value.clone()),
+                );
+                how.push_str(&format!(
+                    ", its path planned again from where the robot is, ({}, {}): {} m to `{}`",
+                    geo::round_mm((here.x * 100.0).round() / 100.0),
+                    geo::round_mm((here.y * 100.0).round() / 100.0),
+                    geo::round_mm((geo::path_length(&path.points) * 10.0).round() / 10.0),
+                    leg.to
+                ));
+            }
+            None => how.push_str(
+                ", from its start (where the robot is is not known: no odometry is followed)",
+            ),
+        }
+    }
+    let mut parts = vec![format!("leg `{}` in force {how}", leg.name)];
+    let (added, removed) = difference(
+        running.plan.legs.iter().map(|leg| leg.name.as_str()),
+        plan.legs.iter().map(|leg| leg.name.as_str()),
+    );
+    parts.extend(listed("legs added", &added));
+    parts.extend(listed("legs removed", &removed));
+    let area_names = |compiled: &Compiled| {
+        compiled
+            .keepouts
+            .iter()
+            .map(|keepout| keepout.name.clone())
+            .collect::<Vec<_>>()
+    };
+    let (old_areas, new_areas) = (area_names(&running.compiled), area_names(&compiled));
+    let (added, removed) = difference(
+        old_areas.iter().map(String::as_str),
+        new_areas.iter().map(String::as_str),
+    );
+    parts.extend(listed("no-go areas added", &added));
+    parts.extend(listed("no-go areas removed", &removed));
+    parts.extend(times(&plan, &migration, now.unix_secs));
+    Ok(Prepared {
+        plan,
+        compiled,
+        net,
+        migration,
+        message: std::iter::once(parts.join("; "))
+            .chain(loaded.warnings().iter().map(|warning| {
+                format!(
+                    "{}:{}: warning: {}",
+                    loaded.file.display(),
+                    warning.pos,
+                    warning.message
+                )
+            }))
+            .collect::<Vec<_>>()
+            .join("\n"),
+    })
+}
+
+/// Whether two paths name the same file (as the system loads them).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
+}
+
+/// The names of `new` not in `old`, and those of `old` not in `new`, each in its order.
+fn difference<'a>(
+    old: impl Iterator<Item = &'a str>,
+    new: impl Iterator<Item = &'a str>,
+) -> (Vec<String>, Vec<String>) {
+    let old: Vec<&str> = old.collect();
+    let new: Vec<&str> = new.collect();
+    let old_set: BTreeSet<&str> = old.iter().copied().collect();
+    let new_set: BTreeSet<&str> = new.iter().copied().collect();
+    (
+        new.iter()
+            .filter(|name| !old_set.contains(*name))
+            .map(|name| (*name).to_owned())
+            .collect(),
+        old.iter()
+            .filter(|name| !new_set.contains(*name))
+            .map(|name| (*name).to_owned())
+            .collect(),
+    )
+}
+
+fn listed(label: &str, names: &[String]) -> Option<String> {
+    (!names.is_empty()).then(|| {
+        format!(
+            "{label}: {}",
+            names
+                .iter()
+                .map(|name| format!("`{name}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })
+}
+
+/// The new plan's times judged against the run's clock (`now_unix_secs`) for the legs not done:
+/// a deadline already passed makes its leg late at once, an appointment passed lets it leave at
+/// once. The net's own transitions do so; this says it to the operator.
+fn times(plan: &Plan, migration: &Migration, now_unix_secs: f64) -> Vec<String> {
+    let clock = |unix_secs: f64| {
+        let text = armor_model::net::format_rfc3339(unix_secs);
+        text.get(11..19).map_or(text.clone(), str::to_owned)
+    };
+    let mut notes = Vec::new();
+    for leg in &plan.legs[migration.index..] {
+        if let Some(by) = leg.arrive_by_unix_secs
+            && by <= now_unix_secs
+        {
+            notes.push(format!(
+                "leg `{}` is due by {}, which has passed ({} now): it is late at once",
+                leg.name,
+                clock(by),
+                clock(now_unix_secs)
+            ));
+        }
+        let departed = leg.name == migration.leg && !migration.place_after.ends_with("_depart");
+        if let Some(from) = leg.not_before_unix_secs
+            && !departed
+        {
+            notes.push(if from <= now_unix_secs {
+                format!(
+                    "leg `{}`'s appointment, {}, has passed: it leaves as soon as it may",
+                    leg.name,
+                    clock(from)
+                )
+            } else {
+                format!(
+                    "leg `{}` leaves at {}, in {:.0} s",
+                    leg.name,
+                    clock(from),
+                    from - now_unix_secs
+                )
+            });
+        }
+    }
+    notes
+}
+
+/// What the supervisor needs to take an update.
+pub struct Context<'a> {
+    pub module_path: &'a [PathBuf],
+    pub server: &'a ConfigServer,
+    /// The date run time 0 stands for (the plan's start when rehearsed on its day).
+    pub start_unix_secs: f64,
+    pub run_secs: f64,
+}
+
+/// Takes a `checked` update (the controller swaps the nets, the progress line and the
+/// rehearsal's judge follow the new legs and areas, `running` becomes the new plan) or refuses
+/// it; either way it is numbered and recorded. The supervisor calls it once the module events
+/// that came before it have been played on the running net, so that an event of the old leg
+/// is never taken for one of the new. Returns whether it was taken and what to tell the
+/// operator.
+pub fn take(
+    controller: &mut Controller,
+    running: &mut Running,
+    progress: Option<&mut Progress>,
+    checked: Checked,
+    context: &Context<'_>,
+) -> (bool, String) {
+    let file = checked.file.clone();
+    let now = Now {
+        robot_at: progress.as_ref().and_then(|progress| progress.robot_at()),
+        unix_secs: context.start_unix_secs + context.run_secs,
+    };
+    let prepared = match prepare(
+        running,
+        checked,
+        context.module_path,
+        (controller.net(), &controller.marking()),
+        now,
+    ) {
+        Ok(prepared) => prepared,
+        Err(why) => return refuse(controller, &file, &why),
+    };
+    let Prepared {
+        plan,
+        compiled,
+        net,
+        migration,
+        message,
+    } = prepared;
+    let details = json!({
+        "legs_done": migration.done,
+        "leg": migration.leg,
+        "place_before": migration.place_before,
+        "place_after": migration.place_after,
+        "replaced": migration.changed,
+    });
+    let taken = crate::controller::Update {
+        file: &file,
+        message: &message,
+        details,
+    };
+    match controller.update(
+        net,
+        &migration.marking,
+        !migration.changed,
+        taken,
+        context.server,
+    ) {
+        Ok(number) => {
+            if let Some(progress) = progress {
+                progress.update(
+                    progress::leg_plans(&plan, &compiled, context.start_unix_secs),
+                    crate::rehearsal::areas(&compiled),
+                );
+            }
+            running.plan = plan;
+            running.compiled = compiled;
+            (true, format!("update {number} taken: {message}"))
+        }
+        Err(why) => refuse(controller, &file, &why),
+    }
+}
+
+/// Records an update refused (numbered) and says so.
+pub fn refuse(controller: &mut Controller, file: &str, why: &str) -> (bool, String) {
+    let number = controller.refuse_update(file, why);
+    (false, format!("update {number} refused: {why}"))
+}

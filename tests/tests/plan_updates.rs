@@ -1,0 +1,641 @@
+//! Plan updates sent to a running mission (issue 39, item 1): `armor ctl update PLAN.xml`
+//! moves the mission to the new plan between two firings, with no restart of the mission nor
+//! of the follower, or refuses it with the reason and goes on unchanged.
+//!
+//! * The yard reconnaissance, rehearsed with the bundled system (its default noise, its
+//!   localiser) and a run secret, updated while it drives: the waypoint `north` moved ahead of
+//!   the robot, the appointment at the gate moved later, a no-go area reported across the leg
+//!   after the one driven. An update that removes the leg being driven, one that does not check
+//!   and one sent with an observer's key are refused. The simulator's truth, read back from the
+//!   recording, judges: the robot arrived truly at the moved waypoint, its footprint never met
+//!   a no-go area, the gate was left at the new time; the follower kept its process; the
+//!   report, the summary and `armor ctl status` list the updates with their times.
+//! * The refusal rules the run itself applies (beyond those of `armor_model::plan::migrate`,
+//!   unit tested there), through `armor_runtime::update::prepare` on files: a mission net
+//!   rather than a plan, another system, and a leg in force replaced with no way from where the
+//!   robot is; a leg replaced gets its path from where the robot is, and keeps it through an
+//!   update that leaves it unchanged. A run that plays a net, not a plan, refuses any update.
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::{Mutex, PoisonError};
+use std::time::Duration;
+
+use armor_model::geo::LatLon;
+use armor_model::net::Marking;
+use armor_model::plan::{self, Plan};
+use armor_model::world::{Point, World};
+use armor_runtime::update::{Now, Running, check, prepare};
+use armor_tests::truth::{footprint_gap_m, recorded_truth};
+use armor_tests::{
+    Proc, bin, bin_dir, control_address, ctl, role_key, secret_file, workspace_root,
+};
+
+/// Slower than the other mission tests' 20: the updates are sent while given legs are driven,
+/// and a leg of a few metres must last long enough in real time for `armor ctl` to reach it on
+/// a loaded machine.
+const TIME_SCALE: &str = "10";
+
+/// How long the whole run may take in real time: about 25 s on an idle machine.
+const RUN_DEADLINE: Duration = Duration::from_secs(240);
+
+/// The follower's default tolerance, plus the slack a rehearsal allows.
+const ALLOWED_M: f64 = 0.3 + 0.1;
+
+/// The runs take turns with each other: each starts a whole simulated robot.
+static ONE_ROBOT_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+/// The yard plan and its system copied into a temporary folder, with the world and the
+/// recording named by absolute paths, so that the plan and its updates can be written there.
+struct Yard {
+    dir: tempfile::TempDir,
+    world: World,
+    plan_text: String,
+    recording: PathBuf,
+}
+
+impl Yard {
+    fn new() -> Yard {
+        let dir = tempfile::tempdir().unwrap();
+        let robot = workspace_root().join("missions/robot");
+        let world_file = workspace_root().join("assets/worlds/yard.world");
+        let system = std::fs::read_to_string(robot.join("system.xml"))
+            .unwrap()
+            .replace(
+                "value=\"yard.world\"",
+                &format!("value=\"{}\"", world_file.display()),
+            );
+        assert!(system.contains(&world_file.display().to_string()));
+        std::fs::write(dir.path().join("system.xml"), system).unwrap();
+        let recording = dir.path().join("yard-recon.mcap");
+        let plan_text = std::fs::read_to_string(robot.join("plan-yard.xml"))
+            .unwrap()
+            .replace(
+                "<param name=\"file\" value=\"yard-recon.mcap\"/>",
+                &format!(
+                    "<param name=\"file\" value=\"{}\"/><param name=\"compression\" value=\"none\"/>",
+                    recording.display()
+                ),
+            );
+        assert!(plan_text.contains("compression"));
+        let world = World::parse(
+            &std::fs::read_to_string(&world_file).unwrap(),
+            &world_file.display().to_string(),
+        )
+        .unwrap();
+        Yard {
+            dir,
+            world,
+            plan_text,
+            recording,
+        }
+    }
+
+    /// Writes `text` as the plan file `name` in the folder.
+    fn write(&self, name: &str, text: &str) -> PathBuf {
+        let file = self.dir.path().join(name);
+        std::fs::write(&file, text).unwrap();
+        file
+    }
+
+    /// `lat="…" lon="…"` of the world point (x, y), as a plan writes it.
+    fn lat_lon(&self, x: f64, y: f64) -> String {
+        let (lat, lon) = self.world.origin_lat_lon();
+        let at = LatLon::from_local(Point::new(x, y), LatLon::new(lat, lon));
+        format!("lat=\"{:.9}\" lon=\"{:.9}\"", at.lat_deg, at.lon_deg)
+    }
+
+    /// A no-go area `name`, the rectangle from (x0, y0) to (x1, y1), as a plan writes it.
+    fn area(&self, name: &str, (x0, y0): (f64, f64), (x1, y1): (f64, f64)) -> String {
+        let corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+            .iter()
+            .map(|&(x, y)| format!("<point {}/>", self.lat_lon(x, y)))
+            .collect::<String>();
+        format!("<area name=\"{name}\" kind=\"no-go\">{corners}</area>\n  ")
+    }
+
+    /// The plan `text` compiled on the yard for the bundled robot, as `armor check` would.
+    fn compiled(&self, text: &str) -> plan::Compiled {
+        let plan = Plan::parse(text).unwrap();
+        let robot = plan::robot(&plan, None, &Default::default());
+        plan::compile_for(&plan, Some(&self.world), &robot).unwrap()
+    }
+}
+
+/// `text` with `from` replaced by `to`, which it must hold.
+fn edited(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "no `{from}` in the plan");
+    text.replacen(from, to, 1)
+}
+
+/// The run's status as `armor ctl --secret SECRET status --json` prints it.
+fn status(addr: &str, secret: &Path) -> serde_json::Value {
+    let (ok, text) = ctl(
+        addr,
+        &["--secret", secret.to_str().unwrap(), "status", "--json"],
+    );
+    assert!(ok, "{text}");
+    let json = text.find('{').map_or("", |start| &text[start..]);
+    serde_json::from_str(json).unwrap_or_else(|err| panic!("{err}: {text}"))
+}
+
+/// The places marked, by name.
+fn marked(status: &serde_json::Value) -> Vec<String> {
+    status["mission"]["marking"]
+        .as_object()
+        .map(|marking| marking.keys().cloned().collect())
+        .unwrap_or_default()
+}
+
+/// The follower's process id and restarts.
+fn follower(status: &serde_json::Value) -> (u64, u64) {
+    let module = status["modules"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|module| module["name"] == "follower")
+        .unwrap();
+    (
+        module["pid"].as_u64().unwrap(),
+        module["restarts"].as_u64().unwrap(),
+    )
+}
+
+/// `armor ctl --secret SECRET update FILE`: whether it was taken, and what it said.
+fn update(addr: &str, secret: &Path, file: &Path) -> (bool, String) {
+    ctl(
+        addr,
+        &[
+            "--secret",
+            secret.to_str().unwrap(),
+            "update",
+            file.to_str().unwrap(),
+        ],
+    )
+}
+
+/// The run time the transition `name` fired at, by the report's timeline.
+fn fired_at(report: &serde_json::Value, name: &str) -> f64 {
+    report["timeline"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|entry| entry["kind"] == "fired" && entry["transition"] == name)
+        .and_then(|entry| entry["at_secs"].as_f64())
+        .unwrap_or_else(|| panic!("`{name}` never fired"))
+}
+
+#[test]
+fn the_yard_run_takes_three_updates_while_driving_and_refuses_the_wrong_ones() {
+    let yard = Yard::new();
+    let original = yard.write("plan-yard.xml", &yard.plan_text);
+    // 1. `north`, where `climb` goes, moved 2.5 m west (ahead of the robot: it is about to
+    // drive the first leg).
+    let moved_north = (29.0, 16.0);
+    let north_before = "<waypoint name=\"north\" lat=\"43.5616439\" lon=\"1.4693909\"/>";
+    let text1 = edited(
+        &yard.plan_text,
+        north_before,
+        &format!(
+            "<waypoint name=\"north\" {}/>",
+            yard.lat_lon(moved_north.0, moved_north.1)
+        ),
+    );
+    let update1 = yard.write("plan-north-moved.xml", &text1);
+    // 2. The appointment at the gate moved 20 s later.
+    let text2 = edited(
+        &text1,
+        "not_before=\"2026-11-23T08:01:30Z\"",
+        "not_before=\"2026-11-23T08:01:50Z\"",
+    );
+    let update2 = yard.write("plan-appointment-later.xml", &text2);
+    // 3. Another unit reports a minefield across `climb`, north of the container: the way
+    // from `east` to `north` must go round it, by the gap along the low wall.
+    let reported = ((29.5, 12.0), (31.5, 13.0));
+    let text3 = edited(
+        &text2,
+        "<phase_line",
+        &format!(
+            "{}<phase_line",
+            yard.area("reported", reported.0, reported.1)
+        ),
+    );
+    let update3 = yard.write("plan-reported-area.xml", &text3);
+    // Refused: the leg being driven (`cross`) taken out.
+    let without_cross = edited(
+        &edited(
+            &text2,
+            "<leg name=\"cross\" from=\"gate\" to=\"east\" not_before=\"2026-11-23T08:01:50Z\" wait_secs=\"5\"/>",
+            "",
+        ),
+        "<leg name=\"climb\" from=\"east\"",
+        "<leg name=\"climb\" from=\"gate\"",
+    );
+    let removal = yard.write("plan-without-cross.xml", &without_cross);
+    // Refused: a leg to a waypoint the plan does not have.
+    let broken_text = edited(&text1, "to=\"rally\"", "to=\"nowhere\"");
+    let broken = yard.write("plan-broken.xml", &broken_text);
+    let broken_line = broken_text
+        .lines()
+        .position(|line| line.contains("to=\"nowhere\""))
+        .unwrap()
+        + 1;
+    let secret = secret_file(yard.dir.path());
+    let observer = role_key(&secret, "observer");
+    let report_file = yard.dir.path().join("report.json");
+
+    let _one = ONE_ROBOT_AT_A_TIME
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner);
+    let mut run = Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(&original)
+            .args([
+                "--time-scale",
+                TIME_SCALE,
+                "--start-at",
+                "2026-11-23T08:00:00Z",
+            ])
+            .arg("--report")
+            .arg(&report_file)
+            .arg("--secret")
+            .arg(&secret)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .current_dir(yard.dir.path()),
+    );
+    let addr = control_address(&run);
+    let first = status(&addr, &secret);
+    assert!(
+        marked(&first)
+            .iter()
+            .all(|place| place.starts_with("advance_"))
+    );
+
+    let (taken, said) = update(&addr, &secret, &update1);
+    assert!(taken, "{said}");
+    assert!(
+        said.starts_with("update 1 taken: leg `advance` in force goes on unchanged in `advance_"),
+        "{said}"
+    );
+    let (taken, said) = update(&addr, &secret, &update2);
+    assert!(taken, "{said}");
+    assert!(
+        said.starts_with("update 2 taken:") && said.contains("leg `cross` leaves at 08:01:50"),
+        "{said}"
+    );
+    // A plan that does not check: refused with its place and reason, the run unchanged.
+    let (taken, said) = update(&addr, &secret, &broken);
+    assert!(!taken, "{said}");
+    assert!(
+        said.starts_with(&format!(
+            "update 3 refused: the update does not check: {}:{broken_line}:",
+            broken.display()
+        )) && said.contains("`to` names waypoint `nowhere`, which the plan does not define"),
+        "{said}"
+    );
+    // An observer reads the run; it does not update it.
+    let (taken, said) = ctl(
+        &addr,
+        &[
+            "--key",
+            observer.to_str().unwrap(),
+            "update",
+            update3.to_str().unwrap(),
+        ],
+    );
+    assert!(!taken && said.contains("observer"), "{said}");
+
+    // While `cross` is driven: taking it out is refused, and the run goes on; the area across
+    // the next leg is taken.
+    // The run says each firing in its log: no need to ask for its status again and again.
+    run.wait_for("`cross` set off", RUN_DEADLINE, |line| {
+        line.contains("fired `cross_appointment`")
+    });
+    let (taken, said) = update(&addr, &secret, &removal);
+    assert!(!taken, "{said}");
+    assert!(
+        said.starts_with("update 4 refused: the update removes leg `cross`, which is in force"),
+        "{said}"
+    );
+    let (taken, said) = update(&addr, &secret, &update3);
+    assert!(taken, "{said}");
+    assert!(
+        said.starts_with("update 5 taken:") && said.contains("no-go areas added: `reported`"),
+        "{said}"
+    );
+    let last = status(&addr, &secret);
+    let updates = last["mission"]["updates"].as_array().unwrap();
+    assert_eq!(
+        updates
+            .iter()
+            .map(|update| (update["number"].as_u64().unwrap(), update["taken"] == true))
+            .collect::<Vec<_>>(),
+        [(1, true), (2, true), (3, false), (4, false), (5, true)]
+    );
+    // The follower kept its process through the updates.
+    assert_eq!(follower(&first), follower(&last));
+    assert_eq!(follower(&last).1, 0);
+
+    let exit = run.wait_exit(RUN_DEADLINE);
+    let lines = run.lines();
+    let text = lines.join("\n");
+    assert!(exit.success(), "{exit}:\n{text}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report_file).unwrap()).unwrap();
+    assert_eq!(report["outcome"], "complete", "{text}");
+    assert_eq!(report["rehearsal"]["verdict"], "passed", "{text}");
+    let timeline = report["timeline"].as_array().unwrap();
+    // One mission from start to end: started once, each leg's transitions in order.
+    assert_eq!(
+        timeline
+            .iter()
+            .filter(|entry| entry["kind"] == "started")
+            .count(),
+        1
+    );
+    let fired: Vec<&str> = timeline
+        .iter()
+        .filter(|entry| entry["kind"] == "fired")
+        .map(|entry| entry["transition"].as_str().unwrap())
+        .collect();
+    assert_eq!(fired, armor_tests::mission::YARD_FIRINGS);
+    // The gate was left at the new appointment, 110 s after the start, not at the old one.
+    assert!(fired_at(&report, "cross_appointment") >= 110.0);
+    // The report lists the updates with their times, in the timeline too.
+    let listed = report["updates"].as_array().unwrap();
+    assert_eq!(listed.len(), 5);
+    let in_timeline: Vec<(u64, f64)> = timeline
+        .iter()
+        .filter(|entry| entry["kind"] == "update")
+        .map(|entry| {
+            (
+                entry["number"].as_u64().unwrap(),
+                entry["run_secs"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(in_timeline.len(), 5);
+    for (update, (number, run_secs)) in listed.iter().zip(&in_timeline) {
+        assert_eq!(update["number"].as_u64(), Some(*number));
+        assert_eq!(update["run_secs"].as_f64(), Some(*run_secs));
+    }
+    // Updates 4 and 5 came while `cross` was driven: after the appointment, before `climb`.
+    assert!(in_timeline[3].1 >= fired_at(&report, "cross_appointment"));
+    assert!(in_timeline[4].1 <= fired_at(&report, "climb_arrived"));
+    for number in 1..=5 {
+        assert!(
+            lines
+                .iter()
+                .any(|line| line.starts_with(&format!("update {number} at "))),
+            "no summary line for update {number}:\n{text}"
+        );
+    }
+
+    // The truth, from the recording: the robot arrived at the moved `north`, and its footprint
+    // kept out of both no-go areas.
+    let truth = recorded_truth(&yard.recording);
+    let climbed = fired_at(&report, "climb_arrived");
+    let (_, at_arrival) = truth
+        .iter()
+        .min_by(|a, b| (a.0 - climbed).abs().total_cmp(&(b.0 - climbed).abs()))
+        .copied()
+        .unwrap();
+    let compiled = yard.compiled(&text3);
+    let north = compiled.positions["north"];
+    assert!(
+        north.distance(Point::new(moved_north.0, moved_north.1)) < 0.01,
+        "{north:?}"
+    );
+    let error = at_arrival.distance(north);
+    assert!(
+        error <= ALLOWED_M,
+        "`climb` arrived {error} m from the moved `north`"
+    );
+    let radius_m = report["rehearsal"]["robot_radius_m"].as_f64().unwrap();
+    assert_eq!(compiled.keepouts.len(), 2);
+    for keepout in &compiled.keepouts {
+        let least = truth
+            .iter()
+            .map(|(_, at)| footprint_gap_m(&keepout.polygon, *at, radius_m))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            least > 0.0,
+            "the footprint came {least} m from `{}`",
+            keepout.name
+        );
+    }
+    // The area reported lies across the straight way from `east` to the moved `north`: the
+    // robot went round it, which the truth shows east of the area while passing it.
+    let (x0, y0) = reported.0;
+    let (x1, y1) = reported.1;
+    assert!(
+        truth
+            .iter()
+            .filter(|(_, at)| at.y > y0 && at.y < y1)
+            .all(|(_, at)| at.x < x0 || at.x > x1),
+        "the robot crossed the reported area's band inside it"
+    );
+}
+
+/// The running yard plan, loaded as `armor run` loads it, for `prepare`.
+fn running(yard: &Yard) -> (Running, PathBuf) {
+    let file = yard.write("plan-yard.xml", &yard.plan_text);
+    let loaded = armor_runtime::mission::load_mission(&file, &[bin_dir()]).unwrap();
+    (
+        Running {
+            file: file.clone(),
+            system_file: loaded.system_file.clone(),
+            plan: loaded.plan.clone().unwrap(),
+            compiled: loaded.compiled.clone().unwrap(),
+        },
+        file,
+    )
+}
+
+#[test]
+fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot() {
+    let yard = Yard::new();
+    let (running, _) = running(&yard);
+    let driving_cross: Marking = [("cross_drive".to_owned(), 1)].into();
+    let now = Now {
+        robot_at: Some(Point::new(20.0, 7.0)),
+        unix_secs: armor_model::net::parse_rfc3339("2026-11-23T08:01:40Z").unwrap(),
+    };
+    let refused = |file: &str, text: &str, marking: &Marking, now: Now| {
+        check(&running, file, text, &[bin_dir()])
+            .and_then(|checked| {
+                prepare(
+                    &running,
+                    checked,
+                    &[bin_dir()],
+                    (&running.compiled.net, marking),
+                    now,
+                )
+            })
+            .map(|prepared| prepared.message)
+            .expect_err("refused")
+    };
+    // A mission net is not a plan.
+    // (`system="system.xml"`, found beside the running plan: the same system.)
+    let net = std::fs::read_to_string(workspace_root().join("missions/robot/yard.xml")).unwrap();
+    let why = refused("net.xml", &net, &driving_cross, now);
+    assert_eq!(
+        why,
+        "the update is a mission net, not a plan: a running plan is updated with a plan"
+    );
+    // Another system: the copy of the same file is another file.
+    std::fs::copy(
+        yard.dir.path().join("system.xml"),
+        yard.dir.path().join("other.xml"),
+    )
+    .unwrap();
+    let other = edited(
+        &yard.plan_text,
+        "system=\"system.xml\"",
+        "system=\"other.xml\"",
+    );
+    let why = refused("other-system.xml", &other, &driving_cross, now);
+    assert!(
+        why.starts_with("the update is over the system `")
+            && why.contains("cannot change the system"),
+        "{why}"
+    );
+    // An area over where the robot is, across the leg in force: no way from there.
+    let boxed = edited(
+        &yard.plan_text,
+        "<phase_line",
+        &format!(
+            "{}<phase_line",
+            yard.area("reported", (19.0, 6.0), (21.0, 8.0))
+        ),
+    );
+    let why = refused("boxed.xml", &boxed, &driving_cross, now);
+    assert!(
+        why.starts_with(
+            "leg `cross` in force changed, and there is no way from where the robot is, (20, 7), \
+             to `east`"
+        ),
+        "{why}"
+    );
+    // The same area taken while the robot is elsewhere on the leg: its path starts there.
+    let elsewhere = Now {
+        robot_at: Some(Point::new(17.0, 4.5)),
+        ..now
+    };
+    let checked = check(&running, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
+    let prepared = prepare(
+        &running,
+        checked,
+        &[bin_dir()],
+        (&running.compiled.net, &driving_cross),
+        elsewhere,
+    )
+    .unwrap();
+    assert!(prepared.migration.changed);
+    let path =
+        armor_model::plan::migrate::param_of(&prepared.net, "cross_drive", ("follower", "path"))
+            .unwrap();
+    let start = armor_model::planner::Path::parse(&path).unwrap().points[0];
+    assert!(start.distance(Point::new(17.0, 4.5)) < 0.05, "{path}");
+    assert!(
+        prepared
+            .message
+            .contains("its path planned again from where the robot is, (17, 4.5)"),
+        "{}",
+        prepared.message
+    );
+    // Taken, then the same plan sent again: the leg goes on unchanged, on the path the run gave
+    // it from where the robot was, not back on the plan's from `gate`.
+    let taken = Running {
+        plan: prepared.plan.clone(),
+        compiled: prepared.compiled.clone(),
+        ..running.clone()
+    };
+    let checked = check(&taken, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
+    let again = prepare(
+        &taken,
+        checked,
+        &[bin_dir()],
+        (&prepared.net, &driving_cross),
+        Now {
+            robot_at: Some(Point::new(19.0, 3.0)),
+            ..now
+        },
+    )
+    .unwrap();
+    assert!(!again.migration.changed);
+    assert!(
+        again
+            .message
+            .starts_with("leg `cross` in force goes on unchanged in `cross_drive`"),
+        "{}",
+        again.message
+    );
+    // What `armor check` warns of comes with the answer, a line each, at the operator's file.
+    let hurried = edited(
+        &yard.plan_text,
+        "arrive_by=\"2026-11-23T08:06:00Z\"",
+        "arrive_by=\"2026-11-23T08:02:00Z\"",
+    );
+    let checked = check(&running, "hurried.xml", &hurried, &[bin_dir()]).unwrap();
+    let warned = prepare(
+        &running,
+        checked,
+        &[bin_dir()],
+        (&running.compiled.net, &driving_cross),
+        now,
+    )
+    .unwrap();
+    let mut lines = warned.message.lines();
+    assert!(
+        lines
+            .next()
+            .unwrap()
+            .starts_with("leg `cross` in force goes on unchanged")
+    );
+    let warning = lines.next().unwrap_or_default();
+    assert!(
+        warning.starts_with("hurried.xml:")
+            && warning.contains(": warning: ")
+            && warning.contains("regroup"),
+        "{}",
+        warned.message
+    );
+    let follower_path = |net: &armor_model::net::MissionNet| {
+        armor_model::plan::migrate::param_of(net, "cross_drive", ("follower", "path"))
+    };
+    assert_eq!(follower_path(&again.net), Some(path));
+    assert_ne!(
+        follower_path(&again.net),
+        follower_path(&again.compiled.net)
+    );
+}
+
+#[test]
+fn a_run_that_plays_a_net_refuses_updates_and_numbers_them() {
+    let yard = Yard::new();
+    // The net's folder is its own: the yard's plan sent is over another system file.
+    let net_dir = tempfile::tempdir().unwrap();
+    let mission = armor_tests::waiting_mission(net_dir.path());
+    let plan = yard.write("plan-yard.xml", &yard.plan_text);
+    let (mut run, addr) = armor_tests::run_with_control(&mission);
+    let (taken, said) = ctl(&addr, &["update", plan.to_str().unwrap()]);
+    assert!(!taken, "{said}");
+    assert!(
+        said.starts_with(
+            "update 1 refused: this run plays a mission net, not a plan: only a plan is updated"
+        ),
+        "{said}"
+    );
+    let status = armor_tests::ctl_status(&addr);
+    assert_eq!(status["mission"]["updates"][0]["number"], 1);
+    assert_eq!(status["mission"]["updates"][0]["taken"], false);
+    // The run goes on in its place.
+    assert_eq!(marked(&status), ["counting"]);
+    let (aborted, said) = ctl(&addr, &["abort"]);
+    assert!(aborted, "{said}");
+    run.wait_exit(RUN_DEADLINE);
+}
