@@ -175,10 +175,15 @@ pub fn instance(
     }
     let points: Vec<Point> = points.into_iter().flatten().collect();
     let count = points.len();
+    // Every way in both directions, as the written plan's legs will be planned (a path and
+    // its reverse may differ by a hair): the planner searches once from each place to all the
+    // others, and each way is the path `armor check` then plans for that leg, to the bit.
     let mut pairs = Vec::new();
     for i in 0..count {
-        for j in i + 1..count {
-            pairs.push((points[i], points[j]));
+        for j in 0..count {
+            if i != j {
+                pairs.push((points[i], points[j]));
+            }
         }
     }
     let paths = plan::plan_pairs(world, robot, &legs.keepouts, &pairs).map_err(|err| {
@@ -189,39 +194,22 @@ pub fn instance(
     })?;
     let mut length_m = vec![vec![None; count]; count];
     let mut cut = vec![vec![None; count]; count];
-    let mut paths = paths.into_iter();
-    for i in 0..count {
-        length_m[i][i] = Some(0.0);
-        for j in i + 1..count {
-            match paths.next() {
-                Some(Ok(path)) => {
-                    length_m[i][j] = Some(path.length_m);
-                    length_m[j][i] = Some(path.length_m);
-                }
-                Some(Err(err)) => {
-                    let why = match err {
-                        PathError::Cut(bottleneck) => bottleneck.to_string(),
-                        PathError::Blocked { why, .. } => why.to_string(),
-                    };
-                    cut[i][j] = Some(why.clone());
-                    cut[j][i] = Some(why);
-                }
-                None => {}
+    for ((i, j), path) in (0..count)
+        .flat_map(|i| (0..count).filter(move |&j| j != i).map(move |j| (i, j)))
+        .zip(paths)
+    {
+        match path {
+            Ok(path) => length_m[i][j] = Some(path.length_m),
+            Err(err) => {
+                cut[i][j] = Some(match err {
+                    PathError::Cut(bottleneck) => bottleneck.to_string(),
+                    PathError::Blocked { why, .. } => why.to_string(),
+                });
             }
         }
     }
-    // Driving through another place is a way too: the planner's smoothed paths are not always
-    // the shortest to the centimetre, and the solver's bounds count on the triangle inequality.
-    for via in 0..count {
-        for i in 0..count {
-            for j in 0..count {
-                if let (Some(a), Some(b)) = (length_m[i][via], length_m[via][j])
-                    && length_m[i][j].is_none_or(|direct| a + b < direct)
-                {
-                    length_m[i][j] = Some(a + b);
-                }
-            }
-        }
+    for (i, row) in length_m.iter_mut().enumerate() {
+        row[i] = Some(0.0);
     }
     let n = objectives.objectives.len();
     // Node indices into `points`: the start, the tasks, the end (when placed).

@@ -4,7 +4,11 @@
 
 use std::time::Duration;
 
-use armor_model::planner::random::SplitMix64;
+use armor_model::geo::LatLon;
+use armor_model::plan::{self, Plan};
+use armor_model::planner::random::{self, RandomWorld, SplitMix64};
+use armor_model::planner::{Costmap, CostmapSettings, Planner, Robot};
+use armor_model::world::Point;
 
 use crate::explain::Constraint;
 use crate::{ChargeLimit, Outcome, Problem, Route, Task, explain, heuristic, solve};
@@ -244,4 +248,94 @@ fn the_heuristic_is_never_better_than_the_solver() {
             assert!(problem.evaluate(&heuristic.order).is_some());
         }
     }
+}
+
+/// On seeded random worlds, the legs of the plan written from the objectives, read back from
+/// its file and planned as `armor check` plans them, are the very ways the planner timed: the
+/// same length to the bit, so the same times (the ways come from one search per place, the
+/// legs from one search each).
+#[test]
+fn the_written_plan_s_legs_are_the_ways_the_planner_timed_seed_4041() {
+    let robot = Robot::default();
+    let speed_mps = 0.5;
+    let shape = RandomWorld {
+        origin: (43.5615, 1.469),
+        ..RandomWorld::default()
+    };
+    let origin = LatLon::new(shape.origin.0, shape.origin.1);
+    let mut rng = SplitMix64(4041);
+    let (mut legs_compared, mut turning) = (0, 0);
+    for index in 0..6 {
+        let world = shape.draw(&mut rng);
+        let costmap = Costmap::for_world(&world, &robot, &[], &CostmapSettings::default())
+            .unwrap_or_else(|err| panic!("{err}"));
+        let mut planner = Planner::new(costmap);
+        // Places given to the ten-millionth of a degree, as a plan file writes them, where the
+        // robot may be once read back, and reachable from home.
+        let mut place = |rng: &mut SplitMix64, home: Option<Point>| loop {
+            let p = random::free_place(rng, planner.costmap(), shape.side_m);
+            let at = LatLon::from_local(p, origin);
+            let (lat, lon) = (format!("{:.7}", at.lat_deg), format!("{:.7}", at.lon_deg));
+            let read = LatLon::new(lat.parse().unwrap(), lon.parse().unwrap()).to_local(origin);
+            if planner.costmap().blocker_at(read).is_none()
+                && home.is_none_or(|home| planner.plan(home, read).is_ok())
+            {
+                return (read, format!("lat=\"{lat}\" lon=\"{lon}\""));
+            }
+        };
+        let (home, home_at) = place(&mut rng, None);
+        let mut text = format!(
+            "<plan name=\"random\" system=\"system.xml\" start=\"2026-11-23T08:00:00Z\">\n\
+             <navigation speed_mps=\"{speed_mps}\"/>\n<waypoint name=\"home\" {home_at}/>\n\
+             <objectives from=\"home\" to=\"home\">\n"
+        );
+        for objective in 0..7 {
+            let (_, at) = place(&mut rng, Some(home));
+            text.push_str(&format!("<objective name=\"o{objective}\" {at}/>\n"));
+        }
+        text.push_str("</objectives>\n</plan>\n");
+        let plan = Plan::parse(&text).unwrap_or_else(|problems| panic!("{problems:?}"));
+        let instance = crate::instance(&plan, Some(&world), &robot, speed_mps)
+            .unwrap_or_else(|problems| panic!("world {index}: {problems:?}"));
+        let route = heuristic::nearest_neighbour_2opt(&instance.problem)
+            .unwrap_or_else(|| panic!("world {index}: no route"));
+        let written = crate::write::plan(&plan, &instance, &route);
+        let read = Plan::parse(&written.to_xml()).unwrap_or_else(|problems| panic!("{problems:?}"));
+        let legs = plan::plan_legs(&read, Some(&world), &robot);
+        assert!(
+            legs.problems.is_empty(),
+            "world {index}: {:?}",
+            legs.problems
+        );
+        let end = instance.problem.end();
+        let nodes: Vec<usize> = std::iter::once(0)
+            .chain(route.order.iter().map(|&task| crate::Problem::node(task)))
+            .chain([end])
+            .collect();
+        assert_eq!(legs.paths.len(), nodes.len() - 1, "world {index}");
+        for (leg, (pair, path)) in nodes.windows(2).zip(&legs.paths).enumerate() {
+            let (from, to) = (pair[0], pair[1]);
+            let path = match path {
+                Some(Ok(path)) => path,
+                other => panic!("world {index}, leg {leg}: {other:?}"),
+            };
+            let context = format!("seed 4041, world {index}, leg {leg} ({from} to {to})");
+            assert_eq!(
+                instance.length(from, to).map(f64::to_bits),
+                Some(path.length_m.to_bits()),
+                "{context}"
+            );
+            assert_eq!(
+                instance.problem.travel_ds[from][to],
+                Some(crate::instance::ds_up(path.length_m / speed_mps)),
+                "{context}"
+            );
+            legs_compared += 1;
+            turning += usize::from(path.points.len() > 2);
+        }
+    }
+    assert!(
+        legs_compared >= 40 && turning >= 10,
+        "{legs_compared} legs compared, {turning} of them turning"
+    );
 }

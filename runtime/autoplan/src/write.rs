@@ -205,7 +205,7 @@ fn numbers(instance: &Instance, conflict: &Conflict) -> Option<String> {
         [task] => {
             let node = crate::Problem::node(*task);
             let spec = &problem.tasks[*task];
-            match problem.travel_ds[0][node] {
+            match problem.earliest_ds()[node] {
                 None => Some(way_words(instance, 0, node)),
                 Some(travel) => {
                     let by = spec.by_ds?;
@@ -220,6 +220,7 @@ fn numbers(instance: &Instance, conflict: &Conflict) -> Option<String> {
             }
         }
         [a, b] => {
+            let earliest = problem.earliest_ds();
             // Either order fails; say why for each.
             let mut reasons = Vec::new();
             for (first, then) in [(*a, *b), (*b, *a)] {
@@ -229,7 +230,7 @@ fn numbers(instance: &Instance, conflict: &Conflict) -> Option<String> {
                 let open = problem.tasks[first]
                     .not_before_ds
                     .unwrap_or(0)
-                    .max(problem.travel_ds[0][x].unwrap_or(0));
+                    .max(earliest[x].unwrap_or(0));
                 let Some(by) = problem.tasks[then].by_ds else {
                     continue;
                 };
