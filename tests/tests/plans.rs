@@ -226,6 +226,11 @@ fn run_example(name: &str) -> PlanRun {
 
 /// [`run_example`] of a loaded plan.
 fn run_plan(example: Example) -> PlanRun {
+    run_plan_to(example, "done")
+}
+
+/// [`run_plan`] of a plan that must end in the place `end` (a contingency's `returned_W`).
+fn run_plan_to(example: Example, end: &str) -> PlanRun {
     let dir = tempfile::tempdir().unwrap();
     let copy = example.copy_into(dir.path());
     let plan_tag = &example.text[example.text.find("<plan ").unwrap()..];
@@ -259,7 +264,7 @@ fn run_plan(example: Example) -> PlanRun {
     }
     assert_eq!(
         run.final_marking(),
-        serde_json::json!({ "done": 1 }),
+        serde_json::Value::Object([(end.to_owned(), 1.into())].into_iter().collect()),
         "{:?}",
         run.fired()
     );
@@ -1419,6 +1424,85 @@ fn a_plan_made_from_objectives_runs_to_completion_and_meets_its_windows() {
     // The precedence: the east side before the low wall.
     let position = |name: &str| legs.iter().position(|leg| leg.name == format!("to_{name}"));
     assert!(position("east_side") < position("low_wall"));
+}
+
+/// A low battery is acted on while the robot waits, not only while it drives (issue 40): the
+/// yard's robot, its simulated battery started low enough to run down during a long wait at
+/// the gate, turns back home from the wait and never drives the next leg; by the simulator's
+/// truth it waited at the gate until the battery was reported low, and ended at home.
+#[test]
+fn a_battery_that_runs_low_during_a_wait_takes_the_robot_home() {
+    let dir = tempfile::tempdir().unwrap();
+    let worlds = workspace_root().join("assets/worlds");
+    // The yard's system with its worlds named in full (the copy is outside the workspace), and
+    // a battery that starts at 0.3 and drains 0.9 an hour besides 0.002 a metre: about 0.27 on
+    // arrival at the gate, below 0.2 some 270 s into the wait.
+    let system = std::fs::read_to_string(robot_file("system.xml"))
+        .unwrap()
+        .replace(
+            "value=\"yard.world\"",
+            &format!("value=\"{}\"", worlds.join("yard.world").display()),
+        )
+        .replacen(
+            "<module name=\"sim\" type=\"sim\">",
+            "<module name=\"sim\" type=\"sim\">\n    \
+             <param name=\"battery_start\" value=\"0.3\"/>\n    \
+             <param name=\"battery_drain_per_hour\" value=\"0.9\"/>",
+            1,
+        );
+    std::fs::write(dir.path().join("system.xml"), system).unwrap();
+    let file = dir.path().join("plan-battery.xml");
+    std::fs::write(
+        &file,
+        r#"<plan name="battery" system="system.xml" start="2026-11-23T08:00:00Z">
+  <navigation module="follower" speed_mps="0.5"/>
+  <throughout>
+    <module name="recorder"><param name="file" value="battery.mcap"/></module>
+  </throughout>
+  <waypoint name="home" lat="43.5615360" lon="1.4690496"/>
+  <waypoint name="gate" lat="43.5615360" lon="1.4691986"/>
+  <waypoint name="east" lat="43.5615450" lon="1.4693909"/>
+  <leg name="out" from="home" to="gate" wait_secs="1200"/>
+  <leg name="on" from="gate" to="east"/>
+  <contingency on="low_battery"/>
+</plan>
+"#,
+    )
+    .unwrap();
+    let run = run_plan_to(Example::load_file(file), "returned_home");
+    let context = run.context();
+    let arrived = run.arrival(0);
+    let low = run
+        .run
+        .fired_at("out_wait_low_battery")
+        .unwrap_or_else(|| panic!("the wait did not answer the low battery: {context}"));
+    assert!(
+        low > arrived + 60.0 && low < arrived + 1200.0,
+        "arrived at {arrived} s, the battery low at {low} s: {context}"
+    );
+    assert!(
+        !run.run
+            .fired()
+            .iter()
+            .any(|(name, _)| name.starts_with("on_")),
+        "the next leg was driven: {context}"
+    );
+    // By the truth: at the gate all through the wait, at home at the end.
+    let (gate, home) = (run.example.position("gate"), run.example.position("home"));
+    for sample in run.samples_between(arrived + 2.0, low) {
+        assert!(
+            sample.at.distance(gate) < 0.5,
+            "at {} s the robot was truly at {}, not waiting at the gate {gate}: {context}",
+            sample.secs,
+            sample.at
+        );
+    }
+    let end = run.truth.last().unwrap();
+    assert!(
+        end.at.distance(home) < 0.5,
+        "the robot truly ended at {}, not home {home}: {context}",
+        end.at
+    );
 }
 
 /// Bad objectives are refused at their line by `armor plan` and `armor check`, and no plan is
