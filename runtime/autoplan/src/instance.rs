@@ -2,10 +2,10 @@
 //! check` places waypoints, the way between every two planned on one costmap (the paths the
 //! plan's legs would get), and every time and distance rounded to the solver's integers.
 
-use armor_model::geo::Point;
+use armor_model::geo::{LatLon, Point, Polygon};
 use armor_model::plan::objectives::{Objectives, Place};
 use armor_model::plan::{self, Plan, Waypoint};
-use armor_model::planner::{Keepout, PathError, Robot};
+use armor_model::planner::{self, Costmap, CostmapSettings, Keepout, PathError, Planner, Robot};
 use armor_model::world::World;
 use armor_module_api::xml::Located;
 
@@ -62,8 +62,118 @@ pub fn own_waypoints(objectives: &Objectives) -> impl Iterator<Item = Waypoint> 
                 symbol: None,
                 pos: objective.pos,
             }),
-            Place::Waypoint(_) => None,
+            Place::Waypoint(_) | Place::Area(_) => None,
         })
+}
+
+/// Places each objective given as an area (docs/plans.md, "Objectives"): at its centroid when
+/// it acts there (an `<arrival>`: it observes the area from its middle), else at the point of
+/// it the robot reaches first from the start (the cheapest way's end, on the costmap the ways
+/// are planned on); then to the ten-millionth of a degree, as the written plan gives it, so
+/// that the ways timed are the legs `armor check` plans. What cannot be is said at the area.
+fn place_areas(
+    plan: &Plan,
+    world: Option<&World>,
+    robot: &Robot,
+    objectives: &mut Objectives,
+    problems: &mut Vec<Located>,
+) {
+    if !objectives
+        .objectives
+        .iter()
+        .any(|objective| matches!(objective.place, Place::Area(_)))
+    {
+        return;
+    }
+    // Without a frame nothing is placed; `plan_legs` says why.
+    let Some(origin) = plan::plan_origin(plan, world) else {
+        return;
+    };
+    let mut bare = plan.clone();
+    bare.legs.clear();
+    let base = plan::plan_legs(&bare, world, robot);
+    let start = base.positions.get(&objectives.from).copied();
+    let mut planner: Option<Planner> = None;
+    for objective in &mut objectives.objectives {
+        let Place::Area(area) = &objective.place else {
+            continue;
+        };
+        let name = &objective.name;
+        let polygon = Polygon::new(area.points.iter().map(|p| p.to_local(origin)).collect());
+        // A degenerate outline is refused when the plan is read.
+        if polygon.corners.len() < 3 || polygon.crosses_itself() {
+            continue;
+        }
+        let point = if objective.arrival.is_some() {
+            let centroid = polygon.centroid();
+            if let Some(why) = planner::blocker_at(world, robot, &base.keepouts, centroid) {
+                problems.push(Located::new(
+                    area.pos,
+                    format!(
+                        "objective `{name}` acts on its area from its centroid, at {centroid} m, \
+                         which {why}; draw the area so that the robot can be at its middle, or \
+                         give the objective a place"
+                    ),
+                ));
+                continue;
+            }
+            centroid
+        } else {
+            // A start where the robot cannot be is said at its waypoint.
+            let Some(start) = start else {
+                continue;
+            };
+            if planner.is_none() {
+                let settings = CostmapSettings::default();
+                let costmap = match world {
+                    Some(world) => Costmap::for_world(world, robot, &base.keepouts, &settings),
+                    None => {
+                        let mut points = polygon.corners.clone();
+                        points.push(start);
+                        let extent =
+                            planner::open_extent(&points, &base.keepouts, robot, &settings);
+                        Costmap::open(extent, robot, &base.keepouts, &settings)
+                    }
+                };
+                match costmap {
+                    Ok(costmap) => planner = Some(Planner::new(costmap)),
+                    Err(err) => {
+                        problems.push(Located::new(
+                            plan.pos,
+                            format!("the world cannot be mapped for planning: {err}"),
+                        ));
+                        return;
+                    }
+                }
+            }
+            let Some(planner) = planner.as_mut() else {
+                return;
+            };
+            match planner.nearest_in(start, &polygon) {
+                Some(point) => point,
+                None => {
+                    problems.push(Located::new(
+                        area.pos,
+                        format!(
+                            "objective `{name}`: no part of its area can be reached from `{}`: it \
+                             is walled in, or too narrow for the robot, which keeps {} m from \
+                             obstacles",
+                            objectives.from,
+                            armor_model::geo::round_mm(robot.keep_m())
+                        ),
+                    ));
+                    continue;
+                }
+            }
+        };
+        let at = LatLon::from_local(point, origin);
+        let written = |degrees: f64| {
+            armor_model::geo::trimmed_decimal(degrees, 7)
+                .parse::<f64>()
+                .unwrap_or(degrees)
+        };
+        objective.place = Place::At(LatLon::new(written(at.lat_deg), written(at.lon_deg)));
+    }
 }
 
 /// Deciseconds from seconds, rounded up (a travel time never shorter than it is).
@@ -87,19 +197,20 @@ pub fn instance(
     robot: &Robot,
     speed_mps: f64,
 ) -> Result<Instance, Vec<Located>> {
-    let Some(objectives) = plan.objectives.clone() else {
+    let Some(mut objectives) = plan.objectives.clone() else {
         return Err(vec![Located::new(
             plan.pos,
             "the plan has no <objectives>: nothing for `armor plan` to plan (see docs/plans.md)",
         )]);
     };
+    let mut problems = Vec::new();
+    place_areas(plan, world, robot, &mut objectives, &mut problems);
     // The objectives with a place of their own are placed as waypoints of their name, at the
     // objective's line, so that one in a wall is reported there.
     let mut placed = plan.clone();
     placed.legs.clear();
     placed.waypoints.extend(own_waypoints(&objectives));
     let legs = plan::plan_legs(&placed, world, robot);
-    let mut problems = Vec::new();
     for problem in legs.problems {
         // A waypoint of an objective's own is the objective to the operator.
         let own = objectives.objectives.iter().find(|objective| {
@@ -141,7 +252,7 @@ pub fn instance(
         let what = format!("objective `{}`", objective.name);
         points.push(match &objective.place {
             Place::Waypoint(name) => place(name, what, objective.pos),
-            Place::At(_) => legs.positions.get(&objective.name).copied(),
+            Place::At(_) | Place::Area(_) => legs.positions.get(&objective.name).copied(),
         });
     }
     if let Some(to) = &objectives.to {

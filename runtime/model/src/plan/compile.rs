@@ -539,6 +539,12 @@ fn waypoint_problem(
 }
 
 /// The geographic origin of the world frame: the world's, which the plan's must match.
+/// The point of latitude and longitude the plan's world frame is measured from: its world's
+/// origin, else its own `<origin>` (what is wrong with them is said by [`plan_legs`]).
+pub fn plan_origin(plan: &Plan, world: Option<&World>) -> Option<LatLon> {
+    frame_origin(plan, world, &mut Vec::new())
+}
+
 fn frame_origin(plan: &Plan, world: Option<&World>, problems: &mut Vec<Located>) -> Option<LatLon> {
     let world_origin = world.map(|world| {
         let (lat, lon) = world.origin_lat_lon();

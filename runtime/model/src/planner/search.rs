@@ -24,6 +24,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::costmap::{Costmap, LETHAL, MAX_EXTRA};
 use super::{Blocker, Bottleneck, End, Path, PathError};
+use crate::geo::Polygon;
 use crate::world::Point;
 
 /// The cost of a step into a cell of `cost` (not lethal): straight or diagonal.
@@ -467,6 +468,75 @@ impl Planner {
             .into_iter()
             .find(|&(_, other)| map.segment_clear(p, map.centre(other)))
             .map(|(_, other)| other)
+    }
+
+    /// Where in `area` the robot gets first from `start`: the centre of the free cell inside it
+    /// that the cheapest way from `start` reaches first (`start` itself when it is inside);
+    /// `None` when the robot cannot be at `start` or can reach no free cell of the area.
+    pub fn nearest_in(&mut self, start: Point, area: &Polygon) -> Option<Point> {
+        let map = &self.costmap;
+        if map.blocker_at(start).is_some() {
+            return None;
+        }
+        if area.contains(start) {
+            return Some(start);
+        }
+        let from = self.snap(start)?;
+        let map = &self.costmap;
+        let costs = map.costs();
+        let width = map.width();
+        let (mut min_x, mut min_y, mut max_x, mut max_y) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for corner in &area.corners {
+            (min_x, min_y) = (min_x.min(corner.x), min_y.min(corner.y));
+            (max_x, max_y) = (max_x.max(corner.x), max_y.max(corner.y));
+        }
+        let inside = |cell: usize| {
+            let p = map.centre(cell);
+            p.x >= min_x && p.x <= max_x && p.y >= min_y && p.y <= max_y && area.contains(p)
+        };
+        // Dijkstra (no heuristic: there is no one goal): the first free cell closed inside the
+        // area is the one the cheapest way reaches first.
+        self.search.begin(costs.len());
+        let search = &mut self.search;
+        let offsets: [isize; 8] = STEPS.map(|(dx, dy)| (dx + dy * width as i64) as isize);
+        search.reach(from, 0);
+        search.ring[0].push(from as u64);
+        let mut g_now = 0_u32;
+        let mut queued = 1_usize;
+        while queued > 0 {
+            let Some(cell) = search.ring[g_now as usize % RING].pop() else {
+                g_now += 1;
+                continue;
+            };
+            queued -= 1;
+            let cell = cell as usize;
+            if search.g[cell] != g_now || !search.close(cell) {
+                continue;
+            }
+            if inside(cell) {
+                return Some(map.centre(cell));
+            }
+            for (step, &offset) in offsets.iter().enumerate() {
+                let next = cell.wrapping_add_signed(offset);
+                let cost = costs[next];
+                if cost == LETHAL {
+                    continue;
+                }
+                let through = g_now + step_cost(cost, step >= 4);
+                if search.g[next] <= through {
+                    continue;
+                }
+                search.reach(next, through);
+                search.ring[through as usize % RING].push(next as u64);
+                queued += 1;
+            }
+        }
+        None
     }
 
     /// A* from cell `from` to cell `to` (both free): the cells of the cheapest path.
