@@ -166,14 +166,46 @@ fn place_areas(
                 }
             }
         };
-        let at = LatLon::from_local(point, origin);
-        let written = |degrees: f64| {
-            armor_model::geo::trimmed_decimal(degrees, 7)
-                .parse::<f64>()
-                .unwrap_or(degrees)
-        };
-        objective.place = Place::At(LatLon::new(written(at.lat_deg), written(at.lon_deg)));
+        objective.place = Place::At(as_written(LatLon::from_local(point, origin)));
     }
+}
+
+/// A position as a plan file gives it: to the ten-millionth of a degree.
+fn as_written(at: LatLon) -> LatLon {
+    let written = |degrees: f64| {
+        armor_model::geo::trimmed_decimal(degrees, 7)
+            .parse::<f64>()
+            .unwrap_or(degrees)
+    };
+    LatLon::new(written(at.lat_deg), written(at.lon_deg))
+}
+
+/// `plan` with every position as the plan `armor plan` writes gives it, so that the ways timed
+/// are, to the bit, the legs `armor check` plans from the written file.
+fn plan_as_written(plan: &Plan) -> Plan {
+    let mut plan = plan.clone();
+    let round = |at: &mut LatLon| *at = as_written(*at);
+    if let Some(origin) = &mut plan.origin {
+        round(origin);
+    }
+    for waypoint in &mut plan.waypoints {
+        round(&mut waypoint.position);
+    }
+    for graphic in &mut plan.graphics {
+        graphic.points.iter_mut().for_each(round);
+    }
+    for objective in plan
+        .objectives
+        .iter_mut()
+        .flat_map(|objectives| &mut objectives.objectives)
+    {
+        match &mut objective.place {
+            Place::At(at) => round(at),
+            Place::Area(area) => area.points.iter_mut().for_each(round),
+            Place::Waypoint(_) => {}
+        }
+    }
+    plan
 }
 
 /// Deciseconds from seconds, rounded up (a travel time never shorter than it is).
@@ -197,6 +229,7 @@ pub fn instance(
     robot: &Robot,
     speed_mps: f64,
 ) -> Result<Instance, Vec<Located>> {
+    let plan = &plan_as_written(plan);
     let Some(mut objectives) = plan.objectives.clone() else {
         return Err(vec![Located::new(
             plan.pos,

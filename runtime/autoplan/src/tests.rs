@@ -270,17 +270,26 @@ fn the_written_plan_s_legs_are_the_ways_the_planner_timed_seed_4041() {
         let costmap = Costmap::for_world(&world, &robot, &[], &CostmapSettings::default())
             .unwrap_or_else(|err| panic!("{err}"));
         let mut planner = Planner::new(costmap);
-        // Places given to the ten-millionth of a degree, as a plan file writes them, where the
-        // robot may be once read back, and reachable from home.
+        // Places given to the billionth of a degree, finer than a plan file writes them (the
+        // written plan moves them by a few millimetres: the planner times the ways from where
+        // they will be written), where the robot may be, and reachable from home.
         let mut place = |rng: &mut SplitMix64, home: Option<Point>| loop {
             let p = random::free_place(rng, planner.costmap(), shape.side_m);
             let at = LatLon::from_local(p, origin);
-            let (lat, lon) = (format!("{:.7}", at.lat_deg), format!("{:.7}", at.lon_deg));
-            let read = LatLon::new(lat.parse().unwrap(), lon.parse().unwrap()).to_local(origin);
-            if planner.costmap().blocker_at(read).is_none()
-                && home.is_none_or(|home| planner.plan(home, read).is_ok())
+            let (lat, lon) = (format!("{:.9}", at.lat_deg), format!("{:.9}", at.lon_deg));
+            let read = |digits: usize| {
+                let degrees = |text: &str| {
+                    let value: f64 = text.parse().unwrap();
+                    format!("{value:.digits$}").parse::<f64>().unwrap()
+                };
+                LatLon::new(degrees(&lat), degrees(&lon)).to_local(origin)
+            };
+            let (given, written) = (read(9), read(7));
+            if planner.costmap().blocker_at(given).is_none()
+                && planner.costmap().blocker_at(written).is_none()
+                && home.is_none_or(|home| planner.plan(home, written).is_ok())
             {
-                return (read, format!("lat=\"{lat}\" lon=\"{lon}\""));
+                return (written, format!("lat=\"{lat}\" lon=\"{lon}\""));
             }
         };
         let (home, home_at) = place(&mut rng, None);
