@@ -1507,7 +1507,8 @@ fn a_battery_that_runs_low_during_a_wait_takes_the_robot_home() {
 
 /// Bad objectives are refused at their line by `armor plan` and `armor check`, and no plan is
 /// written: an objective in a wall (the yard's container), a window that ends before it
-/// starts, a precedence cycle.
+/// starts, a precedence cycle, an area walled in (inside the container), one that encloses
+/// nothing, and one observed from a centroid in the container.
 #[test]
 fn bad_objectives_are_refused_where_they_are_written() {
     let dir = tempfile::tempdir().unwrap();
@@ -1538,6 +1539,40 @@ fn bad_objectives_are_refused_where_they_are_written() {
   </objectives>"#,
             r#"first="b""#,
             &["cycle", "`a` before `b` before `a`"][..],
+        ),
+        (
+            "walled-in-area",
+            r#"  <objectives from="home">
+    <objective name="in_container">
+      <area><point lat="43.5615773" lon="1.4692730"/><point lat="43.5615773" lon="1.4693227"/><point lat="43.5615881" lon="1.4693227"/><point lat="43.5615881" lon="1.4692730"/></area>
+    </objective>
+  </objectives>"#,
+            "<area>",
+            &["objective `in_container`: no part of its area can be reached from `home`"][..],
+        ),
+        (
+            "flat-area",
+            r#"  <objectives from="home">
+    <objective name="flat">
+      <area><point lat="43.5616079" lon="1.4690248"/><point lat="43.5616079" lon="1.4690745"/><point lat="43.5616079" lon="1.4691241"/></area>
+    </objective>
+  </objectives>"#,
+            "<area>",
+            &["objective `flat`: its area encloses nothing"][..],
+        ),
+        (
+            "centroid-in-a-wall",
+            r#"  <objectives from="home">
+    <objective name="over_container">
+      <area><point lat="43.5615540" lon="1.4692482"/><point lat="43.5615540" lon="1.4693475"/><point lat="43.5616079" lon="1.4693475"/><point lat="43.5616079" lon="1.4692482"/></area>
+      <arrival for_secs="10"><module name="observer"/></arrival>
+    </objective>
+  </objectives>"#,
+            "<area>",
+            &[
+                "objective `over_container` acts on its area from its centroid",
+                "inside the obstacle",
+            ][..],
         ),
     ] {
         let (file, text) = yard_plan(dir.path(), name, body);
