@@ -372,63 +372,21 @@ impl Planner {
 
     /// One search from the free cell `from` that closes every one of `targets` it can reach,
     /// each with every cell of its cheapest paths (the module's documentation says why):
-    /// Dijkstra's, on the bucket queue A* uses, until the last target is closed. With no
-    /// heuristic, every cell cheaper to reach than a target is closed before it; A* towards
-    /// each target in turn closes fewer cells, but its queue must then be keyed again at every
-    /// turn, which costs more than the cells it saves on these maps.
+    /// Dijkstra's ([`flood`]) until the last target is closed. With no heuristic, every cell
+    /// cheaper to reach than a target is closed before it; A* towards each target in turn
+    /// closes fewer cells, but its queue must then be keyed again at every turn, which costs
+    /// more than the cells it saves on these maps.
     fn search_to_all(&mut self, from: usize, targets: &[usize]) {
-        let map = &self.costmap;
-        let costs = map.costs();
-        let width = map.width();
-        self.search.begin(costs.len());
-        let search = &mut self.search;
-        let offsets: [isize; 8] = STEPS.map(|(dx, dy)| (dx + dy * width as i64) as isize);
-        let mut steps = [[0_u32; 2]; 256];
-        for (cost, pair) in steps.iter_mut().enumerate() {
-            *pair = [step_cost(cost as u8, false), step_cost(cost as u8, true)];
-        }
-        let mut left = targets.to_vec();
-        left.sort_unstable();
-        left.dedup();
-        let mut target = vec![false; costs.len()];
-        for &cell in &left {
+        let mut target = vec![false; self.costmap.costs().len()];
+        let mut left = 0;
+        for &cell in targets {
+            left += usize::from(!target[cell]);
             target[cell] = true;
         }
-        let mut left = left.len();
-        search.reach(from, 0);
-        // Entries are cells: a cell's cheapest entry is the first out of the queue, and the
-        // others find it closed.
-        search.ring[0].push(from as u64);
-        let mut g_now = 0_u32;
-        let mut queued = 1_usize;
-        while queued > 0 && left > 0 {
-            let Some(cell) = search.ring[g_now as usize % RING].pop() else {
-                g_now += 1;
-                continue;
-            };
-            queued -= 1;
-            let cell = cell as usize;
-            if search.g[cell] != g_now || !search.close(cell) {
-                continue;
-            }
-            if target[cell] {
-                left -= 1;
-            }
-            for (step, &offset) in offsets.iter().enumerate() {
-                let next = cell.wrapping_add_signed(offset);
-                let cost = costs[next];
-                if cost == LETHAL {
-                    continue;
-                }
-                let through = g_now + steps[usize::from(cost)][usize::from(step >= 4)];
-                if search.g[next] <= through {
-                    continue;
-                }
-                search.reach(next, through);
-                search.ring[through as usize % RING].push(next as u64);
-                queued += 1;
-            }
-        }
+        flood(&self.costmap, &mut self.search, from, |cell| {
+            left -= usize::from(target[cell]);
+            left == 0
+        });
     }
 
     /// Whether the straight line crosses only free cells that cost nothing: then no path is
@@ -483,60 +441,10 @@ impl Planner {
         }
         let from = self.snap(start)?;
         let map = &self.costmap;
-        let costs = map.costs();
-        let width = map.width();
-        let (mut min_x, mut min_y, mut max_x, mut max_y) = (
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for corner in &area.corners {
-            (min_x, min_y) = (min_x.min(corner.x), min_y.min(corner.y));
-            (max_x, max_y) = (max_x.max(corner.x), max_y.max(corner.y));
-        }
-        let inside = |cell: usize| {
-            let p = map.centre(cell);
-            p.x >= min_x && p.x <= max_x && p.y >= min_y && p.y <= max_y && area.contains(p)
-        };
-        // Dijkstra (no heuristic: there is no one goal): the first free cell closed inside the
-        // area is the one the cheapest way reaches first.
-        self.search.begin(costs.len());
-        let search = &mut self.search;
-        let offsets: [isize; 8] = STEPS.map(|(dx, dy)| (dx + dy * width as i64) as isize);
-        search.reach(from, 0);
-        search.ring[0].push(from as u64);
-        let mut g_now = 0_u32;
-        let mut queued = 1_usize;
-        while queued > 0 {
-            let Some(cell) = search.ring[g_now as usize % RING].pop() else {
-                g_now += 1;
-                continue;
-            };
-            queued -= 1;
-            let cell = cell as usize;
-            if search.g[cell] != g_now || !search.close(cell) {
-                continue;
-            }
-            if inside(cell) {
-                return Some(map.centre(cell));
-            }
-            for (step, &offset) in offsets.iter().enumerate() {
-                let next = cell.wrapping_add_signed(offset);
-                let cost = costs[next];
-                if cost == LETHAL {
-                    continue;
-                }
-                let through = g_now + step_cost(cost, step >= 4);
-                if search.g[next] <= through {
-                    continue;
-                }
-                search.reach(next, through);
-                search.ring[through as usize % RING].push(next as u64);
-                queued += 1;
-            }
-        }
-        None
+        let inside = |cell: usize| area.contains(map.centre(cell));
+        // Dijkstra's (there is no one goal for a heuristic): the first free cell closed inside
+        // the area is the one the cheapest way reaches first.
+        flood(map, &mut self.search, from, inside).map(|cell| map.centre(cell))
     }
 
     /// A* from cell `from` to cell `to` (both free): the cells of the cheapest path.
@@ -886,6 +794,59 @@ impl Planner {
     pub(crate) fn snap_for_tests(&self, p: Point) -> Option<usize> {
         self.snap(p)
     }
+}
+
+/// Dijkstra's search over `map` from the free cell `from`, on the bucket queue A* uses: closes
+/// cells cheapest first until `done` is true of one closed (returned), or none is left.
+fn flood(
+    map: &Costmap,
+    search: &mut Search,
+    from: usize,
+    mut done: impl FnMut(usize) -> bool,
+) -> Option<usize> {
+    let costs = map.costs();
+    let width = map.width();
+    search.begin(costs.len());
+    let offsets: [isize; 8] = STEPS.map(|(dx, dy)| (dx + dy * width as i64) as isize);
+    let mut steps = [[0_u32; 2]; 256];
+    for (cost, pair) in steps.iter_mut().enumerate() {
+        *pair = [step_cost(cost as u8, false), step_cost(cost as u8, true)];
+    }
+    search.reach(from, 0);
+    // Entries are cells: a cell's cheapest entry is the first out of the queue, and the others
+    // find it closed or dearer than its cost.
+    search.ring[0].push(from as u64);
+    let mut g_now = 0_u32;
+    let mut queued = 1_usize;
+    while queued > 0 {
+        let Some(cell) = search.ring[g_now as usize % RING].pop() else {
+            g_now += 1;
+            continue;
+        };
+        queued -= 1;
+        let cell = cell as usize;
+        if search.g[cell] != g_now || !search.close(cell) {
+            continue;
+        }
+        if done(cell) {
+            return Some(cell);
+        }
+        for (step, &offset) in offsets.iter().enumerate() {
+            let next = cell.wrapping_add_signed(offset);
+            let cost = costs[next];
+            if cost == LETHAL {
+                continue;
+            }
+            let through = g_now + steps[usize::from(cost)][usize::from(step >= 4)];
+            if search.g[next] <= through {
+                continue;
+            }
+            search.reach(next, through);
+            search.ring[through as usize % RING].push(next as u64);
+            queued += 1;
+        }
+    }
+    None
 }
 
 /// The point of `edges` nearest to `p`, and its distance; with `away`, only among the points
