@@ -35,6 +35,9 @@ pub struct Instance {
     /// the robot never arrives before the window opens (driving slower, it arrives later than
     /// planned). The planner's own times are at `speed_mps`.
     pub fastest_mps: f64,
+    /// How near its destination the navigation reports a leg arrived (the follower's
+    /// `tolerance_m`): a leg that waits for a window leaves late enough for that too.
+    pub arrival_tolerance_m: f64,
     pub keepouts: Vec<Keepout>,
 }
 
@@ -433,6 +436,7 @@ pub fn instance(
         start_unix_secs: start,
         speed_mps,
         fastest_mps: speed_mps,
+        arrival_tolerance_m: 0.0,
         keepouts: legs.keepouts,
     })
 }

@@ -34,9 +34,11 @@ pub fn plan(plan: &Plan, instance: &Instance, route: &Route) -> Plan {
         let objective = &instance.objectives.objectives[task];
         let next = crate::Problem::node(task);
         // The robot waits where it is for the window, rather than at the objective early, and
-        // leaves late enough to arrive no sooner driving as fast as it can.
+        // leaves late enough to arrive no sooner driving as fast as it can, its arrival
+        // reported as it comes within the navigation's tolerance (rounded down: later).
         let fastest_ds = instance.length(node, next).map_or(0, |length| {
-            crate::instance::ds(length / instance.fastest_mps).max(0)
+            let secs = (length - instance.arrival_tolerance_m).max(0.0) / instance.fastest_mps;
+            (secs * 10.0).floor().clamp(0.0, f64::from(i32::MAX / 4)) as i32
         });
         let leave_ds = arrival_ds - fastest_ds;
         let not_before = (objective.not_before_unix_secs.is_some() && leave_ds > left_ds)
