@@ -2,10 +2,10 @@
 //! check` places waypoints, the way between every two planned on one costmap (the paths the
 //! plan's legs would get), and every time and distance rounded to the solver's integers.
 
-use armor_model::geo::Point;
+use armor_model::geo::{LatLon, Point, Polygon};
 use armor_model::plan::objectives::{Objectives, Place};
 use armor_model::plan::{self, Plan, Waypoint};
-use armor_model::planner::{Keepout, PathError, Robot};
+use armor_model::planner::{self, Costmap, CostmapSettings, Keepout, PathError, Planner, Robot};
 use armor_model::world::World;
 use armor_module_api::xml::Located;
 
@@ -35,6 +35,9 @@ pub struct Instance {
     /// the robot never arrives before the window opens (driving slower, it arrives later than
     /// planned). The planner's own times are at `speed_mps`.
     pub fastest_mps: f64,
+    /// How near its destination the navigation reports a leg arrived (the follower's
+    /// `tolerance_m`): a leg that waits for a window leaves late enough for that too.
+    pub arrival_tolerance_m: f64,
     pub keepouts: Vec<Keepout>,
 }
 
@@ -62,8 +65,150 @@ pub fn own_waypoints(objectives: &Objectives) -> impl Iterator<Item = Waypoint> 
                 symbol: None,
                 pos: objective.pos,
             }),
-            Place::Waypoint(_) => None,
+            Place::Waypoint(_) | Place::Area(_) => None,
         })
+}
+
+/// Places each objective given as an area (docs/plans.md, "Objectives"): at its centroid when
+/// it acts there (an `<arrival>`: it observes the area from its middle), else at the point of
+/// it the robot reaches first from the start (the cheapest way's end, on the costmap the ways
+/// are planned on); then to the ten-millionth of a degree, as the written plan gives it, so
+/// that the ways timed are the legs `armor check` plans. What cannot be is said at the area.
+fn place_areas(
+    plan: &Plan,
+    world: Option<&World>,
+    robot: &Robot,
+    objectives: &mut Objectives,
+    problems: &mut Vec<Located>,
+) {
+    if !objectives
+        .objectives
+        .iter()
+        .any(|objective| matches!(objective.place, Place::Area(_)))
+    {
+        return;
+    }
+    // Without a frame nothing is placed; `plan_legs` says why.
+    let Some(origin) = plan::plan_origin(plan, world) else {
+        return;
+    };
+    let mut bare = plan.clone();
+    bare.legs.clear();
+    let base = plan::plan_legs(&bare, world, robot);
+    let start = base.positions.get(&objectives.from).copied();
+    let mut planner: Option<Planner> = None;
+    for objective in &mut objectives.objectives {
+        let Place::Area(area) = &objective.place else {
+            continue;
+        };
+        let name = &objective.name;
+        let polygon = Polygon::new(area.points.iter().map(|p| p.to_local(origin)).collect());
+        // A degenerate outline is refused when the plan is read.
+        if polygon.corners.len() < 3 || polygon.crosses_itself() {
+            continue;
+        }
+        let point = if objective.arrival.is_some() {
+            let centroid = polygon.centroid();
+            if let Some(why) = planner::blocker_at(world, robot, &base.keepouts, centroid) {
+                problems.push(Located::new(
+                    area.pos,
+                    format!(
+                        "objective `{name}` acts on its area from its centroid, at {centroid} m, \
+                         which {why}; draw the area so that the robot can be at its middle, or \
+                         give the objective a place"
+                    ),
+                ));
+                continue;
+            }
+            centroid
+        } else {
+            // A start where the robot cannot be is said at its waypoint.
+            let Some(start) = start else {
+                continue;
+            };
+            if planner.is_none() {
+                let settings = CostmapSettings::default();
+                let costmap = match world {
+                    Some(world) => Costmap::for_world(world, robot, &base.keepouts, &settings),
+                    None => {
+                        let mut points = polygon.corners.clone();
+                        points.push(start);
+                        let extent =
+                            planner::open_extent(&points, &base.keepouts, robot, &settings);
+                        Costmap::open(extent, robot, &base.keepouts, &settings)
+                    }
+                };
+                match costmap {
+                    Ok(costmap) => planner = Some(Planner::new(costmap)),
+                    Err(err) => {
+                        problems.push(Located::new(
+                            plan.pos,
+                            format!("the world cannot be mapped for planning: {err}"),
+                        ));
+                        return;
+                    }
+                }
+            }
+            let Some(planner) = planner.as_mut() else {
+                return;
+            };
+            match planner.nearest_in(start, &polygon) {
+                Some(point) => point,
+                None => {
+                    problems.push(Located::new(
+                        area.pos,
+                        format!(
+                            "objective `{name}`: no part of its area can be reached from `{}`: it \
+                             is walled in, or too narrow for the robot, which keeps {} m from \
+                             obstacles",
+                            objectives.from,
+                            armor_model::geo::round_mm(robot.keep_m())
+                        ),
+                    ));
+                    continue;
+                }
+            }
+        };
+        objective.place = Place::At(as_written(LatLon::from_local(point, origin)));
+    }
+}
+
+/// A position as a plan file gives it: to the ten-millionth of a degree.
+fn as_written(at: LatLon) -> LatLon {
+    let written = |degrees: f64| {
+        armor_model::geo::trimmed_decimal(degrees, 7)
+            .parse::<f64>()
+            .unwrap_or(degrees)
+    };
+    LatLon::new(written(at.lat_deg), written(at.lon_deg))
+}
+
+/// `plan` with every position as the plan `armor plan` writes gives it, so that the ways timed
+/// are, to the bit, the legs `armor check` plans from the written file.
+fn plan_as_written(plan: &Plan) -> Plan {
+    let mut plan = plan.clone();
+    let round = |at: &mut LatLon| *at = as_written(*at);
+    if let Some(origin) = &mut plan.origin {
+        round(origin);
+    }
+    for waypoint in &mut plan.waypoints {
+        round(&mut waypoint.position);
+    }
+    for graphic in &mut plan.graphics {
+        graphic.points.iter_mut().for_each(round);
+    }
+    for objective in plan
+        .objectives
+        .iter_mut()
+        .flat_map(|objectives| &mut objectives.objectives)
+    {
+        match &mut objective.place {
+            Place::At(at) => round(at),
+            Place::Area(area) => area.points.iter_mut().for_each(round),
+            Place::Waypoint(_) => {}
+        }
+    }
+    plan
 }
 
 /// Deciseconds from seconds, rounded up (a travel time never shorter than it is).
@@ -87,19 +232,21 @@ pub fn instance(
     robot: &Robot,
     speed_mps: f64,
 ) -> Result<Instance, Vec<Located>> {
-    let Some(objectives) = plan.objectives.clone() else {
+    let plan = &plan_as_written(plan);
+    let Some(mut objectives) = plan.objectives.clone() else {
         return Err(vec![Located::new(
             plan.pos,
             "the plan has no <objectives>: nothing for `armor plan` to plan (see docs/plans.md)",
         )]);
     };
+    let mut problems = Vec::new();
+    place_areas(plan, world, robot, &mut objectives, &mut problems);
     // The objectives with a place of their own are placed as waypoints of their name, at the
     // objective's line, so that one in a wall is reported there.
     let mut placed = plan.clone();
     placed.legs.clear();
     placed.waypoints.extend(own_waypoints(&objectives));
     let legs = plan::plan_legs(&placed, world, robot);
-    let mut problems = Vec::new();
     for problem in legs.problems {
         // A waypoint of an objective's own is the objective to the operator.
         let own = objectives.objectives.iter().find(|objective| {
@@ -141,7 +288,7 @@ pub fn instance(
         let what = format!("objective `{}`", objective.name);
         points.push(match &objective.place {
             Place::Waypoint(name) => place(name, what, objective.pos),
-            Place::At(_) => legs.positions.get(&objective.name).copied(),
+            Place::At(_) | Place::Area(_) => legs.positions.get(&objective.name).copied(),
         });
     }
     if let Some(to) = &objectives.to {
@@ -175,10 +322,15 @@ pub fn instance(
     }
     let points: Vec<Point> = points.into_iter().flatten().collect();
     let count = points.len();
+    // Every way in both directions, as the written plan's legs will be planned (a path and
+    // its reverse may differ by a hair): the planner searches once from each place to all the
+    // others, and each way is the path `armor check` then plans for that leg, to the bit.
     let mut pairs = Vec::new();
     for i in 0..count {
-        for j in i + 1..count {
-            pairs.push((points[i], points[j]));
+        for j in 0..count {
+            if i != j {
+                pairs.push((points[i], points[j]));
+            }
         }
     }
     let paths = plan::plan_pairs(world, robot, &legs.keepouts, &pairs).map_err(|err| {
@@ -189,39 +341,22 @@ pub fn instance(
     })?;
     let mut length_m = vec![vec![None; count]; count];
     let mut cut = vec![vec![None; count]; count];
-    let mut paths = paths.into_iter();
-    for i in 0..count {
-        length_m[i][i] = Some(0.0);
-        for j in i + 1..count {
-            match paths.next() {
-                Some(Ok(path)) => {
-                    length_m[i][j] = Some(path.length_m);
-                    length_m[j][i] = Some(path.length_m);
-                }
-                Some(Err(err)) => {
-                    let why = match err {
-                        PathError::Cut(bottleneck) => bottleneck.to_string(),
-                        PathError::Blocked { why, .. } => why.to_string(),
-                    };
-                    cut[i][j] = Some(why.clone());
-                    cut[j][i] = Some(why);
-                }
-                None => {}
+    for ((i, j), path) in (0..count)
+        .flat_map(|i| (0..count).filter(move |&j| j != i).map(move |j| (i, j)))
+        .zip(paths)
+    {
+        match path {
+            Ok(path) => length_m[i][j] = Some(path.length_m),
+            Err(err) => {
+                cut[i][j] = Some(match err {
+                    PathError::Cut(bottleneck) => bottleneck.to_string(),
+                    PathError::Blocked { why, .. } => why.to_string(),
+                });
             }
         }
     }
-    // Driving through another place is a way too: the planner's smoothed paths are not always
-    // the shortest to the centimetre, and the solver's bounds count on the triangle inequality.
-    for via in 0..count {
-        for i in 0..count {
-            for j in 0..count {
-                if let (Some(a), Some(b)) = (length_m[i][via], length_m[via][j])
-                    && length_m[i][j].is_none_or(|direct| a + b < direct)
-                {
-                    length_m[i][j] = Some(a + b);
-                }
-            }
-        }
+    for (i, row) in length_m.iter_mut().enumerate() {
+        row[i] = Some(0.0);
     }
     let n = objectives.objectives.len();
     // Node indices into `points`: the start, the tasks, the end (when placed).
@@ -301,6 +436,7 @@ pub fn instance(
         start_unix_secs: start,
         speed_mps,
         fastest_mps: speed_mps,
+        arrival_tolerance_m: 0.0,
         keepouts: legs.keepouts,
     })
 }

@@ -104,6 +104,37 @@ impl Problem {
         self.tasks.len() + 1
     }
 
+    /// The least time from the start to each node by any chain of ways (windows and services
+    /// aside): a bound on when a node can be reached that holds whatever the ways are (a way
+    /// may be longer than going through another place: each is the path planned for its
+    /// leg). `None` where there is no way.
+    pub fn earliest_ds(&self) -> Vec<Option<i32>> {
+        let count = self.travel_ds.len();
+        let mut earliest: Vec<Option<i32>> = vec![None; count];
+        let mut done = vec![false; count];
+        if count > 0 {
+            earliest[0] = Some(0);
+        }
+        while let Some(node) = (0..count)
+            .filter(|&node| !done[node])
+            .filter_map(|node| Some((earliest[node]?, node)))
+            .min()
+            .map(|(_, node)| node)
+        {
+            done[node] = true;
+            let Some(at) = earliest[node] else { break };
+            for (next, travel) in self.travel_ds[node].iter().enumerate() {
+                if let Some(travel) = travel {
+                    let through = at.saturating_add(*travel);
+                    if earliest[next].is_none_or(|known| through < known) {
+                        earliest[next] = Some(through);
+                    }
+                }
+            }
+        }
+        earliest
+    }
+
     /// A time no route can need: every window's end, every service and the longest way out of
     /// every node, added up.
     pub fn horizon_ds(&self) -> i32 {

@@ -286,12 +286,13 @@ impl Model {
                 .add_constraint(pumpkin_constraints::equals(terms, 0, tag))
                 .post();
         }
-        // A served task is reached no sooner than straight from the start: the ways obey the
-        // triangle inequality (driving through another place is a way too, which
-        // [`crate::instance`] makes sure of), and this bound is what lets the solver prove the
-        // least lateness without trying every order.
+        // A served task is reached no sooner than by the quickest chain of ways from the start
+        // (`Problem::earliest_ds`: a way may be longer than going through another place), and
+        // this bound is what lets the solver prove the least lateness without trying every
+        // order.
+        let earliest = problem.earliest_ds();
         for task in 0..n {
-            if let Some(direct) = problem.travel_ds[0][task + 1] {
+            if let Some(direct) = earliest[task + 1] {
                 solver
                     .add_constraint(pumpkin_constraints::greater_than_or_equals(
                         vec![time[task + 1]],

@@ -34,9 +34,11 @@ pub fn plan(plan: &Plan, instance: &Instance, route: &Route) -> Plan {
         let objective = &instance.objectives.objectives[task];
         let next = crate::Problem::node(task);
         // The robot waits where it is for the window, rather than at the objective early, and
-        // leaves late enough to arrive no sooner driving as fast as it can.
+        // leaves late enough to arrive no sooner driving as fast as it can, its arrival
+        // reported as it comes within the navigation's tolerance (rounded down: later).
         let fastest_ds = instance.length(node, next).map_or(0, |length| {
-            crate::instance::ds(length / instance.fastest_mps).max(0)
+            let secs = (length - instance.arrival_tolerance_m).max(0.0) / instance.fastest_mps;
+            (secs * 10.0).floor().clamp(0.0, f64::from(i32::MAX / 4)) as i32
         });
         let leave_ds = arrival_ds - fastest_ds;
         let not_before = (objective.not_before_unix_secs.is_some() && leave_ds > left_ds)
@@ -205,7 +207,7 @@ fn numbers(instance: &Instance, conflict: &Conflict) -> Option<String> {
         [task] => {
             let node = crate::Problem::node(*task);
             let spec = &problem.tasks[*task];
-            match problem.travel_ds[0][node] {
+            match problem.earliest_ds()[node] {
                 None => Some(way_words(instance, 0, node)),
                 Some(travel) => {
                     let by = spec.by_ds?;
@@ -220,6 +222,7 @@ fn numbers(instance: &Instance, conflict: &Conflict) -> Option<String> {
             }
         }
         [a, b] => {
+            let earliest = problem.earliest_ds();
             // Either order fails; say why for each.
             let mut reasons = Vec::new();
             for (first, then) in [(*a, *b), (*b, *a)] {
@@ -229,7 +232,7 @@ fn numbers(instance: &Instance, conflict: &Conflict) -> Option<String> {
                 let open = problem.tasks[first]
                     .not_before_ds
                     .unwrap_or(0)
-                    .max(problem.travel_ds[0][x].unwrap_or(0));
+                    .max(earliest[x].unwrap_or(0));
                 let Some(by) = problem.tasks[then].by_ds else {
                     continue;
                 };

@@ -121,6 +121,37 @@ impl Polygon {
         self.edges().map(|(a, b)| a.x * b.y - b.x * a.y).sum()
     }
 
+    /// The area it encloses, whichever way its corners turn.
+    pub fn area(&self) -> f64 {
+        self.signed_area2().abs() / 2.0
+    }
+
+    /// The centre of what it encloses (its centroid); the mean of its corners when it encloses
+    /// nothing.
+    pub fn centroid(&self) -> Point {
+        let Some(&o) = self.corners.first() else {
+            return Point::new(0.0, 0.0);
+        };
+        // Measured from the first corner, so that far from the origin nothing is lost.
+        let (mut x, mut y, mut twice) = (0.0, 0.0, 0.0);
+        for (a, b) in self.edges() {
+            let (ax, ay, bx, by) = (a.x - o.x, a.y - o.y, b.x - o.x, b.y - o.y);
+            let cross = ax * by - bx * ay;
+            twice += cross;
+            x += (ax + bx) * cross;
+            y += (ay + by) * cross;
+        }
+        if twice.abs() < f64::EPSILON {
+            let n = self.corners.len() as f64;
+            let (x, y) = self
+                .corners
+                .iter()
+                .fold((0.0, 0.0), |(x, y), p| (x + p.x, y + p.y));
+            return Point::new(x / n, y / n);
+        }
+        Point::new(o.x + x / (3.0 * twice), o.y + y / (3.0 * twice))
+    }
+
     /// Whether two of its edges cross (a polygon must not, to have an inside).
     pub fn crosses_itself(&self) -> bool {
         let edges: Vec<(Point, Point)> = self.edges().collect();

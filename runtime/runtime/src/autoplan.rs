@@ -62,6 +62,9 @@ fn prepare(file: &Path, module_path: &[PathBuf]) -> Result<Prepared, Diagnostics
     let mut instance =
         armor_autoplan::instance(&plan, world.as_ref(), &robot, speed_mps).map_err(fail)?;
     instance.fastest_mps = limit.map_or(speed_mps, |limit| limit.max(speed_mps));
+    instance.arrival_tolerance_m =
+        mission::module_number(&system, &plan.navigation.module, "tolerance_m")
+            .map_or(0.3, |(tolerance, _)| tolerance.max(0.0));
     if let Some(share) = instance.objectives.max_charge {
         let (per_m, per_hour) = battery_drain(&system).ok_or_else(|| {
             fail(vec![Located::new(

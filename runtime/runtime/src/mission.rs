@@ -239,7 +239,7 @@ fn load_text(
 
 /// The value of a module's number parameter: the system file's, else its description's
 /// default; with whether the system file gives it.
-fn module_number(loaded: &Loaded, module: &str, param: &str) -> Option<(f64, bool)> {
+pub(crate) fn module_number(loaded: &Loaded, module: &str, param: &str) -> Option<(f64, bool)> {
     let module = loaded.system.module(module)?;
     let (value, given) = match module.param(param) {
         Some(value) => (value.value.clone(), true),

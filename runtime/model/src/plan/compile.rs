@@ -539,6 +539,12 @@ fn waypoint_problem(
 }
 
 /// The geographic origin of the world frame: the world's, which the plan's must match.
+/// The point of latitude and longitude the plan's world frame is measured from: its world's
+/// origin, else its own `<origin>` (what is wrong with them is said by [`plan_legs`]).
+pub fn plan_origin(plan: &Plan, world: Option<&World>) -> Option<LatLon> {
+    frame_origin(plan, world, &mut Vec::new())
+}
+
 fn frame_origin(plan: &Plan, world: Option<&World>, problems: &mut Vec<Located>) -> Option<LatLon> {
     let world_origin = world.map(|world| {
         let (lat, lon) = world.origin_lat_lon();
@@ -974,6 +980,15 @@ impl<'a> Builder<'a> {
             );
             leg_places.push(place);
         }
+        // The battery is reported low once, and an event counts only for the transitions
+        // enabled when it comes: so it is listened to wherever the robot may be in the leg (the
+        // drives listen already), waiting for an appointment, acting on arrival, waiting there
+        // or holding for the operator.
+        for place in &leg_places {
+            if !drives.contains(place) && !place.starts_with(&format!("{name}_drive_late")) {
+                self.low_battery(index, leg, place, &format!("{place}_low_battery"));
+            }
+        }
         for module in self.failure_modules.clone() {
             let trigger = Trigger::Failed {
                 module: module.clone(),
@@ -1000,6 +1015,10 @@ impl<'a> Builder<'a> {
                     &target,
                 );
             }
+        }
+        let hold = format!("{name}_hold");
+        if self.trace.contains_key(&hold) {
+            self.low_battery(index, leg, &hold, &format!("{hold}_low_battery"));
         }
     }
 
@@ -1102,11 +1121,17 @@ impl<'a> Builder<'a> {
                 &target,
             );
         }
-        self.low_battery(index, leg, drive, suffix);
+        self.low_battery(
+            index,
+            leg,
+            drive,
+            &format!("{}_low_battery{suffix}", leg.name),
+        );
     }
 
-    /// The transition out of `drive` on a low battery, when the plan listens for one.
-    fn low_battery(&mut self, index: usize, leg: &Leg, drive: &str, suffix: &str) {
+    /// The transition named `name` out of `place` on a low battery, when the plan listens for
+    /// one (and `place` is not where the answer leads).
+    fn low_battery(&mut self, index: usize, leg: &Leg, place: &str, name: &str) {
         let low = self
             .plan
             .contingency_on(leg, |trigger| matches!(trigger, Trigger::LowBattery { .. }))
@@ -1115,15 +1140,18 @@ impl<'a> Builder<'a> {
             && let Trigger::LowBattery { module } = &contingency.trigger
         {
             let target = self.respond(index, leg, &contingency.response);
+            if target == place {
+                return;
+            }
             self.transition(
-                &format!("{}_low_battery{suffix}", leg.name),
+                name,
                 Origin::Leg(index),
                 contingency.pos,
                 Condition {
                     event: Some(format!("{module}.low_battery")),
                     ..Condition::default()
                 },
-                drive,
+                place,
                 &target,
             );
         }

@@ -59,8 +59,8 @@ mod xml;
 
 pub use crate::geo::LatLon;
 pub use compile::{
-    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, plan_pairs,
-    robot, robot_explained,
+    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, plan_origin,
+    plan_pairs, robot, robot_explained,
 };
 pub use xml::DEFAULT_LOCALISER;
 

@@ -88,7 +88,7 @@ impl Objective {
     pub fn waypoint(&self) -> &str {
         match &self.place {
             Place::Waypoint(name) => name,
-            Place::At(_) => &self.name,
+            Place::At(_) | Place::Area(_) => &self.name,
         }
     }
 }
@@ -100,6 +100,16 @@ pub enum Place {
     Waypoint(String),
     /// A place of its own.
     At(LatLon),
+    /// An area to reach or observe: the planner places the objective in it (its centroid when
+    /// the objective acts there, else the point of it the robot reaches first from the start).
+    Area(Area),
+}
+
+/// An objective's area, written as a no-go area's outline is: three `<point>`s or more.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Area {
+    pub points: Vec<LatLon>,
+    pub pos: Pos,
 }
 
 impl Default for Place {
@@ -180,32 +190,42 @@ fn read_objective(
         "priority",
         "optional",
     ]));
-    p.extend(element.unknown_children(&["arrival"]));
+    p.extend(element.unknown_children(&["arrival", "area"]));
     crate::fields::no_text(element, p);
     let name = identifier(element, "name", "objective name", p).unwrap_or_default();
+    let areas: Vec<&Element> = element.children_named("area").collect();
+    for extra in areas.iter().skip(1) {
+        p.push(Located::new(
+            extra.pos,
+            format!("objective `{name}` has one <area> at most"),
+        ));
+    }
     let place = match (
         element.attr("at"),
         element.attr("lat").or(element.attr("lon")),
+        areas.first(),
     ) {
-        (Some(_), None) => {
+        (Some(_), None, None) => {
             Place::Waypoint(identifier(element, "at", "waypoint name", p).unwrap_or_default())
         }
-        (None, Some(_)) => Place::At(super::xml::lat_lon(element, p).unwrap_or_default()),
-        (Some(_), Some(_)) => {
+        (None, Some(_), None) => Place::At(super::xml::lat_lon(element, p).unwrap_or_default()),
+        (None, None, Some(area)) => Place::Area(read_area(area, &name, p)),
+        (None, None, None) => {
             p.push(Located::new(
                 element.pos,
                 format!(
-                    "objective `{name}`: give its place either as a waypoint (`at`) or as \
-                     `lat` and `lon`, not both"
+                    "objective `{name}` has no place: give `at` (a waypoint), `lat` and `lon`, \
+                     or an <area>"
                 ),
             ));
             Place::default()
         }
-        (None, None) => {
+        _ => {
             p.push(Located::new(
                 element.pos,
                 format!(
-                    "objective `{name}` has no place: give `at` (a waypoint) or `lat` and `lon`"
+                    "objective `{name}`: give its place one way: as a waypoint (`at`), as `lat` \
+                     and `lon`, or as an <area>"
                 ),
             ));
             Place::default()
@@ -251,6 +271,61 @@ fn read_objective(
     }
     check_window(&objective, start_unix_secs, p);
     objective
+}
+
+/// An objective's `<area>`: its points, three or more, whose outline neither crosses itself
+/// nor encloses nothing (measured in degrees, which keeps both properties over an area the
+/// size of a plan's).
+fn read_area(element: &Element, name: &str, p: &mut Vec<Located>) -> Area {
+    p.extend(element.unknown_attrs(&[]));
+    p.extend(element.unknown_children(&["point"]));
+    crate::fields::no_text(element, p);
+    let points: Vec<LatLon> = element
+        .children_named("point")
+        .filter_map(|point| {
+            p.extend(point.unknown_attrs(&["lat", "lon"]));
+            crate::fields::no_children(point, p);
+            crate::fields::no_text(point, p);
+            super::xml::lat_lon(point, p)
+        })
+        .collect();
+    let count = element.children_named("point").count();
+    if count < 3 {
+        p.push(Located::new(
+            element.pos,
+            format!("objective `{name}`: its <area> needs 3 <point>s or more, it has {count}"),
+        ));
+    } else if points.len() == count {
+        let outline = crate::geo::Polygon::new(
+            points
+                .iter()
+                .map(|point| crate::geo::Point::new(point.lon_deg, point.lat_deg))
+                .collect(),
+        );
+        if outline.crosses_itself() {
+            p.push(Located::new(
+                element.pos,
+                format!(
+                    "objective `{name}`: its area's outline crosses itself, so it has no clear \
+                     inside"
+                ),
+            ));
+        } else if outline.area() < 1e-12 {
+            // A square degree is some 9,000 km² at the latitudes plans are drawn at: this is
+            // about a hundredth of a square metre.
+            p.push(Located::new(
+                element.pos,
+                format!(
+                    "objective `{name}`: its area encloses nothing (its points are on one line \
+                     or at one place)"
+                ),
+            ));
+        }
+    }
+    Area {
+        points,
+        pos: element.pos,
+    }
 }
 
 /// A window that ends before it starts, or that needs the plan's start to be read.
@@ -430,7 +505,7 @@ pub(crate) fn check_references(
                     ),
                 ));
             }
-            Place::At(_) => {
+            Place::At(_) | Place::Area(_) => {
                 if let Some(waypoint) = waypoints.get(objective.name.as_str()) {
                     p.push(Located::new(
                         objective.pos,
@@ -562,6 +637,7 @@ pub(crate) fn write(out: &mut String, objectives: &Objectives) {
             Place::At(position) => {
                 let _ = write!(out, " {}", super::xml::lat_lon_attrs(*position));
             }
+            Place::Area(_) => {}
         }
         if let Some(wait) = objective.wait_secs {
             let _ = write!(out, " wait_secs=\"{wait}\"");
@@ -581,14 +657,30 @@ pub(crate) fn write(out: &mut String, objectives: &Objectives) {
         if objective.optional {
             out.push_str(" optional=\"true\"");
         }
-        match &objective.arrival {
-            None => out.push_str("/>\n"),
-            Some(action) => {
-                out.push_str(">\n");
-                super::xml::write_action(out, "      ", "arrival", action);
-                out.push_str("    </objective>\n");
-            }
+        let area = match &objective.place {
+            Place::Area(area) => Some(area),
+            _ => None,
+        };
+        if area.is_none() && objective.arrival.is_none() {
+            out.push_str("/>\n");
+            continue;
         }
+        out.push_str(">\n");
+        if let Some(area) = area {
+            out.push_str("      <area>\n");
+            for point in &area.points {
+                let _ = writeln!(
+                    out,
+                    "        <point {}/>",
+                    super::xml::lat_lon_attrs(*point)
+                );
+            }
+            out.push_str("      </area>\n");
+        }
+        if let Some(action) = &objective.arrival {
+            super::xml::write_action(out, "      ", "arrival", action);
+        }
+        out.push_str("    </objective>\n");
     }
     for precedence in &objectives.precedences {
         let _ = writeln!(
@@ -635,11 +727,23 @@ mod tests {
       </arrival>
     </objective>
     <objective name="post" lat="43.5616" lon="1.4693" wait_secs="5" optional="true"/>
+    <objective name="lot">
+      <area>
+        <point lat="43.5616" lon="1.4692"/>
+        <point lat="43.5617" lon="1.4692"/>
+        <point lat="43.5617" lon="1.4693"/>
+      </area>
+    </objective>
     <precedence first="look" then="post"/>"#,
         );
         let read = Plan::parse(&text).unwrap_or_else(|err| panic!("{err:?}"));
         let objectives = read.objectives.as_ref().expect("objectives read");
-        assert_eq!(objectives.objectives.len(), 2);
+        assert_eq!(objectives.objectives.len(), 3);
+        assert!(
+            matches!(&objectives.objectives[2].place, super::Place::Area(area) if area.points.len() == 3 && area.pos.line == 12),
+            "{:?}",
+            objectives.objectives[2].place
+        );
         assert_eq!(objectives.objectives[0].priority, 3);
         assert_eq!(objectives.objectives[0].service_secs(), 30.0);
         assert!(objectives.objectives[1].optional);
@@ -698,7 +802,45 @@ mod tests {
             (
                 r#"    <objective name="a" at="gate" lat="43.5616" lon="1.4693"/>"#,
                 5,
-                "give its place either as a waypoint (`at`) or as `lat` and `lon`, not both",
+                "give its place one way: as a waypoint (`at`), as `lat` and `lon`, or as an \
+                 <area>",
+            ),
+            (
+                r#"    <objective name="a">
+      <area><point lat="43.5616" lon="1.4693"/><point lat="43.5617" lon="1.4693"/></area>
+    </objective>"#,
+                6,
+                "objective `a`: its <area> needs 3 <point>s or more, it has 2",
+            ),
+            (
+                r#"    <objective name="a">
+      <area>
+        <point lat="43.5616" lon="1.4693"/>
+        <point lat="43.5617" lon="1.4694"/>
+        <point lat="43.5616" lon="1.4694"/>
+        <point lat="43.5617" lon="1.4693"/>
+      </area>
+    </objective>"#,
+                6,
+                "objective `a`: its area's outline crosses itself",
+            ),
+            (
+                r#"    <objective name="a">
+      <area>
+        <point lat="43.5616" lon="1.4693"/>
+        <point lat="43.5617" lon="1.4694"/>
+        <point lat="43.5618" lon="1.4695"/>
+      </area>
+    </objective>"#,
+                6,
+                "objective `a`: its area encloses nothing",
+            ),
+            (
+                r#"    <objective name="a" at="gate">
+      <area><point lat="43.5616" lon="1.4693"/><point lat="43.5617" lon="1.4693"/><point lat="43.5617" lon="1.4694"/></area>
+    </objective>"#,
+                5,
+                "objective `a`: give its place one way",
             ),
         ] {
             let found = problems(&plan(body));

@@ -514,3 +514,45 @@ fn a_star_costs_match_an_independent_dijkstra_seed_7() {
     }
     assert!(compared > 40, "{compared}");
 }
+
+/// One search from a place to many goals gives each goal the very path it gets planned alone,
+/// to the bit, with a no-go area in the way or not: the ways of `armor plan`'s table are the
+/// legs `armor check` then plans. Unreachable goals get the same bottleneck too.
+#[test]
+fn one_search_to_many_goals_finds_the_paths_planned_alone_seed_4040() {
+    let mut rng = Rng(4040);
+    let (mut searched, mut cut) = (0, 0);
+    for index in 0..24 {
+        let world = random_world(&mut rng);
+        let keepouts = if index % 2 == 0 {
+            vec![square("pit", 14.0, 14.0, 22.0, 20.0, 0.5)]
+        } else {
+            Vec::new()
+        };
+        let mut planner = planner_on(&world, &keepouts);
+        let start = free_place(&mut rng, planner.costmap());
+        let goals: Vec<Point> = (0..12)
+            .map(|_| free_place(&mut rng, planner.costmap()))
+            .collect();
+        let together = planner.plan_from(start, &goals);
+        assert_eq!(together.len(), goals.len());
+        for (pair, (goal, answer)) in goals.iter().zip(&together).enumerate() {
+            let alone = planner.plan(start, *goal);
+            assert_eq!(answer, &alone, "seed 4040, world {index}, goal {pair}");
+            match answer {
+                Ok(path) if path.points.len() > 2 => searched += 1,
+                Err(PathError::Cut(_)) => cut += 1,
+                _ => {}
+            }
+        }
+        // Planned as pairs, on threads, grouped by start: the same again.
+        let pairs: Vec<(Point, Point)> = goals.iter().map(|&goal| (start, goal)).collect();
+        assert_eq!(
+            planner.plan_many(&pairs),
+            together,
+            "seed 4040, world {index}"
+        );
+    }
+    // Most ways turn round something, and some are cut, so that both are compared.
+    assert!(searched > 80 && cut > 0, "{searched} searched, {cut} cut");
+}

@@ -797,7 +797,10 @@ fn a_lost_localiser_holds_the_leg_it_drives_or_skips_it_as_the_leg_says() {
 #[test]
 fn a_low_battery_returns_to_the_start_unless_the_plan_says_otherwise() {
     let plan = plan(
-        r#"<leg from="home" to="gate"/>
+        r#"<leg from="home" to="gate" not_before="2026-11-23T08:05:00Z" wait_secs="600">
+  <arrival for_secs="60"><module name="observer"/></arrival>
+  <contingency on="blocked" do="hold"/>
+</leg>
 <leg from="gate" to="hill">
   <contingency on="low_battery" module="bms" do="hold"/>
 </leg>
@@ -818,9 +821,17 @@ fn a_low_battery_returns_to_the_start_unless_the_plan_says_otherwise() {
     for line in [
         "leg1_low_battery: leg1_drive -> leg1_return sim.low_battery",
         "leg2_low_battery: leg2_drive -> leg2_hold bms.low_battery",
+        // Not only while a leg drives: waiting for its appointment, acting on arrival, waiting
+        // there, holding for the operator.
+        "leg1_depart_low_battery: leg1_depart -> leg1_return sim.low_battery",
+        "leg1_arrival_low_battery: leg1_arrival -> leg1_return sim.low_battery",
+        "leg1_wait_low_battery: leg1_wait -> leg1_return sim.low_battery",
+        "leg1_hold_low_battery: leg1_hold -> leg1_return sim.low_battery",
     ] {
         assert!(with.lines().any(|l| l == line), "no `{line}` in\n{with}");
     }
+    // A hold that is itself the answer does not listen to what it answers.
+    assert!(!with.contains("leg2_hold_low_battery"), "{with}");
     // Without one nothing listens to the battery.
     let without = picture(&compiled(r#"<leg from="home" to="gate"/>"#).net);
     assert!(!without.contains("low_battery"), "{without}");
