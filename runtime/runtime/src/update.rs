@@ -7,6 +7,10 @@
 //! being taken is said in words, and the mission goes on unchanged; every update, taken or
 //! not, is numbered and recorded (`docs/plans.md`, "Updates to a running mission").
 //!
+//! A no-go area reported from outside ([`check_area`]: `armor ctl area`, a module's `area`
+//! message) is the running plan with the area added, checked and taken the same way; one that
+//! leaves the leg in force no way from the robot is taken all the same, and the leg blocked.
+//!
 //! [`Request::Update`]: armor_protocol::Request::Update
 
 use std::collections::BTreeSet;
