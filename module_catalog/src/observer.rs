@@ -320,6 +320,25 @@ mod tests {
     }
 
     #[test]
+    fn reports_the_area_it_sighted_once_the_sector_is_covered() {
+        let bench = run(&[("sighted", "mines 23,5.3 25,5.3 25,8.2")], headings(10));
+        assert_eq!(
+            bench.areas_reported(),
+            [(
+                "mines".to_owned(),
+                vec![[23.0, 5.3], [25.0, 5.3], [25.0, 8.2]]
+            )]
+        );
+        assert_eq!(bench.reported(), ["observation_done"]);
+        // Nothing sighted, nothing reported; a corner that is not `X,Y` is refused.
+        assert!(run(&[], headings(10)).areas_reported().is_empty());
+        assert_eq!(
+            Sighted::parse("mines 1,1 2;2"),
+            Err("`2;2` is not a corner `X,Y` in metres".to_owned())
+        );
+    }
+
+    #[test]
     fn turns_clockwise_through_a_sector() {
         let steps = [0.0, -0.5, -1.0, 0.9, -1.5, -1.55, -1.7].map(heading);
         let bench = run(&[("sector_deg", "90"), ("turn_radps", "-0.4")], steps);
