@@ -130,6 +130,29 @@ impl Yard {
     }
 }
 
+/// `armor run PLAN` in the yard's folder on the plan's day at `time_scale`, with a run secret
+/// and a report.
+fn yard_run(yard: &Yard, plan: &Path, report_file: &Path, secret: &Path, time_scale: &str) -> Proc {
+    Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(plan)
+            .args([
+                "--time-scale",
+                time_scale,
+                "--start-at",
+                "2026-11-23T08:00:00Z",
+            ])
+            .arg("--report")
+            .arg(report_file)
+            .arg("--secret")
+            .arg(secret)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .current_dir(yard.dir.path()),
+    )
+}
+
 /// `text` with `from` replaced by `to`, which it must hold.
 fn edited(text: &str, from: &str, to: &str) -> String {
     assert!(text.contains(from), "no `{from}` in the plan");
@@ -255,24 +278,7 @@ fn the_yard_run_takes_three_updates_while_driving_and_refuses_the_wrong_ones() {
     let _one = ONE_ROBOT_AT_A_TIME
         .lock()
         .unwrap_or_else(PoisonError::into_inner);
-    let mut run = Proc::start(
-        Command::new(bin("armor"))
-            .arg("run")
-            .arg(&original)
-            .args([
-                "--time-scale",
-                TIME_SCALE,
-                "--start-at",
-                "2026-11-23T08:00:00Z",
-            ])
-            .arg("--report")
-            .arg(&report_file)
-            .arg("--secret")
-            .arg(&secret)
-            .arg("--no-run-folder")
-            .env("ARMOR_MODULE_PATH", bin_dir())
-            .current_dir(yard.dir.path()),
-    );
+    let mut run = yard_run(&yard, &original, &report_file, &secret, TIME_SCALE);
     let addr = control_address(&run);
     let first = status(&addr, &secret);
     assert!(
@@ -619,6 +625,33 @@ fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot()
         follower_path(&again.net),
         follower_path(&again.compiled.net)
     );
+    // An area added across `cross` while the robot waits at the gate: the leg goes on in
+    // `cross_depart`, and its drive takes the new route round the area, not the one the run
+    // had given it through the gap.
+    let waiting: Marking = [("cross_depart".to_owned(), 1)].into();
+    let gap = edited(
+        &yard.plan_text,
+        "<phase_line",
+        &format!("{}<phase_line", yard.area("gap", (23.0, 5.3), (25.0, 8.2))),
+    );
+    let checked = check(&running, "gap.xml", &gap, &[bin_dir()]).unwrap();
+    let rerouted = prepare(
+        &running,
+        checked,
+        &[bin_dir()],
+        (&running.compiled.net, &waiting),
+        now,
+    )
+    .unwrap();
+    assert!(!rerouted.migration.changed);
+    assert_eq!(
+        follower_path(&rerouted.net),
+        follower_path(&rerouted.compiled.net)
+    );
+    assert_ne!(
+        follower_path(&rerouted.net),
+        follower_path(&running.compiled.net)
+    );
 }
 
 #[test]
@@ -681,24 +714,7 @@ mod reported {
         let plan = yard.write("plan-yard.xml", text);
         let secret = secret_file(yard.dir.path());
         let report_file = yard.dir.path().join("report.json");
-        let proc = Proc::start(
-            Command::new(bin("armor"))
-                .arg("run")
-                .arg(&plan)
-                .args([
-                    "--time-scale",
-                    time_scale,
-                    "--start-at",
-                    "2026-11-23T08:00:00Z",
-                ])
-                .arg("--report")
-                .arg(&report_file)
-                .arg("--secret")
-                .arg(&secret)
-                .arg("--no-run-folder")
-                .env("ARMOR_MODULE_PATH", bin_dir())
-                .current_dir(yard.dir.path()),
-        );
+        let proc = yard_run(yard, &plan, &report_file, &secret, time_scale);
         let addr = control_address(&proc);
         Run {
             proc,

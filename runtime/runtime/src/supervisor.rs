@@ -513,14 +513,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 Ok(update) => checked = Some((update, reply)),
                 Err(why) => {
                     let (ok, message) = crate::update::refuse(controller, &asked.label(), &why);
-                    if let Some(reply) = reply {
-                        answer(
-                            &reply,
-                            ok,
-                            message,
-                            run_status(&modules, &server, Some(controller), &env, &clock),
-                        );
-                    }
+                    answer_update(reply.as_ref(), ok, message, || {
+                        run_status(&modules, &server, Some(controller), &env, &clock)
+                    });
                 }
             }
         }
@@ -629,14 +624,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 plan_legs = Some((running.plan.clone(), running.compiled.clone()));
             }
             controller.note_demand(&server);
-            if let Some(reply) = reply {
-                answer(
-                    &reply,
-                    ok,
-                    message,
-                    run_status(&modules, &server, Some(controller), &env, &clock),
-                );
-            }
+            answer_update(reply.as_ref(), ok, message, || {
+                run_status(&modules, &server, Some(controller), &env, &clock)
+            });
         }
         crate::host_run::take_notes(&env.hosts, &server);
         for module in modules.values_mut() {
@@ -749,6 +739,19 @@ fn answer(
         status: Some(status),
         files: None,
     });
+}
+
+/// Answers an update asked on the control link (`reply`); one a module asked for (an area it
+/// reported) has no one to answer: the records say what became of it.
+fn answer_update(
+    reply: Option<&mpsc::Sender<armor_protocol::Reply>>,
+    ok: bool,
+    message: String,
+    status: impl FnOnce() -> armor_protocol::Status,
+) {
+    if let Some(reply) = reply {
+        answer(reply, ok, message, status());
+    }
 }
 
 /// Puts on the health stream what supervising `module` changed since it was `before`: a

@@ -298,13 +298,21 @@ pub fn prepare(
     let path_param = (navigation.as_str(), "path");
     if !migration.changed {
         // The leg goes on as the run plays it: with the path an earlier update planned from
-        // where the robot was, if one did, not the plan's from the leg's start.
+        // where the robot was, if one did, not the plan's from the leg's start. Only where the
+        // plan's own route for the place is the one it was, though: a drive place not entered
+        // yet that the update routes anew (an area added while the robot waits at the leg's
+        // gate) takes its new route.
         migrate::set_leg_param(
             &mut net,
             &compiled.trace,
             migration.index,
             path_param,
-            |place| migrate::param_of(played, place, path_param),
+            |place| {
+                let route = |net: &MissionNet| migrate::param_of(net, place, path_param);
+                (route(&running.compiled.net) == route(&compiled.net))
+                    .then(|| route(played))
+                    .flatten()
+            },
         );
     }
     if migration.changed && drives {
