@@ -5,6 +5,11 @@
 //! change in the direction of the turn, so a turn through more than half a circle is counted
 //! right and a jolt backwards counts against it. One command is published per pose received.
 //! Each start (activation) begins a new turn from wherever the robot is heading.
+//!
+//! With `sighted`, it also reports a no-go area once the sector is covered, as a unit that
+//! looked round and saw a minefield would: the mission adds it to its plan as an update
+//! (`docs/plans.md`, "Areas reported from outside"). What it reports is given, not recognised:
+//! this is the stand-in for a sensor that would.
 
 use armor_module_api::types::{Frame, Marker, Markers, Odometry, Shape, Twist};
 use armor_module_api::{BodyResult, Event, ModuleSpec, Node, ParamSpec, ParamType};
@@ -57,6 +62,15 @@ pub fn spec() -> ModuleSpec {
         .unit("rad/s")
         .default("0.6"),
     )
+    .param(
+        ParamSpec::new(
+            "sighted",
+            ParamType::String,
+            "a no-go area to report once the sector is covered, `NAME X,Y X,Y X,Y…` in the world \
+             frame (metres); empty: none",
+        )
+        .default(""),
+    )
     .event(
         "observation_done",
         "the robot has turned through the whole sector (once per activation)",
@@ -68,6 +82,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     let output = node.output::<Twist>("cmd_vel")?;
     let markers = node.output::<Markers>("markers")?;
     let mut settings = Settings::read(node)?;
+    let mut sighted = Sighted::read(node)?;
     let mut turn = Turn::default();
     let mut markers_sent = f64::NEG_INFINITY;
     loop {
@@ -86,6 +101,9 @@ pub fn body(node: &mut Node) -> BodyResult {
                     }
                     if done {
                         tracing::info!("turned through {} degrees", settings.sector_deg);
+                        if let Some(area) = &sighted {
+                            node.report_area(&area.name, &area.points_m);
+                        }
                         node.report("observation_done")?;
                     }
                 }
@@ -98,9 +116,14 @@ pub fn body(node: &mut Node) -> BodyResult {
                 tracing::info!("inactive: stopping");
                 node.send(&output, &Twist::default())?;
             }
-            Event::ParamsChanged(_) => match Settings::read(node) {
-                Ok(new) => settings = new,
-                Err(err) => tracing::error!("{err}; keeping the previous settings"),
+            Event::ParamsChanged(_) => match (Settings::read(node), Sighted::read(node)) {
+                (Ok(new), Ok(new_sighted)) => {
+                    settings = new;
+                    sighted = new_sighted;
+                }
+                (Err(err), _) | (_, Err(err)) => {
+                    tracing::error!("{err}; keeping the previous settings")
+                }
             },
             Event::Shutdown => return Ok(()),
             _ => {}
@@ -121,6 +144,42 @@ impl Settings {
             sector_deg: node.param::<f64>("sector_deg")?,
             turn_radps: node.param::<f64>("turn_radps")?,
         })
+    }
+}
+
+/// The no-go area the observer reports once the sector is covered (`sighted`).
+#[derive(Clone, Debug, PartialEq)]
+struct Sighted {
+    name: String,
+    points_m: Vec<[f64; 2]>,
+}
+
+impl Sighted {
+    fn read(node: &Node) -> Result<Option<Self>, BodyError> {
+        let text = node.param::<String>("sighted")?;
+        Self::parse(&text).map_err(|why| BodyError::from(format!("parameter `sighted`: {why}")))
+    }
+
+    /// `NAME X,Y X,Y…`; nothing when `text` is blank. The run judges the area itself (its
+    /// corners, its name): this only reads the numbers.
+    fn parse(text: &str) -> Result<Option<Self>, String> {
+        let mut words = text.split_whitespace();
+        let Some(name) = words.next() else {
+            return Ok(None);
+        };
+        let points_m = words
+            .map(|corner| {
+                let number = |part: &str| part.parse::<f64>().ok().filter(|v| v.is_finite());
+                corner
+                    .split_once(',')
+                    .and_then(|(x, y)| Some([number(x)?, number(y)?]))
+                    .ok_or_else(|| format!("`{corner}` is not a corner `X,Y` in metres"))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Some(Self {
+            name: name.to_owned(),
+            points_m,
+        }))
     }
 }
 
@@ -258,6 +317,25 @@ mod tests {
         assert_eq!(sent[..7], [turning(0.6); 7]);
         assert_eq!(sent[7..], [Twist::default(); 3]);
         assert_eq!(bench.reported(), ["observation_done"]);
+    }
+
+    #[test]
+    fn reports_the_area_it_sighted_once_the_sector_is_covered() {
+        let bench = run(&[("sighted", "mines 23,5.3 25,5.3 25,8.2")], headings(10));
+        assert_eq!(
+            bench.areas_reported(),
+            [(
+                "mines".to_owned(),
+                vec![[23.0, 5.3], [25.0, 5.3], [25.0, 8.2]]
+            )]
+        );
+        assert_eq!(bench.reported(), ["observation_done"]);
+        // Nothing sighted, nothing reported; a corner that is not `X,Y` is refused.
+        assert!(run(&[], headings(10)).areas_reported().is_empty());
+        assert_eq!(
+            Sighted::parse("mines 1,1 2;2"),
+            Err("`2;2` is not a corner `X,Y` in metres".to_owned())
+        );
     }
 
     #[test]

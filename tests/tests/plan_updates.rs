@@ -15,6 +15,13 @@
 //!   rather than a plan, another system, and a leg in force replaced with no way from where the
 //!   robot is; a leg replaced gets its path from where the robot is, and keeps it through an
 //!   update that leaves it unchanged. A run that plays a net, not a plan, refuses any update.
+//! * Areas reported from outside (item 3): `armor ctl area` across the leg being driven, and
+//!   the observer's `area` message while it looks round at the gate, each taken as an update:
+//!   the robot goes round the south of the minefield and its true footprint never meets the
+//!   area after the report. Bad areas (two corners, an outline that crosses itself, a name the
+//!   plan has, an observer's key, a corner that is not `X,Y`) are refused and the run goes on.
+//!   An area over the robot, across the gap it drives through, leaves it no way: the update is
+//!   taken and the leg held on `blocked`, its reason naming the area.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -121,6 +128,29 @@ impl Yard {
         let robot = plan::robot(&plan, None, &Default::default());
         plan::compile_for(&plan, Some(&self.world), &robot).unwrap()
     }
+}
+
+/// `armor run PLAN` in the yard's folder on the plan's day at `time_scale`, with a run secret
+/// and a report.
+fn yard_run(yard: &Yard, plan: &Path, report_file: &Path, secret: &Path, time_scale: &str) -> Proc {
+    Proc::start(
+        Command::new(bin("armor"))
+            .arg("run")
+            .arg(plan)
+            .args([
+                "--time-scale",
+                time_scale,
+                "--start-at",
+                "2026-11-23T08:00:00Z",
+            ])
+            .arg("--report")
+            .arg(report_file)
+            .arg("--secret")
+            .arg(secret)
+            .arg("--no-run-folder")
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .current_dir(yard.dir.path()),
+    )
 }
 
 /// `text` with `from` replaced by `to`, which it must hold.
@@ -248,24 +278,7 @@ fn the_yard_run_takes_three_updates_while_driving_and_refuses_the_wrong_ones() {
     let _one = ONE_ROBOT_AT_A_TIME
         .lock()
         .unwrap_or_else(PoisonError::into_inner);
-    let mut run = Proc::start(
-        Command::new(bin("armor"))
-            .arg("run")
-            .arg(&original)
-            .args([
-                "--time-scale",
-                TIME_SCALE,
-                "--start-at",
-                "2026-11-23T08:00:00Z",
-            ])
-            .arg("--report")
-            .arg(&report_file)
-            .arg("--secret")
-            .arg(&secret)
-            .arg("--no-run-folder")
-            .env("ARMOR_MODULE_PATH", bin_dir())
-            .current_dir(yard.dir.path()),
-    );
+    let mut run = yard_run(&yard, &original, &report_file, &secret, TIME_SCALE);
     let addr = control_address(&run);
     let first = status(&addr, &secret);
     assert!(
@@ -612,6 +625,33 @@ fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot()
         follower_path(&again.net),
         follower_path(&again.compiled.net)
     );
+    // An area added across `cross` while the robot waits at the gate: the leg goes on in
+    // `cross_depart`, and its drive takes the new route round the area, not the one the run
+    // had given it through the gap.
+    let waiting: Marking = [("cross_depart".to_owned(), 1)].into();
+    let gap = edited(
+        &yard.plan_text,
+        "<phase_line",
+        &format!("{}<phase_line", yard.area("gap", (23.0, 5.3), (25.0, 8.2))),
+    );
+    let checked = check(&running, "gap.xml", &gap, &[bin_dir()]).unwrap();
+    let rerouted = prepare(
+        &running,
+        checked,
+        &[bin_dir()],
+        (&running.compiled.net, &waiting),
+        now,
+    )
+    .unwrap();
+    assert!(!rerouted.migration.changed);
+    assert_eq!(
+        follower_path(&rerouted.net),
+        follower_path(&rerouted.compiled.net)
+    );
+    assert_ne!(
+        follower_path(&rerouted.net),
+        follower_path(&running.compiled.net)
+    );
 }
 
 #[test]
@@ -638,4 +678,317 @@ fn a_run_that_plays_a_net_refuses_updates_and_numbers_them() {
     let (aborted, said) = ctl(&addr, &["abort"]);
     assert!(aborted, "{said}");
     run.wait_exit(RUN_DEADLINE);
+}
+
+/// Areas reported from outside (issue 39, item 3): `armor ctl area` and a module's `area`
+/// message add a no-go area to the running plan, taken as an update.
+mod reported {
+    use super::*;
+
+    /// The northern gap between the minefield and the container, where `cross` drives: an
+    /// area there sends the leg south of the minefield (the only other way).
+    const GAP: [(f64, f64); 4] = [(23.0, 5.3), (25.0, 5.3), (25.0, 8.2), (23.0, 8.2)];
+
+    /// `X,Y` arguments of `armor ctl area`.
+    fn corners(points: &[(f64, f64)]) -> Vec<String> {
+        points.iter().map(|(x, y)| format!("{x},{y}")).collect()
+    }
+
+    /// `armor ctl --secret SECRET area NAME CORNER…`: whether it was taken, and what it said.
+    fn area(addr: &str, secret: &Path, name: &str, points: &[(f64, f64)]) -> (bool, String) {
+        let corners = corners(points);
+        let mut args = vec!["--secret", secret.to_str().unwrap(), "area", name];
+        args.extend(corners.iter().map(String::as_str));
+        ctl(addr, &args)
+    }
+
+    /// The yard plan (as `text`) run at `time_scale` with a secret and a report.
+    struct Run {
+        proc: Proc,
+        addr: String,
+        secret: PathBuf,
+        report_file: PathBuf,
+    }
+
+    fn start(yard: &Yard, text: &str, time_scale: &str) -> Run {
+        let plan = yard.write("plan-yard.xml", text);
+        let secret = secret_file(yard.dir.path());
+        let report_file = yard.dir.path().join("report.json");
+        let proc = yard_run(yard, &plan, &report_file, &secret, time_scale);
+        let addr = control_address(&proc);
+        Run {
+            proc,
+            addr,
+            secret,
+            report_file,
+        }
+    }
+
+    impl Run {
+        /// Waits for the run to end, and reads its report.
+        fn finish(&mut self) -> (std::process::ExitStatus, serde_json::Value, String) {
+            let exit = self.proc.wait_exit(RUN_DEADLINE);
+            let text = self.proc.lines().join("\n");
+            let report = std::fs::read_to_string(&self.report_file)
+                .unwrap_or_else(|err| panic!("no report: {err}\n{text}"));
+            (exit, serde_json::from_str(&report).unwrap(), text)
+        }
+    }
+
+    /// The truth after `from_secs` never brought the robot's footprint onto `corners`.
+    fn kept_out(yard: &Yard, report: &serde_json::Value, corners: &[(f64, f64)], from_secs: f64) {
+        let polygon = armor_model::geo::Polygon::new(
+            corners.iter().map(|&(x, y)| Point::new(x, y)).collect(),
+        );
+        let radius_m = report["rehearsal"]["robot_radius_m"].as_f64().unwrap();
+        let truth = recorded_truth(&yard.recording);
+        let after: Vec<Point> = truth
+            .iter()
+            .filter(|(at_secs, _)| *at_secs >= from_secs)
+            .map(|(_, at)| *at)
+            .collect();
+        assert!(
+            after.len() > 100,
+            "{} true poses after the report",
+            after.len()
+        );
+        let least = after
+            .iter()
+            .map(|at| footprint_gap_m(&polygon, *at, radius_m))
+            .fold(f64::INFINITY, f64::min);
+        assert!(least > 0.0, "the footprint came {least} m into the area");
+        // It went round by the south of the minefield: the way through the gap was closed.
+        assert!(
+            after
+                .iter()
+                .any(|at| at.y < 2.0 && at.x > 22.0 && at.x < 26.0),
+            "the robot did not go round the south of the minefield"
+        );
+    }
+
+    /// The update entries of the report: (number, file, taken, message).
+    fn updates(report: &serde_json::Value) -> Vec<(u64, String, bool, String)> {
+        report["updates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|update| {
+                (
+                    update["number"].as_u64().unwrap(),
+                    update["file"].as_str().unwrap().to_owned(),
+                    update["taken"] == true,
+                    update["message"].as_str().unwrap().to_owned(),
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn an_area_reported_by_the_operator_across_the_leg_driven_is_driven_round() {
+        let yard = Yard::new();
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        // Slower than the other runs: the robot must still be short of the gap when the area
+        // reaches the run, on a loaded machine.
+        let mut run = start(&yard, &yard.plan_text, "5");
+        let observer = role_key(&run.secret, "observer");
+        // Bad input, refused with the reason, the run unchanged.
+        let (taken, said) = area(&run.addr, &run.secret, "short", &[(1.0, 1.0), (2.0, 1.0)]);
+        assert!(!taken, "{said}");
+        assert!(
+            said.starts_with(
+                "update 1 refused: area `short` has 2 corners: an area needs at least 3"
+            ),
+            "{said}"
+        );
+        let knot = [(1.0, 1.0), (3.0, 3.0), (3.0, 1.0), (1.0, 3.0)];
+        let (taken, said) = area(&run.addr, &run.secret, "knot", &knot);
+        assert!(!taken, "{said}");
+        assert!(
+            said.starts_with("update 2 refused: area `knot`: its outline crosses itself"),
+            "{said}"
+        );
+        let (taken, said) = area(&run.addr, &run.secret, "minefield", &GAP);
+        assert!(!taken, "{said}");
+        assert!(
+            said.starts_with("update 3 refused: the plan has an element named `minefield` already"),
+            "{said}"
+        );
+        let (taken, said) = ctl(
+            &run.addr,
+            &[
+                "--key",
+                observer.to_str().unwrap(),
+                "area",
+                "seen",
+                "1,1",
+                "2,1",
+                "2,2",
+            ],
+        );
+        assert!(!taken && said.contains("observer"), "{said}");
+        // A corner that is not `X,Y` never leaves `armor ctl`: it says which.
+        let output = Command::new(bin("armor"))
+            .args(["ctl", "--addr", &run.addr, "--secret"])
+            .arg(&run.secret)
+            .args(["area", "bad", "1,1", "2;1", "2,2"])
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            !output.status.success()
+                && said.contains("corner 2 of the area, `2;1`: expected X,Y in metres"),
+            "{said}"
+        );
+
+        // Across `cross`, as soon as it sets off from the gate.
+        run.proc.wait_for("`cross` set off", RUN_DEADLINE, |line| {
+            line.contains("fired `cross_appointment`")
+        });
+        let (taken, said) = area(&run.addr, &run.secret, "reported", &GAP);
+        assert!(taken, "{said}");
+        assert!(
+            said.starts_with("update 4 taken: leg `cross` in force replaced at once in `cross_drive`, its path planned again from where the robot is")
+                && said.contains("no-go areas added: `reported`"),
+            "{said}"
+        );
+        let status = status(&run.addr, &run.secret);
+        assert!(
+            status["mission"]["updates"][3]["file"]
+                .as_str()
+                .is_some_and(|file| file == "area `reported` reported by the operator"),
+            "{status}"
+        );
+
+        let (exit, report, text) = run.finish();
+        assert!(exit.success(), "{exit}:\n{text}");
+        assert_eq!(report["outcome"], "complete", "{text}");
+        assert_eq!(report["rehearsal"]["verdict"], "passed", "{text}");
+        let listed = updates(&report);
+        assert_eq!(
+            listed
+                .iter()
+                .map(|(number, _, taken, _)| (*number, *taken))
+                .collect::<Vec<_>>(),
+            [(1, false), (2, false), (3, false), (4, true)]
+        );
+        let reported_at = report["updates"][3]["run_secs"].as_f64().unwrap();
+        kept_out(&yard, &report, &GAP, reported_at);
+    }
+
+    #[test]
+    fn an_area_reported_by_a_module_is_taken_and_driven_round() {
+        let yard = Yard::new();
+        // The observer, looking round at the gate, sights a minefield in the gap.
+        let sighted = format!(
+            "<param name=\"sector_deg\" value=\"360\"/>\n        <param name=\"sighted\" value=\"mines {}\"/>",
+            corners(&GAP).join(" ")
+        );
+        let text = edited(
+            &yard.plan_text,
+            "<param name=\"sector_deg\" value=\"360\"/>",
+            &sighted,
+        );
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut run = start(&yard, &text, TIME_SCALE);
+        let (exit, report, text) = run.finish();
+        assert!(exit.success(), "{exit}:\n{text}");
+        assert_eq!(report["outcome"], "complete", "{text}");
+        assert_eq!(report["rehearsal"]["verdict"], "passed", "{text}");
+        let listed = updates(&report);
+        assert_eq!(listed.len(), 1, "{listed:?}");
+        let (number, file, taken, message) = &listed[0];
+        assert_eq!(
+            (*number, file.as_str(), *taken),
+            (1, "area `mines` reported by module `observer`", true),
+            "{message}"
+        );
+        assert!(message.contains("no-go areas added: `mines`"), "{message}");
+        assert!(
+            text.lines()
+                .any(|line| line.starts_with("update 1 at ") && line.contains("`mines`")),
+            "{text}"
+        );
+        // Reported during the arrival at the gate, before `cross` set off.
+        let reported_at = report["updates"][0]["run_secs"].as_f64().unwrap();
+        assert!(reported_at <= fired_at(&report, "cross_appointment"));
+        kept_out(&yard, &report, &GAP, reported_at);
+    }
+
+    /// Where the robot believed it was when an update replaced its leg, from the answer.
+    fn robot_at(said: &str) -> (f64, f64) {
+        let from = "from where the robot is, (";
+        let start = said.find(from).map(|at| at + from.len()).unwrap();
+        let inside = &said[start..start + said[start..].find(')').unwrap()];
+        let (x, y) = inside.split_once(", ").unwrap();
+        (x.parse().unwrap(), y.parse().unwrap())
+    }
+
+    #[test]
+    fn an_area_that_closes_every_way_from_the_robot_blocks_the_leg() {
+        let yard = Yard::new();
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut run = start(&yard, &yard.plan_text, "2");
+        run.proc.wait_for("`cross` set off", RUN_DEADLINE, |line| {
+            line.contains("fired `cross_appointment`")
+        });
+        // Small areas far from the route tell where the robot is (each update's answer says),
+        // until it is past the gate, heading for the gap.
+        let mut probes = 0;
+        let (x, _) = loop {
+            probes += 1;
+            assert!(probes < 200, "the robot never left the gate");
+            let corner = (0.5 + 0.1 * f64::from(probes), 28.0);
+            let probe = [corner, (corner.0 + 0.05, 28.0), (corner.0, 28.05)];
+            let (taken, said) = area(&run.addr, &run.secret, &format!("probe{probes}"), &probe);
+            assert!(taken, "{said}");
+            let at = robot_at(&said);
+            if at.0 >= 19.0 {
+                break at;
+            }
+        };
+        // An area over the robot, across the gap: nothing left from where it is (the leg's
+        // own way from the gate, south of the minefield, is still open).
+        let wall = [
+            (x - 1.0, 4.5),
+            (x + 3.0, 4.5),
+            (x + 3.0, 8.2),
+            (x - 1.0, 8.2),
+        ];
+        let (taken, said) = area(&run.addr, &run.secret, "wall", &wall);
+        assert!(taken, "{said}");
+        assert!(
+            said.contains("leg `cross` in force blocked: with the no-go area `wall` there is no way from where the robot is")
+                && said.contains("the plan's contingency on `blocked` applies"),
+            "{said}"
+        );
+        let held = status(&run.addr, &run.secret);
+        assert_eq!(marked(&held), ["cross_hold"], "{held}");
+        let last = held["mission"]["updates"]
+            .as_array()
+            .unwrap()
+            .last()
+            .unwrap()
+            .clone();
+        assert_eq!(last["taken"], true);
+        assert!(
+            last["message"].as_str().unwrap().contains("`wall`"),
+            "{last}"
+        );
+        // The operator decides: here, the mission ends.
+        let (aborted, said) = ctl(
+            &run.addr,
+            &["--secret", run.secret.to_str().unwrap(), "abort"],
+        );
+        assert!(aborted, "{said}");
+        let (exit, report, text) = run.finish();
+        assert!(!exit.success(), "{text}");
+        assert_eq!(report["outcome"], "aborted", "{text}");
+        fired_at(&report, "cross_blocked");
+    }
 }

@@ -622,6 +622,17 @@ impl Node {
         Ok(())
     }
 
+    /// Reports a no-go area the module learnt of (another unit reports a minefield), its
+    /// corners in the world frame, in metres: a run that plays a plan adds it to the plan as an
+    /// update (`docs/plans.md`, "Areas reported from outside").
+    pub fn report_area(&mut self, name: &str, points_m: &[[f64; 2]]) {
+        tracing::info!(area = name, "reporting a no-go area");
+        self.tell_supervisor(ToSupervisor::Area {
+            name: name.to_owned(),
+            points_m: points_m.to_vec(),
+        });
+    }
+
     /// Says whether this behaviour's preconditions hold now (JDE's schemas: a behaviour that is
     /// active but not applicable is `checking`; an applicable one is `ready`, or `winner` when an
     /// arbiter gives it control). Sent to the supervisor only when it changes, so it may be

@@ -66,7 +66,7 @@ pub struct ModuleConfig {
     pub input_rates: BTreeMap<String, f64>,
 }
 
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum ToSupervisor {
     Hello {
@@ -77,6 +77,13 @@ pub enum ToSupervisor {
     Ready,
     Event {
         name: String,
+    },
+    /// A no-go area the module learnt of (another unit reports a minefield): its corners in
+    /// the world frame, in metres. A run that plays a plan adds it to the plan as an update
+    /// (`docs/plans.md`, "Areas reported from outside"); any other run logs and drops it.
+    Area {
+        name: String,
+        points_m: Vec<[f64; 2]>,
     },
     /// A behaviour's preconditions hold (`true`) or not: sent when that changes. With the
     /// module's activity it makes the states a user sees (`slept`, `checking`, `ready`,

@@ -147,6 +147,20 @@ impl TestBench {
             })
             .collect()
     }
+
+    /// The no-go areas the module reported ([`Node::report_area`]), in order.
+    pub fn areas_reported(&self) -> Vec<(String, Vec<[f64; 2]>)> {
+        let Transport::Test(test) = &self.node.transport else {
+            return Vec::new();
+        };
+        test.reports
+            .iter()
+            .filter_map(|report| match report {
+                ToSupervisor::Area { name, points_m } => Some((name.clone(), points_m.clone())),
+                _ => None,
+            })
+            .collect()
+    }
 }
 
 impl TestBench {

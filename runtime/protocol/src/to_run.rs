@@ -59,6 +59,13 @@ pub enum Request {
         file: String,
         text: String,
     },
+    /// Report a no-go area (`armor ctl area NAME X,Y X,Y X,Y…`: another unit reports a
+    /// minefield): its corners in the world frame, in metres. The run adds it to the running
+    /// plan and takes that as an update (`docs/plans.md`, "Areas reported from outside").
+    Area {
+        name: String,
+        points_m: Vec<[f64; 2]>,
+    },
 }
 
 /// The largest plan `armor ctl update` sends: a request, with its JSON escapes, must fit in

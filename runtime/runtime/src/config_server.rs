@@ -59,6 +59,12 @@ pub enum ServerEvent {
         module: String,
         name: String,
     },
+    /// A no-go area reported by a module (`{"type": "area", …}`), corners in the world frame.
+    AreaReported {
+        module: String,
+        name: String,
+        points_m: Vec<[f64; 2]>,
+    },
     Disconnected {
         module: String,
     },
@@ -599,6 +605,14 @@ impl ConfigServer {
                 ToSupervisor::Event { name: event } => ServerEvent::Event {
                     module: name.clone(),
                     name: event,
+                },
+                ToSupervisor::Area {
+                    name: area,
+                    points_m,
+                } => ServerEvent::AreaReported {
+                    module: name.clone(),
+                    name: area,
+                    points_m,
                 },
                 ToSupervisor::Pong { stats } => {
                     if let Some(stats) = stats {

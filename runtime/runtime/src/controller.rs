@@ -55,6 +55,10 @@ pub struct Update<'a> {
     pub message: &'a str,
     /// More for the timeline's entry (the legs done, the places before and after).
     pub details: serde_json::Value,
+    /// An event the new net hears at once, before the modules are told: the navigation's
+    /// `blocked` when an area reported leaves the leg in force no way, so that the follower
+    /// never takes a path through the area.
+    pub event: Option<String>,
 }
 
 pub struct Controller {
@@ -303,6 +307,7 @@ impl Controller {
             file,
             message,
             details,
+            event,
         } = update;
         let now = self.clock.now_secs();
         let engine = Engine::resume(&net, marking, &self.engine, keep_events, now)
@@ -329,6 +334,11 @@ impl Controller {
         }
         self.record("update", entry);
         tracing::info!("plan update {number} ({file}) taken: {message}");
+        if let Some(event) = event {
+            let latched = self.engine.report_event(&event, now);
+            self.record("event", json!({ "event": event, "latched_by": latched }));
+            self.step(server);
+        }
         self.tell(server);
         self.step(server);
         Ok(number)
@@ -655,6 +665,7 @@ impl Controller {
             | Request::Teleop { .. }
             | Request::SetPose { .. }
             | Request::Update { .. }
+            | Request::Area { .. }
             | Request::Files => (false, "not a mission request".to_owned()),
             Request::Pause if self.paused => (false, "already paused".to_owned()),
             Request::Pause => {

@@ -54,6 +54,16 @@ enum CtlCommand {
         /// The updated plan file.
         plan: PathBuf,
     },
+    /// Report a no-go area (another unit reports a minefield): `area NAME X,Y X,Y X,Y…`, its
+    /// corners in the map frame (metres). The run adds it to the running plan and takes that
+    /// as an update; an area that leaves the leg being driven no way blocks it
+    /// (docs/plans.md, "Areas reported from outside").
+    #[command(allow_negative_numbers = true)]
+    Area {
+        name: String,
+        /// The corners, `X,Y` each, in metres.
+        corners: Vec<String>,
+    },
     /// Tell the localiser where the robot is (as rviz's "2D Pose Estimate"): `set-pose X Y
     /// HEADING_DEG` in the map frame (metres, degrees counter-clockwise from east).
     #[command(allow_negative_numbers = true)]
@@ -612,6 +622,18 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                         text,
                     }
                 }
+                CtlCommand::Area { name, corners } => armor_protocol::Request::Area {
+                    name,
+                    points_m: corners
+                        .iter()
+                        .enumerate()
+                        .map(|(index, corner)| {
+                            corner_m(corner).with_context(|| {
+                                format!("corner {} of the area, `{corner}`", index + 1)
+                            })
+                        })
+                        .collect::<anyhow::Result<_>>()?,
+                },
                 CtlCommand::SetPose {
                     x_m,
                     y_m,
@@ -1232,6 +1254,21 @@ fn write_private(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
 
 /// `armor ctl teleop`: one command, or the same one ten times a second for `for_secs`, then
 /// `stop`, over one connection to the control interface.
+/// A corner of an area as `armor ctl area` takes it: `X,Y` in metres.
+fn corner_m(text: &str) -> anyhow::Result<[f64; 2]> {
+    let (x, y) = text
+        .split_once(',')
+        .context("expected X,Y in metres, as `12.5,-3`")?;
+    let number = |part: &str| {
+        part.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|value| value.is_finite())
+            .with_context(|| format!("`{part}` is not a number of metres"))
+    };
+    Ok([number(x)?, number(y)?])
+}
+
 fn ctl_teleop(
     addr: SocketAddr,
     secret: Option<&armor_module_api::auth::RoleKey>,

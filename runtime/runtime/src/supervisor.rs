@@ -474,22 +474,21 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     let _ = reply.send(run_files(&options.file, &system_file, &server));
                     continue;
                 }
-                armor_protocol::Request::Update { file, text } => match &mut controller {
+                request => match (crate::update::Asked::of(request), &mut controller) {
                     // Taken below, once the events before it are played: see `checked`.
-                    Some(_) if running_plan.is_some() => {
-                        queued_updates.push_back((file, text, reply));
+                    (Ok(asked), Some(_)) if running_plan.is_some() => {
+                        queued_updates.push_back((asked, Some(reply)));
                         continue;
                     }
-                    Some(controller) => crate::update::refuse(
+                    (Ok(asked), Some(controller)) => crate::update::refuse(
                         controller,
-                        &file,
+                        &asked.label(),
                         "this run plays a mission net, not a plan: only a plan is updated",
                     ),
-                    None => (false, "this run has no mission".to_owned()),
-                },
-                mission_request => match &mut controller {
-                    Some(controller) => controller.handle(mission_request, &server),
-                    None => (false, "this run has no mission".to_owned()),
+                    (Err(mission_request), Some(controller)) => {
+                        controller.handle(mission_request, &server)
+                    }
+                    (_, None) => (false, "this run has no mission".to_owned()),
                 },
             };
             if let Some(controller) = &mut controller {
@@ -507,19 +506,16 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         // once none is left is the update migrated and swapped in: an event of the old leg (its
         // `goal_reached`) is never taken for one of the new.
         if checked.is_none()
-            && let Some((file, text, reply)) = queued_updates.pop_front()
+            && let Some((asked, reply)) = queued_updates.pop_front()
             && let (Some(controller), Some(running)) = (&mut controller, &running_plan)
         {
-            match crate::update::check(running, &file, &text, &options.module_path) {
+            match asked.check(running, &options.module_path) {
                 Ok(update) => checked = Some((update, reply)),
                 Err(why) => {
-                    let (ok, message) = crate::update::refuse(controller, &file, &why);
-                    answer(
-                        &reply,
-                        ok,
-                        message,
-                        run_status(&modules, &server, Some(controller), &env, &clock),
-                    );
+                    let (ok, message) = crate::update::refuse(controller, &asked.label(), &why);
+                    answer_update(reply.as_ref(), ok, message, || {
+                        run_status(&modules, &server, Some(controller), &env, &clock)
+                    });
                 }
             }
         }
@@ -562,6 +558,32 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     controller.on_event(&format!("{module}.{name}"), &server);
                 }
             }
+            Ok(ServerEvent::AreaReported {
+                module,
+                name,
+                points_m,
+            }) => {
+                tracing::info!("module `{module}` reports no-go area `{name}`");
+                let area = crate::update::Asked::Area(crate::update::ReportedArea {
+                    name,
+                    points_m,
+                    by: format!("module `{module}`"),
+                });
+                match &mut controller {
+                    Some(_) if running_plan.is_some() => queued_updates.push_back((area, None)),
+                    Some(controller) => {
+                        crate::update::refuse(
+                            controller,
+                            &area.label(),
+                            "this run plays a mission net, not a plan: only a plan is updated",
+                        );
+                    }
+                    None => tracing::warn!(
+                        "{}: dropped, this run has no mission to add it to",
+                        area.label()
+                    ),
+                }
+            }
             Ok(ServerEvent::Disconnected { module }) => {
                 tracing::debug!(module, "module disconnected")
             }
@@ -602,12 +624,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 plan_legs = Some((running.plan.clone(), running.compiled.clone()));
             }
             controller.note_demand(&server);
-            answer(
-                &reply,
-                ok,
-                message,
-                run_status(&modules, &server, Some(controller), &env, &clock),
-            );
+            answer_update(reply.as_ref(), ok, message, || {
+                run_status(&modules, &server, Some(controller), &env, &clock)
+            });
         }
         crate::host_run::take_notes(&env.hosts, &server);
         for module in modules.values_mut() {
@@ -720,6 +739,19 @@ fn answer(
         status: Some(status),
         files: None,
     });
+}
+
+/// Answers an update asked on the control link (`reply`); one a module asked for (an area it
+/// reported) has no one to answer: the records say what became of it.
+fn answer_update(
+    reply: Option<&mpsc::Sender<armor_protocol::Reply>>,
+    ok: bool,
+    message: String,
+    status: impl FnOnce() -> armor_protocol::Status,
+) {
+    if let Some(reply) = reply {
+        answer(reply, ok, message, status());
+    }
 }
 
 /// Puts on the health stream what supervising `module` changed since it was `before`: a

@@ -7,6 +7,10 @@
 //! being taken is said in words, and the mission goes on unchanged; every update, taken or
 //! not, is numbered and recorded (`docs/plans.md`, "Updates to a running mission").
 //!
+//! A no-go area reported from outside ([`check_area`]: `armor ctl area`, a module's `area`
+//! message) is the running plan with the area added, checked and taken the same way; one that
+//! leaves the leg in force no way from the robot is taken all the same, and the leg blocked.
+//!
 //! [`Request::Update`]: armor_protocol::Request::Update
 
 use std::collections::BTreeSet;
@@ -16,6 +20,7 @@ use armor_model::geo::{self, Point};
 use armor_model::net::{Marking, MissionNet};
 use armor_model::plan::migrate::{self, Migration};
 use armor_model::plan::{Compiled, Plan};
+use armor_protocol::Request;
 use serde_json::json;
 
 use crate::config_server::ConfigServer;
@@ -49,6 +54,9 @@ pub struct Prepared {
     /// What the update does, in one sentence; then, a line each, the warnings `armor check`
     /// would print for the plan (time constraints that cannot all be met).
     pub message: String,
+    /// The event the new net hears at once (the navigation's `blocked`), when an area reported
+    /// leaves the leg in force no way from where the robot is.
+    pub blocked: Option<String>,
 }
 
 /// Where the robot is and when it is, for the update.
@@ -68,6 +76,9 @@ pub struct Checked {
     loaded: LoadedMission,
     plan: Plan,
     compiled: Compiled,
+    /// Whether it is an area reported from outside ([`check_area`]): one that leaves the leg in
+    /// force no way is taken all the same, and the leg is blocked.
+    reported: bool,
 }
 
 /// Checks and compiles `text` (named `file` by the operator) as an update of the `running`
@@ -101,7 +112,137 @@ pub fn check(
         loaded,
         plan,
         compiled,
+        reported: false,
     })
+}
+
+/// An update asked of the run, before it is checked.
+#[derive(Clone, Debug)]
+pub enum Asked {
+    /// A whole plan (`armor ctl update PLAN.xml`), named `file` by the operator.
+    Plan { file: String, text: String },
+    /// A no-go area to add to the running plan.
+    Area(ReportedArea),
+}
+
+impl Asked {
+    /// The update a control request asks for; any other request is given back.
+    pub fn of(request: Request) -> Result<Asked, Request> {
+        match request {
+            Request::Update { file, text } => Ok(Asked::Plan { file, text }),
+            Request::Area { name, points_m } => Ok(Asked::Area(ReportedArea {
+                name,
+                points_m,
+                by: "the operator".to_owned(),
+            })),
+            other => Err(other),
+        }
+    }
+
+    /// The name the update is recorded under.
+    pub fn label(&self) -> String {
+        match self {
+            Asked::Plan { file, .. } => file.clone(),
+            Asked::Area(area) => area.label(),
+        }
+    }
+
+    /// [`check`] or [`check_area`].
+    pub fn check(&self, running: &Running, module_path: &[PathBuf]) -> Result<Checked, String> {
+        match self {
+            Asked::Plan { file, text } => check(running, file, text, module_path),
+            Asked::Area(area) => check_area(running, area, module_path),
+        }
+    }
+}
+
+/// A no-go area reported from outside the plan (`armor ctl area`, a module's `area` message).
+#[derive(Clone, Debug)]
+pub struct ReportedArea {
+    pub name: String,
+    /// Its corners in the world frame, in metres.
+    pub points_m: Vec<[f64; 2]>,
+    /// Who reported it, as the records say it: `the operator`, ``module `radio` ``.
+    pub by: String,
+}
+
+impl ReportedArea {
+    /// The name its update is recorded under, in place of a file's.
+    pub fn label(&self) -> String {
+        format!("area `{}` reported by {}", self.name, self.by)
+    }
+}
+
+/// Checks the running plan with `area` added to it as a no-go area, as [`check`] checks a plan
+/// sent whole: an area reported is an update like any other. The error says why the area is
+/// refused: fewer than three corners, an outline that crosses itself, a name the plan has.
+pub fn check_area(
+    running: &Running,
+    area: &ReportedArea,
+    module_path: &[PathBuf],
+) -> Result<Checked, String> {
+    let name = &area.name;
+    let valid_name = name
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        && name.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_');
+    if !valid_name {
+        return Err(format!(
+            "the area's name `{name}` is not a name: ASCII letters, digits, `_` and `-`, starting \
+             with a letter or `_`"
+        ));
+    }
+    if area.points_m.len() < 3 {
+        return Err(format!(
+            "area `{name}` has {} corners: an area needs at least 3",
+            area.points_m.len()
+        ));
+    }
+    let corners: Vec<Point> = area
+        .points_m
+        .iter()
+        .map(|&[x, y]| Point::new(x, y))
+        .collect();
+    if let Some(bad) = corners.iter().find(|corner| !corner.is_finite()) {
+        return Err(format!(
+            "area `{name}` has a corner that is not a number: ({}, {})",
+            bad.x, bad.y
+        ));
+    }
+    if geo::Polygon::new(corners.clone()).crosses_itself() {
+        return Err(format!(
+            "area `{name}`: its outline crosses itself, so it has no clear inside"
+        ));
+    }
+    if running
+        .plan
+        .graphics
+        .iter()
+        .any(|graphic| graphic.name == *name)
+    {
+        return Err(format!(
+            "the plan has an element named `{name}` already: report the area under another name"
+        ));
+    }
+    let Some(origin) = running.compiled.origin else {
+        return Err(
+            "the running plan has no geographic frame (no world, no origin) to place the area in"
+                .to_owned(),
+        );
+    };
+    let mut plan = running.plan.clone();
+    plan.graphics.push(armor_model::plan::Graphic {
+        kind: armor_model::plan::GraphicKind::Area(armor_model::plan::AreaKind::NoGo),
+        name: name.clone(),
+        points: corners
+            .iter()
+            .map(|&corner| geo::LatLon::from_local(corner, origin))
+            .collect(),
+        ..Default::default()
+    });
+    let mut checked = check(running, &area.label(), &plan.to_xml(), module_path)?;
+    checked.reported = true;
+    Ok(checked)
 }
 
 /// Migrates a `checked` update of the `running` plan from `marking`, the leg in force that
@@ -117,6 +258,7 @@ pub fn prepare(
         loaded,
         plan,
         compiled,
+        reported,
         ..
     } = checked;
     let (played, marking) = mission;
@@ -140,16 +282,37 @@ pub fn prepare(
     } else {
         format!("goes on unchanged in `{}`", migration.place_after)
     };
+    let area_names = |compiled: &Compiled| {
+        compiled
+            .keepouts
+            .iter()
+            .map(|keepout| keepout.name.clone())
+            .collect::<Vec<_>>()
+    };
+    let (old_areas, new_areas) = (area_names(&running.compiled), area_names(&compiled));
+    let (areas_added, areas_removed) = difference(
+        old_areas.iter().map(String::as_str),
+        new_areas.iter().map(String::as_str),
+    );
+    let mut blocked = None;
     let path_param = (navigation.as_str(), "path");
     if !migration.changed {
         // The leg goes on as the run plays it: with the path an earlier update planned from
-        // where the robot was, if one did, not the plan's from the leg's start.
+        // where the robot was, if one did, not the plan's from the leg's start. Only where the
+        // plan's own route for the place is the one it was, though: a drive place not entered
+        // yet that the update routes anew (an area added while the robot waits at the leg's
+        // gate) takes its new route.
         migrate::set_leg_param(
             &mut net,
             &compiled.trace,
             migration.index,
             path_param,
-            |place| migrate::param_of(played, place, path_param),
+            |place| {
+                let route = |net: &MissionNet| migrate::param_of(net, place, path_param);
+                (route(&running.compiled.net) == route(&compiled.net))
+                    .then(|| route(played))
+                    .flatten()
+            },
         );
     }
     if migration.changed && drives {
@@ -169,7 +332,30 @@ pub fn prepare(
                 )
                 .map_err(|err| format!("the world cannot be mapped for planning: {err}"))?;
                 let path = match planned.into_iter().next() {
-                    Some(Ok(path)) => path,
+                    Some(Ok(path)) => Some(path),
+                    // An area reported is a fact, not a wish: it is taken all the same, and
+                    // the leg is blocked (the plan's contingency on `blocked` applies, holding
+                    // by default), so that the operator can update or abort.
+                    Some(Err(err)) if reported => {
+                        blocked = Some(format!(
+                            "{}.{}",
+                            plan.navigation.module, plan.navigation.blocked_event
+                        ));
+                        let names = areas_added
+                            .iter()
+                            .map(|name| format!("`{name}`"))
+                            .collect::<Vec<_>>()
+                            .join(", ");
+                        how = format!(
+                            "blocked: with the no-go area {names} there is no way from where the \
+                             robot is, ({}, {}), to `{}` ({err}): the plan's contingency on \
+                             `blocked` applies",
+                            geo::round_mm(here.x),
+                            geo::round_mm(here.y),
+                            leg.to
+                        );
+                        None
+                    }
                     Some(Err(err)) => {
                         return Err(format!(
                             "leg `{}` in force changed, and there is no way from where the \
@@ -182,21 +368,23 @@ pub fn prepare(
                     }
                     None => return Err("the planner planned nothing".to_owned()),
                 };
-                let value = path.format();
-                migrate::set_leg_param(
-                    &mut net,
-                    &compiled.trace,
-                    migration.index,
-                    path_param,
-                    |_| Some(value.clone()),
-                );
-                how.push_str(&format!(
-                    ", its path planned again from where the robot is, ({}, {}): {} m to `{}`",
-                    geo::round_mm((here.x * 100.0).round() / 100.0),
-                    geo::round_mm((here.y * 100.0).round() / 100.0),
-                    geo::round_mm((geo::path_length(&path.points) * 10.0).round() / 10.0),
-                    leg.to
-                ));
+                if let Some(path) = path {
+                    let value = path.format();
+                    migrate::set_leg_param(
+                        &mut net,
+                        &compiled.trace,
+                        migration.index,
+                        path_param,
+                        |_| Some(value.clone()),
+                    );
+                    how.push_str(&format!(
+                        ", its path planned again from where the robot is, ({}, {}): {} m to `{}`",
+                        geo::round_mm((here.x * 100.0).round() / 100.0),
+                        geo::round_mm((here.y * 100.0).round() / 100.0),
+                        geo::round_mm((geo::path_length(&path.points) * 10.0).round() / 10.0),
+                        leg.to
+                    ));
+                }
             }
             None => how.push_str(
                 ", from its start (where the robot is is not known: no odometry is followed)",
@@ -210,20 +398,8 @@ pub fn prepare(
     );
     parts.extend(listed("legs added", &added));
     parts.extend(listed("legs removed", &removed));
-    let area_names = |compiled: &Compiled| {
-        compiled
-            .keepouts
-            .iter()
-            .map(|keepout| keepout.name.clone())
-            .collect::<Vec<_>>()
-    };
-    let (old_areas, new_areas) = (area_names(&running.compiled), area_names(&compiled));
-    let (added, removed) = difference(
-        old_areas.iter().map(String::as_str),
-        new_areas.iter().map(String::as_str),
-    );
-    parts.extend(listed("no-go areas added", &added));
-    parts.extend(listed("no-go areas removed", &removed));
+    parts.extend(listed("no-go areas added", &areas_added));
+    parts.extend(listed("no-go areas removed", &areas_removed));
     parts.extend(times(&plan, &migration, now.unix_secs));
     Ok(Prepared {
         plan,
@@ -241,6 +417,7 @@ pub fn prepare(
             }))
             .collect::<Vec<_>>()
             .join("\n"),
+        blocked,
     })
 }
 
@@ -372,6 +549,7 @@ pub fn take(
         net,
         migration,
         message,
+        blocked,
     } = prepared;
     let details = json!({
         "legs_done": migration.done,
@@ -379,11 +557,13 @@ pub fn take(
         "place_before": migration.place_before,
         "place_after": migration.place_after,
         "replaced": migration.changed,
+        "blocked": blocked.is_some(),
     });
     let taken = crate::controller::Update {
         file: &file,
         message: &message,
         details,
+        event: blocked,
     };
     match controller.update(
         net,

@@ -60,6 +60,9 @@ pub struct Compiled {
     /// The no-go areas in the world frame, each with its margin, as the legs were planned round
     /// them (what a rehearsal's truth is judged against).
     pub keepouts: Vec<Keepout>,
+    /// The geographic point of the world frame's (0, 0): what turns a point reported in the
+    /// world frame (an area reported during a run) into the plan's latitude and longitude.
+    pub origin: Option<LatLon>,
     /// What may keep the plan from going as drawn without stopping it: time constraints that
     /// cannot all be met, with the numbers.
     pub warnings: Vec<Located>,
@@ -302,6 +305,7 @@ pub fn compile_for(
         positions: legs.positions,
         robot: *robot,
         keepouts: legs.keepouts,
+        origin: legs.origin,
         warnings,
         alternatives,
         switches,
@@ -322,6 +326,8 @@ pub struct LegPaths {
     pub problems: Vec<Located>,
     /// The no-go areas in the world frame, as the robot keeps out of them.
     pub keepouts: Vec<Keepout>,
+    /// The geographic point of the world frame's (0, 0), when the plan has a frame.
+    pub origin: Option<LatLon>,
 }
 
 /// Places the waypoints and plans every leg of `plan` on `world` (with no world, round the
@@ -379,6 +385,7 @@ pub fn plan_legs(plan: &Plan, world: Option<&World>, robot: &Robot) -> LegPaths 
         paths,
         problems,
         keepouts,
+        origin,
     }
 }
 
