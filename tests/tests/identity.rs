@@ -312,17 +312,28 @@ fn a_sibling_reads_no_key_and_no_secret_path_in_proc() {
     let secret = secret_file(dir.path());
     let system = write_system(dir.path(), DEMO);
     let mut command = Command::new(bin("armor"));
+    let mut module_path = bin_dir();
     if is_root() {
         // The run and its attacker share one ordinary user, as modules do.
         for path in [dir.path(), &secret, &system] {
             std::os::unix::fs::chown(path, Some(NOBODY), Some(NOBODY)).unwrap();
+        }
+        // That user may not reach the checkout (under /root on a fresh machine, mode 0700):
+        // the run's binaries go into the run's own folder.
+        module_path = dir.path().join("bin");
+        std::fs::create_dir(&module_path).unwrap();
+        for name in ["armor", "armor-mod-counter", "armor-mod-checker"] {
+            let to = module_path.join(name);
+            if std::fs::hard_link(bin(name), &to).is_err() {
+                std::fs::copy(bin(name), &to).unwrap();
+            }
         }
         command = Command::new("setpriv");
         command.args([
             &format!("--reuid={NOBODY}"),
             &format!("--regid={NOBODY}"),
             "--clear-groups",
-            bin("armor").to_str().unwrap(),
+            module_path.join("armor").to_str().unwrap(),
         ]);
     }
     // The secret given as the docs show it, on the command line.
@@ -333,7 +344,7 @@ fn a_sibling_reads_no_key_and_no_secret_path_in_proc() {
             .arg("--no-run-folder")
             .arg("--secret")
             .arg(&secret)
-            .env("ARMOR_MODULE_PATH", bin_dir())
+            .env("ARMOR_MODULE_PATH", &module_path)
             .env("HOME", dir.path()),
     );
     let agent = agent_addr(&run);
