@@ -301,6 +301,7 @@ pub fn message(estimate: &mcl::Estimate) -> PoseEstimate {
             State::Uncertain => LocalisationState::Uncertain,
             State::Lost => LocalisationState::Lost,
         },
+        proven: estimate.proven,
     }
 }
 
