@@ -691,11 +691,12 @@ struct Followed {
     clearance_m: f64,
     moved_m: f64,
     proven_after_secs: Option<f64>,
-    wrong: bool,
+    /// How far the estimate was from the truth when it was proven again.
+    proven_error_m: f64,
 }
 
 /// How long a kidnapped robot driven by the follower is watched after the carrying.
-const FOLLOWED_SECS: f64 = 15.0;
+const FOLLOWED_SECS: f64 = 45.0;
 
 /// Drives a kidnap case with the follower on the localiser's pose, as a bundled system does: the
 /// follower follows the round as its planned path until the carrying (at the case's scan), and
@@ -768,7 +769,7 @@ fn follow_kidnapped(case: &Case, recover: bool) -> Followed {
         clearance_m: f64::INFINITY,
         moved_m: 0.0,
         proven_after_secs: None,
-        wrong: false,
+        proven_error_m: 0.0,
     };
     while carried_at.is_none_or(|at| sim.time() - at < FOLLOWED_SECS) {
         let report = sim.step();
@@ -791,7 +792,7 @@ fn follow_kidnapped(case: &Case, recover: bool) -> Followed {
                 && doubted
                 && estimate.proven
             {
-                followed.wrong = distance(estimate.pose, sim.truth()) >= 0.3;
+                followed.proven_error_m = distance(estimate.pose, sim.truth());
                 followed.proven_after_secs = Some(sim.time() - at);
                 break;
             }
@@ -836,17 +837,18 @@ fn kidnapped_robots_driven_by_the_follower_stop_before_a_no_go_area_ahead() {
         let followed = follow_kidnapped(case, *recover);
         let line = format!(
             "{} seed {} (recover {recover}): moved {:.3} m from where it was put, footprint \
-             {:.2} m from the no-go area; proven again after {:?} s",
+             {:.2} m from the no-go area; proven again after {:?} s, {:.3} m off",
             case.name,
             case.seed,
             followed.moved_m,
             followed.clearance_m,
             followed
                 .proven_after_secs
-                .map(|secs| (secs * 10.0).round() / 10.0)
+                .map(|secs| (secs * 10.0).round() / 10.0),
+            followed.proven_error_m
         );
         moved_most = moved_most.max(followed.moved_m);
-        if followed.clearance_m <= 0.0 || followed.wrong {
+        if followed.clearance_m <= 0.0 || followed.proven_error_m >= 0.3 {
             problems.push(line.clone());
         }
         lines.push(line);
