@@ -13,10 +13,10 @@ use std::time::Duration;
 use armor_model::geo::{self, LatLon, Polygon};
 use armor_model::world::Point;
 use armor_module_api::Datum as _;
-use armor_module_api::types::{LocalisationState, Pose2D, PoseEstimate};
+use armor_module_api::types::Pose2D;
 use armor_tests::mcap::read_mcap;
-use armor_tests::mission::{armor_run, run_mission};
-use armor_tests::{control_address, ctl, ctl_status, run_with_control, wait_until, workspace_root};
+use armor_tests::mission::run_mission;
+use armor_tests::{ctl, ctl_status, run_with_control, wait_until, workspace_root};
 
 /// The follower's tolerance plus 0.1 m.
 const TOLERANCE_M: f64 = 0.4;
@@ -34,9 +34,7 @@ const PLACES: [(&str, f64, f64); 5] = [
 /// A no-go area on the open floor, between the start and the west place.
 const NO_GO: [(f64, f64); 4] = [(3.5, 5.0), (6.0, 5.0), (6.0, 8.0), (3.5, 8.0)];
 
-/// The robot's system; `recover` turns the localiser's search of the map on when lost, and the
-/// recorder keeps `topics` (the truth first).
-fn system(map: &Path, record: &Path, kidnap: &str, recover: bool, topics: &str) -> String {
+fn system(map: &Path, record: &Path, kidnap: &str) -> String {
     let map = map.display();
     format!(
         r#"<?xml version="1.0" encoding="UTF-8"?>
@@ -45,10 +43,7 @@ fn system(map: &Path, record: &Path, kidnap: &str, recover: bool, topics: &str) 
     <param name="world" value="{map}"/>
     <param name="kidnap" value="{kidnap}"/>
   </module>
-  <module name="localiser" type="localiser">
-    <param name="world" value="{map}"/>
-    <param name="recover" value="{recover}"/>
-  </module>
+  <module name="localiser" type="localiser"><param name="world" value="{map}"/></module>
   <module name="follower" type="follower">
     <param name="world" value="{map}"/>
     <param name="goal_x_m" value="10"/>
@@ -58,7 +53,7 @@ fn system(map: &Path, record: &Path, kidnap: &str, recover: bool, topics: &str) 
   <module name="avoider" type="avoider"/>
   <module name="mux" type="mux"/>
   <module name="recorder" type="recorder">
-    <param name="record" value="{topics}"/>
+    <param name="record" value="sim.pose_truth"/>
     <param name="file" value="{record}"/>
     <param name="compression" value="none"/>
   </module>
@@ -78,11 +73,6 @@ fn system(map: &Path, record: &Path, kidnap: &str, recover: bool, topics: &str) 
 }
 
 fn plan(system: &Path) -> String {
-    plan_of(system, &PLACES)
-}
-
-/// A plan of legs through `places`, in order, holding when lost, round the no-go area.
-fn plan_of(system: &Path, places: &[(&str, f64, f64)]) -> String {
     let origin = LatLon::new(ORIGIN.0, ORIGIN.1);
     let at = |x: f64, y: f64| LatLon::from_local(Point::new(x, y), origin);
     let mut text = format!(
@@ -91,14 +81,14 @@ fn plan_of(system: &Path, places: &[(&str, f64, f64)]) -> String {
          name=\"recorder\"/></throughout>\n",
         system.display()
     );
-    for &(name, x, y) in places {
+    for (name, x, y) in PLACES {
         let p = at(x, y);
         text.push_str(&format!(
             "  <waypoint name=\"{name}\" lat=\"{:.9}\" lon=\"{:.9}\"/>\n",
             p.lat_deg, p.lon_deg
         ));
     }
-    for pair in places.windows(2) {
+    for pair in PLACES.windows(2) {
         text.push_str(&format!(
             "  <leg name=\"to_{}\" from=\"{}\" to=\"{}\"/>\n",
             pair[1].0, pair[0].0, pair[1].0
@@ -122,9 +112,7 @@ fn plan_of(system: &Path, places: &[(&str, f64, f64)]) -> String {
 fn read_truth(record: &Path) -> Vec<(f64, Point)> {
     let mut truth: Vec<(f64, Point)> = Vec::new();
     for ((topic, encoding), messages) in read_mcap(record) {
-        if topic != "sim.pose_truth" {
-            continue;
-        }
+        assert_eq!(topic, "sim.pose_truth");
         for (log_time, data) in messages {
             let pose = match encoding.as_str() {
                 "json" => serde_json::from_slice::<Pose2D>(&data).unwrap(),
@@ -162,11 +150,7 @@ fn a_plan_on_nav2_s_depot_map_arrives_by_the_truth_with_default_noise() {
     let dir = tempfile::tempdir().unwrap();
     let record = dir.path().join("truth.mcap");
     let system_file = dir.path().join("system.xml");
-    std::fs::write(
-        &system_file,
-        system(&map, &record, "", false, "sim.pose_truth"),
-    )
-    .unwrap();
+    std::fs::write(&system_file, system(&map, &record, "")).unwrap();
     let plan_file = dir.path().join("plan.xml");
     let plan_text = plan(&system_file);
     std::fs::write(&plan_file, &plan_text).unwrap();
@@ -221,11 +205,7 @@ fn a_kidnapped_robot_is_lost_the_plan_holds_and_an_operator_sets_the_pose() {
     let record = dir.path().join("truth.mcap");
     let system_file = dir.path().join("system.xml");
     let kidnap = format!("{KIDNAP_SECS} {} {} 0", KIDNAPPED_TO.0, KIDNAPPED_TO.1);
-    std::fs::write(
-        &system_file,
-        system(&map, &record, &kidnap, false, "sim.pose_truth"),
-    )
-    .unwrap();
+    std::fs::write(&system_file, system(&map, &record, &kidnap)).unwrap();
     let plan_file = dir.path().join("plan.xml");
     std::fs::write(&plan_file, plan(&system_file)).unwrap();
     let (mut run, addr) = run_with_control(&plan_file);
@@ -291,120 +271,4 @@ fn a_kidnapped_robot_is_lost_the_plan_holds_and_an_operator_sets_the_pose() {
         .map(|p| geo::distance(*p, put))
         .fold(0.0, f64::max);
     assert!(moved < 0.5, "the kidnapped robot drove {moved:.2} m");
-}
-
-/// The localiser's estimates a recorder wrote, with their run time, in time order.
-fn read_estimates(record: &Path) -> Vec<(f64, PoseEstimate)> {
-    let mut estimates: Vec<(f64, PoseEstimate)> = Vec::new();
-    for ((topic, encoding), messages) in read_mcap(record) {
-        if topic != "localiser.estimate" {
-            continue;
-        }
-        for (log_time, data) in messages {
-            let estimate = match encoding.as_str() {
-                "json" => serde_json::from_slice::<PoseEstimate>(&data).unwrap(),
-                _ => PoseEstimate::decode(&data).unwrap(),
-            };
-            estimates.push((log_time as f64 / 1e9, estimate));
-        }
-    }
-    estimates.sort_by(|a, b| a.0.total_cmp(&b.0));
-    estimates
-}
-
-/// Kidnapped with the localiser's `recover` on: lost, the leg holds, and the localiser searches
-/// the map while the robot stands. The operator retries the leg: the follower does not drive on
-/// the estimate the search found (not proven yet), it turns in place until the localiser proves
-/// it by the turn, and only then drives the leg to its end. Judged by the simulator's truth:
-/// from the retry until the estimate is `localised`, the robot moves less than 0.1 m; the
-/// mission then completes, arriving by the truth, clear of the no-go area.
-#[test]
-fn a_kidnapped_robot_retried_with_recovery_turns_in_place_until_its_place_is_proven() {
-    let map = workspace_root().join("tests/data/external/nav2_depot/depot-armor.yaml");
-    let dir = tempfile::tempdir().unwrap();
-    let record = dir.path().join("truth.mcap");
-    let system_file = dir.path().join("system.xml");
-    let kidnap = format!("{KIDNAP_SECS} {} {} 0", KIDNAPPED_TO.0, KIDNAPPED_TO.1);
-    std::fs::write(
-        &system_file,
-        system(
-            &map,
-            &record,
-            &kidnap,
-            true,
-            "sim.pose_truth,localiser.estimate",
-        ),
-    )
-    .unwrap();
-    let plan_file = dir.path().join("plan.xml");
-    std::fs::write(&plan_file, plan_of(&system_file, &PLACES[..2])).unwrap();
-    let report = dir.path().join("report.json");
-    let mut run = armor_run(&plan_file, &report, &["--no-run-folder"]);
-    let addr = control_address(&run);
-    wait_until("the leg held", Duration::from_secs(120), || {
-        ctl_status(&addr)["mission"]["marking"]["to_south_hold"]
-            .as_u64()
-            .unwrap_or(0)
-            > 0
-    });
-    let (ok, said) = ctl(&addr, &["fire", "to_south_retry"]);
-    assert!(ok, "{said}");
-    let status = run.wait_exit(Duration::from_secs(300));
-    let lines = run.lines();
-    assert!(status.success(), "{status}:\n{}", lines.join("\n"));
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(report["outcome"], "complete", "{report:#}");
-    let fired_at = |name: &str| {
-        report["timeline"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|entry| entry["kind"] == "fired" && entry["transition"] == name)
-            .filter_map(|entry| entry["at_secs"].as_f64())
-            .last()
-            .unwrap_or_else(|| panic!("`{name}` never fired: {report:#}"))
-    };
-    let retried = fired_at("to_south_retry");
-    let arrived = fired_at("to_south_arrived");
-    let estimates = read_estimates(&record);
-    let proven_at = estimates
-        .iter()
-        .find(|(at, estimate)| {
-            *at >= retried && estimate.state == LocalisationState::Localised && estimate.proven
-        })
-        .map(|(at, _)| *at)
-        .expect("localised after the retry");
-    let truth = read_truth(&record);
-    let at_retry = truth
-        .iter()
-        .rev()
-        .find(|(at, _)| *at <= retried)
-        .map(|(_, p)| *p)
-        .unwrap();
-    let moved = truth
-        .iter()
-        .filter(|(at, _)| *at >= retried && *at <= proven_at)
-        .map(|(_, p)| geo::distance(*p, at_retry))
-        .fold(0.0, f64::max);
-    let (_, at_arrival) = truth
-        .iter()
-        .min_by(|a, b| (a.0 - arrived).abs().total_cmp(&(b.0 - arrived).abs()))
-        .unwrap();
-    let error = geo::distance(*at_arrival, Point::new(PLACES[1].1, PLACES[1].2));
-    let closest = closest_to(&no_go_area(), &truth);
-    eprintln!(
-        "retried at {retried:.1} s, localised {:.1} s later having moved {moved:.3} m; arrived \
-         {error:.3} m from `south`; closest footprint to the no-go area {closest:.2} m",
-        proven_at - retried
-    );
-    assert!(
-        moved < 0.1,
-        "the robot moved {moved:.3} m on an unproven estimate"
-    );
-    assert!(error <= TOLERANCE_M, "arrived {error:.3} m from `south`");
-    assert!(
-        closest > 0.0,
-        "the footprint met the no-go area ({closest:.2} m)"
-    );
 }

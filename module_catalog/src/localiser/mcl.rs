@@ -446,6 +446,10 @@ pub struct Filter {
     agreement_history: f64,
     history_updates: u32,
     pub(crate) kidnaps_suspected: u32,
+    /// The detector's own short-term average of the agreement (weight [`FIT_SMOOTHING`]), of
+    /// the updates it does not skip only: the smoothed agreement carries a fast turn's low
+    /// values into the updates after it.
+    agreement_recent: f64,
     /// Updates in a row past the step, and how far apart the last scan and its odometry were.
     step_updates: u32,
     pairing_skew_secs: f64,
@@ -501,6 +505,7 @@ impl Filter {
             agreement_history: 1.0,
             history_updates: 0,
             kidnaps_suspected: 0,
+            agreement_recent: 1.0,
             step_updates: 0,
             pairing_skew_secs: 0.0,
             starved: 0,
@@ -810,8 +815,13 @@ impl Filter {
         if turned > KIDNAP_MAX_TURN_RAD || self.pairing_skew_secs > KIDNAP_MAX_SKEW_SECS {
             return;
         }
+        if self.history_updates == 0 {
+            self.agreement_recent = self.raw_agreement;
+        } else {
+            self.agreement_recent += FIT_SMOOTHING * (self.raw_agreement - self.agreement_recent);
+        }
         if self.history_updates >= KIDNAP_HISTORY_UPDATES
-            && self.agreement_history - self.agreement > KIDNAP_STEP
+            && self.agreement_history - self.agreement_recent > KIDNAP_STEP
         {
             self.step_updates += 1;
         } else {

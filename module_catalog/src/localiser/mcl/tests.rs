@@ -455,9 +455,14 @@ fn kidnapped_robots_are_noticed_and_without_recovery_never_claim_a_wrong_place()
     let kidnaps = kidnaps(false);
     let lines: Vec<&str> = kidnaps.iter().map(|k| k.line.as_str()).collect();
     eprintln!("{}", lines.join("\n"));
-    for kidnap in &kidnaps {
-        // Noticed within half a second (five scans): a carrying cannot be seen at once, the
-        // fit and the beams' agreement are smoothed over scans.
+    assert_noticed_and_never_wrong(&kidnaps);
+}
+
+/// Every kidnap noticed within [`NOTICED_WITHIN_SCANS`] of the carrying (a carrying cannot be
+/// seen at once: the beams' agreement is smoothed over scans), and none `localised` at a wrong
+/// place once noticed.
+fn assert_noticed_and_never_wrong(kidnaps: &[Kidnap]) {
+    for kidnap in kidnaps {
         assert!(
             kidnap
                 .delay
@@ -562,16 +567,7 @@ fn kidnapped_robots_with_recovery_on_never_claim_a_wrong_place_and_most_recover(
     eprintln!("{recovered} of {} recovered", kidnaps.len());
     let slowest = kidnaps.iter().filter_map(|k| k.delay).max();
     eprintln!("noticed at most {slowest:?} scans after the carrying");
-    for kidnap in &kidnaps {
-        assert!(
-            kidnap
-                .delay
-                .is_some_and(|scans| scans <= NOTICED_WITHIN_SCANS),
-            "{}",
-            kidnap.line
-        );
-        assert!(kidnap.wrong.is_none(), "{}", kidnap.line);
-    }
+    assert_noticed_and_never_wrong(&kidnaps);
     assert!(
         recovered >= 12,
         "{recovered} of 20 recovered:\n{}",
