@@ -346,8 +346,9 @@ fn judge(name: &str, seed: u64, at: usize, drive: &Drive, recover: bool) -> Kidn
 }
 
 /// Every kidnap is noticed (`uncertain` or `lost`) within this many scans of the carrying
-/// (half a second): the kidnap detector's step, [`KIDNAP_STEP`], is passed at the second scan
-/// taken where the robot was put, measured on all twenty-five kidnaps of the tests.
+/// (half a second): the kidnap detector's step, [`KIDNAP_STEP`], is passed for the second time
+/// in a row by the third scan taken where the robot was put, measured on all twenty-five
+/// kidnaps of the tests.
 const NOTICED_WITHIN_SCANS: usize = 5;
 
 /// Waypoints of a scripted drive.
