@@ -162,7 +162,7 @@ impl Sighted {
 
     /// `NAME X,Y X,Y…`; nothing when `text` is blank. The run judges the area itself (its
     /// corners, its name): this only reads the numbers.
-    fn parse(text: &str) -> Result<Option<Self>, String> {
+    fn parse(text: &str) -> Result<Option<Self>, BodyError> {
         let mut words = text.split_whitespace();
         let Some(name) = words.next() else {
             return Ok(None);
@@ -173,7 +173,9 @@ impl Sighted {
                 corner
                     .split_once(',')
                     .and_then(|(x, y)| Some([number(x)?, number(y)?]))
-                    .ok_or_else(|| format!("`{corner}` is not a corner `X,Y` in metres"))
+                    .ok_or_else(|| {
+                        BodyError::from(format!("`{corner}` is not a corner `X,Y` in metres"))
+                    })
             })
             .collect::<Result<_, _>>()?;
         Ok(Some(Self {
@@ -333,7 +335,7 @@ mod tests {
         // Nothing sighted, nothing reported; a corner that is not `X,Y` is refused.
         assert!(run(&[], headings(10)).areas_reported().is_empty());
         assert_eq!(
-            Sighted::parse("mines 1,1 2;2"),
+            Sighted::parse("mines 1,1 2;2").map_err(|err| err.to_string()),
             Err("`2;2` is not a corner `X,Y` in metres".to_owned())
         );
     }

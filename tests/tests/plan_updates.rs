@@ -490,6 +490,7 @@ fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot()
             })
             .map(|prepared| prepared.message)
             .expect_err("refused")
+            .to_string()
     };
     // A mission net is not a plan.
     // (`system="system.xml"`, found beside the running plan: the same system.)

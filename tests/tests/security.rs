@@ -1398,14 +1398,14 @@ fn with_a_secret_an_idle_operator_is_not_closed_and_a_new_one_replaces_an_observ
     let operator_secret = Secret::load(&secret).unwrap();
     let mut operator = armor_protocol::Client::connect(target, Some(&operator_secret)).unwrap();
     assert!(operator.call(&armor_protocol::Request::Status).unwrap().ok);
-    let observers: Vec<Result<armor_protocol::Client, String>> = (0..CONTROL_CLIENTS + 6)
+    let observers: Vec<anyhow::Result<armor_protocol::Client>> = (0..CONTROL_CLIENTS + 6)
         .map(|_| {
-            let mut client = armor_protocol::Client::connect_with(target, Some(&observer))
-                .map_err(|err| format!("{err:#}"))?;
-            let reply = client
-                .call(&armor_protocol::Request::Status)
-                .map_err(|err| format!("{err:#}"))?;
-            reply.ok.then_some(client).ok_or(reply.message)
+            let mut client = armor_protocol::Client::connect_with(target, Some(&observer))?;
+            let reply = client.call(&armor_protocol::Request::Status)?;
+            reply
+                .ok
+                .then_some(client)
+                .ok_or_else(|| anyhow::anyhow!(reply.message))
         })
         .collect();
     let answered = observers.iter().filter(|client| client.is_ok()).count();

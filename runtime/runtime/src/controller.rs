@@ -302,7 +302,7 @@ impl Controller {
         keep_events: bool,
         update: Update<'_>,
         server: &ConfigServer,
-    ) -> Result<u32, String> {
+    ) -> Result<u32, crate::update::Refused> {
         let Update {
             file,
             message,

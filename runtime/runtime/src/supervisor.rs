@@ -512,7 +512,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             match asked.check(running, &options.module_path) {
                 Ok(update) => checked = Some((update, reply)),
                 Err(why) => {
-                    let (ok, message) = crate::update::refuse(controller, &asked.label(), &why);
+                    let (ok, message) = crate::update::refuse(controller, &asked.label(), &why.0);
                     answer_update(reply.as_ref(), ok, message, || {
                         run_status(&modules, &server, Some(controller), &env, &clock)
                     });

@@ -81,6 +81,21 @@ pub struct Checked {
     reported: bool,
 }
 
+/// Why an update is refused, in the operator's words (docs/plans.md lists every reason).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Refused(pub String);
+
+impl From<String> for Refused {
+    fn from(why: String) -> Refused {
+        Refused(why)
+    }
+}
+
+fn refused<T>(why: impl Into<String>) -> Result<T, Refused> {
+    Err(Refused(why.into()))
+}
+
 /// Checks and compiles `text` (named `file` by the operator) as an update of the `running`
 /// plan: the slow part of an update, which the run does before it looks at the mission's
 /// marking. The error is why the update is refused, in words.
@@ -89,18 +104,18 @@ pub fn check(
     file: &str,
     text: &str,
     module_path: &[PathBuf],
-) -> Result<Checked, String> {
+) -> Result<Checked, Refused> {
     let base = running.file.parent().unwrap_or_else(|| Path::new("."));
     let loaded = load_mission_text(Path::new(file), text, base, module_path)
         .map_err(|diagnostics| format!("the update does not check: {diagnostics}"))?;
     let (Some(plan), Some(compiled)) = (loaded.plan.clone(), loaded.compiled.clone()) else {
-        return Err(
+        return refused(
             "the update is a mission net, not a plan: a running plan is updated with a plan"
                 .to_owned(),
         );
     };
     if !same_file(&loaded.system_file, &running.system_file) {
-        return Err(format!(
+        return refused(format!(
             "the update is over the system `{}`, the run over `{}`: an update cannot change the \
              system (stop the run and start the new one)",
             loaded.system_file.display(),
@@ -148,7 +163,7 @@ impl Asked {
     }
 
     /// [`check`] or [`check_area`].
-    pub fn check(&self, running: &Running, module_path: &[PathBuf]) -> Result<Checked, String> {
+    pub fn check(&self, running: &Running, module_path: &[PathBuf]) -> Result<Checked, Refused> {
         match self {
             Asked::Plan { file, text } => check(running, file, text, module_path),
             Asked::Area(area) => check_area(running, area, module_path),
@@ -180,20 +195,20 @@ pub fn check_area(
     running: &Running,
     area: &ReportedArea,
     module_path: &[PathBuf],
-) -> Result<Checked, String> {
+) -> Result<Checked, Refused> {
     let name = &area.name;
     let valid_name = name
         .chars()
         .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
         && name.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_');
     if !valid_name {
-        return Err(format!(
+        return refused(format!(
             "the area's name `{name}` is not a name: ASCII letters, digits, `_` and `-`, starting \
              with a letter or `_`"
         ));
     }
     if area.points_m.len() < 3 {
-        return Err(format!(
+        return refused(format!(
             "area `{name}` has {} corners: an area needs at least 3",
             area.points_m.len()
         ));
@@ -204,13 +219,13 @@ pub fn check_area(
         .map(|&[x, y]| Point::new(x, y))
         .collect();
     if let Some(bad) = corners.iter().find(|corner| !corner.is_finite()) {
-        return Err(format!(
+        return refused(format!(
             "area `{name}` has a corner that is not a number: ({}, {})",
             bad.x, bad.y
         ));
     }
     if geo::Polygon::new(corners.clone()).crosses_itself() {
-        return Err(format!(
+        return refused(format!(
             "area `{name}`: its outline crosses itself, so it has no clear inside"
         ));
     }
@@ -220,12 +235,12 @@ pub fn check_area(
         .iter()
         .any(|graphic| graphic.name == *name)
     {
-        return Err(format!(
+        return refused(format!(
             "the plan has an element named `{name}` already: report the area under another name"
         ));
     }
     let Some(origin) = running.compiled.origin else {
-        return Err(
+        return refused(
             "the running plan has no geographic frame (no world, no origin) to place the area in"
                 .to_owned(),
         );
@@ -253,7 +268,7 @@ pub fn prepare(
     module_path: &[PathBuf],
     mission: (&MissionNet, &Marking),
     now: Now,
-) -> Result<Prepared, String> {
+) -> Result<Prepared, Refused> {
     let Checked {
         loaded,
         plan,
@@ -357,7 +372,7 @@ pub fn prepare(
                         None
                     }
                     Some(Err(err)) => {
-                        return Err(format!(
+                        return refused(format!(
                             "leg `{}` in force changed, and there is no way from where the \
                              robot is, ({}, {}), to `{}`: {err}",
                             leg.name,
@@ -366,7 +381,7 @@ pub fn prepare(
                             leg.to
                         ));
                     }
-                    None => return Err("the planner planned nothing".to_owned()),
+                    None => return refused("the planner planned nothing"),
                 };
                 if let Some(path) = path {
                     let value = path.format();
@@ -541,7 +556,7 @@ pub fn take(
         now,
     ) {
         Ok(prepared) => prepared,
-        Err(why) => return refuse(controller, &file, &why),
+        Err(why) => return refuse(controller, &file, &why.0),
     };
     let Prepared {
         plan,
@@ -583,7 +598,7 @@ pub fn take(
             running.compiled = compiled;
             (true, format!("update {number} taken: {message}"))
         }
-        Err(why) => refuse(controller, &file, &why),
+        Err(why) => refuse(controller, &file, &why.0),
     }
 }
 

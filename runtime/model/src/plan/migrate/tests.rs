@@ -263,6 +263,26 @@ fn in_force(old: &Compiled, marking: &Marking) -> Option<(String, usize)> {
     })
 }
 
+/// What a migration did wrong, in words.
+#[derive(Debug)]
+struct Wrong(String);
+
+impl std::fmt::Display for Wrong {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl From<&str> for Wrong {
+    fn from(why: &str) -> Wrong {
+        Wrong(why.to_owned())
+    }
+}
+
+fn wrong<T>(why: String) -> Result<T, Wrong> {
+    Err(Wrong(why))
+}
+
 /// What any migration must give, judged from the plans and the nets alone: the legs done are
 /// the new plan's first legs by name, the marking is in the first undone leg of the new plan
 /// (the one in force), no transition of a leg done is enabled in any marking reachable from
@@ -274,7 +294,7 @@ fn check(
     new_plan: &Plan,
     new: &Compiled,
     migration: &Migration,
-) -> Result<(), String> {
+) -> Result<(), Wrong> {
     let (_, in_force) = in_force(old, marking).ok_or("the old marking is in no leg")?;
     let done_before: Vec<&str> = old_plan.legs[..in_force]
         .iter()
@@ -287,7 +307,7 @@ fn check(
         .map(|leg| leg.name.as_str())
         .collect();
     if done_before != done_after || migration.done != done_before {
-        return Err(format!(
+        return wrong(format!(
             "legs done {done_before:?}, the new plan's first legs {done_after:?}, the \
              migration's done {:?}",
             migration.done
@@ -299,14 +319,14 @@ fn check(
         .get(first_undone)
         .ok_or("the new plan has no leg after those done")?;
     if undone.name != old_plan.legs[in_force].name {
-        return Err(format!(
+        return wrong(format!(
             "the first undone leg of the new plan is `{}`, the leg in force was `{}`",
             undone.name, old_plan.legs[in_force].name
         ));
     }
     for place in migration.marking.keys() {
         if new.trace.get(place) != Some(&Origin::Leg(first_undone)) {
-            return Err(format!(
+            return wrong(format!(
                 "`{place}` is marked, which is not of leg `{}` (the first undone)",
                 undone.name
             ));
@@ -314,13 +334,13 @@ fn check(
     }
     let before = Engine::new(&new.net);
     let engine = Engine::resume(&new.net, &migration.marking, &before, false, 0.0)
-        .map_err(|err| err.to_string())?;
+        .map_err(|err| Wrong(err.to_string()))?;
     for (marking, enabled) in reachable(&engine) {
         for transition in enabled {
             if let Some(Origin::Leg(index)) = new.trace.get(&transition)
                 && *index < first_undone
             {
-                return Err(format!(
+                return wrong(format!(
                     "`{transition}` of leg `{}`, done, is enabled again in {}",
                     new_plan.legs[*index].name,
                     crate::net::marking_text(&marking)
@@ -333,7 +353,7 @@ fn check(
         .iter()
         .any(|(marking, _)| *marking == migration.marking)
     {
-        return Err(format!(
+        return wrong(format!(
             "{} is not reachable in the new net",
             crate::net::marking_text(&migration.marking)
         ));
@@ -349,13 +369,13 @@ fn check_refusal(
     new_plan: &Plan,
     new: &Compiled,
     refusal: &Refusal,
-) -> Result<(), String> {
+) -> Result<(), Wrong> {
     match (refusal, in_force(old, marking).map(|(_, index)| index)) {
         (Refusal::NotInALeg { .. }, None) => Ok(()),
         (Refusal::LegInForceRemoved { leg, .. }, Some(index)) => {
             (old_plan.legs[index].name == *leg && !new_plan.legs.iter().any(|new| new.name == *leg))
                 .then_some(())
-                .ok_or_else(|| format!("refused as removing `{leg}`, which the update has"))
+                .ok_or_else(|| Wrong(format!("refused as removing `{leg}`, which the update has")))
         }
         (Refusal::DoneLegsDiffer { .. }, Some(index)) => {
             let names = |legs: &[crate::plan::Leg]| {
@@ -368,15 +388,15 @@ fn check_refusal(
                 .ok_or("refused for the legs done, but the leg in force is gone")?;
             (names(&old_plan.legs[..index]) != names(&new_plan.legs[..position]))
                 .then_some(())
-                .ok_or_else(|| "refused for the legs done, which match".to_owned())
+                .ok_or_else(|| Wrong::from("refused for the legs done, which match"))
         }
         (Refusal::PlaceGone { place, .. }, Some(_)) => new
             .net
             .place(place)
             .is_none()
             .then_some(())
-            .ok_or_else(|| format!("refused as `{place}` gone, which the update has")),
-        (refusal, _) => Err(format!("unexpected refusal: {refusal}")),
+            .ok_or_else(|| Wrong(format!("refused as `{place}` gone, which the update has"))),
+        (refusal, _) => wrong(format!("unexpected refusal: {refusal}")),
     }
 }
 
