@@ -712,12 +712,7 @@ fn rename_waypoint(plan: &mut Plan, old: &str, new: &str) {
             }
         }
     }
-    let contingencies = plan.contingencies.iter_mut().chain(
-        plan.legs
-            .iter_mut()
-            .flat_map(|leg| leg.contingencies.iter_mut()),
-    );
-    for contingency in contingencies {
+    for contingency in plan.contingencies_mut() {
         if let Response::Return { waypoint } = &mut contingency.response
             && waypoint == old
         {

@@ -110,8 +110,7 @@ pub fn check(
         .map_err(|diagnostics| format!("the update does not check: {diagnostics}"))?;
     let (Some(plan), Some(compiled)) = (loaded.plan.clone(), loaded.compiled.clone()) else {
         return refused(
-            "the update is a mission net, not a plan: a running plan is updated with a plan"
-                .to_owned(),
+            "the update is a mission net, not a plan: a running plan is updated with a plan",
         );
     };
     if !same_file(&loaded.system_file, &running.system_file) {
@@ -241,8 +240,7 @@ pub fn check_area(
     }
     let Some(origin) = running.compiled.origin else {
         return refused(
-            "the running plan has no geographic frame (no world, no origin) to place the area in"
-                .to_owned(),
+            "the running plan has no geographic frame (no world, no origin) to place the area in",
         );
     };
     let mut plan = running.plan.clone();

@@ -449,6 +449,15 @@ impl Plan {
         self.waypoints.iter().find(|waypoint| waypoint.name == name)
     }
 
+    /// Every contingency of the plan: the plan's own, then each leg's.
+    pub fn contingencies_mut(&mut self) -> impl Iterator<Item = &mut Contingency> {
+        self.contingencies.iter_mut().chain(
+            self.legs
+                .iter_mut()
+                .flat_map(|leg| leg.contingencies.iter_mut()),
+        )
+    }
+
     /// The waypoints the route passes, in order: the first leg's start, then each leg's end
     /// (for a plan [`Plan::parse`] accepts, one more than its legs); none without legs. The
     /// names are looked up in a map: a plan of 10,000 legs takes no longer than its size.

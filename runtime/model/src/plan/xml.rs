@@ -1003,12 +1003,7 @@ fn resolve_start_returns(plan: &mut Plan) {
         .map(|leg| leg.from.clone())
         .or_else(|| plan.objectives.as_ref().map(|o| o.from.clone()))
         .unwrap_or_default();
-    let contingencies = plan.contingencies.iter_mut().chain(
-        plan.legs
-            .iter_mut()
-            .flat_map(|leg| leg.contingencies.iter_mut()),
-    );
-    for contingency in contingencies {
+    for contingency in plan.contingencies_mut() {
         if let Response::Return { waypoint } = &mut contingency.response
             && waypoint.is_empty()
         {
