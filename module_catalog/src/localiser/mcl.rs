@@ -109,6 +109,53 @@ const CONFIRM_UPDATES: u32 = 50;
 const CONFIRM_AGREEMENT: f64 = 0.93;
 const CONFIRM_JUMP_M: f64 = 0.2;
 const CONFIRM_JUMP_RAD: f64 = 0.1;
+/// A full turn in place proves a place too (a follower turns in place while the estimate is
+/// not proven, rather than drive on it, as Nav2's spin recovery does): the same test at every
+/// update over [`CONFIRM_TURN_RAD`] of turning and [`CONFIRM_TURN_UPDATES`] updates, with less
+/// than [`CONFIRM_TURN_TRAVEL_M`] of travel since the turn began (more, and the turn is counted
+/// again from there: turning at a drive's corners is not turning in place). Turned round in
+/// place, the laser has seen everything within its reach from there, each part from the pose
+/// the odometry gives.
+const CONFIRM_TURN_RAD: f64 = 2.0 * std::f64::consts::PI;
+const CONFIRM_TURN_UPDATES: u32 = 30;
+const CONFIRM_TURN_TRAVEL_M: f64 = 0.1;
+/// A turn in place proves a place only where the walls within the laser's reach pin it down in
+/// every direction: the directions of the walls the beams ended on over the turn (the field's
+/// gradient there), as an information matrix, must have its smaller eigenvalue at least this
+/// share of the larger. Standing in a long aisle, the laser sees two parallel walls and the
+/// aisle's position along itself is unknown (measured: a turn in place in a warehouse aisle
+/// proved a place 0.94 m off along it).
+const CONFIRM_TURN_OBSERVABLE: f64 = 0.1;
+/// The kidnap detector: a step down in the beams' agreement against its recent history. The
+/// agreement smoothed over scans (weight [`FIT_SMOOTHING`], about three scans) is compared with
+/// its long-term average (weight [`AGREEMENT_HISTORY`], about fifty updates); when it falls more
+/// than [`KIDNAP_STEP`] below it, the robot may have been carried to a place that only looks
+/// like where the estimate is, and the estimate must prove itself again ([`CONFIRM_M`], or a
+/// turn in place). Measured (the tests): on un-kidnapped drives (the warehouse round, the
+/// office loop and the yard round, with the default noise and three times it; a laser quiet
+/// for 3 s and for 25 s) the step reached at most 0.026; carried into a look-alike aisle of the
+/// warehouse it was 0.062 or more within three scans, every other kidnap more. The history
+/// needs [`KIDNAP_HISTORY_UPDATES`] updates of a proven estimate before the detector is armed.
+/// This is augmented MCL's idea (Nav2's `recovery_alpha_fast`/`recovery_alpha_slow`, a short-
+/// against a long-term average) on the agreement rather than on the particles' likelihood:
+/// measured on the same drives, the likelihood's step on a carrying to a look-alike aisle
+/// (0.12 per beam, in logarithms) was smaller than its swings on a plain drive with three times
+/// the noise (0.54).
+const AGREEMENT_HISTORY: f64 = 0.02;
+const KIDNAP_STEP: f64 = 0.045;
+const KIDNAP_HISTORY_UPDATES: u32 = 10;
+/// The detector skips updates that turned more than this since the last (0.4 rad/s at the
+/// simulator's 10 scans a second): in a running system the scan and the odometry it is paired
+/// with are a few milliseconds apart, and turning fast that moves the far beams' ends by tens of
+/// centimetres, which the agreement counts as disagreeing (measured: a false alarm on Nav2's
+/// depot map as the follower turned in place at 1.2 rad/s, with no kidnap).
+const KIDNAP_MAX_TURN_RAD: f64 = 0.04;
+/// For the same reason the detector skips scans paired with odometry more than this apart (the
+/// simulator's odometry comes every 20 ms; a loaded machine delays one or the other: a false
+/// alarm on the depot map came with the simulator running 10 s behind), and the step must be
+/// passed at [`KIDNAP_STEP_UPDATES`] updates in a row.
+const KIDNAP_MAX_SKEW_SECS: f64 = 0.03;
+const KIDNAP_STEP_UPDATES: u32 = 2;
 
 /// The filter's settings (the module's parameters).
 #[derive(Clone, Debug, PartialEq)]
@@ -219,6 +266,10 @@ pub struct Estimate {
     pub agreement: f64,
     pub state: State,
     pub particles: usize,
+    /// The estimate has nothing to prove: set by hand or from the plan's start, or proven by
+    /// driving or turning on it after a search of the map, a cloud made wide by a laser gone
+    /// quiet, or a suspected kidnap. A follower does not drive on an estimate that is not.
+    pub proven: bool,
 }
 
 impl Estimate {
@@ -381,6 +432,27 @@ pub struct Filter {
     candidate: Option<(Pose2D, Pose2D)>,
     confirmed_m: f64,
     confirmed_updates: u32,
+    /// The proof by a turn in place so far: the turn, its updates and the travel since it began.
+    confirmed_rad: f64,
+    confirmed_turn_updates: u32,
+    turn_travel_m: f64,
+    /// The walls' directions seen over the turn (xx, xy, yy; see [`CONFIRM_TURN_OBSERVABLE`]).
+    turn_information: [f64; 3],
+    /// The proof was armed by the kidnap detector (a lost estimate then stays lost without
+    /// `recover`, as any other).
+    suspected: bool,
+    /// The beams' agreement's long-term average and the updates it holds (the kidnap
+    /// detector's history, see [`KIDNAP_STEP`]); and how many kidnaps it suspected.
+    agreement_history: f64,
+    history_updates: u32,
+    pub(crate) kidnaps_suspected: u32,
+    /// The detector's own short-term average of the agreement (weight [`FIT_SMOOTHING`]), of
+    /// the updates it does not skip only: the smoothed agreement carries a fast turn's low
+    /// values into the updates after it.
+    agreement_recent: f64,
+    /// Updates in a row past the step, and how far apart the last scan and its odometry were.
+    step_updates: u32,
+    pairing_skew_secs: f64,
     /// Updates made on the odometry alone since the last scan ([`Filter::predict_only`]).
     starved: u32,
     /// Beam ends in the robot's frame for the scan being weighed (reused).
@@ -392,6 +464,9 @@ pub struct Filter {
     /// The share of the beams that agree with the map from the estimate, smoothed.
     agreement: f64,
     log_weights: Vec<f64>,
+    /// The share of the last scan's beams that agree with the map from the estimate, not
+    /// smoothed (the kidnap detector's history is made of it).
+    raw_agreement: f64,
 }
 
 impl Filter {
@@ -412,6 +487,7 @@ impl Filter {
                 agreement: 1.0,
                 state: State::Uncertain,
                 particles: 0,
+                proven: true,
             },
             since_spread: u32::MAX,
             spread_pending: false,
@@ -421,12 +497,24 @@ impl Filter {
             candidate: None,
             confirmed_m: 0.0,
             confirmed_updates: 0,
+            confirmed_rad: 0.0,
+            confirmed_turn_updates: 0,
+            turn_travel_m: 0.0,
+            turn_information: [0.0; 3],
+            suspected: false,
+            agreement_history: 1.0,
+            history_updates: 0,
+            kidnaps_suspected: 0,
+            agreement_recent: 1.0,
+            step_updates: 0,
+            pairing_skew_secs: 0.0,
             starved: 0,
             points: Vec::new(),
             beams: Vec::new(),
             range_max_m: 0.0,
             agreement: 1.0,
             log_weights: Vec::new(),
+            raw_agreement: 1.0,
         };
         filter.set_pose(pose, 0.1, 0.1);
         filter
@@ -475,12 +563,30 @@ impl Filter {
         self.estimate = self.summarise(true);
     }
 
+    /// How far apart in time the next scan and the odometry it is given with were taken (the
+    /// module's pairing; 0 in a headless drive): the kidnap detector skips scans paired with
+    /// odometry more than [`KIDNAP_MAX_SKEW_SECS`] apart.
+    pub fn set_pairing_skew_secs(&mut self, secs: f64) {
+        self.pairing_skew_secs = secs;
+    }
+
     /// Arms (or disarms) the proof an estimate must give before it says `localised`.
     fn confirm(&mut self, armed: bool) {
         self.confirming = armed;
+        self.suspected = false;
         self.candidate = None;
+        self.restart_proof();
+        // A new estimate, or one proven just now: its agreement's history starts again.
+        self.history_updates = 0;
+    }
+
+    fn restart_proof(&mut self) {
         self.confirmed_m = 0.0;
         self.confirmed_updates = 0;
+        self.confirmed_rad = 0.0;
+        self.confirmed_turn_updates = 0;
+        self.turn_travel_m = 0.0;
+        self.turn_information = [0.0; 3];
     }
 
     /// Global mode: `max_particles` particles spread over the map's free space with random
@@ -558,10 +664,11 @@ impl Filter {
             return false;
         }
         self.forced_updates = self.forced_updates.saturating_sub(1);
-        let mut travelled = 0.0;
+        let (mut travelled, mut turned) = (0.0, 0.0);
         if let Some(last) = self.last_odom {
             self.predict(last, odom);
             travelled = (odom.x_m - last.x_m).hypot(odom.y_m - last.y_m);
+            turned = wrap_angle(odom.theta_rad - last.theta_rad).abs();
         }
         self.last_odom = Some(odom);
         self.take_points(scan);
@@ -585,10 +692,16 @@ impl Filter {
         // where the robot no longer is, moved on by the odometry, can come to fit the scans of
         // some other place by chance and would then call itself localised there.
         // A search of the whole map (global mode) is let run to its end.
-        if was_lost && !self.settings.recover && !self.searching && !self.confirming {
+        if was_lost
+            && !self.settings.recover
+            && !self.searching
+            && (!self.confirming || self.suspected)
+        {
             self.estimate.state = State::Lost;
         }
-        self.prove(odom, travelled);
+        self.watch_for_kidnap(turned);
+        self.prove(odom, travelled, turned);
+        self.estimate.proven = !self.confirming && self.estimate.state != State::Lost;
         if self.estimate.state == State::Localised {
             self.searching = false;
         }
@@ -610,13 +723,14 @@ impl Filter {
     /// towards the proof when it is where the last one was moved by the odometry, with the
     /// beams agreeing; anything else starts the proof again. Until it is complete the estimate
     /// says `uncertain`.
-    fn prove(&mut self, odom: Pose2D, travelled: f64) {
+    fn prove(&mut self, odom: Pose2D, travelled: f64, turned: f64) {
         if !self.confirming {
             return;
         }
         let estimate = self.estimate;
         if estimate.state != State::Localised {
-            self.confirm(true);
+            self.candidate = None;
+            self.restart_proof();
             return;
         }
         let held = self.candidate.is_none_or(|(pose, odom_then)| {
@@ -627,16 +741,107 @@ impl Filter {
         if held && estimate.agreement >= CONFIRM_AGREEMENT {
             self.confirmed_m += travelled;
             self.confirmed_updates += 1;
+            self.turn_travel_m += travelled;
+            if self.turn_travel_m > CONFIRM_TURN_TRAVEL_M {
+                // Driving, not turning in place: a turn is counted again from here.
+                self.confirmed_rad = 0.0;
+                self.confirmed_turn_updates = 0;
+                self.turn_travel_m = 0.0;
+                self.turn_information = [0.0; 3];
+            } else {
+                self.confirmed_rad += turned;
+                self.confirmed_turn_updates += 1;
+                self.add_wall_directions(estimate.pose);
+            }
         } else {
-            self.confirmed_m = 0.0;
-            self.confirmed_updates = 0;
+            self.restart_proof();
         }
         self.candidate = Some((estimate.pose, odom));
-        if self.confirmed_m >= CONFIRM_M && self.confirmed_updates >= CONFIRM_UPDATES {
+        let driven = self.confirmed_m >= CONFIRM_M && self.confirmed_updates >= CONFIRM_UPDATES;
+        let turned_round = self.confirmed_rad >= CONFIRM_TURN_RAD
+            && self.confirmed_turn_updates >= CONFIRM_TURN_UPDATES
+            && self.turn_observable();
+        // A suspected kidnap is not proven by driving on: the cloud is where the robot was
+        // believed to be, and a look-alike aisle fitted for more than 5 m of driving on from
+        // where the robot was put (measured: carried 7 m across the warehouse's aisles, the
+        // first scans there fitting the old place with 90 % of the beams agreeing). A turn in
+        // place proves it (the follower turns while the estimate is not proven); otherwise it
+        // stays `uncertain` until an operator sets the pose, or the scans make it `lost` (and
+        // `recover` searches the map).
+        if (driven && !self.suspected) || turned_round {
             self.confirm(false);
         } else {
             self.estimate.state = State::Uncertain;
         }
+    }
+
+    /// Adds the directions of the walls the beams end on from `pose` (the likelihood field's
+    /// gradient there) to the turn's information ([`CONFIRM_TURN_OBSERVABLE`]).
+    fn add_wall_directions(&mut self, pose: Pose2D) {
+        let h = FIELD_RESOLUTION_M;
+        let (sin, cos) = pose.theta_rad.sin_cos();
+        for &(lx, ly) in &self.points {
+            let x = pose.x_m + cos * lx - sin * ly;
+            let y = pose.y_m + sin * lx + cos * ly;
+            let gx = self.map.field_at(x + h, y) - self.map.field_at(x - h, y);
+            let gy = self.map.field_at(x, y + h) - self.map.field_at(x, y - h);
+            let norm = gx.hypot(gy);
+            if norm > 1e-6 {
+                let (nx, ny) = (gx / norm, gy / norm);
+                self.turn_information[0] += nx * nx;
+                self.turn_information[1] += nx * ny;
+                self.turn_information[2] += ny * ny;
+            }
+        }
+    }
+
+    /// Whether the walls seen over the turn pin the place down in every direction.
+    fn turn_observable(&self) -> bool {
+        let [a, b, d] = self.turn_information;
+        let half_trace = (a + d) / 2.0;
+        let spread = (((a - d) / 2.0).powi(2) + b * b).sqrt();
+        let (large, small) = (half_trace + spread, half_trace - spread);
+        large > 0.0 && small / large >= CONFIRM_TURN_OBSERVABLE
+    }
+
+    /// The kidnap detector ([`KIDNAP_STEP`]): while the estimate is proven, the beams' agreement
+    /// is watched against its history; a step down arms the proof, and the estimate says
+    /// `uncertain` until it is given (or `lost` when the scans show more).
+    fn watch_for_kidnap(&mut self, turned: f64) {
+        if self.confirming || self.searching || self.estimate.state == State::Lost {
+            self.history_updates = 0;
+            return;
+        }
+        if turned > KIDNAP_MAX_TURN_RAD || self.pairing_skew_secs > KIDNAP_MAX_SKEW_SECS {
+            return;
+        }
+        if self.history_updates == 0 {
+            self.agreement_recent = self.raw_agreement;
+        } else {
+            self.agreement_recent += FIT_SMOOTHING * (self.raw_agreement - self.agreement_recent);
+        }
+        if self.history_updates >= KIDNAP_HISTORY_UPDATES
+            && self.agreement_history - self.agreement_recent > KIDNAP_STEP
+        {
+            self.step_updates += 1;
+        } else {
+            self.step_updates = 0;
+        }
+        if self.step_updates >= KIDNAP_STEP_UPDATES {
+            self.step_updates = 0;
+            self.kidnaps_suspected += 1;
+            self.estimate.state = State::Uncertain;
+            self.confirm(true);
+            self.suspected = true;
+            return;
+        }
+        if self.history_updates == 0 {
+            self.agreement_history = self.raw_agreement;
+        } else {
+            self.agreement_history +=
+                AGREEMENT_HISTORY * (self.raw_agreement - self.agreement_history);
+        }
+        self.history_updates += 1;
     }
 
     /// Moves every particle by the odometry's motion from `from` to `to`, with noise.
@@ -1021,6 +1226,7 @@ impl Filter {
         }
         if scanned && !self.beams.is_empty() {
             let agreement = self.agreement_at(pose);
+            self.raw_agreement = agreement;
             self.agreement = FIT_SMOOTHING * agreement + (1.0 - FIT_SMOOTHING) * self.agreement;
         }
         let mut estimate = Estimate {
@@ -1030,6 +1236,7 @@ impl Filter {
             agreement: self.agreement,
             state: State::Uncertain,
             particles: self.particles.len(),
+            proven: !self.confirming,
         };
         let t = self.settings.thresholds;
         // Once localised, the state is left only beyond a margin (hysteresis), so that an
@@ -1060,6 +1267,7 @@ impl Filter {
         } else {
             State::Uncertain
         };
+        estimate.proven = !self.confirming && estimate.state != State::Lost;
         estimate
     }
 

@@ -165,13 +165,17 @@ impl LocalisationState {
 
 /// A pose estimated on a map, with its uncertainty: the covariance of (x, y, heading), row by
 /// row (m², m·rad, rad²), how well the latest scan fits the map there (0 to 1: the mean of the
-/// likelihood field at the beams' ends) and the localiser's state.
+/// likelihood field at the beams' ends), the localiser's state, and whether the estimate is
+/// proven: a localiser that searched the map, or suspects the robot was carried, says `false`
+/// until the estimate held while the robot drove or turned on it (`docs/localisation.md`);
+/// a follower does not drive on an estimate that is not proven.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PoseEstimate {
     pub pose_in_map: Pose2D,
     pub covariance: [f64; 9],
     pub fit: f64,
     pub state: LocalisationState,
+    pub proven: bool,
 }
 postcard_datum!(PoseEstimate, "PoseEstimate");
 
