@@ -161,7 +161,10 @@ const KIDNAP_MAX_SKEW_SECS: f64 = 0.03;
 const KIDNAP_STEP_UPDATES: u32 = 2;
 
 /// The widest thing the map does not hold that the kidnap detector takes a run of short beams
-/// for (a box, a bin, a person walking by; see [`Agreement`]).
+/// for (a box, a bin, a person walking by; see [`Agreement`]). Measured: at 2.5 m, two of the
+/// twenty seeded kidnaps (carried 7.5 m along the warehouse's main aisle, where the truth sees
+/// shelving the estimate expects open) were taken for things and noticed 42 and 61 scans late;
+/// at 1.5 m, within three scans.
 const UNMAPPED_THING_M: f64 = 1.5;
 
 /// The filter's settings (the module's parameters).
@@ -416,6 +419,9 @@ struct Agreement {
     /// see [`KIDNAP_STEP`]). None when what is left is fewer than [`MIN_JUDGED_BEAMS`] of the
     /// beams (the scan shows too little of the map).
     kidnap: Option<f64>,
+    /// Each beam (in the scan's order) that a thing the map lacks explains: left out of the
+    /// kidnap detector's agreement and of the fit ([`Filter::fit_at`]).
+    explained: Vec<bool>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -751,11 +757,19 @@ impl Filter {
         self.since_spread = self.since_spread.saturating_add(1);
         // Spread again only when nothing fits: a wide estimate whose places all fit is the
         // scans not yet telling look-alike places apart, and spreading would throw that
-        // evidence away.
-        if self.estimate.state == State::Lost
-            && self.settings.recover
+        // evidence away. Or when a search settled on one place that the beams contradict: the
+        // echoes fit there (the depot's rows of posts, 2.6 m along from the truth), but too
+        // many ranges disagree for it ever to be `localised`, let alone proven, and the place
+        // that would be has died out of the cloud (measured on Nav2's depot map: two searches
+        // of eight did this and stayed `uncertain` through 48 s of turning in place).
+        let nothing_fits = self.estimate.state == State::Lost
+            && (self.fit < self.settings.thresholds.lost_fit || self.agreement < LOST_AGREEMENT);
+        let settled_wrong = self.searching
+            && self.estimate.state != State::Localised
+            && self.agreement < STAY_LOCALISED_AGREEMENT;
+        if self.settings.recover
             && self.since_spread >= SPREAD_AGAIN_UPDATES
-            && (self.fit < self.settings.thresholds.lost_fit || self.agreement < LOST_AGREEMENT)
+            && (nothing_fits || settled_wrong)
         {
             self.spread();
         }
@@ -985,25 +999,34 @@ impl Filter {
             short.push(end);
         }
         let all = (beams > 0).then(|| agreeing as f64 / beams as f64);
-        let unexplained = self.unexplained_short(&short);
+        let explained = self.explained_short(&short);
+        let unexplained = short.iter().flatten().count() - explained.iter().filter(|&&e| e).count();
         let judged = agreeing + long + unexplained;
         let kidnap = (judged > 0 && judged as f64 >= MIN_JUDGED_BEAMS * beams as f64)
             .then(|| agreeing as f64 / judged as f64);
-        Agreement { all, kidnap }
+        Agreement {
+            all,
+            kidnap,
+            explained,
+        }
     }
 
-    /// How many of the short beams (`short`, one entry a beam in the scan's order, the end of
-    /// those that end short of the map's wall) no thing the map lacks explains. Neighbouring
+    /// Which of the short beams (`short`, one entry a beam in the scan's order, the end of
+    /// those that end short of the map's wall) a thing the map lacks explains. Neighbouring
     /// short beams are one thing when the scan's own points between them are one surface
     /// ([`Filter::connected`]), and two otherwise (a near thing beside a far one). A thing
     /// whose ends lie within [`UNMAPPED_THING_M`] of each other explains its beams; the beams
-    /// of a wider one count against. A scan all round the robot wraps: its last beam
+    /// of a wider one are not explained. A scan all round the robot wraps: its last beam
     /// neighbours its first.
-    fn unexplained_short(&self, short: &[Option<(f64, f64)>]) -> usize {
+    fn explained_short(&self, short: &[Option<(f64, f64)>]) -> Vec<bool> {
         let n = short.len();
+        let mut explained = vec![false; n];
         if n < 2 {
             // One beam: whatever it met explains it.
-            return 0;
+            for (mark, end) in explained.iter_mut().zip(short) {
+                *mark = end.is_some();
+            }
+            return explained;
         }
         let spacing = (self.beams[1].0 - self.beams[0].0).abs();
         let wraps =
@@ -1015,44 +1038,39 @@ impl Filter {
         } else {
             0
         };
-        let span_of = |run: &[(f64, f64)]| {
-            run.iter()
+        // A run: the beams' places in `short` and their ends.
+        let mut run: Vec<(usize, (f64, f64))> = Vec::new();
+        let mut close = |run: &mut Vec<(usize, (f64, f64))>| {
+            let span = run
+                .iter()
                 .enumerate()
-                .flat_map(|(i, a)| {
+                .flat_map(|(i, (_, a))| {
                     run[i + 1..]
                         .iter()
-                        .map(move |b| (a.0 - b.0).hypot(a.1 - b.1))
+                        .map(move |(_, b)| (a.0 - b.0).hypot(a.1 - b.1))
                 })
-                .fold(0.0, f64::max)
-        };
-        let unexplained_in = |run: &[(f64, f64)]| {
-            if span_of(run) > UNMAPPED_THING_M {
-                run.len()
-            } else {
-                0
+                .fold(0.0, f64::max);
+            if span <= UNMAPPED_THING_M {
+                for &(i, _) in run.iter() {
+                    explained[i] = true;
+                }
             }
+            run.clear();
         };
-        let mut unexplained = 0;
-        let mut run: Vec<(f64, f64)> = Vec::new();
-        let mut last_index = None;
         for i in (begin..begin + n).map(|i| i % n) {
             let Some(end) = short[i] else {
-                unexplained += unexplained_in(&run);
-                run.clear();
+                close(&mut run);
                 continue;
             };
-            let index = self.beam_indices[i];
-            if let Some(last) = last_index
-                && !run.is_empty()
-                && !self.connected(last, index)
+            if let Some(&(last, _)) = run.last()
+                && !self.connected(self.beam_indices[last], self.beam_indices[i])
             {
-                unexplained += unexplained_in(&run);
-                run.clear();
+                close(&mut run);
             }
-            run.push(end);
-            last_index = Some(index);
+            run.push((i, end));
         }
-        unexplained + unexplained_in(&run)
+        close(&mut run);
+        explained
     }
 
     /// Whether the scan's own points from its beam `from` to its beam `to` (onwards, round the
@@ -1378,12 +1396,11 @@ impl Filter {
             y_m: my,
             theta_rad: mean_theta,
         };
-        if scanned && !self.points.is_empty() {
-            let fit = self.fit_at(pose);
-            self.fit = FIT_SMOOTHING * fit + (1.0 - FIT_SMOOTHING) * self.fit;
-        }
         if scanned {
             let agreement = self.agreement_at(pose);
+            if let Some(fit) = self.fit_at(pose, &agreement.explained) {
+                self.fit = FIT_SMOOTHING * fit + (1.0 - FIT_SMOOTHING) * self.fit;
+            }
             self.raw_agreement = agreement.kidnap;
             if let Some(all) = agreement.all {
                 self.agreement = FIT_SMOOTHING * all + (1.0 - FIT_SMOOTHING) * self.agreement;
@@ -1431,20 +1448,29 @@ impl Filter {
         estimate
     }
 
-    /// The mean field value at the ends of the beams of the last scan weighed, from `pose`.
-    fn fit_at(&self, pose: Pose2D) -> f64 {
+    /// The mean field value at the ends of the beams of the last scan weighed, from `pose`,
+    /// but those a thing the map lacks explains (`explained`, see [`Agreement`]): in the open,
+    /// where the laser sees nothing else within range, a box beside the robot made the mean
+    /// fall under the threshold of `lost` with the estimate 0.03 m from the truth (measured in
+    /// the yard). None when no beam is left.
+    fn fit_at(&self, pose: Pose2D, explained: &[bool]) -> Option<f64> {
         let (sin, cos) = pose.theta_rad.sin_cos();
-        let sum: f64 = self
-            .points
-            .iter()
-            .map(|&(lx, ly)| {
-                self.map.field_at(
-                    pose.x_m + cos * lx - sin * ly,
-                    pose.y_m + sin * lx + cos * ly,
-                )
-            })
-            .sum();
-        sum / self.points.len() as f64
+        let (mut sum, mut count) = (0.0, 0usize);
+        for (i, &(angle, range)) in self.beams.iter().enumerate() {
+            let Some(range) = range else {
+                continue;
+            };
+            if explained.get(i).copied().unwrap_or(false) {
+                continue;
+            }
+            let (lx, ly) = (range * angle.cos(), range * angle.sin());
+            sum += self.map.field_at(
+                pose.x_m + cos * lx - sin * ly,
+                pose.y_m + sin * lx + cos * ly,
+            );
+            count += 1;
+        }
+        (count > 0).then(|| sum / count as f64)
     }
 }
 
