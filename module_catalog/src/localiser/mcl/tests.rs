@@ -51,13 +51,7 @@ fn drive(
     seed: u64,
     script: &Script,
 ) -> (Drive, Filter) {
-    let mut params = SimParams {
-        seed,
-        ..SimParams::default()
-    };
-    params.odom_noise.dist *= noise;
-    params.odom_noise.rot *= noise;
-    params.odom_noise.drift *= noise;
+    let params = noisy(seed, noise);
     let start = world.start();
     let settings = Settings {
         recover: script.recover,
@@ -133,6 +127,18 @@ fn drive(
         tour.steps()
     );
     (drive, filter)
+}
+
+/// The simulator's parameters with its odometry noise times `noise`.
+fn noisy(seed: u64, noise: f64) -> SimParams {
+    let mut params = SimParams {
+        seed,
+        ..SimParams::default()
+    };
+    params.odom_noise.dist *= noise;
+    params.odom_noise.rot *= noise;
+    params.odom_noise.drift *= noise;
+    params
 }
 
 fn mean(values: &[f64]) -> f64 {
@@ -1064,13 +1070,7 @@ fn follow_past_unmapped(name: &str, round: Round, noise: f64, seed: u64) -> Unma
     let map_world = world(name);
     let shapes = unmapped_things(&map_world, round, seed);
     let sim_world = world_with(name, &shapes);
-    let mut params = SimParams {
-        seed,
-        ..SimParams::default()
-    };
-    params.odom_noise.dist *= noise;
-    params.odom_noise.rot *= noise;
-    params.odom_noise.drift *= noise;
+    let params = noisy(seed, noise);
     let settings = Settings::default();
     let map = Map::new(&map_world, settings.sigma_hit_m, settings.robot_radius_m).expect("map");
     let start = map_world.start();
