@@ -94,10 +94,12 @@ enum Command {
 
 fn main() -> ExitCode {
     armor_module_api::hardening::make_non_dumpable();
+    // zenoh's router warns at every start that gossip is off: that is this program's choice.
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn")),
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
+                tracing_subscriber::EnvFilter::new("info,zenoh=warn,zenoh::net::routing=error")
+            }),
         )
         .with_writer(std::io::stderr)
         .init();

@@ -21,9 +21,12 @@ pub fn open(listen: &[String], connect: &[String]) -> anyhow::Result<zenoh::Sess
         ("scouting/gossip/enabled", "false".to_owned()),
         ("listen/endpoints", endpoints(listen)),
         ("connect/endpoints", endpoints(connect)),
-        // A peer that is not up yet (or cut off) is tried again every second at most.
-        ("connect/retry/period_max_ms", "1000".to_owned()),
-        ("connect/retry/period_init_ms", "250".to_owned()),
+        // A peer that is not up yet (or was cut off) is tried again every second at most, so
+        // that a station catches up soon after a radio comes back.
+        (
+            "connect/retry",
+            r#"{"period_init_ms":250,"period_max_ms":1000,"period_increase_factor":2}"#.to_owned(),
+        ),
     ] {
         z(config.insert_json5(key, &value)).with_context(|| format!("zenoh setting {key}"))?;
     }
