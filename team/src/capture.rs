@@ -11,15 +11,26 @@ use crate::net::z;
 /// How many bytes of each sample are printed: the team's samples are smaller but for outputs.
 const SHOWN_BYTES: usize = 65536;
 
-pub fn run(
-    listen: &[String],
-    connect: &[String],
-    key_expr: &str,
-    for_secs: f64,
-) -> anyhow::Result<()> {
-    let session = crate::net::open(listen, connect)?;
-    let samples = z(session.declare_subscriber(key_expr).wait())?;
-    let deadline = Instant::now() + Duration::from_secs_f64(for_secs);
+/// `armor-team capture`: what anyone on the team network sees.
+#[derive(Clone, Debug, clap::Args)]
+pub struct Options {
+    /// zenoh endpoints to connect to; repeat.
+    #[arg(long)]
+    pub connect: Vec<String>,
+    /// zenoh endpoints to listen at; repeat.
+    #[arg(long)]
+    pub listen: Vec<String>,
+    #[arg(long, default_value = "armor/team/**")]
+    pub key_expr: String,
+    /// How long to capture.
+    #[arg(long, default_value_t = 10.0)]
+    pub for_secs: f64,
+}
+
+pub fn run(options: &Options) -> anyhow::Result<()> {
+    let session = crate::net::open(&options.listen, &options.connect)?;
+    let samples = z(session.declare_subscriber(&options.key_expr).wait())?;
+    let deadline = Instant::now() + Duration::from_secs_f64(options.for_secs);
     let mut count = 0;
     while let Some(left) = deadline.checked_duration_since(Instant::now()) {
         let Some(sample) = z(samples.recv_timeout(left))? else {

@@ -23,46 +23,52 @@ use crate::net::z;
 use crate::seal::{Admit, Channel};
 use crate::wire::{self, CommandReply, Down, RobotStatus, SID_BYTES, Up};
 
-/// What the bridge publishes, and how often: the default budget of a robot.
-#[derive(Clone, Debug)]
+/// What the bridge publishes, and how often: the default budget of a robot. 2 reports and 5
+/// poses a second take about 8 kbit/s; outputs share the rest of 50.
+#[derive(Clone, Debug, clap::Args)]
 pub struct Budget {
     /// Status reports a second (a few hundred bytes each).
+    #[arg(long, default_value_t = 2.0)]
     pub status_hz: f64,
     /// Poses a second (about 100 bytes each).
+    #[arg(long, default_value_t = 5.0)]
     pub pose_hz: f64,
     /// Samples a second of each chosen output, when it changed.
+    #[arg(long, default_value_t = 1.0)]
     pub output_hz: f64,
-    /// All of it, per station, in kilobits a second: outputs wait when it is spent.
+    /// What the robot may send each station, in kbit/s: outputs wait when it is spent.
+    #[arg(long = "budget-kbps", default_value_t = 50.0)]
     pub kbit_per_sec: f64,
 }
 
-impl Default for Budget {
-    /// 2 reports and 5 poses a second take about 8 kbit/s; outputs share the rest of 50.
-    fn default() -> Budget {
-        Budget {
-            status_hz: 2.0,
-            pose_hz: 5.0,
-            output_hz: 1.0,
-            kbit_per_sec: 50.0,
-        }
-    }
-}
-
-#[derive(Clone, Debug)]
+/// `armor-team robot`: on a robot, beside its `armor run`.
+#[derive(Clone, Debug, clap::Args)]
 pub struct Options {
+    /// The robot's name in the team (`armor/team/NAME/…`).
+    #[arg(long)]
     pub name: String,
-    /// The run's control interface.
+    /// The run's control address (`armor run` prints it; also $ARMOR_CONTROL).
+    #[arg(long, env = "ARMOR_CONTROL")]
     pub control: SocketAddr,
-    /// The run's secret: the bridge admits stations with its role keys and proves the
-    /// operator's at the run.
+    /// The run's secret file: stations prove its role keys, the bridge its operator's.
+    #[arg(long, env = "ARMOR_SECRET_FILE")]
     pub secret: PathBuf,
+    /// zenoh endpoints to listen at (`tcp/0.0.0.0:7447`); repeat.
+    #[arg(long)]
     pub listen: Vec<String>,
+    /// zenoh endpoints of peers or routers to connect to; repeat.
+    #[arg(long)]
     pub connect: Vec<String>,
-    /// The data name of the robot's pose (a `PoseEstimate`, an `Odometry` or a `Pose2D`).
+    /// The data name of the robot's pose: a `PoseEstimate`, an `Odometry` or a `Pose2D`.
+    #[arg(long, default_value = "localiser.estimate")]
     pub pose: String,
+    /// An output to forward (sent when it changed, at --output-hz at most); repeat.
+    #[arg(long = "output")]
     pub outputs: Vec<String>,
+    #[command(flatten)]
     pub budget: Budget,
-    /// Seconds without an operator's beat before the link counts as lost.
+    /// Seconds without an operator's beat before the run is told its link is lost.
+    #[arg(long, default_value_t = 2.0)]
     pub lost_after_secs: f64,
 }
 

@@ -19,19 +19,31 @@ use crate::net::z;
 use crate::seal::{Channel, Hello};
 use crate::wire::{self, CommandReply, Down, RobotStatus, SID_BYTES, Up};
 
-#[derive(Clone, Debug)]
+/// `armor-team station`: an operator's computer.
+#[derive(Clone, Debug, clap::Args)]
 pub struct Options {
-    /// A role's key (`armor secret derive`), or the secret itself (the operator).
+    /// A role's key (`armor secret derive --role observer|operator`) or the secret itself (the
+    /// operator).
+    #[arg(long)]
     pub key: PathBuf,
+    /// A robot of the team; repeat.
+    #[arg(long = "robot", required = true)]
     pub robots: Vec<String>,
+    /// zenoh endpoints to listen at; repeat.
+    #[arg(long)]
     pub listen: Vec<String>,
+    /// zenoh endpoints of the robots (or routers) to connect to; repeat.
+    #[arg(long)]
     pub connect: Vec<String>,
     /// Beats a second to each robot.
+    #[arg(long, default_value_t = 2.0)]
     pub beat_hz: f64,
     /// Seconds between two printed lines of a robot.
+    #[arg(long, default_value_t = 1.0)]
     pub print_every_secs: f64,
-    /// Commands to send (`ROBOT|all COMMAND [ARGS]`), after which the station ends, instead
-    /// of watching and reading its standard input.
+    /// Send this command (`ROBOT|all COMMAND [ARGS]`) and end, rather than watch and read
+    /// commands on standard input; repeat.
+    #[arg(long)]
     pub send: Vec<String>,
 }
 

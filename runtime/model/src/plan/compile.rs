@@ -1162,22 +1162,38 @@ impl<'a> Builder<'a> {
             && let Trigger::LinkLost { after_secs } = contingency.trigger
             && contingency.response != Response::Continue
         {
-            let target = self.respond(index, leg, &contingency.response);
-            if target == place {
-                return;
-            }
-            self.transition(
-                name,
-                Origin::Leg(index),
-                contingency.pos,
-                Condition {
-                    event: Some(crate::net::link_lost_event(after_secs)),
-                    ..Condition::default()
-                },
-                place,
-                &target,
-            );
+            let event = crate::net::link_lost_event(after_secs);
+            self.answer_event(index, leg, place, name, &contingency, event);
         }
+    }
+
+    /// The transition named `name` out of `place` on `event`, to where `contingency`'s
+    /// response leads (none when `place` is where it leads: an answer does not listen to what
+    /// it answers).
+    fn answer_event(
+        &mut self,
+        index: usize,
+        leg: &Leg,
+        place: &str,
+        name: &str,
+        contingency: &super::Contingency,
+        event: String,
+    ) {
+        let target = self.respond(index, leg, &contingency.response);
+        if target == place {
+            return;
+        }
+        self.transition(
+            name,
+            Origin::Leg(index),
+            contingency.pos,
+            Condition {
+                event: Some(event),
+                ..Condition::default()
+            },
+            place,
+            &target,
+        );
     }
 
     /// The transition named `name` out of `place` on a low battery, when the plan listens for
@@ -1190,21 +1206,8 @@ impl<'a> Builder<'a> {
         if let Some(contingency) = low
             && let Trigger::LowBattery { module } = &contingency.trigger
         {
-            let target = self.respond(index, leg, &contingency.response);
-            if target == place {
-                return;
-            }
-            self.transition(
-                name,
-                Origin::Leg(index),
-                contingency.pos,
-                Condition {
-                    event: Some(format!("{module}.low_battery")),
-                    ..Condition::default()
-                },
-                place,
-                &target,
-            );
+            let event = format!("{module}.low_battery");
+            self.answer_event(index, leg, place, name, &contingency, event);
         }
     }
 
