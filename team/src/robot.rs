@@ -85,7 +85,8 @@ struct Peer {
     refilled: Instant,
 }
 
-/// At most this many sessions at once; a new hello then closes the one heard from longest ago.
+/// At most this many sessions at once; a new hello then closes an unconfirmed one, else the one
+/// heard from longest ago.
 const MAX_PEERS: usize = 32;
 /// A session not heard from in this long is closed (a station that went away).
 const PEER_IDLE: Duration = Duration::from_secs(120);
@@ -177,7 +178,10 @@ pub fn run(options: &Options, stop: &AtomicBool) -> anyhow::Result<()> {
                             && let Some(oldest) = shared
                                 .peers
                                 .iter()
-                                .min_by_key(|(_, peer)| peer.heard)
+                                // Unconfirmed first: hellos replayed by someone without
+                                // the key never confirm, and must not push out stations
+                                // that do.
+                                .min_by_key(|(_, peer)| (peer.confirmed, peer.heard))
                                 .map(|(sid, _)| sid.clone())
                         {
                             shared.peers.remove(&oldest);

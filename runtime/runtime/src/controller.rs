@@ -874,6 +874,28 @@ mod tests {
     }
 
     #[test]
+    fn each_link_lost_time_comes_once_an_outage_from_when_the_link_was_lost() {
+        let net = MissionNet::parse(
+            r#"<mission name="m" system="s.xml">
+                 <place name="one" tokens="1"/><place name="held"/><place name="back"/>
+                 <transition name="hold" event="link.lost.3"><input place="one"/><output place="held"/></transition>
+                 <transition name="home" event="link.lost.5"><input place="one"/><output place="back"/></transition>
+               </mission>"#,
+        )
+        .expect("a valid net");
+        let mut controller = Controller::new(net, BTreeSet::new(), Clock::real_time(), 0.0, false);
+        assert_eq!(controller.due_link_events(100.0), (vec![], None));
+        controller.link_lost_since = Some(100.0);
+        assert_eq!(controller.due_link_events(101.0), (vec![], Some(103.0)));
+        assert_eq!(controller.due_link_events(103.0), (vec![3], Some(105.0)));
+        controller.link_reported.insert(3);
+        assert_eq!(controller.due_link_events(104.0), (vec![], Some(105.0)));
+        assert_eq!(controller.due_link_events(200.0), (vec![5], None));
+        controller.link_reported.insert(5);
+        assert_eq!(controller.due_link_events(300.0), (vec![], None));
+    }
+
+    #[test]
     fn a_module_every_place_runs_alike_is_steady() {
         let recorder =
             r#"<module name="recorder"/><param module="recorder" name="file" value="a.mcap"/>"#;
