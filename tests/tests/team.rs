@@ -203,6 +203,15 @@ fn wait_line(
     })
 }
 
+/// The station's next `lines` lines of `robot` say it runs, each from a report within 2 s.
+fn keeps_up(station: &Proc, robot: &str, lines: usize) {
+    for _ in 0..lines {
+        let skip = station.line_count();
+        let line = wait_line(station, skip, robot, &["state running"], PATIENCE);
+        assert!(!line.contains("last known"), "{line}");
+    }
+}
+
 /// The run's firings whose transition ends with `suffix`, from `armor ctl status --json`
 /// with the operator's key, run by `wrap` (in the robot's namespace, or not).
 fn firings_ending(wrap: &[&str], control: &str, key: &Path, suffix: &str) -> usize {
@@ -261,8 +270,14 @@ fn two_robots_and_stations_over_zenoh_under_the_runs_keys_and_the_radio_in_the_p
     let r2 = start_robot(&[], &plan, &secret, "r2", &endpoints[1]);
     let robots = ["r1", "r2"];
 
-    // The operator's station sees both robots live: their state, leg, pose, fresh reports.
-    let watch = station(&[], &operator, &robots, &endpoints);
+    // The operator's station sees both robots live: their state, leg, pose, fresh reports;
+    // r2 through a relay that delays each way by 300 ms, as a radio does.
+    let slow = armor_tests::slow_relay(
+        ([127, 0, 0, 1], ports[1]).into(),
+        Duration::from_millis(300),
+    );
+    let through_radio = [endpoints[0].clone(), format!("tcp/{slow}")];
+    let watch = station(&[], &operator, &robots, &through_radio);
     watch.wait_for("the station's role", PATIENCE, |line| {
         line.contains("operator role")
     });
@@ -276,6 +291,8 @@ fn two_robots_and_stations_over_zenoh_under_the_runs_keys_and_the_radio_in_the_p
         );
         assert!(!line.contains("last known"), "{line}");
     }
+    // Through the delay the station stays within 2 s of r2's state, line after line.
+    keeps_up(&watch, "r2", 5);
     let observing = station(&[], &observer, &robots, &endpoints);
     for robot in robots {
         wait_line(&observing, 0, robot, &["state running"], PATIENCE);
@@ -574,12 +591,8 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
         );
     }
     // Through the lossy, slow links the station keeps up: a report within 2 s, line after line.
-    let skip = watch.line_count();
     for robot in robots {
-        for _ in 0..5 {
-            let line = wait_line(&watch, skip, robot, &["state running"], PATIENCE);
-            assert!(!line.contains("last known"), "{line}");
-        }
+        keeps_up(&watch, robot, 5);
     }
 
     // The cut: r1's link down for 10 s. r1 holds after 2 s without beats and the 3 s its plan
