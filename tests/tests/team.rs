@@ -353,9 +353,22 @@ fn two_robots_and_stations_over_zenoh_under_the_runs_keys_and_the_radio_in_the_p
             assert!(!text.contains(clear), "`{clear}` in clear: {line}");
         }
     }
-    // The robot still obeys its operator.
+    // The robot still obeys its operator, and takes a plan update sent over the team network:
+    // the same leg, a longer wait at the gate.
     let (done, said) = send(&[], &operator, &robots, &endpoints, "r1 resume");
     assert!(done, "{said}");
+    let updated = dir.path().join("plan-updated.xml");
+    std::fs::write(
+        &updated,
+        std::fs::read_to_string(&plan)
+            .unwrap()
+            .replace("wait_secs=\"3600\"", "wait_secs=\"7200\""),
+    )
+    .unwrap();
+    assert!(std::fs::read_to_string(&updated).unwrap().contains("7200"));
+    let line = format!("r2 update {}", updated.display());
+    let (done, said) = send(&[], &operator, &robots, &endpoints, &line);
+    assert!(done && said.contains("r2: done: update 1 taken"), "{said}");
 
     // The radio is lost: the operator's station goes away. Each robot's plan holds after 3 s
     // without its operator; the observer sees it happen, once.
