@@ -8,7 +8,7 @@
 //!   nothing in clear. The operator's station then goes away: each robot's plan says
 //!   `link_lost` after 3 s → hold, which fires once while the observer watches; an operator
 //!   comes back, the robots say the link is found, and a retry sent to all drives them on.
-//! * In network namespaces (root and `ip` needed, skipped with a message otherwise): a robot
+//! * In network namespaces (as root, as `hosts` is; it fails saying so otherwise): a robot
 //!   and a station joined by a veth pair with loss (iptables `statistic`) and a rate (`tbf`);
 //!   a 10 s cut (`ip link set down`) makes `link_lost` fire once, the robot holds as its plan
 //!   says, and the station catches up once the link is back.
@@ -540,43 +540,17 @@ impl Drop for Radio {
     }
 }
 
-/// Why the namespaces' test cannot run here, if it cannot (it needs root, `ip`, `tc` and
-/// `iptables`; CI runs as root with them).
-fn cannot_make_radio() -> Option<String> {
-    if effective_uid() != 0 {
-        return Some("not root".to_owned());
-    }
-    for program in ["ip", "tc", "iptables"] {
-        if Command::new(program).arg("-V").output().is_err() {
-            return Some(format!("no `{program}` (scripts/test installs it)"));
-        }
-    }
-    None
-}
-
-/// The effective user id, from /proc (no libc call).
-fn effective_uid() -> u32 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|status| {
-            status
-                .lines()
-                .find_map(|line| line.strip_prefix("Uid:"))
-                .and_then(|ids| ids.split_whitespace().nth(1)?.parse().ok())
-        })
-        .unwrap_or(u32::MAX)
-}
-
 #[test]
 fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catches_up() {
-    if let Some(why) = cannot_make_radio() {
-        eprintln!("SKIPPED: the radio test needs network namespaces: {why}");
-        return;
-    }
     let _turn = ROBOTS_AT_A_TIME
         .lock()
         .unwrap_or_else(|err| err.into_inner());
-    let radio = Radio::make().unwrap_or_else(|why| panic!("cannot make the radio: {why}"));
+    let radio = Radio::make().unwrap_or_else(|why| {
+        panic!(
+            "cannot make the radio ({why}); this test needs root: run `scripts/test` as root (it \
+             installs iproute2 and iptables)"
+        )
+    });
     let dir = tempfile::tempdir().unwrap();
     let plan = write_yard(dir.path());
     let secret = secret_file(dir.path());
