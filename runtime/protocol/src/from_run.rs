@@ -178,7 +178,8 @@ pub struct FileText {
 pub struct RunFiles {
     /// The system file.
     pub system: FileText,
-    /// The mission the run plays, a plan or a net, when it has one.
+    /// The mission the run plays, a plan or a net, when it has one: a plan as it runs now,
+    /// with the updates taken so far (written as the studio saves a plan), a net as its file is.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mission: Option<FileText>,
     /// The files the system's `file` parameters name (the simulated world), as the run found

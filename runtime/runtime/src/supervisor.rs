@@ -471,7 +471,8 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     }
                 }
                 armor_protocol::Request::Files => {
-                    let _ = reply.send(run_files(&options.file, &system_file, &server));
+                    let plan = running_plan.as_ref().map(|running| &running.plan);
+                    let _ = reply.send(run_files(&options.file, plan, &system_file, &server));
                     continue;
                 }
                 request => match (crate::update::Asked::of(request), &mut controller) {
@@ -791,8 +792,14 @@ fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (b
 /// The run's files, for a client that attaches without them ([`armor_protocol::Request::Files`]): the
 /// system file and the mission (`target`, when it is not the system file itself) as they are
 /// now, and the files the system's `file` parameters name, as the run found them. A file that
-/// is not text (a ROS map's image) is left out.
-fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> armor_protocol::Reply {
+/// is not text (a ROS map's image) is left out. A plan is sent as it runs (`running`, the
+/// updates taken so far in it), not as its file was: the studio draws the run's plan from it.
+fn run_files(
+    target: &Path,
+    running: Option<&armor_model::plan::Plan>,
+    system_file: &Path,
+    server: &ConfigServer,
+) -> armor_protocol::Reply {
     let read = |path: &Path| {
         std::fs::read_to_string(path)
             .map(|text| armor_protocol::FileText {
@@ -803,7 +810,13 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> armor_
     };
     let files = (|| {
         let system = read(system_file)?;
-        let mission = (target != system_file).then(|| read(target)).transpose()?;
+        let mission = match running {
+            Some(plan) => Some(armor_protocol::FileText {
+                path: target.display().to_string(),
+                text: plan.to_xml(),
+            }),
+            None => (target != system_file).then(|| read(target)).transpose()?,
+        };
         let loaded = server.loaded();
         let mut params = Vec::new();
         for module in &loaded.system.modules {
