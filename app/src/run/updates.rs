@@ -351,7 +351,7 @@ impl super::RunView {
             .differs(mission.plan(), mission.editor.revision());
         ui.horizontal_wrapped(|ui| {
             ui.label(
-                RichText::new(" ● Running on the robot ")
+                RichText::new(" Running on the robot ")
                     .strong()
                     .color(Color32::WHITE)
                     .background_color(taken_colour()),
