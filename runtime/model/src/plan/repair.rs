@@ -9,11 +9,11 @@
 //! migration finds it; only what comes after it changes. Pure: the paths' lengths come from the
 //! caller ([`options`]'s `lengths`), which plans them on the world.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
-use crate::geo::{self, Point};
+use crate::geo::Point;
 
-use super::{Compiled, Leg, Plan};
+use super::{Leg, Plan};
 
 /// What an option does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -53,7 +53,10 @@ pub struct Candidate {
 #[derive(Clone, Copy, Debug)]
 pub struct Situation<'a> {
     pub plan: &'a Plan,
-    pub compiled: &'a Compiled,
+    /// Where the waypoints the robot can be at are, in the world frame.
+    pub positions: &'a BTreeMap<String, Point>,
+    /// The length of each leg of `plan` as planned (metres), `None` for a leg with no way.
+    pub route_lengths_m: &'a [Option<f64>],
     /// The leg in force, by index in `plan`.
     pub index: usize,
     /// Where the robot believes it is.
@@ -75,7 +78,8 @@ pub fn options(
 ) -> Vec<Candidate> {
     let Situation {
         plan,
-        compiled,
+        positions,
+        route_lengths_m,
         index,
         ..
     } = situation;
@@ -85,7 +89,7 @@ pub fn options(
     let mut drafts = Vec::new();
     for waypoint in &plan.waypoints {
         let name = &waypoint.name;
-        if *name == leg.to || *name == leg.from || !compiled.positions.contains_key(name) {
+        if *name == leg.to || *name == leg.from || !positions.contains_key(name) {
             continue;
         }
         let mut new = plan.clone();
@@ -183,12 +187,7 @@ pub fn options(
         ways_round += 1;
         ways_round <= MAX_WAYS_ROUND
     });
-    let planned: f64 = compiled
-        .routes
-        .iter()
-        .skip(index)
-        .map(|route| geo::path_length(route))
-        .sum();
+    let planned: f64 = route_lengths_m.iter().skip(index).flatten().sum();
     candidates.push(Candidate {
         kind: Kind::Wait,
         summary: "wait where the robot is for an update (an area lifted) or the operator"
@@ -221,7 +220,8 @@ fn cost_all(
 ) -> Vec<Candidate> {
     let Situation {
         plan: running,
-        compiled,
+        positions,
+        route_lengths_m,
         index,
         here,
         ..
@@ -239,16 +239,15 @@ fn cost_all(
                         .legs
                         .iter()
                         .position(|old| old.from == leg.from && old.to == leg.to)
-                        .and_then(|old| compiled.routes.get(old))
-                        .map(|route| geo::path_length(route))
+                        .and_then(|old| route_lengths_m.get(old).copied().flatten())
                 })
                 .flatten();
             let start = if k == index {
                 Some(here)
             } else {
-                compiled.positions.get(&leg.from).copied()
+                positions.get(&leg.from).copied()
             };
-            let end = compiled.positions.get(&leg.to).copied();
+            let end = positions.get(&leg.to).copied();
             legs.push(match (known, start, end) {
                 (Some(length), _, _) => Some(Ok(length)),
                 (None, Some(start), Some(end)) => {

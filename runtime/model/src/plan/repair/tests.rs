@@ -1,6 +1,6 @@
 use super::*;
 use crate::geo::LatLon;
-use crate::plan::compile;
+use crate::plan::{Compiled, compile};
 
 const START: &str = "2026-11-23T08:00:00Z";
 
@@ -41,6 +41,15 @@ fn square(out_by_secs: u32) -> (Plan, Compiled) {
     (plan, compiled)
 }
 
+/// The lengths of the legs as compiled.
+fn lengths_of(compiled: &Compiled) -> Vec<Option<f64>> {
+    compiled
+        .routes
+        .iter()
+        .map(|route| Some(crate::geo::path_length(route)))
+        .collect()
+}
+
 /// Straight-line lengths, but no way across the segment x = 10 for |y| < 5 (a wall on the
 /// leg `out`'s line).
 fn straight_but_walled(pairs: &[(Point, Point)]) -> Vec<Option<f64>> {
@@ -63,7 +72,8 @@ fn check(out_by_secs: u32, now_secs: f64, here: Point, expected: &[&str]) {
     let options = options(
         Situation {
             plan: &plan,
-            compiled: &compiled,
+            positions: &compiled.positions,
+            route_lengths_m: &lengths_of(&compiled),
             index: 0,
             here,
             now_unix_secs: start + now_secs,
@@ -151,7 +161,8 @@ fn the_return_ends_the_plan_where_it_started() {
     let options = options(
         Situation {
             plan: &plan,
-            compiled: &compiled,
+            positions: &compiled.positions,
+            route_lengths_m: &lengths_of(&compiled),
             index: 1,
             here: Point::new(20.0, 10.0),
             now_unix_secs: plan.start_unix_secs.unwrap_or_default(),
@@ -181,7 +192,8 @@ fn each_option_is_a_plan_that_keeps_the_leg_in_force_and_compiles() {
     let options = options(
         Situation {
             plan: &plan,
-            compiled: &compiled,
+            positions: &compiled.positions,
+            route_lengths_m: &lengths_of(&compiled),
             index: 0,
             here: Point::new(5.0, 0.0),
             now_unix_secs: plan.start_unix_secs.unwrap_or_default(),
