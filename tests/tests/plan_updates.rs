@@ -26,7 +26,8 @@
 //! * Repair (item 2): a ring of mines sighted round `north` cuts the legs to and from it; with
 //!   `do="repair"` the area is taken at once with the best option (skip `north`), without it
 //!   the repair is proposed and `armor ctl repair 1` takes it (an observer's key refused);
-//!   either way the robot completes at `rally` and its true footprint never meets the ring.
+//!   either way the robot completes at `rally` and its true footprint never meets the ring;
+//!   the proposal and the update are in the run's MCAP recording (`armor-run.updates`).
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -1136,6 +1137,38 @@ mod reported {
         );
         let reported_at = report["updates"][0]["run_secs"].as_f64().unwrap();
         completed_round_the_ring(&yard, &report, &text, reported_at);
+        // The recording has them too, on the run's own channel: the proposal, then the update
+        // that took it, with the same numbers and words as the report.
+        let recorded: Vec<serde_json::Value> = armor_tests::mcap::read_mcap(&yard.recording)
+            .into_iter()
+            .filter(|((topic, _), _)| topic == "armor-run.updates")
+            .flat_map(|((_, encoding), messages)| {
+                assert_eq!(encoding, "json");
+                messages.into_iter().map(|(_, data)| {
+                    let text: serde_json::Value = serde_json::from_slice(&data).unwrap();
+                    serde_json::from_str(text["text"].as_str().unwrap()).unwrap()
+                })
+            })
+            .collect();
+        let kinds: Vec<&str> = recorded
+            .iter()
+            .map(|entry| entry["kind"].as_str().unwrap())
+            .collect();
+        assert_eq!(kinds, ["repair", "update"], "{recorded:?}");
+        assert_eq!(recorded[0]["options"], proposed["options"], "{recorded:?}");
+        assert_eq!(
+            (
+                &recorded[1]["number"],
+                &recorded[1]["taken"],
+                &recorded[1]["file"]
+            ),
+            (
+                &report["updates"][0]["number"],
+                &serde_json::Value::Bool(true),
+                &report["updates"][0]["file"]
+            ),
+            "{recorded:?}"
+        );
     }
 
     #[test]

@@ -92,6 +92,9 @@ pub struct Controller {
     updates: Vec<UpdateRecord>,
     /// The repair proposed while a leg cannot be completed.
     repair: Option<armor_protocol::Repair>,
+    /// Where every update and repair entry of the timeline goes too, as JSON (the run's node
+    /// publishes it for the recording), report or not.
+    records: Option<std::sync::mpsc::Sender<String>>,
 }
 
 /// The modules that every place of `net` runs, each with the same parameters in all: a plan's
@@ -162,6 +165,7 @@ impl Controller {
             held_since: None,
             updates: Vec::new(),
             repair: None,
+            records: None,
         };
         let at = controller.clock.now_secs();
         controller.first_marked = controller
@@ -180,6 +184,11 @@ impl Controller {
     pub fn with_hold_timeout(mut self, hold_timeout: Option<Duration>) -> Self {
         self.hold_timeout = hold_timeout;
         self
+    }
+
+    /// Sends every update and repair entry of the timeline to `records` too, as JSON.
+    pub fn set_records(&mut self, records: Option<std::sync::mpsc::Sender<String>>) {
+        self.records = records;
     }
 
     /// The enabled transitions when only an operator can fire them (and at least one is
@@ -446,6 +455,18 @@ impl Controller {
     }
 
     fn record(&mut self, kind: &str, details: serde_json::Value) {
+        if let Some(records) = &self.records
+            && matches!(kind, "update" | "repair" | "repair_applied")
+        {
+            let mut entry = json!({ "run_secs": self.clock.now_secs(), "kind": kind });
+            if let (Some(entry), serde_json::Value::Object(details)) =
+                (entry.as_object_mut(), &details)
+            {
+                entry.extend(details.clone());
+            }
+            // The node gone (the run ending) loses nothing the report does not keep.
+            let _ = records.send(entry.to_string());
+        }
         let Some(timeline) = &self.timeline else {
             return;
         };

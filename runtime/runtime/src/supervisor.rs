@@ -276,7 +276,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     let mut agent = AgentProc::start(
         options.agent_addr.map_or_else(|| local(0), Ok)?,
         secret.clone(),
-        Acl::of(&loaded.system, &observers),
+        run_acl(&loaded.system, &observers),
     )?;
     let control = controller
         .as_ref()
@@ -344,6 +344,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             },
         )
     });
+    // The updates and repairs go to the recording through the run's node.
+    if let (Some(controller), Some(progress)) = (&mut controller, &progress) {
+        controller.set_records(progress.records());
+    }
     let started = Instant::now();
     tracing::info!(
         system = loaded.system.name,
@@ -695,7 +699,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 }
             }
             Ok(ServerEvent::Reloaded(loaded)) => {
-                agent.set_acl(Acl::of(&loaded.system, &observers));
+                agent.set_acl(run_acl(&loaded.system, &observers));
                 apply_reload(&mut modules, &loaded, &env, &server);
             }
             Err(RecvTimeoutError::Timeout) => {}
@@ -862,6 +866,16 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         console::close_log();
     }
     Ok(outcome)
+}
+
+/// The system's access lists (`Acl::of`), where the run's own node, an observer, may publish
+/// its records of the plan updates and repairs, and nothing else.
+fn run_acl(system: &armor_model::SystemConfig, observers: &[String]) -> Option<Acl> {
+    let mut acl = Acl::of(system, observers)?;
+    if let Some(own) = acl.modules.get_mut(progress::NODE_NAME) {
+        own.publish = Some(vec![progress::UPDATES_DATA.to_owned()]);
+    }
+    Some(acl)
 }
 
 /// Answers a client's request with the run's status (a client gone is nothing to answer).
