@@ -4,7 +4,9 @@
 //! the edits, and the Run view draws only what the robot has taken. An update the run takes
 //! from elsewhere (an area reported) is drawn in the Run view, and followed by the Mission view
 //! unless the operator has edits of their own. An observer's key sees "Send to robot" greyed,
-//! with the reason.
+//! with the reason. A repair the mission proposes (a leg cut) is shown with each option's
+//! costs; the operator applies one, and the Run view draws the plan the run made of it; an
+//! observer sees the options' buttons greyed.
 //!
 //! The run is a stand-in on the real control interface (`armor_runtime::control::serve`, the
 //! studio's real session and link): it answers as `armor run` does, taking an update unless it
@@ -22,7 +24,8 @@ use std::time::{Duration, Instant};
 use armor_model::plan::{AreaKind, Graphic, GraphicKind, LatLon, Plan};
 use armor_module_api::auth::{Role, RoleKey, Secret};
 use armor_protocol::{
-    FileText, MissionStatus, ParamFile, Reply, Request, RunFiles, Status, UpdateRecord,
+    FileText, MissionStatus, ParamFile, Repair, RepairKind, RepairOption, Reply, Request, RunFiles,
+    Status, UpdateRecord,
 };
 use armor_studio::StudioApp;
 use armor_studio::app::View;
@@ -42,12 +45,15 @@ fn workspace() -> PathBuf {
 struct Run {
     plan: String,
     updates: Vec<UpdateRecord>,
+    /// The repair proposed, if any.
+    repair: Option<Repair>,
 }
 
 impl Run {
     /// Takes `text` as update of the plan unless it removes leg `advance`, which is in force
     /// (the words are `armor run`'s).
     fn update(&mut self, file: &str, text: &str) -> (bool, String) {
+        self.repair = None;
         let number = self.updates.len() as u32 + 1;
         let keeps_the_leg =
             Plan::parse(text).is_ok_and(|plan| plan.legs.iter().any(|leg| leg.name == "advance"));
@@ -85,6 +91,7 @@ impl Run {
                 name: "yard-recon".to_owned(),
                 marking: [("advance_drive".to_owned(), 1)].into(),
                 updates: self.updates.clone(),
+                repair: self.repair.clone(),
                 ..MissionStatus::default()
             }),
             ..Status::default()
@@ -122,6 +129,7 @@ fn stand_in_run(secret: Option<Secret>) -> (SocketAddr, Arc<Mutex<Run>>, mpsc::R
     let run = Arc::new(Mutex::new(Run {
         plan: std::fs::read_to_string(workspace().join("missions/robot/plan-yard.xml")).unwrap(),
         updates: Vec::new(),
+        repair: None,
     }));
     let (incoming, requests) = mpsc::channel::<armor_runtime::control::Incoming>();
     let addr =
@@ -142,6 +150,23 @@ fn stand_in_run(secret: Option<Secret>) -> (SocketAddr, Arc<Mutex<Run>>, mpsc::R
                 Request::Update { file, text } => {
                     let _ = asked.send(text.clone());
                     let (ok, message) = run.update(&file, &text);
+                    Reply {
+                        ok,
+                        message,
+                        status: Some(run.status()),
+                        files: None,
+                    }
+                }
+                // Option 2 skips leg `climb`, as the repair below proposes it.
+                Request::Repair { option } => {
+                    let _ = asked.send(format!("repair {option}"));
+                    let (ok, message) = match (&run.repair, option) {
+                        (Some(_), 2) => {
+                            let text = without_climb(&run.plan);
+                            run.update("repair option 2", &text)
+                        }
+                        _ => (false, format!("no option {option}")),
+                    };
                     Reply {
                         ok,
                         message,
@@ -243,7 +268,8 @@ fn an_edit_sent_while_the_plan_runs_is_taken_or_refused_and_nothing_is_lost() {
 
     // Sent: the run takes it, and says so until dismissed.
     harness.get_by_label(SEND).click();
-    harness.run();
+    // The spinner repaints while the answer is awaited: frames, not `run`.
+    harness.step();
     let sent = asked.recv_timeout(PATIENCE).unwrap();
     assert_eq!(waypoint(&Plan::parse(&sent).unwrap(), "north").lon_deg, {
         let text = harness.state().mission().unwrap().plan().to_xml();
@@ -279,16 +305,11 @@ fn an_edit_sent_while_the_plan_runs_is_taken_or_refused_and_nothing_is_lost() {
     click(&mut harness, home);
     harness.key_press(Key::Delete);
     harness.run();
-    let legs = |plan: &Plan| {
-        plan.legs
-            .iter()
-            .map(|leg| leg.name.clone())
-            .collect::<Vec<_>>()
-    };
     let edited = legs(harness.state().mission().unwrap().plan());
     assert!(!edited.contains(&"advance".to_owned()), "{edited:?}");
     harness.get_by_label(SEND).click();
-    harness.run();
+    // The spinner repaints while the answer is awaited: frames, not `run`.
+    harness.step();
     asked.recv_timeout(PATIENCE).unwrap();
     step_until(&mut harness, "the refusal", |app| {
         app.run()
@@ -424,7 +445,8 @@ fn an_observer_sees_send_greyed_with_the_reason_and_sends_nothing() {
         std::fs::write(&key_file, key.to_line()).unwrap();
         std::fs::set_permissions(&key_file, std::fs::Permissions::from_mode(0o600)).unwrap();
     }
-    let (control, _run, asked) = stand_in_run(Some(secret));
+    let (control, run, asked) = stand_in_run(Some(secret));
+    run.lock().unwrap().repair = Some(climb_cut());
     let mut harness = attached(dir.path(), control, Some(&key_file));
     let from = on_screen(&harness, "north");
     drag(&mut harness, from, from - egui::vec2(40.0, 0.0));
@@ -439,4 +461,107 @@ fn an_observer_sees_send_greyed_with_the_reason_and_sends_nothing() {
     harness.run_steps(30);
     assert!(asked.recv_timeout(Duration::from_millis(500)).is_err());
     assert!(harness.state().run().updates.answer.is_none());
+
+    // The repair's options, shown, their buttons greyed.
+    harness.state_mut().set_view(View::Run);
+    harness.run();
+    harness.get_by_label("Leg `climb` cannot be completed");
+    for apply in ["Apply 1", "Apply 2"] {
+        assert!(
+            harness.get_by_label(apply).accesskit_node().is_disabled(),
+            "{apply} for an observer"
+        );
+    }
+    let apply = harness.get_by_label("Apply 2").rect().center();
+    click(&mut harness, apply);
+    harness.run_steps(30);
+    assert!(asked.recv_timeout(Duration::from_millis(500)).is_err());
+}
+
+fn legs(plan: &Plan) -> Vec<String> {
+    plan.legs.iter().map(|leg| leg.name.clone()).collect()
+}
+
+/// The plan `text` without leg `climb`: `regroup` leaves from `east` (the repair's skip).
+fn without_climb(text: &str) -> String {
+    let mut plan = Plan::parse(text).unwrap();
+    plan.legs.retain(|leg| leg.name != "climb");
+    for leg in &mut plan.legs {
+        if leg.name == "regroup" {
+            leg.from = "east".to_owned();
+        }
+    }
+    plan.to_xml()
+}
+
+/// What `armor run` proposes when a no-go area reported cuts leg `climb`.
+fn climb_cut() -> Repair {
+    Repair {
+        run_secs: 11.0,
+        leg: "climb".to_owned(),
+        why: "no-go area `cut` cuts leg `climb`".to_owned(),
+        options: vec![
+            RepairOption {
+                number: 1,
+                kind: RepairKind::WayRound,
+                summary: "round through `rally`, then `north`".to_owned(),
+                via: vec!["rally".to_owned()],
+                distance_m: 61.0,
+                duration_secs: Some(150.0),
+                deadlines_missed: vec![
+                    "leg `regroup` due by 08:06:00, arrives 08:06:40".to_owned(),
+                ],
+                ..RepairOption::default()
+            },
+            RepairOption {
+                number: 2,
+                kind: RepairKind::Skip,
+                summary: "skip `north`: from `east` on to `rally`".to_owned(),
+                legs_dropped: vec!["climb".to_owned()],
+                distance_m: 34.0,
+                duration_secs: Some(75.0),
+                ..RepairOption::default()
+            },
+        ],
+        default_option: None,
+    }
+}
+
+#[test]
+fn a_repair_proposed_is_shown_with_its_costs_and_the_option_applied_is_drawn() {
+    let dir = tempfile::tempdir().unwrap();
+    let (control, run, asked) = stand_in_run(None);
+    run.lock().unwrap().repair = Some(climb_cut());
+    let mut harness = attached(dir.path(), control, None);
+    harness.state_mut().set_view(View::Run);
+    harness.run();
+    harness.get_by_label("Leg `climb` cannot be completed");
+    harness.get_by_label("no-go area `cut` cuts leg `climb`");
+    harness.get_by_label("The mission holds until you choose an option (or send a plan).");
+    harness.get_by_label("way round: round through `rally`, then `north`");
+    harness.get_by_label(
+        "61 m left to drive · 2 min 30 s · misses: leg `regroup` due by 08:06:00, arrives 08:06:40",
+    );
+    harness
+        .get_by_label("34 m left to drive · 1 min 15 s · gives up `climb` · meets every deadline");
+
+    harness.get_by_label("Apply 2").click();
+    // The spinner repaints while the answer is awaited: frames, not `run`.
+    harness.step();
+    assert_eq!(asked.recv_timeout(PATIENCE).unwrap(), "repair 2");
+    step_until(&mut harness, "the repaired plan drawn", |app| {
+        app.mission()
+            .is_some_and(|mission| !legs(mission.watched_plan()).contains(&"climb".to_owned()))
+    });
+    harness.get_by_label("✔ Taken by the robot");
+    assert!(
+        harness
+            .query_by_label("Leg `climb` cannot be completed")
+            .is_none(),
+        "the repair is no longer proposed"
+    );
+    // The Mission view had no edits: it follows the plan the run made.
+    let mission = harness.state().mission().unwrap();
+    assert_eq!(legs(mission.plan()), ["advance", "cross", "regroup"]);
+    harness.get_by_label("Plan updates (1)");
 }

@@ -542,12 +542,14 @@ impl MissionView {
 
     /// Replaces the plan edited with `plan` as an edit (undone by Undo): the robot's plan,
     /// taken back over the operator's edits, or followed when there were none. `what` names
-    /// the change in the undo history.
+    /// the change in the undo history. Applied at once, not after the Mission view's next
+    /// frame: the Run view, shown meanwhile, compares the plan edited with the robot's.
     pub fn take_plan(&mut self, plan: Plan, what: &str) {
         self.commands.push(PlanCommand::Change {
             plan: Box::new(plan),
             field: what.to_owned(),
         });
+        self.apply_commands();
     }
 
     /// The screen rectangle of the map, as drawn last frame.

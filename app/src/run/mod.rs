@@ -966,6 +966,10 @@ impl RunView {
         if let Some(summary) = self.followed.summary().filter(|_| running) {
             ui.label(format!("Path: {summary}"));
         }
+        if let Some(option) = self.repair_ui(ui, mission) {
+            requests.push(Request::Repair { option });
+            self.updates.sending = true;
+        }
         if !mission.enabled.is_empty() {
             ui.label(RichText::new("Next").strong());
         }

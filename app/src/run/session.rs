@@ -116,7 +116,8 @@ pub struct Shared {
     pub running_plan: Option<RunningPlan>,
 }
 
-/// The run's answer to a plan update the studio sent ([`RunSession::send_update`]).
+/// The run's answer to a plan update the studio sent ([`RunSession::send_update`]) or a repair
+/// option it chose ([`RunSession::repair`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct UpdateAnswer {
     /// Whether the run took it; `false` when it refused it, and when no answer came (the
@@ -124,8 +125,8 @@ pub struct UpdateAnswer {
     pub taken: bool,
     /// The run's words (`update 3 taken: …`, `update 4 refused: …`), or why there is none.
     pub message: String,
-    /// The plan sent.
-    pub text: String,
+    /// The plan sent; none for a repair (the run makes its plan).
+    pub text: Option<String>,
 }
 
 /// The plan a run plays, as it sent it ([`Request::Files`]) after reporting an update taken.
@@ -316,6 +317,12 @@ impl RunSession {
     /// [`Shared::update_answers`].
     pub fn send_update(&self, file: String, text: String) {
         let _ = self.requests.send(Request::Update { file, text });
+    }
+
+    /// Applies option `option` of the repair the mission proposes (`armor ctl repair N`): an
+    /// update the run makes; its answer shows in [`Shared::update_answers`].
+    pub fn repair(&self, option: u32) {
+        let _ = self.requests.send(Request::Repair { option });
     }
 
     /// Drives the robot through the run's control interface, which relays to its teleop
@@ -635,11 +642,11 @@ fn poll_control(
             Ok(reply) => {
                 shared_now.connection_lost = None;
                 match (&request, plan_after) {
-                    (Request::Update { text, .. }, _) => {
+                    (Request::Update { .. } | Request::Repair { .. }, _) => {
                         shared_now.update_answers.push(UpdateAnswer {
                             taken: reply.ok,
                             message: reply.message,
-                            text: text.clone(),
+                            text: sent_plan(&request),
                         });
                     }
                     (_, Some(after_update)) => {
@@ -714,14 +721,16 @@ fn poll_control(
                 match &request {
                     // The run may have taken it before the link broke: its list of updates
                     // says, once the link is back.
-                    Request::Update { text, .. } => shared_now.update_answers.push(UpdateAnswer {
-                        taken: false,
-                        message: format!(
-                            "no answer from the run ({err:#}): whether it took the update, \
-                             its list of updates will say once the link is back"
-                        ),
-                        text: text.clone(),
-                    }),
+                    Request::Update { .. } | Request::Repair { .. } => {
+                        shared_now.update_answers.push(UpdateAnswer {
+                            taken: false,
+                            message: format!(
+                                "no answer from the run ({err:#}): whether it took the update, \
+                                 its list of updates will say once the link is back"
+                            ),
+                            text: sent_plan(&request),
+                        });
+                    }
                     _ if !is_status => shared_now.replies.push((false, format!("{err:#}"))),
                     _ => {}
                 }
@@ -734,6 +743,14 @@ fn poll_control(
         }
         drop(shared_now);
         ctx.request_repaint();
+    }
+}
+
+/// The plan an update request sends, if it sends one.
+fn sent_plan(request: &Request) -> Option<String> {
+    match request {
+        Request::Update { text, .. } => Some(text.clone()),
+        _ => None,
     }
 }
 

@@ -7,7 +7,7 @@
 //! for again and drawn.
 
 use armor_model::plan::Plan;
-use armor_protocol::{MissionStatus, UpdateRecord};
+use armor_protocol::{MissionStatus, RepairOption, UpdateRecord};
 use egui::{Color32, RichText, Ui};
 
 use super::session::UpdateAnswer;
@@ -181,6 +181,34 @@ fn record_ui(ui: &mut Ui, update: &UpdateRecord) {
         .on_hover_text(&update.message);
 }
 
+/// An option's costs in words: the distance and time left, the legs it gives up, the
+/// deadlines it misses.
+fn costs(option: &RepairOption) -> String {
+    let mut parts = vec![format!("{:.0} m left to drive", option.distance_m)];
+    parts.push(match option.duration_secs {
+        Some(secs) if secs >= 60.0 => {
+            let whole = secs.round() as u64;
+            format!("{} min {} s", whole / 60, whole % 60)
+        }
+        Some(secs) => format!("{secs:.0} s"),
+        None => "for as long as it takes".to_owned(),
+    });
+    if !option.legs_dropped.is_empty() {
+        let legs: Vec<String> = option
+            .legs_dropped
+            .iter()
+            .map(|leg| format!("`{leg}`"))
+            .collect();
+        parts.push(format!("gives up {}", legs.join(", ")));
+    }
+    parts.push(if option.deadlines_missed.is_empty() {
+        "meets every deadline".to_owned()
+    } else {
+        format!("misses: {}", option.deadlines_missed.join("; "))
+    });
+    parts.join(" · ")
+}
+
 pub fn taken_colour() -> Color32 {
     state_colour(armor_protocol::ModuleState::Running)
 }
@@ -222,8 +250,10 @@ impl super::RunView {
         let mut changed_by: Option<Option<u32>> = None;
         for answer in answers {
             self.updates.sending = false;
-            if answer.taken {
-                match RunPlan::of_text(&answer.text, "the plan sent") {
+            if answer.taken
+                && let Some(text) = &answer.text
+            {
+                match RunPlan::of_text(text, "the plan sent") {
                     Ok(plan) => {
                         self.updates.set_run_plan(plan);
                         changed_by = Some(None);
@@ -404,6 +434,63 @@ impl super::RunView {
         {
             self.updates.answer = None;
         }
+    }
+
+    /// The repair the mission proposes while a leg cannot be completed as planned: why, each
+    /// option with its costs and the button that applies it (`armor ctl repair N`; greyed, with
+    /// the reason, for an observer's key). Returns the option chosen.
+    pub(super) fn repair_ui(&mut self, ui: &mut Ui, mission: &MissionStatus) -> Option<u32> {
+        let repair = mission.repair.as_ref()?;
+        let may_command = self.may_command();
+        let running = self.is_running() && mission.outcome.is_none();
+        let may = running && may_command && !self.updates.sending;
+        let why_not = if !may_command {
+            "attached with an observer's key: a repair needs an operator's"
+        } else if !running {
+            "the run is over"
+        } else {
+            "waiting for the run's answer to the update sent"
+        };
+        let warn = ui.visuals().warn_fg_color;
+        let mut chosen = None;
+        egui::Frame::group(ui.style())
+            .stroke(egui::Stroke::new(1.5, warn))
+            .show(ui, |ui| {
+                ui.label(
+                    RichText::new(format!("Leg `{}` cannot be completed", repair.leg))
+                        .strong()
+                        .color(warn),
+                );
+                ui.label(&repair.why);
+                ui.label(
+                    RichText::new(match repair.default_option {
+                        Some(number) => format!("The plan applies option {number} by itself."),
+                        None => "The mission holds until you choose an option (or send a plan)."
+                            .to_owned(),
+                    })
+                    .small(),
+                );
+                for option in &repair.options {
+                    ui.horizontal_wrapped(|ui| {
+                        let apply = ui
+                            .add_enabled(may, egui::Button::new(format!("Apply {}", option.number)))
+                            .on_hover_text(format!(
+                                "armor ctl repair {}: the run takes it as a plan update",
+                                option.number
+                            ))
+                            .on_disabled_hover_text(why_not);
+                        if apply.clicked() {
+                            chosen = Some(option.number);
+                        }
+                        ui.label(
+                            RichText::new(format!("{}: {}", option.kind.as_str(), option.summary))
+                                .strong(),
+                        );
+                    });
+                    ui.label(RichText::new(costs(option)).small());
+                }
+            });
+        chosen
     }
 
     /// The Run view's section on plan updates: the answer to the operator's last one, the
