@@ -533,6 +533,9 @@ fn a_repair_proposed_is_shown_with_its_costs_and_the_option_applied_is_drawn() {
     let (control, run, asked) = stand_in_run(None);
     run.lock().unwrap().repair = Some(climb_cut());
     let mut harness = attached(dir.path(), control, None);
+    // The Mission view's bar points to the Run view.
+    harness
+        .get_by_label_contains("Leg `climb` cannot be completed: the Run view lists the repairs");
     harness.state_mut().set_view(View::Run);
     harness.run();
     harness.get_by_label("Leg `climb` cannot be completed");

@@ -420,6 +420,20 @@ impl super::RunView {
                 ui.label("The plan shown is the one the robot runs.");
             }
         });
+        let repair = self
+            .status()
+            .and_then(|status| status.mission)
+            .and_then(|mission| mission.repair);
+        if let Some(repair) = repair {
+            ui.label(
+                RichText::new(format!(
+                    "Leg `{}` cannot be completed: the Run view lists the repairs proposed, or \
+                     send a plan.",
+                    repair.leg
+                ))
+                .color(ui.visuals().warn_fg_color),
+            );
+        }
         if let (Some(number), true) = (self.updates.changed_under_edits, differs) {
             ui.label(
                 RichText::new(format!(
