@@ -73,6 +73,13 @@ pub enum Request {
     Link {
         lost: bool,
     },
+    /// Apply option `option` (numbered from 1) of the repair the mission proposes
+    /// ([`crate::Repair`], in the status's `mission.repair`): `armor ctl repair N`. Each option is
+    /// a plan update the run takes as it takes `Update` (`docs/plans.md`, "Repair"); refused
+    /// when nothing is proposed or the number is not one of the options.
+    Repair {
+        option: u32,
+    },
 }
 
 /// The largest plan `armor ctl update` sends: a request, with its JSON escapes, must fit in

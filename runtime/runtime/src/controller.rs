@@ -94,6 +94,11 @@ pub struct Controller {
     link_lost_since: Option<f64>,
     /// The `link.lost.SECS` already reported in this outage, by their seconds.
     link_reported: BTreeSet<u32>,
+    /// The repair proposed while a leg cannot be completed.
+    repair: Option<armor_protocol::Repair>,
+    /// Where every update and repair entry of the timeline goes too, as JSON (the run's node
+    /// publishes it for the recording), report or not.
+    records: Option<std::sync::mpsc::Sender<String>>,
 }
 
 /// The modules that every place of `net` runs, each with the same parameters in all: a plan's
@@ -165,6 +170,8 @@ impl Controller {
             updates: Vec::new(),
             link_lost_since: None,
             link_reported: BTreeSet::new(),
+            repair: None,
+            records: None,
         };
         let at = controller.clock.now_secs();
         controller.first_marked = controller
@@ -183,6 +190,11 @@ impl Controller {
     pub fn with_hold_timeout(mut self, hold_timeout: Option<Duration>) -> Self {
         self.hold_timeout = hold_timeout;
         self
+    }
+
+    /// Sends every update and repair entry of the timeline to `records` too, as JSON.
+    pub fn set_records(&mut self, records: Option<std::sync::mpsc::Sender<String>>) {
+        self.records = records;
     }
 
     /// The enabled transitions when only an operator can fire them (and at least one is
@@ -350,6 +362,33 @@ impl Controller {
         Ok(number)
     }
 
+    /// Gives the mission `net`, the one it plays with other parameters (a leg's path planned
+    /// again from where the robot is, before the operator's retry): the marking, the timers
+    /// and the events latched go on; the modules are told when the next firing enters a place.
+    pub fn reroute(&mut self, net: MissionNet) -> Result<(), String> {
+        let now = self.clock.now_secs();
+        self.engine = Engine::resume(&net, &self.engine.marking(), &self.engine, true, now)
+            .map_err(|err| format!("the net cannot go on with the new path: {err}"))?;
+        self.net = net;
+        Ok(())
+    }
+
+    /// The repair proposed (shown in the status), or none.
+    pub fn set_repair(&mut self, repair: Option<armor_protocol::Repair>) {
+        if let Some(repair) = &repair {
+            self.record(
+                "repair",
+                serde_json::to_value(repair).unwrap_or(serde_json::Value::Null),
+            );
+        }
+        self.repair = repair;
+    }
+
+    /// Records in the timeline what became of a repair (an option applied, or why not).
+    pub fn note_repair(&mut self, details: serde_json::Value) {
+        self.record("repair_applied", details);
+    }
+
     /// Records a plan update refused, with `why`; the mission goes on unchanged. Its number is
     /// returned.
     pub fn refuse_update(&mut self, file: &str, why: &str) -> u32 {
@@ -425,6 +464,18 @@ impl Controller {
     }
 
     fn record(&mut self, kind: &str, details: serde_json::Value) {
+        if let Some(records) = &self.records
+            && matches!(kind, "update" | "repair" | "repair_applied")
+        {
+            let mut entry = json!({ "run_secs": self.clock.now_secs(), "kind": kind });
+            if let (Some(entry), serde_json::Value::Object(details)) =
+                (entry.as_object_mut(), &details)
+            {
+                entry.extend(details.clone());
+            }
+            // The node gone (the run ending) loses nothing the report does not keep.
+            let _ = records.send(entry.to_string());
+        }
         let Some(timeline) = &self.timeline else {
             return;
         };
@@ -694,6 +745,7 @@ impl Controller {
                 .as_ref()
                 .map(|outcome| outcome.as_str().to_owned()),
             updates: self.updates.clone(),
+            repair: self.repair.clone(),
         }
     }
 
@@ -744,6 +796,7 @@ impl Controller {
             | Request::SetPose { .. }
             | Request::Update { .. }
             | Request::Area { .. }
+            | Request::Repair { .. }
             | Request::Files => (false, "not a mission request".to_owned()),
             Request::Link { lost } => self.on_link(lost, server),
             Request::Pause if self.paused => (false, "already paused".to_owned()),

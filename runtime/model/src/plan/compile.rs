@@ -1223,7 +1223,8 @@ impl<'a> Builder<'a> {
         let origin = || Origin::Leg(index);
         match response {
             Response::Skip | Response::Continue => self.entry(index + 1),
-            Response::Hold => {
+            // A repair holds as a hold does: the run applies the repair's default from there.
+            Response::Hold | Response::Repair => {
                 let hold = format!("{name}_hold");
                 if !self.trace.contains_key(&hold) {
                     self.place(&hold, origin(), leg.pos, Vec::new(), Vec::new());

@@ -55,6 +55,7 @@ pub mod kml;
 pub mod migrate;
 pub mod objectives;
 pub mod qgc;
+pub mod repair;
 mod xml;
 
 pub use crate::geo::LatLon;
@@ -387,6 +388,10 @@ pub enum Response {
     Return { waypoint: String },
     /// Go on as if nothing happened (only for `late`: the net records that the robot was late).
     Continue,
+    /// Only for `blocked`: hold as [`Response::Hold`] does (the net is the same), and the run
+    /// applies at once the best option of the repair it computes ([`repair`]: a way round,
+    /// skipping the leg, returning), the operator free to choose another or to override.
+    Repair,
 }
 
 /// A tactical graphic: a line or an area with a meaning, drawn on the map.

@@ -383,6 +383,7 @@ fn write_contingency(out: &mut String, indent: &str, contingency: &Contingency) 
         Response::Skip => "skip".to_owned(),
         Response::Hold => "hold".to_owned(),
         Response::Continue => "continue".to_owned(),
+        Response::Repair => "repair".to_owned(),
         Response::Return { waypoint } => format!("return\" waypoint=\"{}", escape(waypoint)),
     };
     let _ = writeln!(out, "{indent}<contingency on=\"{on}\" do=\"{response}\"/>");
@@ -894,6 +895,16 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             Some(Response::Skip)
         }
         Some(("hold", _)) => Some(Response::Hold),
+        Some(("repair", pos)) => {
+            if trigger.is_some() && trigger != Some(Trigger::Blocked) {
+                p.push(Located::new(
+                    pos,
+                    "`repair` is only for on=\"blocked\": the run repairs a leg that cannot be \
+                     completed (use skip, hold or return)",
+                ));
+            }
+            Some(Response::Repair)
+        }
         Some(("continue", pos)) => {
             if trigger.is_some()
                 && !matches!(trigger, Some(Trigger::Late | Trigger::LinkLost { .. }))
@@ -927,7 +938,9 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
         Some((other, pos)) => {
             p.push(Located::new(
                 pos,
-                format!("`do` must be `skip`, `hold`, `return` or `continue`, not `{other}`"),
+                format!(
+                    "`do` must be `skip`, `hold`, `return`, `continue` or `repair`, not `{other}`"
+                ),
             ));
             None
         }
