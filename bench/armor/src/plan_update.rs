@@ -6,8 +6,11 @@
 //! work an update cannot do without.
 //!
 //! The follower must not stop for an update: its commanded speed (`follower.cmd_desired`,
-//! recorded) stays above zero from each update sent to its answer; `cmd_stopped_during_updates`
-//! counts the commands at zero in those spans (0 expected), `cmd_during_updates` all of them.
+//! recorded) stays above zero from each update sent to its answer: `cmd_stopped_during_updates`
+//! counts the commands in those spans that stop the robot (no speed and no turn: 0 expected),
+//! `cmd_during_updates` all of them, and the `_between_updates` counts the same between the
+//! updates. A command with no forward speed but a turn is the follower turning in place at a
+//! sharp corner of its path, which it does whether an update is under way or not.
 
 use std::path::Path;
 use std::process::Command;
@@ -185,7 +188,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     // The mission never ends here: SIGTERM stops it unfinished, which `armor run` says with a
     // failure status; the recording is saved all the same.
     let _ = status;
-    let (during, stopped) = commands_in(&recording, &spans)?;
+    let [during, stopped, between, stopped_between] = commands_in(&recording, &spans)?;
     ensure!(
         during > 0,
         "no command of the follower was recorded during the updates"
@@ -199,6 +202,8 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
         .with("updates", rounds)
         .with("cmd_during_updates", during)
         .with("cmd_stopped_during_updates", stopped)
+        .with("cmd_between_updates", between)
+        .with("cmd_stopped_between_updates", stopped_between)
         .with(
             "goal",
             "p99 < 200 ms, and no command at zero during an update",
@@ -245,34 +250,41 @@ fn moved_plan(plan: &Plan, origin: LatLon, north_m: f64) -> anyhow::Result<Strin
     Ok(moved.to_xml())
 }
 
-/// How many of the follower's recorded commands fall in `spans` (run seconds), and how many
-/// of those command no speed at all.
-fn commands_in(recording: &Path, spans: &[(f64, f64)]) -> anyhow::Result<(usize, usize)> {
+/// The follower's recorded commands from the first span on: how many fall in `spans` (run
+/// seconds), how many of those stop the robot (no speed, no turn), and the same two counts
+/// outside the spans, for comparison.
+fn commands_in(recording: &Path, spans: &[(f64, f64)]) -> anyhow::Result<[usize; 4]> {
     let bytes = std::fs::read(recording)
         .with_context(|| format!("cannot read the recording {}", recording.display()))?;
-    let mut during = 0;
-    let mut stopped = 0;
+    // [in a span, of those at zero, outside, of those at zero]
+    let mut counts = [0; 4];
+    let first = spans.first().map_or(0.0, |&(from, _)| from);
+    let last = spans.last().map_or(0.0, |&(_, to)| to);
     for message in mcap::MessageStream::new(&bytes).context("the recording is not MCAP")? {
         let message = message.context("a message of the recording")?;
         if message.channel.topic != "follower.cmd_desired" {
             continue;
         }
         let at_secs = message.log_time as f64 / 1e9;
-        if !spans
-            .iter()
-            .any(|&(from, to)| at_secs >= from && at_secs <= to)
-        {
+        if at_secs < first || at_secs > last {
             continue;
         }
+        let inside = spans
+            .iter()
+            .any(|&(from, to)| at_secs >= from && at_secs <= to);
         let twist: serde_json::Value = serde_json::from_slice(&message.data)
             .context("a command of the recording is not JSON")?;
-        let Some(linear) = twist["linear_mps"].as_f64() else {
-            bail!("a command of the recording has no linear_mps: {twist}");
+        let (Some(linear), Some(angular)) = (
+            twist["linear_mps"].as_f64(),
+            twist["angular_radps"].as_f64(),
+        ) else {
+            bail!("a command of the recording is not a Twist: {twist}");
         };
-        during += 1;
-        if linear <= 0.0 {
-            stopped += 1;
+        let at = if inside { 0 } else { 2 };
+        counts[at] += 1;
+        if linear <= 0.0 && angular == 0.0 {
+            counts[at + 1] += 1;
         }
     }
-    Ok((during, stopped))
+    Ok(counts)
 }
