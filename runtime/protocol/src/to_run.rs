@@ -73,6 +73,13 @@ pub enum Request {
     Repair {
         option: u32,
     },
+    /// The team bridge (`armor-team robot`) says that the robot's link to its operator is lost
+    /// (no operator's beat for a while) or found again. A plan's `link_lost` contingency
+    /// answers it on the robot (`docs/team.md`); an operator's request, since a role that only
+    /// reads must not make the robot hold.
+    Link {
+        lost: bool,
+    },
 }
 
 /// The largest plan `armor ctl update` sends: a request, with its JSON escapes, must fit in

@@ -358,6 +358,11 @@ pub enum Trigger {
     /// The battery runs low: the module that models or measures it (`sim` unless named) reports
     /// `low_battery`. Its response is to return to where the plan starts unless it says.
     LowBattery { module: String },
+    /// The robot has not heard its operator for `after_secs` (run time): the team bridge
+    /// (`armor-team robot`) tells the run when the radio link is lost and found again, and the
+    /// run reports `link.lost.AFTER_SECS` once per outage (`docs/team.md`). Without such a
+    /// contingency the mission goes on.
+    LinkLost { after_secs: u32 },
 }
 
 impl Trigger {
@@ -368,6 +373,7 @@ impl Trigger {
             Trigger::Late => "late".into(),
             Trigger::Lost { module } => format!("lost (module `{module}`)"),
             Trigger::LowBattery { module } => format!("low_battery (module `{module}`)"),
+            Trigger::LinkLost { after_secs } => format!("link_lost (after {after_secs} s)"),
         }
     }
 }

@@ -374,6 +374,10 @@ fn write_contingency(out: &mut String, indent: &str, contingency: &Contingency) 
         Trigger::Lost { module } => format!("lost\" module=\"{}", escape(module)),
         Trigger::LowBattery { module } if module == DEFAULT_BATTERY => "low_battery".to_owned(),
         Trigger::LowBattery { module } => format!("low_battery\" module=\"{}", escape(module)),
+        Trigger::LinkLost { after_secs } if *after_secs == DEFAULT_LINK_LOST_AFTER_SECS => {
+            "link_lost".to_owned()
+        }
+        Trigger::LinkLost { after_secs } => format!("link_lost\" after_secs=\"{after_secs}"),
     };
     let response = match &contingency.response {
         Response::Skip => "skip".to_owned(),
@@ -791,8 +795,12 @@ pub const DEFAULT_LOCALISER: &str = "localiser";
 /// models the battery.
 pub const DEFAULT_BATTERY: &str = "sim";
 
+/// How long a robot goes without hearing its operator before a `link_lost` contingency
+/// answers, when it says nothing (PX4's data link loss timeout is 10 s too).
+pub const DEFAULT_LINK_LOST_AFTER_SECS: u32 = 10;
+
 fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingency> {
-    p.extend(element.unknown_attrs(&["on", "module", "do", "waypoint"]));
+    p.extend(element.unknown_attrs(&["on", "module", "do", "waypoint", "after_secs"]));
     no_children(element, p);
     no_text(element, p);
     let on = required(element, "on", p);
@@ -825,18 +833,43 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             };
             module.map(|module| Trigger::LowBattery { module })
         }
+        Some(("link_lost", _)) => match element.attr("after_secs") {
+            None => Some(Trigger::LinkLost {
+                after_secs: DEFAULT_LINK_LOST_AFTER_SECS,
+            }),
+            Some(field) => match field.value.trim().parse::<u32>() {
+                Ok(after_secs) if after_secs >= 1 => Some(Trigger::LinkLost { after_secs }),
+                _ => {
+                    p.push(Located::new(
+                        field.pos,
+                        format!(
+                            "`after_secs` must be a whole number of seconds, 1 or more, not `{}`",
+                            field.value
+                        ),
+                    ));
+                    None
+                }
+            },
+        },
         Some((other, pos)) => {
             p.push(Located::new(
                 pos,
                 format!(
-                    "`on` must be `blocked`, `failed`, `late`, `lost` or `low_battery`, not \
-                     `{other}`"
+                    "`on` must be `blocked`, `failed`, `late`, `lost`, `low_battery` or \
+                     `link_lost`, not `{other}`"
                 ),
             ));
             None
         }
         None => None,
     };
+    let link_lost = on.is_some_and(|field| field.value.trim() == "link_lost");
+    if !link_lost && let Some(after) = element.attr("after_secs") {
+        p.push(Located::new(
+            after.pos,
+            "`after_secs` is only for on=\"link_lost\" (how long without the operator)",
+        ));
+    }
     if trigger.is_some()
         && !matches!(
             trigger,
@@ -851,7 +884,16 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
         ));
     }
     let response = match response.map(|field| (field.value.trim(), field.pos)) {
-        Some(("skip", _)) => Some(Response::Skip),
+        Some(("skip", pos)) => {
+            if link_lost {
+                p.push(Located::new(
+                    pos,
+                    "`skip` is not for on=\"link_lost\": losing the radio says nothing of the leg \
+                     (use continue, hold or return)",
+                ));
+            }
+            Some(Response::Skip)
+        }
         Some(("hold", _)) => Some(Response::Hold),
         Some(("repair", pos)) => {
             if trigger.is_some() && trigger != Some(Trigger::Blocked) {
@@ -864,11 +906,13 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             Some(Response::Repair)
         }
         Some(("continue", pos)) => {
-            if trigger.is_some() && trigger != Some(Trigger::Late) {
+            if trigger.is_some()
+                && !matches!(trigger, Some(Trigger::Late | Trigger::LinkLost { .. }))
+            {
                 p.push(Located::new(
                     pos,
-                    "`continue` is only for on=\"late\": a blocked robot or a failed module does \
-                     not go on by itself (use skip, hold or return)",
+                    "`continue` is only for on=\"late\" and on=\"link_lost\": a blocked robot or a \
+                     failed module does not go on by itself (use skip, hold or return)",
                 ));
             }
             Some(Response::Continue)
