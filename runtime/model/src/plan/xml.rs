@@ -1509,7 +1509,7 @@ mod tests {
             "5:24: expected a number of seconds, 0 or more",
             "6:5: <arrival> needs `until`",
             "7:5: <during> runs no module",
-            "8:18: `on` must be `blocked`, `failed`, `late`, `lost` or `low_battery`, not `tired`",
+            "8:18: `on` must be `blocked`, `failed`, `late`, `lost`, `low_battery` or `link_lost`, not `tired`",
             "8:29: `do` must be `skip`, `hold`, `return`, `continue` or `repair`, not `panic`",
             "10:18: `kind` must be one of no-go, objective, assembly, named, not `swamp`",
             "10:31: `margin_m` must be a distance in metres",
