@@ -701,6 +701,16 @@ mod reported {
         points.iter().map(|(x, y)| format!("{x},{y}")).collect()
     }
 
+    /// The yard plan `text` where the observer, looking round at the gate, sights the area
+    /// `name` at `points` and reports it.
+    fn sighting(text: &str, name: &str, points: &[(f64, f64)]) -> String {
+        let sighted = format!(
+            "<param name=\"sector_deg\" value=\"360\"/>\n        <param name=\"sighted\" value=\"{name} {}\"/>",
+            corners(points).join(" ")
+        );
+        edited(text, "<param name=\"sector_deg\" value=\"360\"/>", &sighted)
+    }
+
     /// `armor ctl --secret SECRET area NAME CORNER…`: whether it was taken, and what it said.
     fn area(addr: &str, secret: &Path, name: &str, points: &[(f64, f64)]) -> (bool, String) {
         let corners = corners(points);
@@ -901,15 +911,7 @@ mod reported {
     fn an_area_reported_by_a_module_is_taken_and_driven_round() {
         let yard = Yard::new();
         // The observer, looking round at the gate, sights a minefield in the gap.
-        let sighted = format!(
-            "<param name=\"sector_deg\" value=\"360\"/>\n        <param name=\"sighted\" value=\"mines {}\"/>",
-            corners(&GAP).join(" ")
-        );
-        let text = edited(
-            &yard.plan_text,
-            "<param name=\"sector_deg\" value=\"360\"/>",
-            &sighted,
-        );
+        let text = sighting(&yard.plan_text, "mines", &GAP);
         let _one = ONE_ROBOT_AT_A_TIME
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
@@ -1084,16 +1086,8 @@ mod reported {
         let yard = Yard::new();
         // The plan repairs by itself; the observer, looking round at the gate, sights a ring
         // of mines round `north`.
-        let sighted = format!(
-            "<param name=\"sector_deg\" value=\"360\"/>\n        <param name=\"sighted\" value=\"ring {}\"/>",
-            corners(&RING).join(" ")
-        );
         let text = edited(
-            &edited(
-                &yard.plan_text,
-                "<param name=\"sector_deg\" value=\"360\"/>",
-                &sighted,
-            ),
+            &sighting(&yard.plan_text, "ring", &RING),
             "<contingency on=\"blocked\" do=\"hold\"/>",
             "<contingency on=\"blocked\" do=\"repair\"/>",
         );

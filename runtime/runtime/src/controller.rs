@@ -90,15 +90,15 @@ pub struct Controller {
     held_since: Option<Instant>,
     /// The plan updates asked for, taken or refused, numbered from 1.
     updates: Vec<UpdateRecord>,
-    /// Since when (run seconds) the team bridge says the operator's link is lost.
-    link_lost_since: Option<f64>,
-    /// The `link.lost.SECS` already reported in this outage, by their seconds.
-    link_reported: BTreeSet<u32>,
     /// The repair proposed while a leg cannot be completed.
     repair: Option<armor_protocol::Repair>,
     /// Where every update and repair entry of the timeline goes too, as JSON (the run's node
     /// publishes it for the recording), report or not.
     records: Option<std::sync::mpsc::Sender<String>>,
+    /// Since when (run seconds) the team bridge says the operator's link is lost.
+    link_lost_since: Option<f64>,
+    /// The `link.lost.SECS` already reported in this outage, by their seconds.
+    link_reported: BTreeSet<u32>,
 }
 
 /// The modules that every place of `net` runs, each with the same parameters in all: a plan's
@@ -168,10 +168,10 @@ impl Controller {
             hold_timeout: None,
             held_since: None,
             updates: Vec::new(),
-            link_lost_since: None,
-            link_reported: BTreeSet::new(),
             repair: None,
             records: None,
+            link_lost_since: None,
+            link_reported: BTreeSet::new(),
         };
         let at = controller.clock.now_secs();
         controller.first_marked = controller

@@ -522,18 +522,12 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                         // A held leg retried drives from where the robot is.
                         let rerouted = match (&mission_request, &running_plan) {
                             (armor_protocol::Request::Fire { transition }, Some(running)) => {
-                                crate::update::reroute_retry(
+                                reroute_retry(
                                     controller,
                                     running,
                                     transition,
-                                    progress.as_ref().and_then(Progress::robot_at),
-                                    || {
-                                        crate::update::world_of(
-                                            running,
-                                            &server.loaded().system,
-                                            &options.module_path,
-                                        )
-                                    },
+                                    progress.as_ref(),
+                                    (&server, &options.module_path),
                                 )
                             }
                             _ => None,
@@ -736,18 +730,12 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 && repair
                 && let Some(retry) = crate::repair::retry_of(controller, running)
             {
-                let how = crate::update::reroute_retry(
+                let how = reroute_retry(
                     controller,
                     running,
                     &retry,
-                    progress.as_ref().and_then(Progress::robot_at),
-                    || {
-                        crate::update::world_of(
-                            running,
-                            &server.loaded().system,
-                            &options.module_path,
-                        )
-                    },
+                    progress.as_ref(),
+                    (&server, &options.module_path),
                 );
                 let (fired, said) = controller.handle(
                     armor_protocol::Request::Fire {
@@ -867,6 +855,24 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         console::close_log();
     }
     Ok(outcome)
+}
+
+/// [`crate::update::reroute_retry`] from where the run's node has the robot, on the running
+/// plan's world.
+fn reroute_retry(
+    controller: &mut Controller,
+    running: &crate::update::Running,
+    transition: &str,
+    progress: Option<&Progress>,
+    (server, module_path): (&ConfigServer, &[PathBuf]),
+) -> Option<String> {
+    crate::update::reroute_retry(
+        controller,
+        running,
+        transition,
+        progress.and_then(Progress::robot_at),
+        || crate::update::world_of(running, &server.loaded().system, module_path),
+    )
 }
 
 /// The system's access lists (`Acl::of`), where the run's own node, an observer, may publish

@@ -187,7 +187,8 @@ pub fn options(
         ways_round += 1;
         ways_round <= MAX_WAYS_ROUND
     });
-    let planned: f64 = route_lengths_m.iter().skip(index).flatten().sum();
+    // An empty sum of floats is -0.0, which would print as `-0.0 m` (every leg left cut).
+    let planned: f64 = route_lengths_m.iter().skip(index).flatten().sum::<f64>() + 0.0;
     candidates.push(Candidate {
         kind: Kind::Wait,
         summary: "wait where the robot is for an update (an area lifted) or the operator"

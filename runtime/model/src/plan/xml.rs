@@ -1509,8 +1509,8 @@ mod tests {
             "5:24: expected a number of seconds, 0 or more",
             "6:5: <arrival> needs `until`",
             "7:5: <during> runs no module",
-            "8:18: `on` must be `blocked`, `failed`, `late`, `lost` or `low_battery`, not `tired`",
-            "8:29: `do` must be `skip`, `hold`, `return` or `continue`, not `panic`",
+            "8:18: `on` must be `blocked`, `failed`, `late`, `lost`, `low_battery` or `link_lost`, not `tired`",
+            "8:29: `do` must be `skip`, `hold`, `return`, `continue` or `repair`, not `panic`",
             "10:18: `kind` must be one of no-go, objective, assembly, named, not `swamp`",
             "10:31: `margin_m` must be a distance in metres",
             "10:3: <area> needs 3 <point>s or more, it has 1",
@@ -1523,6 +1523,36 @@ mod tests {
             );
         }
         assert_eq!(found.len(), expected.len(), "{found:#?}");
+    }
+
+    #[test]
+    fn repair_is_read_and_written_back_for_blocked_only() {
+        let plan = |contingencies: &str| {
+            format!(
+                r#"<plan name="p" system="s.xml">
+  <waypoint name="a" lat="1" lon="2"/>
+  <waypoint name="b" lat="1" lon="2.001"/>
+  <leg from="a" to="b"/>
+  {contingencies}
+</plan>"#
+            )
+        };
+        let text = plan(r#"<contingency on="blocked" do="repair"/>"#);
+        let read = Plan::parse(&text).expect("a plan that repairs when blocked");
+        assert_eq!(read.contingencies[0].response, Response::Repair);
+        assert!(
+            read.to_xml()
+                .contains(r#"<contingency on="blocked" do="repair"/>"#)
+        );
+        let again = Plan::parse(&read.to_xml()).expect("written back, read again");
+        assert_eq!(again.contingencies[0].response, Response::Repair);
+        assert_eq!(
+            problems(&plan(r#"<contingency on="late" do="repair"/>"#)),
+            [
+                "5:26: `repair` is only for on=\"blocked\": the run repairs a leg that cannot be \
+              completed (use skip, hold or return)"
+            ]
+        );
     }
 
     #[test]

@@ -65,21 +65,32 @@ fn straight_but_walled(pairs: &[(Point, Point)]) -> Vec<Option<f64>> {
         .collect()
 }
 
+/// The options for leg `index` of `plan`, the robot `here`, `now_secs` after the plan's start,
+/// on the walled square.
+fn proposed(
+    plan: &Plan,
+    compiled: &Compiled,
+    index: usize,
+    here: Point,
+    now_secs: f64,
+) -> Vec<Candidate> {
+    options(
+        Situation {
+            plan,
+            positions: &compiled.positions,
+            route_lengths_m: &lengths_of(compiled),
+            index,
+            here,
+            now_unix_secs: plan.start_unix_secs.unwrap_or_default() + now_secs,
+        },
+        straight_but_walled,
+    )
+}
+
 /// What a repair proposes, a line each: kind, via, legs dropped, metres, seconds, deadlines.
 fn check(out_by_secs: u32, now_secs: f64, here: Point, expected: &[&str]) {
     let (plan, compiled) = square(out_by_secs);
-    let start = plan.start_unix_secs.unwrap_or_default();
-    let options = options(
-        Situation {
-            plan: &plan,
-            positions: &compiled.positions,
-            route_lengths_m: &lengths_of(&compiled),
-            index: 0,
-            here,
-            now_unix_secs: start + now_secs,
-        },
-        straight_but_walled,
-    );
+    let options = proposed(&plan, &compiled, 0, here, now_secs);
     let shown: Vec<String> = options
         .iter()
         .map(|option| {
@@ -158,17 +169,7 @@ fn an_option_with_a_drive_that_has_no_way_is_not_proposed() {
 fn the_return_ends_the_plan_where_it_started() {
     let (plan, compiled) = square(1000);
     // On `up`, at (20, 10), nothing walled: the return drives 22.4 m home and drops the rest.
-    let options = options(
-        Situation {
-            plan: &plan,
-            positions: &compiled.positions,
-            route_lengths_m: &lengths_of(&compiled),
-            index: 1,
-            here: Point::new(20.0, 10.0),
-            now_unix_secs: plan.start_unix_secs.unwrap_or_default(),
-        },
-        straight_but_walled,
-    );
+    let options = proposed(&plan, &compiled, 1, Point::new(20.0, 10.0), 0.0);
     let back = options
         .iter()
         .find(|option| option.kind == Kind::Return)
@@ -189,17 +190,7 @@ fn the_return_ends_the_plan_where_it_started() {
 #[test]
 fn each_option_is_a_plan_that_keeps_the_leg_in_force_and_compiles() {
     let (plan, compiled) = square(1000);
-    let options = options(
-        Situation {
-            plan: &plan,
-            positions: &compiled.positions,
-            route_lengths_m: &lengths_of(&compiled),
-            index: 0,
-            here: Point::new(5.0, 0.0),
-            now_unix_secs: plan.start_unix_secs.unwrap_or_default(),
-        },
-        straight_but_walled,
-    );
+    let options = proposed(&plan, &compiled, 0, Point::new(5.0, 0.0), 0.0);
     let routes: Vec<Vec<(String, String, String)>> = options
         .iter()
         .filter_map(|option| option.plan.as_ref())
