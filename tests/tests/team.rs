@@ -20,6 +20,7 @@ use std::process::Command;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
+use anyhow::Context as _;
 use armor_tests::{Proc, bin, bin_dir, control_address, role_key, secret_file, workspace_root};
 
 /// How long anything on a loaded machine may take to show (runs start their modules, zenoh
@@ -441,24 +442,22 @@ fn robot_addr(n: usize) -> String {
     format!("10.41.{n}.2")
 }
 
-fn run_tool(program: &str, args: &[&str]) -> Result<(), String> {
+fn run_tool(program: &str, args: &[&str]) -> anyhow::Result<()> {
     let output = Command::new(armor_tests::tools::program(program))
         .args(args)
         .output()
-        .map_err(|err| format!("cannot run `{program}`: {err}"))?;
-    if output.status.success() {
-        Ok(())
-    } else {
-        Err(format!(
-            "`{program} {}` failed: {}",
-            args.join(" "),
-            String::from_utf8_lossy(&output.stderr).trim()
-        ))
-    }
+        .with_context(|| format!("cannot run `{program}`"))?;
+    anyhow::ensure!(
+        output.status.success(),
+        "`{program} {}` failed: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&output.stderr).trim()
+    );
+    Ok(())
 }
 
 impl Radio {
-    fn make() -> Result<Radio, String> {
+    fn make() -> anyhow::Result<Radio> {
         let tag = std::process::id();
         let radio = Radio {
             station: format!("armor_station_{tag}"),
@@ -547,7 +546,7 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
         .unwrap_or_else(|err| err.into_inner());
     let radio = Radio::make().unwrap_or_else(|why| {
         panic!(
-            "cannot make the radio ({why}); this test needs root: run `scripts/test` as root (it \
+            "cannot make the radio ({why:#}); this test needs root: run `scripts/test` as root (it \
              installs iproute2 and iptables)"
         )
     });

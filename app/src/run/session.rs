@@ -19,6 +19,7 @@ use armor_model::rehearsal::{AreaJudgement, ArrivalJudgement, Verdict};
 use armor_protocol::{FiringRecord, MissionStatus, Request, RunFiles, Status};
 
 use super::live::{self, Sources};
+use super::updates::NoRunPlan;
 
 /// How often the control interface is asked for the state.
 const POLL_EVERY: Duration = Duration::from_millis(200);
@@ -135,7 +136,7 @@ pub struct RunningPlan {
     /// The number of the last update taken that the run had reported when it was asked.
     pub after_update: u32,
     /// The plan's text, or why the run did not send it.
-    pub text: Result<String, String>,
+    pub text: Result<String, NoRunPlan>,
 }
 
 impl Shared {
@@ -652,8 +653,10 @@ fn poll_control(
                     (_, Some(after_update)) => {
                         let text = match reply.files.and_then(|files| files.mission) {
                             Some(mission) => Ok(mission.text),
-                            None if reply.ok => Err("it sent no plan".to_owned()),
-                            None => Err(reply.message),
+                            None if reply.ok => {
+                                Err(NoRunPlan::NotSent("its answer held none".to_owned()))
+                            }
+                            None => Err(NoRunPlan::NotSent(reply.message)),
                         };
                         shared_now.running_plan = Some(RunningPlan { after_update, text });
                     }

@@ -34,13 +34,31 @@ impl RunPlan {
     }
 
     /// The plan in `text`, or why it does not read (the first problem, located in `source`).
-    pub fn of_text(text: &str, source: &str) -> Result<RunPlan, String> {
-        Plan::parse(text)
-            .map(RunPlan::of_plan)
-            .map_err(|problems| match problems.first() {
+    pub fn of_text(text: &str, source: &str) -> Result<RunPlan, NoRunPlan> {
+        Plan::parse(text).map(RunPlan::of_plan).map_err(|problems| {
+            NoRunPlan::Unreadable(match problems.first() {
                 Some(problem) => format!("{source}:{}: {}", problem.pos, problem.message),
                 None => format!("{source} does not read as a plan"),
             })
+        })
+    }
+}
+
+/// Why the studio has no plan of the run's.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NoRunPlan {
+    /// The run sent none: its words when it refused, or that it sent nothing.
+    NotSent(String),
+    /// The text does not read as a plan: its first problem, located.
+    Unreadable(String),
+}
+
+impl std::fmt::Display for NoRunPlan {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NoRunPlan::NotSent(why) => write!(f, "the run sent no plan: {why}"),
+            NoRunPlan::Unreadable(why) => f.write_str(why),
+        }
     }
 }
 

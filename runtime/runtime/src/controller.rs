@@ -7,7 +7,7 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use armor_model::net::{Engine, EventRef, Firing, Marking, MissionNet, Place};
+use armor_model::net::{Engine, EngineError, EventRef, Firing, Marking, MissionNet, Place};
 use armor_model::system::Reason;
 use armor_module_api::Clock;
 use serde_json::json;
@@ -365,10 +365,9 @@ impl Controller {
     /// Gives the mission `net`, the one it plays with other parameters (a leg's path planned
     /// again from where the robot is, before the operator's retry): the marking, the timers
     /// and the events latched go on; the modules are told when the next firing enters a place.
-    pub fn reroute(&mut self, net: MissionNet) -> Result<(), String> {
+    pub fn reroute(&mut self, net: MissionNet) -> Result<(), EngineError> {
         let now = self.clock.now_secs();
-        self.engine = Engine::resume(&net, &self.engine.marking(), &self.engine, true, now)
-            .map_err(|err| format!("the net cannot go on with the new path: {err}"))?;
+        self.engine = Engine::resume(&net, &self.engine.marking(), &self.engine, true, now)?;
         self.net = net;
         Ok(())
     }

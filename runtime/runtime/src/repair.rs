@@ -288,32 +288,48 @@ fn option((candidate, number): (&Candidate, u32)) -> RepairOption {
     }
 }
 
-/// The update option `number` of the proposal asks for; the error is why there is none (no
-/// repair proposed, no such option, the wait, which changes nothing).
-pub fn asked(proposal: Option<&Proposal>, number: u32) -> Result<Asked, String> {
+/// Why an option of a repair cannot be applied.
+#[derive(Debug, thiserror::Error)]
+pub enum NotApplied {
+    #[error("no repair is proposed: no leg holds for want of a way")]
+    NoneProposed,
+    #[error("the repair proposed for leg `{leg}` has options 1 to {count}, not {number}")]
+    NoSuchOption {
+        leg: String,
+        count: usize,
+        number: u32,
+    },
+    #[error(
+        "option {number} is to wait: the leg holds as it is (update the plan, fire `{leg}_retry` \
+         or `{leg}_skip`, or abort)"
+    )]
+    Wait { number: u32, leg: String },
+}
+
+/// The update option `number` of the proposal asks for, or why there is none.
+pub fn asked(proposal: Option<&Proposal>, number: u32) -> Result<Asked, NotApplied> {
     let Some(proposal) = proposal else {
-        return Err("no repair is proposed: no leg holds for want of a way".to_owned());
+        return Err(NotApplied::NoneProposed);
     };
     let index = usize::try_from(number).unwrap_or(usize::MAX);
     let Some(candidate) = index
         .checked_sub(1)
         .and_then(|index| proposal.candidates.get(index))
     else {
-        return Err(format!(
-            "the repair proposed for leg `{}` has options 1 to {}, not {number}",
-            proposal.shown.leg,
-            proposal.candidates.len()
-        ));
+        return Err(NotApplied::NoSuchOption {
+            leg: proposal.shown.leg.clone(),
+            count: proposal.candidates.len(),
+            number,
+        });
     };
     match &candidate.plan {
         Some(plan) => Ok(Asked::Repair {
             label: format!("{} {number}: {}", proposal.label, candidate.summary),
             plan: Box::new(plan.clone()),
         }),
-        None => Err(format!(
-            "option {number} is to wait: the leg holds as it is (update the plan, fire \
-             `{}_retry` or `{}_skip`, or abort)",
-            proposal.shown.leg, proposal.shown.leg
-        )),
+        None => Err(NotApplied::Wait {
+            number,
+            leg: proposal.shown.leg.clone(),
+        }),
     }
 }

@@ -504,7 +504,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                             continue;
                         }
                         Ok(_) => (false, "this run has no mission".to_owned()),
-                        Err(why) => (false, why),
+                        Err(why) => (false, why.to_string()),
                     }
                 }
                 request => match (crate::update::Asked::of(request), &mut controller) {

@@ -530,7 +530,10 @@ pub fn reroute_retry(
                     geo::round_mm((geo::path_length(&path.points) * 10.0).round() / 10.0),
                     leg.to
                 )),
-                Err(why) => Some(format!("leg `{}` keeps its path: {why}", leg.name)),
+                Err(err) => Some(format!(
+                    "leg `{}` keeps its path: the net cannot go on with the new path: {err}",
+                    leg.name
+                )),
             }
         }
         Ok(Err(err)) => Some(format!(
