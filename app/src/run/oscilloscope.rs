@@ -225,6 +225,9 @@ pub fn timeline_ui(ui: &mut Ui, status: &Status, at_secs: &mut Option<f64>) {
         .height(24.0 * lanes.len() as f32 + 30.0)
         .allow_scroll(false)
         .allow_zoom([true, false])
+        // Room above the top lane for its name.
+        .include_y(-0.5)
+        .include_y(lanes.len() as f64)
         .show_axes([true, false])
         .show(ui, |plot| {
             for (lane, module) in lanes.iter().enumerate() {
@@ -245,8 +248,12 @@ pub fn timeline_ui(ui: &mut Ui, status: &Status, at_secs: &mut Option<f64>) {
                 // From the lane's start rightwards, above its bar: a name centred on the start
                 // would be cut in half by the plot's left edge.
                 plot.text(
-                    egui_plot::Text::new(*module, [first, y + 0.2].into(), *module)
-                        .anchor(egui::Align2::LEFT_BOTTOM),
+                    egui_plot::Text::new(
+                        *module,
+                        [first, y + 0.2].into(),
+                        RichText::new(*module).text_style(egui::TextStyle::Body),
+                    )
+                    .anchor(egui::Align2::LEFT_BOTTOM),
                 );
             }
             if let Some(at) = at_secs {
