@@ -441,6 +441,7 @@ impl StudioApp {
         self.shortcuts(&ctx);
         self.run.poll();
         self.attach_with_runs_files(&ctx);
+        self.run.sync_plan(self.mission.as_mut());
         for (ok, message) in std::mem::take(&mut self.run.messages) {
             self.set_status(message, !ok);
         }
@@ -505,6 +506,10 @@ impl StudioApp {
             return;
         };
         egui::Panel::top("mission-tools").show(ui, |ui| mission.toolbar_ui(ui));
+        // While a run plays this plan: edit it here, then send it to the robot.
+        if self.run.watches(mission) {
+            egui::Panel::top("mission-send").show(ui, |ui| self.run.send_bar_ui(ui, mission));
+        }
         egui::Panel::right("mission-inspector")
             .resizable(true)
             .default_size(330.0)

@@ -476,3 +476,45 @@ pub fn waiting_mission(dir: &Path) -> PathBuf {
     .unwrap();
     mission
 }
+
+/// A relay that delays every byte by `one_way` in each direction, as a slow radio link does
+/// (there is no `tc netem` here): each direction's chunks are read at once and written when
+/// their time has come.
+pub fn slow_relay(target: std::net::SocketAddr, one_way: Duration) -> std::net::SocketAddr {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    std::thread::spawn(move || {
+        for client in listener.incoming().flatten() {
+            let Ok(server) = std::net::TcpStream::connect(target) else {
+                continue;
+            };
+            let pump = |mut from: std::net::TcpStream, mut to: std::net::TcpStream| {
+                let (chunks, delayed) = std::sync::mpsc::channel::<(Instant, Vec<u8>)>();
+                std::thread::spawn(move || {
+                    let mut buf = [0; 65536];
+                    while let Ok(n @ 1..) = from.read(&mut buf) {
+                        if chunks
+                            .send((Instant::now() + one_way, buf[..n].to_vec()))
+                            .is_err()
+                        {
+                            break;
+                        }
+                    }
+                });
+                std::thread::spawn(move || {
+                    for (due, chunk) in delayed {
+                        // The link's delay itself, not a wait for something to happen.
+                        std::thread::sleep(due.saturating_duration_since(Instant::now()));
+                        if std::io::Write::write_all(&mut to, &chunk).is_err() {
+                            break;
+                        }
+                    }
+                    let _ = to.shutdown(std::net::Shutdown::Both);
+                });
+            };
+            pump(client.try_clone().unwrap(), server.try_clone().unwrap());
+            pump(server, client);
+        }
+    });
+    addr
+}

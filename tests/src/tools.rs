@@ -18,6 +18,8 @@ const PROGRAMS: &[(&str, &str)] = &[
     ("convert", "imagemagick"),
     ("tesseract", "tesseract-ocr"),
     ("ip", "iproute2"),
+    ("tc", "iproute2"),
+    ("iptables", "iptables"),
     ("kill", "procps"),
     ("script", "bsdutils"),
     ("python3", "python3"),

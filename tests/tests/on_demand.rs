@@ -81,10 +81,13 @@ fn a_place_brings_the_providers_of_what_it_names_and_idles_them_after() {
     let run = armor_run(&mission, &report, &[]);
     let addr = control_addr(&run);
 
+    // Every module's process is started with the run, an explicit one too, which then waits
+    // stopped: until it has connected it says `starting`, for as long as a slow machine takes.
     let checking = wait_status(&addr, "the chain running for the sink", |status| {
         ["source", "relay", "sink"]
             .iter()
             .all(|name| module(status, name).0 == "running")
+            && module(status, "spare").0 != "starting"
     });
     assert_eq!(module(&checking, "sink").1, "place checking");
     assert_eq!(module(&checking, "relay").1, "needed by sink.input");

@@ -21,7 +21,13 @@
 //!   area after the report. Bad areas (two corners, an outline that crosses itself, a name the
 //!   plan has, an observer's key, a corner that is not `X,Y`) are refused and the run goes on.
 //!   An area over the robot, across the gap it drives through, leaves it no way: the update is
-//!   taken and the leg held on `blocked`, its reason naming the area.
+//!   taken and the leg held on `blocked`, its reason naming the area, its repair nothing but
+//!   waiting; once the area is lifted the operator's retry drives from where the robot is.
+//! * Repair (item 2): a ring of mines sighted round `north` cuts the legs to and from it; with
+//!   `do="repair"` the area is taken at once with the best option (skip `north`), without it
+//!   the repair is proposed and `armor ctl repair 1` takes it (an observer's key refused);
+//!   either way the robot completes at `rally` and its true footprint never meets the ring;
+//!   the proposal and the update are in the run's MCAP recording (`armor-run.updates`).
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -695,6 +701,16 @@ mod reported {
         points.iter().map(|(x, y)| format!("{x},{y}")).collect()
     }
 
+    /// The yard plan `text` where the observer, looking round at the gate, sights the area
+    /// `name` at `points` and reports it.
+    fn sighting(text: &str, name: &str, points: &[(f64, f64)]) -> String {
+        let sighted = format!(
+            "<param name=\"sector_deg\" value=\"360\"/>\n        <param name=\"sighted\" value=\"{name} {}\"/>",
+            corners(points).join(" ")
+        );
+        edited(text, "<param name=\"sector_deg\" value=\"360\"/>", &sighted)
+    }
+
     /// `armor ctl --secret SECRET area NAME CORNER…`: whether it was taken, and what it said.
     fn area(addr: &str, secret: &Path, name: &str, points: &[(f64, f64)]) -> (bool, String) {
         let corners = corners(points);
@@ -736,8 +752,27 @@ mod reported {
         }
     }
 
-    /// The truth after `from_secs` never brought the robot's footprint onto `corners`.
+    /// The truth after `from_secs` never brought the robot's footprint onto `corners`, and it
+    /// went round by the south of the minefield.
     fn kept_out(yard: &Yard, report: &serde_json::Value, corners: &[(f64, f64)], from_secs: f64) {
+        let after = never_met(yard, report, corners, from_secs);
+        // It went round by the south of the minefield: the way through the gap was closed.
+        assert!(
+            after
+                .iter()
+                .any(|at| at.y < 2.0 && at.x > 22.0 && at.x < 26.0),
+            "the robot did not go round the south of the minefield"
+        );
+    }
+
+    /// The true poses after `from_secs`, none of which brought the robot's footprint onto
+    /// `corners`.
+    fn never_met(
+        yard: &Yard,
+        report: &serde_json::Value,
+        corners: &[(f64, f64)],
+        from_secs: f64,
+    ) -> Vec<Point> {
         let polygon = armor_model::geo::Polygon::new(
             corners.iter().map(|&(x, y)| Point::new(x, y)).collect(),
         );
@@ -758,13 +793,7 @@ mod reported {
             .map(|at| footprint_gap_m(&polygon, *at, radius_m))
             .fold(f64::INFINITY, f64::min);
         assert!(least > 0.0, "the footprint came {least} m into the area");
-        // It went round by the south of the minefield: the way through the gap was closed.
-        assert!(
-            after
-                .iter()
-                .any(|at| at.y < 2.0 && at.x > 22.0 && at.x < 26.0),
-            "the robot did not go round the south of the minefield"
-        );
+        after
     }
 
     /// The update entries of the report: (number, file, taken, message).
@@ -882,15 +911,7 @@ mod reported {
     fn an_area_reported_by_a_module_is_taken_and_driven_round() {
         let yard = Yard::new();
         // The observer, looking round at the gate, sights a minefield in the gap.
-        let sighted = format!(
-            "<param name=\"sector_deg\" value=\"360\"/>\n        <param name=\"sighted\" value=\"mines {}\"/>",
-            corners(&GAP).join(" ")
-        );
-        let text = edited(
-            &yard.plan_text,
-            "<param name=\"sector_deg\" value=\"360\"/>",
-            &sighted,
-        );
+        let text = sighting(&yard.plan_text, "mines", &GAP);
         let _one = ONE_ROBOT_AT_A_TIME
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
@@ -963,6 +984,7 @@ mod reported {
         ];
         let (taken, said) = area(&run.addr, &run.secret, "wall", &wall);
         assert!(taken, "{said}");
+        let stopped_at = robot_at(&said);
         assert!(
             said.contains("leg `cross` in force blocked: with the no-go area `wall` there is no way from where the robot is")
                 && said.contains("the plan's contingency on `blocked` applies"),
@@ -981,6 +1003,31 @@ mod reported {
             last["message"].as_str().unwrap().contains("`wall`"),
             "{last}"
         );
+        // The repair has nothing but waiting to offer: every way from inside the area is cut.
+        let proposed = &held["mission"]["repair"];
+        assert_eq!(proposed["leg"], "cross", "{held}");
+        assert_eq!(proposed["options"].as_array().unwrap().len(), 1, "{held}");
+        assert_eq!(proposed["options"][0]["kind"], "wait", "{held}");
+        let secret = run.secret.to_str().unwrap().to_owned();
+        let (taken, said) = ctl(&run.addr, &["--secret", &secret, "repair", "1"]);
+        assert!(!taken && said.contains("option 1 is to wait"), "{said}");
+        // The area is lifted (the plan as it was, without the probes nor the wall), and the
+        // operator retries: the leg drives again from where the robot is, not from the gate.
+        let lifted = yard.write("plan-lifted.xml", &yard.plan_text);
+        let (taken, said) = update(&run.addr, &run.secret, &lifted);
+        assert!(taken, "{said}");
+        assert!(said.contains("no-go areas removed: `probe1`"), "{said}");
+        let (retried, said) = ctl(&run.addr, &["--secret", &secret, "fire", "cross_retry"]);
+        assert!(retried, "{said}");
+        // From where it stopped when the wall came (it has held since), not from the gate.
+        let from = robot_at(&said);
+        assert!(
+            said.starts_with(
+                "fired `cross_retry`: leg `cross` drives again from where the robot is"
+            ) && (from.0 - stopped_at.0).hypot(from.1 - stopped_at.1) < 1.0,
+            "{said} (stopped at {stopped_at:?})"
+        );
+        assert_eq!(marked(&status(&run.addr, &run.secret)), ["cross_drive"]);
         // The operator decides: here, the mission ends.
         let (aborted, said) = ctl(
             &run.addr,
@@ -991,5 +1038,209 @@ mod reported {
         assert!(!exit.success(), "{text}");
         assert_eq!(report["outcome"], "aborted", "{text}");
         fired_at(&report, "cross_blocked");
+    }
+
+    /// A ring round the waypoint `north` (2 m clear of it all round inside), open by a slit of
+    /// 0.1 m that no robot passes: `north` stays a place the robot can be, but no way leads
+    /// there, so the legs `climb` (to it) and `regroup` (from it) are cut.
+    const RING: [(f64, f64); 12] = [
+        (28.5, 13.0),
+        (34.5, 13.0),
+        (34.5, 19.0),
+        (28.5, 19.0),
+        (28.5, 16.05),
+        (29.5, 16.05),
+        (29.5, 18.0),
+        (33.5, 18.0),
+        (33.5, 14.0),
+        (29.5, 14.0),
+        (29.5, 15.95),
+        (28.5, 15.95),
+    ];
+
+    /// The run ended complete, its rehearsal passed, `climb` arrived at `rally` by the truth,
+    /// and the robot never met the ring after `from_secs`.
+    fn completed_round_the_ring(
+        yard: &Yard,
+        report: &serde_json::Value,
+        text: &str,
+        from_secs: f64,
+    ) {
+        assert_eq!(report["outcome"], "complete", "{text}");
+        assert_eq!(report["rehearsal"]["verdict"], "passed", "{text}");
+        let arrivals = report["rehearsal"]["arrivals"].as_array().unwrap();
+        let climb = arrivals
+            .iter()
+            .find(|arrival| arrival["leg"] == "climb")
+            .unwrap_or_else(|| panic!("no arrival of `climb`: {arrivals:?}"));
+        assert_eq!(climb["waypoint"], "rally", "{climb}");
+        assert!(
+            !arrivals.iter().any(|arrival| arrival["leg"] == "regroup"),
+            "{arrivals:?}"
+        );
+        never_met(yard, report, &RING, from_secs);
+    }
+
+    #[test]
+    fn an_area_that_cuts_a_later_leg_is_repaired_by_the_plans_default_and_driven_round() {
+        let yard = Yard::new();
+        // The plan repairs by itself; the observer, looking round at the gate, sights a ring
+        // of mines round `north`.
+        let text = edited(
+            &sighting(&yard.plan_text, "ring", &RING),
+            "<contingency on=\"blocked\" do=\"hold\"/>",
+            "<contingency on=\"blocked\" do=\"repair\"/>",
+        );
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut run = start(&yard, &text, TIME_SCALE);
+        let (exit, report, text) = run.finish();
+        assert!(exit.success(), "{exit}:\n{text}");
+        let listed = updates(&report);
+        assert_eq!(listed.len(), 1, "{listed:?}");
+        let (number, file, taken, message) = &listed[0];
+        assert_eq!(
+            (*number, file.as_str(), *taken),
+            (
+                1,
+                "area `ring` reported by module `observer`, repair option 1: skip `north`: leg \
+                 `climb` drives on to `rally`, in place of leg `regroup`",
+                true
+            ),
+            "{message}"
+        );
+        assert!(
+            message.contains("no-go areas added: `ring`")
+                && message.contains("legs removed: `regroup`"),
+            "{message}"
+        );
+        // The proposal is in the timeline: the skip first, and the plan's default.
+        let proposed = report["timeline"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|entry| entry["kind"] == "repair")
+            .unwrap_or_else(|| panic!("no repair in the timeline:\n{text}"));
+        assert_eq!(proposed["leg"], "climb", "{proposed}");
+        assert_eq!(proposed["default_option"], 1, "{proposed}");
+        assert_eq!(proposed["options"][0]["kind"], "skip", "{proposed}");
+        assert!(
+            proposed["options"][0]["distance_m"].as_f64().unwrap() > 10.0,
+            "{proposed}"
+        );
+        let reported_at = report["updates"][0]["run_secs"].as_f64().unwrap();
+        completed_round_the_ring(&yard, &report, &text, reported_at);
+        // The recording has them too, on the run's own channel: the proposal, then the update
+        // that took it, with the same numbers and words as the report.
+        let recorded: Vec<serde_json::Value> = armor_tests::mcap::read_mcap(&yard.recording)
+            .into_iter()
+            .filter(|((topic, _), _)| topic == "armor-run.updates")
+            .flat_map(|((_, encoding), messages)| {
+                assert_eq!(encoding, "json");
+                messages.into_iter().map(|(_, data)| {
+                    let text: serde_json::Value = serde_json::from_slice(&data).unwrap();
+                    serde_json::from_str(text["text"].as_str().unwrap()).unwrap()
+                })
+            })
+            .collect();
+        let kinds: Vec<&str> = recorded
+            .iter()
+            .map(|entry| entry["kind"].as_str().unwrap())
+            .collect();
+        assert_eq!(kinds, ["repair", "update"], "{recorded:?}");
+        assert_eq!(recorded[0]["options"], proposed["options"], "{recorded:?}");
+        assert_eq!(
+            (
+                &recorded[1]["number"],
+                &recorded[1]["taken"],
+                &recorded[1]["file"]
+            ),
+            (
+                &report["updates"][0]["number"],
+                &serde_json::Value::Bool(true),
+                &report["updates"][0]["file"]
+            ),
+            "{recorded:?}"
+        );
+    }
+
+    #[test]
+    fn the_operator_chooses_a_repair_with_armor_ctl_repair_and_an_observer_cannot() {
+        let yard = Yard::new();
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut run = start(&yard, &yard.plan_text, TIME_SCALE);
+        let observer = role_key(&run.secret, "observer");
+        let secret = run.secret.to_str().unwrap().to_owned();
+        // Nothing to repair yet.
+        let (taken, said) = ctl(&run.addr, &["--secret", &secret, "repair", "1"]);
+        assert!(!taken, "{said}");
+        assert!(said.starts_with("no repair is proposed"), "{said}");
+        // The ring cuts `climb` and `regroup`: the area is refused as it stands (the plan
+        // holds on `blocked`, it names no default), and a repair is proposed.
+        let (taken, said) = area(&run.addr, &run.secret, "ring", &RING);
+        assert!(!taken, "{said}");
+        assert!(
+            said.contains("a repair is proposed for leg `climb`"),
+            "{said}"
+        );
+        let proposed = status(&run.addr, &run.secret)["mission"]["repair"].clone();
+        assert_eq!(proposed["leg"], "climb", "{proposed}");
+        assert!(proposed["default_option"].is_null(), "{proposed}");
+        let options = proposed["options"].as_array().unwrap();
+        let kinds: Vec<&str> = options
+            .iter()
+            .map(|option| option["kind"].as_str().unwrap())
+            .collect();
+        assert_eq!(kinds, ["skip", "return", "wait"], "{proposed}");
+        // `armor ctl status` prints them numbered, with their costs.
+        let (ok, printed) = ctl(&run.addr, &["--secret", &secret, "status"]);
+        assert!(ok, "{printed}");
+        assert!(
+            printed.contains("repair proposed at ")
+                && printed.contains("  1. skip `north`: leg `climb` drives on to `rally`")
+                && printed.contains("3. wait where the robot is"),
+            "{printed}"
+        );
+        // An observer reads, it does not choose.
+        let (taken, said) = ctl(
+            &run.addr,
+            &["--key", observer.to_str().unwrap(), "repair", "1"],
+        );
+        assert!(!taken && said.contains("observer"), "{said}");
+        let (taken, said) = ctl(&run.addr, &["--secret", &secret, "repair", "7"]);
+        assert!(!taken, "{said}");
+        assert!(said.contains("has options 1 to 3, not 7"), "{said}");
+        let (taken, said) = ctl(&run.addr, &["--secret", &secret, "repair", "1"]);
+        assert!(taken, "{said}");
+        assert!(
+            said.starts_with("update 2 taken: leg `advance` in force")
+                && said.contains("no-go areas added: `ring`"),
+            "{said}"
+        );
+        let after = status(&run.addr, &run.secret);
+        assert!(after["mission"]["repair"].is_null(), "{after}");
+        let (exit, report, text) = run.finish();
+        assert!(exit.success(), "{exit}:\n{text}");
+        let listed = updates(&report);
+        assert_eq!(
+            listed
+                .iter()
+                .map(|(number, file, taken, _)| (*number, file.as_str(), *taken))
+                .collect::<Vec<_>>(),
+            [
+                (1, "area `ring` reported by the operator", false),
+                (
+                    2,
+                    "area `ring` reported by the operator, repair option 1: skip `north`: leg \
+                     `climb` drives on to `rally`, in place of leg `regroup`",
+                    true
+                ),
+            ]
+        );
+        let chosen_at = report["updates"][1]["run_secs"].as_f64().unwrap();
+        completed_round_the_ring(&yard, &report, &text, chosen_at);
     }
 }

@@ -633,48 +633,6 @@ fn relink_after_killing_the_counter(run: &Proc) -> Duration {
     restarted.elapsed()
 }
 
-/// A relay that delays every byte by `one_way` in each direction, as a slow radio link does
-/// (there is no `tc netem` here): each direction's chunks are read at once and written when
-/// their time has come.
-fn slow_relay(target: SocketAddr, one_way: Duration) -> SocketAddr {
-    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-    let addr = listener.local_addr().unwrap();
-    std::thread::spawn(move || {
-        for client in listener.incoming().flatten() {
-            let Ok(server) = TcpStream::connect(target) else {
-                continue;
-            };
-            let pump = |mut from: TcpStream, mut to: TcpStream| {
-                let (chunks, delayed) = std::sync::mpsc::channel::<(Instant, Vec<u8>)>();
-                std::thread::spawn(move || {
-                    let mut buf = [0; 65536];
-                    while let Ok(n @ 1..) = from.read(&mut buf) {
-                        if chunks
-                            .send((Instant::now() + one_way, buf[..n].to_vec()))
-                            .is_err()
-                        {
-                            break;
-                        }
-                    }
-                });
-                std::thread::spawn(move || {
-                    for (due, chunk) in delayed {
-                        // The link's delay itself, not a wait for something to happen.
-                        std::thread::sleep(due.saturating_duration_since(Instant::now()));
-                        if to.write_all(&chunk).is_err() {
-                            break;
-                        }
-                    }
-                    let _ = to.shutdown(std::net::Shutdown::Both);
-                });
-            };
-            pump(client.try_clone().unwrap(), server.try_clone().unwrap());
-            pump(server, client);
-        }
-    });
-    addr
-}
-
 /// An operator behind a link with a round trip of 2 s gets in: the run's short deadline is
 /// for the first handshake message only, which comes with the connect; the round trip that
 /// follows it has a deadline of its own. A stranger on the same path is still closed early.
@@ -683,7 +641,8 @@ fn an_operator_behind_a_slow_link_gets_in() {
     let dir = tempfile::tempdir().unwrap();
     let secret = secret_file(dir.path());
     let (_run, control) = run_with_secret(&driven_system(dir.path()), &secret);
-    let slow = slow_relay(control.parse().unwrap(), Duration::from_secs(1)).to_string();
+    let slow =
+        armor_tests::slow_relay(control.parse().unwrap(), Duration::from_secs(1)).to_string();
     let (ok, text, took) = ctl(&[
         "--addr",
         &slow,

@@ -771,6 +771,7 @@ fn response_ui(
         Some(Response::Skip) => "skip the rest of the leg".to_owned(),
         Some(Response::Hold) => "hold for the operator".to_owned(),
         Some(Response::Continue) => "continue".to_owned(),
+        Some(Response::Repair) => "repair (the run's best option)".to_owned(),
         Some(Response::Return { waypoint }) => format!("return to {waypoint}"),
     };
     let mut choice = current.clone();

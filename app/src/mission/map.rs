@@ -166,7 +166,7 @@ impl MissionView {
     /// The map and what is drawn on it, for editing.
     pub fn map_ui(&mut self, ui: &mut Ui) {
         let selection = self.editor.selection.clone();
-        let (scene, projector, response) = self.show_map(ui, &selection, |_, _, _| {});
+        let (scene, projector, response) = self.show_map(ui, &selection, false, |_, _, _| {});
         let mut out = Vec::new();
         self.handles_ui(ui, &scene, &projector, &mut out);
         self.clicks_ui(ui, &response, &scene, &projector, &mut out);
@@ -223,8 +223,9 @@ impl MissionView {
         (point.x.is_finite() && point.y.is_finite()).then_some(point)
     }
 
-    /// The map for watching a run: the plan with `current` (a leg) highlighted and no editing;
-    /// `overlay` paints over it, given where a point of the world frame (metres) is on screen.
+    /// The map for watching a run: the run's plan ([`MissionView::watch_plan`], else the plan
+    /// edited) with `current` (a leg) highlighted and no editing; `overlay` paints over it,
+    /// given where a point of the world frame (metres) is on screen.
     pub fn watch_ui(
         &mut self,
         ui: &mut Ui,
@@ -232,22 +233,28 @@ impl MissionView {
         overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect]),
     ) -> egui::Response {
         let selection = current.map_or(Selection::None, Selection::Leg);
-        let (_, _, response) = self.show_map(ui, &selection, overlay);
+        let (_, _, response) = self.show_map(ui, &selection, true, overlay);
         response
     }
 
-    /// Draws the map with the plan, `selection` highlighted, then `overlay` (given the boxes of
-    /// the plan's labels, which its own texts should not cover).
+    /// Draws the map with the plan (the run's when `watching` a run, else the one edited),
+    /// `selection` highlighted, then `overlay` (given the boxes of the plan's labels, which its
+    /// own texts should not cover).
     fn show_map(
         &mut self,
         ui: &mut Ui,
         selection: &Selection,
+        watching: bool,
         overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect]),
     ) -> (Scene, Projector, egui::Response) {
         let rect = ui.available_rect_before_wrap();
         if self.map.fit_requested && rect.width() > 50.0 {
             self.map.fit_requested = false;
-            let plan = &self.editor.plan;
+            let plan = if watching {
+                self.watched_plan()
+            } else {
+                &self.editor.plan
+            };
             let corners = plan
                 .waypoints
                 .iter()
@@ -291,8 +298,10 @@ impl MissionView {
         }
         .zoom_with_ctrl(false)
         .double_click_to_zoom(false);
-        let plan = &self.editor.plan;
-        let legs = &self.checked.legs;
+        let (plan, legs) = match &self.watched {
+            Some(watched) if watching => (&watched.plan, &watched.checked.legs),
+            _ => (&self.editor.plan, &self.checked.legs),
+        };
         let response = map.show(ui, |ui, response, projector, _| {
             let project = |at: LatLon| projector.project(position(at)).to_pos2();
             let scene = Scene {

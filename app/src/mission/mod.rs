@@ -436,6 +436,21 @@ pub struct MissionView {
     net_scrolled_for_marking: Option<armor_model::net::Marking>,
     /// The selection the net view last scrolled to.
     net_scrolled_for: Option<Selection>,
+    /// The plan a run plays, which the Run view draws in place of the one edited (the operator
+    /// may be editing ahead of the robot): see [`MissionView::watch_plan`].
+    watched: Option<Watched>,
+    /// The net drawn last was the run's ([`MissionView::marking_ui`]), not the edited plan's.
+    net_drawn_watched: bool,
+}
+
+/// The plan a run plays, compiled as the Mission view compiles the plan edited.
+struct Watched {
+    /// Its text as the studio writes a plan: what tells one plan from another (two parses of
+    /// one text differ by their positions in it).
+    xml: String,
+    plan: Plan,
+    checked: Checked,
+    layout: Option<net_view::Layout>,
 }
 
 impl MissionView {
@@ -454,6 +469,8 @@ impl MissionView {
             net_view: net_view::NetViewState::default(),
             net_scrolled_for_marking: None,
             net_scrolled_for: None,
+            watched: None,
+            net_drawn_watched: false,
         };
         view.refresh_surroundings(true);
         view
@@ -475,6 +492,64 @@ impl MissionView {
 
     pub fn checked(&self) -> &Checked {
         &self.checked
+    }
+
+    /// Draws `plan` (with its text as [`Plan::to_xml`] writes it) in the Run view, its map
+    /// and its net with the run's marking, in place of the plan edited: the plan a run plays,
+    /// which the operator may edit ahead of the robot before sending it. `None`: the Run view
+    /// draws the plan edited. Compiled again only when it changed.
+    pub fn watch_plan(&mut self, plan: Option<(&Plan, &str)>) {
+        let Some((plan, xml)) = plan else {
+            self.watched = None;
+            return;
+        };
+        if self
+            .watched
+            .as_ref()
+            .is_some_and(|watched| watched.xml == xml)
+        {
+            return;
+        }
+        let edited_is_it = self.checked_revision == Some(self.editor.revision())
+            && self.editor.plan.to_xml() == xml;
+        let checked = if edited_is_it {
+            self.checked.clone()
+        } else {
+            Checked::of(plan, &self.surroundings, &self.inspector.catalog)
+        };
+        self.watched = Some(Watched {
+            xml: xml.to_owned(),
+            plan: plan.clone(),
+            checked,
+            layout: None,
+        });
+        self.net_view.fit_pending = true;
+    }
+
+    /// The plan the Run view draws: the run's ([`Self::watch_plan`]), else the one edited.
+    pub fn watched_plan(&self) -> &Plan {
+        self.watched
+            .as_ref()
+            .map_or(&self.editor.plan, |watched| &watched.plan)
+    }
+
+    /// [`Self::watched_plan`] compiled and verified.
+    pub fn watched_checked(&self) -> &Checked {
+        self.watched
+            .as_ref()
+            .map_or(&self.checked, |watched| &watched.checked)
+    }
+
+    /// Replaces the plan edited with `plan` as an edit (undone by Undo): the robot's plan,
+    /// taken back over the operator's edits, or followed when there were none. `what` names
+    /// the change in the undo history. Applied at once, not after the Mission view's next
+    /// frame: the Run view, shown meanwhile, compares the plan edited with the robot's.
+    pub fn take_plan(&mut self, plan: Plan, what: &str) {
+        self.commands.push(PlanCommand::Change {
+            plan: Box::new(plan),
+            field: what.to_owned(),
+        });
+        self.apply_commands();
     }
 
     /// The screen rectangle of the map, as drawn last frame.
@@ -770,14 +845,19 @@ impl MissionView {
             .collect()
     }
 
-    /// The net of a run with its live marking, the current leg's elements lit.
+    /// The net of a run with its live marking, the current leg's elements lit: the run's plan
+    /// ([`Self::watch_plan`]), else the plan edited.
     pub fn marking_ui(&mut self, ui: &mut egui::Ui, marking: &armor_model::net::Marking) {
-        let Some(net) = self.checked.net() else {
+        self.net_drawn_watched = self.watched.is_some();
+        let (checked, net_layout) = match &mut self.watched {
+            Some(watched) => (&watched.checked, &mut watched.layout),
+            None => (&self.checked, &mut self.net_layout),
+        };
+        let Some(net) = checked.net() else {
             ui.label("The plan does not compile: no net to show.");
             return;
         };
-        let current: BTreeSet<usize> = self
-            .checked
+        let current: BTreeSet<usize> = checked
             .compiled
             .iter()
             .flat_map(|compiled| {
@@ -789,15 +869,18 @@ impl MissionView {
                     })
             })
             .collect();
-        let highlighted: BTreeSet<String> = self
-            .checked
+        let highlighted: BTreeSet<String> = checked
             .compiled
             .iter()
             .flat_map(|compiled| &compiled.trace)
             .filter(|(_, origin)| matches!(origin, Origin::Leg(index) if current.contains(index)))
             .map(|(name, _)| name.clone())
             .collect();
-        let alternatives = self.alternatives();
+        let alternatives = checked
+            .compiled
+            .as_ref()
+            .map(|compiled| compiled.alternatives.clone())
+            .unwrap_or_default();
         let style = net_view::NetStyle {
             highlighted: &highlighted,
             marking: Some(marking),
@@ -805,9 +888,8 @@ impl MissionView {
             alternatives: &alternatives,
         };
         self.net_scrolled_for_marking = Some(marking.clone());
-        let layout = self
-            .net_layout
-            .get_or_insert_with(|| net_view::layout(net, &net_view::measure_ui(ui)));
+        let layout =
+            net_layout.get_or_insert_with(|| net_view::layout(net, &net_view::measure_ui(ui)));
         net_view::net_ui(ui, net, layout, &style, &mut self.net_view);
     }
 
@@ -848,13 +930,18 @@ impl MissionView {
         &self.net_view
     }
 
-    /// The net as laid out at the last frame.
+    /// The net as laid out at the last frame: the run's in the Run view when it draws the
+    /// run's plan ([`Self::watch_plan`]), else the plan edited's.
     pub fn net_layout(&self) -> Option<&net_view::Layout> {
-        self.net_layout.as_ref()
+        match &self.watched {
+            Some(watched) if self.net_drawn_watched => watched.layout.as_ref(),
+            _ => self.net_layout.as_ref(),
+        }
     }
 
     /// The net panel: verification in words, then the net.
     pub fn net_ui(&mut self, ui: &mut egui::Ui) {
+        self.net_drawn_watched = false;
         let highlighted = self.highlighted();
         let Some(net) = self.checked.net() else {
             let (heading, reasons) = self.checked.no_net_reasons(&self.editor.plan);

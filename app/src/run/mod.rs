@@ -22,6 +22,7 @@ pub mod prompt;
 pub mod sensors_motors;
 pub mod session;
 pub mod untrusted;
+pub mod updates;
 pub mod video;
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -119,6 +120,8 @@ pub struct RunView {
     pub set_pose_tool: bool,
     /// Where the set-pose press began (world frame), while the drag lasts.
     set_pose_from: Option<armor_model::world::Point>,
+    /// The plan the run plays and its updates ([`updates`]).
+    pub updates: updates::Updates,
 }
 
 impl RunView {
@@ -154,6 +157,7 @@ impl RunView {
             attach_mirror: None,
             set_pose_tool: false,
             set_pose_from: None,
+            updates: updates::Updates::default(),
         }
     }
 
@@ -318,6 +322,7 @@ impl RunView {
                     .push((true, format!("running {}", target.path().display())));
                 self.session = Some(session);
                 self.fit_pending = true;
+                self.updates.restart(plan_of(&target));
             }
             Err(err) => self.messages.push((false, format!("{err:#}"))),
         }
@@ -336,6 +341,7 @@ impl RunView {
         self.session = Some(RunSession::attach(options, control, ctx));
         self.messages
             .push((true, format!("watching the run at {control}")));
+        self.updates.restart(plan_of(&target));
     }
 
     /// The files a run attached without its system file has sent (at most once per
@@ -376,6 +382,7 @@ impl RunView {
         self.session = Some(RunSession::attach(options, control, ctx));
         self.messages
             .push((true, format!("watching the run at {control}")));
+        self.updates.restart(None);
     }
 
     /// What a run of `target` needs: the sources of the live views from its system.
@@ -565,7 +572,7 @@ impl RunView {
             .as_ref()
             .map(|mission| {
                 mission
-                    .plan()
+                    .watched_plan()
                     .legs
                     .iter()
                     .map(|leg| (leg.name.clone(), leg.from.clone(), leg.to.clone()))
@@ -959,6 +966,10 @@ impl RunView {
         if let Some(summary) = self.followed.summary().filter(|_| running) {
             ui.label(format!("Path: {summary}"));
         }
+        if let Some(option) = self.repair_ui(ui, mission) {
+            requests.push(Request::Repair { option });
+            self.updates.sending = true;
+        }
         if !mission.enabled.is_empty() {
             ui.label(RichText::new("Next").strong());
         }
@@ -983,6 +994,7 @@ impl RunView {
         }
         ui.label(RichText::new(format!("Firings ({})", mission.firings_total)).strong());
         monitor::timeline_ui(ui, &mission.firings);
+        self.updates_ui(ui, mission);
         for request in requests {
             self.request(request);
         }
@@ -1180,7 +1192,7 @@ impl RunView {
         let live = self.live();
         let current_leg = marking.as_ref().and_then(|marking| {
             let mission = mission.as_deref()?;
-            let compiled = mission.checked().compiled.as_ref()?;
+            let compiled = mission.watched_checked().compiled.as_ref()?;
             marking
                 .keys()
                 .find_map(|place| match compiled.trace.get(place) {
@@ -1237,7 +1249,7 @@ impl RunView {
         if follow && let Some(pose) = live.estimated.as_ref().or(live.truth.as_ref()) {
             mission.centre_on(armor_model::world::Point::new(pose.x_m, pose.y_m));
         }
-        let planned = current_leg.and_then(|leg| match mission.checked().legs.get(leg) {
+        let planned = current_leg.and_then(|leg| match mission.watched_checked().legs.get(leg) {
             Some(LegRoute::Path { points, .. }) => Some(points.as_slice()),
             _ => None,
         });
@@ -1466,6 +1478,20 @@ fn recording_ui(ui: &mut Ui, recording: &mut Recording) {
             recording.seek(at);
         }
     });
+}
+
+/// The plan a run of `target` plays, read from its file (just saved, or the copy of an attached
+/// run's): `None` for a system, or a file that does not read as a plan (the run says why).
+fn plan_of(target: &Target) -> Option<updates::RunPlan> {
+    let Target::Plan(path) = target else {
+        return None;
+    };
+    let text = std::fs::read_to_string(path)
+        .map_err(|err| tracing::warn!("cannot read {}: {err}", path.display()))
+        .ok()?;
+    updates::RunPlan::of_text(&text, &path.display().to_string())
+        .map_err(|why| tracing::warn!("{why}"))
+        .ok()
 }
 
 /// The Run button's text: what it runs ("▶ Run plan", "▶ Run system"), its file in the hover.

@@ -209,10 +209,25 @@ pub fn timeline_ui(ui: &mut Ui, status: &Status, at_secs: &mut Option<f64>) {
     lanes.dedup();
     let first = changes.first().map_or(0.0, |c| c.run_secs);
     let end = status.run_secs.max(first);
+    // What the bars' colours say, once for every lane.
+    ui.horizontal_wrapped(|ui| {
+        for state in [
+            BehaviourState::Winner,
+            BehaviourState::Ready,
+            BehaviourState::Checking,
+            BehaviourState::Slept,
+        ] {
+            ui.label(RichText::new("■").color(behaviour_colour(state)));
+            ui.label(state.as_str());
+        }
+    });
     Plot::new("osc-timeline")
         .height(24.0 * lanes.len() as f32 + 30.0)
         .allow_scroll(false)
         .allow_zoom([true, false])
+        // Room above the top lane for its name.
+        .include_y(-0.5)
+        .include_y(lanes.len() as f64)
         .show_axes([true, false])
         .show(ui, |plot| {
             for (lane, module) in lanes.iter().enumerate() {
@@ -230,11 +245,16 @@ pub fn timeline_ui(ui: &mut Ui, status: &Status, at_secs: &mut Option<f64>) {
                         .stroke(Stroke::new(8.0, behaviour_colour(state))),
                     );
                 }
-                plot.text(egui_plot::Text::new(
-                    *module,
-                    [first, y + 0.35].into(),
-                    RichText::new(*module).small(),
-                ));
+                // From the lane's start rightwards, above its bar: a name centred on the start
+                // would be cut in half by the plot's left edge.
+                plot.text(
+                    egui_plot::Text::new(
+                        *module,
+                        [first, y + 0.2].into(),
+                        RichText::new(*module).text_style(egui::TextStyle::Body),
+                    )
+                    .anchor(egui::Align2::LEFT_BOTTOM),
+                );
             }
             if let Some(at) = at_secs {
                 plot.vline(VLine::new("scrubbed", *at).color(Color32::WHITE));

@@ -19,6 +19,7 @@ use armor_model::rehearsal::{AreaJudgement, ArrivalJudgement, Verdict};
 use armor_protocol::{FiringRecord, MissionStatus, Request, RunFiles, Status};
 
 use super::live::{self, Sources};
+use super::updates::NoRunPlan;
 
 /// How often the control interface is asked for the state.
 const POLL_EVERY: Duration = Duration::from_millis(200);
@@ -109,6 +110,33 @@ pub struct Shared {
     /// The role the studio proved at the run's control interface (`None`: the run has no
     /// secret, and anyone who reaches it operates).
     pub role: Option<armor_protocol::Role>,
+    /// The run's answers to the plan updates the studio sent, oldest first; taken by the view.
+    pub update_answers: Vec<UpdateAnswer>,
+    /// The plan the run plays, as the run sent it once it reported an update taken (its own,
+    /// `armor ctl update` from elsewhere, an area a module reported); `None` before any.
+    pub running_plan: Option<RunningPlan>,
+}
+
+/// The run's answer to a plan update the studio sent ([`RunSession::send_update`]) or a repair
+/// option it chose ([`RunSession::repair`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct UpdateAnswer {
+    /// Whether the run took it; `false` when it refused it, and when no answer came (the
+    /// message says which).
+    pub taken: bool,
+    /// The run's words (`update 3 taken: …`, `update 4 refused: …`), or why there is none.
+    pub message: String,
+    /// The plan sent; none for a repair (the run makes its plan).
+    pub text: Option<String>,
+}
+
+/// The plan a run plays, as it sent it ([`Request::Files`]) after reporting an update taken.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunningPlan {
+    /// The number of the last update taken that the run had reported when it was asked.
+    pub after_update: u32,
+    /// The plan's text, or why the run did not send it.
+    pub text: Result<String, NoRunPlan>,
 }
 
 impl Shared {
@@ -283,6 +311,19 @@ impl RunSession {
     /// Sends an operator request; its answer shows in [`Shared::replies`].
     pub fn request(&self, request: Request) {
         let _ = self.requests.send(request);
+    }
+
+    /// Sends `text`, a whole plan, to the run as an update of the plan it plays (what `armor
+    /// ctl update` sends; `file` names it in the run's records); its answer shows in
+    /// [`Shared::update_answers`].
+    pub fn send_update(&self, file: String, text: String) {
+        let _ = self.requests.send(Request::Update { file, text });
+    }
+
+    /// Applies option `option` of the repair the mission proposes (`armor ctl repair N`): an
+    /// update the run makes; its answer shows in [`Shared::update_answers`].
+    pub fn repair(&self, option: u32) {
+        let _ = self.requests.send(Request::Repair { option });
     }
 
     /// Drives the robot through the run's control interface, which relays to its teleop
@@ -532,6 +573,10 @@ fn poll_control(
     } = options;
     // Attached without the system file: ask the run for its files, once.
     let mut want_files = target.as_os_str().is_empty();
+    // The last update taken whose plan the run was asked for, and the one to ask it for at
+    // the next poll: the plan it plays has changed, whoever changed it.
+    let mut plan_asked_after = 0;
+    let mut want_plan: Option<u32> = None;
     let addr = loop {
         if stop.load(Ordering::Relaxed) {
             return;
@@ -564,11 +609,16 @@ fn poll_control(
                 }
                 Err(mpsc::RecvTimeoutError::Disconnected) => return,
             };
-        let request = if want_files && request == Request::Status {
+        let polled = request == Request::Status;
+        let plan_after = want_plan.filter(|_| polled && !want_files);
+        let request = if polled && (want_files || plan_after.is_some()) {
             Request::Files
         } else {
             request
         };
+        if plan_after.is_some() {
+            want_plan = None;
+        }
         let is_status = matches!(request, Request::Status | Request::Files);
         // One connection for every poll and request, opened again after an error.
         let reply = match client.as_mut() {
@@ -592,17 +642,52 @@ fn poll_control(
         match reply {
             Ok(reply) => {
                 shared_now.connection_lost = None;
-                if !is_status || (reply.files.is_none() && request == Request::Files) {
-                    shared_now.replies.push((reply.ok, reply.message));
-                }
-                if request == Request::Files {
-                    // Asked once: a run that cannot send them is watched without them.
-                    want_files = false;
-                }
-                if let Some(files) = reply.files {
-                    shared_now.files = Some(files);
+                match (&request, plan_after) {
+                    (Request::Update { .. } | Request::Repair { .. }, _) => {
+                        shared_now.update_answers.push(UpdateAnswer {
+                            taken: reply.ok,
+                            message: reply.message,
+                            text: sent_plan(&request),
+                        });
+                    }
+                    (_, Some(after_update)) => {
+                        let text = match reply.files.and_then(|files| files.mission) {
+                            Some(mission) => Ok(mission.text),
+                            None if reply.ok => {
+                                Err(NoRunPlan::NotSent("its answer held none".to_owned()))
+                            }
+                            None => Err(NoRunPlan::NotSent(reply.message)),
+                        };
+                        shared_now.running_plan = Some(RunningPlan { after_update, text });
+                    }
+                    (_, None) => {
+                        if !is_status || (reply.files.is_none() && request == Request::Files) {
+                            shared_now.replies.push((reply.ok, reply.message));
+                        }
+                        if request == Request::Files {
+                            // Asked once: a run that cannot send them is watched without them.
+                            want_files = false;
+                        }
+                        if let Some(files) = reply.files {
+                            shared_now.files = Some(files);
+                        }
+                    }
                 }
                 if let Some(status) = reply.status {
+                    // An update taken that the studio has not seen the plan of: ask for it.
+                    let last_taken = status
+                        .mission
+                        .iter()
+                        .flat_map(|mission| &mission.updates)
+                        .filter(|update| update.taken)
+                        .map(|update| update.number)
+                        .max();
+                    if let Some(last_taken) = last_taken
+                        && last_taken > plan_asked_after
+                    {
+                        plan_asked_after = last_taken;
+                        want_plan = Some(last_taken);
+                    }
                     for module in &status.modules {
                         if let Some(stats) = &module.stats {
                             let history =
@@ -636,14 +721,39 @@ fn poll_control(
                 if shared_now.connection_lost.is_none() {
                     shared_now.connection_lost = Some((at_secs, format!("{err:#}")));
                 }
-                if !is_status {
-                    shared_now.replies.push((false, format!("{err:#}")));
+                match &request {
+                    // The run may have taken it before the link broke: its list of updates
+                    // says, once the link is back.
+                    Request::Update { .. } | Request::Repair { .. } => {
+                        shared_now.update_answers.push(UpdateAnswer {
+                            taken: false,
+                            message: format!(
+                                "no answer from the run ({err:#}): whether it took the update, \
+                                 its list of updates will say once the link is back"
+                            ),
+                            text: sent_plan(&request),
+                        });
+                    }
+                    _ if !is_status => shared_now.replies.push((false, format!("{err:#}"))),
+                    _ => {}
+                }
+                // Asked again at the next poll.
+                if let Some(after_update) = plan_after {
+                    want_plan = Some(after_update);
                 }
                 // The run's last state stays shown.
             }
         }
         drop(shared_now);
         ctx.request_repaint();
+    }
+}
+
+/// The plan an update request sends, if it sends one.
+fn sent_plan(request: &Request) -> Option<String> {
+    match request {
+        Request::Update { text, .. } => Some(text.clone()),
+        _ => None,
     }
 }
 

@@ -859,11 +859,10 @@ impl SnarlViewer<BlockId> for DiagramViewer<'_> {
                 );
             }
             // During a run, the module's state in its colour, on a dark ground so that it reads
-            // on every header colour.
+            // on every header colour; at the body's size, as the port labels.
             if let Some(state) = self.live.get(&block.name) {
                 ui.label(
                     RichText::new(format!(" {} ", state.as_str()))
-                        .small()
                         .color(state_colour(*state))
                         .background_color(Color32::from_black_alpha(190)),
                 );

@@ -35,6 +35,7 @@ mod loop_closure;
 mod mapper_scan;
 mod path_plan;
 mod placement;
+mod plan_update;
 mod procs;
 mod pull;
 mod qgc_import;
@@ -264,6 +265,12 @@ const BENCHES: &[Bench] = &[
         about: "compile and check a 100-leg plan on that world, every leg planned, vs the same \
                 plan with no world (ms; goal < 1000)",
         run: path_plan::run_check,
+    },
+    Bench {
+        name: plan_update::NAME,
+        about: "armor ctl update of a 100-leg plan on the 100 m world while the robot drives, to \
+                the new net running, vs compiling that plan from scratch (ms; goal p99 < 200)",
+        run: plan_update::run,
     },
     Bench {
         name: discovery::NAME,

@@ -44,6 +44,11 @@ const ORIGIN: LatLon = LatLon::new(43.5615, 1.469);
 
 /// The bench's world: 200 obstacles at random in a 100 m square, the start corner clear.
 pub fn world() -> anyhow::Result<World> {
+    World::parse(&world_text(), "bench.world").map_err(|err| anyhow!("the bench's world: {err}"))
+}
+
+/// The bench's world as its file writes it.
+pub(crate) fn world_text() -> String {
     let mut rng = Rng::new(SEED, 1);
     let mut text = format!(
         "name bench\norigin {} {}\nstart 1 1 0\nboundary 0,0 {SIDE_M},0 {SIDE_M},{SIDE_M} 0,{SIDE_M} 0,0\n",
@@ -74,10 +79,10 @@ pub fn world() -> anyhow::Result<World> {
         ));
         placed += 1;
     }
-    World::parse(&text, "bench.world").map_err(|err| anyhow!("the bench's world: {err}"))
+    text
 }
 
-fn planner(world: &World) -> anyhow::Result<(Planner, Duration)> {
+pub(crate) fn planner(world: &World) -> anyhow::Result<(Planner, Duration)> {
     let start = Instant::now();
     let costmap = Costmap::for_world(world, &Robot::default(), &[], &CostmapSettings::default())
         .map_err(|err| anyhow!("{err}"))?;
@@ -207,7 +212,7 @@ fn reference_astar(map: &Costmap, from: usize, to: usize) -> Option<(Vec<usize>,
 }
 
 /// 101 waypoints in one connected part of the bench's world, and 100 legs through them.
-fn plan_text(world: &World, planner: &mut Planner, waypoints: usize) -> String {
+pub(crate) fn plan_text(world: &World, planner: &mut Planner, waypoints: usize) -> String {
     let mut rng = Rng::new(SEED, 3);
     let first = free_place(&mut rng, planner);
     let mut points = vec![first];

@@ -48,6 +48,84 @@ pub struct MissionStatus {
     /// The plan updates asked for (`armor ctl update`), taken or refused, oldest first.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub updates: Vec<UpdateRecord>,
+    /// What the mission proposes while a leg cannot be completed as planned (blocked, or cut by
+    /// a no-go area); none when nothing is contradicted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub repair: Option<Repair>,
+}
+
+/// A repair the mission proposes when the world contradicts the plan: a leg cannot be completed
+/// (the navigation is `blocked`, a no-go area reported cuts the route of the leg in force or of
+/// a later one). Each option is a plan update; `armor ctl repair N` ([`crate::Request::Repair`])
+/// applies one, and the plan's `<contingency on="blocked" do="repair"/>` applies the default
+/// (`docs/plans.md`, "Repair").
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Repair {
+    /// When it was proposed (run seconds).
+    pub run_secs: f64,
+    /// The leg that cannot be completed as planned.
+    pub leg: String,
+    /// Why, in words (``blocked in `cross_drive` ``, ``no-go area `mines` cuts leg `north` ``).
+    pub why: String,
+    /// The options, best first, numbered from 1.
+    pub options: Vec<RepairOption>,
+    /// The number of the option the plan's contingency applies by itself, if it names one
+    /// (`do="repair"`: the best, at once); none: the mission waits for the operator's choice.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub default_option: Option<u32>,
+}
+
+/// What a repair option does.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RepairKind {
+    /// Drive to the leg's destination round through another waypoint of the plan.
+    #[default]
+    WayRound,
+    /// Give up the leg's destination and drive on from where the robot is to the next leg's.
+    Skip,
+    /// Stay where the robot is until an area is lifted (an update) or the operator decides.
+    Wait,
+    /// Drive back to where the plan starts, and end there.
+    Return,
+}
+
+impl RepairKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RepairKind::WayRound => "way round",
+            RepairKind::Skip => "skip",
+            RepairKind::Wait => "wait",
+            RepairKind::Return => "return",
+        }
+    }
+}
+
+/// One repair option, with its costs against what is left of the plan.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RepairOption {
+    /// Its number, from 1, as `armor ctl repair N` names it.
+    pub number: u32,
+    pub kind: RepairKind,
+    /// What it does, in one sentence (``round through `north`, then `east` ``).
+    pub summary: String,
+    /// The waypoints it drives through to the rest of the plan, in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub via: Vec<String>,
+    /// The legs whose destination it gives up.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub legs_dropped: Vec<String>,
+    /// The distance left to drive, from where the robot is to the end of the plan so repaired
+    /// (metres, along the planned paths).
+    pub distance_m: f64,
+    /// The time that takes at the plan's speed, with the arrivals' and waits' times (seconds);
+    /// none for a wait, which lasts as long as it has to.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub duration_secs: Option<f64>,
+    /// The deadlines (`arrive_by`) it misses, a sentence each (``leg `east` due by 08:05:00,
+    /// arrives 08:06:12``).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub deadlines_missed: Vec<String>,
 }
 
 /// A plan update asked of a running mission, numbered from 1 in the order they came.
@@ -178,7 +256,8 @@ pub struct FileText {
 pub struct RunFiles {
     /// The system file.
     pub system: FileText,
-    /// The mission the run plays, a plan or a net, when it has one.
+    /// The mission the run plays, a plan or a net, when it has one: a plan as it runs now,
+    /// with the updates taken so far (written as the studio saves a plan), a net as its file is.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mission: Option<FileText>,
     /// The files the system's `file` parameters name (the simulated world), as the run found

@@ -66,6 +66,20 @@ pub enum Request {
         name: String,
         points_m: Vec<[f64; 2]>,
     },
+    /// Apply option `option` (numbered from 1) of the repair the mission proposes
+    /// ([`crate::Repair`], in the status's `mission.repair`): `armor ctl repair N`. Each option is
+    /// a plan update the run takes as it takes `Update` (`docs/plans.md`, "Repair"); refused
+    /// when nothing is proposed or the number is not one of the options.
+    Repair {
+        option: u32,
+    },
+    /// The team bridge (`armor-team robot`) says that the robot's link to its operator is lost
+    /// (no operator's beat for a while) or found again. A plan's `link_lost` contingency
+    /// answers it on the robot (`docs/team.md`); an operator's request, since a role that only
+    /// reads must not make the robot hold.
+    Link {
+        lost: bool,
+    },
 }
 
 /// The largest plan `armor ctl update` sends: a request, with its JSON escapes, must fit in

@@ -7,7 +7,7 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use armor_model::net::{Engine, Firing, Marking, MissionNet, Place};
+use armor_model::net::{Engine, EngineError, EventRef, Firing, Marking, MissionNet, Place};
 use armor_model::system::Reason;
 use armor_module_api::Clock;
 use serde_json::json;
@@ -90,6 +90,15 @@ pub struct Controller {
     held_since: Option<Instant>,
     /// The plan updates asked for, taken or refused, numbered from 1.
     updates: Vec<UpdateRecord>,
+    /// The repair proposed while a leg cannot be completed.
+    repair: Option<armor_protocol::Repair>,
+    /// Where every update and repair entry of the timeline goes too, as JSON (the run's node
+    /// publishes it for the recording), report or not.
+    records: Option<std::sync::mpsc::Sender<String>>,
+    /// Since when (run seconds) the team bridge says the operator's link is lost.
+    link_lost_since: Option<f64>,
+    /// The `link.lost.SECS` already reported in this outage, by their seconds.
+    link_reported: BTreeSet<u32>,
 }
 
 /// The modules that every place of `net` runs, each with the same parameters in all: a plan's
@@ -159,6 +168,10 @@ impl Controller {
             hold_timeout: None,
             held_since: None,
             updates: Vec::new(),
+            repair: None,
+            records: None,
+            link_lost_since: None,
+            link_reported: BTreeSet::new(),
         };
         let at = controller.clock.now_secs();
         controller.first_marked = controller
@@ -177,6 +190,11 @@ impl Controller {
     pub fn with_hold_timeout(mut self, hold_timeout: Option<Duration>) -> Self {
         self.hold_timeout = hold_timeout;
         self
+    }
+
+    /// Sends every update and repair entry of the timeline to `records` too, as JSON.
+    pub fn set_records(&mut self, records: Option<std::sync::mpsc::Sender<String>>) {
+        self.records = records;
     }
 
     /// The enabled transitions when only an operator can fire them (and at least one is
@@ -344,6 +362,32 @@ impl Controller {
         Ok(number)
     }
 
+    /// Gives the mission `net`, the one it plays with other parameters (a leg's path planned
+    /// again from where the robot is, before the operator's retry): the marking, the timers
+    /// and the events latched go on; the modules are told when the next firing enters a place.
+    pub fn reroute(&mut self, net: MissionNet) -> Result<(), EngineError> {
+        let now = self.clock.now_secs();
+        self.engine = Engine::resume(&net, &self.engine.marking(), &self.engine, true, now)?;
+        self.net = net;
+        Ok(())
+    }
+
+    /// The repair proposed (shown in the status), or none.
+    pub fn set_repair(&mut self, repair: Option<armor_protocol::Repair>) {
+        if let Some(repair) = &repair {
+            self.record(
+                "repair",
+                serde_json::to_value(repair).unwrap_or(serde_json::Value::Null),
+            );
+        }
+        self.repair = repair;
+    }
+
+    /// Records in the timeline what became of a repair (an option applied, or why not).
+    pub fn note_repair(&mut self, details: serde_json::Value) {
+        self.record("repair_applied", details);
+    }
+
     /// Records a plan update refused, with `why`; the mission goes on unchanged. Its number is
     /// returned.
     pub fn refuse_update(&mut self, file: &str, why: &str) -> u32 {
@@ -382,9 +426,12 @@ impl Controller {
         if self.paused || self.outcome.is_some() {
             return None;
         }
-        self.engine
-            .next_deadline()
-            .map(|run_secs| self.clock.instant_at(run_secs))
+        let (_, link) = self.due_link_events(self.clock.now_secs());
+        let next = match (self.engine.next_deadline(), link) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        next.map(|run_secs| self.clock.instant_at(run_secs))
     }
 
     /// When each transition first fired and each place was first marked (run seconds): what a
@@ -416,6 +463,18 @@ impl Controller {
     }
 
     fn record(&mut self, kind: &str, details: serde_json::Value) {
+        if let Some(records) = &self.records
+            && matches!(kind, "update" | "repair" | "repair_applied")
+        {
+            let mut entry = json!({ "run_secs": self.clock.now_secs(), "kind": kind });
+            if let (Some(entry), serde_json::Value::Object(details)) =
+                (entry.as_object_mut(), &details)
+            {
+                entry.extend(details.clone());
+            }
+            // The node gone (the run ending) loses nothing the report does not keep.
+            let _ = records.send(entry.to_string());
+        }
         let Some(timeline) = &self.timeline else {
             return;
         };
@@ -444,6 +503,67 @@ impl Controller {
         self.step(server);
     }
 
+    /// The team bridge says the link to the operator is lost (`lost`) or found again. While it
+    /// is lost, each `link.lost.SECS` the net waits for is reported once its time has passed
+    /// ([`Controller::step`]), once per outage.
+    fn on_link(&mut self, lost: bool, server: &ConfigServer) -> (bool, String) {
+        let now = self.clock.now_secs();
+        match (lost, self.link_lost_since) {
+            (true, Some(_)) => (true, "the link was lost already".to_owned()),
+            (true, None) => {
+                self.link_lost_since = Some(now);
+                self.record("link_lost", json!({}));
+                tracing::warn!("the link to the operator is lost: the mission goes on as planned");
+                self.step(server);
+                (
+                    true,
+                    "link lost: the mission goes on as its plan says".to_owned(),
+                )
+            }
+            (false, None) => (true, "the link was up already".to_owned()),
+            (false, Some(since)) => {
+                self.link_lost_since = None;
+                self.link_reported.clear();
+                self.record("link_found", json!({ "lost_secs": now - since }));
+                tracing::info!(
+                    "the link to the operator is back after {:.0} s",
+                    now - since
+                );
+                (true, format!("link found again after {:.0} s", now - since))
+            }
+        }
+    }
+
+    /// The `link.lost.SECS` events of the net whose time has come in this outage and that
+    /// were not reported yet; and when the next one's comes.
+    fn due_link_events(&self, now_secs: f64) -> (Vec<u32>, Option<f64>) {
+        let Some(since) = self.link_lost_since else {
+            return (Vec::new(), None);
+        };
+        let mut due = Vec::new();
+        let mut next: Option<f64> = None;
+        for transition in &self.net.transitions {
+            let Some(EventRef::LinkLost { after_secs }) = transition
+                .condition
+                .event
+                .as_deref()
+                .and_then(EventRef::parse)
+            else {
+                continue;
+            };
+            if self.link_reported.contains(&after_secs) || due.contains(&after_secs) {
+                continue;
+            }
+            let at = since + f64::from(after_secs);
+            if at <= now_secs {
+                due.push(after_secs);
+            } else {
+                next = Some(next.map_or(at, |next| next.min(at)));
+            }
+        }
+        (due, next)
+    }
+
     /// A module died for good: the mission hears `module.<id>.failed`; if nothing in the net
     /// waits for it while the module is needed, the mission cannot go on.
     pub fn on_failed(&mut self, module: &str, server: &ConfigServer) {
@@ -468,6 +588,14 @@ impl Controller {
     pub fn step(&mut self, server: &ConfigServer) {
         if self.paused || self.outcome.is_some() {
             return;
+        }
+        let now = self.clock.now_secs();
+        let (due, _) = self.due_link_events(now);
+        for after_secs in due {
+            let event = armor_model::net::link_lost_event(after_secs);
+            let latched = self.engine.report_event(&event, now);
+            self.record("event", json!({ "event": event, "latched_by": latched }));
+            self.link_reported.insert(after_secs);
         }
         let before = self.engine.active_modules();
         let firings = self.engine.step(self.clock.now_secs());
@@ -616,6 +744,7 @@ impl Controller {
                 .as_ref()
                 .map(|outcome| outcome.as_str().to_owned()),
             updates: self.updates.clone(),
+            repair: self.repair.clone(),
         }
     }
 
@@ -666,7 +795,9 @@ impl Controller {
             | Request::SetPose { .. }
             | Request::Update { .. }
             | Request::Area { .. }
+            | Request::Repair { .. }
             | Request::Files => (false, "not a mission request".to_owned()),
+            Request::Link { lost } => self.on_link(lost, server),
             Request::Pause if self.paused => (false, "already paused".to_owned()),
             Request::Pause => {
                 self.paused = true;
@@ -792,6 +923,28 @@ mod tests {
         );
         controller.paused = true;
         assert_eq!(controller.control().wanted, wanted(&["recorder"]));
+    }
+
+    #[test]
+    fn each_link_lost_time_comes_once_an_outage_from_when_the_link_was_lost() {
+        let net = MissionNet::parse(
+            r#"<mission name="m" system="s.xml">
+                 <place name="one" tokens="1"/><place name="held"/><place name="back"/>
+                 <transition name="hold" event="link.lost.3"><input place="one"/><output place="held"/></transition>
+                 <transition name="home" event="link.lost.5"><input place="one"/><output place="back"/></transition>
+               </mission>"#,
+        )
+        .expect("a valid net");
+        let mut controller = Controller::new(net, BTreeSet::new(), Clock::real_time(), 0.0, false);
+        assert_eq!(controller.due_link_events(100.0), (vec![], None));
+        controller.link_lost_since = Some(100.0);
+        assert_eq!(controller.due_link_events(101.0), (vec![], Some(103.0)));
+        assert_eq!(controller.due_link_events(103.0), (vec![3], Some(105.0)));
+        controller.link_reported.insert(3);
+        assert_eq!(controller.due_link_events(104.0), (vec![], Some(105.0)));
+        assert_eq!(controller.due_link_events(200.0), (vec![5], None));
+        controller.link_reported.insert(5);
+        assert_eq!(controller.due_link_events(300.0), (vec![], None));
     }
 
     #[test]

@@ -40,6 +40,8 @@ pub mod process;
 #[cfg(feature = "cli")]
 pub mod progress;
 pub mod rehearsal;
+#[cfg(feature = "cli")]
+pub mod repair;
 pub mod replay;
 pub mod restart;
 pub mod ros_export;

@@ -64,6 +64,13 @@ enum CtlCommand {
         /// The corners, `X,Y` each, in metres.
         corners: Vec<String>,
     },
+    /// Apply option N of the repair the mission proposes (`status` lists them, numbered, with
+    /// their costs): each is a plan update, taken as `update` takes one (docs/plans.md,
+    /// "Repair").
+    Repair {
+        /// The option's number, from 1.
+        option: u32,
+    },
     /// Tell the localiser where the robot is (as rviz's "2D Pose Estimate"): `set-pose X Y
     /// HEADING_DEG` in the map frame (metres, degrees counter-clockwise from east).
     #[command(allow_negative_numbers = true)]
@@ -634,6 +641,7 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                         })
                         .collect::<anyhow::Result<_>>()?,
                 },
+                CtlCommand::Repair { option } => armor_protocol::Request::Repair { option },
                 CtlCommand::SetPose {
                     x_m,
                     y_m,
@@ -1378,6 +1386,13 @@ fn status_text(status: &armor_protocol::Status) -> String {
             let _ = writeln!(out, "  enabled: {enabled}");
         }
         for line in armor_runtime::summary::update_lines(&mission.updates) {
+            let _ = writeln!(out, "  {line}");
+        }
+        for line in mission
+            .repair
+            .iter()
+            .flat_map(armor_runtime::summary::repair_lines)
+        {
             let _ = writeln!(out, "  {line}");
         }
     }

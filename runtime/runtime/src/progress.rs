@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 use armor_model::geo::{self, Point};
 use armor_model::plan::{Compiled, Plan};
 use armor_model::rehearsal::{Arrival, Judge, NoGoArea, TruePose, Verdict};
-use armor_module_api::types::{Datum, Odometry, Pose2D};
+use armor_module_api::types::{Datum, Odometry, Pose2D, Text};
 use armor_module_api::{Event, ModuleSpec, Node, Standalone};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -27,6 +27,12 @@ use crate::console;
 
 /// The name of the run's own node, which the access lists let subscribe as an observer.
 pub const NODE_NAME: &str = "armor-run";
+/// The output on which the run's node publishes every plan update and repair as it is
+/// recorded in the report's timeline (a `Text` holding the entry's JSON), so that a recorder
+/// that names [`UPDATES_DATA`] keeps them in the run's MCAP recording.
+pub const UPDATES_OUTPUT: &str = "updates";
+/// [`UPDATES_OUTPUT`]'s data name: the only data the access lists let the run's node publish.
+pub const UPDATES_DATA: &str = "armor-run.updates";
 /// How often the line is redrawn.
 const DRAW_PERIOD: Duration = Duration::from_millis(200);
 /// How long the end of a run waits, in real time, for the true poses that settle the last
@@ -237,6 +243,8 @@ pub struct Progress {
     judge: Option<Arc<Mutex<Judge>>>,
     stop: Arc<AtomicBool>,
     node: Option<std::thread::JoinHandle<()>>,
+    /// What the node publishes on [`UPDATES_DATA`].
+    records: Option<std::sync::mpsc::Sender<String>>,
     /// The odometer when each leg set off and arrived.
     odo_started: Vec<Option<f64>>,
     odo_arrived: Vec<Option<f64>>,
@@ -270,6 +278,7 @@ impl Progress {
         }
         let stop = Arc::new(AtomicBool::new(false));
         let mut node = None;
+        let mut records = None;
         let odometer = watch
             .odometry
             .as_ref()
@@ -291,8 +300,10 @@ impl Progress {
             };
             let stop = Arc::clone(&stop);
             let names = Names { odometry, truth };
+            let (sender, updates) = std::sync::mpsc::channel();
+            records = Some(sender);
             node = Some(std::thread::spawn(move || {
-                if let Err(err) = follow(agent, secret_file, &names, &shared, &stop) {
+                if let Err(err) = follow(agent, secret_file, &names, &shared, &updates, &stop) {
                     // Without the truth the judge has no pose and says so in the verdict.
                     tracing::warn!("the run's node cannot follow the robot: {err:#}");
                 }
@@ -307,6 +318,7 @@ impl Progress {
             judge,
             stop,
             node,
+            records,
             odo_started: vec![None; count],
             odo_arrived: vec![None; count],
             started: vec![None; count],
@@ -322,6 +334,12 @@ impl Progress {
             .map_or_else(Odometer::default, |shared| {
                 *shared.lock().unwrap_or_else(PoisonError::into_inner)
             })
+    }
+
+    /// Where the run's node publishes the records of the updates and repairs
+    /// ([`UPDATES_DATA`]); none when the run has no node (nothing followed).
+    pub fn records(&self) -> Option<std::sync::mpsc::Sender<String>> {
+        self.records.clone()
     }
 
     /// Where the robot believes it is (its odometry's latest pose), if the run's node has it.
@@ -500,12 +518,17 @@ fn follow(
     secret_file: Option<PathBuf>,
     names: &Names,
     shared: &Shared,
+    updates: &std::sync::mpsc::Receiver<String>,
     stop: &AtomicBool,
 ) -> anyhow::Result<()> {
     let mut node = Node::connect(
         ModuleSpec::new(
             NODE_NAME,
             "`armor run`'s progress line and rehearsal judge.",
+        )
+        .output::<Text>(
+            UPDATES_OUTPUT,
+            "every plan update and repair, as the report's timeline has it (JSON)",
         ),
         Standalone {
             name: Some(NODE_NAME.to_owned()),
@@ -522,8 +545,12 @@ fn follow(
         (Some(name), Some(judge)) => Some((node.subscribe_raw(name, true)?, judge)),
         _ => None,
     };
+    let records = node.output::<Text>(UPDATES_OUTPUT)?;
     let mut poses = Vec::new();
     while !stop.load(Ordering::Relaxed) {
+        while let Ok(entry) = updates.try_recv() {
+            node.send(&records, &Text(entry))?;
+        }
         if let Event::Input(_) = node.next_event(Some(Duration::from_millis(100)))? {
             if let Some((input, shared)) = &odometry {
                 while let Some(sample) = node.take_raw(input) {

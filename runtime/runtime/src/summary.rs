@@ -133,6 +133,39 @@ pub fn update_lines(updates: &[armor_protocol::UpdateRecord]) -> Vec<String> {
         .collect()
 }
 
+/// The repair the mission proposes, as `armor ctl status` prints it: why, then an option a line,
+/// numbered as `armor ctl repair N` takes them, each with its costs.
+pub fn repair_lines(repair: &armor_protocol::Repair) -> Vec<String> {
+    let mut lines = vec![format!(
+        "repair proposed at {:.1} s for leg `{}`: {}{}",
+        repair.run_secs,
+        repair.leg,
+        repair.why,
+        match repair.default_option {
+            Some(number) => format!(" (the plan applies option {number})"),
+            None => "; choose with `armor ctl repair N`".to_owned(),
+        }
+    )];
+    for option in &repair.options {
+        let time = option
+            .duration_secs
+            .map_or_else(|| "until lifted".to_owned(), |secs| format!("{secs:.0} s"));
+        let missed = if option.deadlines_missed.is_empty() {
+            "no deadline missed".to_owned()
+        } else {
+            format!("misses {}", option.deadlines_missed.join("; "))
+        };
+        lines.push(format!(
+            "  {}. {} ({}): {:.1} m, {time}, {missed}",
+            option.number,
+            option.summary,
+            option.kind.as_str(),
+            option.distance_m
+        ));
+    }
+    lines
+}
+
 /// The legs as a table, one line each; with `truth` (a simulated run), each arrival's true
 /// error in a column of its own.
 pub fn table(legs: &[LegRun], truth: Option<&Verdict>) -> String {

@@ -276,7 +276,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     let mut agent = AgentProc::start(
         options.agent_addr.map_or_else(|| local(0), Ok)?,
         secret.clone(),
-        Acl::of(&loaded.system, &observers),
+        run_acl(&loaded.system, &observers),
     )?;
     let control = controller
         .as_ref()
@@ -344,6 +344,10 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             },
         )
     });
+    // The updates and repairs go to the recording through the run's node.
+    if let (Some(controller), Some(progress)) = (&mut controller, &progress) {
+        controller.set_records(progress.records());
+    }
     let started = Instant::now();
     tracing::info!(
         system = loaded.system.name,
@@ -360,6 +364,8 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     // Plan updates asked for, taken one a turn of the loop (see `checked` below).
     let mut queued_updates = std::collections::VecDeque::new();
     let mut checked = None;
+    // The repair proposed while a leg holds for want of a way (`crate::repair`).
+    let mut proposal: Option<crate::repair::Proposal> = None;
     let outcome = loop {
         if stop.load(Ordering::Relaxed) {
             tracing::info!("stop requested");
@@ -412,6 +418,21 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     );
                     break ExitCode::FAILURE;
                 }
+            }
+        }
+        // A leg that starts to hold gets its repair proposed; the plan's default is taken
+        // first of the updates asked for, as the next one.
+        if let (Some(controller), Some(running)) = (&mut controller, &running_plan) {
+            let run_secs = clock.now_secs();
+            if let Some(asked) = crate::repair::watch(
+                &mut proposal,
+                controller,
+                running,
+                progress.as_ref().and_then(Progress::robot_at),
+                (run_secs, start_unix_secs + run_secs),
+                || crate::update::world_of(running, &server.loaded().system, &options.module_path),
+            ) {
+                queued_updates.push_front((asked, None));
             }
         }
         while let Ok((request, reply)) = requests.try_recv() {
@@ -471,8 +492,20 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     }
                 }
                 armor_protocol::Request::Files => {
-                    let _ = reply.send(run_files(&options.file, &system_file, &server));
+                    let plan = running_plan.as_ref().map(|running| &running.plan);
+                    let _ = reply.send(run_files(&options.file, plan, &system_file, &server));
                     continue;
+                }
+                armor_protocol::Request::Repair { option } => {
+                    match crate::repair::asked(proposal.as_ref(), option) {
+                        // Taken as any update, in turn.
+                        Ok(asked) if controller.is_some() => {
+                            queued_updates.push_back((asked, Some(reply)));
+                            continue;
+                        }
+                        Ok(_) => (false, "this run has no mission".to_owned()),
+                        Err(why) => (false, why.to_string()),
+                    }
                 }
                 request => match (crate::update::Asked::of(request), &mut controller) {
                     // Taken below, once the events before it are played: see `checked`.
@@ -486,7 +519,24 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                         "this run plays a mission net, not a plan: only a plan is updated",
                     ),
                     (Err(mission_request), Some(controller)) => {
-                        controller.handle(mission_request, &server)
+                        // A held leg retried drives from where the robot is.
+                        let rerouted = match (&mission_request, &running_plan) {
+                            (armor_protocol::Request::Fire { transition }, Some(running)) => {
+                                reroute_retry(
+                                    controller,
+                                    running,
+                                    transition,
+                                    progress.as_ref(),
+                                    (&server, &options.module_path),
+                                )
+                            }
+                            _ => None,
+                        };
+                        let (ok, message) = controller.handle(mission_request, &server);
+                        match rerouted {
+                            Some(how) if ok => (ok, format!("{message}: {how}")),
+                            _ => (ok, message),
+                        }
                     }
                     (_, None) => (false, "this run has no mission".to_owned()),
                 },
@@ -512,10 +562,56 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             match asked.check(running, &options.module_path) {
                 Ok(update) => checked = Some((update, reply)),
                 Err(why) => {
-                    let (ok, message) = crate::update::refuse(controller, &asked.label(), &why.0);
-                    answer_update(reply.as_ref(), ok, message, || {
-                        run_status(&modules, &server, Some(controller), &env, &clock)
-                    });
+                    // An area that cuts a later leg is a fact: its repair is proposed, and
+                    // taken with it at once when the plan names the default.
+                    let run_secs = clock.now_secs();
+                    let cut = match &asked {
+                        crate::update::Asked::Area(area) => crate::update::with_area(running, area)
+                            .ok()
+                            .and_then(|plan| {
+                                let world = crate::update::world_of(
+                                    running,
+                                    &server.loaded().system,
+                                    &options.module_path,
+                                )
+                                .ok()?;
+                                crate::repair::for_cut_leg(
+                                    controller,
+                                    running,
+                                    &asked.label(),
+                                    &plan,
+                                    (run_secs, start_unix_secs + run_secs),
+                                    world.as_ref(),
+                                )
+                            }),
+                        _ => None,
+                    };
+                    match cut {
+                        Some((made, Some(default))) => {
+                            proposal = Some(made);
+                            queued_updates.push_front((default, reply));
+                        }
+                        cut => {
+                            let why = match cut {
+                                Some((made, None)) => {
+                                    let said = format!(
+                                        "{}; a repair is proposed for leg `{}` (`armor ctl \
+                                         status` lists the options, `armor ctl repair N` takes \
+                                         one with the area)",
+                                        why.0, made.shown.leg
+                                    );
+                                    proposal = Some(made);
+                                    said
+                                }
+                                _ => why.0,
+                            };
+                            let (ok, message) =
+                                crate::update::refuse(controller, &asked.label(), &why);
+                            answer_update(reply.as_ref(), ok, message, || {
+                                run_status(&modules, &server, Some(controller), &env, &clock)
+                            });
+                        }
+                    }
                 }
             }
         }
@@ -598,7 +694,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 }
             }
             Ok(ServerEvent::Reloaded(loaded)) => {
-                agent.set_acl(Acl::of(&loaded.system, &observers));
+                agent.set_acl(run_acl(&loaded.system, &observers));
                 apply_reload(&mut modules, &loaded, &env, &server);
             }
             Err(RecvTimeoutError::Timeout) => {}
@@ -608,7 +704,8 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             && let Some((update, reply)) = checked.take()
             && let (Some(controller), Some(running)) = (&mut controller, &mut running_plan)
         {
-            let (ok, message) = crate::update::take(
+            let repair = update.is_repair();
+            let (ok, mut message) = crate::update::take(
                 controller,
                 running,
                 progress.as_mut(),
@@ -622,6 +719,40 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             );
             if ok {
                 plan_legs = Some((running.plan.clone(), running.compiled.clone()));
+                // The options were costed against the plan just replaced: a leg that still
+                // holds gets them again, from the new one.
+                if proposal.take().is_some() {
+                    controller.set_repair(None);
+                }
+            }
+            // A repair taken while the leg holds drives it again, from where the robot is.
+            if ok
+                && repair
+                && let Some(retry) = crate::repair::retry_of(controller, running)
+            {
+                let how = reroute_retry(
+                    controller,
+                    running,
+                    &retry,
+                    progress.as_ref(),
+                    (&server, &options.module_path),
+                );
+                let (fired, said) = controller.handle(
+                    armor_protocol::Request::Fire {
+                        transition: retry.clone(),
+                    },
+                    &server,
+                );
+                controller.note_repair(serde_json::json!({
+                    "fired": retry,
+                    "ok": fired,
+                    "message": said,
+                    "rerouted": how,
+                }));
+                message.push_str(&format!("; {said}"));
+                if let Some(how) = how {
+                    message.push_str(&format!(": {how}"));
+                }
             }
             controller.note_demand(&server);
             answer_update(reply.as_ref(), ok, message, || {
@@ -726,6 +857,34 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     Ok(outcome)
 }
 
+/// [`crate::update::reroute_retry`] from where the run's node has the robot, on the running
+/// plan's world.
+fn reroute_retry(
+    controller: &mut Controller,
+    running: &crate::update::Running,
+    transition: &str,
+    progress: Option<&Progress>,
+    (server, module_path): (&ConfigServer, &[PathBuf]),
+) -> Option<String> {
+    crate::update::reroute_retry(
+        controller,
+        running,
+        transition,
+        progress.and_then(Progress::robot_at),
+        || crate::update::world_of(running, &server.loaded().system, module_path),
+    )
+}
+
+/// The system's access lists (`Acl::of`), where the run's own node, an observer, may publish
+/// its records of the plan updates and repairs, and nothing else.
+fn run_acl(system: &armor_model::SystemConfig, observers: &[String]) -> Option<Acl> {
+    let mut acl = Acl::of(system, observers)?;
+    if let Some(own) = acl.modules.get_mut(progress::NODE_NAME) {
+        own.publish = Some(vec![progress::UPDATES_DATA.to_owned()]);
+    }
+    Some(acl)
+}
+
 /// Answers a client's request with the run's status (a client gone is nothing to answer).
 fn answer(
     reply: &mpsc::Sender<armor_protocol::Reply>,
@@ -791,8 +950,14 @@ fn set_override(server: &ConfigServer, module: &str, active: Option<bool>) -> (b
 /// The run's files, for a client that attaches without them ([`armor_protocol::Request::Files`]): the
 /// system file and the mission (`target`, when it is not the system file itself) as they are
 /// now, and the files the system's `file` parameters name, as the run found them. A file that
-/// is not text (a ROS map's image) is left out.
-fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> armor_protocol::Reply {
+/// is not text (a ROS map's image) is left out. A plan is sent as it runs (`running`, the
+/// updates taken so far in it), not as its file was: the studio draws the run's plan from it.
+fn run_files(
+    target: &Path,
+    running: Option<&armor_model::plan::Plan>,
+    system_file: &Path,
+    server: &ConfigServer,
+) -> armor_protocol::Reply {
     let read = |path: &Path| {
         std::fs::read_to_string(path)
             .map(|text| armor_protocol::FileText {
@@ -803,7 +968,13 @@ fn run_files(target: &Path, system_file: &Path, server: &ConfigServer) -> armor_
     };
     let files = (|| {
         let system = read(system_file)?;
-        let mission = (target != system_file).then(|| read(target)).transpose()?;
+        let mission = match running {
+            Some(plan) => Some(armor_protocol::FileText {
+                path: target.display().to_string(),
+                text: plan.to_xml(),
+            }),
+            None => (target != system_file).then(|| read(target)).transpose()?,
+        };
         let loaded = server.loaded();
         let mut params = Vec::new();
         for module in &loaded.system.modules {

@@ -16,10 +16,13 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
+use armor_model::SystemConfig;
 use armor_model::geo::{self, Point};
 use armor_model::net::{Marking, MissionNet};
 use armor_model::plan::migrate::{self, Migration};
-use armor_model::plan::{Compiled, Plan};
+use armor_model::plan::{Compiled, Origin, Plan};
+use armor_model::planner::{Path as PlannedPath, PathError};
+use armor_model::world::World;
 use armor_protocol::Request;
 use serde_json::json;
 
@@ -79,6 +82,16 @@ pub struct Checked {
     /// Whether it is an area reported from outside ([`check_area`]): one that leaves the leg in
     /// force no way is taken all the same, and the leg is blocked.
     reported: bool,
+    /// Whether it is an option of a repair: once taken, a leg held drives again, from where
+    /// the robot is.
+    repair: bool,
+}
+
+impl Checked {
+    /// Whether it is an option of a repair ([`Asked::Repair`]).
+    pub fn is_repair(&self) -> bool {
+        self.repair
+    }
 }
 
 /// Why an update is refused, in the operator's words (docs/plans.md lists every reason).
@@ -127,6 +140,7 @@ pub fn check(
         plan,
         compiled,
         reported: false,
+        repair: false,
     })
 }
 
@@ -137,6 +151,9 @@ pub enum Asked {
     Plan { file: String, text: String },
     /// A no-go area to add to the running plan.
     Area(ReportedArea),
+    /// An option of the repair proposed (`armor ctl repair N`, or the plan's default): a whole
+    /// plan, recorded under `label`.
+    Repair { label: String, plan: Box<Plan> },
 }
 
 impl Asked {
@@ -158,6 +175,7 @@ impl Asked {
         match self {
             Asked::Plan { file, .. } => file.clone(),
             Asked::Area(area) => area.label(),
+            Asked::Repair { label, .. } => label.clone(),
         }
     }
 
@@ -166,6 +184,11 @@ impl Asked {
         match self {
             Asked::Plan { file, text } => check(running, file, text, module_path),
             Asked::Area(area) => check_area(running, area, module_path),
+            Asked::Repair { label, plan } => {
+                let mut checked = check(running, label, &plan.to_xml(), module_path)?;
+                checked.repair = true;
+                Ok(checked)
+            }
         }
     }
 }
@@ -195,6 +218,16 @@ pub fn check_area(
     area: &ReportedArea,
     module_path: &[PathBuf],
 ) -> Result<Checked, Refused> {
+    let plan = with_area(running, area)?;
+    let mut checked = check(running, &area.label(), &plan.to_xml(), module_path)?;
+    checked.reported = true;
+    Ok(checked)
+}
+
+/// The running plan with `area` added to it as a no-go area (default margin), or why the area
+/// is refused before the plan is checked: fewer than three corners, an outline that crosses
+/// itself, a name the plan has, no frame to place it in.
+pub fn with_area(running: &Running, area: &ReportedArea) -> Result<Plan, Refused> {
     let name = &area.name;
     let valid_name = name
         .chars()
@@ -253,9 +286,7 @@ pub fn check_area(
             .collect(),
         ..Default::default()
     });
-    let mut checked = check(running, &area.label(), &plan.to_xml(), module_path)?;
-    checked.reported = true;
-    Ok(checked)
+    Ok(plan)
 }
 
 /// Migrates a `checked` update of the `running` plan from `marking`, the leg in force that
@@ -337,19 +368,12 @@ pub fn prepare(
                 let system_dir = loaded.system_file.parent().unwrap_or(base);
                 let world =
                     plan_world(&plan, &loaded.system.system, base, system_dir, module_path)?;
-                let planned = armor_model::plan::plan_pairs(
-                    world.as_ref(),
-                    &compiled.robot,
-                    &compiled.keepouts,
-                    &[(here, goal)],
-                )
-                .map_err(|err| format!("the world cannot be mapped for planning: {err}"))?;
-                let path = match planned.into_iter().next() {
-                    Some(Ok(path)) => Some(path),
+                let path = match plan_one(world.as_ref(), &compiled, here, goal)? {
+                    Ok(path) => Some(path),
                     // An area reported is a fact, not a wish: it is taken all the same, and
                     // the leg is blocked (the plan's contingency on `blocked` applies, holding
                     // by default), so that the operator can update or abort.
-                    Some(Err(err)) if reported => {
+                    Err(err) if reported => {
                         blocked = Some(format!(
                             "{}.{}",
                             plan.navigation.module, plan.navigation.blocked_event
@@ -369,7 +393,7 @@ pub fn prepare(
                         );
                         None
                     }
-                    Some(Err(err)) => {
+                    Err(err) => {
                         return refused(format!(
                             "leg `{}` in force changed, and there is no way from where the \
                              robot is, ({}, {}), to `{}`: {err}",
@@ -379,7 +403,6 @@ pub fn prepare(
                             leg.to
                         ));
                     }
-                    None => return refused("the planner planned nothing"),
                 };
                 if let Some(path) = path {
                     let value = path.format();
@@ -432,6 +455,94 @@ pub fn prepare(
             .join("\n"),
         blocked,
     })
+}
+
+/// Plans the way from `here` to `goal` on `world` for the robot and round the no-go areas of
+/// `compiled`; the outer error is a planner that could not work (the world not mapped).
+fn plan_one(
+    world: Option<&World>,
+    compiled: &Compiled,
+    here: Point,
+    goal: Point,
+) -> Result<Result<PlannedPath, PathError>, Refused> {
+    armor_model::plan::plan_pairs(world, &compiled.robot, &compiled.keepouts, &[(here, goal)])
+        .map_err(|err| format!("the world cannot be mapped for planning: {err}"))?
+        .into_iter()
+        .next()
+        .ok_or_else(|| Refused("the planner planned nothing".to_owned()))
+}
+
+/// The world the running plan is planned on (none: no world, round its areas only).
+pub fn world_of(
+    running: &Running,
+    system: &SystemConfig,
+    module_path: &[PathBuf],
+) -> Result<Option<World>, Refused> {
+    let base = running.file.parent().unwrap_or_else(|| Path::new("."));
+    let system_dir = running.system_file.parent().unwrap_or(base);
+    Ok(plan_world(
+        &running.plan,
+        system,
+        base,
+        system_dir,
+        module_path,
+    )?)
+}
+
+/// Before the operator's `LEG_retry` fires (a leg held drives again): plans the leg from where
+/// the robot is (`here`) to its destination and gives the leg's drive places that path, as an
+/// update gives a leg it replaces, so that the follower does not drive back to the leg's start.
+/// Does nothing for another transition, or with no position; says what it did, or why the
+/// plan's path is kept (no way from here: the follower finds that out and blocks again).
+pub fn reroute_retry(
+    controller: &mut Controller,
+    running: &Running,
+    transition: &str,
+    here: Option<Point>,
+    world: impl FnOnce() -> Result<Option<World>, Refused>,
+) -> Option<String> {
+    let Some(&Origin::Leg(index)) = running.compiled.trace.get(transition) else {
+        return None;
+    };
+    let leg = running.plan.legs.get(index)?;
+    if transition != format!("{}_retry", leg.name) {
+        return None;
+    }
+    let here = here?;
+    let goal = *running.compiled.positions.get(&leg.to)?;
+    let planned = world().and_then(|world| plan_one(world.as_ref(), &running.compiled, here, goal));
+    let at = format!("({}, {})", geo::round_mm(here.x), geo::round_mm(here.y));
+    match planned {
+        Ok(Ok(path)) => {
+            let mut net = controller.net().clone();
+            let value = path.format();
+            migrate::set_leg_param(
+                &mut net,
+                &running.compiled.trace,
+                index,
+                (running.plan.navigation.module.as_str(), "path"),
+                |_| Some(value.clone()),
+            );
+            match controller.reroute(net) {
+                Ok(()) => Some(format!(
+                    "leg `{}` drives again from where the robot is, {at}: {} m to `{}`",
+                    leg.name,
+                    geo::round_mm((geo::path_length(&path.points) * 10.0).round() / 10.0),
+                    leg.to
+                )),
+                Err(err) => Some(format!(
+                    "leg `{}` keeps its path: the net cannot go on with the new path: {err}",
+                    leg.name
+                )),
+            }
+        }
+        Ok(Err(err)) => Some(format!(
+            "leg `{}` keeps its planned path: there is no way from where the robot is, {at}, to \
+             `{}`: {err}",
+            leg.name, leg.to
+        )),
+        Err(why) => Some(format!("leg `{}` keeps its planned path: {why}", leg.name)),
+    }
 }
 
 /// Whether two paths name the same file (as the system loads them).

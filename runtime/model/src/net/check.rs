@@ -121,10 +121,13 @@ pub fn check_names(
                 );
                 find(module, &subject, pos, &mut problems);
             }
+            // The run reports it itself, from what its team bridge says of the radio.
+            Some(EventRef::LinkLost { .. }) => {}
             None => problems.push(Located::new(
                 pos,
                 format!(
-                    "transition `{}`: `{event}` is not an event (MODULE.EVENT or module.ID.failed)",
+                    "transition `{}`: `{event}` is not an event (MODULE.EVENT, module.ID.failed or \
+                     link.lost.SECS)",
                     transition.name
                 ),
             )),

@@ -152,10 +152,18 @@ pub enum EventRef<'a> {
     Module { module: &'a str, event: &'a str },
     /// `module.ID.failed`: the runtime reports that module `ID` died for good.
     Failed { module: &'a str },
+    /// `link.lost.SECS`: the run reports that the robot has not heard its operator for `SECS`
+    /// seconds (the team bridge tells it when the link is lost), once per outage.
+    LinkLost { after_secs: u32 },
+}
+
+/// The event the run reports once its robot has not heard its operator for `after_secs`.
+pub fn link_lost_event(after_secs: u32) -> String {
+    format!("link.lost.{after_secs}")
 }
 
 impl<'a> EventRef<'a> {
-    /// Splits `MODULE.EVENT` or `module.ID.failed`; `None` for anything else.
+    /// Splits `MODULE.EVENT`, `module.ID.failed` or `link.lost.SECS`; `None` for anything else.
     pub fn parse(name: &'a str) -> Option<EventRef<'a>> {
         let parts: Vec<&str> = name.split('.').collect();
         match parts.as_slice() {
@@ -165,6 +173,11 @@ impl<'a> EventRef<'a> {
             ["module", module, "failed"] if is_identifier(module) => {
                 Some(EventRef::Failed { module })
             }
+            ["link", "lost", secs] => secs
+                .parse()
+                .ok()
+                .filter(|secs| *secs >= 1 && link_lost_event(*secs) == name)
+                .map(|after_secs| EventRef::LinkLost { after_secs }),
             _ => None,
         }
     }

@@ -221,10 +221,15 @@ pub fn compile_for(
         .iter()
         .chain(plan.legs.iter().flat_map(|leg| &leg.contingencies))
     {
-        if contingency.response == Response::Continue && contingency.trigger != Trigger::Late {
+        if contingency.response == Response::Continue
+            && !matches!(
+                contingency.trigger,
+                Trigger::Late | Trigger::LinkLost { .. }
+            )
+        {
             problems.push(Located::new(
                 contingency.pos,
-                "`continue` is only for on=\"late\"",
+                "`continue` is only for on=\"late\" and on=\"link_lost\"",
             ));
         }
     }
@@ -994,6 +999,7 @@ impl<'a> Builder<'a> {
         for place in &leg_places {
             if !drives.contains(place) && !place.starts_with(&format!("{name}_drive_late")) {
                 self.low_battery(index, leg, place, &format!("{place}_low_battery"));
+                self.link_lost(index, leg, place, &format!("{place}_link_lost"));
             }
         }
         for module in self.failure_modules.clone() {
@@ -1026,6 +1032,7 @@ impl<'a> Builder<'a> {
         let hold = format!("{name}_hold");
         if self.trace.contains_key(&hold) {
             self.low_battery(index, leg, &hold, &format!("{hold}_low_battery"));
+            self.link_lost(index, leg, &hold, &format!("{hold}_link_lost"));
         }
     }
 
@@ -1134,6 +1141,59 @@ impl<'a> Builder<'a> {
             drive,
             &format!("{}_low_battery{suffix}", leg.name),
         );
+        self.link_lost(
+            index,
+            leg,
+            drive,
+            &format!("{}_link_lost{suffix}", leg.name),
+        );
+    }
+
+    /// The transition named `name` out of `place` once the robot has not heard its operator
+    /// for the contingency's time (the run's `link.lost.SECS`, reported once per outage), when
+    /// the plan answers it with something else than going on (and `place` is not where the
+    /// answer leads).
+    fn link_lost(&mut self, index: usize, leg: &Leg, place: &str, name: &str) {
+        let lost = self
+            .plan
+            .contingency_on(leg, |trigger| matches!(trigger, Trigger::LinkLost { .. }))
+            .cloned();
+        if let Some(contingency) = lost
+            && let Trigger::LinkLost { after_secs } = contingency.trigger
+            && contingency.response != Response::Continue
+        {
+            let event = crate::net::link_lost_event(after_secs);
+            self.answer_event(index, leg, place, name, &contingency, event);
+        }
+    }
+
+    /// The transition named `name` out of `place` on `event`, to where `contingency`'s
+    /// response leads (none when `place` is where it leads: an answer does not listen to what
+    /// it answers).
+    fn answer_event(
+        &mut self,
+        index: usize,
+        leg: &Leg,
+        place: &str,
+        name: &str,
+        contingency: &super::Contingency,
+        event: String,
+    ) {
+        let target = self.respond(index, leg, &contingency.response);
+        if target == place {
+            return;
+        }
+        self.transition(
+            name,
+            Origin::Leg(index),
+            contingency.pos,
+            Condition {
+                event: Some(event),
+                ..Condition::default()
+            },
+            place,
+            &target,
+        );
     }
 
     /// The transition named `name` out of `place` on a low battery, when the plan listens for
@@ -1146,21 +1206,8 @@ impl<'a> Builder<'a> {
         if let Some(contingency) = low
             && let Trigger::LowBattery { module } = &contingency.trigger
         {
-            let target = self.respond(index, leg, &contingency.response);
-            if target == place {
-                return;
-            }
-            self.transition(
-                name,
-                Origin::Leg(index),
-                contingency.pos,
-                Condition {
-                    event: Some(format!("{module}.low_battery")),
-                    ..Condition::default()
-                },
-                place,
-                &target,
-            );
+            let event = format!("{module}.low_battery");
+            self.answer_event(index, leg, place, name, &contingency, event);
         }
     }
 
@@ -1176,7 +1223,8 @@ impl<'a> Builder<'a> {
         let origin = || Origin::Leg(index);
         match response {
             Response::Skip | Response::Continue => self.entry(index + 1),
-            Response::Hold => {
+            // A repair holds as a hold does: the run applies the repair's default from there.
+            Response::Hold | Response::Repair => {
                 let hold = format!("{name}_hold");
                 if !self.trace.contains_key(&hold) {
                     self.place(&hold, origin(), leg.pos, Vec::new(), Vec::new());

@@ -55,6 +55,7 @@ pub mod kml;
 pub mod migrate;
 pub mod objectives;
 pub mod qgc;
+pub mod repair;
 mod xml;
 
 pub use crate::geo::LatLon;
@@ -357,6 +358,11 @@ pub enum Trigger {
     /// The battery runs low: the module that models or measures it (`sim` unless named) reports
     /// `low_battery`. Its response is to return to where the plan starts unless it says.
     LowBattery { module: String },
+    /// The robot has not heard its operator for `after_secs` (run time): the team bridge
+    /// (`armor-team robot`) tells the run when the radio link is lost and found again, and the
+    /// run reports `link.lost.AFTER_SECS` once per outage (`docs/team.md`). Without such a
+    /// contingency the mission goes on.
+    LinkLost { after_secs: u32 },
 }
 
 impl Trigger {
@@ -367,6 +373,7 @@ impl Trigger {
             Trigger::Late => "late".into(),
             Trigger::Lost { module } => format!("lost (module `{module}`)"),
             Trigger::LowBattery { module } => format!("low_battery (module `{module}`)"),
+            Trigger::LinkLost { after_secs } => format!("link_lost (after {after_secs} s)"),
         }
     }
 }
@@ -381,6 +388,10 @@ pub enum Response {
     Return { waypoint: String },
     /// Go on as if nothing happened (only for `late`: the net records that the robot was late).
     Continue,
+    /// Only for `blocked`: hold as [`Response::Hold`] does (the net is the same), and the run
+    /// applies at once the best option of the repair it computes ([`repair`]: a way round,
+    /// skipping the leg, returning), the operator free to choose another or to override.
+    Repair,
 }
 
 /// A tactical graphic: a line or an area with a meaning, drawn on the map.

@@ -374,11 +374,16 @@ fn write_contingency(out: &mut String, indent: &str, contingency: &Contingency) 
         Trigger::Lost { module } => format!("lost\" module=\"{}", escape(module)),
         Trigger::LowBattery { module } if module == DEFAULT_BATTERY => "low_battery".to_owned(),
         Trigger::LowBattery { module } => format!("low_battery\" module=\"{}", escape(module)),
+        Trigger::LinkLost { after_secs } if *after_secs == DEFAULT_LINK_LOST_AFTER_SECS => {
+            "link_lost".to_owned()
+        }
+        Trigger::LinkLost { after_secs } => format!("link_lost\" after_secs=\"{after_secs}"),
     };
     let response = match &contingency.response {
         Response::Skip => "skip".to_owned(),
         Response::Hold => "hold".to_owned(),
         Response::Continue => "continue".to_owned(),
+        Response::Repair => "repair".to_owned(),
         Response::Return { waypoint } => format!("return\" waypoint=\"{}", escape(waypoint)),
     };
     let _ = writeln!(out, "{indent}<contingency on=\"{on}\" do=\"{response}\"/>");
@@ -790,8 +795,12 @@ pub const DEFAULT_LOCALISER: &str = "localiser";
 /// models the battery.
 pub const DEFAULT_BATTERY: &str = "sim";
 
+/// How long a robot goes without hearing its operator before a `link_lost` contingency
+/// answers, when it says nothing (PX4's data link loss timeout is 10 s too).
+pub const DEFAULT_LINK_LOST_AFTER_SECS: u32 = 10;
+
 fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingency> {
-    p.extend(element.unknown_attrs(&["on", "module", "do", "waypoint"]));
+    p.extend(element.unknown_attrs(&["on", "module", "do", "waypoint", "after_secs"]));
     no_children(element, p);
     no_text(element, p);
     let on = required(element, "on", p);
@@ -824,18 +833,43 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
             };
             module.map(|module| Trigger::LowBattery { module })
         }
+        Some(("link_lost", _)) => match element.attr("after_secs") {
+            None => Some(Trigger::LinkLost {
+                after_secs: DEFAULT_LINK_LOST_AFTER_SECS,
+            }),
+            Some(field) => match field.value.trim().parse::<u32>() {
+                Ok(after_secs) if after_secs >= 1 => Some(Trigger::LinkLost { after_secs }),
+                _ => {
+                    p.push(Located::new(
+                        field.pos,
+                        format!(
+                            "`after_secs` must be a whole number of seconds, 1 or more, not `{}`",
+                            field.value
+                        ),
+                    ));
+                    None
+                }
+            },
+        },
         Some((other, pos)) => {
             p.push(Located::new(
                 pos,
                 format!(
-                    "`on` must be `blocked`, `failed`, `late`, `lost` or `low_battery`, not \
-                     `{other}`"
+                    "`on` must be `blocked`, `failed`, `late`, `lost`, `low_battery` or \
+                     `link_lost`, not `{other}`"
                 ),
             ));
             None
         }
         None => None,
     };
+    let link_lost = on.is_some_and(|field| field.value.trim() == "link_lost");
+    if !link_lost && let Some(after) = element.attr("after_secs") {
+        p.push(Located::new(
+            after.pos,
+            "`after_secs` is only for on=\"link_lost\" (how long without the operator)",
+        ));
+    }
     if trigger.is_some()
         && !matches!(
             trigger,
@@ -850,14 +884,35 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
         ));
     }
     let response = match response.map(|field| (field.value.trim(), field.pos)) {
-        Some(("skip", _)) => Some(Response::Skip),
-        Some(("hold", _)) => Some(Response::Hold),
-        Some(("continue", pos)) => {
-            if trigger.is_some() && trigger != Some(Trigger::Late) {
+        Some(("skip", pos)) => {
+            if link_lost {
                 p.push(Located::new(
                     pos,
-                    "`continue` is only for on=\"late\": a blocked robot or a failed module does \
-                     not go on by itself (use skip, hold or return)",
+                    "`skip` is not for on=\"link_lost\": losing the radio says nothing of the leg \
+                     (use continue, hold or return)",
+                ));
+            }
+            Some(Response::Skip)
+        }
+        Some(("hold", _)) => Some(Response::Hold),
+        Some(("repair", pos)) => {
+            if trigger.is_some() && trigger != Some(Trigger::Blocked) {
+                p.push(Located::new(
+                    pos,
+                    "`repair` is only for on=\"blocked\": the run repairs a leg that cannot be \
+                     completed (use skip, hold or return)",
+                ));
+            }
+            Some(Response::Repair)
+        }
+        Some(("continue", pos)) => {
+            if trigger.is_some()
+                && !matches!(trigger, Some(Trigger::Late | Trigger::LinkLost { .. }))
+            {
+                p.push(Located::new(
+                    pos,
+                    "`continue` is only for on=\"late\" and on=\"link_lost\": a blocked robot or a \
+                     failed module does not go on by itself (use skip, hold or return)",
                 ));
             }
             Some(Response::Continue)
@@ -883,7 +938,9 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
         Some((other, pos)) => {
             p.push(Located::new(
                 pos,
-                format!("`do` must be `skip`, `hold`, `return` or `continue`, not `{other}`"),
+                format!(
+                    "`do` must be `skip`, `hold`, `return`, `continue` or `repair`, not `{other}`"
+                ),
             ));
             None
         }
@@ -1452,8 +1509,8 @@ mod tests {
             "5:24: expected a number of seconds, 0 or more",
             "6:5: <arrival> needs `until`",
             "7:5: <during> runs no module",
-            "8:18: `on` must be `blocked`, `failed`, `late`, `lost` or `low_battery`, not `tired`",
-            "8:29: `do` must be `skip`, `hold`, `return` or `continue`, not `panic`",
+            "8:18: `on` must be `blocked`, `failed`, `late`, `lost`, `low_battery` or `link_lost`, not `tired`",
+            "8:29: `do` must be `skip`, `hold`, `return`, `continue` or `repair`, not `panic`",
             "10:18: `kind` must be one of no-go, objective, assembly, named, not `swamp`",
             "10:31: `margin_m` must be a distance in metres",
             "10:3: <area> needs 3 <point>s or more, it has 1",
@@ -1466,6 +1523,36 @@ mod tests {
             );
         }
         assert_eq!(found.len(), expected.len(), "{found:#?}");
+    }
+
+    #[test]
+    fn repair_is_read_and_written_back_for_blocked_only() {
+        let plan = |contingencies: &str| {
+            format!(
+                r#"<plan name="p" system="s.xml">
+  <waypoint name="a" lat="1" lon="2"/>
+  <waypoint name="b" lat="1" lon="2.001"/>
+  <leg from="a" to="b"/>
+  {contingencies}
+</plan>"#
+            )
+        };
+        let text = plan(r#"<contingency on="blocked" do="repair"/>"#);
+        let read = Plan::parse(&text).expect("a plan that repairs when blocked");
+        assert_eq!(read.contingencies[0].response, Response::Repair);
+        assert!(
+            read.to_xml()
+                .contains(r#"<contingency on="blocked" do="repair"/>"#)
+        );
+        let again = Plan::parse(&read.to_xml()).expect("written back, read again");
+        assert_eq!(again.contingencies[0].response, Response::Repair);
+        assert_eq!(
+            problems(&plan(r#"<contingency on="late" do="repair"/>"#)),
+            [
+                "5:26: `repair` is only for on=\"blocked\": the run repairs a leg that cannot be \
+              completed (use skip, hold or return)"
+            ]
+        );
     }
 
     #[test]

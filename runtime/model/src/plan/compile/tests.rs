@@ -836,3 +836,85 @@ fn a_low_battery_returns_to_the_start_unless_the_plan_says_otherwise() {
     let without = picture(&compiled(r#"<leg from="home" to="gate"/>"#).net);
     assert!(!without.contains("low_battery"), "{without}");
 }
+
+#[test]
+fn a_lost_radio_holds_or_returns_after_its_time_wherever_the_leg_is_and_goes_on_by_default() {
+    let plan = plan(
+        r#"<leg from="home" to="gate" wait_secs="600">
+  <contingency on="link_lost" after_secs="30" do="return" waypoint="home"/>
+</leg>
+<leg from="gate" to="hill"/>
+<leg from="hill" to="home">
+  <contingency on="link_lost" do="continue"/>
+</leg>
+<contingency on="link_lost" do="hold"/>"#,
+    );
+    // The default time is not written out; another is, and the plan reads back the same.
+    let xml = plan.to_xml();
+    for written in [
+        r#"<contingency on="link_lost" after_secs="30" do="return" waypoint="home"/>"#,
+        r#"<contingency on="link_lost" do="hold"/>"#,
+        r#"<contingency on="link_lost" do="continue"/>"#,
+    ] {
+        assert!(xml.contains(written), "no `{written}` in\n{xml}");
+    }
+    let again = Plan::parse(&xml).unwrap_or_else(|problems| panic!("{problems:?}"));
+    assert_eq!(again.to_xml(), xml);
+    assert_eq!(
+        again.legs[0].contingencies[0].trigger,
+        Trigger::LinkLost { after_secs: 30 }
+    );
+    let with = picture(
+        &compile(&plan, Some(&world()))
+            .unwrap_or_else(|problems| panic!("{problems:?}"))
+            .net,
+    );
+    for line in [
+        "leg1_link_lost: leg1_drive -> leg1_return link.lost.30",
+        "leg1_wait_link_lost: leg1_wait -> leg1_return link.lost.30",
+        "leg2_link_lost: leg2_drive -> leg2_hold link.lost.10",
+    ] {
+        assert!(with.lines().any(|l| l == line), "no `{line}` in\n{with}");
+    }
+    // A hold that is itself the answer does not listen to what it answers, and `continue`
+    // (the default without a contingency) changes nothing in the net.
+    assert!(!with.contains("leg2_hold_link_lost"), "{with}");
+    assert!(!with.contains("leg3_link_lost"), "{with}");
+    let without = picture(&compiled(r#"<leg from="home" to="gate"/>"#).net);
+    assert!(!without.contains("link"), "{without}");
+}
+
+#[test]
+fn a_lost_radio_is_refused_with_a_bad_time_a_skip_and_a_time_on_another_trigger() {
+    let text = |body: &str| {
+        format!(
+            "<plan name=\"p\" system=\"system.xml\">\n{}\n{}\n<leg from=\"home\" to=\"gate\"/>\n{body}\n</plan>",
+            waypoint("home", 4.0, 4.0),
+            waypoint("gate", 34.0, 4.0)
+        )
+    };
+    for (body, expected) in [
+        (
+            r#"<contingency on="link_lost" after_secs="2.5" do="hold"/>"#,
+            "`after_secs` must be a whole number of seconds, 1 or more, not `2.5`",
+        ),
+        (
+            r#"<contingency on="link_lost" after_secs="0" do="hold"/>"#,
+            "`after_secs` must be a whole number of seconds, 1 or more, not `0`",
+        ),
+        (
+            r#"<contingency on="link_lost" do="skip"/>"#,
+            "`skip` is not for on=\"link_lost\"",
+        ),
+        (
+            r#"<contingency on="blocked" after_secs="5" do="hold"/>"#,
+            "`after_secs` is only for on=\"link_lost\"",
+        ),
+    ] {
+        let problems = Plan::parse(&text(body)).expect_err(body);
+        assert!(
+            problems.iter().any(|p| p.message.contains(expected)),
+            "{body}: {problems:?}"
+        );
+    }
+}

@@ -1,0 +1,335 @@
+//! Repair when the world contradicts the plan, in a run: when a leg holds for the operator
+//! (`LEG_hold`: the navigation was blocked, or a no-go area reported left it no way), the run
+//! computes the options (`armor_model::plan::repair`) from where the robot is, shows them in
+//! the status, and takes the one chosen (`armor ctl repair N`, or at once the best when the
+//! plan says `<contingency on="blocked" do="repair"/>`) as a plan update ([`crate::update`]):
+//! checked, migrated and recorded as any update, then the held leg drives again from where the
+//! robot is (`docs/plans.md`, "Repair when the world contradicts the plan").
+
+use armor_model::geo::Point;
+use armor_model::plan::repair::{self, Candidate, Kind, Situation};
+use armor_model::plan::{Origin, Response, Trigger};
+use armor_model::world::World;
+use armor_protocol::{Repair, RepairKind, RepairOption};
+
+use crate::controller::Controller;
+use crate::update::{Asked, Refused, Running};
+
+/// A repair proposed, with the plans of its options.
+pub struct Proposal {
+    /// The held place it answers: once the mission leaves it, the proposal is withdrawn; none
+    /// for a later leg cut by an area reported (withdrawn when an update is taken).
+    pub place: Option<String>,
+    pub candidates: Vec<Candidate>,
+    pub shown: Repair,
+    /// What an option's update is recorded under, before its number and summary
+    /// (`repair option`, or the area reported and `repair option`).
+    pub label: String,
+}
+
+/// The held place of the mission, and its leg's index, if a leg holds for the operator.
+fn held(controller: &Controller, running: &Running) -> Option<(String, usize)> {
+    controller.marking().into_keys().find_map(|place| {
+        let Some(&Origin::Leg(index)) = running.compiled.trace.get(&place) else {
+            return None;
+        };
+        let leg = running.plan.legs.get(index)?;
+        (place == format!("{}_hold", leg.name)).then_some((place, index))
+    })
+}
+
+/// The operator's `LEG_retry` of the leg that holds, if one does: what a repair taken fires.
+pub fn retry_of(controller: &Controller, running: &Running) -> Option<String> {
+    let (_, index) = held(controller, running)?;
+    Some(format!("{}_retry", running.plan.legs.get(index)?.name))
+}
+
+/// Where the mission stands against the proposal: withdraws it when the held place is left,
+/// proposes one when a leg has just started to hold. Returns the option to apply at once, when
+/// the plan names the default (`do="repair"`) and an option other than waiting is left.
+pub fn watch(
+    proposal: &mut Option<Proposal>,
+    controller: &mut Controller,
+    running: &Running,
+    here: Option<Point>,
+    now: (f64, f64),
+    world: impl FnOnce() -> Result<Option<World>, Refused>,
+) -> Option<Asked> {
+    let held = held(controller, running);
+    match (proposal.as_ref(), &held) {
+        (Some(proposal), Some((place, _))) if proposal.place.as_ref() == Some(place) => {
+            return None;
+        }
+        (Some(proposal), None) if proposal.place.is_none() => return None,
+        (None, None) => return None,
+        _ => {}
+    }
+    if proposal.take().is_some() {
+        controller.set_repair(None);
+    }
+    let (place, index) = held?;
+    let (run_secs, now_unix_secs) = now;
+    let leg = &running.plan.legs[index];
+    // Without odometry followed, the options are costed from the leg's start.
+    let here = here.or_else(|| running.compiled.positions.get(&leg.from).copied())?;
+    let world = match world() {
+        Ok(world) => world,
+        Err(why) => {
+            tracing::warn!(
+                "leg `{}` holds and no repair can be proposed: {why}",
+                leg.name
+            );
+            return None;
+        }
+    };
+    let compiled = &running.compiled;
+    let lengths: Vec<Option<f64>> = compiled
+        .routes
+        .iter()
+        .map(|route| Some(armor_model::geo::path_length(route)))
+        .collect();
+    let candidates = repair::options(
+        Situation {
+            plan: &running.plan,
+            positions: &compiled.positions,
+            route_lengths_m: &lengths,
+            index,
+            here,
+            now_unix_secs,
+        },
+        planner(world.as_ref(), &compiled.robot, &compiled.keepouts),
+    );
+    let why = format!(
+        "leg `{}` cannot be completed as planned: it holds in `{place}`",
+        leg.name
+    );
+    let (made, default) = propose(
+        controller,
+        running,
+        (index, why, run_secs),
+        candidates,
+        "repair option",
+    );
+    *proposal = Some(Proposal {
+        place: Some(place),
+        ..made
+    });
+    default
+}
+
+/// The length of the way between each pair of points on `world` for `robot` round
+/// `keepouts` (all on one costmap), `None` where there is none: the repair's costs.
+fn planner<'a>(
+    world: Option<&'a World>,
+    robot: &'a armor_model::planner::Robot,
+    keepouts: &'a [armor_model::planner::Keepout],
+) -> impl FnOnce(&[(Point, Point)]) -> Vec<Option<f64>> + 'a {
+    move |pairs| {
+        armor_model::plan::plan_pairs(world, robot, keepouts, pairs)
+            .map(|paths| {
+                paths
+                    .into_iter()
+                    .map(|path| {
+                        path.ok()
+                            .map(|path| armor_model::geo::path_length(&path.points))
+                    })
+                    .collect()
+            })
+            .unwrap_or_else(|_| vec![None; pairs.len()])
+    }
+}
+
+/// Shows the options of a repair of leg `index` (for `why`, at `run_secs`) in the status and
+/// the log; with the plan's default (`do="repair"` on `blocked` for the leg, and an option
+/// other than waiting), the update of option 1, recorded under `label` and its summary.
+fn propose(
+    controller: &mut Controller,
+    running: &Running,
+    (index, why, run_secs): (usize, String, f64),
+    candidates: Vec<Candidate>,
+    label: &str,
+) -> (Proposal, Option<Asked>) {
+    let leg = &running.plan.legs[index];
+    let by_default = running
+        .plan
+        .contingency(leg, &Trigger::Blocked)
+        .is_some_and(|contingency| contingency.response == Response::Repair)
+        && candidates
+            .first()
+            .is_some_and(|candidate| candidate.kind != Kind::Wait);
+    let shown = Repair {
+        run_secs,
+        leg: leg.name.clone(),
+        why,
+        options: candidates.iter().zip(1..).map(option).collect(),
+        default_option: by_default.then_some(1),
+    };
+    tracing::warn!("{}", crate::summary::repair_lines(&shown).join("\n"));
+    controller.set_repair(Some(shown.clone()));
+    let made = Proposal {
+        place: None,
+        candidates,
+        shown,
+        label: label.to_owned(),
+    };
+    let default = if by_default {
+        asked(Some(&made), 1).ok()
+    } else {
+        None
+    };
+    (made, default)
+}
+
+/// An area reported that cuts a leg after the leg in force (no way left from its start to its
+/// end, the leg in force untouched): the repair of the first such leg, costed from where it
+/// starts, at the time the robot would get there as planned. `plan` is the running plan with
+/// the area added. Returns the proposal, and the update to take at once when the plan names
+/// the default (the area and option 1 together); `None` when the area's problems are not
+/// only legs cut after the leg in force (it is then refused as it stands).
+pub fn for_cut_leg(
+    controller: &mut Controller,
+    running: &Running,
+    area_label: &str,
+    plan: &armor_model::plan::Plan,
+    now: (f64, f64),
+    world: Option<&World>,
+) -> Option<(Proposal, Option<Asked>)> {
+    let (run_secs, now_unix_secs) = now;
+    let in_force = controller.marking().into_keys().find_map(|place| {
+        match running.compiled.trace.get(&place) {
+            Some(&Origin::Leg(index)) => Some(index),
+            _ => None,
+        }
+    })?;
+    let legs = armor_model::plan::plan_legs(plan, world, &running.compiled.robot);
+    let cut: Vec<usize> = legs
+        .paths
+        .iter()
+        .enumerate()
+        .filter(|(_, path)| matches!(path, Some(Err(_))))
+        .map(|(index, _)| index)
+        .collect();
+    let first = *cut.first()?;
+    if first <= in_force || legs.problems.len() != cut.len() {
+        return None;
+    }
+    let lengths: Vec<Option<f64>> = legs
+        .paths
+        .iter()
+        .map(|path| match path {
+            Some(Ok(path)) => Some(armor_model::geo::path_length(&path.points)),
+            _ => None,
+        })
+        .collect();
+    // When the robot gets to the cut leg's start, as planned: the legs before it driven at the
+    // plan's speed, with their arrivals and waits.
+    let speed_mps = plan.navigation.speed_mps.max(f64::EPSILON);
+    let until_secs: f64 = plan.legs[in_force..first]
+        .iter()
+        .zip(&lengths[in_force..first])
+        .map(|(leg, length)| {
+            length.unwrap_or(0.0) / speed_mps
+                + leg
+                    .arrival
+                    .as_ref()
+                    .and_then(|arrival| arrival.for_secs)
+                    .unwrap_or(0.0)
+                + leg.wait_secs.unwrap_or(0.0)
+        })
+        .sum();
+    let leg = &plan.legs[first];
+    let here = *legs.positions.get(&leg.from)?;
+    let candidates = repair::options(
+        Situation {
+            plan,
+            positions: &legs.positions,
+            route_lengths_m: &lengths,
+            index: first,
+            here,
+            now_unix_secs: now_unix_secs + until_secs,
+        },
+        planner(world, &running.compiled.robot, &legs.keepouts),
+    );
+    let why = format!(
+        "{area_label} leaves leg `{}` no way from `{}` to `{}`: costed from `{}`",
+        leg.name, leg.from, leg.to, leg.from
+    );
+    // The options are plans with the area: shown against the running plan, whose leg of that
+    // name is the one cut.
+    let running_with_area = Running {
+        plan: plan.clone(),
+        ..running.clone()
+    };
+    Some(propose(
+        controller,
+        &running_with_area,
+        (first, why, run_secs),
+        candidates,
+        &format!("{area_label}, repair option"),
+    ))
+}
+
+/// The protocol's form of an option.
+fn option((candidate, number): (&Candidate, u32)) -> RepairOption {
+    RepairOption {
+        number,
+        kind: match candidate.kind {
+            Kind::WayRound => RepairKind::WayRound,
+            Kind::Skip => RepairKind::Skip,
+            Kind::Return => RepairKind::Return,
+            Kind::Wait => RepairKind::Wait,
+        },
+        summary: candidate.summary.clone(),
+        via: candidate.via.clone(),
+        legs_dropped: candidate.legs_dropped.clone(),
+        distance_m: candidate.distance_m,
+        duration_secs: candidate.duration_secs,
+        deadlines_missed: candidate.deadlines_missed.clone(),
+    }
+}
+
+/// Why an option of a repair cannot be applied.
+#[derive(Debug, thiserror::Error)]
+pub enum NotApplied {
+    #[error("no repair is proposed: no leg holds for want of a way")]
+    NoneProposed,
+    #[error("the repair proposed for leg `{leg}` has options 1 to {count}, not {number}")]
+    NoSuchOption {
+        leg: String,
+        count: usize,
+        number: u32,
+    },
+    #[error(
+        "option {number} is to wait: the leg holds as it is (update the plan, fire `{leg}_retry` \
+         or `{leg}_skip`, or abort)"
+    )]
+    Wait { number: u32, leg: String },
+}
+
+/// The update option `number` of the proposal asks for, or why there is none.
+pub fn asked(proposal: Option<&Proposal>, number: u32) -> Result<Asked, NotApplied> {
+    let Some(proposal) = proposal else {
+        return Err(NotApplied::NoneProposed);
+    };
+    let index = usize::try_from(number).unwrap_or(usize::MAX);
+    let Some(candidate) = index
+        .checked_sub(1)
+        .and_then(|index| proposal.candidates.get(index))
+    else {
+        return Err(NotApplied::NoSuchOption {
+            leg: proposal.shown.leg.clone(),
+            count: proposal.candidates.len(),
+            number,
+        });
+    };
+    match &candidate.plan {
+        Some(plan) => Ok(Asked::Repair {
+            label: format!("{} {number}: {}", proposal.label, candidate.summary),
+            plan: Box::new(plan.clone()),
+        }),
+        None => Err(NotApplied::Wait {
+            number,
+            leg: proposal.shown.leg.clone(),
+        }),
+    }
+}
