@@ -32,7 +32,7 @@
 //! - Without scans ([`Filter::predict_only`]): the motion model alone, the covariance growing
 //!   with the way driven.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::{HashMap, HashSet, VecDeque};
 
 use armor_model::geo::Point;
 use armor_model::world::World;
@@ -137,7 +137,7 @@ const CONFIRM_TURN_OBSERVABLE: f64 = 0.1;
 /// turn in place). Measured (the tests): on un-kidnapped drives (the warehouse round, the
 /// office loop and the yard round, with the default noise and three times it; a laser quiet
 /// for 3 s and for 25 s) the step reached at most 0.026; carried into a look-alike aisle of the
-/// warehouse it was 0.062 or more within three scans, every other kidnap more. The history
+/// warehouse it was 0.052 or more within three scans, every other kidnap more. The history
 /// needs [`KIDNAP_HISTORY_UPDATES`] updates of a proven estimate before the detector is armed.
 /// This is augmented MCL's idea (Nav2's `recovery_alpha_fast`/`recovery_alpha_slow`, a short-
 /// against a long-term average) on the agreement rather than on the particles' likelihood:
@@ -161,11 +161,21 @@ const KIDNAP_MAX_SKEW_SECS: f64 = 0.03;
 const KIDNAP_STEP_UPDATES: u32 = 2;
 
 /// The widest thing the map does not hold that the kidnap detector takes a run of short beams
-/// for (a box, a bin, a person walking by; see [`Agreement`]). Measured: at 2.5 m, two of the
-/// twenty seeded kidnaps (carried 7.5 m along the warehouse's main aisle, where the truth sees
-/// shelving the estimate expects open) were taken for things and noticed 42 and 61 scans late;
-/// at 1.5 m, within three scans.
+/// for whatever the laser saw before (a bin, a person walking by, who may stand where the laser
+/// saw through a moment ago; see [`Agreement`]). A wider run is taken for a thing the map lacks
+/// beam by beam, where the laser did not see through the beam's end on a scan of
+/// [`SEEN_LAG_UPDATES`] before ([`Filter::seen_through`]): a thing that stands still, of any
+/// size (the bundled behaviours system's box, 1 m by 2 m, seen face on). Measured: taking every
+/// run of up to 2.5 m for a thing, whatever was seen, two of the twenty seeded kidnaps (carried
+/// 7.5 m along the warehouse's main aisle, where the truth sees shelving the estimate expects
+/// open) were noticed 42 and 61 scans late; the open floor the truth's shelving stands on had
+/// been seen through just before the carrying.
 const UNMAPPED_THING_M: f64 = 1.5;
+
+/// How many updates back the scan lies that a wider run of short beams is checked against
+/// ([`Filter::seen_through`]): a kidnap is noticed on the scans taken where the robot was put,
+/// against one taken before the carrying, for this many updates.
+const SEEN_LAG_UPDATES: usize = 10;
 
 /// The filter's settings (the module's parameters).
 #[derive(Clone, Debug, PartialEq)]
@@ -409,15 +419,18 @@ struct Agreement {
     all: Option<f64>,
     /// The kidnap detector's: the same share, less the beams that a thing the map does not
     /// hold explains. A box, a bin or a person walking by stands between the laser and the
-    /// wall behind it: the beams that meet it end short of the map's wall, side by side, their
-    /// ends within the thing's width of each other ([`UNMAPPED_THING_M`]). Such a run of short
-    /// beams is left out (AMCL's beam model explains a reading short of the map's by `z_short`,
-    /// something unexpected in the way). What no such thing explains counts against: a beam
-    /// that reaches farther than the map allows, or sees nothing where the map has a wall in
-    /// range, and a wider run of short beams (a wall nearer than the map has it). A robot
-    /// carried into a look-alike aisle sees both kinds (measured on the kidnaps of the tests,
-    /// see [`KIDNAP_STEP`]). None when what is left is fewer than [`MIN_JUDGED_BEAMS`] of the
-    /// beams (the scan shows too little of the map).
+    /// wall behind it: the beams that meet it end short of the map's wall, side by side. Such a
+    /// run of short beams is left out (AMCL's beam model explains a reading short of the map's
+    /// by `z_short`, something unexpected in the way) when its ends lie within the width of a
+    /// thing that may move ([`UNMAPPED_THING_M`]), and, when wider, each beam whose end the
+    /// laser did not see through shortly before ([`Filter::seen_through`]: a thing standing
+    /// still). What no such thing explains counts against: a beam that reaches farther than
+    /// the map allows, or sees nothing where the map has a wall in range (a thing the map
+    /// lacks only ever shortens a beam), and a wider run of short beams ending where the laser
+    /// saw open floor a moment ago (a wall nearer than the map has it, seen from a place the
+    /// robot was carried to). A robot carried into a look-alike aisle sees both kinds (measured
+    /// on the kidnaps of the tests, see [`KIDNAP_STEP`]). None when what is left is fewer than
+    /// [`MIN_JUDGED_BEAMS`] of the beams (the scan shows too little of the map).
     kidnap: Option<f64>,
     /// Each beam (in the scan's order) that a thing the map lacks explains: left out of the
     /// kidnap detector's agreement and of the fit ([`Filter::fit_at`]).
@@ -511,6 +524,19 @@ pub struct Filter {
     /// The kidnap detector's agreement of the last scan from the estimate, not smoothed (its
     /// history is made of it; see [`Agreement`]).
     raw_agreement: Option<f64>,
+    /// The last [`SEEN_LAG_UPDATES`] scans of a proven estimate, not lost, each with that
+    /// estimate, oldest first: what the laser saw through ([`Filter::seen_through`]).
+    seen: VecDeque<SeenScan>,
+}
+
+/// A scan with the estimate it was taken from ([`Filter::seen_through`]).
+#[derive(Clone, Debug)]
+struct SeenScan {
+    pose: Pose2D,
+    ranges: Vec<f32>,
+    angle_min_rad: f64,
+    angle_increment_rad: f64,
+    range_max_m: f64,
 }
 
 impl Filter {
@@ -564,6 +590,7 @@ impl Filter {
             agreement: 1.0,
             log_weights: Vec::new(),
             raw_agreement: None,
+            seen: VecDeque::new(),
         };
         filter.set_pose(pose, 0.1, 0.1);
         filter
@@ -625,8 +652,10 @@ impl Filter {
         self.suspected = false;
         self.candidate = None;
         self.restart_proof();
-        // A new estimate, or one proven just now: its agreement's history starts again.
+        // A new estimate, or one proven just now: its agreement's history starts again, and
+        // what the laser saw from the old one is not where it now is.
         self.history_updates = 0;
+        self.seen.clear();
     }
 
     fn restart_proof(&mut self) {
@@ -753,6 +782,24 @@ impl Filter {
         self.estimate.proven = !self.confirming && self.estimate.state != State::Lost;
         if self.estimate.state == State::Localised {
             self.searching = false;
+        }
+        // What the laser saw is kept while the kidnap detector watches (a proven estimate, not
+        // lost): a thing beside the robot can make it `uncertain` by the state's thresholds as
+        // it passes (the behaviours system's box did), and a detector without those scans would
+        // take the thing for a contradiction.
+        if self.estimate.proven && !self.searching && self.estimate.state != State::Lost {
+            if self.seen.len() >= SEEN_LAG_UPDATES {
+                self.seen.pop_front();
+            }
+            self.seen.push_back(SeenScan {
+                pose: self.estimate.pose,
+                ranges: self.ranges.clone(),
+                angle_min_rad: self.angle_min_rad,
+                angle_increment_rad: self.angle_increment_rad,
+                range_max_m: self.range_max_m,
+            });
+        } else {
+            self.seen.clear();
         }
         self.since_spread = self.since_spread.saturating_add(1);
         // Spread again only when nothing fits: a wide estimate whose places all fit is the
@@ -999,7 +1046,7 @@ impl Filter {
             short.push(end);
         }
         let all = (beams > 0).then(|| agreeing as f64 / beams as f64);
-        let explained = self.explained_short(&short);
+        let explained = self.explained_short(pose, &short);
         let unexplained = short.iter().flatten().count() - explained.iter().filter(|&&e| e).count();
         let judged = agreeing + long + unexplained;
         let kidnap = (judged > 0 && judged as f64 >= MIN_JUDGED_BEAMS * beams as f64)
@@ -1012,13 +1059,14 @@ impl Filter {
     }
 
     /// Which of the short beams (`short`, one entry a beam in the scan's order, the end of
-    /// those that end short of the map's wall) a thing the map lacks explains. Neighbouring
-    /// short beams are one thing when the scan's own points between them are one surface
-    /// ([`Filter::connected`]), and two otherwise (a near thing beside a far one). A thing
-    /// whose ends lie within [`UNMAPPED_THING_M`] of each other explains its beams; the beams
-    /// of a wider one are not explained. A scan all round the robot wraps: its last beam
-    /// neighbours its first.
-    fn explained_short(&self, short: &[Option<(f64, f64)>]) -> Vec<bool> {
+    /// those that end short of the map's wall, seen from `pose`) a thing the map lacks explains.
+    /// Neighbouring short beams are one thing when the scan's own points between them are one
+    /// surface ([`Filter::connected`]), and two otherwise (a near thing beside a far one). A
+    /// thing whose ends lie within [`UNMAPPED_THING_M`] of each other explains its beams; a
+    /// wider one explains those whose ends the laser did not see through on the scan of
+    /// [`SEEN_LAG_UPDATES`] before (none without such a scan). A scan all round the robot
+    /// wraps: its last beam neighbours its first.
+    fn explained_short(&self, pose: Pose2D, short: &[Option<(f64, f64)>]) -> Vec<bool> {
         let n = short.len();
         let mut explained = vec![false; n];
         if n < 2 {
@@ -1054,6 +1102,15 @@ impl Filter {
                 for &(i, _) in run.iter() {
                     explained[i] = true;
                 }
+            } else if let Some(reference) = self.seen.front() {
+                let (sin, cos) = pose.theta_rad.sin_cos();
+                for &(i, (lx, ly)) in run.iter() {
+                    let end = (
+                        pose.x_m + cos * lx - sin * ly,
+                        pose.y_m + sin * lx + cos * ly,
+                    );
+                    explained[i] = !Self::seen_through(reference, end);
+                }
             }
             run.clear();
         };
@@ -1071,6 +1128,47 @@ impl Filter {
         }
         close(&mut run);
         explained
+    }
+
+    /// Whether the laser saw through `end` (in the map frame) on the scan `reference`: the
+    /// beams towards it, the nearest and its two neighbours, all reached more than [`AGREE_M`]
+    /// beyond it, or read no echo with it within range. A thing the map lacks that stands
+    /// still was never seen through: the beams towards it from anywhere end on it, or on
+    /// something before it, or it was out of range. A wall a robot carried elsewhere sees where
+    /// the estimate believes open floor was seen through before the carrying, when the robot
+    /// was where the estimate says.
+    fn seen_through(reference: &SeenScan, end: (f64, f64)) -> bool {
+        let n = reference.ranges.len();
+        let (dx, dy) = (end.0 - reference.pose.x_m, end.1 - reference.pose.y_m);
+        let distance = dx.hypot(dy);
+        if n == 0 || reference.angle_increment_rad.abs() < 1e-9 || distance < AGREE_M {
+            return false;
+        }
+        let bearing = wrap_angle(dy.atan2(dx) - reference.pose.theta_rad);
+        let mut index =
+            ((bearing - reference.angle_min_rad) / reference.angle_increment_rad).round();
+        let wraps = (n as f64 * reference.angle_increment_rad.abs() - 2.0 * std::f64::consts::PI)
+            .abs()
+            <= 1.5 * reference.angle_increment_rad.abs();
+        if wraps {
+            index = index.rem_euclid(n as f64);
+        }
+        let through = |i: f64| {
+            let i = if wraps { i.rem_euclid(n as f64) } else { i };
+            if i < 0.0 || i >= n as f64 {
+                return false;
+            }
+            let range = f64::from(reference.ranges[i as usize]);
+            if !range.is_finite() || range <= 0.0 {
+                return false;
+            }
+            if range >= reference.range_max_m {
+                distance < reference.range_max_m - AGREE_M
+            } else {
+                range > distance + AGREE_M
+            }
+        };
+        through(index - 1.0) && through(index) && through(index + 1.0)
     }
 
     /// Whether the scan's own points from its beam `from` to its beam `to` (onwards, round the
