@@ -740,6 +740,7 @@ mod tests {
             covariance: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0],
             fit: 0.75,
             state: LocalisationState::Localised,
+            proven: true,
         };
         let message = estimate_message(&estimate, stamp());
         let c = &message.pose_covariance;

@@ -13,10 +13,12 @@ use std::time::Duration;
 use armor_model::geo::{self, LatLon, Polygon};
 use armor_model::world::Point;
 use armor_module_api::Datum as _;
-use armor_module_api::types::Pose2D;
+use armor_module_api::types::{LocalisationState, Pose2D, PoseEstimate};
 use armor_tests::mcap::read_mcap;
-use armor_tests::mission::run_mission;
-use armor_tests::{ctl, ctl_status, run_with_control, wait_until, workspace_root};
+use armor_tests::mission::{armor_run, run_mission};
+use armor_tests::{
+    control_address, ctl, ctl_status, process_alive, run_with_control, wait_until, workspace_root,
+};
 
 /// The follower's tolerance plus 0.1 m.
 const TOLERANCE_M: f64 = 0.4;
@@ -34,7 +36,9 @@ const PLACES: [(&str, f64, f64); 5] = [
 /// A no-go area on the open floor, between the start and the west place.
 const NO_GO: [(f64, f64); 4] = [(3.5, 5.0), (6.0, 5.0), (6.0, 8.0), (3.5, 8.0)];
 
-fn system(map: &Path, record: &Path, kidnap: &str) -> String {
+/// The robot's system; `recover` turns the localiser's search of the map on when lost, and the
+/// recorder keeps `topics` (the truth first).
+fn system(map: &Path, record: &Path, kidnap: &str, recover: bool, topics: &str) -> String {
     let map = map.display();
     format!(
         r#"<?xml version="1.0" encoding="UTF-8"?>
@@ -43,7 +47,10 @@ fn system(map: &Path, record: &Path, kidnap: &str) -> String {
     <param name="world" value="{map}"/>
     <param name="kidnap" value="{kidnap}"/>
   </module>
-  <module name="localiser" type="localiser"><param name="world" value="{map}"/></module>
+  <module name="localiser" type="localiser">
+    <param name="world" value="{map}"/>
+    <param name="recover" value="{recover}"/>
+  </module>
   <module name="follower" type="follower">
     <param name="world" value="{map}"/>
     <param name="goal_x_m" value="10"/>
@@ -53,7 +60,7 @@ fn system(map: &Path, record: &Path, kidnap: &str) -> String {
   <module name="avoider" type="avoider"/>
   <module name="mux" type="mux"/>
   <module name="recorder" type="recorder">
-    <param name="record" value="sim.pose_truth"/>
+    <param name="record" value="{topics}"/>
     <param name="file" value="{record}"/>
     <param name="compression" value="none"/>
   </module>
@@ -73,6 +80,11 @@ fn system(map: &Path, record: &Path, kidnap: &str) -> String {
 }
 
 fn plan(system: &Path) -> String {
+    plan_of(system, &PLACES)
+}
+
+/// A plan of legs through `places`, in order, holding when lost, round the no-go area.
+fn plan_of(system: &Path, places: &[(&str, f64, f64)]) -> String {
     let origin = LatLon::new(ORIGIN.0, ORIGIN.1);
     let at = |x: f64, y: f64| LatLon::from_local(Point::new(x, y), origin);
     let mut text = format!(
@@ -81,14 +93,14 @@ fn plan(system: &Path) -> String {
          name=\"recorder\"/></throughout>\n",
         system.display()
     );
-    for (name, x, y) in PLACES {
+    for &(name, x, y) in places {
         let p = at(x, y);
         text.push_str(&format!(
             "  <waypoint name=\"{name}\" lat=\"{:.9}\" lon=\"{:.9}\"/>\n",
             p.lat_deg, p.lon_deg
         ));
     }
-    for pair in PLACES.windows(2) {
+    for pair in places.windows(2) {
         text.push_str(&format!(
             "  <leg name=\"to_{}\" from=\"{}\" to=\"{}\"/>\n",
             pair[1].0, pair[0].0, pair[1].0
@@ -108,20 +120,34 @@ fn plan(system: &Path) -> String {
     text
 }
 
+/// The messages on `topic` a recorder wrote, with their run time (in time order) and their
+/// encoding.
+fn read_topic(record: &Path, topic: &str) -> Vec<(f64, String, Vec<u8>)> {
+    let mut messages: Vec<(f64, String, Vec<u8>)> = read_mcap(record)
+        .into_iter()
+        .filter(|((recorded, _), _)| recorded == topic)
+        .flat_map(|((_, encoding), messages)| {
+            messages
+                .into_iter()
+                .map(move |(log_time, data)| (log_time as f64 / 1e9, encoding.clone(), data))
+        })
+        .collect();
+    messages.sort_by(|a, b| a.0.total_cmp(&b.0));
+    messages
+}
+
 /// The sim's true positions a recorder wrote, with their run time, in time order.
 fn read_truth(record: &Path) -> Vec<(f64, Point)> {
-    let mut truth: Vec<(f64, Point)> = Vec::new();
-    for ((topic, encoding), messages) in read_mcap(record) {
-        assert_eq!(topic, "sim.pose_truth");
-        for (log_time, data) in messages {
+    let truth: Vec<(f64, Point)> = read_topic(record, "sim.pose_truth")
+        .into_iter()
+        .map(|(at, encoding, data)| {
             let pose = match encoding.as_str() {
                 "json" => serde_json::from_slice::<Pose2D>(&data).unwrap(),
                 _ => Pose2D::decode(&data).unwrap(),
             };
-            truth.push((log_time as f64 / 1e9, Point::new(pose.x_m, pose.y_m)));
-        }
-    }
-    truth.sort_by(|a, b| a.0.total_cmp(&b.0));
+            (at, Point::new(pose.x_m, pose.y_m))
+        })
+        .collect();
     assert!(truth.len() > 100, "{} true poses recorded", truth.len());
     truth
 }
@@ -150,7 +176,11 @@ fn a_plan_on_nav2_s_depot_map_arrives_by_the_truth_with_default_noise() {
     let dir = tempfile::tempdir().unwrap();
     let record = dir.path().join("truth.mcap");
     let system_file = dir.path().join("system.xml");
-    std::fs::write(&system_file, system(&map, &record, "")).unwrap();
+    std::fs::write(
+        &system_file,
+        system(&map, &record, "", false, "sim.pose_truth"),
+    )
+    .unwrap();
     let plan_file = dir.path().join("plan.xml");
     let plan_text = plan(&system_file);
     std::fs::write(&plan_file, &plan_text).unwrap();
@@ -205,7 +235,11 @@ fn a_kidnapped_robot_is_lost_the_plan_holds_and_an_operator_sets_the_pose() {
     let record = dir.path().join("truth.mcap");
     let system_file = dir.path().join("system.xml");
     let kidnap = format!("{KIDNAP_SECS} {} {} 0", KIDNAPPED_TO.0, KIDNAPPED_TO.1);
-    std::fs::write(&system_file, system(&map, &record, &kidnap)).unwrap();
+    std::fs::write(
+        &system_file,
+        system(&map, &record, &kidnap, false, "sim.pose_truth"),
+    )
+    .unwrap();
     let plan_file = dir.path().join("plan.xml");
     std::fs::write(&plan_file, plan(&system_file)).unwrap();
     let (mut run, addr) = run_with_control(&plan_file);
@@ -271,4 +305,215 @@ fn a_kidnapped_robot_is_lost_the_plan_holds_and_an_operator_sets_the_pose() {
         .map(|p| geo::distance(*p, put))
         .fold(0.0, f64::max);
     assert!(moved < 0.5, "the kidnapped robot drove {moved:.2} m");
+}
+
+/// Kidnapped with the localiser's `recover` on: lost, the leg holds, and the localiser searches
+/// the map while the robot stands. The operator retries the leg: the follower does not drive on
+/// the estimate the search found (not proven yet), it turns in place until the localiser proves
+/// it by the turn, and only then drives the leg to its end. A search that settled on a place the
+/// beams contradict searches again, lost, and the leg holds again: the operator retries each
+/// time it holds, three times at most (the headless test of the same carrying,
+/// `a_robot_searched_for_on_the_depot_map_is_proven_where_it_is_by_turning_in_place`, shows the
+/// place the robot was put is told apart from its look-alikes among the posts), then aborts.
+/// Judged by the simulator's truth: from each retry until the estimate is proven and
+/// `localised`, the robot moves less than 0.1 m; then either the mission completes, arriving by
+/// the truth, clear of the no-go area, or it held a fourth time for a reason the run states
+/// (the leg's `lost` or `blocked` fired last, and the last estimate is lost or not proven).
+/// Both outcomes are what a user should see: a loaded machine delays the scans (more than a
+/// second, and the localiser goes on on odometry alone), and a search may then not finish.
+#[test]
+fn a_kidnapped_robot_retried_with_recovery_turns_in_place_until_its_place_is_proven() {
+    let map = workspace_root().join("tests/data/external/nav2_depot/depot-armor.yaml");
+    let dir = tempfile::tempdir().unwrap();
+    let record = dir.path().join("truth.mcap");
+    let system_file = dir.path().join("system.xml");
+    let kidnap = format!("{KIDNAP_SECS} {} {} 0", KIDNAPPED_TO.0, KIDNAPPED_TO.1);
+    std::fs::write(
+        &system_file,
+        system(
+            &map,
+            &record,
+            &kidnap,
+            true,
+            "sim.pose_truth,localiser.estimate",
+        ),
+    )
+    .unwrap();
+    let plan_file = dir.path().join("plan.xml");
+    std::fs::write(&plan_file, plan_of(&system_file, &PLACES[..2])).unwrap();
+    let report = dir.path().join("report.json");
+    let mut run = armor_run(&plan_file, &report, &["--no-run-folder"]);
+    let addr = control_address(&run);
+    // Whether the leg is held; false once the run has ended (nothing answers).
+    let held = || {
+        let (ok, text) = ctl(&addr, &["status", "--json"]);
+        let json = text.find('{').map_or("", |start| &text[start..]);
+        ok && serde_json::from_str::<serde_json::Value>(json).is_ok_and(|status| {
+            status["mission"]["marking"]["to_south_hold"]
+                .as_u64()
+                .unwrap_or(0)
+                > 0
+        })
+    };
+    let mut retries = 0;
+    while process_alive(run.pid()) {
+        wait_until(
+            "the leg held, or the run ended",
+            Duration::from_secs(300),
+            || held() || !process_alive(run.pid()),
+        );
+        if !process_alive(run.pid()) {
+            break;
+        }
+        if retries == 3 {
+            // Held a fourth time: the operator gives up and ends the mission.
+            let (ok, said) = ctl(&addr, &["abort"]);
+            assert!(ok, "{said}");
+            break;
+        }
+        retries += 1;
+        let (ok, said) = ctl(&addr, &["fire", "to_south_retry"]);
+        assert!(ok, "{said}");
+        wait_until("the retry taken", Duration::from_secs(60), || {
+            !held() || !process_alive(run.pid())
+        });
+    }
+    let status = run.wait_exit(Duration::from_secs(60));
+    let lines = run.lines();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let fired: Vec<(String, f64)> = report["timeline"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|entry| entry["kind"] == "fired")
+        .filter_map(|entry| {
+            Some((
+                entry["transition"].as_str()?.to_owned(),
+                entry["run_secs"].as_f64()?,
+            ))
+        })
+        .collect();
+    let retried: Vec<f64> = fired
+        .iter()
+        .filter(|(name, _)| name == "to_south_retry")
+        .map(|(_, at)| *at)
+        .collect();
+    assert!(!retried.is_empty(), "never retried: {report:#}");
+    let estimates: Vec<(f64, PoseEstimate)> = read_topic(&record, "localiser.estimate")
+        .into_iter()
+        .map(|(at, encoding, data)| match encoding.as_str() {
+            "json" => (at, serde_json::from_slice(&data).unwrap()),
+            _ => (at, PoseEstimate::decode(&data).unwrap()),
+        })
+        .collect();
+    let truth = read_truth(&record);
+    let truth_at = |time: f64| {
+        truth
+            .iter()
+            .rev()
+            .find(|(at, _)| *at <= time)
+            .map(|(_, p)| *p)
+            .unwrap()
+    };
+    let end_secs = truth.last().map_or(0.0, |(at, _)| *at);
+    // From each retry until the estimate is proven and localised (or the next retry, or the
+    // end), the robot turns in place at most.
+    let mut proven_after = Vec::new();
+    for (i, &at_retry) in retried.iter().enumerate() {
+        let until = retried.get(i + 1).copied().unwrap_or(end_secs);
+        let proven_at = estimates
+            .iter()
+            .find(|(at, estimate)| {
+                *at >= at_retry
+                    && *at < until
+                    && estimate.state == LocalisationState::Localised
+                    && estimate.proven
+            })
+            .map(|(at, _)| *at);
+        let from = truth_at(at_retry);
+        let window: Vec<Point> = truth
+            .iter()
+            .filter(|(at, _)| *at >= at_retry && *at <= proven_at.unwrap_or(until))
+            .map(|(_, p)| *p)
+            .collect();
+        assert!(
+            window.len() > 10,
+            "{} true poses recorded after retry {} ({at_retry:.1} s; the truth runs from {:.1} \
+             to {end_secs:.1} s)",
+            window.len(),
+            i + 1,
+            truth[0].0
+        );
+        let moved = window
+            .iter()
+            .map(|p| geo::distance(*p, from))
+            .fold(0.0, f64::max);
+        eprintln!(
+            "retry {} at {at_retry:.1} s: proven and localised {} having moved {moved:.3} m \
+             ({} true poses)",
+            i + 1,
+            proven_at.map_or("never after it".to_owned(), |at| format!(
+                "{:.1} s later",
+                at - at_retry
+            )),
+            window.len()
+        );
+        assert!(
+            moved < 0.1,
+            "after retry {} the robot moved {moved:.3} m on an unproven estimate",
+            i + 1
+        );
+        proven_after.push(proven_at);
+    }
+    let closest = closest_to(&no_go_area(), &truth);
+    assert!(
+        closest > 0.0,
+        "the footprint met the no-go area ({closest:.2} m)"
+    );
+    if report["outcome"] == "complete" {
+        assert!(status.success(), "{status}:\n{}", lines.join("\n"));
+        let (_, arrived) = fired
+            .iter()
+            .rev()
+            .find(|(name, _)| name == "to_south_arrived")
+            .unwrap_or_else(|| panic!("`to_south_arrived` never fired: {report:#}"));
+        let (_, at_arrival) = truth
+            .iter()
+            .min_by(|a, b| (a.0 - arrived).abs().total_cmp(&(b.0 - arrived).abs()))
+            .unwrap();
+        let error = geo::distance(*at_arrival, Point::new(PLACES[1].1, PLACES[1].2));
+        eprintln!(
+            "completed after {} retry(ies): arrived {error:.3} m from `south`; closest footprint \
+             to the no-go area {closest:.2} m",
+            retried.len()
+        );
+        assert!(
+            proven_after.last().is_some_and(Option::is_some),
+            "completed without a proven estimate after the last retry"
+        );
+        assert!(error <= TOLERANCE_M, "arrived {error:.3} m from `south`");
+    } else {
+        // Held a fourth time and aborted: the run says why it held (the leg's `lost` or
+        // `blocked` fired last), and the localiser agrees (lost, or not proven).
+        assert_eq!(report["outcome"], "aborted", "{report:#}");
+        let (why, _) = fired
+            .iter()
+            .rev()
+            .find(|(name, _)| name.starts_with("to_south_") && name != "to_south_retry")
+            .unwrap_or_else(|| panic!("no reason fired for the hold: {report:#}"));
+        let (_, last) = estimates.last().expect("estimates recorded");
+        eprintln!(
+            "held a fourth time ({why}) and aborted; the last estimate {:?}, proven {}",
+            last.state, last.proven
+        );
+        assert!(
+            why == "to_south_lost" || why == "to_south_blocked",
+            "held after `{why}`"
+        );
+        assert!(
+            last.state == LocalisationState::Lost || !last.proven,
+            "held with a proven estimate: {last:?}"
+        );
+    }
 }

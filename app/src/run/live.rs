@@ -636,6 +636,7 @@ mod tests {
             covariance: [0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.001],
             fit: 0.9,
             state: armor_module_api::types::LocalisationState::Localised,
+            proven: true,
         };
         live.take(&sources, "localiser.estimate", &encode(&good));
         assert_eq!(live.estimate, Some(good));

@@ -14,7 +14,10 @@
 //! cluster of particles and 90 % of the beams agreeing with the map), `lost` (position standard
 //! deviation above 1 m, the fit below 0.25 or fewer than half the beams agreeing: a cloud can be
 //! tight and wrong, as when the robot is carried elsewhere, and only the scan shows it),
-//! `uncertain` otherwise. Lost, it stays lost until an operator sets the pose (`set_pose`), or, with
+//! `uncertain` otherwise; a step down in the beams' agreement against its history (a suspected
+//! kidnap, [`mcl`]) makes it `uncertain` until the estimate is proven again, and each estimate
+//! says whether it is proven (a follower does not drive on one that is not).
+//! Lost, it stays lost until an operator sets the pose (`set_pose`), or, with
 //! `recover`, spreads its particles over the map's free space (global mode); a place found so
 //! must hold while the robot drives on before it is called `localised`. When the scans stop
 //! coming ([`SCANS_LATE_SECS`]), the filter goes on on the odometry alone, its covariance
@@ -57,9 +60,11 @@ pub fn spec() -> ModuleSpec {
          of odometry, and its covariance and state: `localised` (position sigma <= 0.15 m, \
          heading sigma <= 0.1 rad, scan fit >= 0.5, one cluster of particles, 90 % of the beams \
          agreeing with the map), `lost` (position sigma > 1 m, scan fit < 0.25 or under half \
-         the beams agreeing), else `uncertain`. Lost, it stays lost until set_pose (or, with \
-         recover, searches the whole map). Without scans for a second, it goes on on the \
-         odometry alone, its uncertainty growing.",
+         the beams agreeing), else `uncertain`. A step down in the beams' agreement against \
+         its history (a suspected kidnap) makes it `uncertain` until the estimate is proven \
+         again (a full turn in place; each estimate says whether it is proven). Lost, it stays \
+         lost until set_pose (or, with recover, searches the whole map). Without scans for a \
+         second, it goes on on the odometry alone, its uncertainty growing.",
     )
     .category(armor_module_api::Category::Navigation)
     .version(env!("CARGO_PKG_VERSION"))
@@ -301,6 +306,7 @@ pub fn message(estimate: &mcl::Estimate) -> PoseEstimate {
             State::Uncertain => LocalisationState::Uncertain,
             State::Lost => LocalisationState::Lost,
         },
+        proven: estimate.proven,
     }
 }
 
@@ -422,6 +428,7 @@ pub fn body(node: &mut Node) -> BodyResult {
     }
     let mut localiser = Localiser::new(filter);
     let mut latest: Option<Odometry> = None;
+    let mut latest_stamp_ns = 0u64;
     let mut reported: Option<State> = None;
     // Run time of the last scan, and whether the scans are late (said once per silence).
     let mut scanned_at: Option<f64> = None;
@@ -433,6 +440,7 @@ pub fn body(node: &mut Node) -> BodyResult {
                     continue;
                 };
                 latest = Some(sample.value);
+                latest_stamp_ns = sample.stamp_ns;
                 if let Some(pose) = localiser.on_odometry(sample.value.pose_in_odom) {
                     let pose = Odometry {
                         pose_in_odom: pose,
@@ -469,6 +477,9 @@ pub fn body(node: &mut Node) -> BodyResult {
                     tracing::info!("scans again");
                 }
                 scanned_at = Some(node.timestamp());
+                localiser
+                    .filter
+                    .set_pairing_skew_secs(sample.stamp_ns.abs_diff(latest_stamp_ns) as f64 / 1e9);
                 let estimate = localiser.on_scan(odometry.pose_in_odom, &sample.value);
                 node.send(&estimate_output, &message(&estimate))?;
                 report_state(node, &mut reported, &estimate, "")?;

@@ -449,6 +449,9 @@ impl Mapper {
             covariance: PoseEstimate::diagonal_covariance(sigma_m, sigma_rad),
             fit: self.match_score,
             state,
+            // The mapper has no look-alike places to tell apart: its pose is where its own
+            // matches put it, and its covariance says how far that may be from the truth.
+            proven: true,
         })
     }
 

@@ -165,15 +165,60 @@ impl LocalisationState {
 
 /// A pose estimated on a map, with its uncertainty: the covariance of (x, y, heading), row by
 /// row (m², m·rad, rad²), how well the latest scan fits the map there (0 to 1: the mean of the
-/// likelihood field at the beams' ends) and the localiser's state.
+/// likelihood field at the beams' ends), the localiser's state, and whether the estimate is
+/// proven: a localiser that searched the map, or suspects the robot was carried, says `false`
+/// until the estimate held while the robot drove or turned on it (`docs/localisation.md`);
+/// a follower does not drive on an estimate that is not proven.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PoseEstimate {
     pub pose_in_map: Pose2D,
     pub covariance: [f64; 9],
     pub fit: f64,
     pub state: LocalisationState,
+    /// Absent from estimates written before it existed (recordings, JSON): such an estimate
+    /// reads as proven, since everything then drove on every estimate.
+    #[serde(default = "proven_when_absent")]
+    pub proven: bool,
 }
-postcard_datum!(PoseEstimate, "PoseEstimate");
+
+fn proven_when_absent() -> bool {
+    true
+}
+
+/// A [`PoseEstimate`] as it was encoded before `proven` (its fields, in order, without it).
+#[derive(Deserialize)]
+struct PoseEstimateBeforeProven {
+    pose_in_map: Pose2D,
+    covariance: [f64; 9],
+    fit: f64,
+    state: LocalisationState,
+}
+
+impl Datum for PoseEstimate {
+    const TYPE: &'static str = "PoseEstimate";
+    fn encode(&self, out: &mut Vec<u8>) -> Result<(), CodecError> {
+        postcard_encode(self, out, Self::TYPE)
+    }
+    /// Today's encoding, or one written before `proven` (an old recording): that one ends
+    /// after `state`, exactly, and reads as proven. postcard is not self-describing, so the
+    /// old layout is tried only when today's runs out of bytes, and must use every byte.
+    fn decode(bytes: &[u8]) -> Result<Self, CodecError> {
+        let current = postcard_decode::<Self>(bytes, Self::TYPE);
+        if current.is_ok() {
+            return current;
+        }
+        match postcard::take_from_bytes::<PoseEstimateBeforeProven>(bytes) {
+            Ok((old, [])) => Ok(Self {
+                pose_in_map: old.pose_in_map,
+                covariance: old.covariance,
+                fit: old.fit,
+                state: old.state,
+                proven: true,
+            }),
+            _ => current,
+        }
+    }
+}
 
 impl PoseEstimate {
     /// The covariance of independent errors: `sigma_m` in x and in y, `sigma_rad` in heading.
@@ -369,6 +414,42 @@ mod tests {
         scan.extend([0; 64]);
         assert!(LaserScan::decode(&scan).is_err());
         assert!(Text::decode(&huge_len).is_err());
+    }
+
+    /// A recording made before `proven` existed still reads: postcard ends after `state` and
+    /// JSON has no `proven`; either reads as proven, as every estimate was then taken.
+    #[test]
+    fn a_pose_estimate_written_before_proven_reads_as_proven() {
+        let estimate = PoseEstimate {
+            pose_in_map: Pose2D {
+                x_m: 1.5,
+                y_m: -2.0,
+                theta_rad: 0.25,
+            },
+            covariance: PoseEstimate::diagonal_covariance(0.1, 0.05),
+            fit: 0.8,
+            state: LocalisationState::Lost,
+            proven: false,
+        };
+        let mut out = Vec::new();
+        estimate.encode(&mut out).expect("encode");
+        assert_eq!(PoseEstimate::decode(&out).expect("decode"), estimate);
+        assert_eq!(out.last(), Some(&0), "proven: false, one byte, last");
+        let old = &out[..out.len() - 1];
+        assert_eq!(
+            PoseEstimate::decode(old).expect("the old layout"),
+            PoseEstimate {
+                proven: true,
+                ..estimate
+            }
+        );
+        // Shorter still is broken, in either layout, and said so.
+        let err = PoseEstimate::decode(&old[..old.len() - 1]).expect_err("truncated");
+        assert!(err.to_string().contains("PoseEstimate"), "{err}");
+        let json = r#"{"pose_in_map":{"x_m":1.5,"y_m":-2.0,"theta_rad":0.25},
+            "covariance":[0.01,0,0,0,0.01,0,0,0,0.0025],"fit":0.8,"state":"Lost"}"#;
+        let read: PoseEstimate = serde_json::from_str(json).expect("old JSON");
+        assert!(read.proven);
     }
 
     #[test]
