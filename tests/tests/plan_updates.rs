@@ -1102,16 +1102,21 @@ mod reported {
         never_met(yard, report, &RING, from_secs);
     }
 
+    /// The yard plan where the observer, looking round at the gate, sights the ring of mines
+    /// round `north`, and the plan answers `blocked` with `contingency`.
+    fn ring_sighted(yard: &Yard, contingency: &str) -> String {
+        edited(
+            &sighting(&yard.plan_text, "ring", &RING),
+            "<contingency on=\"blocked\" do=\"hold\"/>",
+            contingency,
+        )
+    }
+
     #[test]
     fn an_area_that_cuts_a_later_leg_is_repaired_by_the_plans_default_and_driven_round() {
         let yard = Yard::new();
-        // The plan repairs by itself; the observer, looking round at the gate, sights a ring
-        // of mines round `north`.
-        let text = edited(
-            &sighting(&yard.plan_text, "ring", &RING),
-            "<contingency on=\"blocked\" do=\"hold\"/>",
-            "<contingency on=\"blocked\" do=\"repair\"/>",
-        );
+        // The plan repairs by itself.
+        let text = ring_sighted(&yard, "<contingency on=\"blocked\" do=\"repair\"/>");
         let _one = ONE_ROBOT_AT_A_TIME
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
@@ -1413,10 +1418,9 @@ mod reported {
     fn a_repairs_default_is_applied_after_the_time_the_plan_gives() {
         let yard = Yard::new();
         // The plan repairs by itself, 15 s (run time) after proposing, unless the operator
-        // chooses first; the observer at the gate sights the ring of mines round `north`.
-        let text = edited(
-            &sighting(&yard.plan_text, "ring", &RING),
-            "<contingency on=\"blocked\" do=\"hold\"/>",
+        // chooses first.
+        let text = ring_sighted(
+            &yard,
             "<contingency on=\"blocked\" do=\"repair\" after_secs=\"15\"/>",
         );
         let _one = ONE_ROBOT_AT_A_TIME
