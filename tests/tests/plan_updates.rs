@@ -1350,11 +1350,10 @@ mod reported {
         });
         assert_eq!(marked(&held), ["advance_hold"], "{held}");
         let proposed = &held["mission"]["repair"];
-        assert!(
-            proposed["why"]
-                .as_str()
-                .unwrap()
-                .starts_with("leg `advance` is late (due by 08:00:10)"),
+        assert_eq!(
+            proposed["why"],
+            "leg `advance` is late (due by 08:00:10): its deadline passed before it arrived, it \
+             holds in `advance_hold`",
             "{proposed}"
         );
         assert!(proposed["default_option"].is_null(), "{proposed}");

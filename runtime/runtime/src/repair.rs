@@ -142,7 +142,8 @@ pub fn watch(
         (
             repair::late_options(situation, planner),
             format!(
-                "leg `{}` is late{due}: its deadline passed before it arrived, it holds in                  `{place}`",
+                "leg `{}` is late{due}: its deadline passed before it arrived, it holds in \
+                 `{place}`",
                 leg.name
             ),
         )
