@@ -524,6 +524,7 @@ fn climb_cut() -> Repair {
             },
         ],
         default_option: None,
+        default_at_run_secs: None,
     }
 }
 

@@ -27,7 +27,13 @@
 //!   `do="repair"` the area is taken at once with the best option (skip `north`), without it
 //!   the repair is proposed and `armor ctl repair 1` takes it (an observer's key refused);
 //!   either way the robot completes at `rally` and its true footprint never meets the ring;
-//!   the proposal and the update are in the run's MCAP recording (`armor-run.updates`).
+//!   the proposal and the update are in the run's MCAP recording (`armor-run.updates`). With
+//!   `after_secs`, the default waits that long for the operator's choice. A leg made late (a
+//!   tight `arrive_by`) holds and proposes its deadline pushed back or dropped, or the skip;
+//!   the operator drops it and the mission completes. An obstacle only the simulator has, in
+//!   the gap `cross` drives through, truly blocks the follower (it does not replan here): the
+//!   repair's way round through `rally` is chosen, and the robot completes without touching
+//!   it by the truth.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -469,6 +475,7 @@ fn running(yard: &Yard) -> (Running, PathBuf) {
             system_file: loaded.system_file.clone(),
             plan: loaded.plan.clone().unwrap(),
             compiled: loaded.compiled.clone().unwrap(),
+            memory: Default::default(),
         },
         file,
     )
@@ -477,14 +484,14 @@ fn running(yard: &Yard) -> (Running, PathBuf) {
 #[test]
 fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot() {
     let yard = Yard::new();
-    let (running, _) = running(&yard);
+    let (mut running, _) = running(&yard);
     let driving_cross: Marking = [("cross_drive".to_owned(), 1)].into();
     let now = Now {
         robot_at: Some(Point::new(20.0, 7.0)),
         unix_secs: armor_model::net::parse_rfc3339("2026-11-23T08:01:40Z").unwrap(),
     };
-    let refused = |file: &str, text: &str, marking: &Marking, now: Now| {
-        check(&running, file, text, &[bin_dir()])
+    let mut refused = |file: &str, text: &str, marking: &Marking, now: Now| {
+        check(&mut running, file, text, &[bin_dir()])
             .and_then(|checked| {
                 prepare(
                     &running,
@@ -545,7 +552,7 @@ fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot()
         robot_at: Some(Point::new(17.0, 4.5)),
         ..now
     };
-    let checked = check(&running, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
+    let checked = check(&mut running, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
     let prepared = prepare(
         &running,
         checked,
@@ -569,12 +576,12 @@ fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot()
     );
     // Taken, then the same plan sent again: the leg goes on unchanged, on the path the run gave
     // it from where the robot was, not back on the plan's from `gate`.
-    let taken = Running {
+    let mut taken = Running {
         plan: prepared.plan.clone(),
         compiled: prepared.compiled.clone(),
         ..running.clone()
     };
-    let checked = check(&taken, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
+    let checked = check(&mut taken, "boxed.xml", &boxed, &[bin_dir()]).unwrap();
     let again = prepare(
         &taken,
         checked,
@@ -600,7 +607,7 @@ fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot()
         "arrive_by=\"2026-11-23T08:06:00Z\"",
         "arrive_by=\"2026-11-23T08:02:00Z\"",
     );
-    let checked = check(&running, "hurried.xml", &hurried, &[bin_dir()]).unwrap();
+    let checked = check(&mut running, "hurried.xml", &hurried, &[bin_dir()]).unwrap();
     let warned = prepare(
         &running,
         checked,
@@ -641,7 +648,7 @@ fn the_run_refuses_what_it_cannot_take_and_plans_a_leg_replaced_from_the_robot()
         "<phase_line",
         &format!("{}<phase_line", yard.area("gap", (23.0, 5.3), (25.0, 8.2))),
     );
-    let checked = check(&running, "gap.xml", &gap, &[bin_dir()]).unwrap();
+    let checked = check(&mut running, "gap.xml", &gap, &[bin_dir()]).unwrap();
     let rerouted = prepare(
         &running,
         checked,
@@ -928,7 +935,21 @@ mod reported {
             (1, "area `mines` reported by module `observer`", true),
             "{message}"
         );
-        assert!(message.contains("no-go areas added: `mines`"), "{message}");
+        // `cross`, not driven yet, is routed anew round the area at once: no repair, nothing
+        // for the operator to choose (issue 39: an area across a later leg is not a block).
+        assert!(
+            message.contains("no-go areas added: `mines`")
+                && message.contains("legs routed anew: `cross`"),
+            "{message}"
+        );
+        assert!(
+            !report["timeline"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|entry| entry["kind"] == "repair"),
+            "a repair was proposed:\n{text}"
+        );
         assert!(
             text.lines()
                 .any(|line| line.starts_with("update 1 at ") && line.contains("`mines`")),
@@ -1081,16 +1102,21 @@ mod reported {
         never_met(yard, report, &RING, from_secs);
     }
 
+    /// The yard plan where the observer, looking round at the gate, sights the ring of mines
+    /// round `north`, and the plan answers `blocked` with `contingency`.
+    fn ring_sighted(yard: &Yard, contingency: &str) -> String {
+        edited(
+            &sighting(&yard.plan_text, "ring", &RING),
+            "<contingency on=\"blocked\" do=\"hold\"/>",
+            contingency,
+        )
+    }
+
     #[test]
     fn an_area_that_cuts_a_later_leg_is_repaired_by_the_plans_default_and_driven_round() {
         let yard = Yard::new();
-        // The plan repairs by itself; the observer, looking round at the gate, sights a ring
-        // of mines round `north`.
-        let text = edited(
-            &sighting(&yard.plan_text, "ring", &RING),
-            "<contingency on=\"blocked\" do=\"hold\"/>",
-            "<contingency on=\"blocked\" do=\"repair\"/>",
-        );
+        // The plan repairs by itself.
+        let text = ring_sighted(&yard, "<contingency on=\"blocked\" do=\"repair\"/>");
         let _one = ONE_ROBOT_AT_A_TIME
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
@@ -1242,5 +1268,285 @@ mod reported {
         );
         let chosen_at = report["updates"][1]["run_secs"].as_f64().unwrap();
         completed_round_the_ring(&yard, &report, &text, chosen_at);
+    }
+
+    /// The run's status once `pred` holds of it, polled until `RUN_DEADLINE`. A status the run
+    /// did not answer in time (busy checking an update on a loaded machine) is asked again.
+    fn status_when(
+        run: &Run,
+        what: &str,
+        pred: impl Fn(&serde_json::Value) -> bool,
+    ) -> serde_json::Value {
+        let give_up = std::time::Instant::now() + RUN_DEADLINE;
+        let secret = run.secret.to_str().unwrap();
+        loop {
+            let (ok, text) = ctl(&run.addr, &["--secret", secret, "status", "--json"]);
+            let json = text.find('{').map_or("", |start| &text[start..]);
+            if let (true, Ok(now)) = (ok, serde_json::from_str::<serde_json::Value>(json))
+                && pred(&now)
+            {
+                return now;
+            }
+            assert!(
+                std::time::Instant::now() < give_up,
+                "{what} never came: {text}\n{}",
+                run.proc.lines().join("\n")
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// The kinds of a proposed repair's options, in order.
+    fn kinds(proposed: &serde_json::Value) -> Vec<String> {
+        proposed["options"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|option| option["kind"].as_str().unwrap().to_owned())
+            .collect()
+    }
+
+    /// The run ended complete, its rehearsal passed by the truth, and `leg` arrived at
+    /// `waypoint` by it.
+    fn completed(report: &serde_json::Value, text: &str, leg: &str, waypoint: &str) {
+        assert_eq!(report["outcome"], "complete", "{text}");
+        assert_eq!(report["rehearsal"]["verdict"], "passed", "{text}");
+        let arrivals = report["rehearsal"]["arrivals"].as_array().unwrap();
+        assert!(
+            arrivals
+                .iter()
+                .any(|arrival| arrival["leg"] == leg && arrival["waypoint"] == waypoint),
+            "no arrival of `{leg}` at `{waypoint}`: {arrivals:?}"
+        );
+    }
+
+    /// The yard plan with `advance` due 10 s after the start (it takes about 25 s to drive)
+    /// and `contingency` on it.
+    fn late_advance(yard: &Yard, contingency: &str) -> String {
+        edited(
+            &edited(
+                &yard.plan_text,
+                "arrive_by=\"2026-11-23T08:01:00Z\"",
+                "arrive_by=\"2026-11-23T08:00:10Z\"",
+            ),
+            "    </arrival>\n  </leg>",
+            &format!("    </arrival>\n    {contingency}\n  </leg>"),
+        )
+    }
+
+    #[test]
+    fn a_late_leg_raises_a_repair_and_the_operators_choice_drives_it_on() {
+        let yard = Yard::new();
+        let text = late_advance(&yard, "<contingency on=\"late\" do=\"hold\"/>");
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut run = start(&yard, &text, TIME_SCALE);
+        let secret = run.secret.to_str().unwrap().to_owned();
+        // At 10 s the robot is still on its way to the gate: the deadline passed, the leg holds
+        // and its repair is proposed, none applied by the plan.
+        let held = status_when(&run, "the late leg's repair", |now| {
+            now["mission"]["repair"]["leg"] == "advance"
+        });
+        assert_eq!(marked(&held), ["advance_hold"], "{held}");
+        let proposed = &held["mission"]["repair"];
+        assert_eq!(
+            proposed["why"],
+            "leg `advance` is late (due by 08:00:10): its deadline passed before it arrived, it \
+             holds in `advance_hold`",
+            "{proposed}"
+        );
+        assert!(proposed["default_option"].is_null(), "{proposed}");
+        assert_eq!(
+            kinds(proposed),
+            ["push_back", "drop_deadline", "skip", "wait"],
+            "{proposed}"
+        );
+        let pushed = proposed["options"][0]["summary"].as_str().unwrap();
+        assert!(
+            pushed.starts_with("push the deadline back to 08:00:")
+                && pushed.contains("when the robot is now expected at `gate`"),
+            "{pushed}"
+        );
+        let (ok, printed) = ctl(&run.addr, &["--secret", &secret, "status"]);
+        assert!(ok, "{printed}");
+        assert!(
+            printed.contains("2. drop the deadline: leg `advance` drives on to `gate` with none"),
+            "{printed}"
+        );
+        // The operator drops the deadline: taken as an update, and the leg drives on from
+        // where the robot is.
+        let (taken, said) = ctl(&run.addr, &["--secret", &secret, "repair", "2"]);
+        assert!(taken, "{said}");
+        assert!(
+            said.starts_with("update 1 taken: leg `advance` in force")
+                && said.contains("fired `advance_retry`"),
+            "{said}"
+        );
+        let (exit, report, text) = run.finish();
+        assert!(exit.success(), "{exit}:\n{text}");
+        completed(&report, &text, "advance", "gate");
+        completed(&report, &text, "regroup", "rally");
+        // The deadline fired the hold; the option taken fired the retry.
+        fired_at(&report, "advance_late");
+        assert!(
+            report["timeline"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|entry| entry["kind"] == "repair_applied"
+                    && entry["fired"] == "advance_retry"
+                    && entry["ok"] == true),
+            "{text}"
+        );
+        let listed = updates(&report);
+        assert_eq!(
+            listed
+                .iter()
+                .map(|(number, file, taken, _)| (*number, file.as_str(), *taken))
+                .collect::<Vec<_>>(),
+            [(
+                1,
+                "repair option 2: drop the deadline: leg `advance` drives on to `gate` with none",
+                true
+            )]
+        );
+    }
+
+    #[test]
+    fn a_repairs_default_is_applied_after_the_time_the_plan_gives() {
+        let yard = Yard::new();
+        // The plan repairs by itself, 15 s (run time) after proposing, unless the operator
+        // chooses first.
+        let text = ring_sighted(
+            &yard,
+            "<contingency on=\"blocked\" do=\"repair\" after_secs=\"15\"/>",
+        );
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut run = start(&yard, &text, TIME_SCALE);
+        let proposed = status_when(&run, "the ring's repair", |now| {
+            now["mission"]["repair"]["leg"] == "climb"
+        })["mission"]["repair"]
+            .clone();
+        assert_eq!(proposed["default_option"], 1, "{proposed}");
+        let proposed_at = proposed["run_secs"].as_f64().unwrap();
+        let default_at = proposed["default_at_run_secs"].as_f64().unwrap();
+        assert!((default_at - proposed_at - 15.0).abs() < 1e-6, "{proposed}");
+        let (exit, report, text) = run.finish();
+        assert!(exit.success(), "{exit}:\n{text}");
+        let listed = updates(&report);
+        assert_eq!(
+            listed
+                .iter()
+                .map(|(number, file, taken, _)| (*number, file.as_str(), *taken))
+                .collect::<Vec<_>>(),
+            [
+                (1, "area `ring` reported by module `observer`", false),
+                (
+                    2,
+                    "area `ring` reported by module `observer`, repair option 1: skip `north`: leg \
+                     `climb` drives on to `rally`, in place of leg `regroup`",
+                    true
+                ),
+            ],
+            "{text}"
+        );
+        // Not at once: when the plan said (its check and compilation take their time after
+        // that, in run seconds at ten times real time).
+        let taken_at = report["updates"][1]["run_secs"].as_f64().unwrap();
+        assert!(
+            taken_at >= default_at,
+            "taken at {taken_at} s, due at {default_at} s:\n{}",
+            text.lines()
+                .filter(|line| line.contains("update") || line.contains("repair"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        );
+        assert!(
+            text.contains("no option chosen in time, the plan's default (option 1) is applied"),
+            "{text}"
+        );
+        completed_round_the_ring(&yard, &report, &text, taken_at);
+    }
+
+    /// Across the northern gap where `cross` drives, in the simulator's world only: an obstacle
+    /// neither the plan's map nor the follower's has.
+    const UNMAPPED: [(f64, f64); 4] = [(23.3, 5.6), (24.7, 5.6), (24.7, 7.9), (23.3, 7.9)];
+
+    #[test]
+    fn a_leg_truly_blocked_is_repaired_by_a_way_round_and_completed() {
+        let yard = Yard::new();
+        // The simulator's yard has the obstacle in the gap; the plan, the follower and the
+        // localiser have the yard as mapped. The follower does not replan by itself, so that
+        // it stops in front of the obstacle and reports `blocked`.
+        let mapped = workspace_root().join("assets/worlds/yard.world");
+        let truth = format!(
+            "{}\nrect {},{} {},{}\n",
+            std::fs::read_to_string(&mapped).unwrap(),
+            UNMAPPED[0].0,
+            UNMAPPED[0].1,
+            UNMAPPED[2].0,
+            UNMAPPED[2].1
+        );
+        let truth_file = yard.write("yard-truth.world", &truth);
+        let system_file = yard.dir.path().join("system.xml");
+        let system = edited(
+            &edited(
+                &std::fs::read_to_string(&system_file).unwrap(),
+                &format!(
+                    "<module name=\"sim\" type=\"sim\">\n    <param name=\"world\" value=\"{}\"/>",
+                    mapped.display()
+                ),
+                &format!(
+                    "<module name=\"sim\" type=\"sim\">\n    <param name=\"world\" value=\"{}\"/>",
+                    truth_file.display()
+                ),
+            ),
+            "<param name=\"blocked_after_secs\" value=\"20\"/>",
+            "<param name=\"blocked_after_secs\" value=\"20\"/>\n    <param name=\"max_replans\" value=\"0\"/>",
+        );
+        std::fs::write(&system_file, system).unwrap();
+        let text = edited(
+            &yard.plan_text,
+            "system=\"system.xml\"",
+            &format!("system=\"system.xml\" world=\"{}\"", mapped.display()),
+        );
+        let _one = ONE_ROBOT_AT_A_TIME
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut run = start(&yard, &text, TIME_SCALE);
+        let secret = run.secret.to_str().unwrap().to_owned();
+        let held = status_when(&run, "`cross` blocked", |now| {
+            now["mission"]["repair"]["leg"] == "cross"
+        });
+        assert_eq!(marked(&held), ["cross_hold"], "{held}");
+        let proposed = &held["mission"]["repair"];
+        // Round through `rally`, north-west of the container, keeps off the gap both ways.
+        let (number, option) = proposed["options"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|option| option["kind"] == "way_round" && option["via"][0] == "rally")
+            .map(|option| (option["number"].as_u64().unwrap(), option.clone()))
+            .unwrap_or_else(|| panic!("no way round through `rally`: {proposed}"));
+        let (taken, said) = ctl(
+            &run.addr,
+            &["--secret", &secret, "repair", &number.to_string()],
+        );
+        assert!(taken, "{said}");
+        assert!(
+            said.contains("legs added: `cross_via_rally`") && said.contains("fired `cross_retry`"),
+            "{said} ({option})"
+        );
+        let (exit, report, text) = run.finish();
+        assert!(exit.success(), "{exit}:\n{text}");
+        fired_at(&report, "cross_blocked");
+        completed(&report, &text, "cross", "rally");
+        completed(&report, &text, "cross_via_rally", "east");
+        completed(&report, &text, "regroup", "rally");
+        // By the truth, the robot's body never met the obstacle.
+        never_met(&yard, &report, &UNMAPPED, 0.0);
     }
 }

@@ -771,7 +771,10 @@ fn response_ui(
         Some(Response::Skip) => "skip the rest of the leg".to_owned(),
         Some(Response::Hold) => "hold for the operator".to_owned(),
         Some(Response::Continue) => "continue".to_owned(),
-        Some(Response::Repair) => "repair (the run's best option)".to_owned(),
+        Some(Response::Repair { after_secs: None }) => "repair (the run's best option)".to_owned(),
+        Some(Response::Repair {
+            after_secs: Some(after_secs),
+        }) => format!("repair (the run's best option after {after_secs} s)"),
         Some(Response::Return { waypoint }) => format!("return to {waypoint}"),
     };
     let mut choice = current.clone();

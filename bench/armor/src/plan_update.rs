@@ -11,6 +11,12 @@
 //! `cmd_during_updates` all of them, and the `_between_updates` counts the same between the
 //! updates. A command with no forward speed but a turn is the follower turning in place at a
 //! sharp corner of its path, which it does whether an update is under way or not.
+//!
+//! Where the reference's time goes, phase by phase (p50 of each, `reference_phases_p50_ms`):
+//! reading the plan, loading the world, building the costmap, planning the hundred legs on it,
+//! building the net (every path known), and checking the net (names and reachability). An
+//! update reuses the world, the costmap and the paths of the legs it did not change
+//! (`armor_model::plan::memory`), so it pays for two legs and the rest.
 
 use std::path::Path;
 use std::process::Command;
@@ -148,6 +154,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     }
     let mut ours = Vec::with_capacity(rounds);
     let mut reference = Vec::with_capacity(rounds);
+    let mut phases: Vec<[f64; PHASES.len()]> = Vec::with_capacity(rounds);
     // Each update's span on the run's clock: from its answer's run time back by its duration.
     let mut spans = Vec::with_capacity(rounds);
     for round in 0..rounds {
@@ -183,6 +190,7 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
         let began = Instant::now();
         std::hint::black_box(from_scratch(text)?);
         reference.push(began.elapsed());
+        phases.push(phases_of(text, &system, &descriptions)?);
     }
     let status = child.terminate(STOP_TIMEOUT)?;
     // The mission never ends here: SIGTERM stops it unfinished, which `armor run` says with a
@@ -193,11 +201,23 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
         during > 0,
         "no command of the follower was recorded during the updates"
     );
+    let phases_p50: serde_json::Map<String, serde_json::Value> = PHASES
+        .iter()
+        .enumerate()
+        .map(|(index, name)| {
+            let values: Vec<f64> = phases.iter().map(|phase| phase[index]).collect();
+            (
+                (*name).to_owned(),
+                armor_bench_report::round(armor_bench_report::median(&values)).into(),
+            )
+        })
+        .collect();
     Ok(Report::distribution(NAME, "ms", 1e3, &ours, &reference)
         .with(
             "reference_is",
             "the same plan compiled and checked from scratch in this process",
         )
+        .with("reference_phases_p50_ms", phases_p50)
         .with("legs", plan.legs.len())
         .with("updates", rounds)
         .with("cmd_during_updates", during)
@@ -208,6 +228,78 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
             "goal",
             "p99 < 200 ms, and no command at zero during an update",
         ))
+}
+
+/// The phases of compiling a plan from scratch, as [`phases_of`] times them.
+const PHASES: [&str; 6] = [
+    "parse",
+    "world",
+    "costmap",
+    "legs_planned",
+    "net_built",
+    "net_checked",
+];
+
+/// How long each of [`PHASES`] takes for the plan `text` (ms).
+fn phases_of(
+    text: &str,
+    system: &SystemConfig,
+    descriptions: &std::collections::BTreeMap<String, armor_module_api::ModuleDescription>,
+) -> anyhow::Result<[f64; PHASES.len()]> {
+    // The start and end of each phase.
+    let mut spans: Vec<(Instant, Instant)> = Vec::with_capacity(PHASES.len());
+    let mut began = Instant::now();
+    let lap = |spans: &mut Vec<(Instant, Instant)>, began: &mut Instant| {
+        let now = Instant::now();
+        spans.push((*began, now));
+        *began = now;
+    };
+    let plan = Plan::parse(text).map_err(|p| anyhow!("plan: {p:?}"))?;
+    let robot = plan::robot(&plan, None, &Default::default());
+    lap(&mut spans, &mut began);
+    let world = path_plan::world()?;
+    lap(&mut spans, &mut began);
+    // The bench's plan has no no-go area: the legs' ends are its waypoints in the world frame.
+    let origin = plan::plan_origin(&plan, Some(&world)).context("the plan has no frame")?;
+    let at = |name: &str| {
+        plan.waypoint(name)
+            .map(|waypoint| waypoint.position.to_local(origin))
+    };
+    let pairs: Vec<(Point, Point)> = plan
+        .legs
+        .iter()
+        .filter_map(|leg| Some((at(&leg.from)?, at(&leg.to)?)))
+        .collect();
+    ensure!(
+        pairs.len() == plan.legs.len(),
+        "a leg of the plan has an end not placed"
+    );
+    let costmap = armor_model::planner::Costmap::for_world(
+        &world,
+        &robot,
+        &[],
+        &armor_model::planner::CostmapSettings::default(),
+    )?;
+    let planner = armor_model::planner::Planner::new(costmap);
+    lap(&mut spans, &mut began);
+    std::hint::black_box(planner.plan_many(&pairs));
+    lap(&mut spans, &mut began);
+    // With every path known already, what is left is placing the waypoints and building the
+    // net: the memory is filled first, untimed.
+    let mut memory = plan::memory::PathMemory::default();
+    plan::compile_with(&plan, Some(&world), &robot, &mut memory)
+        .map_err(|p| anyhow!("compile: {p:?}"))?;
+    began = Instant::now();
+    let compiled = plan::compile_with(&plan, Some(&world), &robot, &mut memory)
+        .map_err(|p| anyhow!("compile: {p:?}"))?;
+    lap(&mut spans, &mut began);
+    compile_plan::check(&compiled.net, system, descriptions)?;
+    lap(&mut spans, &mut began);
+    let mut times = [0.0; PHASES.len()];
+    for (time, (from, to)) in times.iter_mut().zip(spans) {
+        *time = (to - from).as_secs_f64() * 1e3;
+    }
+    Ok(times)
 }
 
 /// The bench's robot: the simulator on the bench's world, the follower on its odometry, and a

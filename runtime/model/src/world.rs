@@ -463,6 +463,12 @@ impl World {
         &self.shapes
     }
 
+    /// Whether `other` has the same shapes in the same box: what a path planned on one holds
+    /// on the other (its name, origin and start may differ).
+    pub fn same_geometry(&self, other: &World) -> bool {
+        self.bounds == other.bounds && self.shapes == other.shapes
+    }
+
     /// Every edge of the boundary, walls and obstacles (for drawing).
     pub fn segments(&self) -> impl Iterator<Item = (Point, Point)> + '_ {
         self.segments.iter().map(|segment| (segment.a, segment.b))

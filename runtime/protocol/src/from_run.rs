@@ -56,7 +56,7 @@ pub struct MissionStatus {
 
 /// A repair the mission proposes when the world contradicts the plan: a leg cannot be completed
 /// (the navigation is `blocked`, a no-go area reported cuts the route of the leg in force or of
-/// a later one). Each option is a plan update; `armor ctl repair N` ([`crate::Request::Repair`])
+/// a later one), or not in time (its deadline passed: `late`). Each option is a plan update; `armor ctl repair N` ([`crate::Request::Repair`])
 /// applies one, and the plan's `<contingency on="blocked" do="repair"/>` applies the default
 /// (`docs/plans.md`, "Repair").
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -70,9 +70,13 @@ pub struct Repair {
     /// The options, best first, numbered from 1.
     pub options: Vec<RepairOption>,
     /// The number of the option the plan's contingency applies by itself, if it names one
-    /// (`do="repair"`: the best, at once); none: the mission waits for the operator's choice.
+    /// (`do="repair"`: the best); none: the mission waits for the operator's choice.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub default_option: Option<u32>,
+    /// When the default is applied unless the operator chooses first (run seconds), when the
+    /// contingency gives the operator time (`after_secs`); none: at once.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub default_at_run_secs: Option<f64>,
 }
 
 /// What a repair option does.
@@ -88,6 +92,10 @@ pub enum RepairKind {
     Wait,
     /// Drive back to where the plan starts, and end there.
     Return,
+    /// A late leg's deadline moved to when the robot is now expected there.
+    PushBack,
+    /// A late leg's deadline given up: it drives on with none.
+    DropDeadline,
 }
 
 impl RepairKind {
@@ -97,6 +105,8 @@ impl RepairKind {
             RepairKind::Skip => "skip",
             RepairKind::Wait => "wait",
             RepairKind::Return => "return",
+            RepairKind::PushBack => "push back",
+            RepairKind::DropDeadline => "drop deadline",
         }
     }
 }

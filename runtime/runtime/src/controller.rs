@@ -444,6 +444,18 @@ impl Controller {
         &self.first_marked
     }
 
+    /// The transition that last marked `place`, among the recent firings: why a leg holds.
+    pub fn last_fired_into(&self, place: &str) -> Option<&str> {
+        self.recent.iter().rev().find_map(|firing| {
+            let transition = self.net.transition(&firing.transition)?;
+            transition
+                .outputs
+                .iter()
+                .any(|arc| arc.place == place)
+                .then_some(firing.transition.as_str())
+        })
+    }
+
     fn remember(&mut self, firing: &Firing, by_hand: bool) {
         self.first_fired
             .entry(firing.transition.clone())

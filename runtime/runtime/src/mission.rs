@@ -96,22 +96,44 @@ fn load_mission_inner(
     file: &Path,
     module_path: &[PathBuf],
 ) -> Result<LoadedMission, (Box<Diagnostics>, Option<usize>)> {
+    load_kept(file, module_path, &mut PlanMemory::default())
+}
+
+fn load_kept(
+    file: &Path,
+    module_path: &[PathBuf],
+    memory: &mut PlanMemory,
+) -> Result<LoadedMission, (Box<Diagnostics>, Option<usize>)> {
     let text = read_source(file).map_err(|diagnostics| (Box::new(diagnostics), None))?;
     let base = file.parent().unwrap_or_else(|| Path::new("."));
-    load_text(file, &text, base, module_path)
+    load_text(file, &text, base, module_path, memory)
+}
+
+/// [`load_mission`] for a run: what it plans (the world loaded, the legs' paths, the
+/// costmap) is kept in `memory`, for its updates.
+pub fn load_mission_kept(
+    file: &Path,
+    module_path: &[PathBuf],
+    memory: &mut PlanMemory,
+) -> Result<LoadedMission, Diagnostics> {
+    load_kept(file, module_path, memory).map_err(|(diagnostics, _)| *diagnostics)
 }
 
 /// Checks a mission given as `text` as [`load_mission`] checks a file, its relative names (the
 /// system, the world, the base map) found from `base` rather than from the file's folder:
 /// a plan update sent to a run is checked against the running plan's folder, and its problems
 /// are said at `file`, the name the operator gave.
+/// What it plans is kept in `memory`, and what `memory` holds that still holds is reused: the
+/// world when its files did not change, the legs' paths that nothing changed
+/// (`armor_model::plan::memory`).
 pub fn load_mission_text(
     file: &Path,
     text: &str,
     base: &Path,
     module_path: &[PathBuf],
+    memory: &mut PlanMemory,
 ) -> Result<LoadedMission, Diagnostics> {
-    load_text(file, text, base, module_path).map_err(|(diagnostics, _)| *diagnostics)
+    load_text(file, text, base, module_path, memory).map_err(|(diagnostics, _)| *diagnostics)
 }
 
 fn load_text(
@@ -119,6 +141,7 @@ fn load_text(
     text: &str,
     base: &Path,
     module_path: &[PathBuf],
+    memory: &mut PlanMemory,
 ) -> Result<LoadedMission, (Box<Diagnostics>, Option<usize>)> {
     let unanalysed = |diagnostics: Diagnostics| (Box::new(diagnostics), None);
     let fail = |problems| Diagnostics {
@@ -165,7 +188,8 @@ fn load_text(
         Ok(net) => (net, None),
         Err(plan) => {
             let system_dir = system_file.parent().unwrap_or(base);
-            let world = plan_world(&plan, &system.system, base, system_dir, module_path)
+            let world = memory
+                .world(&plan, &system.system, base, system_dir, module_path)
                 .map_err(|message| unanalysed(fail(vec![Located::new(plan.pos, message)])))?;
             // The robot's size comes from the plan, else from the system's modules.
             let (robot, radius_source) =
@@ -178,18 +202,20 @@ fn load_text(
                 timed.navigation.speed_mps = timed.navigation.speed_mps.min(*limit_mps);
             }
             let mut compiled =
-                plan::compile_for(&timed, world.as_ref(), &robot).map_err(|mut problems| {
-                    for problem in &mut problems {
-                        // Every message about the robot's size says where the size comes from.
-                        if problem.message.contains(" keeps ") {
-                            problem.message.push_str(&format!(
-                                " (the robot's radius, {} m: {radius_source})",
-                                armor_model::geo::round_mm(robot.radius_m)
-                            ));
+                plan::compile_with(&timed, world.as_ref(), &robot, &mut memory.paths).map_err(
+                    |mut problems| {
+                        for problem in &mut problems {
+                            // Every message about the robot's size says where the size comes from.
+                            if problem.message.contains(" keeps ") {
+                                problem.message.push_str(&format!(
+                                    " (the robot's radius, {} m: {radius_source})",
+                                    armor_model::geo::round_mm(robot.radius_m)
+                                ));
+                            }
                         }
-                    }
-                    unanalysed(fail(problems))
-                })?;
+                        unanalysed(fail(problems))
+                    },
+                )?;
             if let Some((limit_mps, why)) = limit
                 && plan.navigation.speed_mps > limit_mps
             {
@@ -360,6 +386,17 @@ pub fn plan_world(
     system_dir: &Path,
     module_path: &[PathBuf],
 ) -> Result<Option<World>, String> {
+    PlanMemory::default().world(plan, system, plan_dir, system_dir, module_path)
+}
+
+/// The file of the world [`plan_world`] loads, `None` when the plan has none.
+fn world_file(
+    plan: &Plan,
+    system: &SystemConfig,
+    plan_dir: &Path,
+    system_dir: &Path,
+    module_path: &[PathBuf],
+) -> Result<Option<PathBuf>, String> {
     let (name, base) = if plan.world.is_empty() {
         let from_system = system.modules.iter().find_map(|module| {
             module
@@ -374,9 +411,69 @@ pub fn plan_world(
     } else {
         (plan.world.clone(), plan_dir)
     };
-    let path = paths::resolve(&name, base, module_path, "worlds")
-        .map_err(|err| format!("the world: {err}"))?;
-    armor_model::world_file::load(&path, &mut |path| std::fs::read(path))
+    paths::resolve(&name, base, module_path, "worlds")
         .map(Some)
-        .map_err(|err| format!("the world does not load: {err}"))
+        .map_err(|err| format!("the world: {err}"))
+}
+
+/// What a run keeps between the plans it compiles (its own at the start, then each update's),
+/// so that an update does only the work its changes need: the world as loaded, and the legs'
+/// paths with the costmap they were planned on.
+#[derive(Clone, Debug, Default)]
+pub struct PlanMemory {
+    world: Option<KeptWorld>,
+    pub paths: plan::memory::PathMemory,
+}
+
+/// A world loaded, with what its files were when they were read.
+#[derive(Clone, Debug)]
+struct KeptWorld {
+    file: PathBuf,
+    /// Every file read (a ROS map's YAML and its image), with its size and modification time.
+    read: Vec<(PathBuf, Option<(u64, std::time::SystemTime)>)>,
+    world: World,
+}
+
+/// A file's size and modification time, what tells that it changed.
+fn stamp(file: &Path) -> Option<(u64, std::time::SystemTime)> {
+    let metadata = std::fs::metadata(file).ok()?;
+    Some((metadata.len(), metadata.modified().ok()?))
+}
+
+impl PlanMemory {
+    /// [`plan_world`], the world kept from the last call when it is the same file and none of
+    /// the files it was read from has changed since.
+    pub fn world(
+        &mut self,
+        plan: &Plan,
+        system: &SystemConfig,
+        plan_dir: &Path,
+        system_dir: &Path,
+        module_path: &[PathBuf],
+    ) -> Result<Option<World>, String> {
+        let Some(file) = world_file(plan, system, plan_dir, system_dir, module_path)? else {
+            return Ok(None);
+        };
+        if let Some(kept) = &self.world
+            && kept.file == file
+            && kept
+                .read
+                .iter()
+                .all(|(read, was)| was.is_some() && stamp(read) == *was)
+        {
+            return Ok(Some(kept.world.clone()));
+        }
+        let mut read = Vec::new();
+        let world = armor_model::world_file::load(&file, &mut |path| {
+            read.push((path.to_path_buf(), stamp(path)));
+            std::fs::read(path)
+        })
+        .map_err(|err| format!("the world does not load: {err}"))?;
+        self.world = Some(KeptWorld {
+            file,
+            read,
+            world: world.clone(),
+        });
+        Ok(Some(world))
+    }
 }

@@ -1,12 +1,15 @@
 //! Repair when the world contradicts the plan, in a run: when a leg holds for the operator
-//! (`LEG_hold`: the navigation was blocked, or a no-go area reported left it no way), the run
-//! computes the options (`armor_model::plan::repair`) from where the robot is, shows them in
-//! the status, and takes the one chosen (`armor ctl repair N`, or at once the best when the
-//! plan says `<contingency on="blocked" do="repair"/>`) as a plan update ([`crate::update`]):
-//! checked, migrated and recorded as any update, then the held leg drives again from where the
-//! robot is (`docs/plans.md`, "Repair when the world contradicts the plan").
+//! (`LEG_hold`: the navigation was blocked, a no-go area reported left it no way, or its
+//! deadline passed before it arrived), the run computes the options
+//! (`armor_model::plan::repair`) from where the robot is, shows them in the status, and takes
+//! the one chosen (`armor ctl repair N`, or the best when the plan says `<contingency
+//! on="blocked" do="repair"/>`, at once or `after_secs` later) as a plan update
+//! ([`crate::update`]): checked, migrated and recorded as any update, then the held leg drives
+//! again from where the robot is (`docs/plans.md`, "Repair when the world contradicts the
+//! plan").
 
 use armor_model::geo::Point;
+use armor_model::plan::memory::PathMemory;
 use armor_model::plan::repair::{self, Candidate, Kind, Situation};
 use armor_model::plan::{Origin, Response, Trigger};
 use armor_model::world::World;
@@ -25,6 +28,24 @@ pub struct Proposal {
     /// What an option's update is recorded under, before its number and summary
     /// (`repair option`, or the area reported and `repair option`).
     pub label: String,
+    /// When the plan's default is to be applied (run seconds), while the operator has not
+    /// chosen: its contingency's `after_secs` after the proposal.
+    pub default_at_run_secs: Option<f64>,
+}
+
+impl Proposal {
+    /// The plan's default, once, when the operator has not chosen by the time it gave.
+    fn default_due(&mut self, run_secs: f64) -> Option<Asked> {
+        if !self.default_at_run_secs.is_some_and(|at| run_secs >= at) {
+            return None;
+        }
+        self.default_at_run_secs = None;
+        tracing::warn!(
+            "leg `{}`: no option chosen in time, the plan's default (option 1) is applied",
+            self.shown.leg
+        );
+        asked(Some(self), 1).ok()
+    }
 }
 
 /// The held place of the mission, and its leg's index, if a leg holds for the operator.
@@ -50,17 +71,20 @@ pub fn retry_of(controller: &Controller, running: &Running) -> Option<String> {
 pub fn watch(
     proposal: &mut Option<Proposal>,
     controller: &mut Controller,
-    running: &Running,
+    running: &mut Running,
     here: Option<Point>,
     now: (f64, f64),
-    world: impl FnOnce() -> Result<Option<World>, Refused>,
+    world: impl FnOnce(&mut Running) -> Result<Option<World>, Refused>,
 ) -> Option<Asked> {
     let held = held(controller, running);
-    match (proposal.as_ref(), &held) {
+    let (run_secs, now_unix_secs) = now;
+    match (proposal.as_mut(), &held) {
         (Some(proposal), Some((place, _))) if proposal.place.as_ref() == Some(place) => {
-            return None;
+            return proposal.default_due(run_secs);
         }
-        (Some(proposal), None) if proposal.place.is_none() => return None,
+        (Some(proposal), None) if proposal.place.is_none() => {
+            return proposal.default_due(run_secs);
+        }
         (None, None) => return None,
         _ => {}
     }
@@ -68,11 +92,20 @@ pub fn watch(
         controller.set_repair(None);
     }
     let (place, index) = held?;
-    let (run_secs, now_unix_secs) = now;
-    let leg = &running.plan.legs[index];
+    let leg = running.plan.legs[index].clone();
+    // The leg holds because its deadline passed (`LEG_late…` led there), or because it had no
+    // way (`LEG_blocked…`, an area reported).
+    let late = controller
+        .last_fired_into(&place)
+        .is_some_and(|transition| transition.starts_with(&format!("{}_late", leg.name)));
+    let trigger = if late {
+        Trigger::Late
+    } else {
+        Trigger::Blocked
+    };
     // Without odometry followed, the options are costed from the leg's start.
     let here = here.or_else(|| running.compiled.positions.get(&leg.from).copied())?;
-    let world = match world() {
+    let world = match world(running) {
         Ok(world) => world,
         Err(why) => {
             tracing::warn!(
@@ -88,27 +121,47 @@ pub fn watch(
         .iter()
         .map(|route| Some(armor_model::geo::path_length(route)))
         .collect();
-    let candidates = repair::options(
-        Situation {
-            plan: &running.plan,
-            positions: &compiled.positions,
-            route_lengths_m: &lengths,
-            index,
-            here,
-            now_unix_secs,
-        },
-        planner(world.as_ref(), &compiled.robot, &compiled.keepouts),
+    let situation = Situation {
+        plan: &running.plan,
+        positions: &compiled.positions,
+        route_lengths_m: &lengths,
+        index,
+        here,
+        now_unix_secs,
+    };
+    let planner = planner(
+        &mut running.memory.paths,
+        world.as_ref(),
+        &compiled.robot,
+        &compiled.keepouts,
     );
-    let why = format!(
-        "leg `{}` cannot be completed as planned: it holds in `{place}`",
-        leg.name
-    );
+    let (candidates, why) = if late {
+        let due = leg
+            .arrive_by_unix_secs
+            .map_or_else(String::new, |by| format!(" (due by {})", repair::clock(by)));
+        (
+            repair::late_options(situation, planner),
+            format!(
+                "leg `{}` is late{due}: its deadline passed before it arrived, it holds in \
+                 `{place}`",
+                leg.name
+            ),
+        )
+    } else {
+        (
+            repair::options(situation, planner),
+            format!(
+                "leg `{}` cannot be completed as planned: it holds in `{place}`",
+                leg.name
+            ),
+        )
+    };
     let (made, default) = propose(
         controller,
         running,
         (index, why, run_secs),
         candidates,
-        "repair option",
+        ("repair option", &trigger),
     );
     *proposal = Some(Proposal {
         place: Some(place),
@@ -118,14 +171,17 @@ pub fn watch(
 }
 
 /// The length of the way between each pair of points on `world` for `robot` round
-/// `keepouts` (all on one costmap), `None` where there is none: the repair's costs.
+/// `keepouts` (all on one costmap, the one `memory` keeps when it is that one), `None` where
+/// there is none: the repair's costs.
 fn planner<'a>(
+    memory: &'a mut PathMemory,
     world: Option<&'a World>,
     robot: &'a armor_model::planner::Robot,
     keepouts: &'a [armor_model::planner::Keepout],
 ) -> impl FnOnce(&[(Point, Point)]) -> Vec<Option<f64>> + 'a {
     move |pairs| {
-        armor_model::plan::plan_pairs(world, robot, keepouts, pairs)
+        memory
+            .plan_others(world, robot, keepouts, pairs)
             .map(|paths| {
                 paths
                     .into_iter()
@@ -140,29 +196,40 @@ fn planner<'a>(
 }
 
 /// Shows the options of a repair of leg `index` (for `why`, at `run_secs`) in the status and
-/// the log; with the plan's default (`do="repair"` on `blocked` for the leg, and an option
-/// other than waiting), the update of option 1, recorded under `label` and its summary.
+/// the log; with the plan's default (`do="repair"` on the `trigger` for the leg, and an option
+/// other than waiting), the update of option 1, recorded under `label` and its summary, when
+/// it is to be applied at once (else the proposal says when).
 fn propose(
     controller: &mut Controller,
     running: &Running,
     (index, why, run_secs): (usize, String, f64),
     candidates: Vec<Candidate>,
-    label: &str,
+    (label, trigger): (&str, &Trigger),
 ) -> (Proposal, Option<Asked>) {
     let leg = &running.plan.legs[index];
-    let by_default = running
+    let after_secs = running
         .plan
-        .contingency(leg, &Trigger::Blocked)
-        .is_some_and(|contingency| contingency.response == Response::Repair)
-        && candidates
-            .first()
-            .is_some_and(|candidate| candidate.kind != Kind::Wait);
+        .contingency(leg, trigger)
+        .and_then(|contingency| match contingency.response {
+            Response::Repair { after_secs } => Some(after_secs),
+            _ => None,
+        })
+        .filter(|_| {
+            candidates
+                .first()
+                .is_some_and(|candidate| candidate.kind != Kind::Wait)
+        });
+    let by_default = after_secs.is_some();
+    let default_at_run_secs = after_secs
+        .flatten()
+        .map(|after_secs| run_secs + f64::from(after_secs));
     let shown = Repair {
         run_secs,
         leg: leg.name.clone(),
         why,
         options: candidates.iter().zip(1..).map(option).collect(),
         default_option: by_default.then_some(1),
+        default_at_run_secs,
     };
     tracing::warn!("{}", crate::summary::repair_lines(&shown).join("\n"));
     controller.set_repair(Some(shown.clone()));
@@ -171,8 +238,9 @@ fn propose(
         candidates,
         shown,
         label: label.to_owned(),
+        default_at_run_secs,
     };
-    let default = if by_default {
+    let default = if by_default && default_at_run_secs.is_none() {
         asked(Some(&made), 1).ok()
     } else {
         None
@@ -188,7 +256,7 @@ fn propose(
 /// only legs cut after the leg in force (it is then refused as it stands).
 pub fn for_cut_leg(
     controller: &mut Controller,
-    running: &Running,
+    running: &mut Running,
     area_label: &str,
     plan: &armor_model::plan::Plan,
     now: (f64, f64),
@@ -201,7 +269,8 @@ pub fn for_cut_leg(
             _ => None,
         }
     })?;
-    let legs = armor_model::plan::plan_legs(plan, world, &running.compiled.robot);
+    let robot = running.compiled.robot;
+    let legs = armor_model::plan::plan_legs_with(plan, world, &robot, &mut running.memory.paths);
     let cut: Vec<usize> = legs
         .paths
         .iter()
@@ -248,7 +317,7 @@ pub fn for_cut_leg(
             here,
             now_unix_secs: now_unix_secs + until_secs,
         },
-        planner(world, &running.compiled.robot, &legs.keepouts),
+        planner(&mut running.memory.paths, world, &robot, &legs.keepouts),
     );
     let why = format!(
         "{area_label} leaves leg `{}` no way from `{}` to `{}`: costed from `{}`",
@@ -265,7 +334,7 @@ pub fn for_cut_leg(
         &running_with_area,
         (first, why, run_secs),
         candidates,
-        &format!("{area_label}, repair option"),
+        (&format!("{area_label}, repair option"), &Trigger::Blocked),
     ))
 }
 
@@ -278,6 +347,8 @@ fn option((candidate, number): (&Candidate, u32)) -> RepairOption {
             Kind::Skip => RepairKind::Skip,
             Kind::Return => RepairKind::Return,
             Kind::Wait => RepairKind::Wait,
+            Kind::PushBack => RepairKind::PushBack,
+            Kind::DropDeadline => RepairKind::DropDeadline,
         },
         summary: candidate.summary.clone(),
         via: candidate.via.clone(),

@@ -141,9 +141,13 @@ pub fn repair_lines(repair: &armor_protocol::Repair) -> Vec<String> {
         repair.run_secs,
         repair.leg,
         repair.why,
-        match repair.default_option {
-            Some(number) => format!(" (the plan applies option {number})"),
-            None => "; choose with `armor ctl repair N`".to_owned(),
+        match (repair.default_option, repair.default_at_run_secs) {
+            (Some(number), None) => format!(" (the plan applies option {number})"),
+            (Some(number), Some(at)) => format!(
+                "; choose with `armor ctl repair N`, or the plan applies option {number} at \
+                 {at:.1} s"
+            ),
+            (None, _) => "; choose with `armor ctl repair N`".to_owned(),
         }
     )];
     for option in &repair.options {

@@ -25,7 +25,7 @@ use crate::config_server::{ConfigServer, ServerEvent};
 use crate::controller::{Controller, Outcome};
 use crate::hosts::{HostLink, ModuleChild};
 use crate::load::{Diagnostics, Loaded, load_system};
-use crate::mission::{DocumentKind, LoadedMission, document_kind, load_mission};
+use crate::mission::{DocumentKind, LoadedMission, PlanMemory, document_kind, load_mission_kept};
 use crate::process::hand_over;
 use crate::progress::{self, Progress};
 use crate::restart::{AfterCrash, Backoff, CRASH_WINDOW, FIRST_BACKOFF, MAX_BACKOFF};
@@ -120,12 +120,16 @@ struct RunEnv {
     hosts: BTreeMap<String, HostLink>,
 }
 
-/// A file to run: a system, or a mission over a system.
-fn load(options: &RunOptions) -> Result<(Loaded, Option<LoadedMission>), Diagnostics> {
+/// A file to run: a system, or a mission over a system; what planning the mission's plan
+/// found is kept in `memory`, for its updates.
+fn load(
+    options: &RunOptions,
+    memory: &mut PlanMemory,
+) -> Result<(Loaded, Option<LoadedMission>), Diagnostics> {
     match document_kind(&options.file)? {
         DocumentKind::System => Ok((load_system(&options.file, &options.module_path)?, None)),
         DocumentKind::Mission | DocumentKind::Pnml | DocumentKind::Plan => {
-            let mission = load_mission(&options.file, &options.module_path)?;
+            let mission = load_mission_kept(&options.file, &options.module_path, memory)?;
             for warning in mission.warnings() {
                 tracing::warn!(
                     "{}:{}: {}",
@@ -153,7 +157,8 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
     if secret.is_some() {
         tracing::info!("links are authenticated with the shared secret");
     }
-    let (loaded, mission) = match load(&options) {
+    let mut memory = PlanMemory::default();
+    let (loaded, mission) = match load(&options, &mut memory) {
         Ok(loaded) => loaded,
         Err(diagnostics) => {
             eprintln!("{diagnostics}");
@@ -219,6 +224,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             system_file: mission.system_file.clone(),
             plan: mission.plan.clone()?,
             compiled: mission.compiled.clone()?,
+            memory: std::mem::take(&mut memory),
         })
     });
     let mut controller = mission.map(|mission| {
@@ -422,7 +428,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         }
         // A leg that starts to hold gets its repair proposed; the plan's default is taken
         // first of the updates asked for, as the next one.
-        if let (Some(controller), Some(running)) = (&mut controller, &running_plan) {
+        if let (Some(controller), Some(running)) = (&mut controller, &mut running_plan) {
             let run_secs = clock.now_secs();
             if let Some(asked) = crate::repair::watch(
                 &mut proposal,
@@ -430,7 +436,9 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                 running,
                 progress.as_ref().and_then(Progress::robot_at),
                 (run_secs, start_unix_secs + run_secs),
-                || crate::update::world_of(running, &server.loaded().system, &options.module_path),
+                |running| {
+                    crate::update::world_of(running, &server.loaded().system, &options.module_path)
+                },
             ) {
                 queued_updates.push_front((asked, None));
             }
@@ -520,7 +528,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     ),
                     (Err(mission_request), Some(controller)) => {
                         // A held leg retried drives from where the robot is.
-                        let rerouted = match (&mission_request, &running_plan) {
+                        let rerouted = match (&mission_request, &mut running_plan) {
                             (armor_protocol::Request::Fire { transition }, Some(running)) => {
                                 reroute_retry(
                                     controller,
@@ -557,7 +565,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
         // `goal_reached`) is never taken for one of the new.
         if checked.is_none()
             && let Some((asked, reply)) = queued_updates.pop_front()
-            && let (Some(controller), Some(running)) = (&mut controller, &running_plan)
+            && let (Some(controller), Some(running)) = (&mut controller, &mut running_plan)
         {
             match asked.check(running, &options.module_path) {
                 Ok(update) => checked = Some((update, reply)),
@@ -861,7 +869,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
 /// plan's world.
 fn reroute_retry(
     controller: &mut Controller,
-    running: &crate::update::Running,
+    running: &mut crate::update::Running,
     transition: &str,
     progress: Option<&Progress>,
     (server, module_path): (&ConfigServer, &[PathBuf]),
@@ -871,7 +879,7 @@ fn reroute_retry(
         running,
         transition,
         progress.and_then(Progress::robot_at),
-        || crate::update::world_of(running, &server.loaded().system, module_path),
+        |running| crate::update::world_of(running, &server.loaded().system, module_path),
     )
 }
 

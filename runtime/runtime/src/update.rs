@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use armor_model::SystemConfig;
 use armor_model::geo::{self, Point};
 use armor_model::net::{Marking, MissionNet};
+use armor_model::plan::memory::Reuse;
 use armor_model::plan::migrate::{self, Migration};
 use armor_model::plan::{Compiled, Origin, Plan};
 use armor_model::planner::{Path as PlannedPath, PathError};
@@ -28,7 +29,7 @@ use serde_json::json;
 
 use crate::config_server::ConfigServer;
 use crate::controller::Controller;
-use crate::mission::{LoadedMission, load_mission_text, plan_world};
+use crate::mission::{LoadedMission, PlanMemory, load_mission_text};
 use crate::progress::{self, Progress};
 
 /// The plan a run plays, as it stands after the updates taken so far.
@@ -40,6 +41,8 @@ pub struct Running {
     pub system_file: PathBuf,
     pub plan: Plan,
     pub compiled: Compiled,
+    /// The world and the paths planned so far, which an update reuses where they hold.
+    pub memory: PlanMemory,
 }
 
 /// An update checked, compiled and migrated, ready to be swapped in.
@@ -85,6 +88,8 @@ pub struct Checked {
     /// Whether it is an option of a repair: once taken, a leg held drives again, from where
     /// the robot is.
     repair: bool,
+    /// How many of its legs were planned, and how many kept the paths planned before.
+    reuse: Reuse,
 }
 
 impl Checked {
@@ -113,14 +118,20 @@ fn refused<T>(why: impl Into<String>) -> Result<T, Refused> {
 /// plan: the slow part of an update, which the run does before it looks at the mission's
 /// marking. The error is why the update is refused, in words.
 pub fn check(
-    running: &Running,
+    running: &mut Running,
     file: &str,
     text: &str,
     module_path: &[PathBuf],
 ) -> Result<Checked, Refused> {
     let base = running.file.parent().unwrap_or_else(|| Path::new("."));
-    let loaded = load_mission_text(Path::new(file), text, base, module_path)
-        .map_err(|diagnostics| format!("the update does not check: {diagnostics}"))?;
+    let loaded = load_mission_text(
+        Path::new(file),
+        text,
+        base,
+        module_path,
+        &mut running.memory,
+    )
+    .map_err(|diagnostics| format!("the update does not check: {diagnostics}"))?;
     let (Some(plan), Some(compiled)) = (loaded.plan.clone(), loaded.compiled.clone()) else {
         return refused(
             "the update is a mission net, not a plan: a running plan is updated with a plan",
@@ -141,6 +152,7 @@ pub fn check(
         compiled,
         reported: false,
         repair: false,
+        reuse: running.memory.paths.last(),
     })
 }
 
@@ -180,7 +192,11 @@ impl Asked {
     }
 
     /// [`check`] or [`check_area`].
-    pub fn check(&self, running: &Running, module_path: &[PathBuf]) -> Result<Checked, Refused> {
+    pub fn check(
+        &self,
+        running: &mut Running,
+        module_path: &[PathBuf],
+    ) -> Result<Checked, Refused> {
         match self {
             Asked::Plan { file, text } => check(running, file, text, module_path),
             Asked::Area(area) => check_area(running, area, module_path),
@@ -214,7 +230,7 @@ impl ReportedArea {
 /// sent whole: an area reported is an update like any other. The error says why the area is
 /// refused: fewer than three corners, an outline that crosses itself, a name the plan has.
 pub fn check_area(
-    running: &Running,
+    running: &mut Running,
     area: &ReportedArea,
     module_path: &[PathBuf],
 ) -> Result<Checked, Refused> {
@@ -303,6 +319,7 @@ pub fn prepare(
         plan,
         compiled,
         reported,
+        reuse,
         ..
     } = checked;
     let (played, marking) = mission;
@@ -366,9 +383,12 @@ pub fn prepare(
                     format!("waypoint `{}` of leg `{}` is not placed", leg.to, leg.name)
                 })?;
                 let system_dir = loaded.system_file.parent().unwrap_or(base);
+                // A copy of the run's memory: its costmap is shared, not copied, and the
+                // paths it remembers are the ones the check just planned.
+                let mut memory = running.memory.clone();
                 let world =
-                    plan_world(&plan, &loaded.system.system, base, system_dir, module_path)?;
-                let path = match plan_one(world.as_ref(), &compiled, here, goal)? {
+                    memory.world(&plan, &loaded.system.system, base, system_dir, module_path)?;
+                let path = match plan_one(&mut memory, world.as_ref(), &compiled, here, goal)? {
                     Ok(path) => Some(path),
                     // An area reported is a fact, not a wish: it is taken all the same, and
                     // the leg is blocked (the plan's contingency on `blocked` applies, holding
@@ -436,7 +456,16 @@ pub fn prepare(
     parts.extend(listed("legs removed", &removed));
     parts.extend(listed("no-go areas added", &areas_added));
     parts.extend(listed("no-go areas removed", &areas_removed));
+    parts.extend(listed(
+        "legs routed anew",
+        &routed_anew(running, (&plan, &compiled), migration.index),
+    ));
     parts.extend(times(&plan, &migration, now.unix_secs));
+    parts.push(format!(
+        "paths planned for {} of its {} legs, the others kept",
+        reuse.planned,
+        plan.legs.len()
+    ));
     Ok(Prepared {
         plan,
         compiled,
@@ -457,36 +486,62 @@ pub fn prepare(
     })
 }
 
+/// The legs of both plans from the one in force on (`from`, in the new plan), by name, whose
+/// planned route the update changed (a waypoint moved, an area across it): the follower drives
+/// the new one when it gets there.
+fn routed_anew(
+    running: &Running,
+    (plan, compiled): (&Plan, &Compiled),
+    from: usize,
+) -> Vec<String> {
+    plan.legs
+        .iter()
+        .zip(&compiled.routes)
+        .skip(from)
+        .filter(|(leg, route)| {
+            running
+                .plan
+                .legs
+                .iter()
+                .position(|old| old.name == leg.name)
+                .and_then(|old| running.compiled.routes.get(old))
+                .is_some_and(|old| old != *route)
+        })
+        .map(|(leg, _)| leg.name.clone())
+        .collect()
+}
+
 /// Plans the way from `here` to `goal` on `world` for the robot and round the no-go areas of
-/// `compiled`; the outer error is a planner that could not work (the world not mapped).
+/// `compiled` (on the costmap `memory` keeps, when it is that one); the outer error is a
+/// planner that could not work (the world not mapped).
 fn plan_one(
+    memory: &mut PlanMemory,
     world: Option<&World>,
     compiled: &Compiled,
     here: Point,
     goal: Point,
 ) -> Result<Result<PlannedPath, PathError>, Refused> {
-    armor_model::plan::plan_pairs(world, &compiled.robot, &compiled.keepouts, &[(here, goal)])
+    memory
+        .paths
+        .plan_others(world, &compiled.robot, &compiled.keepouts, &[(here, goal)])
         .map_err(|err| format!("the world cannot be mapped for planning: {err}"))?
         .into_iter()
         .next()
         .ok_or_else(|| Refused("the planner planned nothing".to_owned()))
 }
 
-/// The world the running plan is planned on (none: no world, round its areas only).
+/// The world the running plan is planned on (none: no world, round its areas only), as the
+/// run keeps it.
 pub fn world_of(
-    running: &Running,
+    running: &mut Running,
     system: &SystemConfig,
     module_path: &[PathBuf],
 ) -> Result<Option<World>, Refused> {
     let base = running.file.parent().unwrap_or_else(|| Path::new("."));
     let system_dir = running.system_file.parent().unwrap_or(base);
-    Ok(plan_world(
-        &running.plan,
-        system,
-        base,
-        system_dir,
-        module_path,
-    )?)
+    Ok(running
+        .memory
+        .world(&running.plan, system, base, system_dir, module_path)?)
 }
 
 /// Before the operator's `LEG_retry` fires (a leg held drives again): plans the leg from where
@@ -496,21 +551,29 @@ pub fn world_of(
 /// plan's path is kept (no way from here: the follower finds that out and blocks again).
 pub fn reroute_retry(
     controller: &mut Controller,
-    running: &Running,
+    running: &mut Running,
     transition: &str,
     here: Option<Point>,
-    world: impl FnOnce() -> Result<Option<World>, Refused>,
+    world: impl FnOnce(&mut Running) -> Result<Option<World>, Refused>,
 ) -> Option<String> {
     let Some(&Origin::Leg(index)) = running.compiled.trace.get(transition) else {
         return None;
     };
-    let leg = running.plan.legs.get(index)?;
+    let leg = running.plan.legs.get(index)?.clone();
     if transition != format!("{}_retry", leg.name) {
         return None;
     }
     let here = here?;
     let goal = *running.compiled.positions.get(&leg.to)?;
-    let planned = world().and_then(|world| plan_one(world.as_ref(), &running.compiled, here, goal));
+    let planned = world(running).and_then(|world| {
+        plan_one(
+            &mut running.memory,
+            world.as_ref(),
+            &running.compiled,
+            here,
+            goal,
+        )
+    });
     let at = format!("({}, {})", geo::round_mm(here.x), geo::round_mm(here.y));
     match planned {
         Ok(Ok(path)) => {

@@ -28,6 +28,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use armor_module_api::ModuleDescription;
 use armor_module_api::xml::{Located, Pos};
 
+use super::memory::PathMemory;
 use super::{Action, ActionModule, Leg, Plan, Response, Strategy, Trigger};
 use crate::SystemConfig;
 use crate::geo::{self, LatLon, Polygon};
@@ -214,7 +215,18 @@ pub fn compile_for(
     world: Option<&World>,
     robot: &Robot,
 ) -> Result<Compiled, Vec<Located>> {
-    let legs = plan_legs(plan, world, robot);
+    compile_with(plan, world, robot, &mut PathMemory::default())
+}
+
+/// [`compile_for`], the legs' paths planned before kept where they still hold (`memory`): a
+/// run compiles its plan's updates so.
+pub fn compile_with(
+    plan: &Plan,
+    world: Option<&World>,
+    robot: &Robot,
+    memory: &mut PathMemory,
+) -> Result<Compiled, Vec<Located>> {
+    let legs = plan_legs_with(plan, world, robot, memory);
     let mut problems = legs.problems;
     for contingency in plan
         .contingencies
@@ -338,6 +350,16 @@ pub struct LegPaths {
 /// Places the waypoints and plans every leg of `plan` on `world` (with no world, round the
 /// no-go areas only) for `robot`, as [`compile`] does: the studio draws these paths.
 pub fn plan_legs(plan: &Plan, world: Option<&World>, robot: &Robot) -> LegPaths {
+    plan_legs_with(plan, world, robot, &mut PathMemory::default())
+}
+
+/// [`plan_legs`], the paths planned before kept where they still hold (`memory`).
+pub fn plan_legs_with(
+    plan: &Plan,
+    world: Option<&World>,
+    robot: &Robot,
+    memory: &mut PathMemory,
+) -> LegPaths {
     let mut problems = Vec::new();
     let origin = frame_origin(plan, world, &mut problems);
     let keepouts = keepouts(plan, origin, &mut problems);
@@ -363,13 +385,15 @@ pub fn plan_legs(plan: &Plan, world: Option<&World>, robot: &Robot) -> LegPaths 
         .map(|leg| Some((*positions.get(&leg.from)?, *positions.get(&leg.to)?)))
         .collect();
     let pairs: Vec<(Point, Point)> = ends.iter().flatten().copied().collect();
-    let mut planned = plan_pairs(world, robot, &keepouts, &pairs).unwrap_or_else(|err| {
-        problems.push(Located::new(
-            plan.pos,
-            format!("the world cannot be mapped for planning: {err}"),
-        ));
-        Vec::new()
-    });
+    let mut planned = memory
+        .plan_pairs(world, robot, &keepouts, &pairs)
+        .unwrap_or_else(|err| {
+            problems.push(Located::new(
+                plan.pos,
+                format!("the world cannot be mapped for planning: {err}"),
+            ));
+            Vec::new()
+        });
     planned.reverse();
     let mut paths = Vec::with_capacity(plan.legs.len());
     for (leg, ends) in plan.legs.iter().zip(&ends) {
@@ -1224,7 +1248,7 @@ impl<'a> Builder<'a> {
         match response {
             Response::Skip | Response::Continue => self.entry(index + 1),
             // A repair holds as a hold does: the run applies the repair's default from there.
-            Response::Hold | Response::Repair => {
+            Response::Hold | Response::Repair { .. } => {
                 let hold = format!("{name}_hold");
                 if !self.trace.contains_key(&hold) {
                     self.place(&hold, origin(), leg.pos, Vec::new(), Vec::new());

@@ -52,6 +52,7 @@ use armor_module_api::xml::{Located, Pos};
 mod compile;
 pub mod gpx;
 pub mod kml;
+pub mod memory;
 pub mod migrate;
 pub mod objectives;
 pub mod qgc;
@@ -60,8 +61,8 @@ mod xml;
 
 pub use crate::geo::LatLon;
 pub use compile::{
-    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, plan_legs, plan_origin,
-    plan_pairs, robot, robot_explained,
+    CLEARANCE_M, Compiled, LegPaths, Origin, Switch, compile, compile_for, compile_with, plan_legs,
+    plan_legs_with, plan_origin, plan_pairs, robot, robot_explained,
 };
 pub use xml::DEFAULT_LOCALISER;
 
@@ -388,10 +389,12 @@ pub enum Response {
     Return { waypoint: String },
     /// Go on as if nothing happened (only for `late`: the net records that the robot was late).
     Continue,
-    /// Only for `blocked`: hold as [`Response::Hold`] does (the net is the same), and the run
-    /// applies at once the best option of the repair it computes ([`repair`]: a way round,
-    /// skipping the leg, returning), the operator free to choose another or to override.
-    Repair,
+    /// Only for `blocked` and `late`: hold as [`Response::Hold`] does (the net is the same),
+    /// and the run applies the best option of the repair it computes ([`repair`]: a way round,
+    /// skipping the leg, returning; for a late leg, its deadline pushed back or dropped), at
+    /// once or `after_secs` (run time) after proposing it, the operator free to choose another
+    /// meanwhile or to override.
+    Repair { after_secs: Option<u32> },
 }
 
 /// A tactical graphic: a line or an area with a meaning, drawn on the map.

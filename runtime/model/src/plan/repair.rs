@@ -26,6 +26,10 @@ pub enum Kind {
     Return,
     /// Change nothing: hold for an update or the operator.
     Wait,
+    /// A late leg's deadline moved to when the robot is now expected there.
+    PushBack,
+    /// A late leg's deadline given up: the leg drives on with none.
+    DropDeadline,
 }
 
 /// An option of a repair, with its costs.
@@ -117,29 +121,7 @@ pub fn options(
             plan: new,
         });
     }
-    if let Some(next) = plan.legs.get(index + 1) {
-        let mut new = plan.clone();
-        let taken = new.legs.remove(index + 1);
-        let first = &mut new.legs[index];
-        // The leg in force keeps its name and its contingencies (its place, held, must stay
-        // where the migration finds it) and takes the rest of the next leg over.
-        first.to = taken.to;
-        first.during = taken.during;
-        first.arrival = taken.arrival;
-        first.wait_secs = taken.wait_secs;
-        first.arrive_by_unix_secs = taken.arrive_by_unix_secs;
-        first.not_before_unix_secs = None;
-        drafts.push(Draft {
-            kind: Kind::Skip,
-            summary: format!(
-                "skip `{}`: leg `{}` drives on to `{}`, in place of leg `{}`",
-                leg.to, leg.name, next.to, next.name
-            ),
-            via: Vec::new(),
-            legs_dropped: vec![leg.name.clone()],
-            plan: new,
-        });
-    }
+    drafts.extend(skip_draft(plan, index));
     // A leg cannot end where it starts: on a leg that leaves the plan's start, the return is
     // not proposed (the operator aborts, or updates the plan with a leg back).
     if let Some(start) = plan.legs.first().map(|first| first.from.clone())
@@ -189,18 +171,122 @@ pub fn options(
     });
     // An empty sum of floats is -0.0, which would print as `-0.0 m` (every leg left cut).
     let planned: f64 = route_lengths_m.iter().skip(index).flatten().sum::<f64>() + 0.0;
-    candidates.push(Candidate {
+    candidates.push(wait(planned));
+    candidates
+}
+
+/// How much longer than at the plan's speed a deadline pushed back gives the rest of the drive:
+/// the robot turns and speeds up, and a deadline pushed back to the very second would be
+/// missed again.
+const PUSH_BACK_SPARE: f64 = 0.2;
+
+/// The options for a leg whose deadline (`arrive_by`) has passed before it arrived
+/// (`situation`'s leg in force), best first: its deadline pushed back to when the robot is now
+/// expected there (from where it is, at the plan's speed, with a fifth of the drive to spare,
+/// rounded up to the second), its deadline dropped, skipping its destination for the next
+/// leg's, and waiting last. `lengths` plans as for [`options`].
+pub fn late_options(
+    situation: Situation<'_>,
+    lengths: impl FnOnce(&[(Point, Point)]) -> Vec<Option<f64>>,
+) -> Vec<Candidate> {
+    let Situation {
+        plan,
+        route_lengths_m,
+        index,
+        now_unix_secs,
+        ..
+    } = situation;
+    let Some(leg) = plan.legs.get(index) else {
+        return Vec::new();
+    };
+    let mut drafts = Vec::new();
+    let mut dropped = plan.clone();
+    dropped.legs[index].arrive_by_unix_secs = None;
+    drafts.push(Draft {
+        kind: Kind::DropDeadline,
+        summary: format!(
+            "drop the deadline: leg `{}` drives on to `{}` with none",
+            leg.name, leg.to
+        ),
+        via: Vec::new(),
+        legs_dropped: Vec::new(),
+        plan: dropped,
+    });
+    drafts.extend(skip_draft(plan, index));
+    // The first pair planned is the first draft's first drive, from where the robot is to the
+    // leg's destination: its length says when the robot is now expected there.
+    let mut to_destination_m = None;
+    let mut candidates = cost_all(situation, drafts, |pairs| {
+        let planned = lengths(pairs);
+        to_destination_m = planned.first().copied().flatten();
+        planned
+    });
+    if let (Some(length), Some(drop)) = (
+        to_destination_m,
+        candidates
+            .iter()
+            .find(|candidate| candidate.kind == Kind::DropDeadline),
+    ) {
+        let speed_mps = plan.navigation.speed_mps.max(f64::EPSILON);
+        let expected = (now_unix_secs + length / speed_mps * (1.0 + PUSH_BACK_SPARE)).ceil();
+        let mut pushed = drop.clone();
+        if let Some(new) = &mut pushed.plan {
+            new.legs[index].arrive_by_unix_secs = Some(expected);
+        }
+        pushed.kind = Kind::PushBack;
+        pushed.summary = format!(
+            "push the deadline back to {}, when the robot is now expected at `{}` with a fifth \
+             of the drive to spare",
+            clock(expected),
+            leg.to
+        );
+        candidates.insert(0, pushed);
+    }
+    let planned: f64 = route_lengths_m.iter().skip(index).flatten().sum::<f64>() + 0.0;
+    candidates.push(wait(planned));
+    candidates
+}
+
+/// Skipping the destination of leg `index`: it takes the next leg over (none on the last leg).
+fn skip_draft(plan: &Plan, index: usize) -> Option<Draft> {
+    let leg = plan.legs.get(index)?;
+    let next = plan.legs.get(index + 1)?;
+    let mut new = plan.clone();
+    let taken = new.legs.remove(index + 1);
+    let first = &mut new.legs[index];
+    // The leg in force keeps its name and its contingencies (its place, held, must stay
+    // where the migration finds it) and takes the rest of the next leg over.
+    first.to = taken.to;
+    first.during = taken.during;
+    first.arrival = taken.arrival;
+    first.wait_secs = taken.wait_secs;
+    first.arrive_by_unix_secs = taken.arrive_by_unix_secs;
+    first.not_before_unix_secs = None;
+    Some(Draft {
+        kind: Kind::Skip,
+        summary: format!(
+            "skip `{}`: leg `{}` drives on to `{}`, in place of leg `{}`",
+            leg.to, leg.name, next.to, next.name
+        ),
+        via: Vec::new(),
+        legs_dropped: vec![leg.name.clone()],
+        plan: new,
+    })
+}
+
+/// Waiting where the robot is, with `planned_m` left to drive as planned.
+fn wait(planned_m: f64) -> Candidate {
+    Candidate {
         kind: Kind::Wait,
         summary: "wait where the robot is for an update (an area lifted) or the operator"
             .to_owned(),
         via: Vec::new(),
         legs_dropped: Vec::new(),
         plan: None,
-        distance_m: round_dm(planned),
+        distance_m: round_dm(planned_m),
         duration_secs: None,
         deadlines_missed: Vec::new(),
-    });
-    candidates
+    }
 }
 
 /// An option before its costs are known.
@@ -329,7 +415,7 @@ fn timeline(situation: Situation<'_>, plan: &Plan, lengths: &[f64]) -> (f64, Vec
 }
 
 /// The time of day of a date, `HH:MM:SS`.
-fn clock(unix_secs: f64) -> String {
+pub fn clock(unix_secs: f64) -> String {
     let text = crate::net::format_rfc3339(unix_secs);
     text.get(11..19).map_or(text.clone(), str::to_owned)
 }

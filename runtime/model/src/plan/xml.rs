@@ -383,7 +383,10 @@ fn write_contingency(out: &mut String, indent: &str, contingency: &Contingency) 
         Response::Skip => "skip".to_owned(),
         Response::Hold => "hold".to_owned(),
         Response::Continue => "continue".to_owned(),
-        Response::Repair => "repair".to_owned(),
+        Response::Repair { after_secs: None } => "repair".to_owned(),
+        Response::Repair {
+            after_secs: Some(after_secs),
+        } => format!("repair\" after_secs=\"{after_secs}"),
         Response::Return { waypoint } => format!("return\" waypoint=\"{}", escape(waypoint)),
     };
     let _ = writeln!(out, "{indent}<contingency on=\"{on}\" do=\"{response}\"/>");
@@ -864,10 +867,15 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
         None => None,
     };
     let link_lost = on.is_some_and(|field| field.value.trim() == "link_lost");
-    if !link_lost && let Some(after) = element.attr("after_secs") {
+    let repair = response.is_some_and(|field| field.value.trim() == "repair");
+    if !link_lost
+        && !repair
+        && let Some(after) = element.attr("after_secs")
+    {
         p.push(Located::new(
             after.pos,
-            "`after_secs` is only for on=\"link_lost\" (how long without the operator)",
+            "`after_secs` is only for on=\"link_lost\" (how long without the operator) and \
+             do=\"repair\" (how long the operator has to choose before the default)",
         ));
     }
     if trigger.is_some()
@@ -896,14 +904,31 @@ fn read_contingency(element: &Element, p: &mut Vec<Located>) -> Option<Contingen
         }
         Some(("hold", _)) => Some(Response::Hold),
         Some(("repair", pos)) => {
-            if trigger.is_some() && trigger != Some(Trigger::Blocked) {
+            if trigger.is_some() && !matches!(trigger, Some(Trigger::Blocked | Trigger::Late)) {
                 p.push(Located::new(
                     pos,
-                    "`repair` is only for on=\"blocked\": the run repairs a leg that cannot be \
-                     completed (use skip, hold or return)",
+                    "`repair` is only for on=\"blocked\" and on=\"late\": the run repairs a leg \
+                     that cannot be completed, or not in time (use skip, hold or return)",
                 ));
             }
-            Some(Response::Repair)
+            let after_secs = match element.attr("after_secs") {
+                None => Some(None),
+                Some(field) => match field.value.trim().parse::<u32>() {
+                    Ok(after_secs) if after_secs >= 1 => Some(Some(after_secs)),
+                    _ => {
+                        p.push(Located::new(
+                            field.pos,
+                            format!(
+                                "`after_secs` must be a whole number of seconds, 1 or more, \
+                                 not `{}`",
+                                field.value
+                            ),
+                        ));
+                        None
+                    }
+                },
+            };
+            after_secs.map(|after_secs| Response::Repair { after_secs })
         }
         Some(("continue", pos)) => {
             if trigger.is_some()
@@ -1526,7 +1551,7 @@ mod tests {
     }
 
     #[test]
-    fn repair_is_read_and_written_back_for_blocked_only() {
+    fn repair_is_read_and_written_back_for_blocked_and_late_only() {
         let plan = |contingencies: &str| {
             format!(
                 r#"<plan name="p" system="s.xml">
@@ -1537,20 +1562,54 @@ mod tests {
 </plan>"#
             )
         };
-        let text = plan(r#"<contingency on="blocked" do="repair"/>"#);
-        let read = Plan::parse(&text).expect("a plan that repairs when blocked");
-        assert_eq!(read.contingencies[0].response, Response::Repair);
-        assert!(
-            read.to_xml()
-                .contains(r#"<contingency on="blocked" do="repair"/>"#)
-        );
-        let again = Plan::parse(&read.to_xml()).expect("written back, read again");
-        assert_eq!(again.contingencies[0].response, Response::Repair);
+        for contingency in [
+            r#"<contingency on="blocked" do="repair"/>"#,
+            r#"<contingency on="late" do="repair" after_secs="30"/>"#,
+        ] {
+            let read = Plan::parse(&plan(contingency)).expect("a plan that repairs");
+            assert!(
+                matches!(read.contingencies[0].response, Response::Repair { .. }),
+                "{contingency}"
+            );
+            assert!(read.to_xml().contains(contingency), "{}", read.to_xml());
+            let again = Plan::parse(&read.to_xml()).expect("written back, read again");
+            assert_eq!(
+                again.contingencies[0].response,
+                read.contingencies[0].response
+            );
+        }
+        let read = Plan::parse(&plan(
+            r#"<contingency on="late" do="repair" after_secs="30"/>"#,
+        ))
+        .expect("a plan that repairs when late");
         assert_eq!(
-            problems(&plan(r#"<contingency on="late" do="repair"/>"#)),
+            read.contingencies[0].response,
+            Response::Repair {
+                after_secs: Some(30)
+            }
+        );
+        assert_eq!(
+            problems(&plan(
+                r#"<contingency on="failed" module="m" do="repair"/>"#
+            )),
             [
-                "5:26: `repair` is only for on=\"blocked\": the run repairs a leg that cannot be \
-              completed (use skip, hold or return)"
+                "5:39: `repair` is only for on=\"blocked\" and on=\"late\": the run repairs a leg \
+                 that cannot be completed, or not in time (use skip, hold or return)"
+            ]
+        );
+        assert_eq!(
+            problems(&plan(
+                r#"<contingency on="blocked" do="repair" after_secs="0"/>"#
+            )),
+            ["5:41: `after_secs` must be a whole number of seconds, 1 or more, not `0`"]
+        );
+        assert_eq!(
+            problems(&plan(
+                r#"<contingency on="blocked" do="hold" after_secs="5"/>"#
+            )),
+            [
+                "5:39: `after_secs` is only for on=\"link_lost\" (how long without the operator) \
+                 and do=\"repair\" (how long the operator has to choose before the default)"
             ]
         );
     }

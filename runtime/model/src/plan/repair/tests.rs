@@ -235,3 +235,57 @@ fn each_option_is_a_plan_that_keeps_the_leg_in_force_and_compiles() {
     assert_eq!(round.legs[1].wait_secs, Some(5.0));
     assert!(round.legs[1].arrive_by_unix_secs.is_some());
 }
+
+#[test]
+fn a_late_leg_is_offered_its_deadline_pushed_back_or_dropped_or_the_skip() {
+    // `out` was due 10 s after the start; it is 12 s in, the robot at (5, 0): 15 m left, at
+    // 1 m/s, so it is now expected at `gate` 27 s in, 30 s with a fifth of the drive to spare.
+    // Pushed back, the deadline is then; dropped,
+    // there is none; either way the rest is the plan's (`out`'s wait of 5 s, `up` 20 m, `back`
+    // 28.3 m). Skipping `gate` drives to `east` (25 m in a line from here) then `back`.
+    let (plan, compiled) = square(10);
+    let here = Point::new(5.0, 0.0);
+    let options = late_options(
+        Situation {
+            plan: &plan,
+            positions: &compiled.positions,
+            route_lengths_m: &lengths_of(&compiled),
+            index: 0,
+            here,
+            now_unix_secs: plan.start_unix_secs.unwrap_or_default() + 12.0,
+        },
+        |pairs| pairs.iter().map(|&(a, b)| Some(a.distance(b))).collect(),
+    );
+    let kinds: Vec<Kind> = options.iter().map(|option| option.kind).collect();
+    assert_eq!(
+        kinds,
+        [Kind::PushBack, Kind::DropDeadline, Kind::Skip, Kind::Wait]
+    );
+    let deadline = |option: &Candidate| {
+        option.plan.as_ref().map(|plan| {
+            plan.legs[0]
+                .arrive_by_unix_secs
+                .map(|by| by - plan.start_unix_secs.unwrap_or_default())
+        })
+    };
+    assert_eq!(deadline(&options[0]), Some(Some(30.0)));
+    assert!(
+        options[0].summary.contains("08:00:30"),
+        "{}",
+        options[0].summary
+    );
+    assert_eq!(deadline(&options[1]), Some(None));
+    for option in &options[..2] {
+        assert_eq!(option.distance_m, 63.3, "{option:#?}");
+        assert_eq!(option.duration_secs, Some(68.3), "{option:#?}");
+        assert!(option.deadlines_missed.is_empty(), "{option:#?}");
+        let repaired = option.plan.as_ref().map(|plan| compile(plan, None));
+        assert!(
+            matches!(repaired, Some(Ok(_))),
+            "{}: {repaired:?}",
+            option.summary
+        );
+    }
+    assert_eq!(options[2].legs_dropped, ["out"]);
+    assert_eq!(options[2].distance_m, 53.3);
+}
