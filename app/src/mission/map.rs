@@ -166,7 +166,7 @@ impl MissionView {
     /// The map and what is drawn on it, for editing.
     pub fn map_ui(&mut self, ui: &mut Ui) {
         let selection = self.editor.selection.clone();
-        let (scene, projector, response) = self.show_map(ui, &selection, false, |_, _, _| {});
+        let (scene, projector, response) = self.show_map(ui, &selection, None, |_, _, _, _| {});
         let mut out = Vec::new();
         self.handles_ui(ui, &scene, &projector, &mut out);
         self.clicks_ui(ui, &response, &scene, &projector, &mut out);
@@ -225,28 +225,33 @@ impl MissionView {
 
     /// The map for watching a run: the run's plan ([`MissionView::watch_plan`], else the plan
     /// edited) with `current` (a leg) highlighted and no editing; `overlay` paints over it,
-    /// given where a point of the world frame (metres) is on screen.
+    /// given where a point of the world frame (metres) is on screen. The plan's labels keep off
+    /// what `keep_clear` returns (the robot) and stay inside the world; they are drawn over
+    /// the overlay's shapes (a laser's hits do not cross them), its own texts keeping off them.
     pub fn watch_ui(
         &mut self,
         ui: &mut Ui,
         current: Option<usize>,
-        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect]),
+        keep_clear: &KeepClear<'_>,
+        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect], Rect),
     ) -> egui::Response {
         let selection = current.map_or(Selection::None, Selection::Leg);
-        let (_, _, response) = self.show_map(ui, &selection, true, overlay);
+        let (_, _, response) = self.show_map(ui, &selection, Some(keep_clear), overlay);
         response
     }
 
-    /// Draws the map with the plan (the run's when `watching` a run, else the one edited),
-    /// `selection` highlighted, then `overlay` (given the boxes of the plan's labels, which its
-    /// own texts should not cover).
+    /// Draws the map with the plan (the run's when watching a run, that is when `keep_clear`
+    /// is given, else the one edited), `selection` highlighted, then `overlay` (given the
+    /// boxes of the plan's labels, which its own texts should not cover, and the rectangle
+    /// labels stay in).
     fn show_map(
         &mut self,
         ui: &mut Ui,
         selection: &Selection,
-        watching: bool,
-        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect]),
+        keep_clear: Option<&KeepClear<'_>>,
+        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect], Rect),
     ) -> (Scene, Projector, egui::Response) {
+        let watching = keep_clear.is_some();
         let rect = ui.available_rect_before_wrap();
         if self.map.fit_requested && rect.width() > 50.0 {
             self.map.fit_requested = false;
@@ -276,6 +281,8 @@ impl MissionView {
                 self.map.fit(centre, centre, rect.size());
             }
         }
+        // Labels stay inside the world while a run is watched.
+        let world_bounds = self.map.bounds;
         let origin = self.surroundings.origin(&self.editor.plan);
         let MapState {
             tiles,
@@ -363,13 +370,28 @@ impl MissionView {
             );
             let scale = draw_scale(&painter, response.rect, projector, origin);
             labels.obstacles.extend(scale);
-            let drawn = labels.draw(&painter);
-            overlay(
-                &painter,
-                &|p: Point| project(LatLon::from_local(p, origin)),
-                &drawn.0,
-            );
-            (scene, projector.clone(), drawn)
+            let project_local = |p: Point| project(LatLon::from_local(p, origin));
+            let bounds = match (keep_clear, world_bounds) {
+                (Some(keep_clear), Some((a, b))) => {
+                    labels.obstacles.extend(keep_clear(&project_local));
+                    let world = Rect::from_two_pos(project(a), project(b)).intersect(response.rect);
+                    if world.width() >= 120.0 && world.height() >= 40.0 {
+                        world
+                    } else {
+                        response.rect
+                    }
+                }
+                (Some(keep_clear), None) => {
+                    labels.obstacles.extend(keep_clear(&project_local));
+                    response.rect
+                }
+                (None, _) => painter.clip_rect(),
+            };
+            let placed = labels.place(&painter, bounds);
+            let boxes: Vec<Rect> = placed.0.iter().map(|label| label.rect).collect();
+            overlay(&painter, &project_local, &boxes, bounds);
+            paint_labels(&painter, placed.0);
+            (scene, projector.clone(), (boxes, placed.1))
         });
         let (scene, projector, (label_boxes, label_time)) = response.inner;
         self.map.label_boxes = label_boxes;
@@ -709,6 +731,10 @@ fn tag(
     rect
 }
 
+/// What the plan's labels keep off on a watched map, given where a point of the world frame
+/// (metres) is on screen: the robots.
+pub type KeepClear<'a> = dyn Fn(&dyn Fn(Point) -> Pos2) -> Vec<Rect> + 'a;
+
 const LABEL_FONT: egui::FontId = egui::FontId::proportional(11.0);
 
 /// The labels of a frame, placed together once every shape is drawn (see `labels.rs`), and
@@ -739,31 +765,33 @@ impl Labels {
         });
     }
 
-    /// Places and draws the labels; returns their boxes and the time the placement took.
-    fn draw(self, painter: &egui::Painter) -> (Vec<Rect>, std::time::Duration) {
+    /// Places the labels inside `bounds`; returns where, and the time the placement took.
+    fn place(
+        self,
+        painter: &egui::Painter,
+        bounds: Rect,
+    ) -> (Vec<crate::common::labels::Placed>, std::time::Duration) {
         let started = std::time::Instant::now();
         let mut measure = |text: &str| {
             painter
                 .layout_no_wrap(text.to_owned(), LABEL_FONT, Color32::BLACK)
                 .size()
         };
-        let placed = crate::common::labels::place(
-            self.labels,
-            &self.obstacles,
-            painter.clip_rect(),
-            &mut measure,
-        );
-        let took = started.elapsed();
-        let boxes = placed.iter().map(|label| label.rect).collect();
-        for label in placed {
-            if let Some(leader) = label.leader {
-                painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
-            }
-            let galley = painter.layout_no_wrap(label.text, LABEL_FONT, label.colour);
-            painter.rect_filled(label.rect, 2.0, LABEL_BACK);
-            painter.galley(label.rect.min + vec2(2.0, 2.0), galley, label.colour);
+        let placed =
+            crate::common::labels::place(self.labels, &self.obstacles, bounds, &mut measure);
+        (placed, started.elapsed())
+    }
+}
+
+/// Draws labels placed by [`Labels::place`].
+fn paint_labels(painter: &egui::Painter, placed: Vec<crate::common::labels::Placed>) {
+    for label in placed {
+        if let Some(leader) = label.leader {
+            painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
         }
-        (boxes, took)
+        let galley = painter.layout_no_wrap(label.text, LABEL_FONT, label.colour);
+        painter.rect_filled(label.rect, 2.0, LABEL_BACK);
+        painter.galley(label.rect.min + vec2(2.0, 2.0), galley, label.colour);
     }
 }
 
