@@ -3,8 +3,10 @@
 //! the waypoints and the unit symbols drawn over it; and the clicks and drags that edit the
 //! plan, queued as [`PlanCommand`]s.
 
+use std::collections::HashMap;
+
 use crate::common::draw::draw_route;
-use crate::common::labels::{Importance, Label};
+use crate::common::labels::{Importance, Label, Placed};
 use crate::mission::LegRoute;
 use armor_model::plan::{AreaKind, Graphic, GraphicKind, LatLon, Plan};
 use armor_model::world::{Point, World};
@@ -166,7 +168,8 @@ impl MissionView {
     /// The map and what is drawn on it, for editing.
     pub fn map_ui(&mut self, ui: &mut Ui) {
         let selection = self.editor.selection.clone();
-        let (scene, projector, response) = self.show_map(ui, &selection, None, |_, _, _, _| {});
+        let (scene, projector, response) =
+            self.show_map(ui, &selection, None, Box::new(|_, _, _, _, _| {}));
         let mut out = Vec::new();
         self.handles_ui(ui, &scene, &projector, &mut out);
         self.clicks_ui(ui, &response, &scene, &projector, &mut out);
@@ -233,7 +236,7 @@ impl MissionView {
         ui: &mut Ui,
         current: Option<usize>,
         keep_clear: &KeepClear<'_>,
-        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect], Rect),
+        overlay: Box<Overlay<'_>>,
     ) -> egui::Response {
         let selection = current.map_or(Selection::None, Selection::Leg);
         let (_, _, response) = self.show_map(ui, &selection, Some(keep_clear), overlay);
@@ -249,7 +252,7 @@ impl MissionView {
         ui: &mut Ui,
         selection: &Selection,
         keep_clear: Option<&KeepClear<'_>>,
-        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect], Rect),
+        overlay: Box<Overlay<'_>>,
     ) -> (Scene, Projector, egui::Response) {
         let watching = keep_clear.is_some();
         let rect = ui.available_rect_before_wrap();
@@ -371,9 +374,9 @@ impl MissionView {
             let scale = draw_scale(&painter, response.rect, projector, origin);
             labels.obstacles.extend(scale);
             let project_local = |p: Point| project(LatLon::from_local(p, origin));
-            let bounds = match (keep_clear, world_bounds) {
-                (Some(keep_clear), Some((a, b))) => {
-                    labels.obstacles.extend(keep_clear(&project_local));
+            let beside = keep_clear.map(|keep_clear| keep_clear(&project_local));
+            let bounds = match (&beside, world_bounds) {
+                (Some(_), Some((a, b))) => {
                     let world = Rect::from_two_pos(project(a), project(b)).intersect(response.rect);
                     if world.width() >= 120.0 && world.height() >= 40.0 {
                         world
@@ -381,17 +384,26 @@ impl MissionView {
                         response.rect
                     }
                 }
-                (Some(keep_clear), None) => {
-                    labels.obstacles.extend(keep_clear(&project_local));
-                    response.rect
-                }
+                (Some(_), None) => response.rect,
                 (None, _) => painter.clip_rect(),
             };
-            let placed = labels.place(&painter, bounds);
-            let boxes: Vec<Rect> = placed.0.iter().map(|label| label.rect).collect();
-            overlay(&painter, &project_local, &boxes, bounds);
-            paint_labels(&painter, placed.0);
-            (scene, projector.clone(), (boxes, placed.1))
+            let mut sizes = HashMap::new();
+            if let Some(beside) = beside {
+                labels.obstacles.extend(beside.obstacles);
+                for (tag, size) in beside.tags {
+                    sizes.insert(tag.text.clone(), size);
+                    labels.labels.push(tag);
+                }
+            }
+            let (placed, took) = labels.place(&painter, bounds, &sizes);
+            let boxes: Vec<Rect> = placed.iter().map(|label| label.rect).collect();
+            let (tags, placed): (Vec<Placed>, Vec<Placed>) = placed
+                .into_iter()
+                .partition(|label| label.importance == Importance::Robot);
+            // The run's shapes, then the plan's labels over them, then the run's texts.
+            overlay(&painter, &project_local, &boxes, bounds, tags);
+            paint_labels(&painter, placed);
+            (scene, projector.clone(), (boxes, took))
         });
         let (scene, projector, (label_boxes, label_time)) = response.inner;
         self.map.label_boxes = label_boxes;
@@ -731,9 +743,22 @@ fn tag(
     rect
 }
 
-/// What the plan's labels keep off on a watched map, given where a point of the world frame
-/// (metres) is on screen: the robots.
-pub type KeepClear<'a> = dyn Fn(&dyn Fn(Point) -> Pos2) -> Vec<Rect> + 'a;
+/// What a watched map's labels are placed with: the boxes they keep off (the robots), and
+/// the robots' tags, placed first, each with its size (drawn larger than the map's labels).
+#[derive(Default)]
+pub struct Beside {
+    pub obstacles: Vec<Rect>,
+    pub tags: Vec<(Label, egui::Vec2)>,
+}
+
+/// What a watched map's labels are placed with ([`Beside`]), given where a point of the world
+/// frame (metres) is on screen.
+pub type KeepClear<'a> = dyn Fn(&dyn Fn(Point) -> Pos2) -> Beside + 'a;
+
+/// What a watched map's overlay is given: the painter, where a point of the world frame is on
+/// screen, every label's box, the rectangle labels stay in, and the robots' tags placed.
+pub type Overlay<'a> =
+    dyn FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect], Rect, Vec<Placed>) + 'a;
 
 const LABEL_FONT: egui::FontId = egui::FontId::proportional(11.0);
 
@@ -766,16 +791,20 @@ impl Labels {
     }
 
     /// Places the labels inside `bounds`; returns where, and the time the placement took.
+    /// `sizes`: the labels drawn otherwise than the map's (the robots' tags), by text.
     fn place(
         self,
         painter: &egui::Painter,
         bounds: Rect,
-    ) -> (Vec<crate::common::labels::Placed>, std::time::Duration) {
+        sizes: &HashMap<String, egui::Vec2>,
+    ) -> (Vec<Placed>, std::time::Duration) {
         let started = std::time::Instant::now();
         let mut measure = |text: &str| {
-            painter
-                .layout_no_wrap(text.to_owned(), LABEL_FONT, Color32::BLACK)
-                .size()
+            sizes.get(text).copied().unwrap_or_else(|| {
+                painter
+                    .layout_no_wrap(text.to_owned(), LABEL_FONT, Color32::BLACK)
+                    .size()
+            })
         };
         let placed =
             crate::common::labels::place(self.labels, &self.obstacles, bounds, &mut measure);
@@ -784,7 +813,7 @@ impl Labels {
 }
 
 /// Draws labels placed by [`Labels::place`].
-fn paint_labels(painter: &egui::Painter, placed: Vec<crate::common::labels::Placed>) {
+fn paint_labels(painter: &egui::Painter, placed: Vec<Placed>) {
     for label in placed {
         if let Some(leader) = label.leader {
             painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));

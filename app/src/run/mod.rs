@@ -1307,22 +1307,24 @@ impl RunView {
         }
         let mut drawn = BTreeMap::new();
         let mut layout = MapLayout::default();
+        // Text is measured as the map will draw it (the tags are placed with its labels).
+        let ui_painter = ui.painter().clone();
         let keep_clear = |project: &dyn Fn(armor_model::world::Point) -> egui::Pos2| {
-            monitor::robot_boxes(project, &live)
+            monitor::robot_tags(&ui_painter, project, &live)
         };
         let map = mission.watch_ui(
             ui,
             current_leg,
             &keep_clear,
-            |painter, project, plan_labels, bounds| {
+            Box::new(|painter, project, labels, bounds, tags| {
                 let taken = monitor::paint_live(
                     painter,
                     project,
                     &live,
                     grid_texture.as_ref(),
                     &followed,
-                    plan_labels,
-                    bounds,
+                    labels,
+                    tags,
                 );
                 let texts;
                 (drawn, texts) = markers::paint(
@@ -1335,14 +1337,9 @@ impl RunView {
                     bounds,
                 );
                 layout.robots = monitor::robot_boxes(project, &live);
-                // `taken` is the plan's labels, the robots' boxes, then the tags.
-                layout.labels = taken
-                    .into_iter()
-                    .filter(|rect| !layout.robots.contains(rect))
-                    .chain(texts)
-                    .collect();
+                layout.labels = labels.iter().copied().chain(texts).collect();
                 layout.bounds = Some(bounds);
-            },
+            }),
         );
         let set_pose = set_pose_tool
             .then(|| set_pose_ui(ui, &map, mission, &mut set_pose_from))

@@ -16,7 +16,8 @@ use super::live::LiveData;
 use super::session::Sample;
 use super::untrusted::{self, Refused};
 use crate::common::draw::state_colour;
-use crate::common::labels::{self, Importance, Label};
+use crate::common::labels::{Importance, Label, Placed};
+use crate::mission::map::Beside;
 
 const TRUTH: Color32 = Color32::from_rgb(20, 110, 220);
 const ESTIMATE: Color32 = Color32::from_rgb(230, 120, 0);
@@ -358,8 +359,8 @@ pub fn paint_live(
     live: &LiveData,
     grid: Option<&(egui::TextureHandle, Arc<OccupancyGrid>)>,
     followed: &FollowedLeg,
-    plan_labels: &[egui::Rect],
-    bounds: egui::Rect,
+    labels: &[egui::Rect],
+    tags: Vec<Placed>,
 ) -> Vec<egui::Rect> {
     if let Some((texture, grid)) = grid {
         let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
@@ -423,11 +424,34 @@ pub fn paint_live(
     if let Some(pose) = &live.estimated {
         robot(painter, project, pose, ESTIMATE);
     }
-    // The robots' tags are placed as the plan's labels are, together with them: never over a
-    // robot, a label or each other, inside `bounds` (the world), a step off with a leader
-    // line where the robot's sides are taken.
-    let mut taken = plan_labels.to_vec();
+    // The robots' tags were placed with the plan's labels, before them (`robot_tags`).
+    for placed in tags {
+        if let Some(leader) = placed.leader {
+            painter.line_segment(leader, Stroke::new(1.5, placed.colour));
+        }
+        painter.rect(
+            placed.rect,
+            4.0,
+            placed.colour,
+            Stroke::new(1.0, Color32::WHITE),
+            egui::StrokeKind::Inside,
+        );
+        let galley = painter.layout_no_wrap(placed.text, TAG_FONT, Color32::WHITE);
+        let inset = (placed.rect.size() - galley.size()) / 2.0;
+        painter.galley(placed.rect.min + inset, galley, Color32::WHITE);
+    }
+    let mut taken = labels.to_vec();
     taken.extend(robot_boxes(project, live));
+    taken
+}
+
+/// What the map's labels are placed with while a run is watched: the robots' boxes, which no
+/// label covers, and their tags (`localised`, `true pose (simulator)`), placed first.
+pub fn robot_tags(
+    painter: &egui::Painter,
+    project: &dyn Fn(Point) -> Pos2,
+    live: &LiveData,
+) -> Beside {
     let mut tags = Vec::new();
     if let Some(pose) = &live.estimated {
         let (text, colour) = match &live.estimate {
@@ -454,29 +478,20 @@ pub fn paint_live(
             Align2::CENTER_TOP,
         ));
     }
-    let mut measure = |text: &str| {
-        painter
-            .layout_no_wrap(text.to_owned(), TAG_FONT, Color32::WHITE)
-            .size()
-            + TAG_PADDING
-    };
-    for placed in labels::place(tags, &taken, bounds, &mut measure) {
-        if let Some(leader) = placed.leader {
-            painter.line_segment(leader, Stroke::new(1.5, placed.colour));
-        }
-        painter.rect(
-            placed.rect,
-            4.0,
-            placed.colour,
-            Stroke::new(1.0, Color32::WHITE),
-            egui::StrokeKind::Inside,
-        );
-        let galley = painter.layout_no_wrap(placed.text, TAG_FONT, Color32::WHITE);
-        let inset = (placed.rect.size() - galley.size()) / 2.0;
-        painter.galley(placed.rect.min + inset, galley, Color32::WHITE);
-        taken.push(placed.rect);
+    let tags = tags
+        .into_iter()
+        .map(|tag| {
+            let size = painter
+                .layout_no_wrap(tag.text.clone(), TAG_FONT, Color32::WHITE)
+                .size()
+                + TAG_PADDING;
+            (tag, size)
+        })
+        .collect();
+    Beside {
+        obstacles: robot_boxes(project, live),
+        tags,
     }
-    taken
 }
 
 /// The tags' text size, and the room round their text (beyond the placer's margin).
@@ -516,7 +531,7 @@ fn tag_label(
         preferred,
         text,
         colour,
-        importance: Importance::Waypoint,
+        importance: Importance::Robot,
     })
 }
 
