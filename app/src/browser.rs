@@ -24,6 +24,8 @@ pub struct BrowserRequest<'a> {
     pub title: &'a str,
     /// The folder it opens in.
     pub folder: PathBuf,
+    /// The folder of the document the file is for, offered beside the bundled examples.
+    pub document_folder: Option<PathBuf>,
     /// The file types offered: a name and extensions (none: every file).
     pub filter: (&'static str, &'static [&'static str]),
     /// A file to save (with this name proposed), rather than one to open.
@@ -44,7 +46,9 @@ impl Browser {
             .show_devices(false)
             .show_removable_devices(false)
             .add_quick_access("ArMoR", |access| {
-                access.add_path("This document's folder", request.folder.clone());
+                if let Some(folder) = &request.document_folder {
+                    access.add_path("The document's folder", folder.clone());
+                }
                 if let Some(missions) = crate::start::missions_folder() {
                     access.add_path("Bundled examples", missions);
                 }

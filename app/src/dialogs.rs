@@ -138,6 +138,12 @@ impl PathDialog {
         self.browser = Some(Browser::open(BrowserRequest {
             title,
             folder: crate::browser::start_folder(&typed, self.document.as_deref()),
+            document_folder: self
+                .document
+                .as_deref()
+                .and_then(std::path::Path::parent)
+                .filter(|folder| folder.is_dir())
+                .map(PathBuf::from),
             filter: self.purpose.filter(),
             save_as,
             folder_wanted: false,

@@ -196,6 +196,7 @@ impl SystemView {
                                 let request = BrowserRequest {
                                     title: &format!("Choose the file of `{}`", spec.name),
                                     folder: param_folder(value, system_folder.as_deref(), assets),
+                                    document_folder: system_folder.clone(),
                                     filter: ("Any file", &[]),
                                     save_as: None,
                                     folder_wanted: false,
