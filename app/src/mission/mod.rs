@@ -446,6 +446,8 @@ pub struct MissionView {
     net_drawn_watched: bool,
     /// The net panel has been shown at the net's own size once (the map framed again then).
     net_panel_sized: bool,
+    /// The net was enlarged at the last frame (the map is framed again when this changes).
+    net_was_enlarged: bool,
 }
 
 /// The plan a run plays, compiled as the Mission view compiles the plan edited.
@@ -477,6 +479,7 @@ impl MissionView {
             watched: None,
             net_drawn_watched: false,
             net_panel_sized: false,
+            net_was_enlarged: false,
         };
         view.refresh_surroundings(true);
         view
@@ -926,6 +929,13 @@ impl MissionView {
         default_size: f32,
         contents: impl FnOnce(&mut MissionView, &mut egui::Ui),
     ) {
+        // Enlarged or back, the map changes size a lot: framed again, so that it shows its
+        // world whole rather than a corner of it (and its labels at the edge of that corner).
+        if std::mem::replace(&mut self.net_was_enlarged, self.net_view.enlarged)
+            != self.net_view.enlarged
+        {
+            self.map.fit_requested = true;
+        }
         let panel = if self.net_view.enlarged {
             // Another id, so that the size the user dragged the small panel to is kept.
             egui::Panel::bottom(format!("{id}-enlarged"))
