@@ -5,37 +5,16 @@
 mod common;
 
 use armor_studio::StudioApp;
-use common::{SIZE, options};
+use common::{robot_file as robot, studio_on as studio};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable as _;
-
-fn robot(name: &str) -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../missions/robot")
-        .join(name)
-}
-
-fn studio(file: std::path::PathBuf, home: &std::path::Path) -> Harness<'static, StudioApp> {
-    let mut harness = Harness::builder()
-        .with_size(SIZE)
-        .with_step_dt(1.0 / 60.0)
-        .with_max_steps(60)
-        .build_ui_state(
-            |ui, app: &mut StudioApp| app.ui(ui),
-            StudioApp::new(options(home, Some(file))),
-        );
-    for _ in 0..3 {
-        harness.run();
-    }
-    harness
-}
 
 /// At 1280×800 the yard's net opens whole in its panel, at a zoom its names can be read at:
 /// it was cut at the panel's bottom (the rows of `lost`, `retry` and `skip` half seen).
 #[test]
 fn the_net_is_seen_whole_and_readable_at_first_sight() {
     let dir = tempfile::tempdir().unwrap();
-    let harness = studio(robot("plan-yard.xml"), &dir.path().join("home"));
+    let harness = studio(&dir.path().join("home"), robot("plan-yard.xml"));
     let mission = harness.state().mission().unwrap();
     let view = mission.net_view();
     let layout = mission.net_layout().unwrap();
@@ -76,7 +55,7 @@ fn the_net_is_seen_whole_and_readable_at_first_sight() {
 #[test]
 fn enlarge_frames_the_map_again_so_its_world_stays_whole() {
     let dir = tempfile::tempdir().unwrap();
-    let mut harness = studio(robot("plan-yard.xml"), &dir.path().join("home"));
+    let mut harness = studio(&dir.path().join("home"), robot("plan-yard.xml"));
     let world = |harness: &Harness<'_, StudioApp>| {
         let mission = harness.state().mission().unwrap();
         let text = std::fs::read_to_string(

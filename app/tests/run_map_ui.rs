@@ -13,15 +13,9 @@ use armor_runtime::replay::Recorded;
 use armor_studio::StudioApp;
 use armor_studio::app::View;
 use armor_studio::run::live::Recording;
-use common::{SIZE, options};
+use common::{robot_file, studio_on};
 use egui::{Pos2, Rect};
 use egui_kittest::Harness;
-
-fn robot(name: &str) -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../missions/robot")
-        .join(name)
-}
 
 fn recorded(at_secs: u64, data_name: &str, data_type: &str, datum: &impl Datum) -> Recorded {
     let mut payload = Vec::new();
@@ -63,17 +57,8 @@ fn is_scale(text: &str) -> bool {
 #[test]
 fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_world() {
     let dir = tempfile::tempdir().unwrap();
-    let plan = robot("plan-yard.xml");
-    let mut harness = Harness::builder()
-        .with_size(SIZE)
-        .with_step_dt(1.0 / 60.0)
-        .with_max_steps(60)
-        .build_ui_state(
-            |ui, app: &mut StudioApp| app.ui(ui),
-            StudioApp::new(options(&dir.path().join("home"), Some(plan.clone()))),
-        );
-    harness.run();
-    harness.run();
+    let plan = robot_file("plan-yard.xml");
+    let mut harness = studio_on(&dir.path().join("home"), plan.clone());
     let mission = harness.state().mission().unwrap();
     assert_eq!(mission.path(), Some(plan.as_path()));
     let origin = mission.surroundings.origin(mission.plan());

@@ -33,6 +33,9 @@ pub mod plan_edit;
 pub mod symbols;
 pub mod tiles;
 
+/// What a watched map's labels are placed with: the Run view gives it (the robots).
+pub use map::Beside;
+
 /// Reachable markings explored when a plan's net is verified (as `armor check` does).
 const ANALYSIS_LIMIT_STATES: usize = 200_000;
 
@@ -869,15 +872,7 @@ impl MissionView {
         };
         let Some(net) = checked.net() else {
             // What keeps the run's plan from compiling, as the Mission view's panel says it.
-            let (heading, reasons) = checked.no_net_reasons(plan);
-            ui.label(heading);
-            egui::ScrollArea::vertical()
-                .id_salt("run-no-net")
-                .show(ui, |ui| {
-                    for reason in reasons {
-                        ui.colored_label(ui.visuals().error_fg_color, reason);
-                    }
-                });
+            no_net_ui(ui, checked, plan, "run-no-net");
             return;
         };
         let current: BTreeSet<usize> = checked
@@ -1013,15 +1008,7 @@ impl MissionView {
         self.net_drawn_watched = false;
         let highlighted = self.highlighted();
         let Some(net) = self.checked.net() else {
-            let (heading, reasons) = self.checked.no_net_reasons(&self.editor.plan);
-            ui.label(heading);
-            egui::ScrollArea::vertical()
-                .id_salt("mission-no-net")
-                .show(ui, |ui| {
-                    for reason in reasons {
-                        ui.colored_label(ui.visuals().error_fg_color, reason);
-                    }
-                });
+            no_net_ui(ui, &self.checked, &self.editor.plan, "mission-no-net");
             return;
         };
         let scroll = self.net_scrolled_for.as_ref() != Some(&self.editor.selection);
@@ -1050,6 +1037,17 @@ impl MissionView {
             self.commands.push(PlanCommand::Select(selection));
         }
     }
+}
+
+/// Why `plan` has no net ([`Checked::no_net_reasons`]), in the net's panel.
+fn no_net_ui(ui: &mut egui::Ui, checked: &Checked, plan: &Plan, id: &str) {
+    let (heading, reasons) = checked.no_net_reasons(plan);
+    ui.label(heading);
+    egui::ScrollArea::vertical().id_salt(id).show(ui, |ui| {
+        for reason in reasons {
+            ui.colored_label(ui.visuals().error_fg_color, reason);
+        }
+    });
 }
 
 /// The folder a file is in (`.` for a bare name).

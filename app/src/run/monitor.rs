@@ -17,7 +17,7 @@ use super::session::Sample;
 use super::untrusted::{self, Refused};
 use crate::common::draw::state_colour;
 use crate::common::labels::{Importance, Label, Placed};
-use crate::mission::map::Beside;
+use crate::mission::Beside;
 
 const TRUTH: Color32 = Color32::from_rgb(20, 110, 220);
 const ESTIMATE: Color32 = Color32::from_rgb(230, 120, 0);
