@@ -272,14 +272,26 @@ fn paint_markers(
 }
 
 /// The switch of each module's layer (checked: drawn), with how many markers it holds.
-pub fn toggles_ui(ui: &mut Ui, layers: &Layers, hidden: &mut BTreeSet<String>) {
+/// `stopped`: the modules no longer at work, whose markers are not drawn whatever the switch
+/// says ([`not_drawn`]); their switch says so.
+pub fn toggles_ui(
+    ui: &mut Ui,
+    layers: &Layers,
+    hidden: &mut BTreeSet<String>,
+    stopped: &BTreeSet<String>,
+) {
     if layers.by_module.is_empty() {
         ui.label("No module publishes markers yet.");
         return;
     }
     for (module, markers) in &layers.by_module {
         let mut shown = !hidden.contains(module);
-        let label = format!("{module} ({} markers)", markers.markers.len());
+        let count = markers.markers.len();
+        let label = if stopped.contains(module) {
+            format!("{module} ({count} markers, not drawn: the module stopped)")
+        } else {
+            format!("{module} ({count} markers)")
+        };
         if ui.checkbox(&mut shown, label).changed() {
             if shown {
                 hidden.remove(module);
@@ -462,5 +474,34 @@ mod text_tests {
         assert!(off.contains("observer") && off.contains("follower") && off.contains("scan_layer"));
         states.insert("observer".to_owned(), ModuleState::Restarting);
         assert!(!not_drawn(&hidden, &states).contains("observer"));
+    }
+
+    /// The switch of a stopped module's layer says why its markers are not drawn.
+    #[test]
+    fn a_stopped_modules_switch_says_its_markers_are_not_drawn() {
+        let mut layers = Layers::default();
+        for module in ["observer", "follower"] {
+            layers.by_module.insert(
+                module.to_owned(),
+                Arc::new(Markers {
+                    markers: vec![Marker::default()],
+                }),
+            );
+        }
+        let stopped: BTreeSet<String> = ["observer".to_owned()].into();
+        let ctx = egui::Context::default();
+        let mut output = ctx.run_ui(egui::RawInput::default(), |ui| {
+            toggles_ui(ui, &layers, &mut BTreeSet::new(), &stopped);
+        });
+        let texts: Vec<String> = text_boxes(&output)
+            .into_iter()
+            .map(|(text, _)| text)
+            .collect();
+        assert!(
+            texts.contains(&"observer (1 markers, not drawn: the module stopped)".to_owned())
+                && texts.contains(&"follower (1 markers)".to_owned()),
+            "{texts:?}"
+        );
+        output.textures_delta.clear();
     }
 }

@@ -776,7 +776,8 @@ impl RunView {
         let live = self.live();
         ui.separator();
         ui.heading("Markers");
-        markers::toggles_ui(ui, &live.markers, &mut self.hidden_markers);
+        let stopped = markers::not_drawn(&BTreeSet::new(), &self.module_states());
+        markers::toggles_ui(ui, &live.markers, &mut self.hidden_markers, &stopped);
         ui.separator();
         ui.heading("Inspect an output");
         inspector::inspector_ui(ui, &live.outputs, &mut self.inspected);
