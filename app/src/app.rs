@@ -402,6 +402,7 @@ impl StudioApp {
     fn set_status(&mut self, text: String, is_error: bool) {
         // What the status line says is what a user is told: the log says it too, so that a
         // session can be followed (and driven, by the Xvfb test) from outside.
+        let text = crate::files::in_words(&text);
         tracing::info!("{text}");
         self.status = Status { text, is_error };
     }
@@ -698,13 +699,20 @@ impl StudioApp {
         }
     }
 
-    /// The start page, over the empty canvas, until a document is made or opened.
+    /// The start page, over the empty canvas, until a document is made or opened: a choice
+    /// that fails (a file that cannot be opened) leaves it there, so that its examples and
+    /// recent files stay at hand. It gives way to the dialogs while they are open.
     fn start_ui(&mut self, ui: &mut Ui) {
         let Some(examples) = &self.start else {
             return;
         };
-        if !self.system.editor.diagram.is_empty() || self.system.path.is_some() {
+        let plan_opened = self.mission.as_ref().and_then(MissionView::path).is_some();
+        if !self.system.editor.diagram.is_empty() || self.system.path.is_some() || plan_opened {
             self.start = None;
+            return;
+        }
+        if self.path_dialog.is_some() || self.unsaved_prompt.is_some() || !self.recovery.is_empty()
+        {
             return;
         }
         let recent = self.home.recent();
@@ -721,24 +729,23 @@ impl StudioApp {
         let Some(choice) = choice else {
             return;
         };
-        self.start = None;
         let ctx = ui.ctx().clone();
         match choice {
-            StartChoice::NewSystem => self.set_status(
-                "new system: drag modules from the palette onto the canvas".to_owned(),
-                false,
-            ),
+            StartChoice::NewSystem => {
+                // An empty canvas is what was asked for: the page leaves it.
+                self.start = None;
+                self.set_status(
+                    "new system: drag modules from the palette onto the canvas".to_owned(),
+                    false,
+                );
+            }
             StartChoice::NewPlan => {
+                self.start = None;
                 self.set_view(View::Mission);
                 self.replace(Replacing::NewPlan, &ctx);
             }
             StartChoice::Open => self.execute(UiCommand::Open, &ctx, true),
-            StartChoice::File(file) if is_plan(&file) => {
-                // As a plan given on the command line: opened once the Mission view is up.
-                self.set_view(View::Mission);
-                self.plan_to_open = Some(file);
-            }
-            StartChoice::File(file) => self.replace(Replacing::OpenSystem(file), &ctx),
+            StartChoice::File(file) => self.open_listed(file, &ctx),
         }
     }
 

@@ -329,6 +329,8 @@ pub enum MenuItem {
     Separator,
     /// The submenu of recently opened files.
     Recent,
+    /// The submenu of the bundled examples (the start page's list).
+    Examples,
     /// A line of text (how the mouse zooms and pans, in the View menu).
     Note(&'static str),
 }
@@ -339,7 +341,7 @@ pub struct Menu {
     pub items: &'static [MenuItem],
 }
 
-use MenuItem::{Command as Item, Note, Recent, Separator};
+use MenuItem::{Command as Item, Examples, Note, Recent, Separator};
 
 /// The View menu's line on the mouse, the same in every view.
 const MOUSE_NOTE: MenuItem = Note("Wheel: zoom · drag: pan");
@@ -351,6 +353,7 @@ const SYSTEM_MENUS: &[Menu] = &[
             Item(UiCommand::New),
             Item(UiCommand::Open),
             Recent,
+            Examples,
             Item(UiCommand::Save),
             Item(UiCommand::SaveAs),
             Item(UiCommand::ExportPng),
@@ -394,6 +397,8 @@ const MISSION_MENUS: &[Menu] = &[
         items: &[
             Item(UiCommand::New),
             Item(UiCommand::Open),
+            Recent,
+            Examples,
             Item(UiCommand::Save),
             Item(UiCommand::SaveAs),
             Separator,
@@ -543,6 +548,7 @@ mod tests {
                         MenuItem::Command(command) => command.label(view),
                         MenuItem::Separator => "---",
                         MenuItem::Recent => "Open recent",
+                        MenuItem::Examples => "Examples",
                         MenuItem::Note(text) => text,
                     });
                     (menu.title, items.collect())
@@ -553,6 +559,7 @@ mod tests {
             "New",
             "Open…",
             "Open recent",
+            "Examples",
             "Save",
             "Save as…",
             "Export PNG…",
@@ -577,6 +584,8 @@ mod tests {
         let mission_file = [
             "New plan",
             "Open plan…",
+            "Open recent",
+            "Examples",
             "Save plan",
             "Save plan as…",
             "---",

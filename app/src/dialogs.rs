@@ -1,11 +1,12 @@
-//! The window's dialogs: the path field (open, save as, import, export), "Save changes?" and
-//! "Restore unsaved work?". Each shows itself and returns the user's answer; the window
+//! The window's dialogs: the path field with its browser (open, save as, import, export), "Save
+//! changes?" and "Restore unsaved work?". Each shows itself and returns the user's answer; the window
 //! (`app.rs`) acts on it.
 
 use std::path::PathBuf;
 
 use egui::Key;
 
+use crate::browser::{Browser, BrowserAnswer, BrowserRequest};
 use crate::files::Recovery;
 
 /// What a path dialog is for.
@@ -52,6 +53,10 @@ pub struct PathDialog {
     /// The path field has held the keyboard focus (said once in the log: keys typed from then
     /// on go into it, while keys typed before its first frame are lost).
     focused: bool,
+    /// The document the path is for (its file), whose folder the browser opens in.
+    document: Option<PathBuf>,
+    /// The studio's own browser, while it is open (over the path field, which it fills).
+    browser: Option<Browser>,
 }
 
 /// What the user did with the path dialog.
@@ -105,7 +110,44 @@ impl PathDialog {
             native_offered: false,
             selected: false,
             focused: false,
+            document: None,
+            browser: None,
         }
+    }
+
+    /// The document the path is for: the browser opens in its folder.
+    pub fn for_document(mut self, document: Option<PathBuf>) -> PathDialog {
+        self.document = document;
+        self
+    }
+
+    /// Whether the studio's own browser is open.
+    pub fn is_browsing(&self) -> bool {
+        self.browser.is_some()
+    }
+
+    /// Opens the studio's browser where the path typed is, else in the document's folder.
+    pub fn browse(&mut self, title: &str) {
+        let typed = PathBuf::from(self.text.trim());
+        let save_as = self.purpose.saves().then(|| {
+            typed
+                .file_name()
+                .map(|name| name.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        });
+        self.browser = Some(Browser::open(BrowserRequest {
+            title,
+            folder: crate::browser::start_folder(&typed, self.document.as_deref()),
+            document_folder: self
+                .document
+                .as_deref()
+                .and_then(std::path::Path::parent)
+                .filter(|folder| folder.is_dir())
+                .map(PathBuf::from),
+            filter: self.purpose.filter(),
+            save_as,
+            folder_wanted: false,
+        }));
     }
 
     /// The desktop's own dialog (the `rfd` crate, through the XDG portal), where there is one:
@@ -157,8 +199,18 @@ impl PathDialog {
                 return Some(PathAnswer::Submit(path));
             }
         }
+        if let Some(browser) = &mut dialog.browser {
+            match browser.ui(ctx) {
+                None => return None,
+                // Picked: done, as if typed and submitted.
+                Some(BrowserAnswer::Picked(path)) => return Some(PathAnswer::Submit(path)),
+                // Closed: back to the path field, as it was.
+                Some(BrowserAnswer::Cancelled) => dialog.browser = None,
+            }
+        }
         let mut submit = false;
         let mut cancel = false;
+        let mut browse = false;
         egui::Window::new(title)
             .id(egui::Id::new("path-dialog"))
             .collapsible(false)
@@ -195,15 +247,26 @@ impl PathDialog {
                 if edit.lost_focus() && ui.input(|input| input.key_pressed(Key::Enter)) {
                     submit = true;
                 }
+                if let Ok(dir) = std::env::current_dir() {
+                    ui.weak(format!("A relative path starts from {}", dir.display()));
+                }
                 ui.horizontal(|ui| {
                     if ui.button(action).clicked() {
                         submit = true;
                     }
+                    browse = ui
+                        .button("Browse…")
+                        .on_hover_text("Pick the file in a list of the folder's files")
+                        .clicked();
                     if ui.button("Cancel").clicked() {
                         cancel = true;
                     }
                 });
             });
+        if browse {
+            dialog.browse(title);
+            return None;
+        }
         if cancel {
             Some(PathAnswer::Cancel)
         } else if submit {

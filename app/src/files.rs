@@ -184,6 +184,70 @@ impl Home {
     }
 }
 
+/// What the system's error texts say, in words a user reads without knowing errno: each
+/// "(os error N)" the standard library appends is taken away, and the texts of the commonest
+/// ones are said plainly ("No such file or directory (os error 2)" becomes "there is no such
+/// file or folder"). The status line shows every message through this.
+pub fn in_words(text: &str) -> String {
+    const PLAIN: &[(&str, &str)] = &[
+        (
+            "No such file or directory (os error 2)",
+            "there is no such file or folder",
+        ),
+        (
+            "Is a directory (os error 21)",
+            "that is a folder, not a file: choose a file in it",
+        ),
+        (
+            "Not a directory (os error 20)",
+            "a part of that path is a file, not a folder",
+        ),
+        (
+            "Permission denied (os error 13)",
+            "permission denied (the file's owner does not let you)",
+        ),
+        (
+            "Read-only file system (os error 30)",
+            "that disk is read-only",
+        ),
+        ("No space left on device (os error 28)", "the disk is full"),
+    ];
+    let mut text = PLAIN.iter().fold(text.to_owned(), |text, (raw, plain)| {
+        text.replace(raw, plain)
+    });
+    // Any other: its words stay, without the number.
+    while let Some(start) = text.find(" (os error ") {
+        let Some(end) = text[start..].find(')') else {
+            break;
+        };
+        text.replace_range(start..start + end + 1, "");
+    }
+    text
+}
+
+/// Why `path`, given to be read as a file, cannot be, in words; `None` when it can be tried.
+/// `folder_ok`: a folder is what is asked for (a folder of map tiles).
+pub fn unreadable(path: &Path, folder_ok: bool) -> Option<String> {
+    let shown = path.display();
+    let from = || {
+        std::env::current_dir()
+            .ok()
+            .filter(|_| path.is_relative())
+            .map(|dir| format!(" (a relative path starts from {})", dir.display()))
+            .unwrap_or_default()
+    };
+    match std::fs::metadata(path) {
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => {
+            Some(format!("{shown}: there is no such file{}", from()))
+        }
+        Err(err) => Some(in_words(&format!("{shown}: {err}"))),
+        Ok(meta) if meta.is_dir() && !folder_ok => Some(format!(
+            "{shown} is a folder, not a file: choose a file in it (Browse… shows what it holds)"
+        )),
+        Ok(_) => None,
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
@@ -210,5 +274,31 @@ mod tests {
         assert_eq!(recovery.text, text);
         home.clear_recovery(Document::System);
         assert!(home.recovery(Document::System).is_none());
+    }
+
+    #[test]
+    fn errors_are_said_in_words_without_errno() {
+        assert_eq!(
+            in_words("cannot read a.xml: No such file or directory (os error 2)"),
+            "cannot read a.xml: there is no such file or folder"
+        );
+        assert_eq!(
+            in_words("cannot read /tmp: Is a directory (os error 21)"),
+            "cannot read /tmp: that is a folder, not a file: choose a file in it"
+        );
+        assert_eq!(in_words("x: Broken pipe (os error 32)"), "x: Broken pipe");
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("nothing.xml");
+        assert!(
+            unreadable(&missing, false)
+                .unwrap()
+                .contains("there is no such file")
+        );
+        assert!(
+            unreadable(dir.path(), false)
+                .unwrap()
+                .contains("is a folder, not a file")
+        );
+        assert_eq!(unreadable(dir.path(), true), None);
     }
 }

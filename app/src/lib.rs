@@ -20,6 +20,7 @@
 //! [`StudioApp::ui`] in an egui_kittest harness.
 
 pub mod app;
+pub mod browser;
 pub mod command;
 pub mod common;
 pub mod dialogs;

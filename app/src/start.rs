@@ -15,9 +15,9 @@ pub enum StartChoice {
     File(PathBuf),
 }
 
-/// The bundled examples: `missions/*/` system and plan files, found from the current folder or
-/// the folders above the studio's executable (a checkout's `target/debug/`), the first found.
-pub fn examples() -> Vec<PathBuf> {
+/// The bundled examples' folder, `missions/`, found from the current folder or the folders above
+/// the studio's executable (a checkout's `target/debug/`), the first found.
+pub fn missions_folder() -> Option<PathBuf> {
     let mut roots: Vec<PathBuf> = Vec::new();
     if let Ok(dir) = std::env::current_dir() {
         roots.extend(dir.ancestors().map(Path::to_path_buf));
@@ -25,11 +25,15 @@ pub fn examples() -> Vec<PathBuf> {
     if let Ok(exe) = std::env::current_exe() {
         roots.extend(exe.ancestors().skip(1).map(Path::to_path_buf));
     }
-    let Some(missions) = roots
+    roots
         .into_iter()
         .map(|root| root.join("missions"))
         .find(|dir| dir.is_dir())
-    else {
+}
+
+/// The bundled examples: the system and plan files of `missions/*/` ([`missions_folder`]).
+pub fn examples() -> Vec<PathBuf> {
+    let Some(missions) = missions_folder() else {
         return Vec::new();
     };
     let mut files: Vec<PathBuf> = std::fs::read_dir(&missions)
@@ -54,6 +58,17 @@ pub fn examples() -> Vec<PathBuf> {
         .collect();
     files.sort();
     files
+}
+
+/// A file's name with its folder's: `demo/system.xml` and `robot/system.xml` differ.
+pub fn short_name(file: &Path) -> String {
+    let parts: Vec<_> = file.iter().rev().take(2).collect();
+    parts
+        .into_iter()
+        .rev()
+        .map(|part| part.to_string_lossy())
+        .collect::<Vec<_>>()
+        .join("/")
 }
 
 /// Shows the start page in `ui`; the choice once made.
@@ -87,19 +102,8 @@ pub fn start_ui(ui: &mut Ui, recent: &[PathBuf], examples: &[PathBuf]) -> Option
                 ui.label(RichText::new(empty).weak());
             }
             for file in files {
-                // The folder with the name: `demo/system.xml` and `robot/system.xml` differ.
-                let name = file
-                    .iter()
-                    .rev()
-                    .take(2)
-                    .collect::<Vec<_>>()
-                    .into_iter()
-                    .rev()
-                    .map(|part| part.to_string_lossy())
-                    .collect::<Vec<_>>()
-                    .join("/");
                 if ui
-                    .link(name)
+                    .link(short_name(file))
                     .on_hover_text(file.display().to_string())
                     .clicked()
                 {

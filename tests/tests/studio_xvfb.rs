@@ -238,8 +238,10 @@ fn the_mission_view_adds_waypoints_with_the_mouse_and_saves_the_plan() {
     } = &session;
     studio.wait_for("the plan", PATIENCE, |line| line.contains("opened "));
     keys_until(studio, display, window, &["w"], "waypoint tool");
-    // Two clicks in the yard's open south-west: each adds a waypoint at the route's end.
-    for (x, y, said) in [("380", "390", "added `wp1`"), ("300", "430", "added `wp2`")] {
+    // Two clicks in the yard's open west, above the first leg and below the L-shaped building
+    // (the net's panel below the map is as tall as the net needs): each adds a waypoint at
+    // the route's end.
+    for (x, y, said) in [("300", "300", "added `wp1`"), ("380", "240", "added `wp2`")] {
         let lines = studio.line_count();
         assert!(xdotool(
             display,

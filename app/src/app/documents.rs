@@ -179,10 +179,48 @@ impl StudioApp {
 
     pub(super) fn ask_path(&mut self, purpose: PathPurpose, text: String) {
         self.set_status(
-            format!("{}: type a path, then Enter", purpose.what()),
+            format!(
+                "{}: type a path, then Enter, or Browse… to pick it",
+                purpose.what()
+            ),
             false,
         );
-        self.path_dialog = Some(PathDialog::new(purpose, text));
+        self.path_dialog =
+            Some(PathDialog::new(purpose, text).for_document(self.document_file(purpose)));
+    }
+
+    /// The file of the document a path is asked for: the browser opens in its folder. A plan's
+    /// for what the Mission view reads and writes, the system's for the rest, and the run's
+    /// for a recording (it is in the run's folder, beside what ran).
+    fn document_file(&self, purpose: PathPurpose) -> Option<std::path::PathBuf> {
+        let plan = self.mission.as_ref().and_then(MissionView::path);
+        let system = self.system.path.as_deref();
+        let file = match purpose {
+            PathPurpose::Open | PathPurpose::SaveAs | PathPurpose::ExportPng => system.or(plan),
+            PathPurpose::OpenRecording => self.run.session_target().or(plan).or(system),
+            _ => plan.or(system),
+        };
+        file.map(Path::to_path_buf)
+    }
+
+    /// Opens `file` from a list (Open recent, the examples): a plan in the Mission view, a
+    /// system in the System view, as on the command line; a file that is gone is said so.
+    pub(super) fn open_listed(&mut self, file: std::path::PathBuf, ctx: &egui::Context) {
+        if let Some(why) = crate::files::unreadable(&file, false) {
+            self.set_status(why, true);
+            return;
+        }
+        if super::is_plan(&file) {
+            self.set_view(View::Mission);
+            if self.mission.is_some() {
+                self.replace(Replacing::OpenPlan(file), ctx);
+            } else {
+                self.plan_to_open = Some(file);
+            }
+        } else {
+            self.set_view(View::System);
+            self.replace(Replacing::OpenSystem(file), ctx);
+        }
     }
 
     // ----- Unsaved changes -----
@@ -272,7 +310,7 @@ impl StudioApp {
         )
     }
 
-    /// File, Open recent: the system files opened last.
+    /// File, Open recent: the systems and plans opened last, each opened in its view.
     pub(super) fn recent_menu_ui(&mut self, ui: &mut Ui) {
         ui.menu_button("Open recent", |ui| {
             let recent = self.home.recent();
@@ -281,7 +319,27 @@ impl StudioApp {
             }
             for file in recent {
                 if ui.button(file.display().to_string()).clicked() {
-                    self.replace(Replacing::OpenSystem(file), ui.ctx());
+                    self.open_listed(file, ui.ctx());
+                }
+            }
+        });
+    }
+
+    /// File, Examples: the bundled systems and plans (the start page's list), reachable
+    /// whatever happened to the start page.
+    pub(super) fn examples_menu_ui(&mut self, ui: &mut Ui) {
+        ui.menu_button("Examples", |ui| {
+            let examples = crate::start::examples();
+            if examples.is_empty() {
+                ui.label("(no missions/ folder found here)");
+            }
+            for file in examples {
+                if ui
+                    .button(crate::start::short_name(&file))
+                    .on_hover_text(file.display().to_string())
+                    .clicked()
+                {
+                    self.open_listed(file, ui.ctx());
                 }
             }
         });
@@ -309,6 +367,22 @@ impl StudioApp {
                 ctx.request_repaint();
                 if path.as_os_str().is_empty() {
                     self.set_status("no path given".to_owned(), true);
+                    return;
+                }
+                // A file to read that is not there, or is a folder, said in words before any
+                // reader says it with an error number.
+                let reads = matches!(
+                    purpose,
+                    PathPurpose::Open
+                        | PathPurpose::OpenPlan
+                        | PathPurpose::ImportGpx
+                        | PathPurpose::OpenRecording
+                );
+                if let Some(why) = reads
+                    .then(|| crate::files::unreadable(&path, false))
+                    .flatten()
+                {
+                    self.set_status(why, true);
                     return;
                 }
                 match purpose {

@@ -17,6 +17,7 @@ impl StudioApp {
                                 ui.separator();
                             }
                             MenuItem::Recent => self.recent_menu_ui(ui),
+                            MenuItem::Examples => self.examples_menu_ui(ui),
                             MenuItem::Note(text) => {
                                 ui.weak(text);
                             }

@@ -14,6 +14,9 @@ use egui::{Align2, Color32, Pos2, Rect, Vec2, vec2};
 /// How much a label matters: the lower, the sooner it is placed (and the less it is dropped).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Importance {
+    /// A robot's tag on a watched map (its localisation, the simulator's truth): placed
+    /// first, beside the robot it names.
+    Robot,
     /// A waypoint's name.
     Waypoint,
     /// A unit's name, a time constraint (NET, NLT, wait).
@@ -44,6 +47,7 @@ pub struct Placed {
     pub text: String,
     pub colour: Color32,
     pub leader: Option<[Pos2; 2]>,
+    pub importance: Importance,
 }
 
 /// The sides tried round an anchor, in order after the preferred one.
@@ -178,6 +182,7 @@ pub fn place(
                             text,
                             colour: label.colour,
                             leader,
+                            importance: label.importance,
                         });
                         break 'texts;
                     }

@@ -3,8 +3,10 @@
 //! the waypoints and the unit symbols drawn over it; and the clicks and drags that edit the
 //! plan, queued as [`PlanCommand`]s.
 
+use std::collections::HashMap;
+
 use crate::common::draw::draw_route;
-use crate::common::labels::{Importance, Label};
+use crate::common::labels::{Importance, Label, Placed};
 use crate::mission::LegRoute;
 use armor_model::plan::{AreaKind, Graphic, GraphicKind, LatLon, Plan};
 use armor_model::world::{Point, World};
@@ -166,7 +168,8 @@ impl MissionView {
     /// The map and what is drawn on it, for editing.
     pub fn map_ui(&mut self, ui: &mut Ui) {
         let selection = self.editor.selection.clone();
-        let (scene, projector, response) = self.show_map(ui, &selection, false, |_, _, _| {});
+        let (scene, projector, response) =
+            self.show_map(ui, &selection, None, Box::new(|_, _, _, _, _| {}));
         let mut out = Vec::new();
         self.handles_ui(ui, &scene, &projector, &mut out);
         self.clicks_ui(ui, &response, &scene, &projector, &mut out);
@@ -225,28 +228,33 @@ impl MissionView {
 
     /// The map for watching a run: the run's plan ([`MissionView::watch_plan`], else the plan
     /// edited) with `current` (a leg) highlighted and no editing; `overlay` paints over it,
-    /// given where a point of the world frame (metres) is on screen.
+    /// given where a point of the world frame (metres) is on screen. The plan's labels keep off
+    /// what `keep_clear` returns (the robot) and stay inside the world; they are drawn over
+    /// the overlay's shapes (a laser's hits do not cross them), its own texts keeping off them.
     pub fn watch_ui(
         &mut self,
         ui: &mut Ui,
         current: Option<usize>,
-        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect]),
+        keep_clear: &KeepClear<'_>,
+        overlay: Box<Overlay<'_>>,
     ) -> egui::Response {
         let selection = current.map_or(Selection::None, Selection::Leg);
-        let (_, _, response) = self.show_map(ui, &selection, true, overlay);
+        let (_, _, response) = self.show_map(ui, &selection, Some(keep_clear), overlay);
         response
     }
 
-    /// Draws the map with the plan (the run's when `watching` a run, else the one edited),
-    /// `selection` highlighted, then `overlay` (given the boxes of the plan's labels, which its
-    /// own texts should not cover).
+    /// Draws the map with the plan (the run's when watching a run, that is when `keep_clear`
+    /// is given, else the one edited), `selection` highlighted, then `overlay` (given the
+    /// boxes of the plan's labels, which its own texts should not cover, and the rectangle
+    /// labels stay in).
     fn show_map(
         &mut self,
         ui: &mut Ui,
         selection: &Selection,
-        watching: bool,
-        overlay: impl FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect]),
+        keep_clear: Option<&KeepClear<'_>>,
+        overlay: Box<Overlay<'_>>,
     ) -> (Scene, Projector, egui::Response) {
+        let watching = keep_clear.is_some();
         let rect = ui.available_rect_before_wrap();
         if self.map.fit_requested && rect.width() > 50.0 {
             self.map.fit_requested = false;
@@ -276,6 +284,8 @@ impl MissionView {
                 self.map.fit(centre, centre, rect.size());
             }
         }
+        // Labels stay inside the world while a run is watched.
+        let world_bounds = self.map.bounds;
         let origin = self.surroundings.origin(&self.editor.plan);
         let MapState {
             tiles,
@@ -363,13 +373,37 @@ impl MissionView {
             );
             let scale = draw_scale(&painter, response.rect, projector, origin);
             labels.obstacles.extend(scale);
-            let drawn = labels.draw(&painter);
-            overlay(
-                &painter,
-                &|p: Point| project(LatLon::from_local(p, origin)),
-                &drawn.0,
-            );
-            (scene, projector.clone(), drawn)
+            let project_local = |p: Point| project(LatLon::from_local(p, origin));
+            let beside = keep_clear.map(|keep_clear| keep_clear(&project_local));
+            let bounds = match (&beside, world_bounds) {
+                (Some(_), Some((a, b))) => {
+                    let world = Rect::from_two_pos(project(a), project(b)).intersect(response.rect);
+                    if world.width() >= 120.0 && world.height() >= 40.0 {
+                        world
+                    } else {
+                        response.rect
+                    }
+                }
+                (Some(_), None) => response.rect,
+                (None, _) => painter.clip_rect(),
+            };
+            let mut sizes = HashMap::new();
+            if let Some(beside) = beside {
+                labels.obstacles.extend(beside.obstacles);
+                for (tag, size) in beside.tags {
+                    sizes.insert(tag.text.clone(), size);
+                    labels.labels.push(tag);
+                }
+            }
+            let (placed, took) = labels.place(&painter, bounds, &sizes);
+            let boxes: Vec<Rect> = placed.iter().map(|label| label.rect).collect();
+            let (tags, placed): (Vec<Placed>, Vec<Placed>) = placed
+                .into_iter()
+                .partition(|label| label.importance == Importance::Robot);
+            // The run's shapes, then the plan's labels over them, then the run's texts.
+            overlay(&painter, &project_local, &boxes, bounds, tags);
+            paint_labels(&painter, placed);
+            (scene, projector.clone(), (boxes, took))
         });
         let (scene, projector, (label_boxes, label_time)) = response.inner;
         self.map.label_boxes = label_boxes;
@@ -709,6 +743,23 @@ fn tag(
     rect
 }
 
+/// What a watched map's labels are placed with: the boxes they keep off (the robots), and
+/// the robots' tags, placed first, each with its size (drawn larger than the map's labels).
+#[derive(Default)]
+pub struct Beside {
+    pub obstacles: Vec<Rect>,
+    pub tags: Vec<(Label, egui::Vec2)>,
+}
+
+/// What a watched map's labels are placed with ([`Beside`]), given where a point of the world
+/// frame (metres) is on screen.
+pub type KeepClear<'a> = dyn Fn(&dyn Fn(Point) -> Pos2) -> Beside + 'a;
+
+/// What a watched map's overlay is given: the painter, where a point of the world frame is on
+/// screen, every label's box, the rectangle labels stay in, and the robots' tags placed.
+pub type Overlay<'a> =
+    dyn FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect], Rect, Vec<Placed>) + 'a;
+
 const LABEL_FONT: egui::FontId = egui::FontId::proportional(11.0);
 
 /// The labels of a frame, placed together once every shape is drawn (see `labels.rs`), and
@@ -739,31 +790,37 @@ impl Labels {
         });
     }
 
-    /// Places and draws the labels; returns their boxes and the time the placement took.
-    fn draw(self, painter: &egui::Painter) -> (Vec<Rect>, std::time::Duration) {
+    /// Places the labels inside `bounds`; returns where, and the time the placement took.
+    /// `sizes`: the labels drawn otherwise than the map's (the robots' tags), by text.
+    fn place(
+        self,
+        painter: &egui::Painter,
+        bounds: Rect,
+        sizes: &HashMap<String, egui::Vec2>,
+    ) -> (Vec<Placed>, std::time::Duration) {
         let started = std::time::Instant::now();
         let mut measure = |text: &str| {
-            painter
-                .layout_no_wrap(text.to_owned(), LABEL_FONT, Color32::BLACK)
-                .size()
+            sizes.get(text).copied().unwrap_or_else(|| {
+                painter
+                    .layout_no_wrap(text.to_owned(), LABEL_FONT, Color32::BLACK)
+                    .size()
+            })
         };
-        let placed = crate::common::labels::place(
-            self.labels,
-            &self.obstacles,
-            painter.clip_rect(),
-            &mut measure,
-        );
-        let took = started.elapsed();
-        let boxes = placed.iter().map(|label| label.rect).collect();
-        for label in placed {
-            if let Some(leader) = label.leader {
-                painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
-            }
-            let galley = painter.layout_no_wrap(label.text, LABEL_FONT, label.colour);
-            painter.rect_filled(label.rect, 2.0, LABEL_BACK);
-            painter.galley(label.rect.min + vec2(2.0, 2.0), galley, label.colour);
+        let placed =
+            crate::common::labels::place(self.labels, &self.obstacles, bounds, &mut measure);
+        (placed, started.elapsed())
+    }
+}
+
+/// Draws labels placed by [`Labels::place`].
+fn paint_labels(painter: &egui::Painter, placed: Vec<Placed>) {
+    for label in placed {
+        if let Some(leader) = label.leader {
+            painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
         }
-        (boxes, took)
+        let galley = painter.layout_no_wrap(label.text, LABEL_FONT, label.colour);
+        painter.rect_filled(label.rect, 2.0, LABEL_BACK);
+        painter.galley(label.rect.min + vec2(2.0, 2.0), galley, label.colour);
     }
 }
 

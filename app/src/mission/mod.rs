@@ -33,6 +33,9 @@ pub mod plan_edit;
 pub mod symbols;
 pub mod tiles;
 
+/// What a watched map's labels are placed with: the Run view gives it (the robots).
+pub use map::Beside;
+
 /// Reachable markings explored when a plan's net is verified (as `armor check` does).
 const ANALYSIS_LIMIT_STATES: usize = 200_000;
 
@@ -414,6 +417,9 @@ impl Checked {
     }
 }
 
+/// The net panel's least height: its header and a few rows of the net.
+const NET_PANEL_MIN: f32 = 150.0;
+
 /// What a file operation of the view reports: the status line's text.
 pub type Report = anyhow::Result<String>;
 
@@ -441,6 +447,10 @@ pub struct MissionView {
     watched: Option<Watched>,
     /// The net drawn last was the run's ([`MissionView::marking_ui`]), not the edited plan's.
     net_drawn_watched: bool,
+    /// The net panel has been shown at the net's own size once (the map framed again then).
+    net_panel_sized: bool,
+    /// The net was enlarged at the last frame (the map is framed again when this changes).
+    net_was_enlarged: bool,
 }
 
 /// The plan a run plays, compiled as the Mission view compiles the plan edited.
@@ -471,6 +481,8 @@ impl MissionView {
             net_scrolled_for: None,
             watched: None,
             net_drawn_watched: false,
+            net_panel_sized: false,
+            net_was_enlarged: false,
         };
         view.refresh_surroundings(true);
         view
@@ -849,12 +861,18 @@ impl MissionView {
     /// ([`Self::watch_plan`]), else the plan edited.
     pub fn marking_ui(&mut self, ui: &mut egui::Ui, marking: &armor_model::net::Marking) {
         self.net_drawn_watched = self.watched.is_some();
-        let (checked, net_layout) = match &mut self.watched {
-            Some(watched) => (&watched.checked, &mut watched.layout),
-            None => (&self.checked, &mut self.net_layout),
+        let (checked, net_layout, plan) = match &mut self.watched {
+            Some(Watched {
+                checked,
+                layout,
+                plan,
+                ..
+            }) => (&*checked, layout, &*plan),
+            None => (&self.checked, &mut self.net_layout, &self.editor.plan),
         };
         let Some(net) = checked.net() else {
-            ui.label("The plan does not compile: no net to show.");
+            // What keeps the run's plan from compiling, as the Mission view's panel says it.
+            no_net_ui(ui, checked, plan, "run-no-net");
             return;
         };
         let current: BTreeSet<usize> = checked
@@ -895,6 +913,10 @@ impl MissionView {
 
     /// The net's panel at the bottom of `ui`: its default size (resizable), or most of the
     /// window's height when enlarged. `contents` draws the net in it.
+    ///
+    /// At first sight the panel is as tall as the net at a readable zoom needs (up to half the
+    /// height it shares with the map), so that the net is seen whole rather than cut at the
+    /// panel's bottom; then it keeps the size the user gives it.
     pub fn net_panel_ui(
         &mut self,
         ui: &mut egui::Ui,
@@ -902,18 +924,60 @@ impl MissionView {
         default_size: f32,
         contents: impl FnOnce(&mut MissionView, &mut egui::Ui),
     ) {
+        // Enlarged or back, the map changes size a lot: framed again, so that it shows its
+        // world whole rather than a corner of it (and its labels at the edge of that corner).
+        if std::mem::replace(&mut self.net_was_enlarged, self.net_view.enlarged)
+            != self.net_view.enlarged
+        {
+            self.map.fit_requested = true;
+        }
         let panel = if self.net_view.enlarged {
             // Another id, so that the size the user dragged the small panel to is kept.
             egui::Panel::bottom(format!("{id}-enlarged"))
                 .resizable(false)
                 .exact_size(ui.available_height() * 0.7)
         } else {
-            egui::Panel::bottom(id.to_owned())
+            // A panel keeps the size it was first shown at: until the net is laid out its
+            // size is the default, under another id, so that the net's own size is the first
+            // one the panel shown with it gets.
+            let (id, size) = match self.net_height_at_first_sight(ui) {
+                Some(height) => {
+                    // The map shrinks as the panel takes the net's size: framed again.
+                    if !std::mem::replace(&mut self.net_panel_sized, true) {
+                        self.map.fit_requested = true;
+                    }
+                    (
+                        format!("{id}-sized"),
+                        height.min(ui.available_height() * 0.5).max(NET_PANEL_MIN),
+                    )
+                }
+                None => (id.to_owned(), default_size),
+            };
+            egui::Panel::bottom(id)
                 .resizable(true)
-                .default_size(default_size)
-                .min_size(150.0)
+                .default_size(size)
+                .min_size(NET_PANEL_MIN)
         };
         panel.show(ui, |ui| contents(self, ui));
+    }
+
+    /// The height the net panel needs to show the whole net at a readable zoom: the net drawn
+    /// last (the run's in the Run view), laid out now if it is the plan's and not yet; `None`
+    /// while there is no net.
+    fn net_height_at_first_sight(&mut self, ui: &egui::Ui) -> Option<f32> {
+        let layout = if self.net_drawn_watched {
+            self.watched
+                .as_ref()
+                .and_then(|watched| watched.layout.as_ref())
+        } else {
+            if self.net_layout.is_none()
+                && let Some(net) = self.checked.net()
+            {
+                self.net_layout = Some(net_view::layout(net, &net_view::measure_ui(ui)));
+            }
+            self.net_layout.as_ref()
+        }?;
+        Some(layout.size.y * net_view::READABLE_ZOOM + net_view::HEADER_HEIGHT)
     }
 
     /// The net's elements that only the actions' alternatives have (drawn dashed).
@@ -944,15 +1008,7 @@ impl MissionView {
         self.net_drawn_watched = false;
         let highlighted = self.highlighted();
         let Some(net) = self.checked.net() else {
-            let (heading, reasons) = self.checked.no_net_reasons(&self.editor.plan);
-            ui.label(heading);
-            egui::ScrollArea::vertical()
-                .id_salt("mission-no-net")
-                .show(ui, |ui| {
-                    for reason in reasons {
-                        ui.colored_label(ui.visuals().error_fg_color, reason);
-                    }
-                });
+            no_net_ui(ui, &self.checked, &self.editor.plan, "mission-no-net");
             return;
         };
         let scroll = self.net_scrolled_for.as_ref() != Some(&self.editor.selection);
@@ -981,6 +1037,17 @@ impl MissionView {
             self.commands.push(PlanCommand::Select(selection));
         }
     }
+}
+
+/// Why `plan` has no net ([`Checked::no_net_reasons`]), in the net's panel.
+fn no_net_ui(ui: &mut egui::Ui, checked: &Checked, plan: &Plan, id: &str) {
+    let (heading, reasons) = checked.no_net_reasons(plan);
+    ui.label(heading);
+    egui::ScrollArea::vertical().id_salt(id).show(ui, |ui| {
+        for reason in reasons {
+            ui.colored_label(ui.visuals().error_fg_color, reason);
+        }
+    });
 }
 
 /// The folder a file is in (`.` for a bare name).

@@ -27,6 +27,11 @@ pub const LABEL_FONT_SIZE: f32 = 11.0;
 const ZOOM_STEP: f32 = 1.1;
 /// Fit never enlarges a small net past this.
 const MAX_FIT_ZOOM: f32 = 1.5;
+/// Room left round the whole net at a fit, in screen points.
+const FIT_SPARE: f32 = 4.0;
+/// What the net's panel takes besides the net: the header's line (Fit, Enlarge, the legend),
+/// the space under it and the panel's margins.
+pub const HEADER_HEIGHT: f32 = 48.0;
 /// The least zoom the view opens at: names at 9 points or more.
 pub const READABLE_ZOOM: f32 = 9.0 / LABEL_FONT_SIZE;
 const ZOOM_RANGE: std::ops::RangeInclusive<f32> = 0.05..=6.0;
@@ -327,7 +332,10 @@ impl NetViewState {
         if size.x <= 0.0 || size.y <= 0.0 || room.x <= 0.0 || room.y <= 0.0 {
             return;
         }
-        let zoom = (room.x / size.x).min(room.y / size.y).min(MAX_FIT_ZOOM);
+        // A few points to spare: text does not scale quite as the zoom does (a name drawn at
+        // a small size can stand a point or two beyond where the layout measured it).
+        let inner = (room - Vec2::splat(2.0 * FIT_SPARE)).max(Vec2::splat(1.0));
+        let zoom = (inner.x / size.x).min(inner.y / size.y).min(MAX_FIT_ZOOM);
         self.zoom = if whole { zoom } else { zoom.max(READABLE_ZOOM) };
         let spare = room - size * self.zoom;
         self.offset = vec2(

@@ -63,17 +63,19 @@ fn check(markers: &Markers) -> Result<(), String> {
 }
 
 /// Paints every layer not in `hidden`; returns how many markers of each module were drawn
-/// (those out of view are not). Text markers are placed as the map places its labels: never
-/// over `plan_labels` (the plan's, drawn already) nor over each other, moved aside with a
-/// leader line when their point is taken, and dropped when there is no room near it.
+/// (those out of view are not) and the boxes of their texts. Text markers are placed as the
+/// map places its labels: never over `taken` (the plan's labels, the robots and their tags)
+/// nor over each other, inside `bounds` (the world), moved aside with a leader line when their
+/// point is taken, and dropped when there is no room near it.
 pub fn paint(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     layers: &Layers,
     hidden: &BTreeSet<String>,
     robot: Option<&Pose2D>,
-    plan_labels: &[Rect],
-) -> BTreeMap<String, usize> {
+    taken: &[Rect],
+    bounds: Rect,
+) -> (BTreeMap<String, usize>, Vec<Rect>) {
     let mut drawn = BTreeMap::new();
     let origin = robot.map_or(Point::new(0.0, 0.0), |pose| Point::new(pose.x_m, pose.y_m));
     let near = Affine::near(project, origin);
@@ -87,8 +89,29 @@ pub fn paint(
             paint_markers(painter, &near, markers, robot, &mut texts),
         );
     }
-    texts.draw(painter, plan_labels);
-    drawn
+    let boxes = texts.draw(painter, taken, bounds);
+    (drawn, boxes)
+}
+
+/// The modules whose markers are not drawn: those the operator switched off (`hidden`), and
+/// those no longer at work (`states`: stopped, ended, crashed), whose last markers would say
+/// what is no longer so (an observer's "358° of 360°" long after it stopped).
+pub fn not_drawn(
+    hidden: &BTreeSet<String>,
+    states: &BTreeMap<String, armor_protocol::ModuleState>,
+) -> BTreeSet<String> {
+    use armor_protocol::ModuleState;
+    let stopped = states.iter().filter(|(_, state)| {
+        !matches!(
+            state,
+            ModuleState::Running | ModuleState::Starting | ModuleState::Restarting
+        )
+    });
+    hidden
+        .iter()
+        .cloned()
+        .chain(stopped.map(|(module, _)| module.clone()))
+        .collect()
 }
 
 /// The text markers of a frame, placed together once the shapes are drawn.
@@ -112,9 +135,9 @@ impl Texts {
         });
     }
 
-    fn draw(self, painter: &egui::Painter, plan_labels: &[Rect]) {
+    fn draw(self, painter: &egui::Painter, taken: &[Rect], bounds: Rect) -> Vec<Rect> {
         if self.labels.is_empty() {
-            return;
+            return Vec::new();
         }
         let font = |fonts: &BTreeMap<String, f32>, text: &str| {
             egui::FontId::proportional(fonts.get(text).copied().unwrap_or(12.0))
@@ -124,7 +147,8 @@ impl Texts {
                 .layout_no_wrap(text.to_owned(), font(&self.fonts, text), Color32::BLACK)
                 .size()
         };
-        let placed = labels::place(self.labels, plan_labels, painter.clip_rect(), &mut measure);
+        let placed = labels::place(self.labels, taken, bounds, &mut measure);
+        let boxes = placed.iter().map(|label| label.rect).collect();
         for label in placed {
             if let Some(leader) = label.leader {
                 painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
@@ -136,6 +160,7 @@ impl Texts {
             );
             painter.galley(label.rect.min + Vec2::splat(2.0), galley, label.colour);
         }
+        boxes
     }
 }
 
@@ -247,14 +272,26 @@ fn paint_markers(
 }
 
 /// The switch of each module's layer (checked: drawn), with how many markers it holds.
-pub fn toggles_ui(ui: &mut Ui, layers: &Layers, hidden: &mut BTreeSet<String>) {
+/// `stopped`: the modules no longer at work, whose markers are not drawn whatever the switch
+/// says ([`not_drawn`]); their switch says so.
+pub fn toggles_ui(
+    ui: &mut Ui,
+    layers: &Layers,
+    hidden: &mut BTreeSet<String>,
+    stopped: &BTreeSet<String>,
+) {
     if layers.by_module.is_empty() {
         ui.label("No module publishes markers yet.");
         return;
     }
     for (module, markers) in &layers.by_module {
         let mut shown = !hidden.contains(module);
-        let label = format!("{module} ({} markers)", markers.markers.len());
+        let count = markers.markers.len();
+        let label = if stopped.contains(module) {
+            format!("{module} ({count} markers, not drawn: the module stopped)")
+        } else {
+            format!("{module} ({count} markers)")
+        };
         if ui.checkbox(&mut shown, label).changed() {
             if shown {
                 hidden.remove(module);
@@ -401,7 +438,9 @@ mod text_tests {
                 &BTreeSet::new(),
                 None,
                 &[plan_label],
-            );
+                ui.painter().clip_rect(),
+            )
+            .0;
         });
         assert_eq!(drawn.values().sum::<usize>(), 2);
         let boxes = text_boxes(&output);
@@ -416,6 +455,53 @@ mod text_tests {
             assert!(rect.distance_to_pos(at) < 60.0, "{rect:?} far from {at:?}");
         }
         assert!(!boxes[0].1.intersects(boxes[1].1), "{boxes:?}");
+        output.textures_delta.clear();
+    }
+
+    /// Issue 37, defect 4: a module's markers go when it stops (the observer's "358° of
+    /// 360°" stayed on the map long after it had), and come back when it runs again.
+    #[test]
+    fn a_stopped_modules_markers_are_not_drawn() {
+        use armor_protocol::ModuleState;
+        let hidden: BTreeSet<String> = ["scan_layer".to_owned()].into();
+        let mut states = BTreeMap::new();
+        states.insert("observer".to_owned(), ModuleState::Running);
+        states.insert("follower".to_owned(), ModuleState::Running);
+        assert_eq!(not_drawn(&hidden, &states), hidden);
+        states.insert("observer".to_owned(), ModuleState::Stopped);
+        states.insert("follower".to_owned(), ModuleState::Exited);
+        let off = not_drawn(&hidden, &states);
+        assert!(off.contains("observer") && off.contains("follower") && off.contains("scan_layer"));
+        states.insert("observer".to_owned(), ModuleState::Restarting);
+        assert!(!not_drawn(&hidden, &states).contains("observer"));
+    }
+
+    /// The switch of a stopped module's layer says why its markers are not drawn.
+    #[test]
+    fn a_stopped_modules_switch_says_its_markers_are_not_drawn() {
+        let mut layers = Layers::default();
+        for module in ["observer", "follower"] {
+            layers.by_module.insert(
+                module.to_owned(),
+                Arc::new(Markers {
+                    markers: vec![Marker::default()],
+                }),
+            );
+        }
+        let stopped: BTreeSet<String> = ["observer".to_owned()].into();
+        let ctx = egui::Context::default();
+        let mut output = ctx.run_ui(egui::RawInput::default(), |ui| {
+            toggles_ui(ui, &layers, &mut BTreeSet::new(), &stopped);
+        });
+        let texts: Vec<String> = text_boxes(&output)
+            .into_iter()
+            .map(|(text, _)| text)
+            .collect();
+        assert!(
+            texts.contains(&"observer (1 markers, not drawn: the module stopped)".to_owned())
+                && texts.contains(&"follower (1 markers)".to_owned()),
+            "{texts:?}"
+        );
         output.textures_delta.clear();
     }
 }

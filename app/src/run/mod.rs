@@ -110,6 +110,10 @@ pub struct RunView {
     pub timeline_at: Option<f64>,
     /// How many markers of each module the live map drew at the last frame (for tests).
     pub markers_drawn: BTreeMap<String, usize>,
+    /// What the map drew at the last frame, for tests of its layout: every label's and tag's
+    /// box (the plan's, the robots', the markers' texts), the robots' boxes, and the rectangle
+    /// labels were kept in (the world's on screen).
+    pub map_layout: MapLayout,
     /// Run → Attach…'s prompt, while it is open.
     pub attach_prompt: Option<attach::AttachPrompt>,
     /// The files of a run attached without its system file, written where the Run view reads
@@ -153,6 +157,7 @@ impl RunView {
             inspected: None,
             timeline_at: None,
             markers_drawn: BTreeMap::new(),
+            map_layout: MapLayout::default(),
             attach_prompt: None,
             attach_mirror: None,
             set_pose_tool: false,
@@ -771,7 +776,8 @@ impl RunView {
         let live = self.live();
         ui.separator();
         ui.heading("Markers");
-        markers::toggles_ui(ui, &live.markers, &mut self.hidden_markers);
+        let stopped = markers::not_drawn(&BTreeSet::new(), &self.module_states());
+        markers::toggles_ui(ui, &live.markers, &mut self.hidden_markers, &stopped);
         ui.separator();
         ui.heading("Inspect an output");
         inspector::inspector_ui(ui, &live.outputs, &mut self.inspected);
@@ -1208,7 +1214,8 @@ impl RunView {
         let fit = std::mem::take(&mut self.fit_pending) || net_appeared;
         let follow = self.follow;
         let max_replans = self.max_replans;
-        let hidden = self.hidden_markers.clone();
+        // A module's markers go when it stops: what they said is no longer so.
+        let not_drawn = markers::not_drawn(&self.hidden_markers, &self.module_states());
         let watching = self.is_running() || self.recording.is_some();
         let verdict = self.rehearsal();
         let set_pose_tool = self.set_pose_tool;
@@ -1300,28 +1307,46 @@ impl RunView {
             });
         }
         let mut drawn = BTreeMap::new();
-        let map = mission.watch_ui(ui, current_leg, |painter, project, plan_labels| {
-            let labels = monitor::paint_live(
-                painter,
-                project,
-                &live,
-                grid_texture.as_ref(),
-                &followed,
-                plan_labels,
-            );
-            drawn = markers::paint(
-                painter,
-                project,
-                &live.markers,
-                &hidden,
-                live.scan_pose(),
-                &labels,
-            );
-        });
+        let mut layout = MapLayout::default();
+        // Text is measured as the map will draw it (the tags are placed with its labels).
+        let ui_painter = ui.painter().clone();
+        let keep_clear = |project: &dyn Fn(armor_model::world::Point) -> egui::Pos2| {
+            monitor::robot_tags(&ui_painter, project, &live)
+        };
+        let map = mission.watch_ui(
+            ui,
+            current_leg,
+            &keep_clear,
+            Box::new(|painter, project, labels, bounds, tags| {
+                let taken = monitor::paint_live(
+                    painter,
+                    project,
+                    &live,
+                    grid_texture.as_ref(),
+                    &followed,
+                    labels,
+                    tags,
+                );
+                let texts;
+                (drawn, texts) = markers::paint(
+                    painter,
+                    project,
+                    &live.markers,
+                    &not_drawn,
+                    live.scan_pose(),
+                    &taken,
+                    bounds,
+                );
+                layout.robots = monitor::robot_boxes(project, &live);
+                layout.labels = labels.iter().copied().chain(texts).collect();
+                layout.bounds = Some(bounds);
+            }),
+        );
         let set_pose = set_pose_tool
             .then(|| set_pose_ui(ui, &map, mission, &mut set_pose_from))
             .flatten();
         self.markers_drawn = drawn;
+        self.map_layout = layout;
         self.followed = followed;
         self.set_pose_from = set_pose_from;
         if let Some(request) = set_pose {
@@ -1492,6 +1517,17 @@ fn plan_of(target: &Target) -> Option<updates::RunPlan> {
     updates::RunPlan::of_text(&text, &path.display().to_string())
         .map_err(|why| tracing::warn!("{why}"))
         .ok()
+}
+
+/// What the Run view's map drew at its last frame, for tests of its layout.
+#[derive(Clone, Debug, Default)]
+pub struct MapLayout {
+    /// Every label's box: the plan's, the robots' tags, the markers' texts.
+    pub labels: Vec<egui::Rect>,
+    /// The robots' boxes (the estimate's disc, the truth's ring).
+    pub robots: Vec<egui::Rect>,
+    /// The rectangle the labels were kept in: the world's on screen (none before a frame).
+    pub bounds: Option<egui::Rect>,
 }
 
 /// The Run button's text: what it runs ("▶ Run plan", "▶ Run system"), its file in the hover.

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use armor_model::world::Point;
 use armor_module_api::types::{LocalisationState, OccupancyGrid, Pose2D, PoseEstimate};
 use armor_protocol::{FiringRecord, ModuleState, ModuleStatus, Request};
-use egui::{Color32, Pos2, RichText, Stroke, Ui};
+use egui::{Align2, Color32, Pos2, RichText, Stroke, Ui};
 use egui_plot::{Line, Plot, Points};
 
 use super::followed::FollowedLeg;
@@ -16,6 +16,8 @@ use super::live::LiveData;
 use super::session::Sample;
 use super::untrusted::{self, Refused};
 use crate::common::draw::state_colour;
+use crate::common::labels::{Importance, Label, Placed};
+use crate::mission::Beside;
 
 const TRUTH: Color32 = Color32::from_rgb(20, 110, 220);
 const ESTIMATE: Color32 = Color32::from_rgb(230, 120, 0);
@@ -357,7 +359,8 @@ pub fn paint_live(
     live: &LiveData,
     grid: Option<&(egui::TextureHandle, Arc<OccupancyGrid>)>,
     followed: &FollowedLeg,
-    plan_labels: &[egui::Rect],
+    labels: &[egui::Rect],
+    tags: Vec<Placed>,
 ) -> Vec<egui::Rect> {
     if let Some((texture, grid)) = grid {
         let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
@@ -399,7 +402,14 @@ pub fn paint_live(
     {
         let colour = localisation_colour(estimate.state);
         let outline: Vec<Pos2> = outline.into_iter().map(project).collect();
-        if outline.iter().all(|p| p.is_finite()) {
+        // An ellipse inside the robot's disc says only "certain": drawn, it is one more ring
+        // round the robot (the tag says the state in words).
+        let beyond_robot = on_screen(project, pose).is_some_and(|(centre, _, radius)| {
+            outline
+                .iter()
+                .any(|p| p.distance(centre) > radius + ROBOT_RING_POINTS)
+        });
+        if beyond_robot && outline.iter().all(|p| p.is_finite()) {
             painter.add(egui::Shape::convex_polygon(
                 outline,
                 colour.gamma_multiply(0.18),
@@ -414,7 +424,35 @@ pub fn paint_live(
     if let Some(pose) = &live.estimated {
         robot(painter, project, pose, ESTIMATE);
     }
-    let mut taken = plan_labels.to_vec();
+    // The robots' tags were placed with the plan's labels, before them (`robot_tags`).
+    for placed in tags {
+        if let Some(leader) = placed.leader {
+            painter.line_segment(leader, Stroke::new(1.5, placed.colour));
+        }
+        painter.rect(
+            placed.rect,
+            4.0,
+            placed.colour,
+            Stroke::new(1.0, Color32::WHITE),
+            egui::StrokeKind::Inside,
+        );
+        let galley = painter.layout_no_wrap(placed.text, TAG_FONT, Color32::WHITE);
+        let inset = (placed.rect.size() - galley.size()) / 2.0;
+        painter.galley(placed.rect.min + inset, galley, Color32::WHITE);
+    }
+    let mut taken = labels.to_vec();
+    taken.extend(robot_boxes(project, live));
+    taken
+}
+
+/// What the map's labels are placed with while a run is watched: the robots' boxes, which no
+/// label covers, and their tags (`localised`, `true pose (simulator)`), placed first.
+pub fn robot_tags(
+    painter: &egui::Painter,
+    project: &dyn Fn(Point) -> Pos2,
+    live: &LiveData,
+) -> Beside {
+    let mut tags = Vec::new();
     if let Some(pose) = &live.estimated {
         let (text, colour) = match &live.estimate {
             Some(estimate) => (
@@ -423,28 +461,78 @@ pub fn paint_live(
             ),
             None => ("estimate".to_owned(), ESTIMATE),
         };
-        tag(
-            painter,
+        tags.extend(tag_label(
             project,
             pose,
-            &text,
+            text,
             colour,
-            Side::Above,
-            &mut taken,
-        );
+            Align2::CENTER_BOTTOM,
+        ));
     }
     if let Some(pose) = &live.truth {
-        tag(
-            painter,
+        tags.extend(tag_label(
             project,
             pose,
-            TRUTH_LABEL,
+            TRUTH_LABEL.to_owned(),
             TRUTH,
-            Side::Below,
-            &mut taken,
-        );
+            Align2::CENTER_TOP,
+        ));
     }
-    taken
+    let tags = tags
+        .into_iter()
+        .map(|tag| {
+            let size = painter
+                .layout_no_wrap(tag.text.clone(), TAG_FONT, Color32::WHITE)
+                .size()
+                + TAG_PADDING;
+            (tag, size)
+        })
+        .collect();
+    Beside {
+        obstacles: robot_boxes(project, live),
+        tags,
+    }
+}
+
+/// The tags' text size, and the room round their text (beyond the placer's margin).
+const TAG_FONT: egui::FontId = egui::FontId::proportional(14.0);
+const TAG_PADDING: egui::Vec2 = egui::vec2(6.0, 0.0);
+/// How far the truth's dashed ring stands out of the robot's disc, its stroke included.
+const ROBOT_RING_POINTS: f32 = 5.0;
+
+/// The boxes the robots take on the map (the estimate's disc, the truth's ring and heading):
+/// no label may cover them.
+pub fn robot_boxes(project: &dyn Fn(Point) -> Pos2, live: &LiveData) -> Vec<egui::Rect> {
+    [&live.estimated, &live.truth]
+        .into_iter()
+        .flatten()
+        .filter_map(|pose| on_screen(project, pose))
+        .map(|(centre, _, radius)| {
+            egui::Rect::from_center_size(
+                centre,
+                egui::Vec2::splat(2.0 * (radius + ROBOT_RING_POINTS)),
+            )
+        })
+        .collect()
+}
+
+/// A robot's tag, to place beside it (first on the `preferred` side).
+fn tag_label(
+    project: &dyn Fn(Point) -> Pos2,
+    pose: &Pose2D,
+    text: String,
+    colour: Color32,
+    preferred: Align2,
+) -> Option<Label> {
+    let (centre, _, radius) = on_screen(project, pose)?;
+    Some(Label {
+        anchors: vec![centre],
+        gap: radius + ROBOT_RING_POINTS + 1.0,
+        preferred,
+        text,
+        colour,
+        importance: Importance::Robot,
+    })
 }
 
 /// Points of the uncertainty ellipse's outline.
@@ -452,59 +540,6 @@ const ELLIPSE_POINTS: usize = 48;
 /// The label of the simulator's pose on the map: it is the judge, not something the robot
 /// knows.
 pub const TRUTH_LABEL: &str = "true pose (simulator)";
-
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Side {
-    Above,
-    Below,
-}
-
-/// A word on a filled tag beside a robot: above it or below it, else on a side where it covers
-/// no label or tag already drawn (`taken`).
-fn tag(
-    painter: &egui::Painter,
-    project: &dyn Fn(Point) -> Pos2,
-    pose: &Pose2D,
-    text: &str,
-    fill: Color32,
-    side: Side,
-    taken: &mut Vec<egui::Rect>,
-) {
-    let Some((centre, _, radius)) = on_screen(project, pose) else {
-        return;
-    };
-    let galley = painter.layout_no_wrap(
-        text.to_owned(),
-        egui::FontId::proportional(14.0),
-        Color32::WHITE,
-    );
-    let size = galley.size() + egui::vec2(10.0, 4.0);
-    // Beside the robot, on the side asked first, then the other sides; where none is free, the
-    // side asked (a tag far from its robot would say nothing).
-    let gap = radius + 4.0;
-    let above = egui::vec2(0.0, -(gap + size.y / 2.0));
-    let below = egui::vec2(0.0, gap + size.y / 2.0);
-    let right = egui::vec2(gap + size.x / 2.0, 0.0);
-    let left = egui::vec2(-(gap + size.x / 2.0), 0.0);
-    let offsets = match side {
-        Side::Above => [above, right, left, below],
-        Side::Below => [below, right, left, above],
-    };
-    let rect = offsets
-        .iter()
-        .map(|offset| egui::Rect::from_center_size(centre + *offset, size))
-        .find(|rect| !taken.iter().any(|other| other.intersects(*rect)))
-        .unwrap_or_else(|| egui::Rect::from_center_size(centre + offsets[0], size));
-    painter.rect(
-        rect,
-        4.0,
-        fill,
-        Stroke::new(1.0, Color32::WHITE),
-        egui::StrokeKind::Outside,
-    );
-    painter.galley(rect.min + egui::vec2(5.0, 2.0), galley, Color32::WHITE);
-    taken.push(rect);
-}
 
 /// The simulator's pose: the robot's outline only, dashed, with its heading as a line, so that
 /// it never reads as a second robot nor hides the estimate drawn over it.

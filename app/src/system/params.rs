@@ -1,11 +1,14 @@
 //! A block's dialog: its name and its parameters, each checked as typed against the module's
-//! description; a value reaches the document only once it is valid.
+//! description; a value reaches the document only once it is valid. A parameter that names a
+//! file (a world, a map) has a Browse… button: the file is picked, not typed.
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 use egui::{RichText, Ui};
 
 use super::{ERROR, OK, SystemView};
+use crate::browser::{Browser, BrowserAnswer, BrowserRequest};
 use crate::common::palette::Catalog;
 use crate::system::diagram::BlockId;
 use crate::system::editor::Command;
@@ -15,6 +18,8 @@ pub(super) struct ParamsDialog {
     block: BlockId,
     name: String,
     values: BTreeMap<String, String>,
+    /// The browser of a file parameter (its name), while it is open.
+    browser: Option<(String, Browser)>,
 }
 
 impl SystemView {
@@ -26,6 +31,7 @@ impl SystemView {
             block,
             name: found.name.clone(),
             values: found.params.clone(),
+            browser: None,
         });
     }
 
@@ -40,6 +46,28 @@ impl SystemView {
             return;
         };
         let description = catalog.get(&block.module_type);
+        let system_folder = self
+            .path
+            .as_deref()
+            .and_then(Path::parent)
+            .map(Path::to_path_buf);
+        // A file picked in a parameter's browser is its value, as if typed.
+        let mut picked = None;
+        if let Some((param, browser)) = &mut dialog.browser {
+            match browser.ui(ctx) {
+                None => {}
+                Some(BrowserAnswer::Picked(file)) => {
+                    let assets = description
+                        .and_then(|d| d.param(param))
+                        .and_then(|spec| spec.file.clone())
+                        .unwrap_or_default();
+                    let value = param_value_of(&file, system_folder.as_deref(), &assets);
+                    picked = Some((param.clone(), value));
+                    dialog.browser = None;
+                }
+                Some(BrowserAnswer::Cancelled) => dialog.browser = None,
+            }
+        }
         let mut open = true;
         let mut close = false;
         egui::Window::new(format!("Block {}", block.name))
@@ -99,6 +127,13 @@ impl SystemView {
                                 None => "required".to_owned(),
                             };
                             let value = dialog.values.entry(spec.name.clone()).or_default();
+                            let picked_here = picked
+                                .as_ref()
+                                .is_some_and(|(param, _)| *param == spec.name);
+                            if let Some((_, file)) = picked.as_ref().filter(|_| picked_here) {
+                                value.clone_from(file);
+                            }
+                            let mut browse = false;
                             let (edit, verdict) = ui
                                 .horizontal(|ui| {
                                     let label = ui.label(RichText::new(&spec.name).strong());
@@ -112,6 +147,15 @@ impl SystemView {
                                                 .desired_width(140.0),
                                         )
                                         .labelled_by(label.id);
+                                    if let Some(assets) = &spec.file {
+                                        browse = ui
+                                            .button("Browse…")
+                                            .on_hover_text(format!(
+                                                "Pick the file (found beside the system file, \
+                                                 or in assets/{assets}/)"
+                                            ))
+                                            .clicked();
+                                    }
                                     // Checked as typed: the verdict is of this frame's text.
                                     let trimmed = value.trim().to_owned();
                                     let verdict = if trimmed.is_empty() {
@@ -148,7 +192,18 @@ impl SystemView {
                             // A value is written to the document only once it is valid, so the
                             // document never holds a value `armor check` would refuse; an emptied
                             // field returns the parameter to its default.
-                            if edit.changed() {
+                            if browse && let Some(assets) = &spec.file {
+                                let request = BrowserRequest {
+                                    title: &format!("Choose the file of `{}`", spec.name),
+                                    folder: param_folder(value, system_folder.as_deref(), assets),
+                                    document_folder: system_folder.clone(),
+                                    filter: ("Any file", &[]),
+                                    save_as: None,
+                                    folder_wanted: false,
+                                };
+                                dialog.browser = Some((spec.name.clone(), Browser::open(request)));
+                            }
+                            if edit.changed() || picked_here {
                                 let value = match verdict {
                                     Ok(value) => Some(value),
                                     Err(_) if value.trim().is_empty() => Some(None),
@@ -172,5 +227,93 @@ impl SystemView {
         if !open || close {
             self.params = None;
         }
+    }
+}
+
+/// The value a parameter naming a file gets for `file` picked in the browser: as `armor run`
+/// finds it from the system's folder (`system_folder`, when the system has a file) or under
+/// `assets/ASSETS/`: its bare name when that finds this very file, else its path from the
+/// system's folder, else (a system never saved) the whole path.
+fn param_value_of(file: &Path, system_folder: Option<&Path>, assets: &str) -> String {
+    let same = |found: &Path| match (std::fs::canonicalize(found), std::fs::canonicalize(file)) {
+        (Ok(found), Ok(file)) => found == file,
+        _ => false,
+    };
+    let folder = system_folder.map_or_else(
+        || std::env::current_dir().unwrap_or_default(),
+        Path::to_path_buf,
+    );
+    if let Some(name) = file
+        .file_name()
+        .map(|name| name.to_string_lossy().into_owned())
+        && armor_runtime::paths::resolve(&name, &folder, &[], assets)
+            .is_ok_and(|found| same(&found))
+    {
+        return name;
+    }
+    match system_folder {
+        Some(folder) => armor_runtime::fs::relative_path(file, folder)
+            .display()
+            .to_string(),
+        None => std::path::absolute(file)
+            .unwrap_or_else(|_| file.to_path_buf())
+            .display()
+            .to_string(),
+    }
+}
+
+/// The folder a parameter's browser opens in: that of the file its value names now, else the
+/// system's, else the current folder's `assets/ASSETS/`, else the current folder.
+fn param_folder(value: &str, system_folder: Option<&Path>, assets: &str) -> PathBuf {
+    let cwd = std::env::current_dir().unwrap_or_default();
+    let from = system_folder.unwrap_or(&cwd);
+    let current = Some(value.trim())
+        .filter(|value| !value.is_empty())
+        .and_then(|value| armor_runtime::paths::resolve(value, from, &[], assets).ok())
+        .and_then(|found| found.parent().map(Path::to_path_buf));
+    let assets_here = Some(cwd.join("assets").join(assets)).filter(|dir| dir.is_dir());
+    current
+        .or_else(|| system_folder.map(Path::to_path_buf))
+        .or(assets_here)
+        .unwrap_or(cwd)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_picked_file_is_named_as_armor_run_finds_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let worlds = dir.path().join("assets").join("worlds");
+        std::fs::create_dir_all(&worlds).unwrap();
+        let yard = worlds.join("yard.world");
+        std::fs::write(&yard, "world").unwrap();
+        let robot = dir.path().join("robot");
+        std::fs::create_dir(&robot).unwrap();
+        // Found under assets/worlds/ of a folder above the system's: its bare name.
+        assert_eq!(param_value_of(&yard, Some(&robot), "worlds"), "yard.world");
+        // Beside the system: its bare name; elsewhere, its path from the system's folder.
+        let beside = robot.join("here.world");
+        std::fs::write(&beside, "world").unwrap();
+        assert_eq!(
+            param_value_of(&beside, Some(&robot), "worlds"),
+            "here.world"
+        );
+        let other = dir.path().join("maps");
+        std::fs::create_dir(&other).unwrap();
+        let far = other.join("far.world");
+        std::fs::write(&far, "world").unwrap();
+        assert_eq!(
+            param_value_of(&far, Some(&robot), "worlds"),
+            Path::new("..")
+                .join("maps")
+                .join("far.world")
+                .display()
+                .to_string()
+        );
+        assert_eq!(param_folder("yard.world", Some(&robot), "worlds"), worlds);
+        assert_eq!(param_folder("", Some(&robot), "worlds"), robot);
     }
 }

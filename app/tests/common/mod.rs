@@ -167,3 +167,26 @@ pub fn run_until(
     }
     harness.run();
 }
+
+/// A bundled example of `missions/robot/` (a plan or a system).
+pub fn robot_file(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../missions/robot")
+        .join(name)
+}
+
+/// The studio on `file` (a plan opens in the Mission view), its first frames drawn.
+pub fn studio_on(home: &Path, file: PathBuf) -> Harness<'static, StudioApp> {
+    let mut harness = Harness::builder()
+        .with_size(SIZE)
+        .with_step_dt(1.0 / 60.0)
+        .with_max_steps(60)
+        .build_ui_state(
+            |ui, app: &mut StudioApp| app.ui(ui),
+            StudioApp::new(options(home, Some(file))),
+        );
+    for _ in 0..3 {
+        harness.run();
+    }
+    harness
+}
