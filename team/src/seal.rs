@@ -202,6 +202,10 @@ pub struct Channel {
     transport: snow::StatelessTransportState,
     next_nonce: u64,
     window: Window,
+    /// Samples opened, and one past the highest nonce opened: the peer numbers every sample it
+    /// seals, so their difference is what was lost on the way (the link's quality).
+    opened: u64,
+    sent: u64,
 }
 
 impl std::fmt::Debug for Channel {
@@ -218,6 +222,8 @@ impl Channel {
             transport,
             next_nonce: 0,
             window: Window::default(),
+            opened: 0,
+            sent: 0,
         }
     }
 
@@ -259,7 +265,15 @@ impl Channel {
             .map_err(|_| SealError::Forged)?;
         plain.truncate(len);
         self.window.mark(nonce);
+        self.opened += 1;
+        self.sent = self.sent.max(nonce + 1);
         Ok(plain)
+    }
+
+    /// The samples opened so far, and those the peer sealed up to the latest opened (received
+    /// or not).
+    pub fn counts(&self) -> (u64, u64) {
+        (self.opened, self.sent)
     }
 }
 
