@@ -1,12 +1,14 @@
 //! The operator station's view on its own, fed as `armor-team station --json` feeds it: every
-//! robot in the table with its state, leg, localisation, report age and link; a robot not heard
+//! robot in the table with its state, leg, localisation, report age, link and camera; a robot not heard
 //! from shown with its last known state; an operator's Pause sent to the robot chosen; an
 //! observer's commands greyed with the reason, and nothing sent.
 #![allow(clippy::unwrap_used)]
 
 use std::sync::mpsc::{Receiver, Sender};
 
-use armor_protocol::team::{LinkQuality, RobotReport, RobotStatus, RoutePoint, StationEvent};
+use armor_protocol::team::{
+    CameraSeen, LinkQuality, RobotReport, RobotStatus, RoutePoint, StationEvent,
+};
 use armor_studio::station::{FromStation, Link, OBSERVER_CANNOT, StationView};
 use egui_kittest::Harness;
 use egui_kittest::kittest::{NodeT as _, Queryable as _};
@@ -39,6 +41,12 @@ fn report(robot: &str, state: &str, age_secs: f64, received: u64) -> RobotReport
         report_age_secs: Some(age_secs),
         kbit_per_sec: 7.9,
         link: LinkQuality { received, sent: 20 },
+        camera: (robot == "r1").then(|| CameraSeen {
+            name: "camera.image".into(),
+            frames_per_sec: 2.0,
+            kbit_per_sec: 331.4,
+            frame_bytes: 20_000,
+        }),
     }
 }
 
@@ -86,6 +94,8 @@ fn every_robot_is_listed_with_its_state_and_link() {
     harness.get_by_label("good, loss 0 %");
     harness.get_by_label("lost, loss 25 %");
     assert_eq!(harness.get_all_by_label("localised").count(), 2);
+    // r1's camera at its rate; r2 has none.
+    harness.get_by_label("2.0/s, 331 kbit/s");
     assert!(harness.query_by_label(OBSERVER_CANNOT).is_none());
 }
 

@@ -118,12 +118,7 @@ fn stand_ins(
 }
 
 fn default_budget() -> Budget {
-    Budget {
-        status_hz: 2.0,
-        pose_hz: 5.0,
-        output_hz: 1.0,
-        kbit_per_sec: 50.0,
-    }
+    Budget::default()
 }
 
 fn latency(quick: bool) -> anyhow::Result<Report> {

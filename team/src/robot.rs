@@ -39,6 +39,36 @@ pub struct Budget {
     /// What the robot may send each station, in kbit/s: outputs wait when it is spent.
     #[arg(long = "budget-kbps", default_value_t = 50.0)]
     pub kbit_per_sec: f64,
+    /// Frames a second of the `--camera`, at most.
+    #[arg(long, default_value_t = 2.0)]
+    pub camera_hz: f64,
+    /// The camera's own budget per station, in kbit/s, apart from the robot's: a frame that
+    /// does not fit waits for the next, so the rate falls rather than the budget overflows.
+    #[arg(long = "camera-kbps", default_value_t = 400.0)]
+    pub camera_kbit_per_sec: f64,
+}
+
+impl Default for Budget {
+    /// The defaults of the command line.
+    fn default() -> Budget {
+        Budget {
+            status_hz: 2.0,
+            pose_hz: 5.0,
+            output_hz: 1.0,
+            kbit_per_sec: 50.0,
+            camera_hz: 2.0,
+            camera_kbit_per_sec: 400.0,
+        }
+    }
+}
+
+/// What a sample is, for the budget: a status or a pose always goes, an output waits for the
+/// robot's budget, a camera frame for the camera's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Class {
+    Essential,
+    Output,
+    Camera,
 }
 
 /// `armor-team robot`: on a robot, beside its `armor run`.
@@ -65,6 +95,9 @@ pub struct Options {
     /// An output to forward (sent when it changed, at --output-hz at most); repeat.
     #[arg(long = "output")]
     pub outputs: Vec<String>,
+    /// A camera's images (an `Image` output) to forward at --camera-hz within --camera-kbps.
+    #[arg(long)]
+    pub camera: Option<String>,
     #[command(flatten)]
     pub budget: Budget,
     /// Seconds without an operator's beat before the run is told its link is lost.
@@ -82,6 +115,8 @@ struct Peer {
     heard: Instant,
     /// Bytes it may still be sent now (a token bucket refilled at the budget's rate).
     tokens: f64,
+    /// The same for the camera's budget.
+    camera_tokens: f64,
     refilled: Instant,
 }
 
@@ -100,6 +135,8 @@ pub struct Shared {
     localisation: Option<LocalisationState>,
     /// Chosen outputs that changed since they were last sent: name → (type, bytes).
     outputs: BTreeMap<String, (String, Vec<u8>)>,
+    /// The camera's latest frame not sent yet: its name, type and bytes.
+    camera: Option<(String, String, Vec<u8>)>,
     agent: Option<String>,
 }
 
@@ -179,6 +216,10 @@ pub trait RunLink: Send {
     fn route(&mut self) -> anyhow::Result<Vec<RoutePoint>>;
     /// The robot's pose, for a run whose pose does not come from its agent (a stand-in).
     fn pose(&mut self) -> Option<(f64, f64, f64)> {
+        None
+    }
+    /// A camera frame (name, type, bytes), for a run whose images do not come from its agent.
+    fn camera(&mut self) -> Option<(String, String, Vec<u8>)> {
         None
     }
 }
@@ -302,6 +343,7 @@ impl Bridge {
                                     confirmed: false,
                                     heard: now,
                                     tokens: 0.0,
+                                    camera_tokens: 0.0,
                                     refilled: now,
                                 },
                             );
@@ -441,6 +483,7 @@ impl Bridge {
         let mut next_pose = Instant::now();
         let mut next_output = Instant::now();
         let mut next_route = Instant::now();
+        let mut next_camera = Instant::now();
         let mut next_route_fetch = Instant::now();
         // The route is fetched again when the mission changes (another plan, an update taken).
         let mut route: Option<(String, usize, Vec<RoutePoint>)> = None;
@@ -492,7 +535,7 @@ impl Bridge {
                 }
                 let shared = lock(&shared);
                 ups.push((
-                    true,
+                    Class::Essential,
                     Up::Status(robot_status(
                         &robot,
                         status.as_ref(),
@@ -508,9 +551,25 @@ impl Bridge {
                     && !points.is_empty()
                 {
                     ups.push((
-                        true,
+                        Class::Essential,
                         Up::Plan {
                             route: points.clone(),
+                        },
+                    ));
+                }
+            }
+            if now >= next_camera {
+                next_camera = now + Duration::from_secs_f64(1.0 / budget.camera_hz);
+                let from_run = lock_control(&control).camera();
+                let frame = from_run.or_else(|| lock(&shared).camera.take());
+                if let Some((name, data_type, bytes)) = frame {
+                    use base64::Engine as _;
+                    ups.push((
+                        Class::Camera,
+                        Up::Camera {
+                            name,
+                            data_type,
+                            base64: base64::engine::general_purpose::STANDARD.encode(bytes),
                         },
                     ));
                 }
@@ -523,7 +582,7 @@ impl Bridge {
                 }
                 if let Some((x_m, y_m, heading_rad)) = lock(&shared).pose {
                     ups.push((
-                        true,
+                        Class::Essential,
                         Up::Pose {
                             x_m,
                             y_m,
@@ -537,7 +596,7 @@ impl Bridge {
                 for (name, (data_type, bytes)) in std::mem::take(&mut lock(&shared).outputs) {
                     use base64::Engine as _;
                     ups.push((
-                        false,
+                        Class::Output,
                         Up::Output {
                             name,
                             data_type,
@@ -549,7 +608,11 @@ impl Bridge {
             if !ups.is_empty() {
                 publish(session, &robot, &shared, &budget, &ups);
             }
-            let wake = next_status.min(next_pose).min(next_output).min(next_route);
+            let wake = next_status
+                .min(next_pose)
+                .min(next_output)
+                .min(next_route)
+                .min(next_camera);
             std::thread::sleep(
                 wake.saturating_duration_since(Instant::now())
                     .min(Duration::from_millis(100)),
@@ -568,21 +631,24 @@ fn lock_control(control: &Mutex<Box<dyn RunLink>>) -> MutexGuard<'_, Box<dyn Run
     control.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// Seals each sample for every confirmed station and puts it; an output (`essential` false)
-/// waits when the station's budget is spent, a status or a pose never does.
+/// Seals each sample for every confirmed station and puts it: a status or a pose always, an
+/// output when the robot's budget for that station is not in debt, a camera frame when the
+/// camera's is not (each a token bucket refilled at its rate, holding a second's worth at
+/// most).
 fn publish(
     session: &zenoh::Session,
     robot: &str,
     shared: &Mutex<Shared>,
     budget: &Budget,
-    ups: &[(bool, Up)],
+    ups: &[(Class, Up)],
 ) {
-    let plains: Vec<(bool, Vec<u8>)> = ups
+    let plains: Vec<(Class, Vec<u8>)> = ups
         .iter()
-        .filter_map(|(essential, up)| Some((*essential, serde_json::to_vec(up).ok()?)))
+        .filter_map(|(class, up)| Some((*class, serde_json::to_vec(up).ok()?)))
         .collect();
     let now = Instant::now();
     let rate = budget.kbit_per_sec * 1000.0 / 8.0;
+    let camera_rate = budget.camera_kbit_per_sec * 1000.0 / 8.0;
     let mut shared = lock(shared);
     shared
         .peers
@@ -592,15 +658,23 @@ fn publish(
         if !peer.confirmed {
             continue;
         }
-        peer.tokens =
-            (peer.tokens + now.duration_since(peer.refilled).as_secs_f64() * rate).min(rate);
+        let elapsed = now.duration_since(peer.refilled).as_secs_f64();
+        peer.tokens = (peer.tokens + elapsed * rate).min(rate);
+        peer.camera_tokens = (peer.camera_tokens + elapsed * camera_rate).min(camera_rate);
         peer.refilled = now;
-        for (essential, plain) in &plains {
+        for (class, plain) in &plains {
             let cost = (plain.len() + 24) as f64;
-            if !essential && peer.tokens < cost {
+            let tokens = match class {
+                Class::Essential | Class::Output => &mut peer.tokens,
+                Class::Camera => &mut peer.camera_tokens,
+            };
+            // A sample larger than a second's budget (a map, a camera frame) still goes, once
+            // the budget is not in debt, and puts it in debt: over time the rate is the
+            // budget's, whatever the sizes.
+            if *class != Class::Essential && *tokens < 0.0 {
                 continue;
             }
-            peer.tokens -= cost;
+            *tokens -= cost;
             if let Ok(sealed) = peer.channel.seal(plain) {
                 puts.push((wire::up_key(robot, sid), sealed));
             }
@@ -720,6 +794,13 @@ fn watch_once(options: &Options, agent: &str, shared: &Mutex<Shared>) -> anyhow:
             ))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
+    let camera = match &options.camera {
+        Some(name) => Some((
+            node.subscribe_raw_at_most(name, options.budget.camera_hz)?,
+            name.clone(),
+        )),
+        None => None,
+    };
     let mut last_sent: BTreeMap<String, Vec<u8>> = BTreeMap::new();
     loop {
         let Event::Input(id) = node.next_event(Some(Duration::from_millis(500)))? else {
@@ -748,6 +829,11 @@ fn watch_once(options: &Options, agent: &str, shared: &Mutex<Shared>) -> anyhow:
             shared.pose = Some((pose.x_m, pose.y_m, pose.theta_rad));
             if state.is_some() {
                 shared.localisation = state;
+            }
+        } else if let Some((input, name)) = camera.as_ref().filter(|(input, _)| input.id() == id) {
+            // The latest frame replaces one not sent yet: a late frame is worth nothing.
+            if let Some(sample) = node.take_raw(input) {
+                lock(shared).camera = Some((name.clone(), sample.data_type, sample.payload));
             }
         } else if let Some((input, name)) = outputs.iter().find(|(input, _)| input.id() == id) {
             let Some(sample) = node.take_raw(input) else {

@@ -32,6 +32,10 @@ pub struct Options {
     /// zenoh endpoints each robot connects to (a station's `--listen`, or a router); repeat.
     #[arg(long)]
     pub connect: Vec<String>,
+    /// A camera of frames of this many bytes (a JPEG of the simulated camera is 15 to 40 kB),
+    /// sent at --camera-hz within --camera-kbps; none when 0.
+    #[arg(long, default_value_t = 0)]
+    pub camera_bytes: usize,
     #[command(flatten)]
     pub budget: Budget,
 }
@@ -53,7 +57,7 @@ pub fn run(options: &Options, stop: &'static AtomicBool) -> anyhow::Result<()> {
         );
         let session = crate::net::open(&[], &options.connect)?;
         let bridge = bridge(&name, &secret, options.budget.clone());
-        let run = StandIn::new(&name, index, epoch);
+        let run = StandIn::new(&name, index, epoch).with_camera(options.camera_bytes);
         let name = name.clone();
         threads.push(std::thread::spawn(move || {
             let shared = Arc::new(Mutex::new(Shared::default()));
@@ -94,6 +98,9 @@ pub struct StandIn {
     outcome: Option<String>,
     updates: usize,
     fired: Vec<FiringRecord>,
+    /// The size of its camera's frames; none without a camera.
+    camera_bytes: Option<usize>,
+    frames: u64,
 }
 
 impl StandIn {
@@ -123,7 +130,15 @@ impl StandIn {
             outcome: None,
             updates: 0,
             fired: Vec::new(),
+            camera_bytes: None,
+            frames: 0,
         }
+    }
+
+    /// The same with a camera of `bytes`-byte frames (none when 0).
+    pub fn with_camera(mut self, bytes: usize) -> StandIn {
+        self.camera_bytes = (bytes > 0).then_some(bytes);
+        self
     }
 
     fn driven_secs(&self) -> f64 {
@@ -223,6 +238,23 @@ impl RunLink for StandIn {
 
     fn route(&mut self) -> anyhow::Result<Vec<RoutePoint>> {
         Ok(self.route.clone())
+    }
+
+    fn camera(&mut self) -> Option<(String, String, Vec<u8>)> {
+        let bytes = self.camera_bytes?;
+        self.frames += 1;
+        // Bytes that do not compress, as a JPEG's do not: the frame's number, repeated through
+        // a mixing step.
+        let mut state = self.frames.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let frame = (0..bytes)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state as u8
+            })
+            .collect();
+        Some(("camera.image".to_owned(), "Image".to_owned(), frame))
     }
 
     fn pose(&mut self) -> Option<(f64, f64, f64)> {

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use armor_module_api::auth::RoleKey;
 use armor_protocol::Request;
-use armor_protocol::team::{LINK_WINDOW_SECS, LinkQuality, RobotReport, StationEvent};
+use armor_protocol::team::{CameraSeen, LINK_WINDOW_SECS, LinkQuality, RobotReport, StationEvent};
 use zenoh::Wait as _;
 
 use crate::net::z;
@@ -68,14 +68,19 @@ struct View {
     outputs: BTreeMap<String, usize>,
     heard: Option<Instant>,
     route: Vec<RoutePoint>,
-    /// Sealed bytes received, and since when, for the line's kbit/s.
+    /// Sealed bytes received (but the camera's), and since when, for the line's kbit/s.
     bytes: u64,
     since: Option<Instant>,
     refusal: Option<String>,
     /// The session's counts of samples opened and sent, taken every second or so over the last
     /// [`LINK_WINDOW_SECS`], for the link's quality.
     counts: VecDeque<(Instant, u64, u64)>,
+    /// The camera's name and its frames of the last [`LINK_WINDOW_SECS`].
+    camera: Option<(String, VecDeque<Frame>)>,
 }
+
+/// A camera frame received: when, its sealed size, and its size on the robot's wire.
+type Frame = (Instant, usize, usize);
 
 type Views = Arc<Mutex<BTreeMap<String, View>>>;
 
@@ -322,6 +327,34 @@ fn report(robot: &str, view: &mut View, now: Instant) -> RobotReport {
     let kbit_per_sec = view.since.map_or(0.0, |since| {
         view.bytes as f64 * 8.0 / 1000.0 / now.duration_since(since).as_secs_f64().max(1.0)
     });
+    let camera = view.camera.as_mut().map(|(name, frames)| {
+        while frames
+            .front()
+            .is_some_and(|(at, ..)| now.duration_since(*at) > window)
+        {
+            frames.pop_front();
+        }
+        // Between the first frame of the window and the last: each frame after the first
+        // took its share of that time.
+        let span_secs = match (frames.front(), frames.back()) {
+            (Some((first, ..)), Some((last, ..))) => last.duration_since(*first).as_secs_f64(),
+            _ => 0.0,
+        };
+        let after_first: usize = frames.iter().skip(1).map(|(_, sealed, _)| *sealed).sum();
+        let per_sec = |value: f64| {
+            if span_secs > 0.0 {
+                value / span_secs
+            } else {
+                0.0
+            }
+        };
+        CameraSeen {
+            name: name.clone(),
+            frames_per_sec: per_sec(frames.len().saturating_sub(1) as f64),
+            kbit_per_sec: per_sec(after_first as f64 * 8.0 / 1000.0),
+            frame_bytes: frames.back().map_or(0, |(_, _, bytes)| *bytes),
+        }
+    });
     RobotReport {
         robot: robot.to_owned(),
         session: view.session.is_some(),
@@ -336,6 +369,7 @@ fn report(robot: &str, view: &mut View, now: Instant) -> RobotReport {
             .map(|heard| now.duration_since(heard).as_secs_f64()),
         kbit_per_sec,
         link,
+        camera,
     }
 }
 
@@ -381,6 +415,12 @@ fn line(report: &RobotReport) -> String {
         report.link.word(Some(age)),
         report.kbit_per_sec
     ));
+    if let Some(camera) = &report.camera {
+        text.push_str(&format!(
+            " | camera {} {:.1} frames/s, {:.0} kbit/s",
+            camera.name, camera.frames_per_sec, camera.kbit_per_sec
+        ));
+    }
     text
 }
 
@@ -401,9 +441,13 @@ fn take(views: &Views, robot: &str, sid: &str, bytes: &[u8], on_status: Option<&
     };
     let now = Instant::now();
     view.heard = Some(now);
-    view.bytes += bytes.len() as u64;
     view.since.get_or_insert(now);
-    match serde_json::from_slice::<Up>(&plain) {
+    let up = serde_json::from_slice::<Up>(&plain);
+    // The robot's kbit/s are what its budget covers: the camera has a budget of its own.
+    if !matches!(up, Ok(Up::Camera { .. })) {
+        view.bytes += bytes.len() as u64;
+    }
+    match up {
         Ok(Up::Status(status)) => {
             if let Some(on_status) = on_status {
                 on_status(robot, &status);
@@ -411,6 +455,10 @@ fn take(views: &Views, robot: &str, sid: &str, bytes: &[u8], on_status: Option<&
             view.status = Some(status);
         }
         Ok(Up::Plan { route }) => view.route = route,
+        Ok(Up::Camera { name, base64, .. }) => {
+            let (_, frames) = view.camera.get_or_insert_with(|| (name, VecDeque::new()));
+            frames.push_back((now, bytes.len(), base64.len() * 3 / 4));
+        }
         Ok(Up::Pose {
             x_m,
             y_m,

@@ -63,6 +63,13 @@ pub enum Up {
         /// The sample's bytes, base64.
         base64: String,
     },
+    /// A camera's frame (`--camera`), at its own rate and within its own budget.
+    Camera {
+        name: String,
+        data_type: String,
+        /// The sample's bytes, base64.
+        base64: String,
+    },
     /// The route of the robot's plan in its world frame, for the station's map: sent every
     /// few seconds (a station that opens a session later gets it too), a few hundred bytes.
     Plan {

@@ -1,5 +1,6 @@
 //! The operator's station (issue 41): every robot of a team in one table (its colour, mission
-//! state, leg, localisation, the age of its last report, its link's quality) and on one map
+//! state, leg, localisation, the age of its last report, its link's quality, its camera's
+//! rate) and on one map
 //! with its plan's route, and a command or a plan update sent to one robot or to all, with the
 //! station's rights: an observer's station reads, and its commands are greyed with the reason.
 //!
@@ -167,9 +168,9 @@ impl StationView {
     pub fn ui(&mut self, ui: &mut egui::Ui) {
         self.take_events();
         egui::Panel::top("station-title").show(ui, |ui| self.title_ui(ui));
-        // Wide enough for the table's seven columns, and no wider: the map gets the rest.
+        // Wide enough for the table's eight columns, and no wider: the map gets the rest.
         egui::Panel::left("station-robots")
-            .exact_size(560.0)
+            .exact_size(640.0)
             .resizable(false)
             .show(ui, |ui| {
                 self.table_ui(ui);
@@ -212,7 +213,7 @@ impl StationView {
             .show(ui, |ui| {
                 egui::Grid::new("station-table")
                     .striped(true)
-                    .num_columns(7)
+                    .num_columns(8)
                     .show(ui, |ui| {
                         for header in [
                             "Robot",
@@ -222,6 +223,7 @@ impl StationView {
                             "Report",
                             "Link",
                             "kbit/s",
+                            "Camera",
                         ] {
                             ui.strong(header);
                         }
@@ -280,6 +282,15 @@ impl StationView {
                             ));
                             ui.label(text(link_text(report)));
                             ui.label(text(format!("{:.1}", report.kbit_per_sec)));
+                            ui.label(text(report.camera.as_ref().map_or_else(
+                                || "-".to_owned(),
+                                |camera| {
+                                    format!(
+                                        "{:.1}/s, {:.0} kbit/s",
+                                        camera.frames_per_sec, camera.kbit_per_sec
+                                    )
+                                },
+                            )));
                             ui.end_row();
                         }
                     });

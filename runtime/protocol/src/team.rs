@@ -85,6 +85,20 @@ pub struct RobotReport {
     pub kbit_per_sec: f64,
     /// The link's quality over the last [`LINK_WINDOW_SECS`].
     pub link: LinkQuality,
+    /// Its camera's frames over the last [`LINK_WINDOW_SECS`], when it sends one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraSeen>,
+}
+
+/// A robot's camera as a station receives it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CameraSeen {
+    /// The output's data name (`camera.image`).
+    pub name: String,
+    pub frames_per_sec: f64,
+    pub kbit_per_sec: f64,
+    /// The latest frame's size, in bytes as the robot's wire carries it.
+    pub frame_bytes: usize,
 }
 
 /// How much of the last seconds' reports were lost on the way: every sample a bridge seals for
