@@ -23,6 +23,9 @@ pub struct Options {
     /// How many robots: NAME-1, NAME-2, …
     #[arg(long, default_value_t = 20)]
     pub count: usize,
+    /// The number of the first (another process's stand-ins then drive squares of their own).
+    #[arg(long, default_value_t = 1)]
+    pub first: usize,
     /// What their names start with.
     #[arg(long, default_value = "robot")]
     pub name: String,
@@ -49,7 +52,7 @@ pub fn run(options: &Options, stop: &'static AtomicBool) -> anyhow::Result<()> {
         .with_context(|| format!("the team's secret {}", options.secret.display()))?;
     let epoch = Instant::now();
     let mut threads = Vec::new();
-    for index in 0..options.count {
+    for index in options.first.saturating_sub(1)..options.first.saturating_sub(1) + options.count {
         let name = format!("{}-{}", options.name, index + 1);
         anyhow::ensure!(
             wire::is_robot_name(&name),
