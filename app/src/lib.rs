@@ -81,36 +81,29 @@ pub fn run_attached(
     options.file = file;
     options.attach = attach;
     options.start_page = true;
+    open_window("ArMoR Studio", Box::new(Window(StudioApp::new(options))))
+}
+
+/// Opens a 1280×800 window titled `title` drawing `app`, until it is closed.
+fn open_window(title: &str, app: Box<dyn eframe::App>) -> anyhow::Result<()> {
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
-            .with_title("ArMoR Studio")
+            .with_title(title)
             .with_inner_size([1280.0, 800.0]),
         ..Default::default()
     };
-    eframe::run_native(
-        "ArMoR Studio",
-        native,
-        Box::new(move |_| Ok(Box::new(Window(StudioApp::new(options))))),
-    )
-    .map_err(|err| anyhow::anyhow!("cannot open the window: {err}"))
+    eframe::run_native(title, native, Box::new(move |_| Ok(app)))
+        .map_err(|err| anyhow::anyhow!("cannot open the window: {err}"))
 }
 
 /// Opens an operator's station in a window of its own: `armor-team station ARGS…` started and
 /// read ([`station::Link`]), every robot of the team in a table and on one map.
 pub fn run_station(args: &[String]) -> anyhow::Result<()> {
     let link = station::Link::spawn(&station::team_program(), args)?;
-    let native = eframe::NativeOptions {
-        viewport: egui::ViewportBuilder::default()
-            .with_title("ArMoR Studio: operator station")
-            .with_inner_size([1280.0, 800.0]),
-        ..Default::default()
-    };
-    eframe::run_native(
-        "ArMoR Studio: operator station",
-        native,
-        Box::new(move |_| Ok(Box::new(StationWindow(station::StationView::new(link))))),
+    open_window(
+        "ArMoR Studio: team station",
+        Box::new(StationWindow(station::StationView::new(link))),
     )
-    .map_err(|err| anyhow::anyhow!("cannot open the window: {err}"))
 }
 
 struct StationWindow(station::StationView);
