@@ -297,6 +297,24 @@ mod tests {
     }
 
     #[test]
+    fn the_samples_lost_on_the_way_are_counted_from_their_numbers() {
+        let secret = Secret::from_bytes(&[9; 32]);
+        let (mut station, mut robot) = pair("r1", Role::Observer, &secret).expect("a session");
+        let sealed: Vec<Vec<u8>> = (0..6)
+            .map(|i| robot.seal(&[i]).expect("sealed"))
+            .collect();
+        assert_eq!(station.counts(), (0, 0));
+        // The radio loses the third and the last; the fifth overtakes the fourth.
+        for i in [0, 1, 4, 3] {
+            station.open(&sealed[i]).expect("opens");
+        }
+        assert_eq!(station.counts(), (4, 5), "4 of the first 5 received");
+        // A replay is refused and not counted.
+        assert!(station.open(&sealed[1]).is_err());
+        assert_eq!(station.counts(), (4, 5));
+    }
+
+    #[test]
     fn both_roles_open_a_session_and_samples_pass_both_ways() {
         let secret = Secret::from_bytes(&[7; 32]);
         for role in [Role::Observer, Role::Operator] {
