@@ -168,6 +168,43 @@ fn loop_closure_meets_its_goal_on_the_quick_seed() {
     );
 }
 
+/// `armor-team` (zenoh) and `armor-studio-bench` measure the team's figures; the relay keeps
+/// their percentiles and what they are measured against.
+#[test]
+fn team_figures_are_relayed_from_armor_team_and_the_studio() {
+    let output = bench(&[
+        "--quick",
+        "team_status_latency_ms",
+        "station_frame_ms_20_robots",
+    ]);
+    let stdout = text(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{}\nstdout:\n{stdout}\nstderr:\n{}",
+        output.status,
+        text(&output.stderr)
+    );
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|line| serde_json::from_str(line).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 2, "stdout:\n{stdout}");
+    assert_eq!(lines[0]["bench"], "team_status_latency_ms");
+    for field in ["p50", "p99", "reference_p50", "reference_p99"] {
+        assert!(
+            lines[0][field].as_f64().is_some_and(|x| x > 0.0),
+            "{field}: {}",
+            lines[0]
+        );
+    }
+    assert_eq!(lines[1]["bench"], "station_frame_ms_20_robots");
+    assert_eq!(lines[1]["reference"], 33.0, "{}", lines[1]);
+    for line in &lines {
+        assert_eq!(line["unit"], "ms", "{line}");
+        assert!(line["reference_is"].is_string(), "{line}");
+    }
+}
+
 #[test]
 fn studio_figures_are_relayed_from_armor_studio() {
     let output = bench(&[
