@@ -300,9 +300,7 @@ mod tests {
     fn the_samples_lost_on_the_way_are_counted_from_their_numbers() {
         let secret = Secret::from_bytes(&[9; 32]);
         let (mut station, mut robot) = pair("r1", Role::Observer, &secret).expect("a session");
-        let sealed: Vec<Vec<u8>> = (0..6)
-            .map(|i| robot.seal(&[i]).expect("sealed"))
-            .collect();
+        let sealed: Vec<Vec<u8>> = (0..6).map(|i| robot.seal(&[i]).expect("sealed")).collect();
         assert_eq!(station.counts(), (0, 0));
         // The radio loses the third and the last; the fifth overtakes the fourth.
         for i in [0, 1, 4, 3] {
