@@ -18,6 +18,9 @@
 //! (`tests/rooms.rs` fails otherwise). The menus, the keys and the F1 sheet are all made from
 //! one table ([`command`]). Start the window with [`run()`] or [`run_attached`]; tests drive
 //! [`StudioApp::ui`] in an egui_kittest harness.
+//!
+//! An operator's station for a team of robots ([`station`], issue 41) opens in a window of its
+//! own ([`run_station`]): it shows the team that `armor-team station` reports, not one run.
 
 pub mod app;
 pub mod browser;
@@ -29,6 +32,7 @@ pub mod files;
 pub mod mission;
 pub mod run;
 pub mod start;
+pub mod station;
 pub mod system;
 
 pub use app::{Options, StudioApp};
@@ -78,16 +82,35 @@ pub fn run_attached(
     options.file = file;
     options.attach = attach;
     options.start_page = true;
+    open_window("ArMoR Studio", Box::new(Window(StudioApp::new(options))))
+}
+
+/// Opens a 1280×800 window titled `title` drawing `app`, until it is closed.
+fn open_window(title: &str, app: Box<dyn eframe::App>) -> anyhow::Result<()> {
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
-            .with_title("ArMoR Studio")
+            .with_title(title)
             .with_inner_size([1280.0, 800.0]),
         ..Default::default()
     };
-    eframe::run_native(
-        "ArMoR Studio",
-        native,
-        Box::new(move |_| Ok(Box::new(Window(StudioApp::new(options))))),
+    eframe::run_native(title, native, Box::new(move |_| Ok(app)))
+        .map_err(|err| anyhow::anyhow!("cannot open the window: {err}"))
+}
+
+/// Opens an operator's station in a window of its own: `armor-team station ARGS…` started and
+/// read ([`station::Link`]), every robot of the team in a table and on one map.
+pub fn run_station(args: &[String]) -> anyhow::Result<()> {
+    let link = station::Link::spawn(&station::team_program(), args)?;
+    open_window(
+        "ArMoR Studio: team station",
+        Box::new(StationWindow(station::StationView::new(link))),
     )
-    .map_err(|err| anyhow::anyhow!("cannot open the window: {err}"))
+}
+
+struct StationWindow(station::StationView);
+
+impl eframe::App for StationWindow {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.0.ui(ui);
+    }
 }

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-const VIEWS: [&str; 3] = ["system", "mission", "run"];
+const VIEWS: [&str; 4] = ["system", "mission", "run", "station"];
 
 fn rust_files(dir: &Path) -> Vec<PathBuf> {
     let mut files = Vec::new();
@@ -137,6 +137,7 @@ fn crossings_are_found() {
         "crate::run::video::has_focus(ui);\nuse crate::mission::map;\n",
     );
     write("common/draw.rs", "use crate::system::diagram::Diagram;\n");
+    write("station/mod.rs", "use crate::run::monitor::x;\n");
     assert_eq!(
         crossings(src.path()),
         [
@@ -144,6 +145,7 @@ fn crossings_are_found() {
             "system/viewer.rs:1: crate::run::monitor::state_colour;",
             "mission/map.rs:1: crate::run::video::has_focus(ui);",
             "run/markers.rs:1: crate::mission::labels::{self, Label};",
+            "station/mod.rs:1: crate::run::monitor::x;",
             "common/draw.rs:1: crate::system::diagram::Diagram;",
         ]
     );

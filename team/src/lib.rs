@@ -10,11 +10,14 @@
 //! without a key learns nothing and commands nothing.
 //!
 //! [`wire`] holds the key expressions and messages, [`net`] the zenoh session, [`robot`] and
-//! [`station`] the two ends.
+//! [`station`] the two ends; [`stand_in`] robots that are only a clock, for tests and
+//! benchmarks ([`bench`]) of a station with many robots.
 
+pub mod bench;
 pub mod capture;
 pub mod net;
 pub mod robot;
 pub mod seal;
+pub mod stand_in;
 pub mod station;
 pub mod wire;

@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
 
-use armor_team::{capture, robot, station};
+use armor_team::{bench, capture, robot, stand_in, station};
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -27,7 +27,16 @@ enum Command {
     /// What anyone on the team network sees: every sample under a key expression, its key,
     /// size and bytes (hex), for `--for-secs`. The sealed contents stay sealed.
     Capture(capture::Options),
+    /// Robots that are only a clock (the real bridge serving a run that drives round a
+    /// square), for tests and benchmarks of a station with many robots.
+    StandIns(stand_in::Options),
+    /// The team's figures as `armor-bench` lines (`team_status_latency_ms`,
+    /// `team_bandwidth_kbps_per_robot`), which `armor-bench` relays.
+    Bench(bench::Options),
 }
+
+/// Both ends run until they are stopped (a signal ends the process).
+static STOP: AtomicBool = AtomicBool::new(false);
 
 fn main() -> ExitCode {
     armor_module_api::hardening::make_non_dumpable();
@@ -40,12 +49,12 @@ fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    // Both ends run until they are stopped (a signal ends the process).
-    let stop = AtomicBool::new(false);
     let result = match Cli::parse().command {
-        Command::Robot(options) => robot::run(&options, &stop),
-        Command::Station(options) => station::run(&options, &stop),
+        Command::Robot(options) => robot::run(&options, &STOP),
+        Command::Station(options) => station::run(&options, &STOP),
         Command::Capture(options) => capture::run(&options),
+        Command::StandIns(options) => stand_in::run(&options, &STOP),
+        Command::Bench(options) => bench::run(&options),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -202,6 +202,10 @@ pub struct Channel {
     transport: snow::StatelessTransportState,
     next_nonce: u64,
     window: Window,
+    /// Samples opened, and one past the highest nonce opened: the peer numbers every sample it
+    /// seals, so their difference is what was lost on the way (the link's quality).
+    opened: u64,
+    sent: u64,
 }
 
 impl std::fmt::Debug for Channel {
@@ -218,6 +222,8 @@ impl Channel {
             transport,
             next_nonce: 0,
             window: Window::default(),
+            opened: 0,
+            sent: 0,
         }
     }
 
@@ -259,7 +265,15 @@ impl Channel {
             .map_err(|_| SealError::Forged)?;
         plain.truncate(len);
         self.window.mark(nonce);
+        self.opened += 1;
+        self.sent = self.sent.max(nonce + 1);
         Ok(plain)
+    }
+
+    /// The samples opened so far, and those the peer sealed up to the latest opened (received
+    /// or not).
+    pub fn counts(&self) -> (u64, u64) {
+        (self.opened, self.sent)
     }
 }
 
@@ -280,6 +294,22 @@ mod tests {
         let (proved, at_robot, answer) = accept(robot, &admit(secret), &body)?;
         assert_eq!(proved, role);
         Ok((hello.finish(&answer)?, at_robot))
+    }
+
+    #[test]
+    fn the_samples_lost_on_the_way_are_counted_from_their_numbers() {
+        let secret = Secret::from_bytes(&[9; 32]);
+        let (mut station, mut robot) = pair("r1", Role::Observer, &secret).expect("a session");
+        let sealed: Vec<Vec<u8>> = (0..6).map(|i| robot.seal(&[i]).expect("sealed")).collect();
+        assert_eq!(station.counts(), (0, 0));
+        // The radio loses the third and the last; the fifth overtakes the fourth.
+        for i in [0, 1, 4, 3] {
+            station.open(&sealed[i]).expect("opens");
+        }
+        assert_eq!(station.counts(), (4, 5), "4 of the first 5 received");
+        // A replay is refused and not counted.
+        assert!(station.open(&sealed[1]).is_err());
+        assert_eq!(station.counts(), (4, 5));
     }
 
     #[test]

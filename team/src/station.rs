@@ -3,7 +3,7 @@
 //! (its state, leg, the age of its last report, what it costs), and sends commands read from
 //! its standard input, one a line: `ROBOT|all COMMAND [ARGS]`.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::io::BufRead as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -13,11 +13,12 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use armor_module_api::auth::RoleKey;
 use armor_protocol::Request;
+use armor_protocol::team::{CameraSeen, LINK_WINDOW_SECS, LinkQuality, RobotReport, StationEvent};
 use zenoh::Wait as _;
 
 use crate::net::z;
 use crate::seal::{Channel, Hello};
-use crate::wire::{self, CommandReply, Down, RobotStatus, SID_BYTES, Up};
+use crate::wire::{self, CommandReply, Down, RobotStatus, RoutePoint, SID_BYTES, Up};
 
 /// `armor-team station`: an operator's computer.
 #[derive(Clone, Debug, clap::Args)]
@@ -45,6 +46,10 @@ pub struct Options {
     /// commands on standard input; repeat.
     #[arg(long)]
     pub send: Vec<String>,
+    /// Print JSON lines (`armor_protocol::team::StationEvent`) rather than text: what the
+    /// studio's station view reads.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// How long a station waits for a robot's answer to a hello or a command.
@@ -62,13 +67,88 @@ struct View {
     pose: Option<(f64, f64, f64)>,
     outputs: BTreeMap<String, usize>,
     heard: Option<Instant>,
-    /// Sealed bytes received, and since when, for the line's kbit/s.
+    route: Vec<RoutePoint>,
+    /// Sealed bytes received (but the camera's), and since when, for the line's kbit/s.
     bytes: u64,
     since: Option<Instant>,
     refusal: Option<String>,
+    /// The session's counts of samples opened and sent, taken every second or so over the last
+    /// [`LINK_WINDOW_SECS`], for the link's quality.
+    counts: VecDeque<(Instant, u64, u64)>,
+    /// The camera's name and its frames of the last [`LINK_WINDOW_SECS`].
+    camera: Option<(String, VecDeque<Frame>)>,
 }
 
+/// A camera frame received: when, its sealed size, and its size on the robot's wire.
+type Frame = (Instant, usize, usize);
+
 type Views = Arc<Mutex<BTreeMap<String, View>>>;
+
+/// Called with each status a station opens (the benchmark's latency probe).
+pub type OnStatus = Arc<dyn Fn(&str, &RobotStatus) + Send + Sync>;
+
+/// A station's sessions with its robots, kept open and beating in threads of their own.
+pub struct Station {
+    session: zenoh::Session,
+    views: Views,
+    robots: Vec<String>,
+}
+
+impl Station {
+    /// Opens a session with each of `robots` over `session` (again when one falls silent),
+    /// beating `beat_hz` times a second on each.
+    pub fn start(
+        session: &zenoh::Session,
+        key: &RoleKey,
+        robots: &[String],
+        beat_hz: f64,
+        on_status: Option<OnStatus>,
+    ) -> Station {
+        let views: Views = Arc::new(Mutex::new(
+            robots
+                .iter()
+                .map(|robot| (robot.clone(), View::default()))
+                .collect(),
+        ));
+        for robot in robots {
+            let robot = robot.clone();
+            let views = Arc::clone(&views);
+            let session = session.clone();
+            let key = key.clone();
+            let on_status = on_status.clone();
+            let beat_every = Duration::from_secs_f64(1.0 / beat_hz);
+            std::thread::spawn(move || {
+                keep_session(
+                    &session,
+                    &robot,
+                    &key,
+                    &views,
+                    beat_every,
+                    on_status.as_ref(),
+                )
+            });
+        }
+        Station {
+            session: session.clone(),
+            views,
+            robots: robots.to_vec(),
+        }
+    }
+
+    /// What the station knows of each robot now.
+    pub fn reports(&self) -> Vec<RobotReport> {
+        let now = Instant::now();
+        lock(&self.views)
+            .iter_mut()
+            .map(|(robot, view)| report(robot, view, now))
+            .collect()
+    }
+
+    /// Sends `request` to `robot`; its answer.
+    pub fn command(&self, robot: &str, request: &Request) -> anyhow::Result<CommandReply> {
+        command(&self.session, robot, &self.views, request)
+    }
+}
 
 fn lock(views: &Views) -> MutexGuard<'_, BTreeMap<String, View>> {
     views.lock().unwrap_or_else(PoisonError::into_inner)
@@ -88,34 +168,32 @@ pub fn run(options: &Options, stop: &AtomicBool) -> anyhow::Result<()> {
     let key = armor_protocol::key_from_file(&options.key)
         .with_context(|| format!("the station's key {}", options.key.display()))?;
     let session = crate::net::open(&options.listen, &options.connect)?;
-    let views: Views = Arc::new(Mutex::new(
-        options
-            .robots
-            .iter()
-            .map(|robot| (robot.clone(), View::default()))
-            .collect(),
+    let station = Arc::new(Station::start(
+        &session,
+        &key,
+        &options.robots,
+        options.beat_hz,
+        None,
     ));
-    println!(
-        "station: {} role, robots {}",
-        key.role.as_str(),
-        options.robots.join(", ")
-    );
-
-    for robot in options.robots.clone() {
-        let views = Arc::clone(&views);
-        let session = session.clone();
-        let key = key.clone();
-        let beat_every = Duration::from_secs_f64(1.0 / options.beat_hz);
-        std::thread::spawn(move || keep_session(&session, &robot, &key, &views, beat_every));
+    let out = Out { json: options.json };
+    if options.json {
+        out.event(&StationEvent::Station {
+            role: key.role.as_str().to_owned(),
+            robots: options.robots.clone(),
+        });
+    } else {
+        println!(
+            "station: {} role, robots {}",
+            key.role.as_str(),
+            options.robots.join(", ")
+        );
     }
 
     if !options.send.is_empty() {
-        return send_all(&session, &options.robots, &views, &options.send);
+        return send_all(&station, &options.send, out);
     }
     {
-        let views = Arc::clone(&views);
-        let session = session.clone();
-        let robots = options.robots.clone();
+        let station = Arc::clone(&station);
         std::thread::spawn(move || {
             for line in std::io::stdin().lock().lines() {
                 let Ok(line) = line else { break };
@@ -123,20 +201,13 @@ pub fn run(options: &Options, stop: &AtomicBool) -> anyhow::Result<()> {
                 if line.is_empty() {
                     continue;
                 }
-                match parse_command(line, &robots) {
+                match parse_command(line, &station.robots) {
                     Ok((targets, request)) => {
                         for robot in targets {
-                            let answer = command(&session, &robot, &views, &request);
-                            match answer {
-                                Ok(reply) if reply.ok => {
-                                    println!("{robot}: done: {}", reply.message)
-                                }
-                                Ok(reply) => println!("{robot}: refused: {}", reply.message),
-                                Err(err) => println!("{robot}: no answer: {err:#}"),
-                            }
+                            out.answer(&robot, line, station.command(&robot, &request));
                         }
                     }
-                    Err(err) => println!("station: {err:#}"),
+                    Err(err) => out.error(&err),
                 }
             }
         });
@@ -144,45 +215,81 @@ pub fn run(options: &Options, stop: &AtomicBool) -> anyhow::Result<()> {
 
     let print_every = Duration::from_secs_f64(options.print_every_secs);
     while !stop.load(Ordering::Relaxed) {
-        let now = Instant::now();
-        for (robot, view) in lock(&views).iter() {
-            println!("{}", line(robot, view, now));
+        for report in station.reports() {
+            if options.json {
+                out.event(&StationEvent::Robot(Box::new(report)));
+            } else {
+                println!("{}", line(&report));
+            }
         }
         std::thread::sleep(print_every);
     }
     Ok(())
 }
 
+/// Where the station's answers go: text lines, or JSON ones for the studio.
+#[derive(Clone, Copy)]
+struct Out {
+    json: bool,
+}
+
+impl Out {
+    fn event(self, event: &StationEvent) {
+        // A line is one JSON object; a write to a closed pipe ends nothing here (the studio
+        // that read it went away, and the process is then stopped).
+        if let Ok(text) = serde_json::to_string(event) {
+            println!("{text}");
+        }
+    }
+
+    /// Prints a robot's answer to `line`; whether it was done.
+    fn answer(self, robot: &str, line: &str, answer: anyhow::Result<CommandReply>) -> bool {
+        let (ok, message, word) = match answer {
+            Ok(reply) if reply.ok => (true, reply.message, "done"),
+            Ok(reply) => (false, reply.message, "refused"),
+            Err(err) => (false, format!("{err:#}"), "no answer"),
+        };
+        if self.json {
+            self.event(&StationEvent::Answer {
+                robot: robot.to_owned(),
+                command: line.to_owned(),
+                ok,
+                message,
+            });
+        } else {
+            println!("{robot}: {word}: {message}");
+        }
+        ok
+    }
+
+    fn error(self, err: &anyhow::Error) {
+        if self.json {
+            self.event(&StationEvent::Error {
+                message: format!("{err:#}"),
+            });
+        } else {
+            println!("station: {err:#}");
+        }
+    }
+}
+
 /// Sends each of `lines` once the robots it names have a session (or could not get one in
 /// [`ANSWER_TIMEOUT`] and more), printing each answer; fails if one was not done.
-fn send_all(
-    session: &zenoh::Session,
-    robots: &[String],
-    views: &Views,
-    lines: &[String],
-) -> anyhow::Result<()> {
+fn send_all(station: &Station, lines: &[String], out: Out) -> anyhow::Result<()> {
     let mut failed = 0;
     for line in lines {
-        let (targets, request) = parse_command(line, robots)?;
+        let (targets, request) = parse_command(line, &station.robots)?;
         let deadline = Instant::now() + ANSWER_TIMEOUT * 2;
         while Instant::now() < deadline
-            && lock(views)
+            && lock(&station.views)
                 .iter()
                 .any(|(robot, view)| targets.contains(robot) && view.session.is_none())
         {
             std::thread::sleep(Duration::from_millis(50));
         }
         for robot in targets {
-            match command(session, &robot, views, &request) {
-                Ok(reply) if reply.ok => println!("{robot}: done: {}", reply.message),
-                Ok(reply) => {
-                    failed += 1;
-                    println!("{robot}: refused: {}", reply.message);
-                }
-                Err(err) => {
-                    failed += 1;
-                    println!("{robot}: no answer: {err:#}");
-                }
+            if !out.answer(&robot, line, station.command(&robot, &request)) {
+                failed += 1;
             }
         }
     }
@@ -190,25 +297,98 @@ fn send_all(
     Ok(())
 }
 
-/// One robot's line: its state, leg, localisation, the age of its last report (a report older
-/// than 2 s is shown as the last known state), what it costs.
-fn line(robot: &str, view: &View, now: Instant) -> String {
-    let Some(heard) = view.heard else {
-        return match (&view.session, &view.refusal) {
-            (Some(_), _) => format!("robot {robot} | session open, no report yet"),
-            (None, Some(why)) => format!("robot {robot} | no session: {why}"),
-            (None, None) => format!("robot {robot} | no session yet"),
+/// What the station knows of one robot now; takes a count of its samples for the link's
+/// quality.
+fn report(robot: &str, view: &mut View, now: Instant) -> RobotReport {
+    let window = Duration::from_secs_f64(LINK_WINDOW_SECS);
+    let mut link = LinkQuality::default();
+    if let Some((_, channel)) = &view.session {
+        let (opened, sent) = channel.counts();
+        while view
+            .counts
+            .front()
+            .is_some_and(|(at, ..)| now.duration_since(*at) > window)
+        {
+            view.counts.pop_front();
+        }
+        let (_, opened_then, sent_then) = view.counts.front().copied().unwrap_or((now, 0, 0));
+        link = LinkQuality {
+            received: opened.saturating_sub(opened_then),
+            sent: sent.saturating_sub(sent_then),
         };
-    };
-    let age = now.duration_since(heard).as_secs_f64();
-    let kbit = view.since.map_or(0.0, |since| {
+        if view
+            .counts
+            .back()
+            .is_none_or(|(at, ..)| now.duration_since(*at) >= Duration::from_millis(900))
+        {
+            view.counts.push_back((now, opened, sent));
+        }
+    }
+    let kbit_per_sec = view.since.map_or(0.0, |since| {
         view.bytes as f64 * 8.0 / 1000.0 / now.duration_since(since).as_secs_f64().max(1.0)
     });
+    let camera = view.camera.as_mut().map(|(name, frames)| {
+        while frames
+            .front()
+            .is_some_and(|(at, ..)| now.duration_since(*at) > window)
+        {
+            frames.pop_front();
+        }
+        // Between the first frame of the window and the last: each frame after the first
+        // took its share of that time.
+        let span_secs = match (frames.front(), frames.back()) {
+            (Some((first, ..)), Some((last, ..))) => last.duration_since(*first).as_secs_f64(),
+            _ => 0.0,
+        };
+        let after_first: usize = frames.iter().skip(1).map(|(_, sealed, _)| *sealed).sum();
+        let per_sec = |value: f64| {
+            if span_secs > 0.0 {
+                value / span_secs
+            } else {
+                0.0
+            }
+        };
+        CameraSeen {
+            name: name.clone(),
+            frames_per_sec: per_sec(frames.len().saturating_sub(1) as f64),
+            kbit_per_sec: per_sec(after_first as f64 * 8.0 / 1000.0),
+            frame_bytes: frames.back().map_or(0, |(_, _, bytes)| *bytes),
+        }
+    });
+    RobotReport {
+        robot: robot.to_owned(),
+        session: view.session.is_some(),
+        refusal: view.refusal.clone(),
+        status: view.status.clone(),
+        pose: view
+            .pose
+            .map(|(x_m, y_m, heading_rad)| [x_m, y_m, heading_rad]),
+        route: view.route.clone(),
+        report_age_secs: view
+            .heard
+            .map(|heard| now.duration_since(heard).as_secs_f64()),
+        kbit_per_sec,
+        link,
+        camera,
+    }
+}
+
+/// One robot's line: its state, leg, localisation, the age of its last report (a report older
+/// than 2 s is shown as the last known state), the link's quality, what it costs.
+fn line(report: &RobotReport) -> String {
+    let robot = &report.robot;
+    let Some(age) = report.report_age_secs else {
+        return match (report.session, &report.refusal) {
+            (true, _) => format!("robot {robot} | session open, no report yet"),
+            (false, Some(why)) => format!("robot {robot} | no session: {why}"),
+            (false, None) => format!("robot {robot} | no session yet"),
+        };
+    };
     let mut text = format!("robot {robot} |");
     if age > 2.0 {
         text.push_str(" last known:");
     }
-    if let Some(status) = &view.status {
+    if let Some(status) = &report.status {
         text.push_str(&format!(
             " state {} | leg {} | localisation {} | firings {}",
             status.state,
@@ -223,15 +403,29 @@ fn line(robot: &str, view: &View, now: Instant) -> String {
             text.push_str(" | link lost (robot's view)");
         }
     }
-    if let Some((x_m, y_m, _)) = view.pose {
+    if let Some([x_m, y_m, _]) = report.pose {
         text.push_str(&format!(" | at ({x_m:.1}, {y_m:.1})"));
     }
-    text.push_str(&format!(" | report {age:.1} s ago | {kbit:.1} kbit/s"));
+    let loss = report
+        .link
+        .loss()
+        .map_or_else(String::new, |loss| format!(", loss {:.0} %", loss * 100.0));
+    text.push_str(&format!(
+        " | report {age:.1} s ago | link quality {}{loss} | {:.1} kbit/s",
+        report.link.word(Some(age)),
+        report.kbit_per_sec
+    ));
+    if let Some(camera) = &report.camera {
+        text.push_str(&format!(
+            " | camera {} {:.1} frames/s, {:.0} kbit/s",
+            camera.name, camera.frames_per_sec, camera.kbit_per_sec
+        ));
+    }
     text
 }
 
 /// Takes a sample the robot sealed for this station's session `sid`.
-fn take(views: &Views, robot: &str, sid: &str, bytes: &[u8]) {
+fn take(views: &Views, robot: &str, sid: &str, bytes: &[u8], on_status: Option<&OnStatus>) {
     let mut views = lock(views);
     let Some(view) = views.get_mut(robot) else {
         return;
@@ -247,10 +441,24 @@ fn take(views: &Views, robot: &str, sid: &str, bytes: &[u8]) {
     };
     let now = Instant::now();
     view.heard = Some(now);
-    view.bytes += bytes.len() as u64;
     view.since.get_or_insert(now);
-    match serde_json::from_slice::<Up>(&plain) {
-        Ok(Up::Status(status)) => view.status = Some(status),
+    let up = serde_json::from_slice::<Up>(&plain);
+    // The robot's kbit/s are what its budget covers: the camera has a budget of its own.
+    if !matches!(up, Ok(Up::Camera { .. })) {
+        view.bytes += bytes.len() as u64;
+    }
+    match up {
+        Ok(Up::Status(status)) => {
+            if let Some(on_status) = on_status {
+                on_status(robot, &status);
+            }
+            view.status = Some(status);
+        }
+        Ok(Up::Plan { route }) => view.route = route,
+        Ok(Up::Camera { name, base64, .. }) => {
+            let (_, frames) = view.camera.get_or_insert_with(|| (name, VecDeque::new()));
+            frames.push_back((now, bytes.len(), base64.len() * 3 / 4));
+        }
         Ok(Up::Pose {
             x_m,
             y_m,
@@ -272,6 +480,7 @@ fn keep_session(
     key: &RoleKey,
     views: &Views,
     beat_every: Duration,
+    on_status: Option<&OnStatus>,
 ) {
     let mut subscriber = None;
     loop {
@@ -291,10 +500,17 @@ fn keep_session(
                 Ok((sid, channel)) => {
                     let sink = Arc::clone(views);
                     let (name, own) = (robot.to_owned(), sid.clone());
+                    let on_status = on_status.cloned();
                     let declared = session
                         .declare_subscriber(wire::up_key(robot, &sid))
                         .callback(move |sample| {
-                            take(&sink, &name, &own, &sample.payload().to_bytes());
+                            take(
+                                &sink,
+                                &name,
+                                &own,
+                                &sample.payload().to_bytes(),
+                                on_status.as_ref(),
+                            );
                         })
                         .wait();
                     match declared {
@@ -308,6 +524,8 @@ fn keep_session(
                                 view.session = Some((sid, channel));
                                 view.opened = Some(Instant::now());
                                 view.refusal = None;
+                                // The new session numbers its samples from 0 again.
+                                view.counts.clear();
                             }
                         }
                         Err(err) => tracing::warn!("cannot subscribe to {robot}: {err}"),

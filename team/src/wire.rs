@@ -11,6 +11,7 @@
 //! What a stranger on the team network sees is these names (the robots' names and random
 //! session numbers), the sizes and the times of the samples: never their contents.
 
+pub use armor_protocol::team::{RobotStatus, RoutePoint};
 use serde::{Deserialize, Serialize};
 
 /// The root of every key expression of the team.
@@ -62,30 +63,18 @@ pub enum Up {
         /// The sample's bytes, base64.
         base64: String,
     },
-}
-
-/// A robot's state as a station shows it.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct RobotStatus {
-    pub robot: String,
-    /// The run's clock (`armor run`'s seconds, scaled).
-    pub run_secs: f64,
-    /// `running`, `paused`, `holding`, the mission's outcome once it ended (`complete`,
-    /// `aborted`…), `no mission`, or `run unreachable` when the bridge cannot reach its run.
-    pub state: String,
-    /// The leg the mission is in (the marked place's leg), if any.
-    pub leg: Option<String>,
-    /// The marked places.
-    pub places: Vec<String>,
-    /// The localiser's state (`localised`, `uncertain`, `lost`), when its estimate comes.
-    pub localisation: Option<String>,
-    /// Seconds since the bridge last heard an operator station, if it ever did.
-    pub operator_heard_secs_ago: Option<f64>,
-    /// Whether the bridge told the run that its operator's link is lost.
-    pub link_lost: bool,
-    pub firings_total: usize,
-    /// The latest firing's transition, for a station to see a response happen.
-    pub last_firing: Option<String>,
+    /// A camera's frame (`--camera`), at its own rate and within its own budget.
+    Camera {
+        name: String,
+        data_type: String,
+        /// The sample's bytes, base64.
+        base64: String,
+    },
+    /// The route of the robot's plan in its world frame, for the station's map: sent every
+    /// few seconds (a station that opens a session later gets it too), a few hundred bytes.
+    Plan {
+        route: Vec<RoutePoint>,
+    },
 }
 
 /// From a station to a robot's bridge.

@@ -45,6 +45,7 @@ mod remote;
 mod sim_realtime;
 mod startup;
 mod studio;
+mod team;
 mod throughput;
 
 use std::process::ExitCode;
@@ -393,6 +394,24 @@ const BENCHES: &[Bench] = &[
         about: "one frame of armor-studio's Run view with 20 modules' markers, 500 each, \
                 played at 10 Hz, every layer shown, vs a 60 Hz frame budget (ms; goal < 16)",
         run: studio::run_markers,
+    },
+    Bench {
+        name: team::NAME_LATENCY,
+        about: "a robot's status from its team bridge to a station (armor-team, zenoh on \
+                loopback, sealed), p50/p99, vs a bare zenoh put/subscribe of the same size (ms)",
+        run: team::run_latency,
+    },
+    Bench {
+        name: team::NAME_BANDWIDTH,
+        about: "what each of 20 stand-in robots costs one station (status 2 Hz, pose 5 Hz), \
+                vs the default budget of 50 kbit/s (kbit/s)",
+        run: team::run_bandwidth,
+    },
+    Bench {
+        name: team::NAME_STATION_FRAME,
+        about: "p99 of one frame of armor-studio's station view with 20 robots, vs a 30 Hz \
+                frame (ms; goal p99 <= 33)",
+        run: team::run_station_frame,
     },
 ];
 

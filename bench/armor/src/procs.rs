@@ -13,6 +13,9 @@ use anyhow::{Context as _, anyhow, bail};
 use armor_module_api::{ENV_MODULE, ENV_SUPERVISOR};
 use armor_runtime::probe;
 
+use crate::Settings;
+use armor_bench_report::Report;
+
 /// Stderr lines kept to explain a child's failure.
 const TAIL_LINES: usize = 20;
 /// How long a graceful guard waits after SIGTERM before SIGKILL.
@@ -360,4 +363,65 @@ impl Drop for ChildGuard {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// Runs the sibling binary `program ARGS… NAME [--quick]` and takes its line for `name` as a
+/// report of its own: the figures measured where `armor-bench` must not link the code (egui,
+/// zenoh).
+pub fn relay(
+    program: &str,
+    args: &[&str],
+    name: &'static str,
+    unit: &'static str,
+    settings: &Settings,
+) -> anyhow::Result<Report> {
+    let program = sibling_binary(program)?;
+    let mut command = Command::new(&program);
+    command.args(args).arg(name);
+    if settings.quick {
+        command.arg("--quick");
+    }
+    let output = command
+        .output()
+        .with_context(|| format!("cannot run {}", program.display()))?;
+    anyhow::ensure!(
+        output.status.success(),
+        "{} {name} failed ({}): {}",
+        program.display(),
+        output.status,
+        String::from_utf8_lossy(&output.stderr).trim()
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let line = stdout
+        .lines()
+        .find(|line| line.contains(&format!("\"{name}\"")))
+        .with_context(|| format!("{} printed no `{name}` line: {stdout}", program.display()))?;
+    let mut fields: serde_json::Map<String, serde_json::Value> =
+        serde_json::from_str(line).with_context(|| format!("not a report line: {line}"))?;
+    let number = |key: &str| fields.get(key).and_then(serde_json::Value::as_f64);
+    let (Some(ours), Some(reference)) = (number("ours"), number("reference")) else {
+        anyhow::bail!("`ours` or `reference` missing from {line}");
+    };
+    let mut report = Report::single(name, unit, ours, reference);
+    report.p50 = number("p50");
+    report.p99 = number("p99");
+    report.reference_p50 = number("reference_p50");
+    report.reference_p99 = number("reference_p99");
+    for key in [
+        "bench",
+        "ours",
+        "reference",
+        "unit",
+        "ratio",
+        "p50",
+        "p99",
+        "reference_p50",
+        "reference_p99",
+    ] {
+        fields.remove(key);
+    }
+    for (key, value) in fields {
+        report = report.with(&key, value);
+    }
+    Ok(report)
 }

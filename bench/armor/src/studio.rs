@@ -9,12 +9,7 @@
 //! `layout_ms_200_blocks` (File → Arrange on 200 blocks and 300 links; goal < 100 ms). The runtime must not depend on egui, so `armor-studio-bench` measures them and
 //! prints them as report lines; this relays them.
 
-use std::process::Command;
-
-use anyhow::Context as _;
-
 use crate::Settings;
-use crate::procs::sibling_binary;
 use armor_bench_report::Report;
 
 pub const NAME_FRAME: &str = "studio_frame_ms_1000_blocks";
@@ -59,46 +54,5 @@ pub fn run_overview_vs_snarl(settings: &Settings) -> anyhow::Result<Report> {
 }
 
 fn relay(name: &'static str, settings: &Settings) -> anyhow::Result<Report> {
-    let studio = sibling_binary("armor-studio-bench")?;
-    let mut command = Command::new(&studio);
-    command.arg(name);
-    if settings.quick {
-        command.arg("--quick");
-    }
-    let output = command
-        .output()
-        .with_context(|| format!("cannot run {}", studio.display()))?;
-    anyhow::ensure!(
-        output.status.success(),
-        "{} {name} failed ({}): {}",
-        studio.display(),
-        output.status,
-        String::from_utf8_lossy(&output.stderr).trim()
-    );
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let line = stdout
-        .lines()
-        .find(|line| line.contains(&format!("\"{name}\"")))
-        .with_context(|| format!("armor-studio-bench printed no `{name}` line: {stdout}"))?;
-    let mut fields: serde_json::Map<String, serde_json::Value> =
-        serde_json::from_str(line).with_context(|| format!("not a report line: {line}"))?;
-    let number = |fields: &serde_json::Map<String, serde_json::Value>, key: &str| {
-        fields
-            .get(key)
-            .and_then(serde_json::Value::as_f64)
-            .with_context(|| format!("`{key}` missing from {line}"))
-    };
-    let mut report = Report::single(
-        name,
-        "ms",
-        number(&fields, "ours")?,
-        number(&fields, "reference")?,
-    );
-    for key in ["bench", "ours", "reference", "unit", "ratio"] {
-        fields.remove(key);
-    }
-    for (key, value) in fields {
-        report = report.with(&key, value);
-    }
-    Ok(report)
+    crate::procs::relay("armor-studio-bench", &[], name, "ms", settings)
 }

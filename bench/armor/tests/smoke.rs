@@ -168,13 +168,11 @@ fn loop_closure_meets_its_goal_on_the_quick_seed() {
     );
 }
 
-#[test]
-fn studio_figures_are_relayed_from_armor_studio() {
-    let output = bench(&[
-        "--quick",
-        "studio_frame_ms_1000_blocks",
-        "studio_load_ms_1000_blocks",
-    ]);
+/// `armor-bench --quick NAMES…`, which must succeed: its lines, one for each name.
+fn relayed(names: &[&str]) -> Vec<serde_json::Value> {
+    let mut args = vec!["--quick"];
+    args.extend(names);
+    let output = bench(&args);
     let stdout = text(&output.stdout);
     assert!(
         output.status.success(),
@@ -186,7 +184,34 @@ fn studio_figures_are_relayed_from_armor_studio() {
         .lines()
         .map(|line| serde_json::from_str(line).unwrap())
         .collect();
-    assert_eq!(lines.len(), 2, "stdout:\n{stdout}");
+    assert_eq!(lines.len(), names.len(), "stdout:\n{stdout}");
+    lines
+}
+
+/// `armor-team` (zenoh) and `armor-studio-bench` measure the team's figures; the relay keeps
+/// their percentiles and what they are measured against.
+#[test]
+fn team_figures_are_relayed_from_armor_team_and_the_studio() {
+    let lines = relayed(&["team_status_latency_ms", "station_frame_ms_20_robots"]);
+    assert_eq!(lines[0]["bench"], "team_status_latency_ms");
+    for field in ["p50", "p99", "reference_p50", "reference_p99"] {
+        assert!(
+            lines[0][field].as_f64().is_some_and(|x| x > 0.0),
+            "{field}: {}",
+            lines[0]
+        );
+    }
+    assert_eq!(lines[1]["bench"], "station_frame_ms_20_robots");
+    assert_eq!(lines[1]["reference"], 33.0, "{}", lines[1]);
+    for line in &lines {
+        assert_eq!(line["unit"], "ms", "{line}");
+        assert!(line["reference_is"].is_string(), "{line}");
+    }
+}
+
+#[test]
+fn studio_figures_are_relayed_from_armor_studio() {
+    let lines = relayed(&["studio_frame_ms_1000_blocks", "studio_load_ms_1000_blocks"]);
     assert_eq!(lines[0]["bench"], "studio_frame_ms_1000_blocks");
     assert_eq!(lines[0]["blocks"], 1000);
     assert_eq!(lines[0]["links"], 1500);

@@ -12,6 +12,8 @@
 //!   snapshots' renderer (egui_kittest's wgpu renderer; mesa's lavapipe here) and read back, what
 //!   a user waits for. The reference is the goal: a 60 Hz frame budget.
 //! - `markers_frame_ms` ([`markers`]): the Run view's frame with 20 modules' markers, 500 each.
+//! - `station_frame_ms_20_robots` ([`station`]): the operator station's frame with 20 robots
+//!   (issue 41: p99 ≤ 33 ms).
 //! - `studio_load_ms_1000_blocks`: opening that file (read, parse into the diagram, check it as
 //!   the validation panel does); the reference is the bare parse by `SystemConfig::parse`.
 //! - `studio_vs_bare_snarl_1000`: our diagram's frame against a bare egui-snarl viewer on the
@@ -28,6 +30,7 @@
 //!   60 Hz frame budget; `rendered_ms` as above.
 
 mod markers;
+mod station;
 
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -445,6 +448,9 @@ pub fn run(args: &[String]) -> anyhow::Result<()> {
     }
     if wants(markers::NAME) || wants("markers") {
         println!("{}", markers::run(&dir, rounds.max(15))?);
+    }
+    if wants(station::NAME) || wants("station") {
+        println!("{}", station::run(if quick { 30 } else { 600 })?);
     }
     if wants(LAYOUT) || wants("layout") {
         let relay = relay();

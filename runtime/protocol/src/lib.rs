@@ -14,7 +14,8 @@
 //!
 //! One module per direction, as dora's message crate has them: [`to_run`] (the requests),
 //! [`from_run`] (the replies, the run's [`Status`] and files), [`frame`] (reading a bounded
-//! frame, shared by both ends) and the [`Client`].
+//! frame, shared by both ends) and the [`Client`]; [`team`] holds what a team's operator
+//! station shows of its robots (issue 41), which the studio reads from `armor-team station`.
 //!
 //! With a shared secret the client proves a role's key in the Noise handshake of the data
 //! links (identity `operator` or `observer`), and the link is encrypted: nobody on the path
@@ -24,6 +25,7 @@
 pub mod client;
 pub mod frame;
 pub mod from_run;
+pub mod team;
 pub mod to_run;
 
 pub use armor_module_api::auth::{Role, RoleKey};
