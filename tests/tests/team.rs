@@ -747,15 +747,8 @@ fn dropped_packets(ns: &str) -> u64 {
 
 /// The CPU time this thread has used: a frame's cost, whatever else the shared machine runs
 /// meanwhile (a frame descheduled for another process's build is not the view's doing).
-#[allow(unsafe_code)]
 fn thread_cpu_time() -> Duration {
-    let mut now = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `clock_gettime` writes only the `timespec` it is handed, which lives here.
-    let status = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut now) };
-    assert_eq!(status, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
+    let now = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
     Duration::new(now.tv_sec as u64, now.tv_nsec as u32)
 }
 
