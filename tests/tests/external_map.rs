@@ -7,7 +7,7 @@
 // A test that cannot read what it made has failed: unwrapping says where.
 #![allow(clippy::unwrap_used)]
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use armor_model::geo::{self, LatLon, Polygon};
@@ -228,18 +228,25 @@ fn a_plan_on_nav2_s_depot_map_arrives_by_the_truth_with_default_noise() {
 const KIDNAP_SECS: f64 = 12.0;
 const KIDNAPPED_TO: (f64, f64) = (20.0, 12.5);
 
-#[test]
-fn a_kidnapped_robot_is_lost_the_plan_holds_and_an_operator_sets_the_pose() {
+/// The depot's system with the kidnap of [`KIDNAPPED_TO`] written in `dir`, the localiser's
+/// `recover` as given and the recorder keeping `topics`: the system file and the recording.
+fn kidnapped_system(dir: &Path, recover: bool, topics: &str) -> (PathBuf, PathBuf) {
     let map = workspace_root().join("tests/data/external/nav2_depot/depot-armor.yaml");
-    let dir = tempfile::tempdir().unwrap();
-    let record = dir.path().join("truth.mcap");
-    let system_file = dir.path().join("system.xml");
+    let record = dir.join("truth.mcap");
+    let system_file = dir.join("system.xml");
     let kidnap = format!("{KIDNAP_SECS} {} {} 0", KIDNAPPED_TO.0, KIDNAPPED_TO.1);
     std::fs::write(
         &system_file,
-        system(&map, &record, &kidnap, false, "sim.pose_truth"),
+        system(&map, &record, &kidnap, recover, topics),
     )
     .unwrap();
+    (system_file, record)
+}
+
+#[test]
+fn a_kidnapped_robot_is_lost_the_plan_holds_and_an_operator_sets_the_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let (system_file, record) = kidnapped_system(dir.path(), false, "sim.pose_truth");
     let plan_file = dir.path().join("plan.xml");
     std::fs::write(&plan_file, plan(&system_file)).unwrap();
     let (mut run, addr) = run_with_control(&plan_file);
@@ -323,22 +330,9 @@ fn a_kidnapped_robot_is_lost_the_plan_holds_and_an_operator_sets_the_pose() {
 /// second, and the localiser goes on on odometry alone), and a search may then not finish.
 #[test]
 fn a_kidnapped_robot_retried_with_recovery_turns_in_place_until_its_place_is_proven() {
-    let map = workspace_root().join("tests/data/external/nav2_depot/depot-armor.yaml");
     let dir = tempfile::tempdir().unwrap();
-    let record = dir.path().join("truth.mcap");
-    let system_file = dir.path().join("system.xml");
-    let kidnap = format!("{KIDNAP_SECS} {} {} 0", KIDNAPPED_TO.0, KIDNAPPED_TO.1);
-    std::fs::write(
-        &system_file,
-        system(
-            &map,
-            &record,
-            &kidnap,
-            true,
-            "sim.pose_truth,localiser.estimate",
-        ),
-    )
-    .unwrap();
+    let (system_file, record) =
+        kidnapped_system(dir.path(), true, "sim.pose_truth,localiser.estimate");
     let plan_file = dir.path().join("plan.xml");
     std::fs::write(&plan_file, plan_of(&system_file, &PLACES[..2])).unwrap();
     let report = dir.path().join("report.json");

@@ -177,6 +177,11 @@ const UNMAPPED_THING_M: f64 = 1.5;
 /// against one taken before the carrying, for this many updates.
 const SEEN_LAG_UPDATES: usize = 10;
 
+/// How many beams' likelihoods are multiplied before a logarithm is taken
+/// ([`Filter::log_likelihood`]): each is at least `1 - z_hit` (a random reading), so that with
+/// `z_hit` up to 0.999 the product stays above 1e-48, far from where an `f64` loses precision.
+const PRODUCT_BEAMS: usize = 16;
+
 /// The filter's settings (the module's parameters).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
@@ -1216,16 +1221,23 @@ impl Filter {
         effective / self.points.len().max(1) as f64
     }
 
-    /// The scan's log-likelihood from a pose.
+    /// The scan's log-likelihood from a pose: the sum of the beams' logarithms, taken as the
+    /// logarithm of their product, [`PRODUCT_BEAMS`] beams at a time. A logarithm for every beam
+    /// of every particle (60,000 a scan) was half of an update (perf on `armor-bench
+    /// localise_ms_per_scan`); the product differs from the sum of logarithms only in rounding.
     fn log_likelihood(&self, pose: Pose2D) -> f64 {
         let z_hit = self.settings.z_hit;
         let z_rand = 1.0 - z_hit;
         let (sin, cos) = pose.theta_rad.sin_cos();
         let mut log_likelihood = 0.0;
-        for &(lx, ly) in &self.points {
-            let x = pose.x_m + cos * lx - sin * ly;
-            let y = pose.y_m + sin * lx + cos * ly;
-            log_likelihood += (z_hit * self.map.field_at(x, y) + z_rand).ln();
+        for chunk in self.points.chunks(PRODUCT_BEAMS) {
+            let mut product = 1.0;
+            for &(lx, ly) in chunk {
+                let x = pose.x_m + cos * lx - sin * ly;
+                let y = pose.y_m + sin * lx + cos * ly;
+                product *= z_hit * self.map.field_at(x, y) + z_rand;
+            }
+            log_likelihood += product.ln();
         }
         log_likelihood
     }

@@ -239,16 +239,19 @@ impl LogOddsGrid {
     pub fn field_at(&self, x_m: f64, y_m: f64) -> f64 {
         let u = (x_m - self.origin_x_m) / self.resolution_m - 0.5;
         let v = (y_m - self.origin_y_m) / self.resolution_m - 0.5;
-        let (u0, v0) = (u.floor(), v.floor());
-        if !(u0 >= 0.0
-            && v0 >= 0.0
-            && u0 + 1.0 < self.width as f64
-            && v0 + 1.0 < self.height as f64)
-        {
+        if !(u >= 0.0 && v >= 0.0) {
             return 0.0;
         }
-        let (tu, tv) = (u - u0, v - v0);
-        let i = v0 as usize * self.width + u0 as usize;
+        // Truncation is the floor of a number not negative; `f64::floor` is a call into the
+        // maths library on x86-64's baseline (no SSE4.1), and this runs for every beam of every
+        // particle of the localiser: 60,000 times a scan, a tenth of an update (measured with
+        // perf on `armor-bench localise_ms_per_scan`).
+        let (u0, v0) = (u as usize, v as usize);
+        if u0 >= self.width.saturating_sub(1) || v0 >= self.height.saturating_sub(1) {
+            return 0.0;
+        }
+        let (tu, tv) = (u - u0 as f64, v - v0 as f64);
+        let i = v0 * self.width + u0;
         let f = |i: usize| f64::from(self.field[i]);
         (1.0 - tv) * ((1.0 - tu) * f(i) + tu * f(i + 1))
             + tv * ((1.0 - tu) * f(i + self.width) + tu * f(i + self.width + 1))
