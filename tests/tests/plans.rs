@@ -1674,3 +1674,78 @@ fn conflicting_objectives_are_explained_and_what_was_dropped_is_said() {
     let legs: Vec<&str> = plan.legs.iter().map(|leg| leg.name.as_str()).collect();
     assert_eq!(legs, ["to_gate_look", "to_spare"]);
 }
+
+/// Issue 37, defect 8: while a leg is driven, the run's status (`armor ctl status --json`, which
+/// the studio's Run view shows) gives the numbers of `armor run`'s live line: the leg, the
+/// distance left on its planned path, the time to its deadline and the slack against it, and
+/// they follow the robot as it drives.
+#[test]
+fn the_status_gives_the_leg_driven_its_distance_left_and_its_slack() {
+    use armor_tests::{Proc, bin, bin_dir, control_address, ctl, ctl_status, wait_until};
+
+    let example = Example::load("plan-yard.xml");
+    let dir = tempfile::tempdir().unwrap();
+    let copy = example.copy_into(dir.path());
+    let _one = ONE_ROBOT_AT_A_TIME
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner);
+    // A slower clock than the plans' runs, so that the first leg lasts several polls.
+    let mut run = Proc::start(
+        std::process::Command::new(bin("armor"))
+            .arg("run")
+            .arg(&copy)
+            .args(["--time-scale", "4", "--no-run-folder"])
+            .env("ARMOR_MODULE_PATH", bin_dir())
+            .current_dir(workspace_root()),
+    );
+    let addr = control_address(&run);
+    let progress = || ctl_status(&addr)["mission"]["progress"].clone();
+    let mut first = serde_json::Value::Null;
+    wait_until(
+        "the first leg's numbers in the status",
+        PLAN_DEADLINE,
+        || {
+            first = progress();
+            first["left_m"].is_f64()
+        },
+    );
+    assert_eq!(first["leg"], "advance", "{first}");
+    assert_eq!(
+        (first["number"].as_u64(), first["legs"].as_u64()),
+        (Some(1), Some(4))
+    );
+    assert_eq!(
+        (first["from"].as_str(), first["to"].as_str()),
+        (Some("home"), Some("gate"))
+    );
+    // `arrive_by` 08:01:00, a minute after the plan's start: the run rehearses it on its day.
+    let deadline = example.run_secs(example.plan.legs[0].arrive_by_unix_secs.unwrap());
+    assert!(
+        (first["deadline_run_secs"].as_f64().unwrap() - deadline).abs() < 1e-6,
+        "{first}"
+    );
+    let left_m = first["left_m"].as_f64().unwrap();
+    let route_m = geo::path_length(&example.compiled.routes[0]);
+    assert!(
+        left_m > 0.0 && left_m <= route_m + TOLERANCE_M,
+        "{left_m} of {route_m} m"
+    );
+    let time_left = first["time_left_secs"].as_f64().unwrap();
+    assert!(time_left > 0.0 && time_left <= deadline, "{first}");
+    // The slack is the time left less the distance left at the plan's speed.
+    let slack = first["slack_secs"].as_f64().unwrap();
+    let expected = time_left - left_m / example.plan.navigation.speed_mps;
+    assert!(
+        (slack - expected).abs() < 1e-6,
+        "{slack} against {expected}"
+    );
+    // The numbers follow the robot: a metre further on, the distance left is a metre less.
+    wait_until("the distance left to shrink", PLAN_DEADLINE, || {
+        progress()["left_m"]
+            .as_f64()
+            .is_some_and(|left| left < left_m - 1.0)
+    });
+    let (aborted, said) = ctl(&addr, &["abort"]);
+    assert!(aborted, "{said}");
+    run.wait_exit(PLAN_DEADLINE);
+}

@@ -18,6 +18,7 @@ pub mod live;
 pub mod markers;
 pub mod monitor;
 pub mod oscilloscope;
+pub mod progress;
 pub mod prompt;
 pub mod sensors_motors;
 pub mod session;
@@ -972,7 +973,11 @@ impl RunView {
         if let Some(summary) = self.followed.summary().filter(|_| running) {
             ui.label(format!("Path: {summary}"));
         }
-        if let Some(option) = self.repair_ui(ui, mission) {
+        if let Some(progress) = &mission.progress {
+            progress::progress_ui(ui, progress);
+        }
+        let run_secs = status.map_or(0.0, |status| status.run_secs);
+        if let Some(option) = self.repair_ui(ui, mission, run_secs) {
             requests.push(Request::Repair { option });
             self.updates.sending = true;
         }

@@ -468,10 +468,16 @@ impl super::RunView {
         }
     }
 
-    /// The repair the mission proposes while a leg cannot be completed as planned: why, each
-    /// option with its costs and the button that applies it (`armor ctl repair N`; greyed, with
-    /// the reason, for an observer's key). Returns the option chosen.
-    pub(super) fn repair_ui(&mut self, ui: &mut Ui, mission: &MissionStatus) -> Option<u32> {
+    /// The repair the mission proposes while a leg cannot be completed as planned: why, when
+    /// the plan's default applies by itself (counting down to it at `run_secs`, the run's
+    /// time), each option with its costs and the button that applies it (`armor ctl repair N`;
+    /// greyed, with the reason, for an observer's key). Returns the option chosen.
+    pub(super) fn repair_ui(
+        &mut self,
+        ui: &mut Ui,
+        mission: &MissionStatus,
+        run_secs: f64,
+    ) -> Option<u32> {
         let repair = mission.repair.as_ref()?;
         let may_command = self.may_command();
         let running = self.is_running() && mission.outcome.is_none();
@@ -494,14 +500,17 @@ impl super::RunView {
                         .color(warn),
                 );
                 ui.label(&repair.why);
-                ui.label(
-                    RichText::new(match repair.default_option {
-                        Some(number) => format!("The plan applies option {number} by itself."),
-                        None => "The mission holds until you choose an option (or send a plan)."
-                            .to_owned(),
-                    })
-                    .small(),
-                );
+                // A countdown is the operator's to act on: as large as the rest of the card.
+                let default = RichText::new(default_text(
+                    repair.default_option,
+                    repair.default_at_run_secs,
+                    run_secs,
+                ));
+                ui.label(if repair.default_at_run_secs.is_some() {
+                    default.color(warn)
+                } else {
+                    default.small()
+                });
                 for option in &repair.options {
                     ui.horizontal_wrapped(|ui| {
                         let apply = ui
@@ -544,5 +553,20 @@ impl super::RunView {
             ui.colored_label(refused_colour(), problem);
         }
         list_ui(ui, mission);
+    }
+}
+
+/// What the repair card says of the plan's default: the option it applies by itself and, when
+/// the contingency gives the operator time, in how many seconds of run time from `run_secs`
+/// (rounded up, so that "in 0 s" never shows while there is still time).
+fn default_text(option: Option<u32>, at_run_secs: Option<f64>, run_secs: f64) -> String {
+    match (option, at_run_secs) {
+        (Some(number), Some(at)) if at > run_secs => format!(
+            "Option {number} applies by itself in {:.0} s, unless you choose first.",
+            (at - run_secs).ceil()
+        ),
+        (Some(number), Some(_)) => format!("Option {number} applies by itself now."),
+        (Some(number), None) => format!("The plan applies option {number} by itself."),
+        (None, _) => "The mission holds until you choose an option (or send a plan).".to_owned(),
     }
 }

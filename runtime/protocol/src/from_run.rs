@@ -52,6 +52,37 @@ pub struct MissionStatus {
     /// a no-go area); none when nothing is contradicted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub repair: Option<Repair>,
+    /// How the leg being driven stands, as `armor run`'s live line gives it; none when no leg
+    /// is being driven (before the first sets off, between legs, after the last) or the run
+    /// plays a mission net rather than a plan.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub progress: Option<LegProgress>,
+}
+
+/// The leg being driven: how far it has to go and how it stands against its deadline. The
+/// same numbers make `armor run`'s live line and the studio's Run view.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LegProgress {
+    /// Its number, from 1, among `legs` in the plan.
+    pub number: usize,
+    pub legs: usize,
+    pub leg: String,
+    pub from: String,
+    pub to: String,
+    /// The distance left on its planned path from where the robot believes it is (metres);
+    /// none while its odometry is not known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub left_m: Option<f64>,
+    /// Its deadline (`arrive_by`, run seconds), if it has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deadline_run_secs: Option<f64>,
+    /// The time left to that deadline (seconds; negative once late).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_left_secs: Option<f64>,
+    /// The time left less the time the distance left takes at the plan's speed (seconds):
+    /// positive, the robot is early by that much; negative, late.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slack_secs: Option<f64>,
 }
 
 /// A repair the mission proposes when the world contradicts the plan: a leg cannot be completed

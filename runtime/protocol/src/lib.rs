@@ -32,8 +32,8 @@ pub use armor_module_api::auth::{Role, RoleKey};
 pub use client::{Client, ClientError, key_from_file, request};
 pub use from_run::{
     BehaviourChange, BehaviourState, BinaryFile, Enabled, FileText, FiringRecord, FromRun,
-    MissionStatus, ModuleState, ModuleStatus, ParamFile, Repair, RepairKind, RepairOption, Reply,
-    RunFiles, Status, TELEOP_ENDPOINT, TELEOP_TYPE, UpdateRecord,
+    LegProgress, MissionStatus, ModuleState, ModuleStatus, ParamFile, Repair, RepairKind,
+    RepairOption, Reply, RunFiles, Status, TELEOP_ENDPOINT, TELEOP_TYPE, UpdateRecord,
 };
 pub use to_run::{ENV_CONTROL, MAX_UPDATE_BYTES, Request, ToRun, allowed};
 

@@ -92,6 +92,8 @@ pub struct Controller {
     updates: Vec<UpdateRecord>,
     /// The repair proposed while a leg cannot be completed.
     repair: Option<armor_protocol::Repair>,
+    /// The leg being driven and its numbers, as the run's progress line last found them.
+    progress: Option<armor_protocol::LegProgress>,
     /// Where every update and repair entry of the timeline goes too, as JSON (the run's node
     /// publishes it for the recording), report or not.
     records: Option<std::sync::mpsc::Sender<String>>,
@@ -169,6 +171,7 @@ impl Controller {
             held_since: None,
             updates: Vec::new(),
             repair: None,
+            progress: None,
             records: None,
             link_lost_since: None,
             link_reported: BTreeSet::new(),
@@ -370,6 +373,12 @@ impl Controller {
         self.engine = Engine::resume(&net, &self.engine.marking(), &self.engine, true, now)?;
         self.net = net;
         Ok(())
+    }
+
+    /// The leg being driven with its numbers (`crate::progress::leg_progress`), for the status:
+    /// the controller knows the net, the run's progress line where the robot is.
+    pub fn set_progress(&mut self, progress: Option<armor_protocol::LegProgress>) {
+        self.progress = progress;
     }
 
     /// The repair proposed (shown in the status), or none.
@@ -757,6 +766,7 @@ impl Controller {
                 .map(|outcome| outcome.as_str().to_owned()),
             updates: self.updates.clone(),
             repair: self.repair.clone(),
+            progress: self.progress.clone(),
         }
     }
 

@@ -21,6 +21,7 @@ use armor_model::plan::{Compiled, Plan};
 use armor_model::rehearsal::{Arrival, Judge, NoGoArea, TruePose, Verdict};
 use armor_module_api::types::{Datum, Odometry, Pose2D, Text};
 use armor_module_api::{Event, ModuleSpec, Node, Standalone};
+use armor_protocol::LegProgress;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::console;
@@ -145,10 +146,39 @@ pub fn remaining_m(route: &[Point], at: Point) -> f64 {
     along * (1.0 - t) + geo::path_length(&route[segment + 1..])
 }
 
+/// How the leg being driven stands at run time `now_secs`, if one is: `left_m` is the
+/// distance left on it when the robot's position is known; `speed_mps` is the plan's, for the
+/// slack (the time left, less the time the distance left takes at that speed). The live line
+/// and the run's status (`armor ctl status`, the studio's Run view) both say these numbers.
+pub fn leg_progress(
+    legs: &[LegPlan],
+    stage: Stage,
+    now_secs: f64,
+    left_m: Option<f64>,
+    speed_mps: f64,
+) -> Option<LegProgress> {
+    let Stage::Driving(index) = stage else {
+        return None;
+    };
+    let leg = legs.get(index)?;
+    let time_left_secs = leg.deadline_secs.map(|deadline| deadline - now_secs);
+    Some(LegProgress {
+        number: index + 1,
+        legs: legs.len(),
+        leg: leg.name.clone(),
+        from: leg.from.clone(),
+        to: leg.to.clone(),
+        left_m,
+        deadline_run_secs: leg.deadline_secs,
+        time_left_secs,
+        slack_secs: time_left_secs
+            .zip(left_m)
+            .map(|(time_left, left)| time_left - left / speed_mps),
+    })
+}
+
 /// The live line: what the robot does, what it must do next by when, and the run time.
-/// `left_m` is the distance left on the current leg when the robot's position is known;
-/// `speed_mps` is the plan's, for the slack (the time left, less the time the distance left
-/// takes at that speed).
+/// `left_m` and `speed_mps` are [`leg_progress`]'s.
 pub fn status_line(
     legs: &[LegPlan],
     stage: Stage,
@@ -164,30 +194,29 @@ pub fn status_line(
             0
         }
         Stage::Driving(index) => {
-            let leg = &legs[index];
-            let mut part = format!(
-                "leg {}/{count} {} ({} → {})",
-                index + 1,
-                leg.name,
-                leg.from,
-                leg.to
-            );
-            if let Some(left) = left_m {
-                part.push_str(&format!(": {left:.1} m left"));
-            }
-            parts.push(part);
-            if let Some(deadline) = leg.deadline_secs {
-                let time_left = deadline - now_secs;
-                let mut part = format!("arrive at {} by {deadline:.1} s: ", leg.to);
-                if time_left >= 0.0 {
-                    part.push_str(&format!("{time_left:.1} s left"));
-                } else {
-                    part.push_str(&format!("{:.1} s late", -time_left));
-                }
-                if let Some(left) = left_m {
-                    part.push_str(&format!(", slack {:.1} s", time_left - left / speed_mps));
+            if let Some(progress) = leg_progress(legs, stage, now_secs, left_m, speed_mps) {
+                let mut part = format!(
+                    "leg {}/{count} {} ({} → {})",
+                    progress.number, progress.leg, progress.from, progress.to
+                );
+                if let Some(left) = progress.left_m {
+                    part.push_str(&format!(": {left:.1} m left"));
                 }
                 parts.push(part);
+                if let (Some(deadline), Some(time_left)) =
+                    (progress.deadline_run_secs, progress.time_left_secs)
+                {
+                    let mut part = format!("arrive at {} by {deadline:.1} s: ", progress.to);
+                    if time_left >= 0.0 {
+                        part.push_str(&format!("{time_left:.1} s left"));
+                    } else {
+                        part.push_str(&format!("{:.1} s late", -time_left));
+                    }
+                    if let Some(slack) = progress.slack_secs {
+                        part.push_str(&format!(", slack {slack:.1} s"));
+                    }
+                    parts.push(part);
+                }
             }
             index + 1
         }
@@ -251,6 +280,8 @@ pub struct Progress {
     started: Vec<Option<f64>>,
     arrived: Vec<Option<f64>>,
     extras: Vec<LegExtras>,
+    /// The leg being driven as the latest tick found it, for the run's status.
+    latest: Option<LegProgress>,
     next_draw: Instant,
 }
 
@@ -324,6 +355,7 @@ impl Progress {
             started: vec![None; count],
             arrived: vec![None; count],
             extras: vec![LegExtras::default(); count],
+            latest: None,
             next_draw: Instant::now(),
         }
     }
@@ -425,16 +457,19 @@ impl Progress {
                 }
             }
         }
-        let now = Instant::now();
-        if now < self.next_draw || self.bar.is_hidden() {
-            return;
-        }
-        self.next_draw = now + DRAW_PERIOD;
         let stage = stage(&self.legs, &self.started, &self.arrived);
         let left = match (stage, odometer.at) {
             (Stage::Driving(index), Some(at)) => Some(remaining_m(&self.legs[index].route, at)),
             _ => None,
         };
+        // Worked out at every tick, terminal or not: a studio that runs `armor run` reads it
+        // from the status.
+        self.latest = leg_progress(&self.legs, stage, now_secs, left, self.speed_mps);
+        let now = Instant::now();
+        if now < self.next_draw || self.bar.is_hidden() {
+            return;
+        }
+        self.next_draw = now + DRAW_PERIOD;
         self.bar.set_message(status_line(
             &self.legs,
             stage,
@@ -443,6 +478,11 @@ impl Progress {
             self.speed_mps,
         ));
         self.bar.tick();
+    }
+
+    /// The leg being driven, as the latest tick found it.
+    pub fn leg_progress(&self) -> Option<LegProgress> {
+        self.latest.clone()
     }
 
     /// A module reported `name` (`MODULE.EVENT`): kept with the leg under way.
@@ -667,5 +707,45 @@ mod tests {
         );
         let starting = status_line(&legs, Stage::Starting, 0.3, None, 0.5);
         assert_eq!(starting, "starting · next: advance · run 0.3 s");
+    }
+
+    #[test]
+    fn the_status_carries_the_numbers_of_the_line() {
+        let legs = [
+            leg("advance", &[(0.0, 0.0), (20.0, 0.0)], None, Some(60.0)),
+            leg("cross", &[(20.0, 0.0), (20.0, 10.0)], Some(65.5), None),
+        ];
+        assert_eq!(
+            leg_progress(&legs, Stage::Driving(0), 40.0, Some(5.0), 0.5),
+            Some(LegProgress {
+                number: 1,
+                legs: 2,
+                leg: "advance".to_owned(),
+                from: "a".to_owned(),
+                to: "advance_end".to_owned(),
+                left_m: Some(5.0),
+                deadline_run_secs: Some(60.0),
+                time_left_secs: Some(20.0),
+                slack_secs: Some(10.0),
+            })
+        );
+        let late = leg_progress(&legs, Stage::Driving(0), 62.5, Some(3.0), 0.5).unwrap();
+        assert_eq!(
+            (late.time_left_secs, late.slack_secs),
+            (Some(-2.5), Some(-8.5))
+        );
+        // No deadline, no time left nor slack; no position, no distance.
+        let cross = leg_progress(&legs, Stage::Driving(1), 70.0, None, 0.5).unwrap();
+        assert_eq!(
+            (
+                cross.number,
+                cross.left_m,
+                cross.time_left_secs,
+                cross.slack_secs
+            ),
+            (2, None, None, None)
+        );
+        assert_eq!(leg_progress(&legs, Stage::After(0), 61.0, None, 0.5), None);
+        assert_eq!(leg_progress(&legs, Stage::Starting, 0.3, None, 0.5), None);
     }
 }

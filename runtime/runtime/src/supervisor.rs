@@ -397,6 +397,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     controller.first_marked(),
                     controller.first_fired(),
                 );
+                controller.set_progress(progress.leg_progress());
             }
             match controller.outcome() {
                 None => {}
