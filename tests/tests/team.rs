@@ -196,6 +196,22 @@ fn send(
     )
 }
 
+/// `line` sent with the observer's key is refused by r1's bridge, which says why.
+fn refused_to_observer(
+    wrap: &[&str],
+    observer: &Path,
+    robots: &[&str],
+    connect: &[String],
+    line: &str,
+) {
+    let (done, said) = send(wrap, observer, robots, connect, line);
+    assert!(!done, "{said}");
+    assert!(
+        said.contains("r1: refused") && said.contains("observer role"),
+        "{said}"
+    );
+}
+
 /// Waits for a station line of `robot` (after the first `skip` lines) that holds all of `parts`.
 fn wait_line(
     station: &Proc,
@@ -315,12 +331,7 @@ fn two_robots_and_stations_over_zenoh_under_the_runs_keys_and_the_radio_in_the_p
     wait_line(&observing, later, "r2", &["state running"], PATIENCE);
 
     // The observer cannot command: its resume is refused by the robot's bridge, r1 stays paused.
-    let (done, said) = send(&[], &observer, &robots, &endpoints, "r1 resume");
-    assert!(!done, "{said}");
-    assert!(
-        said.contains("r1: refused") && said.contains("observer role"),
-        "{said}"
-    );
+    refused_to_observer(&[], &observer, &robots, &endpoints, "r1 resume");
     let skip = observing.line_count();
     wait_line(&observing, skip, "r1", &["state paused"], PATIENCE);
 
@@ -617,17 +628,13 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
     // The station commands through its radio; an observer's station in the same namespace
     // cannot: the robot's bridge refuses its pause, and r1 drives on.
     let observer = role_key(&secret, "observer");
-    let (done, said) = send(&in_station, &observer, &robots, &connect, "r1 pause");
-    assert!(!done, "{said}");
-    assert!(
-        said.contains("r1: refused") && said.contains("observer role"),
-        "{said}"
-    );
+    refused_to_observer(&in_station, &observer, &robots, &connect, "r1 pause");
     let skip = watch.line_count();
     wait_line(&watch, skip, "r1", &["state running"], PATIENCE);
 
-    // The cut: r1's link (behind its delay relay) down for 10 s. r1 holds after 2 s without beats and the 3 s its plan
-    // says; r2, whose radio works, drives on and the station keeps hearing it.
+    // The cut: r1's link (behind its delay relay) down for 10 s. r1 holds after 2 s without
+    // beats and the 3 s its plan says; r2, whose radio works, drives on and the station keeps
+    // hearing it.
     run_tool(
         "ip",
         &["-n", &radio.station, "link", "set", &station_dev(1), "down"],
