@@ -8,12 +8,13 @@
 //!   nothing in clear. The operator's station then goes away: each robot's plan says
 //!   `link_lost` after 3 s → hold, which fires once while the observer watches; an operator
 //!   comes back, the robots say the link is found, and a retry sent to all drives them on.
-//! * In network namespaces (as root, as `hosts` is; it fails saying so otherwise): a robot
-//!   and a station joined by a veth pair with loss (iptables `statistic`) and a rate (`tbf`),
-//!   and for the second robot a 300 ms delay each way (a relay of our own, in Python, in the
-//!   station's namespace), through which the station keeps its state within 2 s;
-//!   a 10 s cut (`ip link set down`) makes `link_lost` fire once, the robot holds as its plan
-//!   says, and the station catches up once the link is back.
+//! * In network namespaces (as root, as `hosts` is; it fails saying so otherwise): two robots
+//!   and a station, each robot joined to the station by a veth pair with 10 % loss (iptables
+//!   `statistic`), 256 kbit/s (`tbf`) and a 300 ms delay each way (a relay of our own, in
+//!   Python, in the station's namespace), through which the station keeps each robot's state
+//!   within 2 s and commands, while an observer's station in the same namespace cannot;
+//!   a 10 s cut (`ip link set down`) of one robot's link makes `link_lost` fire once, the robot
+//!   holds as its plan says, and the station catches up once the link is back.
 //! * Twenty stand-in robots (the real bridge serving a run that is only a clock) report to the
 //!   studio's station view, fed by `armor-team station --json`: all shown, each within its
 //!   budget, the view's frame within 33 ms at p99.
@@ -195,6 +196,22 @@ fn send(
     )
 }
 
+/// `line` sent with the observer's key is refused by r1's bridge, which says why.
+fn refused_to_observer(
+    wrap: &[&str],
+    observer: &Path,
+    robots: &[&str],
+    connect: &[String],
+    line: &str,
+) {
+    let (done, said) = send(wrap, observer, robots, connect, line);
+    assert!(!done, "{said}");
+    assert!(
+        said.contains("r1: refused") && said.contains("observer role"),
+        "{said}"
+    );
+}
+
 /// Waits for a station line of `robot` (after the first `skip` lines) that holds all of `parts`.
 fn wait_line(
     station: &Proc,
@@ -314,12 +331,7 @@ fn two_robots_and_stations_over_zenoh_under_the_runs_keys_and_the_radio_in_the_p
     wait_line(&observing, later, "r2", &["state running"], PATIENCE);
 
     // The observer cannot command: its resume is refused by the robot's bridge, r1 stays paused.
-    let (done, said) = send(&[], &observer, &robots, &endpoints, "r1 resume");
-    assert!(!done, "{said}");
-    assert!(
-        said.contains("r1: refused") && said.contains("observer role"),
-        "{said}"
-    );
+    refused_to_observer(&[], &observer, &robots, &endpoints, "r1 resume");
     let skip = observing.line_count();
     wait_line(&observing, skip, "r1", &["state paused"], PATIENCE);
 
@@ -571,22 +583,33 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
     let r1 = start_robot(&in_robot[0], &plan, &secret, "r1", &connect[0]);
     let r2 = start_robot(&in_robot[1], &plan, &secret, "r2", &connect[1]);
     let robots = ["r1", "r2"];
-    // r2's radio also delays: the station reaches it through a relay of our own in the
-    // station's namespace that holds every chunk 300 ms each way (this kernel has no netem),
-    // then over the lossy, rate-limited link.
+    // Each robot's radio also delays: the station reaches robot N through a relay of our own
+    // in the station's namespace (port 7447 + N) that holds every chunk 300 ms each way (this
+    // kernel has no netem), then over its lossy, rate-limited link.
     let script = dir.path().join("delay_relay.py");
     std::fs::write(&script, DELAY_RELAY).unwrap();
-    let relay = Proc::start(
-        Command::new(armor_tests::tools::program("ip"))
-            .args(["netns", "exec", &radio.station])
-            .arg(armor_tests::tools::program("python3"))
-            .arg(&script)
-            .args(["7448", &format!("{}:7447", robot_addr(2)), "0.3"]),
-    );
-    relay.wait_for("the delay relay", PATIENCE, |line| {
-        line.contains("relay listening")
-    });
-    let connect = [connect[0].clone(), "tcp/127.0.0.1:7448".to_owned()];
+    let _relays: Vec<Proc> = (1..=2)
+        .map(|n| {
+            let relay = Proc::start(
+                Command::new(armor_tests::tools::program("ip"))
+                    .args(["netns", "exec", &radio.station])
+                    .arg(armor_tests::tools::program("python3"))
+                    .arg(&script)
+                    .args([
+                        &(7447 + n).to_string(),
+                        &format!("{}:7447", robot_addr(n)),
+                        "0.3",
+                    ]),
+            );
+            relay.wait_for("the delay relay", PATIENCE, |line| {
+                line.contains("relay listening")
+            });
+            relay
+        })
+        .collect();
+    let connect: Vec<String> = (1..=2)
+        .map(|n| format!("tcp/127.0.0.1:{}", 7447 + n))
+        .collect();
     let watch = station(&in_station, &operator, &robots, &connect);
     for robot in robots {
         wait_line(
@@ -597,14 +620,21 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
             PATIENCE,
         );
     }
-    // Through the lossy, slow links (and r2's delay) the station keeps up: a report within
-    // 2 s, line after line.
+    // Through the lossy, slow and delayed links the station keeps up: a report within 2 s,
+    // line after line.
     for robot in robots {
         keeps_up(&watch, robot, 5);
     }
+    // The station commands through its radio; an observer's station in the same namespace
+    // cannot: the robot's bridge refuses its pause, and r1 drives on.
+    let observer = role_key(&secret, "observer");
+    refused_to_observer(&in_station, &observer, &robots, &connect, "r1 pause");
+    let skip = watch.line_count();
+    wait_line(&watch, skip, "r1", &["state running"], PATIENCE);
 
-    // The cut: r1's link down for 10 s. r1 holds after 2 s without beats and the 3 s its plan
-    // says; r2, whose radio works, drives on and the station keeps hearing it.
+    // The cut: r1's link (behind its delay relay) down for 10 s. r1 holds after 2 s without
+    // beats and the 3 s its plan says; r2, whose radio works, drives on and the station keeps
+    // hearing it.
     run_tool(
         "ip",
         &["-n", &radio.station, "link", "set", &station_dev(1), "down"],
