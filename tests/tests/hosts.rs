@@ -534,14 +534,17 @@ fn armor_ctl_teleop_reaches_a_teleop_module_on_another_host() {
             String::from_utf8_lossy(&output.stdout).into_owned(),
         )
     };
-    let mut status = String::new();
-    wait_until("the remote teleop's endpoint", PATIENCE, || {
-        status = ctl(&["status"]).1;
-        status.contains(&format!("teleop at {HOST_ADDR}:"))
-    });
-    assert!(
-        status.contains("pad (teleop): running on host `robot1`"),
-        "{status}"
+    // The module's endpoint is known from its registration, a moment before the host reports
+    // it running (a fresh machine's status once showed `starting` with the endpoint): wait for
+    // both.
+    wait_until(
+        "the remote teleop running, with its endpoint",
+        PATIENCE,
+        || {
+            let status = ctl(&["status"]).1;
+            status.contains(&format!("teleop at {HOST_ADDR}:"))
+                && status.contains("pad (teleop): running on host `robot1`")
+        },
     );
     let (ok, reply) = ctl(&["teleop", "0.3", "0"]);
     assert!(ok, "{reply}");
