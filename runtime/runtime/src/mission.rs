@@ -190,7 +190,7 @@ fn load_text(
             let system_dir = system_file.parent().unwrap_or(base);
             let world = memory
                 .world(&plan, &system.system, base, system_dir, module_path)
-                .map_err(|message| unanalysed(fail(vec![Located::new(plan.pos, message)])))?;
+                .map_err(|err| unanalysed(fail(vec![Located::new(plan.pos, err.to_string())])))?;
             // The robot's size comes from the plan, else from the system's modules.
             let (robot, radius_source) =
                 plan::robot_explained(&plan, Some(&system.system), &system.descriptions);
@@ -386,7 +386,20 @@ pub fn plan_world(
     system_dir: &Path,
     module_path: &[PathBuf],
 ) -> Result<Option<World>, String> {
-    PlanMemory::default().world(plan, system, plan_dir, system_dir, module_path)
+    PlanMemory::default()
+        .world(plan, system, plan_dir, system_dir, module_path)
+        .map_err(|err| err.to_string())
+}
+
+/// Why a plan's world could not be had.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanWorldError {
+    /// No file by the world's name, where the plan or the system names it.
+    #[error("the world: {0}")]
+    NotFound(String),
+    /// The file is there but does not load.
+    #[error("the world does not load: {0}")]
+    Load(#[from] armor_model::world::WorldError),
 }
 
 /// The file of the world [`plan_world`] loads, `None` when the plan has none.
@@ -396,7 +409,7 @@ fn world_file(
     plan_dir: &Path,
     system_dir: &Path,
     module_path: &[PathBuf],
-) -> Result<Option<PathBuf>, String> {
+) -> Result<Option<PathBuf>, PlanWorldError> {
     let (name, base) = if plan.world.is_empty() {
         let from_system = system.modules.iter().find_map(|module| {
             module
@@ -413,7 +426,7 @@ fn world_file(
     };
     paths::resolve(&name, base, module_path, "worlds")
         .map(Some)
-        .map_err(|err| format!("the world: {err}"))
+        .map_err(PlanWorldError::NotFound)
 }
 
 /// What a run keeps between the plans it compiles (its own at the start, then each update's),
@@ -450,7 +463,7 @@ impl PlanMemory {
         plan_dir: &Path,
         system_dir: &Path,
         module_path: &[PathBuf],
-    ) -> Result<Option<World>, String> {
+    ) -> Result<Option<World>, PlanWorldError> {
         let Some(file) = world_file(plan, system, plan_dir, system_dir, module_path)? else {
             return Ok(None);
         };
@@ -467,8 +480,7 @@ impl PlanMemory {
         let world = armor_model::world_file::load(&file, &mut |path| {
             read.push((path.to_path_buf(), stamp(path)));
             std::fs::read(path)
-        })
-        .map_err(|err| format!("the world does not load: {err}"))?;
+        })?;
         self.world = Some(KeptWorld {
             file,
             read,

@@ -386,8 +386,9 @@ pub fn prepare(
                 // A copy of the run's memory: its costmap is shared, not copied, and the
                 // paths it remembers are the ones the check just planned.
                 let mut memory = running.memory.clone();
-                let world =
-                    memory.world(&plan, &loaded.system.system, base, system_dir, module_path)?;
+                let world = memory
+                    .world(&plan, &loaded.system.system, base, system_dir, module_path)
+                    .map_err(|err| err.to_string())?;
                 let path = match plan_one(&mut memory, world.as_ref(), &compiled, here, goal)? {
                     Ok(path) => Some(path),
                     // An area reported is a fact, not a wish: it is taken all the same, and
@@ -541,7 +542,8 @@ pub fn world_of(
     let system_dir = running.system_file.parent().unwrap_or(base);
     Ok(running
         .memory
-        .world(&running.plan, system, base, system_dir, module_path)?)
+        .world(&running.plan, system, base, system_dir, module_path)
+        .map_err(|err| err.to_string())?)
 }
 
 /// Before the operator's `LEG_retry` fires (a leg held drives again): plans the leg from where
