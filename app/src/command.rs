@@ -273,6 +273,17 @@ impl UiCommand {
         )
     }
 
+    /// Whether holding its key repeats it, as a text editor's undo and delete do. The others
+    /// open, save or start something once per press: a key held down (or a keyboard repeating
+    /// while a loaded machine is slow to see it released) must not open a second dialog or start
+    /// a second run.
+    pub fn repeats_when_held(self) -> bool {
+        matches!(
+            self,
+            UiCommand::Undo | UiCommand::Redo | UiCommand::Delete | UiCommand::Duplicate
+        )
+    }
+
     /// Whether its keys come as the platform's clipboard events (the platform turns Ctrl+C,
     /// Ctrl+X and Ctrl+V into copy, cut and paste, the last with the clipboard's text), which
     /// the System view reads itself rather than as shortcuts.
@@ -294,6 +305,28 @@ pub fn triggered(ctx: &egui::Context, view: View, typing: bool) -> Vec<UiCommand
             (command, shortcuts)
         })
         .collect();
+    // A key held down arrives again as repeats: those of a command that acts once per press
+    // are dropped before anything can take them.
+    ctx.input_mut(|input| {
+        input.events.retain(|event| {
+            let egui::Event::Key {
+                key,
+                modifiers,
+                repeat: true,
+                ..
+            } = event
+            else {
+                return true;
+            };
+            !candidates.iter().any(|(command, shortcuts)| {
+                !command.repeats_when_held()
+                    && shortcuts.iter().any(|shortcut| {
+                        shortcut.logical_key == *key
+                            && modifiers.matches_logically(shortcut.modifiers)
+                    })
+            })
+        });
+    });
     // egui matches keys logically: Ctrl+Z would also take Ctrl+Shift+Z. Keys with more
     // modifiers are therefore tried first (a stable sort keeps the table's order otherwise).
     candidates.sort_by_key(|(_, shortcuts)| {

@@ -171,3 +171,27 @@ fn a_file_parameter_is_picked_in_a_browser_and_named_as_armor_run_finds_it() {
     );
     assert!(Path::new(&docs.join("hall.world")).exists());
 }
+
+/// A key held down arrives again as repeats (and a loaded machine that is slow to see a key
+/// released repeats it too): Ctrl+O opens its dialog once, and the repeats neither open it
+/// again nor throw away what was typed in it.
+#[test]
+fn a_held_ctrl_o_opens_one_dialog_and_keeps_what_was_typed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(options(&dir.path().join("home"), None));
+    // Pressed and not released: the presses that follow are the keyboard's repeats (egui
+    // marks a press of a key already down as a repeat).
+    harness.key_down_modifiers(Modifiers::COMMAND, Key::O);
+    harness.run();
+    type_into(&mut harness, "Path:", "typed-before-the-repeat.xml");
+    let typed = harness.get_by_label("Path:").value().unwrap_or_default();
+    assert!(typed.ends_with("typed-before-the-repeat.xml"), "{typed:?}");
+    for _ in 0..3 {
+        harness.key_down_modifiers(Modifiers::COMMAND, Key::O);
+        harness.run();
+    }
+    harness.key_up_modifiers(Modifiers::COMMAND, Key::O);
+    harness.run();
+    let field = harness.get_by_label("Path:").value().unwrap_or_default();
+    assert!(field.ends_with("typed-before-the-repeat.xml"), "{field:?}");
+}

@@ -75,6 +75,12 @@ fn keys_until(studio: &Proc, display: &str, window: &str, keys: &[&str], said: &
     );
 }
 
+/// The studio's last 40 lines, for a failure's message.
+fn last_lines(studio: &Proc) -> String {
+    let lines = studio.lines();
+    lines[lines.len().saturating_sub(40)..].join("\n")
+}
+
 /// Opens a path dialog with `key` (the window given the focus first), and waits until
 /// the dialog's field takes typed keys (a frame or two after it opens: the studio says when).
 /// The key is sent once: sent again on a slow frame, a second dialog would open after the
@@ -122,6 +128,11 @@ fn start(dir: &Path, file: &Path) -> Session {
         "1280x800x24",
         "-nolisten",
         "tcp",
+        // No key repeats: xdotool presses and releases each key, and on a loaded machine it can
+        // be held off the processor between the two for longer than the half-second after which
+        // a server starts repeating, which would type a path's letters twice.
+        "-ardelay",
+        "3600000",
     ]));
     let number = xvfb.wait_for("the display number", PATIENCE, |line| {
         !line.is_empty() && line.bytes().all(|b| b.is_ascii_digit())
@@ -426,8 +437,10 @@ fn ocr_slack_is_small() {
 }
 
 /// Screenshots `name` until `done` holds of the OCR of `crop`, at most `patience`; returns the
-/// text read.
+/// text read. A failure shows the studio's last lines beside the text read: what the screen
+/// shows is then told from what the studio said it did.
 fn ocr_until(
+    studio: &Proc,
     display: &str,
     name: &str,
     crop: &str,
@@ -444,8 +457,9 @@ fn ocr_until(
         }
         assert!(
             Instant::now() < deadline,
-            "after {patience:?}, {} reads:\n{text}",
-            shot.display()
+            "after {patience:?}, {} reads:\n{text}\nthe studio's last lines:\n{}",
+            shot.display(),
+            last_lines(studio)
         );
     }
 }
@@ -490,9 +504,15 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     // The canvas only (right of the palette, below the problems line): the palette lists the
     // module types, which are these blocks' names too. Dark text on light after inversion.
     let canvas = "1050x725+230+45";
-    let text = ocr_until(display, "1-system", canvas, Ink::White, PATIENCE, |text| {
-        names.iter().all(|name| ocr_has(text, name))
-    });
+    let text = ocr_until(
+        studio,
+        display,
+        "1-system",
+        canvas,
+        Ink::White,
+        PATIENCE,
+        |text| names.iter().all(|name| ocr_has(text, name)),
+    );
     assert!(!text.is_empty());
 
     // Open… from the System view takes the plan too, and shows it in the Mission view.
@@ -509,6 +529,7 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     // The plan's waypoints are named on the map (`gate`, on the phase line, reads to a person
     // but not to tesseract).
     ocr_until(
+        studio,
         display,
         "2-plan",
         "950x600+0+45",
@@ -526,9 +547,15 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     // The lines above the map (light on dark): the poses, estimated and true, then what the
     // follower does, which wraps to a second line beside the localisation state.
     let poses = "660x44+300+45";
-    let text = ocr_until(display, "3-running", poses, Ink::Light, PATIENCE, |text| {
-        ocr_points(text).iter().any(|(x, _)| *x > 5.0)
-    });
+    let text = ocr_until(
+        studio,
+        display,
+        "3-running",
+        poses,
+        Ink::Light,
+        PATIENCE,
+        |text| ocr_points(text).iter().any(|(x, _)| *x > 5.0),
+    );
     assert!(
         ocr_has(&text, "following"),
         "the path followed is named: {text}"
@@ -554,6 +581,7 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
         }
     };
     let text = ocr_until(
+        studio,
         display,
         "4-stopped",
         modules,
@@ -574,6 +602,7 @@ fn a_newcomer_reads_the_robot_system_then_runs_and_stops_the_yard_plan() {
     ));
     assert!(xdotool(display, &["click", "--repeat", "30", "5"]));
     let text = ocr_until(
+        studio,
         display,
         "5-stopped-end",
         modules,
