@@ -188,7 +188,7 @@ fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_wo
     let texts = texts_on(&harness, map);
     let said = |wanted: &str| texts.iter().any(|(text, _)| text == wanted);
     assert!(
-        said("true pose (simulator)") && said("gate"),
+        said("truth (simulator)") && said("gate"),
         "the truth's tag and the waypoint's name are drawn: {texts:?}"
     );
     assert!(

@@ -451,7 +451,7 @@ pub fn paint_robots(
 }
 
 /// What the map's labels are placed with while a run is watched: the robots' boxes, which no
-/// label covers, and their tags (`localised`, `true pose (simulator)`), placed first.
+/// label covers, and their tags (`localised`, `truth (simulator)`), placed first.
 pub fn robot_tags(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
@@ -544,7 +544,7 @@ fn tag_label(
 const ELLIPSE_POINTS: usize = 48;
 /// The label of the simulator's pose on the map: it is the judge, not something the robot
 /// knows.
-pub const TRUTH_LABEL: &str = "true pose (simulator)";
+pub const TRUTH_LABEL: &str = "truth (simulator)";
 
 /// The simulator's pose: the robot's outline only, dashed, with its heading as a line, so that
 /// it never reads as a second robot nor hides the estimate drawn over it.
