@@ -209,14 +209,8 @@ fn every_bundled_plans_net_is_seen_whole_at_first_sight_in_the_mission_and_run_v
         let mut harness = studio(&dir.path().join("home"), plan.clone());
         problems.extend(first_sight_problems(&harness, "Mission"));
         // The Run view, watching a run of it at its start.
-        let marking = harness
-            .state()
-            .mission()
-            .unwrap()
-            .checked()
-            .net()
-            .unwrap()
-            .initial_marking();
+        let mission = harness.state().mission().unwrap();
+        let marking = mission.checked().net().unwrap().initial_marking();
         let (control, _run) = common::stand_in_run(armor_protocol::Status {
             system: "system.xml".to_owned(),
             run_secs: 1.0,
