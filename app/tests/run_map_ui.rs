@@ -54,8 +54,17 @@ fn is_scale(text: &str) -> bool {
         .is_some_and(|number| number.parse::<f64>().is_ok())
 }
 
-#[test]
-fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_world() {
+/// The yard plan watched in the Run view, its robot on the waypoint `gate` (where its name
+/// and the leg's labels are), what it believes a little off the truth; an observer's texts
+/// at the robot and at the gate, its arc round the robot, and the follower's goal on the gate.
+struct AtGate {
+    harness: Harness<'static, StudioApp>,
+    truth: Pose2D,
+    estimated: Odometry,
+    _dir: tempfile::TempDir,
+}
+
+fn robot_at_gate() -> AtGate {
     let dir = tempfile::tempdir().unwrap();
     let plan = robot_file("plan-yard.xml");
     let mut harness = studio_on(&dir.path().join("home"), plan.clone());
@@ -68,8 +77,6 @@ fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_wo
         .unwrap()
         .position
         .to_local(origin);
-    // The robot on the waypoint `gate`, where its name and the leg's labels are; what it
-    // believes a little off the truth; an observer's texts at the robot and at the gate.
     let truth = Pose2D {
         x_m: gate.x,
         y_m: gate.y,
@@ -98,8 +105,26 @@ fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_wo
         [(gate.x + 0.5, gate.y)],
     )
     .with_text("goal reached");
+    // The observer's arc about the robot, inside its disc at this zoom, and the follower's
+    // goal, a dot on the gate: both were drawn over the robot.
+    let mut arc = Marker::new(
+        Shape::Polyline,
+        Frame::Robot,
+        [40, 160, 90, 230],
+        (0..=20).map(|i| {
+            let angle = f64::from(i) * 0.3;
+            (0.1 * angle.cos(), 0.1 * angle.sin())
+        }),
+    );
+    arc.size_px = 4.0;
+    let dot = Marker::new(
+        Shape::Points,
+        Frame::World,
+        [30, 140, 60, 255],
+        [(gate.x, gate.y)],
+    );
     let markers = Markers {
-        markers: vec![sweep, goal],
+        markers: vec![sweep, goal, arc, dot],
     };
     let mut messages = Vec::new();
     for at in 1..=3 {
@@ -113,6 +138,22 @@ fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_wo
     for _ in 0..4 {
         harness.run();
     }
+    AtGate {
+        harness,
+        truth,
+        estimated,
+        _dir: dir,
+    }
+}
+
+#[test]
+fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_world() {
+    let AtGate {
+        harness,
+        truth,
+        estimated,
+        _dir,
+    } = robot_at_gate();
     let mission = harness.state().mission().unwrap();
     let (centre, map) = mission
         .last_screen_of(Point::new(truth.x_m, truth.y_m))
@@ -147,7 +188,7 @@ fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_wo
     let texts = texts_on(&harness, map);
     let said = |wanted: &str| texts.iter().any(|(text, _)| text == wanted);
     assert!(
-        said("true pose (simulator)") && said("gate"),
+        said("truth (simulator)") && said("gate"),
         "the truth's tag and the waypoint's name are drawn: {texts:?}"
     );
     assert!(
@@ -183,4 +224,143 @@ fn the_run_maps_labels_cover_neither_each_other_nor_the_robot_and_stay_in_the_wo
             "{layout:?}"
         );
     }
+}
+
+/// Every shape painted on the map at the last frame (clipped to it), flattened, in the order
+/// painted.
+fn map_shapes(harness: &Harness<'_, StudioApp>, map: Rect) -> Vec<egui::Shape> {
+    fn flatten(shape: &egui::Shape, into: &mut Vec<egui::Shape>) {
+        match shape {
+            egui::Shape::Vec(shapes) => shapes.iter().for_each(|shape| flatten(shape, into)),
+            shape => into.push(shape.clone()),
+        }
+    }
+    let mut shapes = Vec::new();
+    for clipped in &harness.output().shapes {
+        if map.expand(0.5).contains_rect(clipped.clip_rect) {
+            flatten(&clipped.shape, &mut shapes);
+        }
+    }
+    shapes
+}
+
+/// Points along a segment, half a point apart.
+fn along(line: [Pos2; 2]) -> impl Iterator<Item = Pos2> {
+    let steps = (line[0].distance(line[1]) * 2.0).ceil().max(1.0) as usize;
+    (0..=steps).map(move |i| line[0].lerp(line[1], i as f32 / steps as f32))
+}
+
+/// The shape paints inside the disc at `centre` of `radius` (by half a point or more).
+fn reaches_into(shape: &egui::Shape, centre: Pos2, radius: f32) -> bool {
+    let inside = |p: Pos2| p.distance(centre) < radius - 0.5;
+    match shape {
+        egui::Shape::Noop => false,
+        egui::Shape::Circle(circle) => {
+            circle.center.distance(centre)
+                < circle.radius + circle.stroke.width / 2.0 + radius - 0.5
+        }
+        egui::Shape::LineSegment { points, .. } => along(*points).any(inside),
+        egui::Shape::Path(path) => {
+            path.points
+                .windows(2)
+                .any(|pair| along([pair[0], pair[1]]).any(inside))
+                || (path.closed && path.points.iter().any(|p| inside(*p)))
+        }
+        egui::Shape::Text(text) => {
+            text.galley
+                .rect
+                .translate(text.pos.to_vec2())
+                .distance_to_pos(centre)
+                < radius - 0.5
+        }
+        other => other.visual_bounding_rect().distance_to_pos(centre) < radius - 0.5,
+    }
+}
+
+/// Issue 37, defect 4's last part: with the robot on a waypoint under an observer's arc and
+/// a goal's dot, every shape painted after the robot's disc keeps off it (the truth's ring and
+/// the markers were painted over it), the disc hides what lies under it, and every leader line
+/// from a label standing off to its anchor crosses neither another label nor a robot.
+#[test]
+fn the_robot_is_painted_over_every_ring_and_leader_lines_cross_no_label_nor_robot() {
+    let AtGate {
+        harness,
+        estimated,
+        _dir,
+        ..
+    } = robot_at_gate();
+    let mission = harness.state().mission().unwrap();
+    let at = estimated.pose_in_odom;
+    let (centre, map) = mission.last_screen_of(Point::new(at.x_m, at.y_m)).unwrap();
+    let shapes = map_shapes(&harness, map);
+    // The estimate's disc: its rim in the estimate's orange.
+    let orange = egui::Color32::from_rgb(230, 120, 0);
+    let (index, disc) = shapes
+        .iter()
+        .enumerate()
+        .find_map(|(index, shape)| match shape {
+            egui::Shape::Circle(circle)
+                if circle.center.distance(centre) < 0.5 && circle.stroke.color == orange =>
+            {
+                Some((index, *circle))
+            }
+            _ => None,
+        })
+        .expect("the robot's disc is painted");
+    assert_eq!(
+        disc.fill.a(),
+        255,
+        "the robot's disc lets what lies under it show through: {:?}",
+        disc.fill
+    );
+    let over: Vec<_> = shapes[index + 1..]
+        .iter()
+        // Its own arrow, in its colour, drawn on it.
+        .filter(|shape| !matches!(shape, egui::Shape::Path(path) if path.fill == orange))
+        .filter(|shape| reaches_into(shape, disc.center, disc.radius))
+        .collect();
+    assert!(
+        over.is_empty(),
+        "{} shapes painted over the robot {disc:?}: {over:#?}",
+        over.len()
+    );
+
+    // Leader lines: thin segments from the edge of a label's box out to its anchor.
+    let layout = &harness.state().run().map_layout;
+    let on_edge =
+        |p: Pos2, rect: &Rect| rect.expand(0.75).contains(p) && !rect.shrink(0.75).contains(p);
+    let leaders: Vec<([Pos2; 2], Rect)> = shapes
+        .iter()
+        .filter_map(|shape| match shape {
+            egui::Shape::LineSegment { points, stroke } if stroke.width <= 1.5 => {
+                layout.labels.iter().find_map(|label| {
+                    (on_edge(points[1], label) && !label.contains(points[0]))
+                        .then_some((*points, *label))
+                })
+            }
+            _ => None,
+        })
+        .collect();
+    assert!(
+        !leaders.is_empty(),
+        "the labels crowded at the gate stand off with leader lines: {layout:?}"
+    );
+    let mut problems = Vec::new();
+    for (line, own) in &leaders {
+        for label in layout.labels.iter().filter(|label| *label != own) {
+            if along(*line).any(|p| label.shrink(0.75).contains(p)) {
+                problems.push(format!(
+                    "the leader {line:?} of {own:?} crosses the label {label:?}"
+                ));
+            }
+        }
+        for robot in &layout.robots {
+            if along(*line).any(|p| robot.shrink(0.75).contains(p)) {
+                problems.push(format!(
+                    "the leader {line:?} of {own:?} crosses the robot {robot:?}"
+                ));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
 }

@@ -12,10 +12,9 @@
 mod common;
 
 use std::net::SocketAddr;
-use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 
-use armor_protocol::{LegProgress, MissionStatus, Repair, RepairKind, RepairOption, Reply, Status};
+use armor_protocol::{LegProgress, MissionStatus, Repair, RepairKind, RepairOption, Status};
 use armor_studio::StudioApp;
 use armor_studio::app::View;
 use common::*;
@@ -37,27 +36,6 @@ fn status(run_secs: f64, mission: MissionStatus) -> Status {
         }),
         ..Status::default()
     }
-}
-
-/// The stand-in run on a real control interface: it answers every request with the status in
-/// the mutex (and sends no files: the studio watches such a run without them).
-fn stand_in_run(first: Status) -> (SocketAddr, Arc<Mutex<Status>>) {
-    let shared = Arc::new(Mutex::new(first));
-    let (incoming, requests) = mpsc::channel::<armor_runtime::control::Incoming>();
-    let addr = armor_runtime::control::serve(SocketAddr::from(([127, 0, 0, 1], 0)), incoming, None)
-        .unwrap();
-    let status = Arc::clone(&shared);
-    std::thread::spawn(move || {
-        for (_, reply) in requests {
-            let _ = reply.send(Reply {
-                ok: true,
-                message: "ok".to_owned(),
-                status: Some(status.lock().unwrap().clone()),
-                files: None,
-            });
-        }
-    });
-    (addr, shared)
 }
 
 /// A studio in the Run view, attached to the run at `control` and shown its status.

@@ -9,7 +9,7 @@
 
 use std::collections::HashMap;
 
-use egui::{Align2, Color32, Pos2, Rect, Vec2, vec2};
+use egui::{Align2, Color32, Pos2, Rect, Vec2, pos2, vec2};
 
 /// How much a label matters: the lower, the sooner it is placed (and the less it is dropped).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -62,7 +62,7 @@ const SIDES: [Align2; 8] = [
     Align2::RIGHT_TOP,
 ];
 /// How much further out the rings of positions beyond the first are (with a leader line).
-const STAND_OFF: [f32; 4] = [0.0, 16.0, 34.0, 52.0];
+const STAND_OFF: [f32; 5] = [0.0, 16.0, 34.0, 52.0, 72.0];
 /// Margin round a label's text.
 const MARGIN: f32 = 2.0;
 const CELL: f32 = 64.0;
@@ -83,11 +83,13 @@ fn outward(side: Align2) -> Vec2 {
     vec2(x, y)
 }
 
-/// Rectangles placed so far, bucketed by grid cell.
+/// Rectangles placed so far and the leader lines drawn, bucketed by grid cell.
 #[derive(Default)]
 struct Taken {
     cells: HashMap<(i32, i32), Vec<usize>>,
     rects: Vec<Rect>,
+    line_cells: HashMap<(i32, i32), Vec<usize>>,
+    lines: Vec<[Pos2; 2]>,
 }
 
 impl Taken {
@@ -103,12 +105,29 @@ impl Taken {
         (x0..=x1).flat_map(move |x| (y0..=y1).map(move |y| (x, y)))
     }
 
+    /// The box covers no rectangle taken and no leader line drawn.
     fn is_free(&self, rect: Rect) -> bool {
         Self::cells_of(rect).all(|cell| {
             self.cells.get(&cell).is_none_or(|indices| {
                 indices
                     .iter()
                     .all(|&index| !self.rects[index].intersects(rect))
+            }) && self.line_cells.get(&cell).is_none_or(|indices| {
+                indices
+                    .iter()
+                    .all(|&index| !crosses(self.lines[index], rect))
+            })
+        })
+    }
+
+    /// The line runs through no rectangle taken (it starts where it leaves its own symbol:
+    /// [`Self::leader_start`]).
+    fn line_is_free(&self, line: [Pos2; 2]) -> bool {
+        Self::cells_of(Rect::from_two_pos(line[0], line[1])).all(|cell| {
+            self.cells.get(&cell).is_none_or(|indices| {
+                indices
+                    .iter()
+                    .all(|&index| !crosses(line, self.rects[index]))
             })
         })
     }
@@ -120,13 +139,92 @@ impl Taken {
             self.cells.entry(cell).or_default().push(index);
         }
     }
+
+    fn take_line(&mut self, line: [Pos2; 2]) {
+        let index = self.lines.len();
+        self.lines.push(line);
+        for cell in Self::cells_of(Rect::from_two_pos(line[0], line[1])) {
+            self.line_cells.entry(cell).or_default().push(index);
+        }
+    }
+
+    /// Where a leader line from `anchor` towards `to` leaves the rectangles taken that hold
+    /// the anchor (its own symbol, or the robot it names, or a robot standing on it): the
+    /// line starts there, so that it never runs over them.
+    fn leader_start(&self, anchor: Pos2, to: Pos2) -> Pos2 {
+        let mut t_out: f32 = 0.0;
+        for cell in Self::cells_of(Rect::from_pos(anchor)) {
+            for &index in self.cells.get(&cell).into_iter().flatten() {
+                let rect = self.rects[index];
+                if rect.contains(anchor) {
+                    t_out = t_out.max(exit_along(anchor, to, rect));
+                }
+            }
+        }
+        anchor + (to - anchor) * t_out
+    }
 }
 
-/// Places `labels` (their text measured by `size_of`) round `obstacles` (symbols), inside
-/// `bounds`. No two placed boxes overlap, nor a box and an obstacle.
+/// How far along from `a` to `b` (0 to 1) the segment leaves `rect`, which holds `a`.
+fn exit_along(a: Pos2, b: Pos2, rect: Rect) -> f32 {
+    let d = b - a;
+    let axis = |from: f32, delta: f32, min: f32, max: f32| {
+        if delta > 0.0 {
+            (max - from) / delta
+        } else if delta < 0.0 {
+            (min - from) / delta
+        } else {
+            f32::INFINITY
+        }
+    };
+    axis(a.x, d.x, rect.min.x, rect.max.x)
+        .min(axis(a.y, d.y, rect.min.y, rect.max.y))
+        .clamp(0.0, 1.0)
+}
+
+/// The segment runs through the inside of `rect` (touching its edge is not crossing it):
+/// Liang–Barsky clipping against the rectangle shrunk by a hair.
+pub fn crosses(line: [Pos2; 2], rect: Rect) -> bool {
+    let rect = rect.shrink(0.5);
+    if !rect.is_positive() {
+        return false;
+    }
+    let [a, b] = line;
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0_f32, 1.0_f32);
+    for (p, q) in [
+        (-d.x, a.x - rect.min.x),
+        (d.x, rect.max.x - a.x),
+        (-d.y, a.y - rect.min.y),
+        (d.y, rect.max.y - a.y),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return false;
+            }
+        } else {
+            let t = q / p;
+            if p < 0.0 {
+                t0 = t0.max(t);
+            } else {
+                t1 = t1.min(t);
+            }
+            if t0 > t1 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Places `labels` (their text measured by `size_of`) round `obstacles` (symbols, robots)
+/// and off `lines` (leader lines drawn already), inside `bounds`. No two placed boxes overlap,
+/// nor a box and an obstacle; a leader line starts where it leaves its anchor's own symbol
+/// (or the robot on it) and crosses no other box, and no box is placed over one.
 pub fn place(
     mut labels: Vec<Label>,
     obstacles: &[Rect],
+    lines: &[[Pos2; 2]],
     bounds: Rect,
     size_of: &mut dyn FnMut(&str) -> Vec2,
 ) -> Vec<Placed> {
@@ -135,6 +233,9 @@ pub fn place(
     let mut taken = Taken::default();
     for &obstacle in obstacles {
         taken.take(obstacle);
+    }
+    for &line in lines {
+        taken.take_line(line);
     }
     let mut seen: HashMap<(String, Color32), Vec<Pos2>> = HashMap::new();
     let mut placed = Vec::with_capacity(labels.len());
@@ -152,7 +253,7 @@ pub fn place(
         // Only anchors on the map: the label of a point off it would stand at the map's edge,
         // where it names nothing seen (a map made small, by the net enlarged, would pile
         // them up there).
-        let anchors: Vec<Pos2> = label
+        let mut anchors: Vec<Pos2> = label
             .anchors
             .iter()
             .copied()
@@ -160,6 +261,20 @@ pub fn place(
             .collect();
         if anchors.is_empty() {
             continue;
+        }
+        // An anchor buried under an obstacle larger than the label's own symbol (a robot
+        // standing on the waypoint) is walled in by the labels round that obstacle, and a
+        // leader line from it would cross them or the robot: the label is anchored to the
+        // obstacle's rim instead, and named beside it.
+        let mut gap = label.gap;
+        if let Some(rim) = obstacles.iter().find(|obstacle| {
+            anchors
+                .iter()
+                .any(|anchor| obstacle.shrink(1.0).contains(*anchor))
+                && obstacle.width().min(obstacle.height()) / 2.0 > label.gap
+        }) {
+            anchors = rim_points(*rim);
+            gap = RIM_GAP;
         }
         let shortened = shorten(&label.text);
         let texts = std::iter::once(label.text.clone()).chain(shortened);
@@ -170,13 +285,25 @@ pub fn place(
                     let sides = std::iter::once(label.preferred)
                         .chain(SIDES.into_iter().filter(|side| *side != label.preferred));
                     for side in sides {
-                        let at = anchor + outward(side) * (label.gap + ring);
+                        let at = anchor + outward(side) * (gap + ring);
                         let rect = side.anchor_size(at, size);
                         if !bounds.contains_rect(rect) || !taken.is_free(rect) {
                             continue;
                         }
+                        let leader = if ring > 0.0 {
+                            let end = nearest_point(rect, anchor);
+                            let line = [taken.leader_start(anchor, end), end];
+                            if !taken.line_is_free(line) {
+                                continue;
+                            }
+                            Some(line)
+                        } else {
+                            None
+                        };
                         taken.take(rect);
-                        let leader = (ring > 0.0).then(|| [anchor, nearest_point(rect, anchor)]);
+                        if let Some(line) = leader {
+                            taken.take_line(line);
+                        }
                         placed.push(Placed {
                             rect,
                             text,
@@ -201,6 +328,24 @@ fn shorten(text: &str) -> Option<String> {
     }
     let chars: Vec<char> = text.chars().collect();
     (chars.len() > 6).then(|| chars[..5].iter().collect::<String>() + "…")
+}
+
+/// The gap between an obstacle's rim and a label anchored to it.
+const RIM_GAP: f32 = 2.0;
+
+/// The middles of a rectangle's sides, then its corners.
+fn rim_points(rect: Rect) -> Vec<Pos2> {
+    let centre = rect.center();
+    vec![
+        pos2(rect.max.x, centre.y),
+        pos2(rect.min.x, centre.y),
+        pos2(centre.x, rect.min.y),
+        pos2(centre.x, rect.max.y),
+        rect.right_top(),
+        rect.left_top(),
+        rect.right_bottom(),
+        rect.left_bottom(),
+    ]
 }
 
 fn nearest_point(rect: Rect, p: Pos2) -> Pos2 {
@@ -245,27 +390,35 @@ mod tests {
         pairs
     }
 
-    #[test]
-    fn crowded_labels_never_overlap_and_the_important_ones_stay() {
-        let bounds = Rect::from_min_size(Pos2::ZERO, vec2(800.0, 600.0));
-        // Twenty labels on almost the same spot, as at a busy waypoint.
+    /// Twenty labels on almost the same spot from `x`, as at a busy waypoint `gate` at
+    /// (400, 300).
+    fn crowd(x: f32) -> Vec<Label> {
         let mut labels = vec![label(pos2(400.0, 300.0), "gate", Importance::Waypoint)];
         for i in 0..20 {
             labels.push(label(
-                pos2(400.0 + i as f32, 300.0),
+                pos2(x + i as f32, 300.0),
                 &format!("NLT 08:0{i}:30Z"),
                 Importance::Constraint,
             ));
         }
-        let placed = place(labels, &[], bounds, &mut measure);
+        labels
+    }
+
+    #[test]
+    fn crowded_labels_never_overlap_and_the_important_ones_stay() {
+        let bounds = Rect::from_min_size(Pos2::ZERO, vec2(800.0, 600.0));
+        let placed = place(crowd(400.0), &[], &[], bounds, &mut measure);
         assert!(overlaps(&placed).is_empty(), "{placed:#?}");
         assert_eq!(
             placed[0].text, "gate",
             "the waypoint's name is placed first"
         );
+        // A leader line crosses no label: round one point, the labels placed are those of
+        // the ring next to it and those whose line finds a way between them; the others are
+        // left to the inspector.
         assert!(
-            placed.len() >= 8,
-            "most labels find a place: {}",
+            placed.len() >= 5,
+            "the ring round the point is filled: {}",
             placed.len()
         );
         assert!(placed.iter().any(|p| p.leader.is_some()), "some stand off");
@@ -278,6 +431,7 @@ mod tests {
         let placed = place(
             vec![label(pos2(150.0, 100.0), "enemy_post", Importance::Graphic)],
             &[symbol],
+            &[],
             bounds,
             &mut measure,
         );
@@ -293,8 +447,52 @@ mod tests {
             anchors: vec![pos2(100.0, 100.0), pos2(700.0, 100.0)],
             ..label(pos2(0.0, 0.0), "PL AMBER", Importance::Graphic)
         };
-        let placed = place(vec![line.clone(), line], &[], bounds, &mut measure);
+        let placed = place(vec![line.clone(), line], &[], &[], bounds, &mut measure);
         assert_eq!(placed.len(), 1, "{placed:#?}");
+    }
+
+    /// A robot stands on a busy waypoint: the labels that stand off draw their leader lines
+    /// from the robot's edge, and no leader line runs through another label or the robot.
+    #[test]
+    fn leader_lines_cross_no_label_and_start_clear_of_the_robot() {
+        let bounds = Rect::from_min_size(Pos2::ZERO, vec2(800.0, 600.0));
+        let robot = Rect::from_center_size(pos2(400.0, 300.0), Vec2::splat(36.0));
+        let drawn_before = [pos2(300.0, 250.0), pos2(330.0, 250.0)];
+        let placed = place(
+            crowd(395.0),
+            &[robot],
+            &[drawn_before],
+            bounds,
+            &mut measure,
+        );
+        let leaders: Vec<_> = placed.iter().filter_map(|p| p.leader).collect();
+        assert!(leaders.len() >= 4, "{placed:#?}");
+        for (i, label) in placed.iter().enumerate() {
+            assert!(!label.rect.intersects(robot), "{label:?}");
+            assert!(!crosses(drawn_before, label.rect), "{label:?}");
+            if let Some(leader) = label.leader {
+                assert!(!crosses(leader, robot), "{label:?} crosses the robot");
+                for (j, other) in placed.iter().enumerate() {
+                    assert!(
+                        i == j || !crosses(leader, other.rect),
+                        "the leader of {label:?} crosses {other:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_segment_crosses_a_box_only_through_its_inside() {
+        let rect = Rect::from_min_max(pos2(10.0, 10.0), pos2(20.0, 20.0));
+        assert!(crosses([pos2(0.0, 15.0), pos2(30.0, 15.0)], rect));
+        assert!(crosses([pos2(15.0, 15.0), pos2(15.0, 16.0)], rect));
+        assert!(!crosses([pos2(0.0, 0.0), pos2(30.0, 5.0)], rect));
+        assert!(
+            !crosses([pos2(20.0, 0.0), pos2(20.0, 30.0)], rect),
+            "along its edge"
+        );
+        assert!(!crosses([pos2(0.0, 0.0), pos2(9.0, 9.0)], rect));
     }
 
     #[test]

@@ -169,7 +169,7 @@ impl MissionView {
     pub fn map_ui(&mut self, ui: &mut Ui) {
         let selection = self.editor.selection.clone();
         let (scene, projector, response) =
-            self.show_map(ui, &selection, None, Box::new(|_, _, _, _, _| {}));
+            self.show_map(ui, &selection, None, Box::new(|_, _, _, _, _, _| {}));
         let mut out = Vec::new();
         self.handles_ui(ui, &scene, &projector, &mut out);
         self.clicks_ui(ui, &response, &scene, &projector, &mut out);
@@ -397,11 +397,12 @@ impl MissionView {
             }
             let (placed, took) = labels.place(&painter, bounds, &sizes);
             let boxes: Vec<Rect> = placed.iter().map(|label| label.rect).collect();
+            let leaders: Vec<[Pos2; 2]> = placed.iter().filter_map(|label| label.leader).collect();
             let (tags, placed): (Vec<Placed>, Vec<Placed>) = placed
                 .into_iter()
                 .partition(|label| label.importance == Importance::Robot);
             // The run's shapes, then the plan's labels over them, then the run's texts.
-            overlay(&painter, &project_local, &boxes, bounds, tags);
+            overlay(&painter, &project_local, &boxes, &leaders, bounds, tags);
             paint_labels(&painter, placed);
             (scene, projector.clone(), (boxes, took))
         });
@@ -756,9 +757,10 @@ pub struct Beside {
 pub type KeepClear<'a> = dyn Fn(&dyn Fn(Point) -> Pos2) -> Beside + 'a;
 
 /// What a watched map's overlay is given: the painter, where a point of the world frame is on
-/// screen, every label's box, the rectangle labels stay in, and the robots' tags placed.
-pub type Overlay<'a> =
-    dyn FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect], Rect, Vec<Placed>) + 'a;
+/// screen, every label's box and leader line, the rectangle labels stay in, and the robots'
+/// tags placed.
+pub type Overlay<'a> = dyn FnOnce(&egui::Painter, &dyn Fn(Point) -> Pos2, &[Rect], &[[Pos2; 2]], Rect, Vec<Placed>)
+    + 'a;
 
 const LABEL_FONT: egui::FontId = egui::FontId::proportional(11.0);
 
@@ -807,7 +809,7 @@ impl Labels {
             })
         };
         let placed =
-            crate::common::labels::place(self.labels, &self.obstacles, bounds, &mut measure);
+            crate::common::labels::place(self.labels, &self.obstacles, &[], bounds, &mut measure);
         (placed, started.elapsed())
     }
 }

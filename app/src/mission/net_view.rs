@@ -297,6 +297,15 @@ pub struct NetViewState {
     pub canvas: Rect,
     /// The names' rectangles of the last frame, on the screen.
     pub label_boxes: Vec<Rect>,
+    /// The whole panel below the header: the canvas, and the overview's column beside it when
+    /// the net is too large to be read whole.
+    pub panel: Rect,
+    /// Where the overview of the whole net was drawn at the last frame, and its scale (screen
+    /// points per point of the layout): drawn only when part of the net is out of view.
+    pub overview: Option<(Rect, f32)>,
+    /// The hints drawn at the canvas's edges beyond which part of the net lies ("7 more →"),
+    /// with their boxes, at the last frame.
+    pub hints: Vec<(String, Rect)>,
 }
 
 impl Default for NetViewState {
@@ -310,7 +319,10 @@ impl Default for NetViewState {
             pointer_over: false,
             enlarged: false,
             canvas: Rect::NOTHING,
+            panel: Rect::NOTHING,
             label_boxes: Vec::new(),
+            overview: None,
+            hints: Vec::new(),
         }
     }
 }
@@ -492,10 +504,20 @@ pub fn net_ui(
     state: &mut NetViewState,
 ) -> Option<String> {
     header_ui(ui, state);
-    let (canvas, response) = ui.allocate_exact_size(
+    let (panel, response) = ui.allocate_exact_size(
         ui.available_size().max(vec2(40.0, 40.0)),
         Sense::click_and_drag(),
     );
+    // A net too large to be read whole in the panel leaves a column at its right to the
+    // overview of the whole net, beside the net rather than over it.
+    let needs = layout.size * READABLE_ZOOM + Vec2::splat(2.0 * FIT_SPARE);
+    let canvas = if needs.x > panel.width() || needs.y > panel.height() {
+        let column = (panel.width() * OVERVIEW_SHARE).clamp(OVERVIEW_MIN_WIDTH, OVERVIEW_MAX_WIDTH);
+        Rect::from_min_max(panel.min, pos2(panel.max.x - column, panel.max.y))
+    } else {
+        panel
+    };
+    state.panel = panel;
     if canvas != state.canvas {
         state.canvas = canvas;
         if state.fitted {
@@ -727,7 +749,167 @@ pub fn net_ui(
         }
     }
     state.label_boxes = label_boxes;
+    out_of_view_ui(ui, net, layout, state);
     clicked
+}
+
+/// Room left round the overview and between the hints and the canvas's edges.
+const OVERVIEW_INSET: f32 = 6.0;
+/// The overview's column takes this share of the panel's width, within these bounds.
+const OVERVIEW_SHARE: f32 = 0.22;
+const OVERVIEW_MIN_WIDTH: f32 = 90.0;
+const OVERVIEW_MAX_WIDTH: f32 = 240.0;
+
+/// When part of the net lies beyond the canvas (a net too large to be read whole in its
+/// panel), says so at each edge where it is cut ("23 more to the right"), and, in the column
+/// left beside the canvas for it, shows the whole net small with the part in view framed: a
+/// click or a drag there brings that part into view.
+fn out_of_view_ui(ui: &mut Ui, net: &MissionNet, layout: &Layout, state: &mut NetViewState) {
+    state.overview = None;
+    state.hints.clear();
+    let canvas = state.canvas;
+    let (mut left, mut right, mut above, mut below) = (0, 0, 0, 0);
+    for node in layout.nodes.values() {
+        let at = state.screen_from_layout(node.pos);
+        left += usize::from(at.x < canvas.min.x);
+        right += usize::from(at.x > canvas.max.x);
+        above += usize::from(at.y < canvas.min.y);
+        below += usize::from(at.y > canvas.max.y);
+    }
+    let painter = ui.painter_at(state.panel);
+    let font = egui::FontId::proportional(LABEL_FONT_SIZE);
+    let inset = OVERVIEW_INSET;
+    // In words: the font has no arrows pointing up or down.
+    let cut = [
+        (right, "to the right", egui::Align2::RIGHT_CENTER),
+        (left, "to the left", egui::Align2::LEFT_CENTER),
+        (below, "below", egui::Align2::CENTER_BOTTOM),
+        (above, "above", egui::Align2::CENTER_TOP),
+    ];
+    let column = Rect::from_min_max(pos2(canvas.max.x, state.panel.min.y), state.panel.max);
+    let has_column = column.width() >= 24.0 && layout.size.x > 0.0 && layout.size.y > 0.0;
+    let mut hints = Vec::new();
+    let mut hint = |text: String, rect: Rect, framed: bool| {
+        let galley = painter.layout_no_wrap(text.clone(), font.clone(), INK);
+        if framed {
+            painter.rect(
+                rect,
+                3.0,
+                PAPER,
+                Stroke::new(1.0, INK),
+                egui::StrokeKind::Inside,
+            );
+        }
+        painter.galley(rect.min + vec2(3.0, 3.0), galley, INK);
+        hints.push((text, rect));
+    };
+    let measure = |text: &str| {
+        painter
+            .layout_no_wrap(text.to_owned(), font.clone(), INK)
+            .size()
+            + Vec2::splat(6.0)
+    };
+    if !has_column {
+        // Zoomed in on a net that fits: the hints stand at the edges where it is cut.
+        for (count, side, align) in cut {
+            if count == 0 {
+                continue;
+            }
+            let text = format!("{count} more {side}");
+            let outward = align.to_sign();
+            let at = canvas.center()
+                + vec2(
+                    outward.x * (canvas.width() / 2.0 - inset),
+                    outward.y * (canvas.height() / 2.0 - inset),
+                );
+            hint(text.clone(), align.anchor_size(at, measure(&text)), true);
+        }
+        state.hints = hints;
+        return;
+    }
+    // The whole net, small, in the column beside the canvas, the hints under it.
+    painter.rect_filled(column, 0.0, PAPER);
+    painter.line_segment(
+        [column.left_top(), column.left_bottom()],
+        Stroke::new(1.0, INK),
+    );
+    let column = column.shrink(inset);
+    let caption = painter.layout_no_wrap("whole net".to_owned(), font.clone(), INK);
+    let room = column.size() - vec2(0.0, caption.size().y + 4.0);
+    let scale = (room.x / layout.size.x).min(room.y / layout.size.y);
+    let rect = Rect::from_min_size(
+        column.min + vec2(0.0, caption.size().y + 4.0),
+        layout.size * scale,
+    );
+    painter.galley(column.min, caption, INK);
+    painter.rect(
+        rect,
+        2.0,
+        PAPER,
+        Stroke::new(1.0, INK),
+        egui::StrokeKind::Outside,
+    );
+    let at = |name: &str| {
+        layout
+            .nodes
+            .get(name)
+            .map(|node| rect.min + node.pos.to_vec2() * scale)
+    };
+    let arc = Stroke::new(0.5, Color32::GRAY);
+    for transition in &net.transitions {
+        let Some(t) = at(&transition.name) else {
+            continue;
+        };
+        for place in transition.inputs.iter().chain(&transition.outputs) {
+            if let Some(p) = at(&place.place) {
+                painter.line_segment([p, t], arc);
+            }
+        }
+    }
+    for node in layout.nodes.values() {
+        let p = rect.min + node.pos.to_vec2() * scale;
+        if node.is_place {
+            painter.circle_filled(p, 1.5, INK);
+        } else {
+            painter.rect_filled(Rect::from_center_size(p, vec2(1.0, 3.0)), 0.0, INK);
+        }
+    }
+    let seen = Rect::from_two_pos(
+        rect.min + state.layout_from_screen(canvas.min).to_vec2() * scale,
+        rect.min + state.layout_from_screen(canvas.max).to_vec2() * scale,
+    )
+    .intersect(rect);
+    if seen.is_positive() {
+        painter.rect_stroke(
+            seen,
+            0.0,
+            Stroke::new(1.5, HIGHLIGHT),
+            egui::StrokeKind::Inside,
+        );
+    }
+    let mut line_at = pos2(column.min.x, rect.max.y + inset);
+    for (count, side, _) in cut {
+        if count == 0 {
+            continue;
+        }
+        let text = format!("{count} more {side}");
+        let size = measure(&text);
+        hint(text, Rect::from_min_size(line_at, size), false);
+        line_at.y += size.y;
+    }
+    state.hints = hints;
+    let response = ui
+        .interact(rect, ui.id().with("net-overview"), Sense::click_and_drag())
+        .on_hover_text("The whole net: click or drag here to see that part of it");
+    response.widget_info(|| egui::WidgetInfo::labeled(egui::WidgetType::Button, true, "whole net"));
+    if (response.clicked() || response.dragged())
+        && let Some(pointer) = response.interact_pointer_pos()
+    {
+        let wanted = ((pointer - rect.min) / scale).to_pos2();
+        state.offset = canvas.center() - canvas.min - wanted.to_vec2() * state.zoom;
+        state.fitted = false;
+    }
+    state.overview = Some((rect, scale));
 }
 
 /// An arc from `a` to `b` with its head at the target's edge; arcs going back (to the left)

@@ -10,7 +10,7 @@ use armor_model::world::Point;
 use armor_module_api::types::{Frame, Markers, Pose2D, Shape};
 use egui::{Color32, Pos2, Rect, Shape as EguiShape, Stroke, Ui, Vec2};
 
-use crate::common::labels::{self, Importance, Label};
+use crate::common::labels::{self, Importance, Label, Placed};
 
 use super::untrusted::MAX_COORDINATE_M;
 
@@ -63,10 +63,12 @@ fn check(markers: &Markers) -> Result<(), String> {
 }
 
 /// Paints every layer not in `hidden`; returns how many markers of each module were drawn
-/// (those out of view are not) and the boxes of their texts. Text markers are placed as the
+/// (those out of view are not) and where their texts went. Text markers are placed as the
 /// map places its labels: never over `taken` (the plan's labels, the robots and their tags)
-/// nor over each other, inside `bounds` (the world), moved aside with a leader line when their
-/// point is taken, and dropped when there is no room near it.
+/// nor `lines` (the plan's leader lines) nor over each other, inside `bounds` (the world),
+/// moved aside with a leader line when their point is taken, and dropped when there is no
+/// room near it.
+#[allow(clippy::too_many_arguments)]
 pub fn paint(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
@@ -74,8 +76,9 @@ pub fn paint(
     hidden: &BTreeSet<String>,
     robot: Option<&Pose2D>,
     taken: &[Rect],
+    lines: &[[Pos2; 2]],
     bounds: Rect,
-) -> (BTreeMap<String, usize>, Vec<Rect>) {
+) -> (BTreeMap<String, usize>, Vec<Placed>) {
     let mut drawn = BTreeMap::new();
     let origin = robot.map_or(Point::new(0.0, 0.0), |pose| Point::new(pose.x_m, pose.y_m));
     let near = Affine::near(project, origin);
@@ -89,8 +92,8 @@ pub fn paint(
             paint_markers(painter, &near, markers, robot, &mut texts),
         );
     }
-    let boxes = texts.draw(painter, taken, bounds);
-    (drawn, boxes)
+    let placed = texts.draw(painter, taken, lines, bounds);
+    (drawn, placed)
 }
 
 /// The modules whose markers are not drawn: those the operator switched off (`hidden`), and
@@ -135,7 +138,13 @@ impl Texts {
         });
     }
 
-    fn draw(self, painter: &egui::Painter, taken: &[Rect], bounds: Rect) -> Vec<Rect> {
+    fn draw(
+        self,
+        painter: &egui::Painter,
+        taken: &[Rect],
+        lines: &[[Pos2; 2]],
+        bounds: Rect,
+    ) -> Vec<Placed> {
         if self.labels.is_empty() {
             return Vec::new();
         }
@@ -147,9 +156,8 @@ impl Texts {
                 .layout_no_wrap(text.to_owned(), font(&self.fonts, text), Color32::BLACK)
                 .size()
         };
-        let placed = labels::place(self.labels, taken, bounds, &mut measure);
-        let boxes = placed.iter().map(|label| label.rect).collect();
-        for label in placed {
+        let placed = labels::place(self.labels, taken, lines, bounds, &mut measure);
+        for label in &placed {
             if let Some(leader) = label.leader {
                 painter.line_segment(leader, Stroke::new(1.0, label.colour.gamma_multiply(0.7)));
             }
@@ -160,7 +168,7 @@ impl Texts {
             );
             painter.galley(label.rect.min + Vec2::splat(2.0), galley, label.colour);
         }
-        boxes
+        placed
     }
 }
 
@@ -438,6 +446,7 @@ mod text_tests {
                 &BTreeSet::new(),
                 None,
                 &[plan_label],
+                &[],
                 ui.painter().clip_rect(),
             )
             .0;

@@ -647,7 +647,13 @@ impl RunView {
                 let mut run_scale = status.filter(|_| running).map(|status| status.time_scale);
                 let scale = run_scale.as_mut().unwrap_or(&mut self.time_scale);
                 ui.add(egui::DragValue::new(scale).range(0.1..=200.0).speed(0.1))
-                    .on_hover_text("time scale: run time passes this many times faster");
+                    .on_hover_text("time scale: run time passes this many times faster")
+                    // Every module keeps its own clock from the scale it was started with, and
+                    // the run's control interface has no command to change it.
+                    .on_disabled_hover_text(
+                        "the run's time scale, set when it started: it cannot change while \
+                         the run goes on (stop, then F5 asks it again)",
+                    );
                 ui.label("start at");
                 ui.add(
                     egui::TextEdit::singleline(&mut self.start_at)
@@ -1322,16 +1328,10 @@ impl RunView {
             ui,
             current_leg,
             &keep_clear,
-            Box::new(|painter, project, labels, bounds, tags| {
-                let taken = monitor::paint_live(
-                    painter,
-                    project,
-                    &live,
-                    grid_texture.as_ref(),
-                    &followed,
-                    labels,
-                    tags,
-                );
+            Box::new(|painter, project, labels, leaders, bounds, tags| {
+                monitor::paint_live(painter, project, &live, grid_texture.as_ref(), &followed);
+                let mut taken = labels.to_vec();
+                taken.extend(monitor::robot_boxes(project, &live));
                 let texts;
                 (drawn, texts) = markers::paint(
                     painter,
@@ -1340,10 +1340,18 @@ impl RunView {
                     &not_drawn,
                     live.scan_pose(),
                     &taken,
+                    leaders,
                     bounds,
                 );
+                // The robots last: over the markers (an observer's arc, a goal's dot) and
+                // the paths, so that nothing hides them.
+                monitor::paint_robots(painter, project, &live, tags);
                 layout.robots = monitor::robot_boxes(project, &live);
-                layout.labels = labels.iter().copied().chain(texts).collect();
+                layout.labels = labels
+                    .iter()
+                    .copied()
+                    .chain(texts.iter().map(|text| text.rect))
+                    .collect();
                 layout.bounds = Some(bounds);
             }),
         );

@@ -350,18 +350,16 @@ pub fn grid_image(grid: &OccupancyGrid, max_side: usize) -> Result<egui::ColorIm
     ))
 }
 
-/// Paints the grid, the paths the follower follows and replaced, the true path, the scan and
-/// both poses, each labelled clear of `plan_labels` (the boxes of the plan's own labels).
-/// Returns those boxes with the poses' labels', for what is drawn next to keep clear of.
+/// Paints what lies under the robots: the grid, the paths the follower follows and replaced,
+/// the true path, the scan and the estimate's uncertainty. The modules' markers go over these,
+/// then the robots over everything ([`paint_robots`]).
 pub fn paint_live(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
     live: &LiveData,
     grid: Option<&(egui::TextureHandle, Arc<OccupancyGrid>)>,
     followed: &FollowedLeg,
-    labels: &[egui::Rect],
-    tags: Vec<Placed>,
-) -> Vec<egui::Rect> {
+) {
     if let Some((texture, grid)) = grid {
         let min = project(Point::new(grid.origin_x_m, grid.origin_y_m));
         let max = project(Point::new(
@@ -417,6 +415,17 @@ pub fn paint_live(
             ));
         }
     }
+}
+
+/// Paints both poses and their tags (placed with the plan's labels, `robot_tags`), last of
+/// the map's shapes, so that no ring, path or marker runs over the robot: a newcomer must see
+/// it whole.
+pub fn paint_robots(
+    painter: &egui::Painter,
+    project: &dyn Fn(Point) -> Pos2,
+    live: &LiveData,
+    tags: Vec<Placed>,
+) {
     // The truth first, hollow, so that the estimate over it stays whole when they agree.
     if let Some(pose) = &live.truth {
         true_robot(painter, project, pose);
@@ -424,7 +433,6 @@ pub fn paint_live(
     if let Some(pose) = &live.estimated {
         robot(painter, project, pose, ESTIMATE);
     }
-    // The robots' tags were placed with the plan's labels, before them (`robot_tags`).
     for placed in tags {
         if let Some(leader) = placed.leader {
             painter.line_segment(leader, Stroke::new(1.5, placed.colour));
@@ -440,13 +448,10 @@ pub fn paint_live(
         let inset = (placed.rect.size() - galley.size()) / 2.0;
         painter.galley(placed.rect.min + inset, galley, Color32::WHITE);
     }
-    let mut taken = labels.to_vec();
-    taken.extend(robot_boxes(project, live));
-    taken
 }
 
 /// What the map's labels are placed with while a run is watched: the robots' boxes, which no
-/// label covers, and their tags (`localised`, `true pose (simulator)`), placed first.
+/// label covers, and their tags (`localised`, `truth (simulator)`), placed first.
 pub fn robot_tags(
     painter: &egui::Painter,
     project: &dyn Fn(Point) -> Pos2,
@@ -539,7 +544,7 @@ fn tag_label(
 const ELLIPSE_POINTS: usize = 48;
 /// The label of the simulator's pose on the map: it is the judge, not something the robot
 /// knows.
-pub const TRUTH_LABEL: &str = "true pose (simulator)";
+pub const TRUTH_LABEL: &str = "truth (simulator)";
 
 /// The simulator's pose: the robot's outline only, dashed, with its heading as a line, so that
 /// it never reads as a second robot nor hides the estimate drawn over it.
@@ -617,18 +622,21 @@ fn on_screen(project: &dyn Fn(Point) -> Pos2, pose: &Pose2D) -> Option<(Pos2, eg
     Some((centre, dir, (0.3 * metre).max(ROBOT_MIN_POINTS / 2.0)))
 }
 
+/// `colour` mixed with white, two parts in three white, opaque.
+fn pale(colour: Color32) -> Color32 {
+    let mix = |channel: u8| ((u16::from(channel) + 2 * 255) / 3) as u8;
+    Color32::from_rgb(mix(colour.r()), mix(colour.g()), mix(colour.b()))
+}
+
 /// A robot: a disc with an arrow pointing where it heads, its real size (0.6 m) or
 /// [`ROBOT_MIN_POINTS`] across, whichever is larger, rimmed so it shows on any tile.
 fn robot(painter: &egui::Painter, project: &dyn Fn(Point) -> Pos2, pose: &Pose2D, colour: Color32) {
     let Some((centre, dir, radius)) = on_screen(project, pose) else {
         return;
     };
-    painter.circle(
-        centre,
-        radius,
-        colour.gamma_multiply(0.35),
-        Stroke::new(2.0, colour),
-    );
+    // Opaque (the colour paled towards white, not made transparent): what lies under the
+    // robot (its true pose's ring, a waypoint's) does not show through it.
+    painter.circle(centre, radius, pale(colour), Stroke::new(2.0, colour));
     let side = egui::vec2(-dir.y, dir.x);
     let points = vec![
         centre + dir * radius * 0.85,

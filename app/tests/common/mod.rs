@@ -2,7 +2,9 @@
 //! module types like the bundled ones, and pointer gestures.
 #![allow(dead_code, clippy::unwrap_used)]
 
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
 
 use armor_module_api::ModuleDescription;
@@ -189,4 +191,27 @@ pub fn studio_on(home: &Path, file: PathBuf) -> Harness<'static, StudioApp> {
         harness.run();
     }
     harness
+}
+
+/// The stand-in run on a real control interface: it answers every request with the status in
+/// the mutex (and sends no files: the studio watches such a run without them).
+pub fn stand_in_run(
+    first: armor_protocol::Status,
+) -> (SocketAddr, Arc<Mutex<armor_protocol::Status>>) {
+    let shared = Arc::new(Mutex::new(first));
+    let (incoming, requests) = mpsc::channel::<armor_runtime::control::Incoming>();
+    let addr = armor_runtime::control::serve(SocketAddr::from(([127, 0, 0, 1], 0)), incoming, None)
+        .unwrap();
+    let status = Arc::clone(&shared);
+    std::thread::spawn(move || {
+        for (_, reply) in requests {
+            let _ = reply.send(armor_protocol::Reply {
+                ok: true,
+                message: "ok".to_owned(),
+                status: Some(status.lock().unwrap().clone()),
+                files: None,
+            });
+        }
+    });
+    (addr, shared)
 }
