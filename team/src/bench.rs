@@ -668,3 +668,35 @@ impl Drop for SideChild {
         let _ = self.child.wait();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A line that could not run says why, with no figures that could be taken for some.
+    #[test]
+    fn a_skipped_line_says_why_and_has_no_figures() {
+        let line = serde_json::to_value(skipped(NAME_LATENCY_RADIO, "ms", radio::NEEDS_ROOT))
+            .expect("json");
+        assert_eq!(line["bench"], NAME_LATENCY_RADIO);
+        assert!(
+            line["ours"].is_null() && line["reference"].is_null(),
+            "{line}"
+        );
+        assert!(
+            line["skipped"]
+                .as_str()
+                .is_some_and(|why| why.contains("needs root")),
+            "{line}"
+        );
+    }
+
+    /// The sides' clock: an instant from CLOCK_MONOTONIC nanoseconds is the same instant.
+    #[test]
+    fn an_instant_from_monotonic_nanoseconds() {
+        let now = Instant::now();
+        let back = instant_of(monotonic_ns());
+        let apart = back.max(now) - back.min(now);
+        assert!(apart < Duration::from_millis(50), "{apart:?}");
+    }
+}
