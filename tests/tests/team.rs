@@ -476,22 +476,30 @@ fn run_tool(program: &str, args: &[&str]) -> anyhow::Result<()> {
 }
 
 impl Radio {
-    /// `armor-team radio up --robots N` with `link` (its options for loss, rate and delay).
-    fn up(robots: usize, link: &[&str]) -> anyhow::Result<Radio> {
-        let output = Command::new(bin("armor-team"))
-            .args(["radio", "up", "--json", "--robots", &robots.to_string()])
-            .args(link)
-            .output()
-            .context("cannot run armor-team")?;
-        anyhow::ensure!(
+    /// The namespace test's radio for `robots`: 10 % loss, 256 kbit/s and 300 ms each way
+    /// each (`armor-team radio up --json`).
+    fn of_the_test(robots: usize) -> Radio {
+        let output = radio(&[
+            "up",
+            "--json",
+            "--robots",
+            &robots.to_string(),
+            "--loss",
+            "10",
+            "--rate-kbit",
+            "256",
+            "--delay-ms",
+            "300",
+        ]);
+        assert!(
             output.status.success(),
-            "{}",
+            "cannot make the radio ({}); this test needs root: run `scripts/test` as root (it \
+             installs iproute2 and iptables)",
             String::from_utf8_lossy(&output.stderr).trim()
         );
-        let made: serde_json::Value = serde_json::from_slice(&output.stdout)
-            .with_context(|| String::from_utf8_lossy(&output.stdout).into_owned())?;
+        let made: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
         let text = |value: &serde_json::Value| value.as_str().unwrap().to_owned();
-        Ok(Radio {
+        Radio {
             station: text(&made["station"]),
             robots: made["robots"]
                 .as_array()
@@ -504,15 +512,7 @@ impl Radio {
                     station_device: text(&robot["station_device"]),
                 })
                 .collect(),
-        })
-    }
-
-    /// The namespace test's radio: 10 % loss, 256 kbit/s and 300 ms each way for each robot.
-    fn of_the_test(robots: usize) -> anyhow::Result<Radio> {
-        Radio::up(
-            robots,
-            &["--loss", "10", "--rate-kbit", "256", "--delay-ms", "300"],
-        )
+        }
     }
 
     fn namespaces(&self) -> Vec<&str> {
@@ -524,20 +524,31 @@ impl Radio {
 
 impl Drop for Radio {
     fn drop(&mut self) {
-        let _ = Command::new(bin("armor-team"))
-            .args(["radio", "down"])
-            .args(self.namespaces())
-            .output();
+        radio(&[&["down"], &self.namespaces()[..]].concat());
     }
+}
+
+/// `armor-team radio ARGS`, to its end.
+fn radio(args: &[&str]) -> std::process::Output {
+    Command::new(bin("armor-team"))
+        .arg("radio")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// What `ip ARGS` prints.
+fn ip(args: &[&str]) -> String {
+    let output = Command::new(armor_tests::tools::program("ip"))
+        .args(args)
+        .output()
+        .unwrap();
+    String::from_utf8_lossy(&output.stdout).into_owned()
 }
 
 /// The network namespaces there are (`ip netns list`).
 fn namespaces() -> Vec<String> {
-    let output = Command::new(armor_tests::tools::program("ip"))
-        .args(["netns", "list"])
-        .output()
-        .unwrap();
-    String::from_utf8_lossy(&output.stdout)
+    ip(&["netns", "list"])
         .lines()
         .filter_map(|line| line.split_whitespace().next())
         .map(str::to_owned)
@@ -546,11 +557,7 @@ fn namespaces() -> Vec<String> {
 
 /// The processes running in namespace `ns` (`ip netns pids`).
 fn pids_in(ns: &str) -> Vec<i32> {
-    let output = Command::new(armor_tests::tools::program("ip"))
-        .args(["netns", "pids", ns])
-        .output()
-        .unwrap();
-    String::from_utf8_lossy(&output.stdout)
+    ip(&["netns", "pids", ns])
         .split_whitespace()
         .filter_map(|pid| pid.parse().ok())
         .collect()
@@ -558,13 +565,9 @@ fn pids_in(ns: &str) -> Vec<i32> {
 
 /// What `ip netns exec NS PROGRAM ARGS` prints.
 fn in_namespace(ns: &str, program: &str, args: &[&str]) -> String {
-    let output = Command::new(armor_tests::tools::program("ip"))
-        .args(["netns", "exec", ns])
-        .arg(armor_tests::tools::program(program))
-        .args(args)
-        .output()
-        .unwrap();
-    String::from_utf8_lossy(&output.stdout).into_owned()
+    // Found here first, to say which package is missing.
+    armor_tests::tools::program(program);
+    ip(&[&["netns", "exec", ns, program], args].concat())
 }
 
 /// `armor-team radio up` makes what it says (namespaces, the loss rules, the rate, a delay
@@ -572,19 +575,14 @@ fn in_namespace(ns: &str, program: &str, args: &[&str]) -> String {
 /// namespace and no relay left behind. `radio down` refuses a namespace it did not make.
 #[test]
 fn radio_up_makes_the_links_and_down_leaves_nothing_behind() {
-    let radio = Radio::of_the_test(2).unwrap_or_else(|why| {
-        panic!(
-            "cannot make the radio ({why:#}); this test needs root: run `scripts/test` as root (it \
-             installs iproute2 and iptables)"
-        )
-    });
+    let made = Radio::of_the_test(2);
     let there = namespaces();
-    for ns in radio.namespaces() {
+    for ns in made.namespaces() {
         assert!(there.iter().any(|name| name == ns), "{ns} not in {there:?}");
     }
-    let relays = pids_in(&radio.station);
+    let relays = pids_in(&made.station);
     assert_eq!(relays.len(), 2, "a delay relay for each robot: {relays:?}");
-    for (index, robot) in radio.robots.iter().enumerate() {
+    for (index, robot) in made.robots.iter().enumerate() {
         let n = index + 1;
         assert_eq!(robot.listen, format!("tcp/10.41.{n}.2:7447"));
         assert_eq!(
@@ -592,7 +590,7 @@ fn radio_up_makes_the_links_and_down_leaves_nothing_behind() {
             format!("tcp/127.0.0.1:{}", 7447 + n)
         );
         for (ns, dev) in [
-            (radio.station.as_str(), robot.station_device.as_str()),
+            (made.station.as_str(), robot.station_device.as_str()),
             (robot.namespace.as_str(), &*format!("radio_r{n}")),
         ] {
             let rules = in_namespace(ns, "iptables", &["-S", "INPUT"]);
@@ -610,26 +608,19 @@ fn radio_up_makes_the_links_and_down_leaves_nothing_behind() {
         }
     }
 
-    let refused = Command::new(bin("armor-team"))
-        .args(["radio", "down", "not_a_radio"])
-        .output()
-        .unwrap();
+    let refused = radio(&["down", "not_a_radio"]);
     assert!(!refused.status.success());
     let said = String::from_utf8_lossy(&refused.stderr);
     assert!(said.contains("not a namespace of `radio up`"), "{said}");
 
-    let down = Command::new(bin("armor-team"))
-        .args(["radio", "down"])
-        .args(radio.namespaces())
-        .output()
-        .unwrap();
+    let down = radio(&[&["down"], &made.namespaces()[..]].concat());
     assert!(
         down.status.success(),
         "{}",
         String::from_utf8_lossy(&down.stderr)
     );
     let there = namespaces();
-    for ns in radio.namespaces() {
+    for ns in made.namespaces() {
         assert!(
             !there.iter().any(|name| name == ns),
             "{ns} left in {there:?}"
@@ -639,7 +630,7 @@ fn radio_up_makes_the_links_and_down_leaves_nothing_behind() {
         relays.iter().all(|&pid| !armor_tests::process_alive(pid))
     });
     // Already down: the guard's second `down` fails quietly.
-    drop(radio);
+    drop(made);
 }
 
 #[test]
@@ -647,12 +638,7 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
     let _turn = ROBOTS_AT_A_TIME
         .lock()
         .unwrap_or_else(|err| err.into_inner());
-    let radio = Radio::of_the_test(2).unwrap_or_else(|why| {
-        panic!(
-            "cannot make the radio ({why:#}); this test needs root: run `scripts/test` as root (it \
-             installs iproute2 and iptables)"
-        )
-    });
+    let radio = Radio::of_the_test(2);
     let dir = tempfile::tempdir().unwrap();
     let plan = write_yard(dir.path());
     let secret = secret_file(dir.path());
@@ -790,13 +776,7 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
 
 /// The packets the loss rules of namespace `ns` dropped so far (iptables' counters).
 fn dropped_packets(ns: &str) -> u64 {
-    let output = Command::new(armor_tests::tools::program("ip"))
-        .args([
-            "netns", "exec", ns, "iptables", "-L", "INPUT", "-v", "-n", "-x",
-        ])
-        .output()
-        .unwrap();
-    String::from_utf8_lossy(&output.stdout)
+    in_namespace(ns, "iptables", &["-L", "INPUT", "-v", "-n", "-x"])
         .lines()
         .filter(|line| line.contains("DROP") && line.contains("statistic"))
         .filter_map(|line| line.split_whitespace().next()?.parse::<u64>().ok())
