@@ -378,6 +378,7 @@ fn latency_radio(quick: bool) -> anyhow::Result<Report> {
     let ours: SideSaid = station.said(limit)?;
     robot.tell(&format!("bare {}", ours.sample_bytes))?;
     let bare: SideSaid = station.said(limit)?;
+    let dropped = radio.dropped_packets()?;
     let durations = |ms: &[f64]| -> Vec<Duration> {
         ms.iter()
             .map(|ms| Duration::from_secs_f64(ms.max(0.0) / 1e3))
@@ -404,6 +405,7 @@ fn latency_radio(quick: bool) -> anyhow::Result<Report> {
             spec.delay_ms
         ),
     )
+    .with("packets_lost", dropped)
     .with("samples", ours_samples.len())
     .with("sample_bytes", ours.sample_bytes)
     .with("rate_hz", rate_hz))

@@ -307,6 +307,26 @@ impl Radio {
         &self.made
     }
 
+    /// The packets its loss rules dropped so far, in all its namespaces (iptables' counters):
+    /// what shows that a figure went through the loss rather than round it.
+    pub fn dropped_packets(&self) -> anyhow::Result<u64> {
+        let mut dropped = 0;
+        for ns in self.made.namespaces() {
+            let rules = tool_output(
+                "ip",
+                &[
+                    "netns", "exec", &ns, "iptables", "-L", "INPUT", "-v", "-n", "-x",
+                ],
+            )?;
+            dropped += rules
+                .lines()
+                .filter(|line| line.contains("DROP") && line.contains("statistic"))
+                .filter_map(|line| line.split_whitespace().next()?.parse::<u64>().ok())
+                .sum::<u64>();
+        }
+        Ok(dropped)
+    }
+
     /// Leaves the radio up after this process (`radio up`): `radio down` removes it.
     pub fn detach(mut self) -> Made {
         self.detached = true;
