@@ -11,11 +11,13 @@
 //!
 //! [`wire`] holds the key expressions and messages, [`net`] the zenoh session, [`robot`] and
 //! [`station`] the two ends; [`stand_in`] robots that are only a clock, for tests and
-//! benchmarks ([`bench`]) of a station with many robots.
+//! benchmarks ([`bench`]) of a station with many robots, and [`radio`] a lossy, slow radio
+//! between them on one machine (network namespaces).
 
 pub mod bench;
 pub mod capture;
 pub mod net;
+pub mod radio;
 pub mod robot;
 pub mod seal;
 pub mod stand_in;

@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
 
-use armor_team::{bench, capture, robot, stand_in, station};
+use armor_team::{bench, capture, radio, robot, stand_in, station};
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -30,9 +30,16 @@ enum Command {
     /// Robots that are only a clock (the real bridge serving a run that drives round a
     /// square), for tests and benchmarks of a station with many robots.
     StandIns(stand_in::Options),
-    /// The team's figures as `armor-bench` lines (`team_status_latency_ms`,
-    /// `team_bandwidth_kbps_per_robot`), which `armor-bench` relays.
+    /// The team's figures as `armor-bench` lines (`team_status_latency_ms`, on loopback and
+    /// through the radio, and `team_bandwidth_kbps_per_robot`), which `armor-bench` relays.
     Bench(bench::Options),
+    /// A team's radio on this machine, for tests and benchmarks (root only): network
+    /// namespaces for a station and its robots, joined by links with loss, a rate and a delay.
+    Radio(radio::Options),
+    /// One side of `bench team_status_latency_ms_radio`, which the bench starts in its
+    /// namespace.
+    #[command(hide = true)]
+    BenchSide(bench::SideOptions),
 }
 
 /// Both ends run until they are stopped (a signal ends the process).
@@ -55,6 +62,8 @@ fn main() -> ExitCode {
         Command::Capture(options) => capture::run(&options),
         Command::StandIns(options) => stand_in::run(&options, &STOP),
         Command::Bench(options) => bench::run(&options),
+        Command::Radio(options) => radio::run(&options),
+        Command::BenchSide(options) => bench::side(&options),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -10,8 +10,8 @@
 //!   comes back, the robots say the link is found, and a retry sent to all drives them on.
 //! * In network namespaces (as root, as `hosts` is; it fails saying so otherwise): two robots
 //!   and a station, each robot joined to the station by a veth pair with 10 % loss (iptables
-//!   `statistic`), 256 kbit/s (`tbf`) and a 300 ms delay each way (a relay of our own, in
-//!   Python, in the station's namespace), through which the station keeps each robot's state
+//!   `statistic`), 256 kbit/s (`tbf`) and a 300 ms delay each way (the relay of `armor-team
+//!   radio`, in the station's namespace), through which the station keeps each robot's state
 //!   within 2 s and commands, while an observer's station in the same namespace cannot;
 //!   a 10 s cut (`ip link set down`) of one robot's link makes `link_lost` fire once, the robot
 //!   holds as its plan says, and the station catches up once the link is back.
@@ -440,23 +440,25 @@ fn two_robots_and_stations_over_zenoh_under_the_runs_keys_and_the_radio_in_the_p
     }
 }
 
-/// Network namespaces for a station and two robots, each robot joined to the station by a
-/// veth pair of its own (`10.41.N.1` at the station, `10.41.N.2` at robot N) that loses 10 % of
-/// the packets each way (iptables `statistic`) and carries 256 kbit/s (`tbf`). Deleted on drop
-/// with everything in them.
+/// The namespace test's radio, made by `armor-team radio up` (the bench's too): a network
+/// namespace for the station and one for each robot, each robot joined to the station by a
+/// veth pair of its own that loses 10 % of the packets each way (iptables `statistic`),
+/// carries 256 kbit/s (`tbf`) and is delayed 300 ms each way by the radio's relay in the
+/// station's namespace. Removed on drop (`armor-team radio down`) with everything in it.
 struct Radio {
     station: String,
-    robots: [String; 2],
+    robots: Vec<RadioLink>,
 }
 
-/// The station's end of robot `n`'s link.
-fn station_dev(n: usize) -> String {
-    format!("radio_s{n}")
-}
-
-/// Robot `n`'s address.
-fn robot_addr(n: usize) -> String {
-    format!("10.41.{n}.2")
+/// A robot's end of the radio, as `armor-team radio up --json` says it.
+struct RadioLink {
+    namespace: String,
+    /// Where the robot's bridge listens.
+    listen: String,
+    /// Where the station reaches it (the delay relay).
+    station_endpoint: String,
+    /// The link's end in the station's namespace, which a cut sets down.
+    station_device: String,
 }
 
 fn run_tool(program: &str, args: &[&str]) -> anyhow::Result<()> {
@@ -474,86 +476,161 @@ fn run_tool(program: &str, args: &[&str]) -> anyhow::Result<()> {
 }
 
 impl Radio {
-    fn make() -> anyhow::Result<Radio> {
-        let tag = std::process::id();
-        let radio = Radio {
-            station: format!("armor_station_{tag}"),
-            robots: [format!("armor_r1_{tag}"), format!("armor_r2_{tag}")],
-        };
-        run_tool("ip", &["netns", "add", &radio.station])?;
-        run_tool("ip", &["-n", &radio.station, "link", "set", "lo", "up"])?;
-        for (index, robot) in radio.robots.iter().enumerate() {
-            let n = index + 1;
-            let (near, far) = (station_dev(n), format!("radio_r{n}"));
-            run_tool("ip", &["netns", "add", robot])?;
-            run_tool("ip", &["-n", robot, "link", "set", "lo", "up"])?;
-            run_tool(
-                "ip",
-                &[
-                    "link",
-                    "add",
-                    &near,
-                    "netns",
-                    &radio.station,
-                    "type",
-                    "veth",
-                    "peer",
-                    "name",
-                    &far,
-                    "netns",
-                    robot,
-                ],
-            )?;
-            for (ns, dev, addr) in [
-                (&radio.station, &near, format!("10.41.{n}.1")),
-                (robot, &far, robot_addr(n)),
-            ] {
-                run_tool(
-                    "ip",
-                    &["-n", ns, "addr", "add", &format!("{addr}/24"), "dev", dev],
-                )?;
-                run_tool("ip", &["-n", ns, "link", "set", dev, "up"])?;
-                run_tool(
-                    "tc",
-                    &[
-                        "-n", ns, "qdisc", "add", "dev", dev, "root", "tbf", "rate", "256kbit",
-                        "burst", "16kbit", "latency", "400ms",
-                    ],
-                )?;
-                run_tool(
-                    "ip",
-                    &[
-                        "netns",
-                        "exec",
-                        ns,
-                        "iptables",
-                        "-A",
-                        "INPUT",
-                        "-i",
-                        dev,
-                        "-m",
-                        "statistic",
-                        "--mode",
-                        "random",
-                        "--probability",
-                        "0.1",
-                        "-j",
-                        "DROP",
-                    ],
-                )?;
-            }
+    /// The namespace test's radio for `robots`: 10 % loss, 256 kbit/s and 300 ms each way
+    /// each (`armor-team radio up --json`).
+    fn of_the_test(robots: usize) -> Radio {
+        let output = radio(&[
+            "up",
+            "--json",
+            "--robots",
+            &robots.to_string(),
+            "--loss",
+            "10",
+            "--rate-kbit",
+            "256",
+            "--delay-ms",
+            "300",
+        ]);
+        assert!(
+            output.status.success(),
+            "cannot make the radio ({}); this test needs root: run `scripts/test` as root (it \
+             installs iproute2 and iptables)",
+            String::from_utf8_lossy(&output.stderr).trim()
+        );
+        let made: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+        let text = |value: &serde_json::Value| value.as_str().unwrap().to_owned();
+        Radio {
+            station: text(&made["station"]),
+            robots: made["robots"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|robot| RadioLink {
+                    namespace: text(&robot["namespace"]),
+                    listen: text(&robot["listen"]),
+                    station_endpoint: text(&robot["station_endpoint"]),
+                    station_device: text(&robot["station_device"]),
+                })
+                .collect(),
         }
-        Ok(radio)
+    }
+
+    fn namespaces(&self) -> Vec<&str> {
+        std::iter::once(self.station.as_str())
+            .chain(self.robots.iter().map(|robot| robot.namespace.as_str()))
+            .collect()
     }
 }
 
 impl Drop for Radio {
     fn drop(&mut self) {
-        let _ = run_tool("ip", &["netns", "del", &self.station]);
-        for robot in &self.robots {
-            let _ = run_tool("ip", &["netns", "del", robot]);
+        radio(&[&["down"], &self.namespaces()[..]].concat());
+    }
+}
+
+/// `armor-team radio ARGS`, to its end.
+fn radio(args: &[&str]) -> std::process::Output {
+    Command::new(bin("armor-team"))
+        .arg("radio")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// What `ip ARGS` prints.
+fn ip(args: &[&str]) -> String {
+    let output = Command::new(armor_tests::tools::program("ip"))
+        .args(args)
+        .output()
+        .unwrap();
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+/// The network namespaces there are (`ip netns list`).
+fn namespaces() -> Vec<String> {
+    ip(&["netns", "list"])
+        .lines()
+        .filter_map(|line| line.split_whitespace().next())
+        .map(str::to_owned)
+        .collect()
+}
+
+/// The processes running in namespace `ns` (`ip netns pids`).
+fn pids_in(ns: &str) -> Vec<i32> {
+    ip(&["netns", "pids", ns])
+        .split_whitespace()
+        .filter_map(|pid| pid.parse().ok())
+        .collect()
+}
+
+/// What `ip netns exec NS PROGRAM ARGS` prints.
+fn in_namespace(ns: &str, program: &str, args: &[&str]) -> String {
+    // Found here first, to say which package is missing.
+    armor_tests::tools::program(program);
+    ip(&[&["netns", "exec", ns, program], args].concat())
+}
+
+/// `armor-team radio up` makes what it says (namespaces, the loss rules, the rate, a delay
+/// relay per robot in the station's namespace) and `radio down` removes all of it: no
+/// namespace and no relay left behind. `radio down` refuses a namespace it did not make.
+#[test]
+fn radio_up_makes_the_links_and_down_leaves_nothing_behind() {
+    let made = Radio::of_the_test(2);
+    let there = namespaces();
+    for ns in made.namespaces() {
+        assert!(there.iter().any(|name| name == ns), "{ns} not in {there:?}");
+    }
+    let relays = pids_in(&made.station);
+    assert_eq!(relays.len(), 2, "a delay relay for each robot: {relays:?}");
+    for (index, robot) in made.robots.iter().enumerate() {
+        let n = index + 1;
+        assert_eq!(robot.listen, format!("tcp/10.41.{n}.2:7447"));
+        assert_eq!(
+            robot.station_endpoint,
+            format!("tcp/127.0.0.1:{}", 7447 + n)
+        );
+        for (ns, dev) in [
+            (made.station.as_str(), robot.station_device.as_str()),
+            (robot.namespace.as_str(), &*format!("radio_r{n}")),
+        ] {
+            let rules = in_namespace(ns, "iptables", &["-S", "INPUT"]);
+            assert!(
+                rules.contains(&format!("-i {dev}"))
+                    && rules.contains("--probability 0.1")
+                    && rules.contains("-j DROP"),
+                "{ns}: {rules}"
+            );
+            let qdisc = in_namespace(ns, "tc", &["qdisc", "show", "dev", dev]);
+            assert!(
+                qdisc.contains("tbf") && qdisc.contains("256Kbit"),
+                "{ns}: {qdisc}"
+            );
         }
     }
+
+    let refused = radio(&["down", "not_a_radio"]);
+    assert!(!refused.status.success());
+    let said = String::from_utf8_lossy(&refused.stderr);
+    assert!(said.contains("not a namespace of `radio up`"), "{said}");
+
+    let down = radio(&[&["down"], &made.namespaces()[..]].concat());
+    assert!(
+        down.status.success(),
+        "{}",
+        String::from_utf8_lossy(&down.stderr)
+    );
+    let there = namespaces();
+    for ns in made.namespaces() {
+        assert!(
+            !there.iter().any(|name| name == ns),
+            "{ns} left in {there:?}"
+        );
+    }
+    armor_tests::wait_until("the relays gone", PATIENCE, || {
+        relays.iter().all(|&pid| !armor_tests::process_alive(pid))
+    });
+    // Already down: the guard's second `down` fails quietly.
+    drop(made);
 }
 
 #[test]
@@ -561,12 +638,7 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
     let _turn = ROBOTS_AT_A_TIME
         .lock()
         .unwrap_or_else(|err| err.into_inner());
-    let radio = Radio::make().unwrap_or_else(|why| {
-        panic!(
-            "cannot make the radio ({why:#}); this test needs root: run `scripts/test` as root (it \
-             installs iproute2 and iptables)"
-        )
-    });
+    let radio = Radio::of_the_test(2);
     let dir = tempfile::tempdir().unwrap();
     let plan = write_yard(dir.path());
     let secret = secret_file(dir.path());
@@ -574,41 +646,18 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
     let in_robot: Vec<[&str; 4]> = radio
         .robots
         .iter()
-        .map(|ns| ["ip", "netns", "exec", ns.as_str()])
+        .map(|robot| ["ip", "netns", "exec", robot.namespace.as_str()])
         .collect();
     let in_station = ["ip", "netns", "exec", radio.station.as_str()];
-    let connect: Vec<String> = (1..=2)
-        .map(|n| format!("tcp/{}:7447", robot_addr(n)))
-        .collect();
-    let r1 = start_robot(&in_robot[0], &plan, &secret, "r1", &connect[0]);
-    let r2 = start_robot(&in_robot[1], &plan, &secret, "r2", &connect[1]);
+    let r1 = start_robot(&in_robot[0], &plan, &secret, "r1", &radio.robots[0].listen);
+    let r2 = start_robot(&in_robot[1], &plan, &secret, "r2", &radio.robots[1].listen);
     let robots = ["r1", "r2"];
-    // Each robot's radio also delays: the station reaches robot N through a relay of our own
-    // in the station's namespace (port 7447 + N) that holds every chunk 300 ms each way (this
-    // kernel has no netem), then over its lossy, rate-limited link.
-    let script = dir.path().join("delay_relay.py");
-    std::fs::write(&script, DELAY_RELAY).unwrap();
-    let _relays: Vec<Proc> = (1..=2)
-        .map(|n| {
-            let relay = Proc::start(
-                Command::new(armor_tests::tools::program("ip"))
-                    .args(["netns", "exec", &radio.station])
-                    .arg(armor_tests::tools::program("python3"))
-                    .arg(&script)
-                    .args([
-                        &(7447 + n).to_string(),
-                        &format!("{}:7447", robot_addr(n)),
-                        "0.3",
-                    ]),
-            );
-            relay.wait_for("the delay relay", PATIENCE, |line| {
-                line.contains("relay listening")
-            });
-            relay
-        })
-        .collect();
-    let connect: Vec<String> = (1..=2)
-        .map(|n| format!("tcp/127.0.0.1:{}", 7447 + n))
+    // The station reaches each robot through the radio's delay relay, then over its lossy,
+    // rate-limited link.
+    let connect: Vec<String> = radio
+        .robots
+        .iter()
+        .map(|robot| robot.station_endpoint.clone())
         .collect();
     let watch = station(&in_station, &operator, &robots, &connect);
     for robot in robots {
@@ -637,7 +686,14 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
     // hearing it.
     run_tool(
         "ip",
-        &["-n", &radio.station, "link", "set", &station_dev(1), "down"],
+        &[
+            "-n",
+            &radio.station,
+            "link",
+            "set",
+            &radio.robots[0].station_device,
+            "down",
+        ],
     )
     .unwrap();
     let cut_at = Instant::now();
@@ -665,7 +721,14 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
     std::thread::sleep(Duration::from_secs(10).saturating_sub(cut_at.elapsed()));
     run_tool(
         "ip",
-        &["-n", &radio.station, "link", "set", &station_dev(1), "up"],
+        &[
+            "-n",
+            &radio.station,
+            "link",
+            "set",
+            &radio.robots[0].station_device,
+            "up",
+        ],
     )
     .unwrap();
 
@@ -706,69 +769,14 @@ fn a_ten_second_cut_of_a_lossy_radio_fires_link_lost_once_and_the_station_catche
         "r2 never lost its operator long enough to hold"
     );
     // The radio did lose packets on the way: the station got through it, not around it.
-    for ns in [&radio.station, &radio.robots[1]] {
+    for ns in [&radio.station, &radio.robots[1].namespace] {
         assert!(dropped_packets(ns) > 0, "no packet lost in {ns}");
     }
 }
 
-/// A TCP relay that delays each chunk by a time each way, in order: `delay_relay.py PORT
-/// HOST:PORT SECS` listens on 127.0.0.1:PORT (of the namespace it runs in).
-const DELAY_RELAY: &str = r#"import asyncio, sys, time
-
-port, target, delay = int(sys.argv[1]), sys.argv[2], float(sys.argv[3])
-host, target_port = target.rsplit(":", 1)
-
-async def pump(reader, writer):
-    queue = asyncio.Queue()
-
-    async def read():
-        while True:
-            data = await reader.read(65536)
-            await queue.put((time.monotonic() + delay, data))
-            if not data:
-                return
-
-    reading = asyncio.ensure_future(read())
-    try:
-        while True:
-            due, data = await queue.get()
-            await asyncio.sleep(max(0.0, due - time.monotonic()))
-            if not data:
-                break
-            writer.write(data)
-            await writer.drain()
-    finally:
-        reading.cancel()
-        writer.close()
-
-async def client(reader, writer):
-    try:
-        far_reader, far_writer = await asyncio.open_connection(host, int(target_port))
-    except OSError:
-        writer.close()
-        return
-    await asyncio.gather(
-        pump(reader, far_writer), pump(far_reader, writer), return_exceptions=True
-    )
-
-async def main():
-    server = await asyncio.start_server(client, "127.0.0.1", port)
-    print("relay listening", flush=True)
-    async with server:
-        await server.serve_forever()
-
-asyncio.run(main())
-"#;
-
 /// The packets the loss rules of namespace `ns` dropped so far (iptables' counters).
 fn dropped_packets(ns: &str) -> u64 {
-    let output = Command::new(armor_tests::tools::program("ip"))
-        .args([
-            "netns", "exec", ns, "iptables", "-L", "INPUT", "-v", "-n", "-x",
-        ])
-        .output()
-        .unwrap();
-    String::from_utf8_lossy(&output.stdout)
+    in_namespace(ns, "iptables", &["-L", "INPUT", "-v", "-n", "-x"])
         .lines()
         .filter(|line| line.contains("DROP") && line.contains("statistic"))
         .filter_map(|line| line.split_whitespace().next()?.parse::<u64>().ok())

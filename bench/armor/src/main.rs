@@ -402,6 +402,13 @@ const BENCHES: &[Bench] = &[
         run: team::run_latency,
     },
     Bench {
+        name: team::NAME_LATENCY_RADIO,
+        about: "the same through the namespace test's radio (10 % loss, 256 kbit/s, 300 ms \
+                each way), vs a bare zenoh put/subscribe over it (ms; as root, skipped \
+                otherwise)",
+        run: team::run_latency_radio,
+    },
+    Bench {
         name: team::NAME_BANDWIDTH,
         about: "what each of 20 stand-in robots costs one station (status 2 Hz, pose 5 Hz), \
                 vs the default budget of 50 kbit/s (kbit/s)",

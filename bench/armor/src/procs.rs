@@ -398,6 +398,11 @@ pub fn relay(
         .with_context(|| format!("{} printed no `{name}` line: {stdout}", program.display()))?;
     let mut fields: serde_json::Map<String, serde_json::Value> =
         serde_json::from_str(line).with_context(|| format!("not a report line: {line}"))?;
+    // A line that could not run here says why (`armor-team bench` without root): relayed as
+    // it is, with no figures.
+    if let Some(why) = fields.get("skipped").and_then(serde_json::Value::as_str) {
+        return Ok(Report::single(name, unit, f64::NAN, f64::NAN).with("skipped", why));
+    }
     let number = |key: &str| fields.get(key).and_then(serde_json::Value::as_f64);
     let (Some(ours), Some(reference)) = (number("ours"), number("reference")) else {
         anyhow::bail!("`ours` or `reference` missing from {line}");
