@@ -358,11 +358,7 @@ fn what_stopped_the_follower_is_held_by_every_option_and_driven_round_first() {
     let driven_on = first.plan.as_ref().expect("a plan");
     assert_eq!(driven_on.legs, plan.legs);
     for option in options.iter().filter_map(|option| option.plan.as_ref()) {
-        assert!(
-            option.graphics.iter().any(|graphic| *graphic == area),
-            "{}",
-            option.to_xml()
-        );
+        assert!(option.graphics.contains(&area), "{}", option.to_xml());
         assert!(compile(option, None).is_ok(), "{}", option.to_xml());
     }
 }
