@@ -1656,7 +1656,7 @@ mod reported {
         // By the truth: the body never met the obstacle, nor the area after it was taken, and
         // the robot went round the south of the minefield.
         never_met(&yard, &report, &UNMAPPED, 0.0);
-        let area = report["rehearsal"]["areas"]
+        let area = report["rehearsal"]["no_go_areas"]
             .as_array()
             .unwrap()
             .iter()

@@ -493,6 +493,7 @@ impl Controller {
             "fired",
             json!({
                 "transition": firing.transition,
+                "at_secs": firing.at_secs,
                 "forecast": forecast,
                 "marking": firing.marking_after.to_marking(),
                 "started": firing.started,
