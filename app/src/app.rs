@@ -279,7 +279,9 @@ impl StudioApp {
     }
 
     /// Watches a run started elsewhere, through its control interface: with the open system's
-    /// live views when a system is open, else its modules, mission and controls.
+    /// live views when a system is open, else its modules, mission and controls. Either way
+    /// the run is asked for its files: the plan it plays, if it plays one, is opened in the
+    /// Mission view to edit and send ([`Self::attach_with_runs_files`]).
     pub fn attach_run(&mut self, control: std::net::SocketAddr, ctx: &egui::Context) {
         self.set_view(View::Run);
         let Some(system) = self.system.path.clone() else {
@@ -289,18 +291,20 @@ impl StudioApp {
         self.run.attach(
             Target::System(system),
             control,
-            None,
+            (None, true),
             &self.palette.catalog,
             ctx,
         );
     }
 
-    /// A run attached without its system file has sent its files: writes them into a folder of
-    /// their own and attaches again as with them open, with the run's module descriptions over
-    /// the palette's; the run's plan, if it plays one, in the Mission view (unless it holds a
-    /// plan of the user's), whose map the Run view then draws.
+    /// A run attached to has sent its files: writes them into a folder of their own and
+    /// attaches again as with them open, with the run's module descriptions over the palette's;
+    /// the run's plan, if it plays one, in the Mission view (unless it holds a plan of the
+    /// user's), whose map the Run view then draws. Attached with its system file open, the
+    /// studio keeps that attachment unless the run's plan is opened: then it watches the plan,
+    /// as a run started from the Mission view, so that the edits to it can be sent.
     fn attach_with_runs_files(&mut self, ctx: &egui::Context) {
-        let Some((control, files)) = self.run.take_runs_files() else {
+        let Some((control, files, system_open)) = self.run.take_runs_files() else {
             return;
         };
         let mirror = match crate::run::attach::mirror(&files) {
@@ -325,6 +329,9 @@ impl StudioApp {
             .mission
             .clone()
             .filter(|mission| free && is_plan(mission));
+        if system_open && plan.is_none() {
+            return;
+        }
         if let Some(plan) = &plan {
             let mission = self.mission.get_or_insert_with(|| MissionView::new(ctx));
             mission.set_catalog(&catalog);
@@ -345,7 +352,8 @@ impl StudioApp {
             Target::Plan(_) => self.mission.as_ref(),
             Target::System(_) => None,
         };
-        self.run.attach(target, control, mission, &catalog, ctx);
+        self.run
+            .attach(target, control, (mission, false), &catalog, ctx);
         self.run.keep_mirror(mirror);
         // After the attachment's own message, so that the status line says this.
         self.run.messages.push((

@@ -201,14 +201,20 @@ fn attached(
     }
     let ctx = harness.ctx.clone();
     harness.state_mut().run_mut().attach_bare(control, &ctx);
-    step_until(&mut harness, "the run's plan in the Mission view", |app| {
+    shows_the_runs_plan(&mut harness);
+    harness
+}
+
+/// Steps until the Mission view shows the plan the run plays (its copy, watched, compiled) and
+/// the run's status came, then shows the Mission view.
+fn shows_the_runs_plan(harness: &mut Harness<'_, StudioApp>) {
+    step_until(harness, "the run's plan in the Mission view", |app| {
         app.mission()
             .is_some_and(|mission| app.run().watches(mission) && mission.checked().net().is_some())
             && app.run().status().is_some()
     });
     harness.state_mut().set_view(View::Mission);
     harness.run();
-    harness
 }
 
 /// Steps frames until `done` holds, for at most [`PATIENCE`].
@@ -568,4 +574,42 @@ fn a_repair_proposed_is_shown_with_its_costs_and_the_option_applied_is_drawn() {
     let mission = harness.state().mission().unwrap();
     assert_eq!(legs(mission.plan()), ["advance", "cross", "regroup"]);
     harness.get_by_label("Plan updates (1)");
+}
+
+/// Issue 39's Send bar when the operator attaches with the robot's system file already open
+/// (Run → Attach… from the System view): the run is asked for its files all the same, the plan
+/// it plays is opened in the Mission view, and an edit of it is sent and taken. Before, the
+/// studio watched the system alone and never showed the bar.
+#[test]
+fn attached_with_the_system_open_the_plan_the_run_plays_is_edited_and_sent() {
+    let dir = tempfile::tempdir().unwrap();
+    let (control, _run, asked) = stand_in_run(None);
+    let system = workspace().join("missions/robot/system.xml");
+    let mut harness = harness(options(&dir.path().join("home"), Some(system.clone())));
+    assert_eq!(
+        harness.state().path(),
+        Some(system.as_path()),
+        "the system is open"
+    );
+    let ctx = harness.ctx.clone();
+    harness.state_mut().attach_run(control, &ctx);
+    shows_the_runs_plan(&mut harness);
+    harness.get_by_label("The plan shown is the one the robot runs.");
+    assert!(send_is_greyed(&harness), "nothing edited yet");
+
+    let from = on_screen(&harness, "north");
+    drag(&mut harness, from, from - egui::vec2(40.0, 0.0));
+    assert!(!send_is_greyed(&harness), "an edit to send");
+    harness.get_by_label(SEND).click();
+    harness.step();
+    let sent = asked.recv_timeout(PATIENCE).unwrap();
+    let edited = harness.state().mission().unwrap().plan().clone();
+    assert_eq!(
+        waypoint(&Plan::parse(&sent).unwrap(), "north"),
+        waypoint(&Plan::parse(&edited.to_xml()).unwrap(), "north")
+    );
+    step_until(&mut harness, "the run's answer", |app| {
+        app.run().updates.answer.is_some()
+    });
+    harness.get_by_label("✔ Taken by the robot");
 }

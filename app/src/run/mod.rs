@@ -334,33 +334,42 @@ impl RunView {
         }
     }
 
-    /// Watches a run of `target` started elsewhere, through its control interface.
+    /// Watches a run of `target` started elsewhere, through its control interface; with
+    /// `ask_files`, asks it for its files too ([`Self::take_runs_files`]): the plan it plays.
     pub fn attach(
         &mut self,
         target: Target,
         control: std::net::SocketAddr,
-        mission: Option<&MissionView>,
+        (mission, ask_files): (Option<&MissionView>, bool),
         catalog: &Catalog,
         ctx: &egui::Context,
     ) {
-        let options = self.options(&target, mission, catalog, ctx);
+        let options = RunOptions {
+            ask_files,
+            ..self.options(&target, mission, catalog, ctx)
+        };
         self.session = Some(RunSession::attach(options, control, ctx));
         self.messages
             .push((true, format!("watching the run at {control}")));
         self.updates.restart(plan_of(&target));
     }
 
-    /// The files a run attached without its system file has sent (at most once per
-    /// attachment), with its control address: the window writes them out
-    /// ([`attach::mirror`]) and attaches again with them ([`Self::keep_mirror`]).
-    pub fn take_runs_files(&mut self) -> Option<(std::net::SocketAddr, RunFiles)> {
+    /// The files a run attached to has sent when asked (at most once per attachment), with
+    /// its control address and whether the studio had its system file open: the window writes
+    /// them out ([`attach::mirror`]) and attaches again with them ([`Self::keep_mirror`]).
+    pub fn take_runs_files(&mut self) -> Option<(std::net::SocketAddr, RunFiles, bool)> {
         let session = self.session.as_ref()?;
-        if !session.is_attached() || !session.options.target.as_os_str().is_empty() {
+        if !session.is_attached() || !session.options.ask_files {
             return None;
         }
         let mut shared = session.shared();
         let control = shared.control_addr?;
-        Some((control, shared.files.take()?))
+        let files = shared.files.take()?;
+        Some((
+            control,
+            files,
+            !session.options.target.as_os_str().is_empty(),
+        ))
     }
 
     /// Keeps the folder of an attached run's files as long as the attachment.
@@ -384,6 +393,7 @@ impl RunView {
             sources: Sources::default(),
             secret: Some(PathBuf::from(self.secret_file.trim()))
                 .filter(|file| !file.as_os_str().is_empty()),
+            ask_files: true,
         };
         self.session = Some(RunSession::attach(options, control, ctx));
         self.messages
@@ -435,6 +445,7 @@ impl RunView {
             sources,
             secret: Some(PathBuf::from(self.secret_file.trim()))
                 .filter(|file| !file.as_os_str().is_empty()),
+            ask_files: false,
         }
     }
 

@@ -57,6 +57,9 @@ pub struct RunOptions {
     /// The shared secret's file (`armor run --secret`): the run requires it of every
     /// connection, the studio's own included.
     pub secret: Option<PathBuf>,
+    /// Attached: ask the run for its files, once (without its system file, to draw it; with
+    /// the system open, for the plan it plays, which the operator edits and sends).
+    pub ask_files: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -568,11 +571,10 @@ fn poll_control(
     let RunOptions {
         sources,
         secret: secret_file,
-        target,
+        ask_files,
         ..
     } = options;
-    // Attached without the system file: ask the run for its files, once.
-    let mut want_files = target.as_os_str().is_empty();
+    let mut want_files = ask_files;
     // The last update taken whose plan the run was asked for, and the one to ask it for at
     // the next poll: the plan it plays has changed, whoever changed it.
     let mut plan_asked_after = 0;

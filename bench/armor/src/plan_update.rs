@@ -7,7 +7,8 @@
 //!
 //! The follower must not stop for an update: its commanded speed (`follower.cmd_desired`,
 //! recorded) stays above zero from each update sent to its answer: `cmd_stopped_during_updates`
-//! counts the commands in those spans that stop the robot (no speed and no turn: 0 expected),
+//! counts the commands in those spans that stop the robot (no speed and no turn: any fails the
+//! bench),
 //! `cmd_during_updates` all of them, and the `_between_updates` counts the same between the
 //! updates. A command with no forward speed but a turn is the follower turning in place at a
 //! sharp corner of its path, which it does whether an update is under way or not.
@@ -200,6 +201,13 @@ pub fn run(settings: &Settings) -> anyhow::Result<Report> {
     ensure!(
         during > 0,
         "no command of the follower was recorded during the updates"
+    );
+    // The follower drives on through an update: a command that stops the robot in one is a
+    // defect, not a figure (it was a replan's, which the follower now steers on at once).
+    ensure!(
+        stopped == 0,
+        "the follower commanded a stop {stopped} times in the {during} commands recorded during \
+         the updates ({stopped_between} in the {between} between them)"
     );
     let phases_p50: serde_json::Map<String, serde_json::Value> = PHASES
         .iter()

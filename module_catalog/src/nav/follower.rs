@@ -1043,9 +1043,13 @@ impl Follower {
                 self.pursuit = Some(Pursuit::new(path.points));
                 self.best_distance_m = f64::INFINITY;
                 self.last_progress = now;
-                // The new path's first command comes with the next pose.
+                // The new path is steered on from this pose: a command of zero in between
+                // would stop the robot for a step at every replan (the bench's updates saw it).
+                let twist = self
+                    .steer(pose)
+                    .map_or_else(Twist::default, |(twist, _, _)| twist);
                 Some(Control {
-                    twist: Twist::default(),
+                    twist,
                     report: None,
                     new_path: true,
                 })
@@ -1278,6 +1282,11 @@ mod tests {
             .collect();
         let control = follower.on_pose(east_at(1.0), 1.1);
         assert!(control.new_path, "{control:?}");
+        // It steers on the new path at once: no command of zero for the replan.
+        assert!(
+            control.twist.linear_mps != 0.0 || control.twist.angular_radps != 0.0,
+            "{control:?}"
+        );
         let points = follower.pursuit.as_ref().expect("path").points().to_vec();
         assert!(
             points.iter().any(|p| p.y > 7.0),

@@ -465,6 +465,46 @@ impl Controller {
         })
     }
 
+    /// Fires `transition` (enabled, its condition not yet met) because the run forecasts what
+    /// the condition waits for: a leg's `LEG_late`, once its arrival at the plan's speed comes
+    /// after its deadline. Recorded as fired, with `forecast` saying why. Returns whether it
+    /// fired.
+    pub fn fire_forecast(
+        &mut self,
+        transition: &str,
+        forecast: &str,
+        server: &ConfigServer,
+    ) -> bool {
+        if self.net.transition(transition).is_none() {
+            return false;
+        }
+        let before = self.engine.active_modules();
+        let Ok(firing) = self.engine.fire_by_hand(transition, self.clock.now_secs()) else {
+            return false;
+        };
+        self.remember(&firing, false);
+        tracing::info!(
+            "fired `{}` at {:.2} s ({forecast}) → {}",
+            firing.transition,
+            firing.at_secs,
+            armor_model::net::marking_text(&firing.marking_after.to_marking())
+        );
+        self.record(
+            "fired",
+            json!({
+                "transition": firing.transition,
+                "at_secs": firing.at_secs,
+                "forecast": forecast,
+                "marking": firing.marking_after.to_marking(),
+                "started": firing.started,
+                "stopped": firing.stopped,
+            }),
+        );
+        self.apply_firings(server, &before, std::slice::from_ref(&firing));
+        self.step(server);
+        true
+    }
+
     fn remember(&mut self, firing: &Firing, by_hand: bool) {
         self.first_fired
             .entry(firing.transition.clone())

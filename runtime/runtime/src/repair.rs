@@ -8,15 +8,19 @@
 //! again from where the robot is (`docs/plans.md`, "Repair when the world contradicts the
 //! plan").
 
-use armor_model::geo::Point;
+use armor_model::geo::{LatLon, Point, Polygon};
 use armor_model::plan::memory::PathMemory;
 use armor_model::plan::repair::{self, Candidate, Kind, Situation};
-use armor_model::plan::{Origin, Response, Trigger};
+use armor_model::plan::{AreaKind, Graphic, GraphicKind, Origin, Response, Trigger};
+use armor_model::planner::Keepout;
 use armor_model::world::World;
-use armor_protocol::{Repair, RepairKind, RepairOption};
+use armor_protocol::{LegProgress, Repair, RepairKind, RepairOption};
 
+use crate::config_server::ConfigServer;
 use crate::controller::Controller;
-use crate::update::{Asked, Refused, Running};
+use std::path::PathBuf;
+
+use crate::update::{Asked, Checked, Refused, Running};
 
 /// A repair proposed, with the plans of its options.
 pub struct Proposal {
@@ -31,11 +35,25 @@ pub struct Proposal {
     /// When the plan's default is to be applied (run seconds), while the operator has not
     /// chosen: its contingency's `after_secs` after the proposal.
     pub default_at_run_secs: Option<f64>,
+    /// The plan's default checked and compiled when it was proposed ([`Proposal::check_default`]),
+    /// so that when it comes due only its migration is left: a check takes seconds of real
+    /// time on a loaded machine, which at ten times real time made the default tens of run
+    /// seconds late. It holds as long as the proposal: any update taken withdraws both.
+    default_checked: Option<Checked>,
+    /// Whether the default was checked when proposed, taken or not: it is checked once.
+    default_check_tried: bool,
+}
+
+/// The plan's default come due: checked already (with what was asked, to check again if it
+/// cannot be swapped in now), or to check.
+pub enum Due {
+    Checked { checked: Box<Checked>, asked: Asked },
+    Asked(Asked),
 }
 
 impl Proposal {
     /// The plan's default, once, when the operator has not chosen by the time it gave.
-    fn default_due(&mut self, run_secs: f64) -> Option<Asked> {
+    fn default_due(&mut self, run_secs: f64) -> Option<Due> {
         if !self.default_at_run_secs.is_some_and(|at| run_secs >= at) {
             return None;
         }
@@ -44,8 +62,83 @@ impl Proposal {
             "leg `{}`: no option chosen in time, the plan's default (option 1) is applied",
             self.shown.leg
         );
-        asked(Some(self), 1).ok()
+        let asked = asked(Some(self), 1).ok()?;
+        Some(match self.default_checked.take() {
+            Some(checked) => Due::Checked {
+                checked: Box::new(checked),
+                asked,
+            },
+            None => Due::Asked(asked),
+        })
     }
+
+    /// Checks and compiles the plan's default now, when it is to come later (`after_secs`):
+    /// the slow part of taking it, done while the operator has time to choose. A default that
+    /// does not check is left to be checked again when due, and refused then with its reason.
+    pub fn check_default(&mut self, running: &mut Running, module_path: &[PathBuf]) {
+        if self.default_at_run_secs.is_none() || self.default_check_tried {
+            return;
+        }
+        self.default_check_tried = true;
+        let Ok(default) = asked(Some(self), 1) else {
+            return;
+        };
+        match default.check(running, module_path) {
+            Ok(checked) => self.default_checked = Some(checked),
+            Err(why) => tracing::warn!(
+                "leg `{}`: the plan's default (option 1) does not check now: {why}",
+                self.shown.leg
+            ),
+        }
+    }
+}
+
+/// A leg forecast to miss its deadline is late now: while it drives, once its arrival at the
+/// plan's speed from where the robot is (`progress`, the distance left as the run's live line
+/// measures it) comes after its `arrive_by`, its `LEG_late` fires, rather than when the
+/// deadline passes, so that its contingency (a repair's options, for `hold` and `repair`)
+/// comes while there is time to act on it (`docs/plans.md`, "Contingencies").
+pub fn forecast_late(
+    controller: &mut Controller,
+    progress: Option<&LegProgress>,
+    server: &ConfigServer,
+) {
+    let Some(progress) = progress else {
+        return;
+    };
+    let (Some(slack_secs), Some(left_m), Some(deadline)) = (
+        progress.slack_secs,
+        progress.left_m,
+        progress.deadline_run_secs,
+    ) else {
+        return;
+    };
+    if slack_secs >= 0.0 {
+        return;
+    }
+    let leg = &progress.leg;
+    let (drive, drive_late) = (format!("{leg}_drive"), format!("{leg}_drive_late"));
+    // The way it drives (its alternative's suffix), unless it drives late already.
+    let Some(suffix) = controller.marking().into_keys().find_map(|place| {
+        if place.starts_with(&drive_late) {
+            return None;
+        }
+        place.strip_prefix(&drive).map(str::to_owned)
+    }) else {
+        return;
+    };
+    let forecast = format!(
+        "forecast: {} m left, at the plan's speed it arrives {:.1} s after its deadline at {:.1} s",
+        geo_m(left_m),
+        -slack_secs,
+        deadline
+    );
+    controller.fire_forecast(&format!("{leg}_late{suffix}"), &forecast, server);
+}
+
+/// Metres to the decimetre, for a sentence.
+fn geo_m(metres: f64) -> f64 {
+    (metres * 10.0).round() / 10.0
 }
 
 /// The held place of the mission, and its leg's index, if a leg holds for the operator.
@@ -66,8 +159,9 @@ pub fn retry_of(controller: &Controller, running: &Running) -> Option<String> {
 }
 
 /// Where the mission stands against the proposal: withdraws it when the held place is left,
-/// proposes one when a leg has just started to hold. Returns the option to apply at once, when
-/// the plan names the default (`do="repair"`) and an option other than waiting is left.
+/// proposes one when a leg has just started to hold. Returns the option to apply, when the
+/// plan names the default (`do="repair"`) and an option other than waiting is left: at once,
+/// or once its `after_secs` have passed.
 pub fn watch(
     proposal: &mut Option<Proposal>,
     controller: &mut Controller,
@@ -75,7 +169,7 @@ pub fn watch(
     here: Option<Point>,
     now: (f64, f64),
     world: impl FnOnce(&mut Running) -> Result<Option<World>, Refused>,
-) -> Option<Asked> {
+) -> Option<Due> {
     let held = held(controller, running);
     let (run_secs, now_unix_secs) = now;
     match (proposal.as_mut(), &held) {
@@ -115,11 +209,34 @@ pub fn watch(
             return None;
         }
     };
+    // A leg blocked where the plan's map has a way was stopped by something the map does not
+    // have: the options are planned round it, and hold it.
+    let blockage = if late {
+        None
+    } else {
+        blockage(running, world.as_ref(), index, here)
+    };
     let compiled = &running.compiled;
+    let mut keepouts = compiled.keepouts.clone();
+    keepouts.extend(blockage.as_ref().map(|(_, keepout)| keepout.clone()));
+    // A leg of the plan whose route comes near what stopped the follower is planned again
+    // round it (its length is not known), the others keep theirs.
     let lengths: Vec<Option<f64>> = compiled
         .routes
         .iter()
-        .map(|route| Some(armor_model::geo::path_length(route)))
+        .map(|route| {
+            let clear = blockage.as_ref().is_none_or(|(_, keepout)| {
+                route.windows(2).all(|segment| {
+                    armor_model::planner::clear_of_keepouts(
+                        &compiled.robot,
+                        std::slice::from_ref(keepout),
+                        segment[0],
+                        segment[1],
+                    )
+                })
+            });
+            clear.then(|| armor_model::geo::path_length(route))
+        })
         .collect();
     let situation = Situation {
         plan: &running.plan,
@@ -128,30 +245,44 @@ pub fn watch(
         index,
         here,
         now_unix_secs,
+        blockage: blockage.as_ref().map(|(area, _)| area),
     };
     let planner = planner(
         &mut running.memory.paths,
         world.as_ref(),
         &compiled.robot,
-        &compiled.keepouts,
+        &keepouts,
     );
     let (candidates, why) = if late {
         let due = leg
             .arrive_by_unix_secs
             .map_or_else(String::new, |by| format!(" (due by {})", repair::clock(by)));
+        // Forecast late (`forecast_late`) before its deadline, or its deadline passed.
+        let passed = leg.arrive_by_unix_secs.is_none_or(|by| now_unix_secs >= by);
+        let how = if passed {
+            "its deadline passed before it arrived"
+        } else {
+            "at the plan's speed it would arrive after its deadline"
+        };
         (
             repair::late_options(situation, planner),
             format!(
-                "leg `{}` is late{due}: its deadline passed before it arrived, it holds in \
-                 `{place}`",
+                "leg `{}` is late{due}: {how}, it holds in `{place}`",
                 leg.name
             ),
         )
     } else {
+        let stopped = blockage.as_ref().map_or_else(String::new, |(area, _)| {
+            format!(
+                ", stopped before something the plan's map does not have (held as the no-go \
+                 area `{}` across its way ahead)",
+                area.name
+            )
+        });
         (
             repair::options(situation, planner),
             format!(
-                "leg `{}` cannot be completed as planned: it holds in `{place}`",
+                "leg `{}` cannot be completed as planned: it holds in `{place}`{stopped}",
                 leg.name
             ),
         )
@@ -167,7 +298,118 @@ pub fn watch(
         place: Some(place),
         ..made
     });
-    default
+    default.map(Due::Asked)
+}
+
+/// How far across the way ahead the area of what stopped the follower reaches, each side: a
+/// follower that reports `blocked` has found no way past it (its own replans spent), so the
+/// area closes a passage of up to twice this.
+const BLOCKAGE_HALF_WIDTH_M: f64 = 2.0;
+/// How deep that area is along the way.
+const BLOCKAGE_DEPTH_M: f64 = 1.0;
+/// How far the robot's body keeps from that area when planning: the follower's own clearance
+/// from obstacles, not a no-go area's default margin, since the robot stopped close to it.
+const BLOCKAGE_MARGIN_M: f64 = 0.1;
+/// How much further than the robot's radius and that margin the area starts ahead of where the
+/// robot believes it is: the follower stops while its body is nearer a no-go area than twice
+/// the localiser's standard deviation (0.28 m seen on a loaded machine), and the costmap's
+/// cells err on the safe side; so that the robot is clear of it and drives away. The avoider
+/// stops the robot 0.35 m short of an obstacle, so the area still covers a deep one's front.
+const BLOCKAGE_SLACK_M: f64 = 0.6;
+/// How far along the way from where the robot stopped its direction is taken.
+const BLOCKAGE_LOOK_AHEAD_M: f64 = 1.5;
+
+/// What stopped the follower on leg `index` at `here`, when the plan's map (`world` and the
+/// running plan's no-go areas) has a way from there to the leg's destination: a no-go area
+/// across that way just ahead of the robot (the map's own way being the one the follower was
+/// driving and could not pass), as a plan's area and as the planner's keepout. None when the
+/// map has no way from there (the map says why: an area reported), when the plan has no
+/// geographic frame, or when the area would come near a waypoint (a plan with a waypoint in a
+/// no-go area does not check).
+fn blockage(
+    running: &mut Running,
+    world: Option<&World>,
+    index: usize,
+    here: Point,
+) -> Option<(Graphic, Keepout)> {
+    let leg = running.plan.legs.get(index)?;
+    let compiled = &running.compiled;
+    let origin = compiled.origin?;
+    let goal = *compiled.positions.get(&leg.to)?;
+    let robot = compiled.robot;
+    let way = running
+        .memory
+        .paths
+        .plan_others(world, &robot, &compiled.keepouts, &[(here, goal)])
+        .ok()?
+        .into_iter()
+        .next()?
+        .ok()?;
+    let ahead = point_along(&way.points, BLOCKAGE_LOOK_AHEAD_M)?;
+    let length = ahead.distance(here);
+    if length < 0.05 {
+        return None;
+    }
+    let (dx, dy) = ((ahead.x - here.x) / length, (ahead.y - here.y) / length);
+    let at = |along: f64, across: f64| {
+        Point::new(
+            here.x + dx * along - dy * across,
+            here.y + dy * along + dx * across,
+        )
+    };
+    let near = robot.radius_m + BLOCKAGE_MARGIN_M + BLOCKAGE_SLACK_M;
+    let far = near + BLOCKAGE_DEPTH_M;
+    let corners = vec![
+        at(near, -BLOCKAGE_HALF_WIDTH_M),
+        at(far, -BLOCKAGE_HALF_WIDTH_M),
+        at(far, BLOCKAGE_HALF_WIDTH_M),
+        at(near, BLOCKAGE_HALF_WIDTH_M),
+    ];
+    let polygon = Polygon::new(corners.clone());
+    let keep = robot.radius_m + BLOCKAGE_MARGIN_M + BLOCKAGE_SLACK_M;
+    if compiled
+        .positions
+        .values()
+        .any(|&waypoint| polygon.contains(waypoint) || polygon.distance_to_outline(waypoint) < keep)
+    {
+        return None;
+    }
+    let plan = &running.plan;
+    let taken = |name: &str| {
+        plan.graphics.iter().any(|graphic| graphic.name == name)
+            || plan.waypoints.iter().any(|waypoint| waypoint.name == name)
+            || plan.legs.iter().any(|leg| leg.name == name)
+    };
+    let wanted = format!("{}_blocked", leg.name);
+    let name = std::iter::once(wanted.clone())
+        .chain((2..).map(|n| format!("{wanted}_{n}")))
+        .find(|name| !taken(name))?;
+    let area = Graphic {
+        kind: GraphicKind::Area(AreaKind::NoGo),
+        name: name.clone(),
+        points: corners
+            .iter()
+            .map(|&corner| LatLon::from_local(corner, origin))
+            .collect(),
+        margin_m: Some(BLOCKAGE_MARGIN_M),
+        ..Default::default()
+    };
+    Some((area, Keepout::new(name, polygon, BLOCKAGE_MARGIN_M)))
+}
+
+/// The point `distance_m` along the polyline `points` (its last point when it is shorter).
+fn point_along(points: &[Point], distance_m: f64) -> Option<Point> {
+    let mut left = distance_m;
+    for segment in points.windows(2) {
+        let (a, b) = (segment[0], segment[1]);
+        let length = a.distance(b);
+        if length >= left && length > 0.0 {
+            let t = left / length;
+            return Some(Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t));
+        }
+        left -= length;
+    }
+    points.last().copied()
 }
 
 /// The length of the way between each pair of points on `world` for `robot` round
@@ -239,6 +481,8 @@ fn propose(
         shown,
         label: label.to_owned(),
         default_at_run_secs,
+        default_checked: None,
+        default_check_tried: false,
     };
     let default = if by_default && default_at_run_secs.is_none() {
         asked(Some(&made), 1).ok()
@@ -316,6 +560,7 @@ pub fn for_cut_leg(
             index: first,
             here,
             now_unix_secs: now_unix_secs + until_secs,
+            blockage: None,
         },
         planner(&mut running.memory.paths, world, &robot, &legs.keepouts),
     );

@@ -398,6 +398,7 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     controller.first_fired(),
                 );
                 controller.set_progress(progress.leg_progress());
+                crate::repair::forecast_late(controller, progress.leg_progress().as_ref(), &server);
             }
             match controller.outcome() {
                 None => {}
@@ -428,10 +429,11 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
             }
         }
         // A leg that starts to hold gets its repair proposed; the plan's default is taken
-        // first of the updates asked for, as the next one.
+        // first of the updates asked for, as the next one: checked already when it was to come
+        // later, so that it is taken within a turn of this loop and its migration.
         if let (Some(controller), Some(running)) = (&mut controller, &mut running_plan) {
             let run_secs = clock.now_secs();
-            if let Some(asked) = crate::repair::watch(
+            match crate::repair::watch(
                 &mut proposal,
                 controller,
                 running,
@@ -441,7 +443,21 @@ pub fn run(options: RunOptions) -> anyhow::Result<ExitCode> {
                     crate::update::world_of(running, &server.loaded().system, &options.module_path)
                 },
             ) {
-                queued_updates.push_front((asked, None));
+                Some(crate::repair::Due::Asked(asked)) => queued_updates.push_front((asked, None)),
+                Some(crate::repair::Due::Checked {
+                    checked: update, ..
+                }) if checked.is_none() => {
+                    checked = Some((*update, None));
+                }
+                // Another update is checked and waits to be swapped in: the default is taken
+                // after it, checked again against the plan it makes.
+                Some(crate::repair::Due::Checked { asked, .. }) => {
+                    queued_updates.push_front((asked, None));
+                }
+                None => {}
+            }
+            if let Some(proposal) = &mut proposal {
+                proposal.check_default(running, &options.module_path);
             }
         }
         while let Ok((request, reply)) = requests.try_recv() {

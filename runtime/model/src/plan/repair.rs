@@ -5,7 +5,10 @@
 //!
 //! The options: a way round through another waypoint of the plan, skipping the leg's
 //! destination (the leg in force takes over the next leg), returning to where the plan starts,
-//! and waiting (nothing changes). The leg in force keeps its name in every option, so that the
+//! and waiting (nothing changes). When the follower was stopped by something the plan's map
+//! does not have ([`Situation::blockage`], an area the caller places where it stopped), every
+//! option holds that area, so that none drives back through the way that was closed, and the
+//! first way round is the leg driven on round it from where the robot is. The leg in force keeps its name in every option, so that the
 //! migration finds it; only what comes after it changes. Pure: the paths' lengths come from the
 //! caller ([`options`]'s `lengths`), which plans them on the world.
 
@@ -13,7 +16,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use crate::geo::Point;
 
-use super::{Leg, Plan};
+use super::{Graphic, Leg, Plan};
 
 /// What an option does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -67,6 +70,9 @@ pub struct Situation<'a> {
     pub here: Point,
     /// The run's clock as a date (Unix seconds).
     pub now_unix_secs: f64,
+    /// What stopped the follower, as a no-go area, when the plan's map has a way where it
+    /// stopped: every option's plan holds it, and `lengths` is to plan round it.
+    pub blockage: Option<&'a Graphic>,
 }
 
 /// The most ways round proposed (the shortest): more would bury the other options.
@@ -121,6 +127,23 @@ pub fn options(
             plan: new,
         });
     }
+    // Round what stopped the follower: the leg itself, from where the robot is, on a map that
+    // now has it (the cheapest way round, when the map leaves one).
+    if let Some(area) = situation.blockage {
+        drafts.insert(
+            0,
+            Draft {
+                kind: Kind::WayRound,
+                summary: format!(
+                    "drive on to `{}` round what stopped the robot (no-go area `{}`)",
+                    leg.to, area.name
+                ),
+                via: Vec::new(),
+                legs_dropped: Vec::new(),
+                plan: plan.clone(),
+            },
+        );
+    }
     drafts.extend(skip_draft(plan, index));
     // A leg cannot end where it starts: on a leg that leaves the plan's start, the return is
     // not proposed (the operator aborts, or updates the plan with a leg back).
@@ -146,6 +169,11 @@ pub fn options(
                 .collect(),
             plan: new,
         });
+    }
+    if let Some(area) = situation.blockage {
+        for draft in &mut drafts {
+            draft.plan.graphics.push(area.clone());
+        }
     }
     let mut candidates = cost_all(situation, drafts, lengths);
     candidates.sort_by(|a, b| {

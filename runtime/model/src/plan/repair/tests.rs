@@ -82,6 +82,7 @@ fn proposed(
             index,
             here,
             now_unix_secs: plan.start_unix_secs.unwrap_or_default() + now_secs,
+            blockage: None,
         },
         straight_but_walled,
     )
@@ -253,6 +254,7 @@ fn a_late_leg_is_offered_its_deadline_pushed_back_or_dropped_or_the_skip() {
             index: 0,
             here,
             now_unix_secs: plan.start_unix_secs.unwrap_or_default() + 12.0,
+            blockage: None,
         },
         |pairs| pairs.iter().map(|&(a, b)| Some(a.distance(b))).collect(),
     );
@@ -288,4 +290,75 @@ fn a_late_leg_is_offered_its_deadline_pushed_back_or_dropped_or_the_skip() {
     }
     assert_eq!(options[2].legs_dropped, ["out"]);
     assert_eq!(options[2].distance_m, 53.3);
+}
+
+#[test]
+fn what_stopped_the_follower_is_held_by_every_option_and_driven_round_first() {
+    // The follower stopped at (5, 0) on `out` before something the map does not have; the
+    // caller placed it as the area `out_blocked` and plans round it: the way to `gate` from
+    // here, twice as long as the line (15 m), and any other way across x = 10 as long. Driving
+    // on round it, 30 + 20 + 28.3 m and `gate`'s wait, is the cheapest way round, and ranks
+    // first; the ways through another waypoint and the skip follow, each holding the area.
+    let (plan, compiled) = square(1000);
+    let area = Graphic {
+        kind: crate::plan::GraphicKind::Area(crate::plan::AreaKind::NoGo),
+        name: "out_blocked".to_owned(),
+        points: [(6.0, -2.0), (7.0, -2.0), (7.0, 2.0), (6.0, 2.0)]
+            .iter()
+            .map(|&(x, y)| LatLon::from_local(Point::new(x, y), LatLon::new(43.5615, 1.469)))
+            .collect(),
+        margin_m: Some(0.1),
+        ..Default::default()
+    };
+    let options = options(
+        Situation {
+            plan: &plan,
+            positions: &compiled.positions,
+            route_lengths_m: &lengths_of(&compiled),
+            index: 0,
+            here: Point::new(5.0, 0.0),
+            now_unix_secs: plan.start_unix_secs.unwrap_or_default(),
+            blockage: Some(&area),
+        },
+        |pairs| {
+            pairs
+                .iter()
+                .zip(straight_but_walled(pairs))
+                .map(|(&(a, b), line)| Some(line.unwrap_or(2.0 * a.distance(b))))
+                .collect()
+        },
+    );
+    let first = &options[0];
+    assert_eq!(
+        (
+            first.kind,
+            first.via.clone(),
+            first.distance_m,
+            first.duration_secs
+        ),
+        (Kind::WayRound, Vec::<String>::new(), 78.3, Some(83.3)),
+        "{options:#?}"
+    );
+    assert_eq!(
+        first.summary,
+        "drive on to `gate` round what stopped the robot (no-go area `out_blocked`)"
+    );
+    let kinds: Vec<Kind> = options.iter().map(|option| option.kind).collect();
+    assert_eq!(
+        kinds,
+        [
+            Kind::WayRound,
+            Kind::WayRound,
+            Kind::WayRound,
+            Kind::Skip,
+            Kind::Wait
+        ]
+    );
+    // Driving on changes nothing but the area; every option holds it and compiles.
+    let driven_on = first.plan.as_ref().expect("a plan");
+    assert_eq!(driven_on.legs, plan.legs);
+    for option in options.iter().filter_map(|option| option.plan.as_ref()) {
+        assert!(option.graphics.contains(&area), "{}", option.to_xml());
+        assert!(compile(option, None).is_ok(), "{}", option.to_xml());
+    }
 }
