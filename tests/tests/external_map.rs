@@ -153,6 +153,28 @@ fn read_truth(record: &Path) -> Vec<(f64, Point)> {
     truth
 }
 
+/// The localiser's estimates a recorder wrote, with their run time, in time order.
+fn read_estimates(record: &Path) -> Vec<(f64, PoseEstimate)> {
+    read_topic(record, "localiser.estimate")
+        .into_iter()
+        .map(|(at, encoding, data)| match encoding.as_str() {
+            "json" => (at, serde_json::from_slice(&data).unwrap()),
+            _ => (at, PoseEstimate::decode(&data).unwrap()),
+        })
+        .collect()
+}
+
+/// The last true position recorded at or before `time` (the first one, before any).
+fn true_position_at(truth: &[(f64, Point)], time: f64) -> Point {
+    truth
+        .iter()
+        .rev()
+        .find(|(at, _)| *at <= time)
+        .or(truth.first())
+        .map(|(_, p)| *p)
+        .unwrap()
+}
+
 fn no_go_area() -> Polygon {
     Polygon::new(NO_GO.iter().map(|&(x, y)| Point::new(x, y)).collect())
 }
@@ -421,22 +443,8 @@ fn a_localiser_killed_mid_run_comes_back_where_the_robot_is() {
     );
 
     let truth = read_truth(&record);
-    let truth_at = |time: f64| {
-        truth
-            .iter()
-            .rev()
-            .find(|(at, _)| *at <= time)
-            .or(truth.first())
-            .map(|(_, p)| *p)
-            .unwrap()
-    };
-    let estimates: Vec<(f64, PoseEstimate)> = read_topic(&record, "localiser.estimate")
-        .into_iter()
-        .map(|(at, encoding, data)| match encoding.as_str() {
-            "json" => (at, serde_json::from_slice(&data).unwrap()),
-            _ => (at, PoseEstimate::decode(&data).unwrap()),
-        })
-        .collect();
+    let truth_at = |time: f64| true_position_at(&truth, time);
+    let estimates = read_estimates(&record);
     // The new process's estimates: those after the silence that followed the old one's last
     // (the restart takes a process's start and the map's loading, well over 0.5 s of run time).
     let silence = estimates
@@ -589,22 +597,9 @@ fn a_kidnapped_robot_retried_with_recovery_turns_in_place_until_its_place_is_pro
         .map(|(_, at)| *at)
         .collect();
     assert!(!retried.is_empty(), "never retried: {report:#}");
-    let estimates: Vec<(f64, PoseEstimate)> = read_topic(&record, "localiser.estimate")
-        .into_iter()
-        .map(|(at, encoding, data)| match encoding.as_str() {
-            "json" => (at, serde_json::from_slice(&data).unwrap()),
-            _ => (at, PoseEstimate::decode(&data).unwrap()),
-        })
-        .collect();
+    let estimates = read_estimates(&record);
     let truth = read_truth(&record);
-    let truth_at = |time: f64| {
-        truth
-            .iter()
-            .rev()
-            .find(|(at, _)| *at <= time)
-            .map(|(_, p)| *p)
-            .unwrap()
-    };
+    let truth_at = |time: f64| true_position_at(&truth, time);
     let end_secs = truth.last().map_or(0.0, |(at, _)| *at);
     // From each retry until the estimate is proven and localised (or the next retry, or the
     // end), the robot turns in place at most.

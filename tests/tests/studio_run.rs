@@ -1182,20 +1182,7 @@ fn a_kidnapped_robot_is_shown_lost_holds_without_driving_and_completes_once_its_
         state(app) == Some(LocalisationState::Localised)
     });
     harness.get_by_label("⏭ advance_retry").click();
-    step_until(
-        &mut harness,
-        "the run to end",
-        Duration::from_secs(90),
-        |app| app.run().ended().is_some(),
-    );
-    harness.run_ok();
-    let ended = harness.state().run().ended().unwrap();
-    assert_eq!(
-        ended,
-        "ended: mission complete, rehearsal passed by the simulator's truth"
-    );
-    let words = format!("the run {ended}");
-    assert!(shown(&harness, &words) >= 1, "{words}");
+    run_to_its_end(&mut harness, "passed");
     let verdict = harness.state().run().rehearsal().unwrap();
     assert!(verdict.passed, "{verdict:#?}");
     let error = verdict.arrivals[0].true_error_m.unwrap();
@@ -1204,6 +1191,22 @@ fn a_kidnapped_robot_is_shown_lost_holds_without_driving_and_completes_once_its_
          {error:.3} m from its waypoint by the truth"
     );
     assert!(error <= 0.4, "the leg truly ended {error} m off");
+}
+
+/// Steps until the plan's run ends, complete, and checks that the studio says so with the
+/// rehearsal's `verdict` (`passed`, `FAILED`) by the simulator's truth, in the words shown.
+fn run_to_its_end(harness: &mut Harness<'_, StudioApp>, verdict: &str) {
+    step_until(harness, "the run to end", Duration::from_secs(90), |app| {
+        app.run().ended().is_some()
+    });
+    harness.run_ok();
+    let ended = harness.state().run().ended().unwrap();
+    assert_eq!(
+        ended,
+        format!("ended: mission complete, rehearsal {verdict} by the simulator's truth")
+    );
+    let words = format!("the run {ended}");
+    assert!(shown(harness, &words) >= 1, "{words}");
 }
 
 /// A press at `from`, a drag to `to` in small steps, a release there.
@@ -1334,20 +1337,7 @@ fn a_rehearsal_the_truth_contradicts_reads_failed_in_the_run_view() {
     let plan_file = armor_tests::rehearsal::yard_leg(dir.path(), true);
     let mut harness = harness(dir.path());
     open_and_run(&mut harness, &plan_file, 5.0);
-    step_until(
-        &mut harness,
-        "the run to end",
-        Duration::from_secs(90),
-        |app| app.run().ended().is_some(),
-    );
-    harness.run_ok();
-    let ended = harness.state().run().ended().unwrap();
-    assert_eq!(
-        ended,
-        "ended: mission complete, rehearsal FAILED by the simulator's truth"
-    );
-    let words = format!("the run {ended}");
-    assert!(shown(&harness, &words) >= 1, "{words}");
+    run_to_its_end(&mut harness, "FAILED");
     // The rehearsal's own panel: the verdict, then each reason in the judge's words.
     harness.get_by_label(" FAILED by the simulator's truth ");
     let verdict = harness.state().run().rehearsal().unwrap();
