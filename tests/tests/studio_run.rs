@@ -1343,7 +1343,9 @@ fn a_rehearsal_the_truth_contradicts_reads_failed_in_the_run_view() {
     let verdict = harness.state().run().rehearsal().unwrap();
     assert!(!verdict.passed, "{verdict:#?}");
     let error = verdict.arrivals[0].true_error_m.unwrap();
-    assert!((error - 1.0).abs() < 0.1, "{error}");
+    // About a metre (the lie), more when a loaded machine drives the two simulators apart:
+    // beyond the 0.40 m allowed either way.
+    assert!(error > 0.4, "{error}");
     let arrival = format!(
         "leg `advance` arrived {error:.2} m from its waypoint `gate` by the simulator's truth \
          (allowed 0.40 m)"
