@@ -4,12 +4,14 @@
 //! runs a mission or plan headless and reads its report; [`mcap`] reads what a recorder wrote;
 //! [`check`] runs the one-shot commands (`armor check`, `armor compile`) and reads their errors;
 //! [`tools`] finds the programs and Python modules from outside that the suites run; [`truth`]
-//! reads the simulator's truth from a recording.
+//! reads the simulator's truth from a recording; [`rehearsal`] writes plans whose rehearsal
+//! the truth judges.
 #![allow(clippy::unwrap_used)]
 
 pub mod check;
 pub mod mcap;
 pub mod mission;
+pub mod rehearsal;
 pub mod tools;
 pub mod truth;
 
@@ -306,7 +308,7 @@ pub fn process_alive(pid: i32) -> bool {
 /// The control address a run prints once its control interface listens
 /// (`armor_runtime::CONTROL_READY_PREFIX`).
 pub fn control_address(run: &Proc) -> String {
-    let line = run.wait_for("the control address", PATIENCE, |line| {
+    let line = run.wait_for("the control address", loaded(PATIENCE), |line| {
         line.starts_with(armor_runtime::CONTROL_READY_PREFIX)
     });
     line.trim_start_matches(armor_runtime::CONTROL_READY_PREFIX)
@@ -387,6 +389,53 @@ pub fn dial_as(
             encrypt: false,
         }),
     )
+}
+
+/// The most [`machine_slowness`] ever counts for: a deadline stretches at most this many times.
+pub const MAX_SLOWNESS: f64 = 15.0;
+
+/// How many times slower than on an idle machine the tests' processes may run now: the load
+/// average of the last minute per core, at least 1, at most [`MAX_SLOWNESS`] (1 where the
+/// kernel does not say). A run driven in real time at a load of 25 on two cores got its scans
+/// late enough that fixed deadlines of 30 s failed.
+pub fn machine_slowness() -> f64 {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+    let load = std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|text| text.split_whitespace().next()?.parse::<f64>().ok())
+        .unwrap_or(0.0);
+    (load / cores).clamp(1.0, MAX_SLOWNESS)
+}
+
+/// `base` stretched by the machine's slowness now ([`machine_slowness`]).
+pub fn loaded(base: Duration) -> Duration {
+    base.mul_f64(machine_slowness())
+}
+
+/// Waits until `condition` holds, at most `base` on an idle machine: the deadline stretches
+/// with the greatest [`machine_slowness`] seen while waiting, so that a loaded machine slows a
+/// test down without failing it, and an idle one still fails it in `base`.
+pub fn wait_until_loaded(what: &str, base: Duration, mut condition: impl FnMut() -> bool) {
+    let start = Instant::now();
+    let mut slowness = machine_slowness();
+    while !condition() {
+        slowness = slowness.max(machine_slowness());
+        let allowed = base.mul_f64(slowness);
+        assert!(
+            start.elapsed() < allowed,
+            "{what}: not within {allowed:?} ({base:?} on an idle machine, the load per core \
+             reaching {slowness:.1})"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The run's status as `armor ctl status --json` prints it, or `None` when the run gave no
+/// answer in time (a loaded machine: ask again) or none that reads.
+pub fn try_ctl_status(addr: &str) -> Option<serde_json::Value> {
+    let (ok, text) = ctl(addr, &["status", "--json"]);
+    let json = text.find('{').map(|start| &text[start..])?;
+    ok.then(|| serde_json::from_str(json).ok()).flatten()
 }
 
 /// Waits until `condition` holds, checking every few milliseconds, at most `timeout`.

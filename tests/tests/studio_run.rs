@@ -1182,20 +1182,7 @@ fn a_kidnapped_robot_is_shown_lost_holds_without_driving_and_completes_once_its_
         state(app) == Some(LocalisationState::Localised)
     });
     harness.get_by_label("⏭ advance_retry").click();
-    step_until(
-        &mut harness,
-        "the run to end",
-        Duration::from_secs(90),
-        |app| app.run().ended().is_some(),
-    );
-    harness.run_ok();
-    let ended = harness.state().run().ended().unwrap();
-    assert_eq!(
-        ended,
-        "ended: mission complete, rehearsal passed by the simulator's truth"
-    );
-    let words = format!("the run {ended}");
-    assert!(shown(&harness, &words) >= 1, "{words}");
+    run_to_its_end(&mut harness, "passed");
     let verdict = harness.state().run().rehearsal().unwrap();
     assert!(verdict.passed, "{verdict:#?}");
     let error = verdict.arrivals[0].true_error_m.unwrap();
@@ -1204,6 +1191,22 @@ fn a_kidnapped_robot_is_shown_lost_holds_without_driving_and_completes_once_its_
          {error:.3} m from its waypoint by the truth"
     );
     assert!(error <= 0.4, "the leg truly ended {error} m off");
+}
+
+/// Steps until the plan's run ends, complete, and checks that the studio says so with the
+/// rehearsal's `verdict` (`passed`, `FAILED`) by the simulator's truth, in the words shown.
+fn run_to_its_end(harness: &mut Harness<'_, StudioApp>, verdict: &str) {
+    step_until(harness, "the run to end", Duration::from_secs(90), |app| {
+        app.run().ended().is_some()
+    });
+    harness.run_ok();
+    let ended = harness.state().run().ended().unwrap();
+    assert_eq!(
+        ended,
+        format!("ended: mission complete, rehearsal {verdict} by the simulator's truth")
+    );
+    let words = format!("the run {ended}");
+    assert!(shown(harness, &words) >= 1, "{words}");
 }
 
 /// A press at `from`, a drag to `to` in small steps, a release there.
@@ -1320,4 +1323,40 @@ fn the_pose_is_set_by_a_drag_on_the_map_and_an_observer_sees_the_tool_greyed() {
     step_until(&mut harness, "the run to stop", PATIENCE, |app| {
         !app.run().is_running()
     });
+}
+
+/// A rehearsal the simulator's truth contradicts, as the operator reads it in the Run view: the
+/// leg across the yard whose follower drives by odometry that lies by a metre
+/// (`armor_tests::rehearsal::yard_leg`, the plan `tests/tests/rehearsal.rs` runs from the
+/// command line). The mission completes as the robot believes, and the studio says the
+/// rehearsal FAILED by the simulator's truth, with each reason: the arrival a metre off, the
+/// footprint on the no-go area, and the leg's true error marked FAILED.
+#[test]
+fn a_rehearsal_the_truth_contradicts_reads_failed_in_the_run_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan_file = armor_tests::rehearsal::yard_leg(dir.path(), true);
+    let mut harness = harness(dir.path());
+    open_and_run(&mut harness, &plan_file, 5.0);
+    run_to_its_end(&mut harness, "FAILED");
+    // The rehearsal's own panel: the verdict, then each reason in the judge's words.
+    harness.get_by_label(" FAILED by the simulator's truth ");
+    let verdict = harness.state().run().rehearsal().unwrap();
+    assert!(!verdict.passed, "{verdict:#?}");
+    let error = verdict.arrivals[0].true_error_m.unwrap();
+    // About a metre (the lie), more when a loaded machine drives the two simulators apart:
+    // beyond the 0.40 m allowed either way.
+    assert!(error > 0.4, "{error}");
+    let arrival = format!(
+        "leg `advance` arrived {error:.2} m from its waypoint `gate` by the simulator's truth \
+         (allowed 0.40 m)"
+    );
+    assert!(shown(&harness, &arrival) >= 1, "{arrival}");
+    let footprint = "the robot's footprint met the no-go area `ditch` by the simulator's truth";
+    assert!(shown(&harness, footprint) >= 1, "{footprint}");
+    let cell = format!("{error:.2} m (simulator) FAILED");
+    assert!(shown(&harness, &cell) >= 1, "{cell}");
+    assert!(
+        shown(&harness, "passed by the simulator's truth") == 0,
+        "nothing says it passed"
+    );
 }

@@ -7,7 +7,9 @@
 //! - `localise_ms_per_scan`: one filter update (motion, weighing, resampling, estimate) with
 //!   1,000 particles and the simulator's 360-beam scan, every scan updated; per-scan
 //!   distribution (`p50`, `p99`) in milliseconds, in this process, on one thread, against the
-//!   scan period (100 ms) as the budget.
+//!   scan period (100 ms) as the budget. Beside it, the thread's own time on a CPU per update
+//!   (`on_cpu_*`) and per phase of it (`phases_on_cpu_ms`, see `mcl::Phase`): a wall-clock p99
+//!   far above the on-CPU one is the machine's load, not the filter's work.
 //! - `localise_error_m`: the mean distance between the localiser's estimate and the
 //!   simulator's truth at every scan of the same round (the module's default settings), against
 //!   odometry alone in the same run; `max` and `odometry_max` beside.
@@ -16,13 +18,13 @@ use std::time::{Duration, Instant};
 
 use anyhow::anyhow;
 use armor_module_api::types::{LaserScan, Pose2D};
-use armor_module_catalog::localiser::mcl::{Filter, Map, Settings as MclSettings};
+use armor_module_catalog::localiser::mcl::{Filter, Map, Phase, Settings as MclSettings};
 use armor_module_catalog::sim::tour::{Tour, WAREHOUSE_ROUND};
 use armor_module_catalog::sim::world::World;
 use armor_module_catalog::sim::{SimParams, Simulator};
 
 use crate::Settings;
-use armor_bench_report::Report;
+use armor_bench_report::{Report, percentile, round as significant};
 
 pub const NAME_MS: &str = "localise_ms_per_scan";
 pub const NAME_ERROR: &str = "localise_error_m";
@@ -36,6 +38,13 @@ struct Sample {
     scan: LaserScan,
     odometry: Pose2D,
     truth: Pose2D,
+}
+
+/// The calling thread's time on a CPU so far, in nanoseconds (`CLOCK_THREAD_CPUTIME_ID`: exact,
+/// where the scheduler's own statistics advance by whole ticks of 4 ms).
+fn thread_cpu_ns() -> u64 {
+    let now = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
+    u64::try_from(now.tv_sec).unwrap_or(0) * 1_000_000_000 + u64::try_from(now.tv_nsec).unwrap_or(0)
 }
 
 fn warehouse() -> anyhow::Result<World> {
@@ -84,13 +93,56 @@ pub fn run_ms(settings: &Settings) -> anyhow::Result<Report> {
         ..MclSettings::default()
     })?;
     let mut ours = Vec::with_capacity(samples.len());
+    let mut on_cpu = Vec::with_capacity(samples.len());
+    let mut phases: Vec<Vec<f64>> = vec![Vec::with_capacity(samples.len()); Phase::ALL.len()];
     for sample in &samples {
+        let cpu_before = thread_cpu_ns();
         let start = Instant::now();
-        filter.update(sample.odometry, &sample.scan);
+        let mut last = cpu_before;
+        filter.update_marked(sample.odometry, &sample.scan, &mut |phase| {
+            let now = thread_cpu_ns();
+            if let Some(index) = Phase::ALL.iter().position(|p| *p == phase) {
+                phases[index].push(now.saturating_sub(last) as f64 / 1e6);
+            }
+            last = now;
+        });
         ours.push(start.elapsed());
+        on_cpu.push(thread_cpu_ns().saturating_sub(cpu_before) as f64 / 1e6);
     }
+    let p50p99 = |values: &mut Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        (
+            significant(percentile(values, 0.5)),
+            significant(percentile(values, 0.99)),
+        )
+    };
+    let mut phase_figures = serde_json::Map::new();
+    for (phase, values) in Phase::ALL.iter().zip(&mut phases) {
+        let (median, tail) = p50p99(values);
+        phase_figures.insert(
+            phase.name().to_owned(),
+            serde_json::json!({
+                "p50": median,
+                "p99": tail,
+                "max": significant(values.last().copied().unwrap_or(0.0)),
+            }),
+        );
+    }
+    let (cpu_p50, cpu_p99) = p50p99(&mut on_cpu);
     Ok(
         Report::distribution(NAME_MS, "ms", 1e3, &ours, &[SCAN_PERIOD])
+            .with("phases_on_cpu_ms", phase_figures)
+            .with("on_cpu_p50", cpu_p50)
+            .with("on_cpu_p99", cpu_p99)
+            .with(
+                "on_cpu_max",
+                significant(on_cpu.last().copied().unwrap_or(0.0)),
+            )
+            .with(
+                "on_cpu_is",
+                "the thread's own time on a CPU per update (CLOCK_THREAD_CPUTIME_ID): what the \
+                 wall-clock figures are less the time the machine ran something else",
+            )
             .with(
                 "reference_is",
                 "the scan period (the sim scans at 10 Hz): the budget",

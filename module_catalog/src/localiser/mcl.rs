@@ -32,7 +32,9 @@
 //! - Without scans ([`Filter::predict_only`]): the motion model alone, the covariance growing
 //!   with the way driven.
 
-use std::collections::{HashMap, HashSet, VecDeque};
+use std::collections::VecDeque;
+
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use armor_model::geo::Point;
 use armor_model::world::World;
@@ -259,6 +261,46 @@ impl Default for Thresholds {
     }
 }
 
+/// The phases of a filter update, in order ([`Filter::update_marked`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// The particles moved by the odometry, and the scan's beams taken.
+    Motion,
+    /// Each particle weighed on the scan (or, after a spread, the proposals scored).
+    Weigh,
+    /// Low-variance resampling, cluster by cluster, when the weights call for it.
+    Resample,
+    /// The particles' clusters, the heaviest one's mean and the covariance.
+    Cluster,
+    /// The scan checked against the map from the estimate: the beams' agreement (a ray cast
+    /// in the world per beam), the things the map lacks, the fit.
+    Agreement,
+    /// The state, the kidnap detector, the proof and the scans kept for the detector.
+    Watch,
+}
+
+impl Phase {
+    pub const ALL: [Phase; 6] = [
+        Phase::Motion,
+        Phase::Weigh,
+        Phase::Resample,
+        Phase::Cluster,
+        Phase::Agreement,
+        Phase::Watch,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Motion => "motion",
+            Phase::Weigh => "weigh",
+            Phase::Resample => "resample",
+            Phase::Cluster => "cluster",
+            Phase::Agreement => "agreement",
+            Phase::Watch => "watch",
+        }
+    }
+}
+
 /// How much the localiser trusts its estimate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum State {
@@ -437,9 +479,23 @@ struct Agreement {
     /// on the kidnaps of the tests, see [`KIDNAP_STEP`]). None when what is left is fewer than
     /// [`MIN_JUDGED_BEAMS`] of the beams (the scan shows too little of the map).
     kidnap: Option<f64>,
+}
+
+/// Room the filter works in, kept from update to update so that an update in steady state
+/// allocates nothing (an allocation's cost depends on the allocator's state, and the goal is a
+/// p99 of 2 ms).
+#[derive(Clone, Debug, Default)]
+struct Scratch {
+    /// Each beam's end, in the robot's frame, when it ends short of the map's wall
+    /// ([`Filter::agreement_at`]).
+    short: Vec<Option<(f64, f64)>>,
     /// Each beam (in the scan's order) that a thing the map lacks explains: left out of the
     /// kidnap detector's agreement and of the fit ([`Filter::fit_at`]).
     explained: Vec<bool>,
+    /// A run of short beams ([`Filter::explained_short`]).
+    run: Vec<(usize, (f64, f64))>,
+    /// The KLD histogram's occupied bins ([`Filter::resample`]).
+    kld_bins: FxHashSet<(i64, i64, i64)>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -448,11 +504,42 @@ struct Particle {
     weight: f64,
 }
 
-/// Particles near each other: one hypothesis of where the robot is.
+/// The particles' clusters (particles near each other: one hypothesis each of where the robot
+/// is; [`Filter::cluster`]), made in buffers kept from update to update.
 #[derive(Clone, Debug, Default)]
-struct Cluster {
+struct Clusters {
+    /// Each occupied cell and its index, each cell's parent in the union-find, and the cluster
+    /// of each cell that is a root.
+    cells: FxHashMap<(i64, i64), usize>,
+    parent: Vec<usize>,
+    cluster_of_root: Vec<usize>,
+    /// Each particle's cell, then its cluster.
+    cell_of: Vec<usize>,
+    label: Vec<usize>,
+    /// Each cluster's weight, numbered in the order their first particles come.
+    weights: Vec<f64>,
+    /// Each cluster's particles, in their order: `members[offsets[c]..offsets[c + 1]]`
+    /// (`cursor` is room to sort them in).
     members: Vec<usize>,
-    weight: f64,
+    offsets: Vec<usize>,
+    cursor: Vec<usize>,
+    /// The clusters, heaviest first (of equal weight, the first met first).
+    order: Vec<usize>,
+}
+
+impl Clusters {
+    fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    /// The weight and the particles of the `rank`th heaviest cluster.
+    fn get(&self, rank: usize) -> Option<(f64, &[usize])> {
+        let c = *self.order.get(rank)?;
+        Some((
+            self.weights[c],
+            &self.members[self.offsets[c]..self.offsets[c + 1]],
+        ))
+    }
 }
 
 /// The filter.
@@ -526,6 +613,9 @@ pub struct Filter {
     /// The share of the beams that agree with the map from the estimate, smoothed.
     agreement: f64,
     log_weights: Vec<f64>,
+    /// The particles' clusters and room to work in, kept from update to update.
+    clusters: Clusters,
+    scratch: Scratch,
     /// The kidnap detector's agreement of the last scan from the estimate, not smoothed (its
     /// history is made of it; see [`Agreement`]).
     raw_agreement: Option<f64>,
@@ -594,6 +684,8 @@ impl Filter {
             angle_increment_rad: 0.0,
             agreement: 1.0,
             log_weights: Vec::new(),
+            clusters: Clusters::default(),
+            scratch: Scratch::default(),
             raw_agreement: None,
             seen: VecDeque::new(),
         };
@@ -642,6 +734,27 @@ impl Filter {
         self.starved = 0;
         self.forced_updates = FORCED_UPDATES;
         self.estimate = self.summarise(true);
+    }
+
+    /// Particles drawn round `pose`, where a localiser restarted in a run believes the robot is
+    /// (its previous process's correction of odometry, applied to the odometry now). What was
+    /// proven is taken as proven, as the plan's start is; what was not must still be proven (a
+    /// turn in place: it may have been a suspected kidnap); and lost stays lost, until an
+    /// operator sets the pose, or with `recover` the map is searched.
+    pub fn resume(&mut self, pose: Pose2D, sigma_m: f64, sigma_rad: f64, proven: bool, lost: bool) {
+        self.set_pose(pose, sigma_m, sigma_rad);
+        if lost && self.settings.recover {
+            self.spread();
+        } else if lost {
+            self.confirm(true);
+            self.suspected = true;
+            self.estimate.state = State::Lost;
+            self.estimate.proven = false;
+        } else if !proven {
+            self.confirm(true);
+            self.suspected = true;
+            self.estimate.proven = false;
+        }
     }
 
     /// How far apart in time the next scan and the odometry it is given with were taken (the
@@ -735,6 +848,17 @@ impl Filter {
     /// since the last update, are weighed on the scan and resampled, when the robot moved
     /// enough since the last update (or at the first scan); returns whether it did.
     pub fn update(&mut self, odom: Pose2D, scan: &LaserScan) -> bool {
+        self.update_marked(odom, scan, &mut |_| {})
+    }
+
+    /// [`Filter::update`], calling `mark` as each [`Phase`] of it ends (the benchmark times
+    /// them; the filter itself reads no clock).
+    pub fn update_marked(
+        &mut self,
+        odom: Pose2D,
+        scan: &LaserScan,
+        mark: &mut dyn FnMut(Phase),
+    ) -> bool {
         let moved = match self.last_odom {
             None => true,
             Some(last) => {
@@ -755,12 +879,16 @@ impl Filter {
         }
         self.last_odom = Some(odom);
         self.take_points(scan);
+        mark(Phase::Motion);
         if self.spread_pending {
             self.propose();
+            mark(Phase::Weigh);
         } else {
             self.weigh();
+            mark(Phase::Weigh);
             self.resample();
         }
+        mark(Phase::Resample);
         let was_lost = self.estimate.state == State::Lost;
         // Lost for want of scans is not lost for scans that contradict the cloud: the cloud
         // grew with the odometry and still holds the robot, so the scans may tell where in it
@@ -770,7 +898,7 @@ impl Filter {
         if starved && was_lost {
             self.confirm(true);
         }
-        self.estimate = self.summarise(true);
+        self.estimate = self.summarise_marked(true, mark);
         // Without recovery, lost stays lost until an operator sets the pose: a cloud left
         // where the robot no longer is, moved on by the odometry, can come to fit the scans of
         // some other place by chance and would then call itself localised there.
@@ -793,12 +921,20 @@ impl Filter {
         // it passes (the behaviours system's box did), and a detector without those scans would
         // take the thing for a contradiction.
         if self.estimate.proven && !self.searching && self.estimate.state != State::Lost {
-            if self.seen.len() >= SEEN_LAG_UPDATES {
-                self.seen.pop_front();
-            }
+            // The oldest scan's room is taken for the newest: no allocation once ten are kept.
+            let mut ranges = if self.seen.len() >= SEEN_LAG_UPDATES {
+                self.seen
+                    .pop_front()
+                    .map(|old| old.ranges)
+                    .unwrap_or_default()
+            } else {
+                Vec::with_capacity(self.ranges.len())
+            };
+            ranges.clear();
+            ranges.extend_from_slice(&self.ranges);
             self.seen.push_back(SeenScan {
                 pose: self.estimate.pose,
-                ranges: self.ranges.clone(),
+                ranges,
                 angle_min_rad: self.angle_min_rad,
                 angle_increment_rad: self.angle_increment_rad,
                 range_max_m: self.range_max_m,
@@ -825,6 +961,7 @@ impl Filter {
         {
             self.spread();
         }
+        mark(Phase::Watch);
         true
     }
 
@@ -1026,13 +1163,14 @@ impl Filter {
     /// they should (a range within [`AGREE_M`] of the distance to the map's first wall, or no
     /// echo where the map has none within range), and the kidnap detector's agreement, which
     /// leaves out the beams a thing the map lacks explains (see [`Agreement`]).
-    fn agreement_at(&self, pose: Pose2D) -> Agreement {
+    fn agreement_at(&self, pose: Pose2D, scratch: &mut Scratch) -> Agreement {
         let origin = Point::new(pose.x_m, pose.y_m);
         let range_max = self.range_max_m;
         let beams = self.beams.len();
         let (mut agreeing, mut long) = (0usize, 0usize);
         // Each beam's end, in the robot's frame, when it ends short of the map's first wall.
-        let mut short: Vec<Option<(f64, f64)>> = Vec::with_capacity(beams);
+        let short = &mut scratch.short;
+        short.clear();
         for &(angle, range) in &self.beams {
             let expected = self
                 .map
@@ -1051,16 +1189,18 @@ impl Filter {
             short.push(end);
         }
         let all = (beams > 0).then(|| agreeing as f64 / beams as f64);
-        let explained = self.explained_short(pose, &short);
-        let unexplained = short.iter().flatten().count() - explained.iter().filter(|&&e| e).count();
+        self.explained_short(
+            pose,
+            &scratch.short,
+            &mut scratch.explained,
+            &mut scratch.run,
+        );
+        let unexplained = scratch.short.iter().flatten().count()
+            - scratch.explained.iter().filter(|&&e| e).count();
         let judged = agreeing + long + unexplained;
         let kidnap = (judged > 0 && judged as f64 >= MIN_JUDGED_BEAMS * beams as f64)
             .then(|| agreeing as f64 / judged as f64);
-        Agreement {
-            all,
-            kidnap,
-            explained,
-        }
+        Agreement { all, kidnap }
     }
 
     /// Which of the short beams (`short`, one entry a beam in the scan's order, the end of
@@ -1070,16 +1210,24 @@ impl Filter {
     /// thing whose ends lie within [`UNMAPPED_THING_M`] of each other explains its beams; a
     /// wider one explains those whose ends the laser did not see through on the scan of
     /// [`SEEN_LAG_UPDATES`] before (none without such a scan). A scan all round the robot
-    /// wraps: its last beam neighbours its first.
-    fn explained_short(&self, pose: Pose2D, short: &[Option<(f64, f64)>]) -> Vec<bool> {
+    /// wraps: its last beam neighbours its first. The answer is `explained`, one entry a beam;
+    /// `run` is room to work in.
+    fn explained_short(
+        &self,
+        pose: Pose2D,
+        short: &[Option<(f64, f64)>],
+        explained: &mut Vec<bool>,
+        run: &mut Vec<(usize, (f64, f64))>,
+    ) {
         let n = short.len();
-        let mut explained = vec![false; n];
+        explained.clear();
+        explained.resize(n, false);
         if n < 2 {
             // One beam: whatever it met explains it.
             for (mark, end) in explained.iter_mut().zip(short) {
                 *mark = end.is_some();
             }
-            return explained;
+            return;
         }
         let spacing = (self.beams[1].0 - self.beams[0].0).abs();
         let wraps =
@@ -1092,7 +1240,7 @@ impl Filter {
             0
         };
         // A run: the beams' places in `short` and their ends.
-        let mut run: Vec<(usize, (f64, f64))> = Vec::new();
+        run.clear();
         let mut close = |run: &mut Vec<(usize, (f64, f64))>| {
             let span = run
                 .iter()
@@ -1121,18 +1269,17 @@ impl Filter {
         };
         for i in (begin..begin + n).map(|i| i % n) {
             let Some(end) = short[i] else {
-                close(&mut run);
+                close(run);
                 continue;
             };
             if let Some(&(last, _)) = run.last()
                 && !self.connected(self.beam_indices[last], self.beam_indices[i])
             {
-                close(&mut run);
+                close(run);
             }
             run.push((i, end));
         }
-        close(&mut run);
-        explained
+        close(run);
     }
 
     /// Whether the laser saw through `end` (in the map frame) on the scan `reference`: the
@@ -1324,18 +1471,16 @@ impl Filter {
         if effective > RESAMPLE_BELOW * first as f64 {
             return;
         }
-        let bins: HashSet<(i64, i64, i64)> = self
-            .particles
-            .iter()
-            .map(|particle| {
-                let p = particle.pose;
-                (
-                    (p.x_m / KLD_BIN_M).floor() as i64,
-                    (p.y_m / KLD_BIN_M).floor() as i64,
-                    (p.theta_rad / KLD_BIN_RAD).floor() as i64,
-                )
-            })
-            .collect();
+        let bins = &mut self.scratch.kld_bins;
+        bins.clear();
+        bins.extend(self.particles.iter().map(|particle| {
+            let p = particle.pose;
+            (
+                (p.x_m / KLD_BIN_M).floor() as i64,
+                (p.y_m / KLD_BIN_M).floor() as i64,
+                (p.theta_rad / KLD_BIN_RAD).floor() as i64,
+            )
+        }));
         let wanted = kld_bound(bins.len(), self.settings.kld_err, self.settings.kld_z)
             .clamp(self.settings.min_particles, self.settings.max_particles);
         self.resample_clusters(wanted);
@@ -1349,28 +1494,34 @@ impl Filter {
     /// other one gets its share of `count`, at least [`MIN_CLUSTER_PARTICLES`], the heaviest
     /// first, within `max_particles`.
     fn resample_clusters(&mut self, count: usize) {
-        let clusters = self.clusters();
-        let kept: Vec<&Cluster> = clusters
-            .iter()
-            .filter(|cluster| cluster.weight >= DROP_CLUSTER_WEIGHT)
-            .collect();
-        let kept_weight: f64 = kept.iter().map(|cluster| cluster.weight).sum();
-        if kept.is_empty() || kept_weight <= 0.0 {
+        self.cluster();
+        let clusters = std::mem::take(&mut self.clusters);
+        let kept = (0..clusters.len())
+            .filter_map(|rank| clusters.get(rank))
+            .filter(|(weight, _)| *weight >= DROP_CLUSTER_WEIGHT);
+        let (kept_count, kept_weight) =
+            kept.fold((0, 0.0), |(n, sum), (weight, _)| (n + 1, sum + weight));
+        if kept_count == 0 || kept_weight <= 0.0 {
+            self.clusters = clusters;
             return;
         }
         self.spare.clear();
         let mut budget = self.settings.max_particles.max(1);
-        for cluster in kept {
+        for (weight, members) in (0..clusters.len())
+            .filter_map(|rank| clusters.get(rank))
+            .filter(|(weight, _)| *weight >= DROP_CLUSTER_WEIGHT)
+        {
             if budget == 0 {
                 break;
             }
-            let share = cluster.weight / kept_weight;
+            let share = weight / kept_weight;
             let wanted = ((share * count as f64).round() as usize)
                 .max(MIN_CLUSTER_PARTICLES)
                 .min(budget);
             budget -= wanted;
-            self.systematic(&cluster.members, cluster.weight, wanted, share);
+            self.systematic(members, weight, wanted, share);
         }
+        self.clusters = clusters;
         let total: f64 = self.spare.iter().map(|p| p.weight).sum();
         if total > 0.0 {
             for particle in &mut self.spare {
@@ -1418,22 +1569,27 @@ impl Filter {
         }
     }
 
-    /// The particles' clusters, heaviest first: connected groups of [`CLUSTER_CELL_M`] cells
-    /// (eight neighbours) holding particles, each with its particles and their total weight.
-    fn clusters(&self) -> Vec<Cluster> {
+    /// The particles' clusters, into `self.clusters`: connected groups of [`CLUSTER_CELL_M`]
+    /// cells (eight neighbours) holding particles, each with its particles and their total
+    /// weight, heaviest first.
+    fn cluster(&mut self) {
         let cell = |pose: Pose2D| {
             (
                 (pose.x_m / CLUSTER_CELL_M).floor() as i64,
                 (pose.y_m / CLUSTER_CELL_M).floor() as i64,
             )
         };
-        let mut cells: HashMap<(i64, i64), usize> = HashMap::new();
+        let k = &mut self.clusters;
+        k.cells.clear();
+        k.cell_of.clear();
         for particle in &self.particles {
-            let next = cells.len();
-            cells.entry(cell(particle.pose)).or_insert(next);
+            let next = k.cells.len();
+            k.cell_of
+                .push(*k.cells.entry(cell(particle.pose)).or_insert(next));
         }
         // Union-find over the occupied cells.
-        let mut parent: Vec<usize> = (0..cells.len()).collect();
+        k.parent.clear();
+        k.parent.extend(0..k.cells.len());
         fn root(parent: &mut [usize], mut i: usize) -> usize {
             while parent[i] != i {
                 parent[i] = parent[parent[i]];
@@ -1441,29 +1597,53 @@ impl Filter {
             }
             i
         }
-        for (&(cx, cy), &i) in &cells {
+        for (&(cx, cy), &i) in &k.cells {
             for (dx, dy) in [(1, 0), (1, 1), (0, 1), (-1, 1)] {
-                if let Some(&j) = cells.get(&(cx + dx, cy + dy)) {
-                    let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                if let Some(&j) = k.cells.get(&(cx + dx, cy + dy)) {
+                    let (a, b) = (root(&mut k.parent, i), root(&mut k.parent, j));
                     if a != b {
-                        parent[a] = b;
+                        k.parent[a] = b;
                     }
                 }
             }
         }
-        let mut index_of_root: HashMap<usize, usize> = HashMap::new();
-        let mut clusters: Vec<Cluster> = Vec::new();
+        // Clusters numbered in the order their first particles come, as the weights add up.
+        k.cluster_of_root.clear();
+        k.cluster_of_root.resize(k.cells.len(), usize::MAX);
+        k.label.clear();
+        k.weights.clear();
         for (i, particle) in self.particles.iter().enumerate() {
-            let r = root(&mut parent, cells[&cell(particle.pose)]);
-            let c = *index_of_root.entry(r).or_insert_with(|| {
-                clusters.push(Cluster::default());
-                clusters.len() - 1
-            });
-            clusters[c].members.push(i);
-            clusters[c].weight += particle.weight;
+            let r = root(&mut k.parent, k.cell_of[i]);
+            if k.cluster_of_root[r] == usize::MAX {
+                k.cluster_of_root[r] = k.weights.len();
+                k.weights.push(0.0);
+            }
+            let c = k.cluster_of_root[r];
+            k.label.push(c);
+            k.weights[c] += particle.weight;
         }
-        clusters.sort_by(|a, b| b.weight.total_cmp(&a.weight));
-        clusters
+        // Each cluster's particles side by side, in their order (a counting sort).
+        let count = k.weights.len();
+        k.offsets.clear();
+        k.offsets.resize(count + 1, 0);
+        for &c in &k.label {
+            k.offsets[c + 1] += 1;
+        }
+        for c in 0..count {
+            k.offsets[c + 1] += k.offsets[c];
+        }
+        k.cursor.clear();
+        k.cursor.extend_from_slice(&k.offsets[..count]);
+        k.members.clear();
+        k.members.resize(k.label.len(), 0);
+        for (i, &c) in k.label.iter().enumerate() {
+            k.members[k.cursor[c]] = i;
+            k.cursor[c] += 1;
+        }
+        k.order.clear();
+        k.order.extend(0..count);
+        let weights = &k.weights;
+        k.order.sort_by(|&a, &b| weights[b].total_cmp(&weights[a]));
     }
 
     /// The estimate: the mean of the heaviest cluster (the mean of the whole cloud would fall
@@ -1471,15 +1651,27 @@ impl Filter {
     /// it (so that another place still in the running makes it wide), the fit there and the
     /// state.
     fn summarise(&mut self, scanned: bool) -> Estimate {
+        self.summarise_marked(scanned, &mut |_| {})
+    }
+
+    /// [`Filter::summarise`], calling `mark` when the clusters and the covariance are made
+    /// ([`Phase::Cluster`]) and when the scan is checked against the map from the estimate
+    /// ([`Phase::Agreement`]).
+    fn summarise_marked(&mut self, scanned: bool, mark: &mut dyn FnMut(Phase)) -> Estimate {
         let total: f64 = self.particles.iter().map(|p| p.weight).sum();
         let total = if total > 0.0 { total } else { 1.0 };
-        let clusters = self.clusters();
-        let second_weight = clusters.get(1).map_or(0.0, |c| c.weight / total);
+        self.cluster();
+        let second_weight = self
+            .clusters
+            .get(1)
+            .map_or(0.0, |(weight, _)| weight / total);
         let (mut mx, mut my, mut ms, mut mc) = (0.0, 0.0, 0.0, 0.0);
-        if let Some(best) = clusters.first().filter(|c| c.weight > 0.0) {
-            for &i in &best.members {
+        if let Some((best_weight, members)) =
+            self.clusters.get(0).filter(|(weight, _)| *weight > 0.0)
+        {
+            for &i in members {
                 let particle = &self.particles[i];
-                let w = particle.weight / best.weight;
+                let w = particle.weight / best_weight;
                 mx += w * particle.pose.x_m;
                 my += w * particle.pose.y_m;
                 ms += w * particle.pose.theta_rad.sin();
@@ -1506,9 +1698,13 @@ impl Filter {
             y_m: my,
             theta_rad: mean_theta,
         };
+        mark(Phase::Cluster);
         if scanned {
-            let agreement = self.agreement_at(pose);
-            if let Some(fit) = self.fit_at(pose, &agreement.explained) {
+            let mut scratch = std::mem::take(&mut self.scratch);
+            let agreement = self.agreement_at(pose, &mut scratch);
+            let fit = self.fit_at(pose, &scratch.explained);
+            self.scratch = scratch;
+            if let Some(fit) = fit {
                 self.fit = FIT_SMOOTHING * fit + (1.0 - FIT_SMOOTHING) * self.fit;
             }
             self.raw_agreement = agreement.kidnap;
@@ -1516,6 +1712,7 @@ impl Filter {
                 self.agreement = FIT_SMOOTHING * all + (1.0 - FIT_SMOOTHING) * self.agreement;
             }
         }
+        mark(Phase::Agreement);
         let mut estimate = Estimate {
             pose,
             covariance: cov,

@@ -47,9 +47,84 @@ pub const TYPE: &str = "localiser";
 /// estimate would stay as sure as at the last scan while the robot drives on.
 pub const SCANS_LATE_SECS: f64 = 1.0;
 
-/// The spread of the particles round a pose given by a parameter or by hand.
+/// The spread of the particles round a pose given by a parameter or by hand, and round the
+/// pose a restarted localiser starts from ([`Kept`]), at the least.
 const SET_POSE_SIGMA_M: f64 = 0.2;
 const SET_POSE_SIGMA_RAD: f64 = 0.15;
+
+/// How often (run time) the module asks the run to keep its correction of odometry for a
+/// process restarted after it ([`Kept`]), besides whenever the state or the proof changes.
+const KEEP_EVERY_SECS: f64 = 0.5;
+
+/// What the localiser keeps for its next process, should this one die and be restarted by the
+/// supervisor (a stall under load, a crash): the map-from-odometry correction, the estimate's
+/// standard deviations, its state and whether it was proven. The simulator's odometry (or a
+/// robot's) goes on while the localiser is down, so the correction applied to the first
+/// odometry sample the new process gets is where the robot is now, give or take the
+/// odometry's drift since; without it, a restarted localiser started at the world's start and
+/// the follower drove on that until the kidnap detector noticed (seen under load).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Kept {
+    pub map_from_odom: Pose2D,
+    pub sigma_m: f64,
+    pub sigma_rad: f64,
+    pub state: State,
+    pub proven: bool,
+}
+
+impl Kept {
+    /// One line: `X_M Y_M THETA_RAD SIGMA_M SIGMA_RAD STATE PROVEN`.
+    pub fn to_text(&self) -> String {
+        let c = self.map_from_odom;
+        format!(
+            "{} {} {} {} {} {} {}",
+            c.x_m,
+            c.y_m,
+            c.theta_rad,
+            self.sigma_m,
+            self.sigma_rad,
+            self.state.event(),
+            self.proven
+        )
+    }
+
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let words: Vec<&str> = text.split_whitespace().collect();
+        let bad =
+            || format!("kept state `{text}` is not `X Y THETA SIGMA_M SIGMA_RAD STATE PROVEN`");
+        let [x, y, theta, sigma_m, sigma_rad, state, proven] = words[..] else {
+            return Err(bad());
+        };
+        let number = |word: &str| word.parse::<f64>().ok().filter(|v| v.is_finite());
+        let (Some(x_m), Some(y_m), Some(theta_rad), Some(sigma_m), Some(sigma_rad)) = (
+            number(x),
+            number(y),
+            number(theta),
+            number(sigma_m),
+            number(sigma_rad),
+        ) else {
+            return Err(bad());
+        };
+        let state = match state {
+            "localised" => State::Localised,
+            "uncertain" => State::Uncertain,
+            "lost" => State::Lost,
+            _ => return Err(bad()),
+        };
+        let proven = proven.parse::<bool>().map_err(|_| bad())?;
+        Ok(Self {
+            map_from_odom: Pose2D {
+                x_m,
+                y_m,
+                theta_rad,
+            },
+            sigma_m: sigma_m.abs(),
+            sigma_rad: sigma_rad.abs(),
+            state,
+            proven,
+        })
+    }
+}
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
@@ -327,6 +402,43 @@ impl Localiser {
         }
     }
 
+    /// A localiser restarted with what its previous process kept: the correction is in force
+    /// at once (poses are published from the first odometry sample), and the filter starts
+    /// from it at that sample ([`Localiser::resume_at`]).
+    pub fn resumed(filter: Filter, kept: &Kept) -> Self {
+        Self {
+            filter,
+            map_from_odom: Some(kept.map_from_odom),
+        }
+    }
+
+    /// The filter put where `kept`'s correction puts the odometry pose `odom` (the first one a
+    /// restarted localiser gets), spread by the kept standard deviations, at least those of a
+    /// pose set by hand; what was to prove must still be proven, and lost stays lost.
+    pub fn resume_at(&mut self, kept: &Kept, odom: Pose2D) {
+        let pose = compose(kept.map_from_odom, odom);
+        self.filter.resume(
+            pose,
+            kept.sigma_m.max(SET_POSE_SIGMA_M),
+            kept.sigma_rad.max(SET_POSE_SIGMA_RAD),
+            kept.proven,
+            kept.state == State::Lost,
+        );
+        self.map_from_odom = Some(kept.map_from_odom);
+    }
+
+    /// What to keep for a process restarted after this one, once there is an estimate.
+    pub fn kept(&self) -> Option<Kept> {
+        let estimate = self.filter.estimate();
+        Some(Kept {
+            map_from_odom: self.map_from_odom?,
+            sigma_m: estimate.sigma_m(),
+            sigma_rad: estimate.sigma_rad(),
+            state: estimate.state,
+            proven: estimate.proven,
+        })
+    }
+
     /// The pose in the map frame for an odometry pose (none before the first scan).
     pub fn on_odometry(&self, odom: Pose2D) -> Option<Pose2D> {
         self.map_from_odom
@@ -383,6 +495,22 @@ fn report_state(
     Ok(())
 }
 
+/// Asks the run to keep the correction for a restarted process ([`Kept`]), every
+/// [`KEEP_EVERY_SECS`] and whenever the state or the proof changed.
+fn keep(node: &mut Node, localiser: &Localiser, last: &mut Option<(Kept, f64)>) {
+    let Some(kept) = localiser.kept() else {
+        return;
+    };
+    let now = node.timestamp();
+    let due = last.is_none_or(|(before, at)| {
+        now - at >= KEEP_EVERY_SECS || before.state != kept.state || before.proven != kept.proven
+    });
+    if due {
+        node.keep(&kept.to_text());
+        *last = Some((kept, now));
+    }
+}
+
 pub fn body(node: &mut Node) -> BodyResult {
     let odometry_input = node.input::<Odometry>("odometry")?;
     let scan_input = node.input::<LaserScan>("scan")?;
@@ -407,7 +535,28 @@ pub fn body(node: &mut Node) -> BodyResult {
     let seed: i64 = node.param("seed")?;
     let map = Map::new(&world, settings.sigma_hit_m, settings.robot_radius_m)?;
     let mut filter = Filter::new(settings, map, start, u64::from_ne_bytes(seed.to_ne_bytes()));
-    if node.param::<bool>("global")? {
+    // Restarted in this run: where the previous process left the robot, not the start.
+    let mut resume = match node.kept().map(Kept::parse) {
+        Some(Ok(kept)) => Some(kept),
+        Some(Err(why)) => {
+            tracing::error!("{why}: starting as configured");
+            None
+        }
+        None => None,
+    };
+    let mut set_pose: String = node.param("set_pose")?;
+    if let Some(kept) = &resume {
+        let c = kept.map_from_odom;
+        tracing::info!(
+            "map `{}`: restarted, resuming from the last process's correction of odometry \
+             ({:.2}, {:.2}, {:.0}°), {} when it ended",
+            world.name(),
+            c.x_m,
+            c.y_m,
+            c.theta_rad.to_degrees(),
+            kept.state.event()
+        );
+    } else if node.param::<bool>("global")? {
         filter.spread();
         tracing::info!(
             "map `{}`: global mode, the robot's place unknown",
@@ -422,11 +571,19 @@ pub fn body(node: &mut Node) -> BodyResult {
             start.theta_rad.to_degrees()
         );
     }
-    let mut set_pose: String = node.param("set_pose")?;
-    if let Some(pose) = parse_pose(&set_pose)? {
+    // A pose an operator set earlier in the run stays in the parameters; a restarted process
+    // has a later word from its previous one and takes it as already taken.
+    if resume.is_none()
+        && let Some(pose) = parse_pose(&set_pose)?
+    {
         filter.set_pose(pose, SET_POSE_SIGMA_M, SET_POSE_SIGMA_RAD);
     }
-    let mut localiser = Localiser::new(filter);
+    let mut localiser = match &resume {
+        Some(kept) => Localiser::resumed(filter, kept),
+        None => Localiser::new(filter),
+    };
+    // What was last kept and when (run time).
+    let mut kept_last: Option<(Kept, f64)> = None;
     let mut latest: Option<Odometry> = None;
     let mut latest_stamp_ns = 0u64;
     let mut reported: Option<State> = None;
@@ -441,6 +598,9 @@ pub fn body(node: &mut Node) -> BodyResult {
                 };
                 latest = Some(sample.value);
                 latest_stamp_ns = sample.stamp_ns;
+                if let Some(kept) = resume.take() {
+                    localiser.resume_at(&kept, sample.value.pose_in_odom);
+                }
                 if let Some(pose) = localiser.on_odometry(sample.value.pose_in_odom) {
                     let pose = Odometry {
                         pose_in_odom: pose,
@@ -483,6 +643,7 @@ pub fn body(node: &mut Node) -> BodyResult {
                 let estimate = localiser.on_scan(odometry.pose_in_odom, &sample.value);
                 node.send(&estimate_output, &message(&estimate))?;
                 report_state(node, &mut reported, &estimate, "")?;
+                keep(node, &localiser, &mut kept_last);
             }
             Event::ParamsChanged(_) => {
                 let text: String = node.param("set_pose")?;
@@ -520,6 +681,126 @@ mod tests {
 
     fn push<T: armor_module_api::types::Datum>(input: &str, value: &T) -> Step {
         Step::push(input, value).expect("encode")
+    }
+
+    fn warehouse() -> String {
+        let world = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../assets/worlds/warehouse.world");
+        world.to_str().expect("a UTF-8 path").to_owned()
+    }
+
+    /// A localiser restarted in a run, handed what its previous process kept, starts where the
+    /// robot is, not at the world's start: it publishes a pose from the first odometry sample
+    /// (the kept correction applied to it), its estimates are within 0.3 m of the truth from
+    /// the first and proven, and it keeps its own correction in turn.
+    #[test]
+    fn a_restarted_localiser_starts_from_what_its_previous_process_kept() {
+        let world = warehouse();
+        let loaded = crate::sim::load_world_file(world.as_ref()).expect("the warehouse");
+        let mut sim = Simulator::new(loaded.clone(), SimParams::default()).expect("sim");
+        let mut tour = Tour::new(WAREHOUSE_ROUND, 200_000);
+        // The first process: 150 scans of the round (15 s, along the main aisle).
+        let map = Map::new(&loaded, 0.1, 0.25).expect("map");
+        let mut first = Localiser::new(Filter::new(Settings::default(), map, loaded.start(), 1));
+        for _ in 0..150 {
+            let report = tour.next_scan(&mut sim).expect("the round goes on");
+            first.on_scan(report.odometry.pose_in_odom, sim.scan());
+        }
+        let kept = first.kept().expect("an estimate to keep");
+        assert_eq!(kept.state, State::Localised, "{kept:?}");
+        assert_eq!(Kept::parse(&kept.to_text()), Ok(kept));
+        // The robot drives on for 2 s with no localiser, then the new process starts.
+        for _ in 0..20 {
+            tour.next_scan(&mut sim).expect("the round goes on");
+        }
+        let mut script = Vec::new();
+        let mut truths = Vec::new();
+        for _ in 0..30 {
+            let report = tour.next_scan(&mut sim).expect("the round goes on");
+            script.push(Step::Advance(0.1));
+            script.push(push("odometry", &report.odometry));
+            script.push(push("scan", &sim.scan().clone()));
+            truths.push(report.truth);
+        }
+        let start = loaded.start();
+        let far_from_start = truths[0];
+        assert!(
+            (far_from_start.x_m - start.x_m).hypot(far_from_start.y_m - start.y_m) > 5.0,
+            "the robot is far from the world's start"
+        );
+        let mut bench = TestBench::new(&spec(), &[("world", &world)])
+            .expect("bench")
+            .with_kept(&kept.to_text());
+        bench.script(script);
+        body(bench.node()).expect("body");
+        let poses = bench.sent::<Odometry>("pose").expect("sent");
+        let estimates = bench.sent::<PoseEstimate>("estimate").expect("sent");
+        assert_eq!(poses.len(), 30, "a pose from the first odometry sample");
+        let off = |at: Pose2D, truth: Pose2D| (at.x_m - truth.x_m).hypot(at.y_m - truth.y_m);
+        let first_pose = off(poses[0].pose_in_odom, truths[0]);
+        assert!(first_pose < 0.3, "the first pose {first_pose:.3} m off");
+        assert_eq!(estimates.len(), 30);
+        for (estimate, truth) in estimates.iter().zip(&truths) {
+            let error = off(estimate.pose_in_map, *truth);
+            assert!(error < 0.3, "{error:.3} m off: {estimate:?}");
+            assert!(estimate.proven, "{estimate:?}");
+            assert_ne!(estimate.state, LocalisationState::Lost, "{estimate:?}");
+        }
+        let last_error = off(estimates[29].pose_in_map, truths[29]);
+        assert!(last_error < 0.1, "{last_error:.3} m off after 3 s");
+        let kept_again = bench.kept_states();
+        assert!(
+            !kept_again.is_empty(),
+            "the new process keeps its correction"
+        );
+        Kept::parse(kept_again.last().expect("one")).expect("it reads back");
+    }
+
+    /// What a previous process kept decides how a restarted filter starts: lost stays lost
+    /// (without `recover`), not proven must still be proven; a kept state that does not read is
+    /// refused with what it should be.
+    #[test]
+    fn a_restart_keeps_what_was_lost_or_unproven_so() {
+        let world = warehouse();
+        let loaded = crate::sim::load_world_file(world.as_ref()).expect("the warehouse");
+        let start = loaded.start();
+        let map = Map::new(&loaded, 0.1, 0.25).expect("map");
+        let filter = Filter::new(Settings::default(), map, start, 1);
+        let kept = |state, proven| Kept {
+            map_from_odom: Pose2D::default(),
+            sigma_m: 0.05,
+            sigma_rad: 0.02,
+            state,
+            proven,
+        };
+        for (state, proven, lost, must_prove) in [
+            (State::Localised, true, false, false),
+            (State::Uncertain, false, false, true),
+            (State::Lost, false, true, true),
+        ] {
+            let mut localiser = Localiser::new(filter.clone());
+            localiser.resume_at(&kept(state, proven), start);
+            let estimate = localiser.filter.estimate();
+            assert_eq!(
+                estimate.state == State::Lost,
+                lost,
+                "{state:?}: {estimate:?}"
+            );
+            assert_eq!(estimate.proven, !must_prove, "{state:?}: {estimate:?}");
+            assert_eq!(localiser.on_odometry(start), Some(start));
+        }
+        for bad in [
+            "",
+            "1 2 3",
+            "1 2 x 0.1 0.1 localised true",
+            "1 2 3 0.1 0.1 found true",
+        ] {
+            let err = Kept::parse(bad).expect_err(bad);
+            assert!(
+                err.contains("X Y THETA SIGMA_M SIGMA_RAD STATE PROVEN"),
+                "{err}"
+            );
+        }
     }
 
     /// The module with a laser that goes quiet: estimates at each scan, then, once the scans

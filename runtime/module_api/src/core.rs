@@ -208,6 +208,8 @@ pub(crate) struct Core {
     pub winner: Option<String>,
     /// The module's own services and where they listen ([`crate::Node::set_endpoint`]).
     pub endpoints: BTreeMap<String, String>,
+    /// What an earlier process of this module kept in this run ([`crate::Node::kept`]).
+    pub kept: Option<String>,
 }
 
 impl Core {
@@ -258,6 +260,7 @@ impl Core {
             took_event_at: None,
             applicable: None,
             winner: None,
+            kept: None,
             endpoints: BTreeMap::new(),
         }
     }

@@ -245,8 +245,8 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
     let (config, supervisor) = match std::env::var(ENV_SUPERVISOR) {
         Ok(addr) => {
             let addr = resolve(&addr)?;
-            let (config, stream) = configure(&name, addr, credentials.as_ref())?;
-            (config, Some((addr, stream)))
+            let (config, kept, stream) = configure(&name, addr, credentials.as_ref())?;
+            (config, Some((addr, stream, kept)))
         }
         Err(_) => (
             {
@@ -261,6 +261,10 @@ fn connect(spec: ModuleSpec, options: Standalone) -> Result<Node, ApiError> {
         ),
     };
     let mut core = Core::new(name, description, config, clock);
+    let supervisor = supervisor.map(|(addr, stream, kept)| {
+        core.kept = kept;
+        (addr, stream)
+    });
     let net = Net::start(&mut core, agent, supervisor, credentials)?;
     let mut node = Node::from_parts(core, Transport::Net(Box::new(net)));
     if let Transport::Net(net) = &mut node.transport {
@@ -280,12 +284,14 @@ impl Node {
     }
 }
 
-/// Greets the supervisor and waits for this module's configuration ("wait for all parameters").
+/// Greets the supervisor and waits for this module's configuration ("wait for all parameters"),
+/// and what an earlier process of this module kept, if it did (it comes before the
+/// configuration).
 fn configure(
     name: &str,
     addr: SocketAddr,
     credentials: Option<&crate::auth::Credentials>,
-) -> Result<(ModuleConfig, blocking::SecureStream), ApiError> {
+) -> Result<(ModuleConfig, Option<String>, blocking::SecureStream), ApiError> {
     let started = Instant::now();
     let stream = loop {
         match TcpStream::connect_timeout(&addr, Duration::from_secs(1)) {
@@ -312,12 +318,14 @@ fn configure(
             pid: std::process::id(),
         },
     )?;
+    let mut kept = None;
     loop {
         match blocking::read_message::<FromSupervisor>(&mut stream)? {
             FromSupervisor::Config(config) => {
                 stream.get_ref().set_read_timeout(None)?;
-                return Ok((config, stream));
+                return Ok((config, kept, stream));
             }
+            FromSupervisor::Kept { state } => kept = Some(state),
             FromSupervisor::Error { message } => return Err(ApiError::Refused(message)),
             other => tracing::debug!(?other, "ignored before configuration"),
         }

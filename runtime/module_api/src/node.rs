@@ -674,6 +674,29 @@ impl Node {
         });
     }
 
+    /// Asks the run to keep `state` for this module's next process, should this one die and be
+    /// restarted ([`Node::kept`]). Each call replaces what was kept; a state longer than
+    /// [`crate::protocol::MAX_KEPT_BYTES`] is not kept (an error in the log says so).
+    pub fn keep(&mut self, state: &str) {
+        if state.len() > crate::protocol::MAX_KEPT_BYTES {
+            tracing::error!(
+                bytes = state.len(),
+                "state to keep is longer than {} bytes: not kept",
+                crate::protocol::MAX_KEPT_BYTES
+            );
+            return;
+        }
+        self.tell_supervisor(ToSupervisor::Keep {
+            state: state.to_owned(),
+        });
+    }
+
+    /// What an earlier process of this module kept ([`Node::keep`]) in this run: `Some` only
+    /// in a module restarted after it kept something.
+    pub fn kept(&self) -> Option<&str> {
+        self.core.kept.as_deref()
+    }
+
     fn tell_supervisor(&mut self, message: ToSupervisor) {
         match &mut self.transport {
             Transport::Net(net) => net.tell_supervisor(&message),

@@ -104,6 +104,14 @@ pub enum ToSupervisor {
         name: String,
         address: String,
     },
+    /// What the module wants back if its process is restarted in this run (the localiser's
+    /// correction of odometry, so that a restarted localiser starts where the robot is, not at
+    /// the world's start): the config server keeps the latest per module name and hands it to
+    /// the next process of that name before its configuration ([`FromSupervisor::Kept`]).
+    /// Text of the module's own making, at most [`MAX_KEPT_BYTES`].
+    Keep {
+        state: String,
+    },
     /// The answer to a ping, with what the module did so far (absent from modules that do not
     /// count: `{"type":"pong"}` is a valid answer).
     Pong {
@@ -145,6 +153,12 @@ pub struct NodeStats {
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum FromSupervisor {
     Config(ModuleConfig),
+    /// What an earlier process of this module kept ([`ToSupervisor::Keep`]) in this run: sent
+    /// once, just before the first `config` of a restarted module, and only to a module that
+    /// kept something.
+    Kept {
+        state: String,
+    },
     Start,
     Stop,
     Shutdown,
@@ -161,6 +175,9 @@ pub enum FromSupervisor {
         health: crate::types::Health,
     },
 }
+
+/// The longest state a module may keep ([`ToSupervisor::Keep`]); a longer one is dropped.
+pub const MAX_KEPT_BYTES: usize = 4096;
 
 /// The data name of the run's health stream: an input of type `Health` linked from it gets
 /// every report, through the module's connection to the config server.

@@ -185,6 +185,26 @@ impl TestBench {
 }
 
 impl TestBench {
+    /// The module as if restarted after an earlier process kept `state` ([`Node::kept`]).
+    pub fn with_kept(mut self, state: &str) -> Self {
+        self.node.core.kept = Some(state.to_owned());
+        self
+    }
+
+    /// The states the module asked to keep ([`Node::keep`]), in order.
+    pub fn kept_states(&self) -> Vec<String> {
+        let Transport::Test(test) = &self.node.transport else {
+            return Vec::new();
+        };
+        test.reports
+            .iter()
+            .filter_map(|report| match report {
+                ToSupervisor::Keep { state } => Some(state.clone()),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// The endpoints the module said it listens at ([`Node::set_endpoint`]), in order, each as
     /// `NAME ADDRESS`.
     pub fn endpoints(&self) -> Vec<String> {

@@ -127,6 +127,10 @@ struct State {
     health: HealthBook,
     /// What behaviours and arbiters said, the states that follow and their time line.
     behaviours: Behaviours,
+    /// What each module last asked to keep for its next process (`ToSupervisor::Keep`), by
+    /// module name, for the rest of the run: a restarted module gets it before its
+    /// configuration.
+    kept: HashMap<String, String>,
 }
 
 impl State {
@@ -383,6 +387,7 @@ impl ConfigServer {
             demand: BTreeMap::new(),
             health: HealthBook::new(clock),
             behaviours: Behaviours::default(),
+            kept: HashMap::new(),
         };
         state.demand = state.compute_demand();
         let server = Self {
@@ -560,6 +565,15 @@ impl ConfigServer {
                 blocking::write_message(&mut writer, &FromSupervisor::Error { message })?;
                 return Ok(());
             };
+            if let Some(kept) = state.kept.get(&name) {
+                tracing::info!(module = name, "handing the module what it kept");
+                blocking::write_message(
+                    &mut writer,
+                    &FromSupervisor::Kept {
+                        state: kept.clone(),
+                    },
+                )?;
+            }
             blocking::write_message(&mut writer, &FromSupervisor::Config(config.clone()))?;
             writer.get_ref().set_write_timeout(Some(WRITE_TIMEOUT))?;
             state.health.connected(&name);
@@ -648,6 +662,19 @@ impl ConfigServer {
                     {
                         tracing::debug!(module = name, endpoint, address, "endpoint");
                         conn.note_endpoint(endpoint, &address);
+                    }
+                    continue;
+                }
+                ToSupervisor::Keep { state: kept } => {
+                    if kept.len() <= armor_module_api::protocol::MAX_KEPT_BYTES {
+                        let mut state = self.lock();
+                        if state
+                            .conns
+                            .get(&name)
+                            .is_some_and(|conn| conn.conn_id == conn_id)
+                        {
+                            state.kept.insert(name.clone(), kept);
+                        }
                     }
                     continue;
                 }

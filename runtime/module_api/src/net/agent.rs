@@ -122,6 +122,9 @@ impl Net {
             ),
             FromSupervisor::Error { message } => tracing::error!("supervisor: {message}"),
             FromSupervisor::Health { seq, health } => core.on_health(seq, &health),
+            // Kept state is for a process's start: a reconnection of the same process to the
+            // config server has its own state already.
+            FromSupervisor::Kept { .. } => {}
         }
     }
 }
