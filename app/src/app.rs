@@ -75,8 +75,6 @@ pub struct StudioApp {
     palette: Palette,
     home: Home,
     status: Status,
-    /// Frames still to draw after the last change the status line told of (see `after_frame`).
-    settling: u8,
     path_dialog: Option<PathDialog>,
     help_open: bool,
     /// The start page is on offer (no document yet), with the examples found.
@@ -131,7 +129,6 @@ impl StudioApp {
             palette,
             home: options.home,
             status: Status::default(),
-            settling: 0,
             path_dialog: None,
             help_open: false,
             start: (options.start_page && options.file.is_none()).then(crate::start::examples),
@@ -416,7 +413,6 @@ impl StudioApp {
         let text = crate::files::in_words(&text);
         tracing::info!("{text}");
         self.status = Status { text, is_error };
-        self.settling = 2;
     }
 
     /// Shows on the status line what the System view said.
@@ -605,14 +601,6 @@ impl StudioApp {
         }
         self.system.update_problems(&self.palette);
         self.autosave(ctx);
-        // What an action changed is drawn in the two frames after it as well, without waiting
-        // for input: under load, the Xvfb test saw the frame drawn before a plan was opened
-        // stay on the screen for 20 s after the studio had opened it (a frame is shown only
-        // when a later one is presented, or the repaint asked for was lost).
-        if self.settling > 0 {
-            self.settling -= 1;
-            ctx.request_repaint();
-        }
     }
 
     // ----- Commands: keys and menus -----
