@@ -88,10 +88,9 @@ impl Kept {
         )
     }
 
-    pub fn parse(text: &str) -> Result<Self, String> {
+    pub fn parse(text: &str) -> Result<Self, BadKept> {
         let words: Vec<&str> = text.split_whitespace().collect();
-        let bad =
-            || format!("kept state `{text}` is not `X Y THETA SIGMA_M SIGMA_RAD STATE PROVEN`");
+        let bad = || BadKept(text.to_owned());
         let [x, y, theta, sigma_m, sigma_rad, state, proven] = words[..] else {
             return Err(bad());
         };
@@ -125,6 +124,11 @@ impl Kept {
         })
     }
 }
+
+/// A kept line that is not [`Kept::to_text`]'s: the restarted process starts as configured.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("kept state `{0}` is not `X Y THETA SIGMA_M SIGMA_RAD STATE PROVEN`")]
+pub struct BadKept(pub String);
 
 pub fn spec() -> ModuleSpec {
     ModuleSpec::new(
@@ -795,7 +799,7 @@ mod tests {
             "1 2 x 0.1 0.1 localised true",
             "1 2 3 0.1 0.1 found true",
         ] {
-            let err = Kept::parse(bad).expect_err(bad);
+            let err = Kept::parse(bad).expect_err(bad).to_string();
             assert!(
                 err.contains("X Y THETA SIGMA_M SIGMA_RAD STATE PROVEN"),
                 "{err}"
