@@ -675,6 +675,14 @@ impl ConfigServer {
                         {
                             state.kept.insert(name.clone(), kept);
                         }
+                    } else {
+                        // A module of another language learns it only from the run's log.
+                        tracing::warn!(
+                            module = name,
+                            bytes = kept.len(),
+                            "a `keep` over {} bytes is not kept",
+                            armor_module_api::protocol::MAX_KEPT_BYTES
+                        );
                     }
                     continue;
                 }
